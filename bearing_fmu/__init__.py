@@ -1,0 +1,1 @@
+"""bearing_fmu."""
