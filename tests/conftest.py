@@ -1,0 +1,42 @@
+"""Shared fixtures: test FMUs built once per session with pythonfmu.
+
+``test_fmus`` builds every ``tests/fmus_src/*.py`` into a session temporary
+directory and returns ``{class_name: Path}``, e.g. ``test_fmus["LeftMass"]``.
+Other owners may use it (it is the documented way to get small real FMUs).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+FMU_SRC = Path(__file__).parent / "fmus_src"
+
+# Build options per source file (FMI CoSimulation capability flags).
+_OPTIONS = {
+    "integrator": {"canGetAndSetFMUstate": True},
+    "left_mass": {"canGetAndSetFMUstate": True},
+    "right_mass": {"canGetAndSetFMUstate": True},
+}
+
+
+def build_test_fmus(dest: Path) -> dict[str, Path]:
+    """Build every test FMU source into ``dest``; return ``{model_name: fmu_path}``."""
+    from pythonfmu.builder import FmuBuilder
+
+    dest = Path(dest)
+    dest.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for src in sorted(FMU_SRC.glob("*.py")):
+        if src.name.startswith("_"):
+            continue
+        path = Path(FmuBuilder.build_FMU(src, dest=dest, **_OPTIONS.get(src.stem, {})))
+        out[path.stem] = path
+    return out
+
+
+@pytest.fixture(scope="session")
+def test_fmus(tmp_path_factory) -> dict[str, Path]:
+    """Paths of the test FMUs (LeftMass, RightMass, Gain, Integrator, Faulty, Trivial, Params)."""
+    return build_test_fmus(tmp_path_factory.mktemp("test_fmus"))
