@@ -1,0 +1,406 @@
+"""JournalBearing: FMI 2.0 co-simulation slave of one hydrodynamic journal bearing.
+
+A thin PythonFMU wrapper (the builder needs a class that derives *directly*
+from ``Fmi2Slave``, and the FMU's C loader finds it with the regular expression
+``^class (\\w+)\\(\\s*Fmi2Slave\\s*\\)\\s*:``) around
+:class:`bearing_fmu.model.JournalBearing`. All physics lives in the model; this
+module only maps FMI variables to it. Variables, units and capabilities are
+documented in ``docs/fmus.md``.
+
+Life cycle
+----------
+``__init__`` only registers variables (the builder instantiates this class to
+write ``modelDescription.xml``): no grid, no numba compilation. Parameters and
+inputs may be set before and during initialization. The model is built and
+initialized with the current parameter and input values when the importer first
+asks for an output in initialization mode or, at the latest, in
+``exit_initialization_mode``. ``do_step`` advances the film over the
+communication step with the inputs held constant (zero-order hold: PythonFMU
+does not implement ``fmi2SetRealInputDerivatives``).
+
+FMU state
+---------
+PythonFMU's default ``fmi2GetFMUstate`` only collects registered scalar
+variables, which would lose the pressure field and the integrator history.
+``_get_fmu_state``/``_set_fmu_state`` are overridden here to deep-copy the
+model's ``get_state()`` (arrays included) together with the FMI-visible
+scalars, so a restore is exact. States serialize with ``pickle``.
+
+Where the code comes from
+-------------------------
+``orchestrator/build.py`` bundles the ``bearing_fmu`` package sources into the
+FMU's ``resources/`` folder, which the PythonFMU loader puts first on
+``sys.path``; the FMU needs numpy, scipy and numba in the importing Python, not
+an installed rotorcosim. (If a process has already imported ``bearing_fmu``,
+Python reuses that module.)
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import pickle
+from pathlib import Path
+from typing import Any
+from xml.etree.ElementTree import Element, SubElement
+
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu.enums import Fmi2Initial, Fmi2Status
+from pythonfmu.variables import Boolean
+
+# ----------------------------------------------------------------------------
+# Variable tables: name -> (default, unit, description)
+# ----------------------------------------------------------------------------
+DEFAULT_R = 0.02
+
+REAL_PARAMETERS: dict[str, tuple[float, str, str]] = {
+    "R": (DEFAULT_R, "m", "journal (bearing) radius R [m]"),
+    "B": (1.6 * DEFAULT_R, "m", "axial bearing width B [m]"),
+    "psi": (2.8e-3, "1", "relative radial clearance psi = C/R [-]"),
+    "eta0": (0.012, "Pa.s", "dynamic viscosity of the pure lubricant eta0 [Pa s]"),
+    "p0": (1.0e5, "Pa", "ambient pressure p0 [Pa]"),
+    "p_feed": (1.0e5, "Pa", "feed pressure in the axial groove p_feed [Pa]"),
+    "groove_width": (0.0, "rad", "opening angle of the axial feed groove [rad] (0: no groove)"),
+    "groove_angle": (math.pi / 2, "rad", "groove centre, from +x counter-clockwise [rad]"),
+}
+INTEGER_PARAMETERS: dict[str, tuple[int, str]] = {
+    "n_phi": (40, "number of grid cells in the circumferential direction [-]"),
+    "n_z": (40, "number of grid cells in the axial direction [-]"),
+    "cavitation": (1, "cavitation model: 0 half-Sommerfeld (quasi-static), 1 mass-conserving two-phase (transient)"),
+    "axial_bc": (0, "axial boundary condition: 0 oil bath (Dirichlet p0), 1 free to air (Neumann penalty)"),
+}
+INPUTS: dict[str, tuple[str, str]] = {
+    "x": ("m", "journal centre x relative to the bearing centre [m] (x horizontal)"),
+    "y": ("m", "journal centre y relative to the bearing centre [m] (y vertical up)"),
+    "vx": ("m/s", "journal centre velocity x [m/s]"),
+    "vy": ("m/s", "journal centre velocity y [m/s]"),
+    "omega": ("rad/s", "journal angular speed about +z (counter-clockwise positive) [rad/s]"),
+}
+OUTPUTS: dict[str, tuple[str, str]] = {
+    "Fx": ("N", "film force on the journal, x [N]"),
+    "Fy": ("N", "film force on the journal, y [N]"),
+    "eps": ("1", "relative eccentricity |e|/C [-]"),
+    "attitude": ("rad", "angle of the journal centre, from +x counter-clockwise [rad]"),
+    "p_max": ("Pa", "maximum film pressure [Pa]"),
+    "p_min": ("Pa", "minimum film pressure [Pa]"),
+    "h_min": ("m", "minimum film thickness [m]"),
+    "torque": ("N.m", "friction torque of the film on the journal about +z [N m]"),
+    "q_feed": ("m3/s", "volume inflow through the feed groove [m^3/s]"),
+    "q_side": ("m3/s", "volume outflow through both axial edges [m^3/s]"),
+}
+# Outputs the model must provide (issue 5 contract); the others default to 0.
+REQUIRED_OUTPUTS = ("Fx", "Fy", "eps", "p_max", "p_min", "h_min")
+
+UNITS = {
+    "m": dict(m="1"), "m/s": dict(m="1", s="-1"), "rad": dict(rad="1"),
+    "rad/s": dict(rad="1", s="-1"), "Pa": dict(kg="1", m="-1", s="-2"),
+    "Pa.s": dict(kg="1", m="-1", s="-1"), "N": dict(kg="1", m="1", s="-2"),
+    "N.m": dict(kg="1", m="2", s="-2"), "m3/s": dict(m="3", s="-1"), "1": {},
+}
+
+
+class _RealU(Real):
+    """PythonFMU ``Real`` with an FMI ``unit`` attribute."""
+
+    def __init__(self, name: str, unit: str | None = None, **kwargs: Any):
+        super().__init__(name, **kwargs)
+        self.unit = unit
+
+    def to_xml(self) -> Element:
+        node = super().to_xml()
+        if self.unit:
+            node.find("Real").set("unit", self.unit)
+        return node
+
+
+def _finish_model_description(root: Element, units: set[str]) -> Element:
+    """Complete PythonFMU's ``modelDescription.xml`` tree.
+
+    * ``<UnitDefinitions>`` right after ``<CoSimulation>`` (schema order), so the
+      ``unit`` attributes of the variables refer to defined units;
+    * ``<Outputs>``: ``dependencies=""``: outputs change only in ``fmi2DoStep``
+      (setting an input does not change an output: no direct feedthrough);
+    * ``<InitialUnknowns>``: every output (initial="calculated"), with the default
+      (unknown) dependencies: in initialization mode outputs are computed from
+      the parameters and inputs.
+    """
+    if units:
+        defs = Element("UnitDefinitions")
+        for name in sorted(units):
+            u = SubElement(defs, "Unit", attrib={"name": name})
+            SubElement(u, "BaseUnit", attrib=UNITS[name])
+        children = list(root)
+        idx = next(i for i, c in enumerate(children) if c.tag == "CoSimulation") + 1
+        root.insert(idx, defs)
+    structure = root.find("ModelStructure")
+    outputs = structure.find("Outputs")
+    if outputs is not None:
+        indices = []
+        for unknown in outputs.findall("Unknown"):
+            unknown.set("dependencies", "")
+            indices.append(unknown.get("index"))
+        initial = SubElement(structure, "InitialUnknowns")
+        for index in indices:
+            SubElement(initial, "Unknown", attrib={"index": index})
+    return root
+
+
+class InitializationStateError(RuntimeError):
+    """An FMI call came in the wrong life-cycle phase."""
+
+
+class JournalBearing(Fmi2Slave):
+    """Hydrodynamic journal bearing (short/finite film on a (phi, z) grid).
+
+    Parameters, inputs and outputs: see the tables at module level and
+    ``docs/fmus.md``. Film force is the force of the oil film ON the journal.
+    """
+
+    author = "rotorcosim"
+    description = ("Hydrodynamic journal bearing: Reynolds equation on the developed film, "
+                   "half-Sommerfeld or mass-conserving two-phase cavitation, oil bath or free-to-air edges")
+    version = "0.1.0"
+
+    def __init__(self, **kwargs: Any):
+        super().__init__(**kwargs)
+        self._values: dict[str, Any] = {}
+        self._extra_types: dict[str, type] = {}
+        self._model = None
+        self._initialized = False          # exit_initialization_mode done
+        self._init_key = None              # (params, inputs) the model was initialized with
+        self._time = 0.0
+        self._start_time = 0.0
+        self.fields_file = ""
+        units: set[str] = set()
+
+        par = dict(causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed)
+        for name, (default, unit, desc) in REAL_PARAMETERS.items():
+            self._values[name] = float(default)
+            self._register_real(name, unit, desc, **par)
+            units.add(unit)
+        for name, (default, desc) in INTEGER_PARAMETERS.items():
+            self._values[name] = int(default)
+            self.register_variable(Integer(
+                name, description=desc, getter=self._getter(name),
+                setter=self._param_setter(name, int), **par))
+        for name, default, kind in self._extra_model_parameters():
+            self._values[name] = default
+            self._extra_types[name] = kind
+            desc = f"bearing model parameter '{name}' (see bearing_fmu.model.BearingParams; SI units)"
+            if kind is float:
+                self._register_real(name, None, desc, **par)
+            elif kind is bool:
+                self.register_variable(Boolean(
+                    name, description=desc, getter=self._getter(name),
+                    setter=self._param_setter(name, bool), **par))
+            else:
+                self.register_variable(Integer(
+                    name, description=desc, getter=self._getter(name),
+                    setter=self._param_setter(name, int), **par))
+        self.register_variable(String(
+            "fields_file", description=(
+                "if not empty: at fmi2Terminate write numpy.savez(fields_file, phi, z, p, theta, h, t) "
+                "(arrays of JournalBearing.fields(); '{out_dir}' is substituted by the rotorcosim master)"),
+            getter=lambda: self.fields_file, setter=self._set_fields_file, **par))
+
+        for name, (unit, desc) in INPUTS.items():
+            self._values[name] = 0.0
+            self._register_real(name, unit, desc, causality=Fmi2Causality.input,
+                                variability=Fmi2Variability.continuous)
+            units.add(unit)
+        for name, (unit, desc) in OUTPUTS.items():
+            self._values[name] = 0.0
+            self.register_variable(_RealU(
+                name, unit=unit, description=desc, causality=Fmi2Causality.output,
+                variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
+                getter=self._output_getter(name)))
+            units.add(unit)
+        self.register_variable(_RealU(
+            "t_film", unit="s", description="film (model) time [s]",
+            causality=Fmi2Causality.local, variability=Fmi2Variability.continuous,
+            initial=Fmi2Initial.calculated, getter=lambda: self._time))
+        units.add("s")
+        UNITS.setdefault("s", dict(s="1"))
+        self._units = units
+
+    # -- registration helpers -------------------------------------------------
+    def _register_real(self, name: str, unit: str | None, desc: str, **kw: Any) -> None:
+        setter = (self._param_setter(name, float) if kw.get("causality") == Fmi2Causality.parameter
+                  else self._input_setter(name))
+        self.register_variable(_RealU(name, unit=unit, description=desc,
+                                      getter=self._getter(name), setter=setter, **kw))
+
+    def _getter(self, name: str):
+        return lambda: self._values[name]
+
+    def _output_getter(self, name: str):
+        def get():
+            if not self._initialized:  # outputs asked in initialization mode
+                self._ensure_model()
+            return self._values[name]
+        return get
+
+    def _param_setter(self, name: str, kind: type):
+        def set_(value):
+            value = kind(value)
+            if self._initialized and value != self._values[name]:
+                raise InitializationStateError(
+                    f"parameter '{name}' is fixed after initialization (tried {value!r}, "
+                    f"has {self._values[name]!r}); set it before fmi2ExitInitializationMode")
+            self._values[name] = value
+        return set_
+
+    def _input_setter(self, name: str):
+        def set_(value):
+            self._values[name] = float(value)
+        return set_
+
+    def _set_fields_file(self, value: str) -> None:
+        self.fields_file = str(value)
+
+    def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006 (PythonFMU's signature)
+        return _finish_model_description(super().to_xml(model_options), self._units)
+
+    @staticmethod
+    def _extra_model_parameters() -> list[tuple[str, Any, type]]:
+        """Fields of ``BearingParams`` beyond the issue-5 ones, with their defaults."""
+        try:
+            from bearing_fmu.model import BearingParams
+        except ImportError:
+            return []
+        known = set(REAL_PARAMETERS) | set(INTEGER_PARAMETERS)
+        extra = []
+        for f in dataclasses.fields(BearingParams):
+            if f.name in known or f.name.startswith("_"):
+                continue
+            if f.default is not dataclasses.MISSING:
+                default = f.default
+            elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
+                default = f.default_factory()  # type: ignore[misc]
+            else:
+                continue
+            if isinstance(default, bool):
+                extra.append((f.name, bool(default), bool))
+            elif isinstance(default, int):
+                extra.append((f.name, int(default), int))
+            elif isinstance(default, float):
+                extra.append((f.name, float(default), float))
+        return extra
+
+    # -- model ----------------------------------------------------------------
+    def _params(self) -> dict[str, Any]:
+        names = list(REAL_PARAMETERS) + list(INTEGER_PARAMETERS) + list(self._extra_types)
+        return {n: self._values[n] for n in names}
+
+    def _inputs(self) -> tuple[float, ...]:
+        return tuple(self._values[n] for n in INPUTS)
+
+    def _ensure_model(self) -> None:
+        """Build and initialize the model for the current parameters and inputs."""
+        key = (tuple(sorted(self._params().items())), self._inputs())
+        if self._model is not None and key == self._init_key:
+            return
+        from bearing_fmu.model import BearingParams
+        from bearing_fmu.model import JournalBearing as Model
+        model = Model(BearingParams(**self._params()))
+        model.initialize(*self._inputs())
+        self._model = model
+        self._init_key = key
+        self._copy_outputs()
+
+    def _copy_outputs(self) -> None:
+        out = self._model.outputs
+        missing = [n for n in REQUIRED_OUTPUTS if n not in out]
+        if missing:
+            raise KeyError(f"bearing model outputs lack {missing}; it provides {sorted(out)}")
+        for name in OUTPUTS:
+            self._values[name] = float(out.get(name, 0.0))
+
+    # -- FMI life cycle --------------------------------------------------------
+    def setup_experiment(self, start_time: float, stop_time=None, tolerance=None):
+        self._time = float(start_time)
+        self._start_time = float(start_time)
+
+    def exit_initialization_mode(self):
+        self._ensure_model()
+        self._time = self._start_time
+        self._initialized = True
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        if not self._initialized:
+            raise InitializationStateError("do_step before exit_initialization_mode")
+        if abs(current_time - self._time) > 1e-9 * max(1.0, abs(current_time)) + 1e-6 * step_size:
+            raise InitializationStateError(
+                f"do_step at t={current_time!r} but the FMU is at t={self._time!r}; "
+                "restore a saved FMU state to step from an earlier time")
+        if step_size <= 0.0:
+            raise ValueError(f"step_size must be > 0 (got {step_size!r})")
+        saved = copy.deepcopy(self._model.get_state())
+        try:
+            self._model.step(step_size, *self._inputs())
+        except Exception as exc:  # the film could not be advanced: Discard, keep the state at t
+            if not _is_numerical_failure(exc):
+                raise
+            self._model.set_state(saved)
+            self.log(f"bearing step t={current_time:.9g} dt={step_size:.3g} failed: {exc}",
+                     Fmi2Status.discard)
+            return False
+        self._copy_outputs()
+        self._time = current_time + step_size
+        return True
+
+    def terminate(self):
+        if self.fields_file and self._model is not None:
+            path = Path(self.fields_file)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            import numpy as np
+            fields = self._model.fields()
+            np.savez(path, t=np.float64(self._time), **{k: np.asarray(v) for k, v in fields.items()})
+
+    # -- FMU state --------------------------------------------------------------
+    def _get_fmu_state(self) -> dict[str, Any]:
+        return {
+            "values": dict(self._values),
+            "fields_file": self.fields_file,
+            "time": self._time,
+            "initialized": self._initialized,
+            "init_key": self._init_key,
+            "model": None if self._model is None else copy.deepcopy(self._model.get_state()),
+        }
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        if state["model"] is not None and self._model is None:
+            # state taken from another instance of the same FMU: rebuild the model first
+            self._values.update(state["values"])
+            self._ensure_model()
+        self._values = dict(state["values"])
+        self.fields_file = state["fields_file"]
+        self._time = state["time"]
+        self._initialized = state["initialized"]
+        self._init_key = state["init_key"]
+        if state["model"] is None:
+            self._model = None
+        else:
+            self._model.set_state(copy.deepcopy(state["model"]))
+
+    @staticmethod
+    def _fmu_state_to_bytes(state: dict[str, Any]) -> bytes:
+        return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+
+    @staticmethod
+    def _fmu_state_from_bytes(state: bytes) -> dict[str, Any]:
+        return pickle.loads(state)
+
+
+def _is_numerical_failure(exc: Exception) -> bool:
+    """True for 'cannot complete this step' failures (become fmi2Discard)."""
+    if isinstance(exc, (FloatingPointError, ArithmeticError)):
+        return True
+    try:
+        from bearing_fmu import model as _m
+    except ImportError:
+        return False
+    kinds = tuple(getattr(_m, n) for n in ("ConvergenceError", "StepFailure", "SolverError")
+                  if isinstance(getattr(_m, n, None), type))
+    return bool(kinds) and isinstance(exc, kinds)
