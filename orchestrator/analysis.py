@@ -1,0 +1,557 @@
+"""Run-up analysis: whirl onset and vanishing, eccentricity maxima, whirl ratio.
+
+Method (details, parameters and the synthetic validation: ``docs/analysis.md``)
+-------------------------------------------------------------------------------
+The journal motion of each bearing is the complex displacement ``z = x + i y``
+(x horizontal, y vertical up, the journal spins counter-clockwise, so forward
+whirl has positive frequency). It is analysed in the *order domain*:
+
+1. Shaft revolutions ``r(t) = (1/2 pi) * integral of omega dt`` (trapezoid).
+2. ``z`` is re-sampled on a uniform grid of ``samples_per_rev`` points per
+   revolution by *averaging* the piecewise-linear ``z(r)`` over each angle bin
+   (a box-car anti-alias filter: noise and fast content are not folded back).
+3. Sliding windows of ``window_revs`` (an integer) revolutions, hop
+   ``hop_revs``: linear detrend (removes the static equilibrium position and its
+   slow drift with speed), periodic Hann window, FFT normalised by ``sum(w)``.
+   The bins are orders (multiples of the rotor speed), spacing
+   ``1/window_revs``; a forward circular orbit of radius ``A`` gives a peak of
+   ``A``. Because a window spans an integer number of revolutions, the
+   synchronous (1x, unbalance) component sits exactly on a bin and leaks only
+   into its two neighbours, even while the speed ramps.
+4. Per window: ``sub`` = forward amplitude in the sub-synchronous order band
+   ``band`` (band power / equivalent noise bandwidth, so the estimate does not
+   depend on where the peak falls between bins); ``sync`` = the same for the
+   1x bin and its neighbours; ``ratio`` = the order of the largest forward
+   sub-synchronous peak, refined by a log-parabolic fit over three bins. The
+   window is attributed to the time at its centre angle.
+5. Whirl episodes by hysteresis on ``sub / clearance``: an episode starts where
+   it rises above ``threshold`` and stays above ``off_fraction * threshold``
+   for ``persist_revs`` revolutions (or to the end of the data); it ends
+   (whirl vanishes) where it falls below ``off_fraction * threshold`` and does
+   not come back above ``threshold`` within ``persist_revs``. Crossing times are
+   interpolated linearly between window centres.
+
+The onset is therefore "the sub-synchronous orbit reaches ``threshold`` times
+the clearance", with a time uncertainty of about half a window
+(``window_revs / (2 f_rot)``), reported as ``time_resolution_s``.
+
+Public functions work on numpy arrays; :func:`analyze_run` reads a run
+directory and never raises (it returns ``{"error": ...}``).
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import math
+import warnings
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+TWO_PI = 2.0 * math.pi
+HANN_ENBW = 1.5          # equivalent noise bandwidth of the periodic Hann window [bins]
+
+
+@dataclass(frozen=True, kw_only=True)
+class WhirlParams:
+    """Parameters of the whirl detection (scenario key ``analysis.whirl``).
+
+    window_revs : int
+        Window length in shaft revolutions; order resolution ``1/window_revs``.
+    hop_revs : int
+        Hop between windows [revolutions].
+    samples_per_rev : int
+        Order-domain samples per revolution (orders up to ``samples_per_rev/2``).
+    band : (float, float)
+        Forward sub-synchronous order band [x rotor speed].
+    threshold : float
+        Sub-synchronous amplitude, relative to the clearance, that starts a whirl episode.
+    off_fraction : float
+        The episode ends below ``off_fraction * threshold`` (hysteresis).
+    persist_revs : float
+        The state change must persist this many revolutions.
+    """
+
+    window_revs: int = 16
+    hop_revs: int = 2
+    samples_per_rev: int = 32
+    band: tuple[float, float] = (0.15, 0.85)
+    threshold: float = 0.05
+    off_fraction: float = 0.5
+    persist_revs: float = 16.0
+
+    def check(self) -> list[str]:
+        """Problems with these values (empty when valid)."""
+        p = []
+        if int(self.window_revs) != self.window_revs or self.window_revs < 4:
+            p.append(f"window_revs must be an integer >= 4 (got {self.window_revs})")
+        if int(self.hop_revs) != self.hop_revs or self.hop_revs < 1:
+            p.append(f"hop_revs must be an integer >= 1 (got {self.hop_revs})")
+        if int(self.samples_per_rev) != self.samples_per_rev or self.samples_per_rev < 8:
+            p.append(f"samples_per_rev must be an integer >= 8 (got {self.samples_per_rev})")
+        lo, hi = self.band
+        if not 0.0 < lo < hi < 1.0:
+            p.append(f"band must satisfy 0 < low < high < 1 (got {self.band})")
+        elif self.window_revs >= 4 and (lo * self.window_revs < 2 or (1 - hi) * self.window_revs < 2):
+            p.append(f"band {self.band} must stay 2 bins (2/window_revs = {2 / self.window_revs:g}) "
+                     "away from orders 0 and 1; widen window_revs or narrow band")
+        if not self.threshold > 0:
+            p.append(f"threshold must be > 0 (got {self.threshold})")
+        if not 0.0 < self.off_fraction <= 1.0:
+            p.append(f"off_fraction must be in (0, 1] (got {self.off_fraction})")
+        if not self.persist_revs >= 0:
+            p.append(f"persist_revs must be >= 0 (got {self.persist_revs})")
+        return p
+
+    @classmethod
+    def from_mapping(cls, m: Mapping[str, Any] | None) -> "WhirlParams":
+        """Build from the scenario's ``analysis.whirl`` mapping; ValueError lists problems."""
+        if not m:
+            return cls()
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(m) - known)
+        if unknown:
+            raise ValueError(f"analysis.whirl: unknown key(s) {unknown}; valid keys: {sorted(known)}")
+        kw = dict(m)
+        if "band" in kw:
+            kw["band"] = tuple(float(v) for v in kw["band"])
+        out = replace(cls(), **kw)
+        problems = out.check()
+        if problems:
+            raise ValueError("analysis.whirl: " + "; ".join(problems))
+        return out
+
+
+# ----------------------------------------------------------------------------- order domain
+
+def revolutions(t: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """Shaft revolutions ``integral(omega dt) / 2 pi`` (trapezoid), starting at 0."""
+    t = np.asarray(t, float)
+    omega = np.asarray(omega, float)
+    r = np.zeros_like(t)
+    if t.size > 1:
+        r[1:] = np.cumsum(0.5 * (omega[1:] + omega[:-1]) * np.diff(t)) / TWO_PI
+    return r
+
+
+def order_resample(t: np.ndarray, z: np.ndarray, r: np.ndarray, samples_per_rev: int):
+    """Average ``z`` over uniform angle bins of ``1/samples_per_rev`` revolution.
+
+    ``z`` is taken piecewise linear in ``r`` between samples, and each bin value
+    is its exact mean over the bin (box-car anti-alias filter). Samples where
+    ``r`` does not increase (standstill, reverse rotation) are dropped.
+
+    Returns ``(r_c, z_c, t_c)``: bin-centre revolutions, bin means, times at the
+    bin centres. Empty arrays when fewer than two bins fit.
+    """
+    t = np.asarray(t, float)
+    z = np.asarray(z, complex)
+    r = np.asarray(r, float)
+    ok = np.isfinite(t) & np.isfinite(r) & np.isfinite(z)
+    t, z, r = t[ok], z[ok], r[ok]
+    if r.size:
+        keep = np.ones(r.size, bool)
+        keep[1:] = r[1:] > np.maximum.accumulate(r)[:-1]
+        t, z, r = t[keep], z[keep], r[keep]
+    empty = (np.empty(0), np.empty(0, complex), np.empty(0))
+    if r.size < 2:
+        return empty
+    m = int(samples_per_rev)
+    e0 = math.ceil(r[0] * m) / m
+    n_bins = int(math.floor((r[-1] - e0) * m + 1e-9))
+    if n_bins < 2:
+        return empty
+    edges = e0 + np.arange(n_bins + 1) / m
+    # exact integral of the piecewise-linear z(r) from r[0] to each edge
+    dr = np.diff(r)
+    cum = np.concatenate([[0.0], np.cumsum(0.5 * (z[1:] + z[:-1]) * dr)])
+    i = np.clip(np.searchsorted(r, edges, side="right") - 1, 0, r.size - 2)
+    s = edges - r[i]
+    slope = (z[i + 1] - z[i]) / dr[i]
+    integ = cum[i] + z[i] * s + 0.5 * slope * s * s
+    z_c = np.diff(integ) * m
+    r_c = 0.5 * (edges[1:] + edges[:-1])
+    t_c = np.interp(r_c, r, t)
+    return r_c, z_c, t_c
+
+
+@dataclass(frozen=True)
+class OrderSpectra:
+    """Short-time order spectra of one journal (one row per window).
+
+    ``X[k, j]`` is the complex amplitude at order ``orders[j]`` (positive =
+    forward whirl) of window ``k``; a forward circular orbit of radius ``A`` at a
+    bin gives ``|X| = A``. ``t``, ``speed_hz``: time and rotor speed at the
+    window centre; ``t_start``, ``t_end``: time span of the window.
+    """
+
+    t: np.ndarray
+    speed_hz: np.ndarray
+    t_start: np.ndarray
+    t_end: np.ndarray
+    orders: np.ndarray
+    X: np.ndarray
+    params: WhirlParams
+
+    @property
+    def n_frames(self) -> int:
+        return self.t.size
+
+    def band_amplitude(self, lo: float, hi: float) -> np.ndarray:
+        """Amplitude of the content in the order band [lo, hi] (band power / ENBW)."""
+        sel = (self.orders >= lo - 1e-12) & (self.orders <= hi + 1e-12)
+        return np.sqrt(np.sum(np.abs(self.X[:, sel]) ** 2, axis=1) / HANN_ENBW)
+
+    def sync_amplitude(self) -> np.ndarray:
+        """Forward synchronous (1x) amplitude: the 1x bin and its two neighbours."""
+        d = 1.0 / self.params.window_revs
+        return self.band_amplitude(1.0 - 1.5 * d, 1.0 + 1.5 * d)
+
+    def subsync_amplitude(self) -> np.ndarray:
+        """Forward sub-synchronous amplitude in ``params.band``."""
+        return self.band_amplitude(*self.params.band)
+
+
+def order_spectra(t, z, omega, params: WhirlParams | None = None) -> OrderSpectra:
+    """Sliding-window order spectra of the complex displacement ``z(t)``.
+
+    Parameters
+    ----------
+    t : (n,) times [s], increasing.
+    z : (n,) complex journal displacement ``x + i y`` [m].
+    omega : (n,) rotor speed [rad/s] (positive = counter-clockwise).
+    params : WhirlParams, defaults when None.
+
+    Too little data for one window gives zero frames (no exception).
+    """
+    p = params or WhirlParams()
+    t = np.asarray(t, float)
+    omega = np.asarray(omega, float)
+    r = revolutions(t, np.where(np.isfinite(omega), omega, 0.0))
+    r_c, z_c, t_c = order_resample(t, z, r, p.samples_per_rev)
+    m = int(p.samples_per_rev)
+    n = int(p.window_revs) * m
+    hop = int(p.hop_revs) * m
+    orders = np.fft.fftfreq(n, d=1.0 / m)
+    if z_c.size < n:
+        e = np.empty(0)
+        return OrderSpectra(e, e, e, e, orders, np.empty((0, n), complex), p)
+    segs = np.lib.stride_tricks.sliding_window_view(z_c, n)[::hop]
+    starts = np.arange(segs.shape[0]) * hop
+    # linear detrend (least squares, complex), then periodic Hann
+    xc = np.arange(n) - 0.5 * (n - 1)
+    mean = segs.mean(axis=1, keepdims=True)
+    slope = (segs @ xc)[:, None] / np.sum(xc * xc)
+    w = 0.5 - 0.5 * np.cos(TWO_PI * np.arange(n) / n)
+    X = np.fft.fft((segs - mean - slope * xc) * w, axis=1) / w.sum()
+    r_mid = r_c[starts] + 0.5 * (n - 1) / m
+    t_mid = np.interp(r_mid, r_c, t_c)
+    sp = np.interp(t_mid, t, omega) / TWO_PI
+    return OrderSpectra(t_mid, sp, t_c[starts], t_c[starts + n - 1], orders, X, p)
+
+
+def dominant_ratio(spec: OrderSpectra, band: tuple[float, float] | None = None) -> np.ndarray:
+    """Order (whirl frequency / rotor speed) of the largest forward peak in ``band``, per window.
+
+    Log-parabolic interpolation over the peak bin and its neighbours; NaN for
+    windows with no content.
+    """
+    lo, hi = band or spec.params.band
+    if spec.n_frames == 0:
+        return np.empty(0)
+    idx = np.nonzero((spec.orders >= lo - 1e-12) & (spec.orders <= hi + 1e-12))[0]
+    mag = np.abs(spec.X)
+    k = idx[np.argmax(mag[:, idx], axis=1)]
+    rows = np.arange(spec.n_frames)
+    n = spec.orders.size
+    tiny = 1e-300
+    a = np.log(mag[rows, (k - 1) % n] + tiny)
+    b = np.log(mag[rows, k] + tiny)
+    c = np.log(mag[rows, (k + 1) % n] + tiny)
+    den = a - 2 * b + c
+    with np.errstate(invalid="ignore", divide="ignore"):
+        delta = np.where(den < 0, 0.5 * (a - c) / den, 0.0)
+    delta = np.clip(delta, -0.5, 0.5)
+    ratio = spec.orders[k] + delta / spec.params.window_revs
+    ratio[mag[rows, k] <= 0] = np.nan
+    return ratio
+
+
+def waterfall(t, z, omega, params: WhirlParams | None = None) -> dict:
+    """Data for a run-up waterfall: amplitude vs order and rotor speed.
+
+    Returns a dict with ``t`` (n_frames,) [s], ``speed_hz`` (n_frames,),
+    ``orders`` (n_orders,) sorted from backward (negative) to forward, and
+    ``amplitude`` (n_frames, n_orders) [same unit as z]. The frequency of a cell
+    is ``orders[j] * speed_hz[k]`` [Hz].
+    """
+    s = order_spectra(t, z, omega, params)
+    order = np.argsort(s.orders)
+    return {"t": s.t, "speed_hz": s.speed_hz, "orders": s.orders[order],
+            "amplitude": np.abs(s.X[:, order])}
+
+
+# ----------------------------------------------------------------------------- detection
+
+def _crossing(t, a, k, level):
+    """Time where ``a`` crosses ``level`` between frames k-1 and k (linear)."""
+    if k <= 0:
+        return float(t[0])
+    a0, a1 = a[k - 1], a[k]
+    if not (np.isfinite(a0) and np.isfinite(a1)) or a1 == a0:
+        return float(t[k])
+    f = min(max((level - a0) / (a1 - a0), 0.0), 1.0)
+    return float(t[k - 1] + f * (t[k] - t[k - 1]))
+
+
+def detect_episodes(t, amp, on: float, off: float, persist: int) -> list[tuple[float, float | None, int, int]]:
+    """Hysteresis episodes of ``amp``: ``[(t_on, t_off or None, k_on, k_off or n)]``.
+
+    Starts where ``amp >= on`` and stays ``>= off`` for ``persist`` frames (or to
+    the end); ends where ``amp < off`` and stays ``< on`` for ``persist`` frames
+    (or to the end). NaN counts as below.
+    """
+    a = np.nan_to_num(np.asarray(amp, float), nan=-np.inf)
+    n = a.size
+    out = []
+    k, k_on, t_on, active = 0, 0, 0.0, False
+    persist = max(int(persist), 1)
+    while k < n:
+        if not active and a[k] >= on and np.all(a[k:k + persist] >= off):
+            active, k_on = True, k
+            t_on = _crossing(t, a, k, on)
+        elif active and a[k] < off and np.all(a[k:k + persist] < on):
+            out.append((t_on, _crossing(t, a, k, off), k_on, k))
+            active = False
+        k += 1
+    if active:
+        out.append((t_on, None, k_on, n))
+    return out
+
+
+def analyze_journal(t, x, y, omega, clearance: float, *, eps=None,
+                    params: WhirlParams | None = None) -> dict:
+    """Whirl analysis of one journal (arrays in SI units); JSON-ready dict.
+
+    Keys: ``whirl`` (bool), ``onset`` / ``vanish`` (``{"time_s", "speed_hz"}``
+    of the first episode, or None), ``episodes`` (list), ``dominant_ratio``
+    (median over whirl windows), ``ratio_range``, ``max_eps`` with
+    ``max_eps_time_s`` / ``max_eps_speed_hz``, ``max_subsync_rel`` /
+    ``max_sync_rel`` (amplitudes / clearance), ``time_resolution_s``
+    (half the window duration at the onset, or the median), ``warnings``.
+    """
+    p = params or WhirlParams()
+    t = np.asarray(t, float)
+    x, y, omega = (np.asarray(v, float) for v in (x, y, omega))
+    warn: list[str] = []
+    res: dict[str, Any] = {"whirl": False, "onset": None, "vanish": None, "episodes": [],
+                           "dominant_ratio": None, "ratio_range": None, "warnings": warn}
+    # eccentricity maximum
+    if eps is not None:
+        e = np.asarray(eps, float)
+        src = "signal"
+    else:
+        e = np.hypot(x, y) / clearance
+        src = "hypot(x, y) / clearance"
+    fin = np.isfinite(e)
+    if fin.any():
+        i = int(np.nanargmax(np.where(fin, e, -np.inf)))
+        res.update(max_eps=float(e[i]), max_eps_time_s=float(t[i]),
+                   max_eps_speed_hz=float(omega[i] / TWO_PI), eps_source=src)
+    # sampling check: samples per revolution of the output at the top speed
+    if t.size > 1:
+        f_max = float(np.nanmax(np.abs(omega))) / TWO_PI
+        dt = float(np.median(np.diff(t)))
+        if f_max > 0 and dt > 0 and 1.0 / (dt * f_max) < 8:
+            warn.append(f"output interval {dt:g} s gives {1.0 / (dt * f_max):.1f} samples per revolution "
+                        f"at {f_max:.4g} Hz (< 8): amplitudes are low-passed; use output.interval <= "
+                        f"{1.0 / (8 * f_max):.3g} s")
+    s = order_spectra(t, x + 1j * y, omega, p)
+    if s.n_frames == 0:
+        warn.append(f"too little rotation for one analysis window: need {p.window_revs} revolutions, "
+                    f"got {revolutions(t, omega)[-1] if t.size else 0:.3g}; whirl not analysed")
+        return res
+    sub = s.subsync_amplitude() / clearance
+    sync = s.sync_amplitude() / clearance
+    ratio = dominant_ratio(s)
+    res["max_subsync_rel"] = float(np.nanmax(sub))
+    res["max_sync_rel"] = float(np.nanmax(sync))
+    half = 0.5 * (s.t_end - s.t_start)
+    res["time_resolution_s"] = float(np.median(half))
+    persist = math.ceil(p.persist_revs / p.hop_revs)
+    eps_list = detect_episodes(s.t, sub, p.threshold, p.threshold * p.off_fraction, persist)
+    spd = lambda tt: float(np.interp(tt, t, omega) / TWO_PI)  # noqa: E731
+    all_whirl = np.zeros(s.n_frames, bool)
+    for t_on, t_off, k0, k1 in eps_list:
+        in_w = np.zeros(s.n_frames, bool)
+        in_w[k0:k1] = True
+        in_w &= sub >= p.threshold
+        all_whirl |= in_w
+        r_w = ratio[in_w]
+        res["episodes"].append({
+            "onset_time_s": t_on, "onset_speed_hz": spd(t_on),
+            "vanish_time_s": t_off, "vanish_speed_hz": None if t_off is None else spd(t_off),
+            "present_at_start": k0 == 0,
+            "dominant_ratio": float(np.nanmedian(r_w)) if r_w.size else None,
+            "ratio_at_onset": float(ratio[k0]),
+            "max_subsync_rel": float(np.nanmax(sub[k0:k1])),
+        })
+    if eps_list:
+        first = res["episodes"][0]
+        k0 = eps_list[0][2]
+        res["whirl"] = True
+        res["onset"] = {"time_s": first["onset_time_s"], "speed_hz": first["onset_speed_hz"],
+                        "present_at_start": first["present_at_start"]}
+        res["time_resolution_s"] = float(half[k0])
+        last = res["episodes"][-1]
+        if last["vanish_time_s"] is not None:
+            res["vanish"] = {"time_s": last["vanish_time_s"], "speed_hz": last["vanish_speed_hz"]}
+        r_all = ratio[all_whirl]
+        res["dominant_ratio"] = float(np.nanmedian(r_all))
+        res["ratio_range"] = [float(np.nanmin(r_all)), float(np.nanmax(r_all))]
+        if first["present_at_start"]:
+            warn.append("sub-synchronous motion already above threshold in the first window "
+                        f"(t = {s.t[0]:.4g} s): the onset lies before it")
+    return res
+
+
+# ----------------------------------------------------------------------------- files
+
+def read_results(path: str | Path) -> dict[str, np.ndarray]:
+    """Read ``results.csv`` into ``{column: array}`` (the header names the columns).
+
+    Tolerates a truncated last line (runs stream the file): rows with the wrong
+    number of fields are skipped. Raises ``ValueError`` / ``OSError`` with the
+    file name on an empty or unreadable file.
+    """
+    path = Path(path)
+    with path.open(newline="") as fh:
+        header = next(csv.reader(fh), None)
+    if not header:
+        raise ValueError(f"{path}: empty file, expected a header 'time,<instance>.<variable>,...'")
+    header = [h.strip() for h in header]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        except ValueError:
+            data = np.genfromtxt(path, delimiter=",", skip_header=1, invalid_raise=False)
+            data = np.atleast_2d(data) if data.size else np.empty((0, len(header)))
+    for w in caught:   # skipped malformed rows (a truncated last line of a streamed file)
+        logger.info("%s: %s", path, str(w.message).strip().replace("\n", " "))
+    if data.size == 0:
+        data = np.empty((0, len(header)))
+    if data.shape[1] != len(header):
+        raise ValueError(f"{path}: {data.shape[1]} columns of data, header names {len(header)}")
+    return {h: data[:, j] for j, h in enumerate(header)}
+
+
+def _signal(cols: Mapping[str, np.ndarray], name: Any, what: str, csv_path: Path) -> np.ndarray:
+    if not isinstance(name, str) or name not in cols:
+        near = sorted(c for c in cols if isinstance(name, str) and c.split(".")[-1] == name.split(".")[-1])
+        raise KeyError(f"{csv_path.name}: {what} signal '{name}' not found in the header; "
+                       f"columns ending like it: {near or 'none'}; available: {sorted(cols)[:12]}"
+                       f"{' ...' if len(cols) > 12 else ''}. Fix the scenario's analysis section "
+                       "or add the signal to output.signals")
+    return cols[name]
+
+
+def analyze_run(out_dir: str | Path, spec: Mapping[str, Any]) -> dict:
+    """Analyse a finished (or failed) run; never raises.
+
+    ``spec`` is the scenario's ``analysis:`` mapping: ``speed`` (rad/s signal),
+    ``journals`` ({name: {x, y, eps (optional), clearance [m] (optional)}}),
+    optional ``fields`` and ``whirl`` (:class:`WhirlParams` keys). When a
+    journal has no ``clearance`` it is estimated as ``median(|z| / eps)``.
+
+    Returns ``{"method", "parameters", "spec", "speed_max_hz", "journals":
+    {name: analyze_journal(...) or {"error": ...}}}`` or ``{"error": "..."}``.
+    """
+    try:
+        return _analyze_run(Path(out_dir), spec)
+    except Exception as exc:  # the contract: report, never raise
+        logger.warning("analysis of %s failed", out_dir, exc_info=True)
+        return {"error": f"{type(exc).__name__}: {exc}"}
+
+
+def _analyze_run(out_dir: Path, spec: Mapping[str, Any]) -> dict:
+    if not isinstance(spec, Mapping):
+        return {"error": f"analysis spec must be a mapping (got {type(spec).__name__})"}
+    csv_path = out_dir / "results.csv"
+    if not csv_path.is_file():
+        return {"error": f"{csv_path}: not found; the run wrote no results"}
+    try:
+        params = WhirlParams.from_mapping(spec.get("whirl"))
+    except (ValueError, TypeError) as exc:
+        return {"error": str(exc)}
+    cols = read_results(csv_path)
+    t = cols.get("time")
+    if t is None:
+        return {"error": f"{csv_path.name}: no 'time' column (header: {sorted(cols)[:8]})"}
+    if t.size < 2:
+        return {"error": f"{csv_path.name}: {t.size} data row(s); need at least 2 to analyse"}
+    try:
+        omega = _signal(cols, spec.get("speed"), "analysis.speed", csv_path)
+    except KeyError as exc:
+        return {"error": exc.args[0]}
+    out: dict[str, Any] = {
+        "method": "order-domain short-time spectra; see docs/analysis.md",
+        "parameters": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(params).items()},
+        "spec": _plain(spec),
+        "speed_max_hz": float(np.nanmax(omega) / TWO_PI),
+        "journals": {},
+    }
+    journals = spec.get("journals") or {}
+    if not isinstance(journals, Mapping) or not journals:
+        out["error"] = "analysis.journals: expected a mapping {name: {x, y, eps, clearance}}, got none"
+        return out
+    for name, js in journals.items():
+        try:
+            out["journals"][name] = _analyze_one(name, js, cols, t, omega, params, csv_path)
+        except (KeyError, ValueError, TypeError) as exc:
+            out["journals"][name] = {"error": exc.args[0] if exc.args else repr(exc)}
+    return out
+
+
+def _analyze_one(name, js, cols, t, omega, params, csv_path) -> dict:
+    if not isinstance(js, Mapping):
+        raise TypeError(f"analysis.journals.{name}: expected a mapping with x, y, eps, clearance")
+    x = _signal(cols, js.get("x"), f"analysis.journals.{name}.x", csv_path)
+    y = _signal(cols, js.get("y"), f"analysis.journals.{name}.y", csv_path)
+    eps = _signal(cols, js["eps"], f"analysis.journals.{name}.eps", csv_path) if js.get("eps") else None
+    c = js.get("clearance")
+    note = None
+    if c is None:
+        if eps is None:
+            raise ValueError(f"analysis.journals.{name}: needs 'clearance' [m] (or an 'eps' signal "
+                             "to estimate it from)")
+        ok = np.isfinite(eps) & (eps > 0.05)
+        if not ok.any():
+            raise ValueError(f"analysis.journals.{name}: no 'clearance' and eps never exceeds 0.05; "
+                             "give clearance [m]")
+        c = float(np.median(np.hypot(x, y)[ok] / eps[ok]))
+        note = f"clearance not given: estimated {c:.4g} m from median(|z| / eps)"
+    c = float(c)
+    if not c > 0:
+        raise ValueError(f"analysis.journals.{name}.clearance must be > 0 [m] (got {c})")
+    r = analyze_journal(t, x, y, omega, c, eps=eps, params=params)
+    r["clearance"] = c
+    if note:
+        r["warnings"].insert(0, note)
+    return r
+
+
+def _plain(obj):
+    """Copy of a (nested) mapping with JSON-friendly types."""
+    if isinstance(obj, Mapping):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, (str, int, float, bool)) or obj is None:
+        return obj
+    return str(obj)
