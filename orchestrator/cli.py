@@ -1,0 +1,288 @@
+"""Command line interface: ``rotorcosim <verb> ...`` (also ``python -m orchestrator``).
+
+Each verb is registered by its own small ``_add_<verb>`` function (the shape of
+PythonFMU's ``create_command_parser``). The CLI parses arguments, calls the
+library and formats what comes back; it contains no numerics.
+
+Exit codes: 0 success; 1 a failed run, an invalid scenario or any other error
+(one readable message on stderr, no traceback unless ``--debug``); 2 bad
+command-line usage (argparse); 130 interrupted. ``compare`` returns the exit
+code of :func:`orchestrator.compare.main_compare`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+import time
+from pathlib import Path
+from typing import Callable, Sequence
+
+from orchestrator.errors import CosimError, ScenarioError
+
+PROG = "rotorcosim"
+
+
+class _Unavailable(CosimError):
+    """A verb whose implementing module is not installed (yet)."""
+
+
+def _feature(module: str, attr: str, verb: str) -> Callable:
+    """``module.attr``, imported when a verb needs it; a clear error if it is not there."""
+    try:
+        mod = importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name == module:
+            raise _Unavailable(f"`{PROG} {verb}` is not available in this installation: the module {module} "
+                               "is missing; update rotorcosim (pip install -e . in the repository)") from None
+        if exc.name and not exc.name.startswith("orchestrator"):
+            pkg = exc.name.split(".")[0]
+            raise _Unavailable(f"`{PROG} {verb}` needs the Python package '{pkg}', which is not installed; "
+                               f"install it (pip install {pkg})") from None
+        raise
+    func = getattr(mod, attr, None)
+    if func is None:
+        raise _Unavailable(f"`{PROG} {verb}` is not available in this installation: {module}.{attr} is "
+                           "missing; update rotorcosim")
+    return func
+
+
+# --------------------------------------------------------------------------- verbs
+def _add_run(sub) -> None:
+    p = sub.add_parser("run", help="run a scenario", description=(
+        "Run a scenario. Writes DIR/results.csv and DIR/summary.json; our own FMUs are built first when "
+        "missing or stale."))
+    p.add_argument("file", metavar="FILE", help="scenario YAML file")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: runs/<scenario name> under the "
+                                                "current folder)")
+    _add_set(p)
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="show progress and time left (default: when stderr is a terminal and the run "
+                        "takes more than a few seconds)")
+    p.set_defaults(func=_cmd_run)
+
+
+def _cmd_run(args) -> int:
+    from orchestrator.scenario import load_scenario
+
+    scenario = load_scenario(args.file, args.set, build_fmus=True)
+    out_dir = Path(args.out) if args.out else Path("runs") / scenario.name
+    run = _run_function()
+    print(f"running {scenario.name} ({args.file}): {scenario.start_time:g} s -> {scenario.stop_time:g} s, "
+          f"{scenario.coupling.scheme}, macro step {scenario.coupling.macro_step:g} s", flush=True)
+    t0 = time.perf_counter()
+    result = run(scenario, out_dir=out_dir, progress=args.progress)
+    wall = time.perf_counter() - t0
+    stats = dict(getattr(result, "stats", None) or {})
+    status = getattr(result, "status", None)
+    status_text = getattr(status, "name", str(status)).lower()
+    where = getattr(result, "out_dir", None) or out_dir
+    steps = stats.get("macro_steps", "?")
+    message = getattr(result, "message", "") or ""
+    print(f"results: {where} (results.csv, summary.json)")
+    print(f"status: {status_text}{': ' + message if message and not result.success else ''}")
+    print(f"macro steps: {steps}, wall time: {stats.get('wall_time_s', wall):.2f} s")
+    if not result.success:
+        print(f"error: the run did not finish: {message or status_text}; the rows written so far are kept in "
+              f"{where}/results.csv and the reason in {where}/summary.json", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _run_function() -> Callable:
+    import orchestrator
+
+    run = getattr(orchestrator, "run", None)
+    if run is None:
+        run = _feature("orchestrator.master", "run", "run")
+    return run
+
+
+def _add_validate(sub) -> None:
+    p = sub.add_parser("validate", help="check a scenario and its FMUs without running", description=(
+        "Check a scenario and its FMUs without running; prints every problem, exit status 1 if any. "
+        "Missing FMUs are reported, not built (`rotorcosim build-fmus` builds ours)."))
+    p.add_argument("file", metavar="FILE", help="scenario YAML file")
+    _add_set(p)
+    p.set_defaults(func=_cmd_validate)
+
+
+def _cmd_validate(args) -> int:
+    from orchestrator.scenario import load_scenario
+
+    try:
+        scenario = load_scenario(args.file, args.set, build_fmus=False)
+    except ScenarioError as exc:
+        for problem in exc.problems:
+            print(problem)
+        n = len(exc.problems)
+        print(f"{args.file}: {n} problem{'s' if n != 1 else ''} found", file=sys.stderr)
+        return 1
+    print(f"{args.file}: valid ({len(scenario.fmus)} FMU instances, {len(scenario.connections)} connections, "
+          f"{scenario.coupling.scheme}, macro step {scenario.coupling.macro_step:g} s)")
+    return 0
+
+
+def _add_info(sub) -> None:
+    p = sub.add_parser("info", help="show an FMU's variables and capability flags")
+    p.add_argument("fmu", metavar="FMU", help="FMI 2.0 co-simulation FMU file")
+    p.set_defaults(func=_cmd_info)
+
+
+_CAUSALITY_ORDER = ("parameter", "calculatedParameter", "input", "output", "local", "independent")
+
+
+def _cmd_info(args) -> int:
+    from orchestrator.scenario import read_model_description
+
+    md = read_model_description(args.fmu)
+    yes = lambda b: "yes" if b else "no"      # noqa: E731
+    print(f"FMU: {args.fmu}")
+    print(f"model: {md.model_name} (FMI {md.fmi_version}, co-simulation, modelIdentifier "
+          f"{md.model_identifier})")
+    if md.description:
+        print(f"description: {md.description}")
+    if md.generation_tool:
+        print(f"generated by: {md.generation_tool}")
+    print("capabilities:")
+    for flag, value in (("canHandleVariableCommunicationStepSize", yes(md.can_handle_variable_step)),
+                        ("canInterpolateInputs", yes(md.can_interpolate_inputs)),
+                        ("maxOutputDerivativeOrder", md.max_output_derivative_order),
+                        ("canGetAndSetFMUstate", yes(md.can_get_and_set_fmu_state)),
+                        ("needsExecutionTool", yes(md.needs_execution_tool)),
+                        ("canBeInstantiatedOnlyOncePerProcess",
+                         yes(md.can_be_instantiated_only_once_per_process))):
+        print(f"  {flag}: {value}")
+    if md.default_experiment:
+        print("default experiment: " + ", ".join(f"{k}={v:g}" for k, v in md.default_experiment.items()))
+    rank = {c: i for i, c in enumerate(_CAUSALITY_ORDER)}
+    variables = sorted(md.variables.values(), key=lambda v: rank.get(v.causality, len(rank)))
+    rows = [("name", "causality", "variability", "type", "start", "unit", "description")]
+    rows += [(v.name, v.causality, v.variability, v.type, "" if v.start is None else repr(v.start)
+              if isinstance(v.start, str) else f"{v.start}", v.unit or "", v.description or "")
+             for v in variables]
+    print(f"variables ({len(variables)}):")
+    widths = [max(len(r[i]) for r in rows) for i in range(6)]
+    for r in rows:
+        print("  " + "  ".join(c.ljust(w) for c, w in zip(r[:6], widths)) + "  " + r[6])
+    return 0
+
+
+def _add_build_fmus(sub) -> None:
+    p = sub.add_parser("build-fmus", help="build rotorcosim's own FMUs (bearing, rotors)")
+    p.add_argument("--force", action="store_true", help="rebuild even when up to date")
+    p.add_argument("--out", metavar="DIR", help="destination folder (default: the repository's fmus/)")
+    p.set_defaults(func=_cmd_build_fmus)
+
+
+def _cmd_build_fmus(args) -> int:
+    build_fmus = _feature("orchestrator.build", "build_fmus", "build-fmus")
+    out_dir = args.out
+    if out_dir is None:
+        from orchestrator import build
+        out_dir = getattr(build, "FMU_DIR", "fmus")
+    logging.getLogger("orchestrator.build").setLevel(logging.INFO)
+    for path in build_fmus(out_dir=out_dir, force=args.force):
+        print(path)
+    return 0
+
+
+def _add_plot(sub) -> None:
+    p = sub.add_parser("plot", help="draw the figures of a finished run")
+    p.add_argument("dir", metavar="DIR", help="output folder of a run (holds results.csv, summary.json)")
+    p.set_defaults(func=_cmd_plot)
+
+
+def _cmd_plot(args) -> int:
+    run_dir = Path(args.dir)
+    if not run_dir.is_dir():
+        raise CosimError(f"{run_dir}: no such run folder; give the --out folder of a run (it holds "
+                         "results.csv and summary.json)")
+    plot_run = _feature("orchestrator.plots", "plot_run", "plot")
+    for path in plot_run(run_dir):
+        print(path)
+    return 0
+
+
+def _add_compare(sub) -> None:
+    p = sub.add_parser("compare", help="compare coupling schemes against a reference (CI regression gate)")
+    p.add_argument("file", metavar="FILE", help="comparison YAML file (or a scenario with a compare: section)")
+    p.add_argument("--out", metavar="DIR", help="report folder")
+    p.add_argument("--update-baseline", action="store_true", help="rewrite the stored baseline from this run")
+    p.set_defaults(func=_cmd_compare)
+
+
+def _cmd_compare(args) -> int:
+    main_compare = _feature("orchestrator.compare", "main_compare", "compare")
+    return int(main_compare(args.file, out_dir=args.out, update_baseline=args.update_baseline))
+
+
+def _add_set(p) -> None:
+    p.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
+                   help="override a scenario value, e.g. --set coupling.macro_step=5e-5 (repeatable)")
+
+
+VERBS = (_add_run, _add_validate, _add_info, _add_build_fmus, _add_plot, _add_compare)
+
+
+# --------------------------------------------------------------------------- entry point
+def build_parser() -> argparse.ArgumentParser:
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show debug logging and full tracebacks")
+    parser = argparse.ArgumentParser(prog=PROG, parents=[common], description=(
+        "Co-simulation of FMI 2.0 co-simulation FMUs (rotors in journal bearings and any other FMUs)."))
+    parser.set_defaults(debug=False)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    sub = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
+    orig = sub.add_parser
+
+    def add_parser(name, **kw):                  # every verb also takes --debug after the verb
+        return orig(name, parents=[common], **kw)
+
+    sub.add_parser = add_parser
+    for add in VERBS:
+        add(sub)
+    return parser
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+        return version("rotorcosim")
+    except Exception:                             # not installed (running from a source tree)
+        return "unknown"
+
+
+def _describe(exc: BaseException) -> str:
+    if isinstance(exc, CosimError):
+        return f"error: {exc}"
+    if isinstance(exc, OSError):
+        where = f"{exc.filename}: " if exc.filename else ""
+        return f"error: {where}{exc.strerror or exc}"
+    import yaml
+    if isinstance(exc, yaml.YAMLError):
+        return f"error: malformed YAML: {exc}"
+    return (f"internal error: {type(exc).__name__}: {exc}\n"
+            f"(this is a bug in rotorcosim: rerun with --debug for the traceback and report it)")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI with ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    if not args.debug:
+        logging.getLogger("orchestrator.build").setLevel(logging.INFO)   # say when FMUs are being built
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:                      # every failure becomes one message (traceback: --debug)
+        if args.debug:
+            raise
+        print(_describe(exc), file=sys.stderr)
+        return 1
