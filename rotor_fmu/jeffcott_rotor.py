@@ -1,0 +1,380 @@
+"""JeffcottRotor: FMI 2.0 co-simulation slave of the Jeffcott rotor (paper section 3.2).
+
+A thin PythonFMU wrapper around :class:`rotor_fmu.jeffcott.JeffcottRotor`. The
+rotor-slave machinery (variable registration, life cycle, full FMU state) is
+written here as plain functions that ``turbocharger_rotor.py`` reuses: the FMU's
+C loader finds the slave class with the regular expression
+``^class (\\w+)\\(\\s*Fmi2Slave\\s*\\)\\s*:``, so each slave must derive
+*directly* from ``Fmi2Slave`` and cannot inherit from a common base class.
+
+Variables (see ``docs/fmus.md``)
+--------------------------------
+* parameters: every scalar field of the model's parameter dataclass
+  (:class:`rotor_fmu.jeffcott.JeffcottParams`: ``m_disc``, ``f_max``, ``t_ramp``,
+  ``d_external``, ...), settable before and during initialization;
+* inputs ``Fx_i``, ``Fy_i`` [N]: film force on journal i (i = 1, 2);
+* outputs ``x_i``, ``y_i`` [m], ``vx_i``, ``vy_i`` [m/s], ``omega`` [rad/s],
+  ``angle`` [rad], ``alpha`` [rad/s^2] and the model's extra outputs (disc centre
+  ``x_disc``, ``y_disc``, ``vx_disc``, ``vy_disc``).
+
+The model is built in initialization mode (when an output is first read, at the
+latest in ``exit_initialization_mode``); ``do_step`` holds the input forces
+constant over the step. FMU state save/restore copies the model state (time,
+all coordinates and velocities) together with the FMI scalars; states
+serialize with ``pickle``.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import pickle
+from typing import Any, Callable
+from xml.etree.ElementTree import Element, SubElement
+
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu.enums import Fmi2Initial, Fmi2Status
+from pythonfmu.variables import Boolean
+
+N_BEARINGS = 2
+
+UNITS = {
+    "m": dict(m="1"), "m/s": dict(m="1", s="-1"), "rad": dict(rad="1"),
+    "rad/s": dict(rad="1", s="-1"), "rad/s2": dict(rad="1", s="-2"), "N": dict(kg="1", m="1", s="-2"),
+    "kg": dict(kg="1"), "kg.m": dict(kg="1", m="1"), "kg.m2": dict(kg="1", m="2"),
+    "N/m": dict(kg="1", s="-2"), "N.s/m": dict(kg="1", s="-1"), "m/s2": dict(m="1", s="-2"),
+    "Hz": dict(s="-1"), "s": dict(s="1"), "1": {},
+}
+
+# Known parameter names -> (unit, description); others get a generic description.
+PARAMETER_DOCS: dict[str, tuple[str | None, str]] = {
+    "m_disc": ("kg", "disc mass [kg]"),
+    "m_journal": ("kg", "mass of each journal [kg]"),
+    "unbalance": ("kg.m", "unbalance m e [kg m]"),
+    "unbalance_phase": ("rad", "phase of the unbalance relative to the drive angle [rad]"),
+    "k_shaft": ("N/m", "shaft stiffness, disc relative to the journals [N/m]"),
+    "d_internal": ("N.s/m", "internal (rotating) shaft damping [N s/m]"),
+    "d_external": ("N.s/m", "external viscous damping on the disc [N s/m]"),
+    "g": ("m/s2", "gravity, acting in -y [m/s^2]"),
+    "f_max": ("Hz", "speed at the end of the linear ramp [Hz]"),
+    "t_ramp": ("s", "duration of the linear speed ramp 0 -> f_max [s]"),
+    "f_start": ("Hz", "speed at the start of the ramp [Hz]"),
+    "t0": ("s", "model start time [s] (the FMU uses the experiment start time)"),
+    "journal_x0": ("m", "initial x of the journals [m]"),
+    "journal_y0": ("m", "initial y of the journals [m]"),
+    "initial_sag": (None, "start the disc at its static sag below the journals"),
+    "max_phase_per_substep": ("rad", "bound of omega_max * h of the internal trapezoidal sub-steps [rad]"),
+    "rotor_file": (None, "rotor description file (empty: the bundled default rotor)"),
+}
+OUTPUT_DOCS: dict[str, tuple[str, str]] = {
+    "x": ("m", "journal {i} centre x in the bearing frame [m]"),
+    "y": ("m", "journal {i} centre y in the bearing frame [m]"),
+    "vx": ("m/s", "journal {i} centre velocity x [m/s]"),
+    "vy": ("m/s", "journal {i} centre velocity y [m/s]"),
+    "omega": ("rad/s", "rotor speed about +z [rad/s]"),
+    "angle": ("rad", "rotation angle (integral of omega) [rad]"),
+    "alpha": ("rad/s2", "angular acceleration [rad/s^2]"),
+}
+
+
+class _RealU(Real):
+    """PythonFMU ``Real`` with an FMI ``unit`` attribute."""
+
+    def __init__(self, name: str, unit: str | None = None, **kwargs: Any):
+        super().__init__(name, **kwargs)
+        self.unit = unit
+
+    def to_xml(self) -> Element:
+        node = super().to_xml()
+        if self.unit:
+            node.find("Real").set("unit", self.unit)
+        return node
+
+
+def finish_model_description(root: Element, units: set[str]) -> Element:
+    """Unit definitions, ``dependencies=""`` on outputs (no direct feedthrough) and
+    ``<InitialUnknowns>`` (see ``bearing_fmu/journal_bearing.py`` for the reasons)."""
+    if units:
+        defs = Element("UnitDefinitions")
+        for name in sorted(units):
+            u = SubElement(defs, "Unit", attrib={"name": name})
+            SubElement(u, "BaseUnit", attrib=UNITS[name])
+        children = list(root)
+        idx = next(i for i, c in enumerate(children) if c.tag == "CoSimulation") + 1
+        root.insert(idx, defs)
+    structure = root.find("ModelStructure")
+    outputs = structure.find("Outputs")
+    if outputs is not None:
+        indices = []
+        for unknown in outputs.findall("Unknown"):
+            unknown.set("dependencies", "")
+            indices.append(unknown.get("index"))
+        initial = SubElement(structure, "InitialUnknowns")
+        for index in indices:
+            SubElement(initial, "Unknown", attrib={"index": index})
+    return root
+
+
+def scalar_fields(params_cls) -> list[tuple[str, Any, type]]:
+    """(name, default, type) of the dataclass fields with a bool/int/float/str default."""
+    out = []
+    for f in dataclasses.fields(params_cls):
+        if f.name.startswith("_"):
+            continue
+        if f.default is not dataclasses.MISSING:
+            default = f.default
+        elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
+            default = f.default_factory()  # type: ignore[misc]
+        else:
+            continue
+        for kind in (bool, int, float, str):
+            if isinstance(default, kind):
+                out.append((f.name, kind(default), kind))
+                break
+    return out
+
+
+class InitializationStateError(RuntimeError):
+    """An FMI call came in the wrong life-cycle phase."""
+
+
+# ----------------------------------------------------------------------------
+# Rotor-slave machinery, shared by JeffcottRotor and TurbochargerRotor.
+# A slave class sets: _params_cls (callable returning the parameter dataclass),
+# _make_model (callable(self, params_dict) -> model), and assigns these functions.
+# ----------------------------------------------------------------------------
+def rotor_init(self, **kwargs: Any) -> None:
+    Fmi2Slave.__init__(self, **kwargs)
+    self._values: dict[str, Any] = {}
+    self._param_names: list[str] = []
+    self._model = None
+    self._initialized = False
+    self._init_key = None
+    self._time = 0.0
+    self._start_time = 0.0
+    units: set[str] = set()
+    par = dict(causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed)
+    for name, default, kind in self._parameter_fields():
+        if name == "t0":          # the experiment start time sets the model start time
+            continue
+        unit, desc = PARAMETER_DOCS.get(name, (None, f"rotor model parameter '{name}' (SI units)"))
+        self._values[name] = default
+        self._param_names.append(name)
+        getter, setter = _getter(self, name), _param_setter(self, name, kind)
+        if kind is float:
+            self.register_variable(_RealU(name, unit=unit, description=desc, getter=getter,
+                                          setter=setter, **par))
+            if unit:
+                units.add(unit)
+        elif kind is bool:
+            self.register_variable(Boolean(name, description=desc, getter=getter, setter=setter, **par))
+        elif kind is int:
+            self.register_variable(Integer(name, description=desc, getter=getter, setter=setter, **par))
+        else:
+            self.register_variable(String(name, description=desc, getter=getter, setter=setter, **par))
+    for i in range(1, N_BEARINGS + 1):
+        for comp in ("x", "y"):
+            name = f"F{comp}_{i}"
+            self._values[name] = 0.0
+            self.register_variable(_RealU(
+                name, unit="N", description=f"film force on journal {i}, {comp} [N]",
+                causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
+                getter=_getter(self, name), setter=_input_setter(self, name)))
+    units.add("N")
+    for name in self._output_names():
+        base = name.rsplit("_", 1)[0] if name[-1].isdigit() else name
+        unit, desc = OUTPUT_DOCS.get(base, (None, None))
+        if desc is None:
+            if name.startswith(("x_", "y_")):
+                unit, desc = "m", f"{name}: displacement [m]"
+            elif name.startswith(("vx_", "vy_")):
+                unit, desc = "m/s", f"{name}: velocity [m/s]"
+            else:
+                desc = f"{name} (SI units)"
+        else:
+            desc = desc.format(i=name.rsplit("_", 1)[-1])
+        self._values[name] = 0.0
+        self.register_variable(_RealU(
+            name, unit=unit, description=desc, causality=Fmi2Causality.output,
+            variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
+            getter=_output_getter(self, name)))
+        if unit:
+            units.add(unit)
+    self._units = units
+
+
+def _getter(self, name: str) -> Callable[[], Any]:
+    return lambda: self._values[name]
+
+
+def _output_getter(self, name: str) -> Callable[[], Any]:
+    def get():
+        if not self._initialized:
+            self._ensure_model()
+        return self._values[name]
+    return get
+
+
+def _param_setter(self, name: str, kind: type):
+    def set_(value):
+        value = kind(value)
+        if self._initialized and value != self._values[name]:
+            raise InitializationStateError(
+                f"parameter '{name}' is fixed after initialization (tried {value!r}, "
+                f"has {self._values[name]!r}); set it before fmi2ExitInitializationMode")
+        self._values[name] = value
+    return set_
+
+
+def _input_setter(self, name: str):
+    def set_(value):
+        self._values[name] = float(value)
+    return set_
+
+
+def rotor_to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006
+    return finish_model_description(Fmi2Slave.to_xml(self, model_options), self._units)
+
+
+def rotor_output_names(self) -> list[str]:
+    """Outputs: the journal kinematics of each station, speed, angle, then the model's extras."""
+    names = [f"{c}_{i}" for i in range(1, N_BEARINGS + 1) for c in ("x", "y", "vx", "vy")]
+    names += ["omega", "angle", "alpha"]
+    names += [n for n in self._extra_output_names() if n not in names]
+    return names
+
+
+def rotor_ensure_model(self) -> None:
+    params = {n: self._values[n] for n in self._param_names}
+    key = (tuple(sorted(params.items())), self._start_time)
+    if self._model is not None and key == self._init_key:
+        return
+    model = self._make_model(params, self._start_time)
+    if model.n_bearings != N_BEARINGS:
+        raise ValueError(f"rotor model has {model.n_bearings} bearing stations; this FMU has "
+                         f"{N_BEARINGS} (inputs Fx_1..Fy_{N_BEARINGS}); use a rotor with {N_BEARINGS}")
+    model.initialize()
+    self._model = model
+    self._init_key = key
+    self._copy_outputs()
+
+
+def rotor_copy_outputs(self) -> None:
+    out = self._model.outputs
+    for name in self._output_names():
+        self._values[name] = float(out[name])
+
+
+def rotor_forces(self):
+    import numpy as np
+    return np.array([[self._values[f"Fx_{i}"], self._values[f"Fy_{i}"]]
+                     for i in range(1, N_BEARINGS + 1)])
+
+
+def rotor_setup_experiment(self, start_time: float, stop_time=None, tolerance=None):
+    self._start_time = float(start_time)
+    self._time = float(start_time)
+
+
+def rotor_exit_initialization_mode(self):
+    self._ensure_model()
+    self._time = self._start_time
+    self._initialized = True
+
+
+def rotor_do_step(self, current_time: float, step_size: float) -> bool:
+    if not self._initialized:
+        raise InitializationStateError("do_step before exit_initialization_mode")
+    if abs(current_time - self._time) > 1e-9 * max(1.0, abs(current_time)) + 1e-6 * step_size:
+        raise InitializationStateError(
+            f"do_step at t={current_time!r} but the FMU is at t={self._time!r}; "
+            "restore a saved FMU state to step from an earlier time")
+    saved = copy.deepcopy(self._model.get_state())
+    try:
+        self._model.step(step_size, self._forces())
+    except FloatingPointError as exc:   # state became non-finite: cannot complete this step
+        self._model.set_state(saved)
+        self.log(f"rotor step t={current_time:.9g} dt={step_size:.3g} failed: {exc}", Fmi2Status.discard)
+        return False
+    self._copy_outputs()
+    self._time = current_time + step_size
+    return True
+
+
+def rotor_get_fmu_state(self) -> dict[str, Any]:
+    return {"values": dict(self._values), "time": self._time, "start_time": self._start_time,
+            "initialized": self._initialized, "init_key": self._init_key,
+            "model": None if self._model is None else copy.deepcopy(self._model.get_state())}
+
+
+def rotor_set_fmu_state(self, state: dict[str, Any]) -> None:
+    if state["model"] is not None and self._model is None:
+        self._values.update(state["values"])
+        self._start_time = state["start_time"]
+        self._ensure_model()
+    self._values = dict(state["values"])
+    self._time = state["time"]
+    self._start_time = state["start_time"]
+    self._initialized = state["initialized"]
+    self._init_key = state["init_key"]
+    if state["model"] is None:
+        self._model = None
+    else:
+        self._model.set_state(copy.deepcopy(state["model"]))
+        self._copy_outputs()
+
+
+def state_to_bytes(state: dict[str, Any]) -> bytes:
+    return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+
+
+def state_from_bytes(state: bytes) -> dict[str, Any]:
+    return pickle.loads(state)
+
+
+# ----------------------------------------------------------------------------
+def _jeffcott_fields():
+    from rotor_fmu.jeffcott import JeffcottParams
+    return scalar_fields(JeffcottParams)
+
+
+def _jeffcott_model(params: dict[str, Any], t0: float):
+    from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor as Model
+    return Model(JeffcottParams(**params, t0=t0))
+
+
+class JeffcottRotor(Fmi2Slave):
+    """Jeffcott rotor (disc on a flexible massless shaft, two journals), kinematic speed ramp."""
+
+    author = "rotorcosim"
+    description = ("Jeffcott rotor with two journals, gravity, unbalance, internal and external damping, "
+                   "kinematically driven speed ramp (paper section 3.2)")
+    version = "0.1.0"
+
+    __init__ = rotor_init
+    to_xml = rotor_to_xml
+    setup_experiment = rotor_setup_experiment
+    exit_initialization_mode = rotor_exit_initialization_mode
+    do_step = rotor_do_step
+    _get_fmu_state = rotor_get_fmu_state
+    _set_fmu_state = rotor_set_fmu_state
+    _fmu_state_to_bytes = staticmethod(state_to_bytes)
+    _fmu_state_from_bytes = staticmethod(state_from_bytes)
+    _output_names = rotor_output_names
+    _ensure_model = rotor_ensure_model
+    _copy_outputs = rotor_copy_outputs
+    _forces = rotor_forces
+
+    @staticmethod
+    def _parameter_fields():
+        return _jeffcott_fields()
+
+    @staticmethod
+    def _extra_output_names() -> list[str]:
+        return ["x_disc", "y_disc", "vx_disc", "vy_disc"]
+
+    @staticmethod
+    def _make_model(params: dict[str, Any], t0: float):
+        return _jeffcott_model(params, t0)
+
+
