@@ -1,0 +1,273 @@
+"""Integration tests of our own FMUs (JournalBearing, JeffcottRotor, TurbochargerRotor).
+
+The FMUs are built once per session (``built_fmus``) with
+:func:`orchestrator.build.build_fmus` into a temporary folder and loaded with
+FMPy. Every instance is freed explicitly (PythonFMU instances left to the
+garbage collector have aborted processes at exit).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import zipfile
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.integration
+
+NAMES = ("JournalBearing", "JeffcottRotor", "TurbochargerRotor")
+PSI, R_TEST = 2.8e-3, 0.02
+
+
+def _available(name: str) -> bool:
+    """Whether the model that FMU ``name`` wraps exists yet."""
+    import importlib.util
+    module = {"JournalBearing": "bearing_fmu.model", "JeffcottRotor": "rotor_fmu.jeffcott",
+              "TurbochargerRotor": "rotor_fmu.turbocharger"}[name]
+    return importlib.util.find_spec(module) is not None
+
+
+@pytest.fixture(scope="session")
+def built_fmus(tmp_path_factory) -> dict[str, Path]:
+    from orchestrator.build import build_fmus
+    out = tmp_path_factory.mktemp("fmus")
+    names = [n for n in NAMES if _available(n)]
+    return {p.stem: p for p in build_fmus(out, force=True, names=names)}
+
+
+def _fmu(built_fmus, name):
+    if name not in built_fmus:
+        pytest.skip(f"model of {name} not available yet")
+    return built_fmus[name]
+
+
+@contextmanager
+def open_slave(path: Path, instance: str = "inst"):
+    """Instantiate a co-simulation slave with FMPy; yields (slave, {name: valueReference})."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    md = read_model_description(path)
+    unzipdir = extract(path)
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName=instance)
+    slave.instantiate()
+    try:
+        yield slave, {v.name: v.valueReference for v in md.modelVariables}
+    finally:
+        try:
+            slave.terminate()
+        except Exception:
+            pass
+        slave.freeInstance()
+        import shutil
+        shutil.rmtree(unzipdir, ignore_errors=True)
+
+
+# --------------------------------------------------------------------------- all
+@pytest.mark.parametrize("name", NAMES)
+def test_validate_fmu_no_problems(built_fmus, name):
+    from fmpy.validation import validate_fmu
+    assert validate_fmu(str(_fmu(built_fmus, name))) == []
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_capabilities_are_the_real_ones(built_fmus, name):
+    from fmpy import read_model_description
+    cs = read_model_description(_fmu(built_fmus, name)).coSimulation
+    assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
+    assert cs.canHandleVariableCommunicationStepSize
+    assert not cs.canInterpolateInputs          # PythonFMU has no fmi2SetRealInputDerivatives
+    assert cs.maxOutputDerivativeOrder in (None, 0)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_build_stamp_and_staleness(built_fmus, name, tmp_path):
+    from orchestrator.build import RECIPES, is_stale, source_hash
+    path = _fmu(built_fmus, name)
+    stamp = json.loads(path.with_suffix(".stamp").read_text())
+    assert stamp["source_sha256"] == source_hash(RECIPES[name])
+    assert not is_stale(path)
+    with zipfile.ZipFile(path) as zf:
+        inside = json.loads(zf.read("resources/rotorcosim_build.json"))
+        names = zf.namelist()
+    assert inside["source_sha256"] == stamp["source_sha256"]
+    pkg = "bearing_fmu" if name == "JournalBearing" else "rotor_fmu"
+    assert f"resources/{pkg}/__init__.py" in names          # model code travels with the FMU
+    assert not any("__pycache__" in n for n in names)
+    # a changed stamp (as after a source edit) makes the FMU stale
+    copy = tmp_path / path.name
+    copy.write_bytes(path.read_bytes())
+    copy.with_suffix(".stamp").write_text(json.dumps({**stamp, "source_sha256": "0" * 64}))
+    assert is_stale(copy, RECIPES[name])
+    copy.with_suffix(".stamp").unlink()
+    assert is_stale(copy, RECIPES[name])
+
+
+def test_variable_names_of_the_contract(built_fmus):
+    from fmpy import read_model_description
+    want = {
+        "JournalBearing": {
+            "parameter": {"R", "B", "psi", "eta0", "p0", "p_feed", "groove_width", "groove_angle",
+                          "n_phi", "n_z", "cavitation", "axial_bc", "fields_file"},
+            "input": {"x", "y", "vx", "vy", "omega"},
+            "output": {"Fx", "Fy", "eps", "p_max", "p_min", "h_min", "torque", "q_feed", "q_side"}},
+        "JeffcottRotor": {
+            "parameter": {"f_max", "t_ramp", "d_external"},
+            "input": {"Fx_1", "Fy_1", "Fx_2", "Fy_2"},
+            "output": {"x_1", "y_1", "vx_1", "vy_1", "x_2", "y_2", "vx_2", "vy_2", "omega"}},
+    }
+    want["TurbochargerRotor"] = {**want["JeffcottRotor"], "parameter": {"f_max", "t_ramp", "rotor_file"}}
+    checked = 0
+    for name, groups in want.items():
+        if name not in built_fmus:
+            continue
+        md = read_model_description(built_fmus[name])
+        for causality, names in groups.items():
+            have = {v.name for v in md.modelVariables if v.causality == causality}
+            assert names <= have, (name, causality, names - have)
+        for v in md.modelVariables:
+            if v.causality == "parameter":
+                assert v.variability in ("fixed", "tunable") and v.initial in (None, "exact")
+        checked += 1
+    assert checked >= 1
+
+
+# ------------------------------------------------------------------- bearing
+def _bearing_setup(slave, vr, *, cavitation, eps=0.5, f=100.0, n=16, axial_bc=0, fields_file=""):
+    c = PSI * R_TEST
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.setReal([vr["R"], vr["B"], vr["psi"]], [R_TEST, 1.6 * R_TEST, PSI])
+    slave.setInteger([vr["n_phi"], vr["n_z"], vr["cavitation"], vr["axial_bc"]], [n, n, cavitation, axial_bc])
+    if axial_bc == 1:
+        slave.setReal([vr["groove_width"], vr["groove_angle"]], [math.radians(15.0), 0.0])
+    if fields_file:
+        slave.setString([vr["fields_file"]], [fields_file])
+    slave.setReal([vr["x"], vr["y"], vr["omega"]], [0.0, -eps * c, 2 * math.pi * f])
+    slave.exitInitializationMode()
+
+
+@pytest.mark.parametrize("cavitation", [0, 1])
+def test_bearing_state_round_trip_is_exact(built_fmus, cavitation):
+    """step / save / step / restore / step: identical outputs; the journal moves, so a
+    transient film (pressure field, integrator history) not restored would show."""
+    path = _fmu(built_fmus, "JournalBearing")
+    c = PSI * R_TEST
+    outs = ["Fx", "Fy", "p_max", "p_min", "eps", "q_side"]
+    with open_slave(path) as (s, vr):
+        _bearing_setup(s, vr, cavitation=cavitation)
+        ovr = [vr[n] for n in outs]
+        h, t = 2e-5, 0.0
+
+        def advance(k0, k1):
+            nonlocal t
+            rows = []
+            for k in range(k0, k1):
+                ang = 2 * math.pi * 40.0 * k * h    # journal orbiting at eps 0.5 +- 0.1
+                e = 0.5 + 0.1 * math.sin(ang)
+                s.setReal([vr["x"], vr["y"], vr["vx"], vr["vy"]],
+                          [0.1 * c * math.cos(ang), -e * c, -0.1 * c * 80 * math.pi * math.sin(ang),
+                           -0.1 * c * 80 * math.pi * math.cos(ang)])
+                s.doStep(t, h)
+                t += h
+                rows.append(s.getReal(ovr))
+            return np.array(rows)
+
+        advance(0, 5)
+        state = s.getFMUstate()
+        first = advance(5, 15)
+        blob = s.serializeFMUstate(state)
+        s.setFMUstate(state)
+        t -= 10 * h
+        second = advance(5, 15)
+        assert np.array_equal(first, second)
+        assert np.ptp(first[:, 1]) > 0                     # the outputs did change over the steps
+        state2 = s.deSerializeFMUstate(blob)
+        s.setFMUstate(state2)
+        t -= 10 * h
+        third = advance(5, 15)
+        assert np.array_equal(first, third)
+        s.freeFMUstate(state)
+        s.freeFMUstate(state2)
+
+
+@pytest.mark.parametrize("cavitation", [0, 1])
+def test_bearing_force_points_back_to_centre(built_fmus, cavitation):
+    path = _fmu(built_fmus, "JournalBearing")
+    with open_slave(path) as (s, vr):
+        _bearing_setup(s, vr, cavitation=cavitation, eps=0.5, n=20)
+        for k in range(3):
+            s.doStep(k * 1e-4, 1e-4)
+        fx, fy, eps, p_max, p_min, h_min = s.getReal(
+            [vr[n] for n in ("Fx", "Fy", "eps", "p_max", "p_min", "h_min")])
+    # journal below the centre (y = -0.5 C): the film pushes it back up, with an attitude
+    # angle below 90 degrees (Fy dominant, Fx from the rotation, counter-clockwise)
+    assert fy > 0 and fy > 0.3 * math.hypot(fx, fy)
+    assert eps == pytest.approx(0.5, rel=1e-9)
+    assert h_min == pytest.approx(0.5 * PSI * R_TEST, rel=0.05)
+    assert p_max > 1e5 > p_min - 1e-6 * p_max or cavitation == 0 and p_min >= 1e5 - 1.0
+
+
+def test_bearing_writes_fields_file_at_terminate(built_fmus, tmp_path):
+    path = _fmu(built_fmus, "JournalBearing")
+    target = tmp_path / "sub" / "bearing1_fields.npz"
+    with open_slave(path) as (s, vr):
+        _bearing_setup(s, vr, cavitation=1, n=12, fields_file=str(target))
+        s.doStep(0.0, 1e-4)
+        s.terminate()
+        data = np.load(target)
+        assert {"phi", "z", "p", "theta", "h", "t"} <= set(data.files)
+        assert data["p"].shape == (data["z"].size, data["phi"].size) == (12, 12)
+        assert float(data["t"]) == pytest.approx(1e-4)
+
+
+def test_bearing_parameter_fixed_after_initialization(built_fmus):
+    from fmpy.fmi1 import FMICallException
+    path = _fmu(built_fmus, "JournalBearing")
+    with open_slave(path) as (s, vr):
+        _bearing_setup(s, vr, cavitation=0, n=8)
+        s.setReal([vr["R"]], [R_TEST])                      # same value: accepted
+        with pytest.raises(FMICallException):
+            s.setReal([vr["R"]], [2 * R_TEST])
+
+
+# --------------------------------------------------------------------- rotors
+@pytest.mark.parametrize("name", ["JeffcottRotor", "TurbochargerRotor"])
+def test_rotor_state_round_trip_and_gravity(built_fmus, name):
+    path = _fmu(built_fmus, name)
+    outs = ["x_1", "y_1", "vx_1", "vy_1", "x_2", "y_2", "vy_2", "omega"]
+    with open_slave(path) as (s, vr):
+        s.setupExperiment(startTime=0.0)
+        s.enterInitializationMode()
+        s.setReal([vr["f_max"], vr["t_ramp"]], [200.0, 1.0])
+        s.exitInitializationMode()
+        ovr = [vr[n] for n in outs]
+        h, t = 1e-4, 0.0
+        first = []
+        for k in range(5):
+            s.doStep(t, h)
+            t += h
+        state = s.getFMUstate()
+        for k in range(10):
+            s.setReal([vr["Fx_1"], vr["Fy_1"]], [1.0 * k, 2.0])
+            s.doStep(t, h)
+            t += h
+            first.append(s.getReal(ovr))
+        s.setFMUstate(state)
+        t -= 10 * h
+        second = []
+        for k in range(10):
+            s.setReal([vr["Fx_1"], vr["Fy_1"]], [1.0 * k, 2.0])
+            s.doStep(t, h)
+            t += h
+            second.append(s.getReal(ovr))
+        s.freeFMUstate(state)
+    first, second = np.array(first), np.array(second)
+    assert np.array_equal(first, second)
+    assert first[-1, outs.index("vy_2")] < 0.0               # unsupported journal falls under gravity
+    assert first[-1, outs.index("omega")] == pytest.approx(2 * math.pi * 200.0 * 15 * h, rel=1e-9)
