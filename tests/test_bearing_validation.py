@@ -1,0 +1,239 @@
+"""Validation of the journal-bearing film solver against independent references.
+
+References (``bearing_fmu/reference.py``, each checked on its own in
+``tests/test_bearing_validation_reference.py``):
+
+* Ocvirk short bearing, half-Sommerfeld, with squeeze (Ocvirk 1952; Childs 1993,
+  *Turbomachinery Rotordynamics*, sec. 3.4; Booker 1965 integrals);
+* Sommerfeld long bearing, Guembel condition, with squeeze (Sommerfeld 1904; Szeri
+  2011, *Fluid Film Lubrication*, ch. 4);
+* finite full bearing with the Reynolds condition: Khonsari & Booser 2008, *Applied
+  Tribology*, Table 8.6 (cross-checked with Raimondi & Boyd 1958 at L/D = 1);
+* the paper's stationary case (section 3.1 of
+  ``/work/shared/paper/transient-run-up-mass-conserving-cavitation.md``).
+
+Tolerances are set by the reference (its limit error or its printed digits) and by
+the grid error measured in the grid study, never by what the solver happens to give.
+Long studies are ``@pytest.mark.slow``; ``docs/scripts/bearing_validation_tables.py``
+prints every table of ``docs/bearing-validation.md``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bearing_fmu import reference as ref
+
+model = pytest.importorskip("bearing_fmu.model")
+
+R = 0.02
+PSI = 2.8e-3
+C = PSI * R
+ETA = 0.012
+P0 = 1e5
+OMEGA = 2 * math.pi * 100.0
+
+
+def params(*, B, n_phi, n_z, cavitation=0, axial_bc=0, groove_width=0.0,
+           groove_angle=math.pi / 2, **extra):
+    return model.BearingParams(R=R, B=B, psi=PSI, eta0=ETA, p0=P0, p_feed=P0,
+                               groove_width=groove_width, groove_angle=groove_angle,
+                               n_phi=n_phi, n_z=n_z, cavitation=cavitation,
+                               axial_bc=axial_bc, **extra)
+
+
+def hs_force(p, x, y, vx, vy, omega=OMEGA):
+    b = model.JournalBearing(p)
+    b.initialize(x, y, vx, vy, omega)
+    return np.array([b.outputs["Fx"], b.outputs["Fy"]]), b
+
+
+def steady(p, x, y, omega=OMEGA, *, rev_per_step=2.0, max_steps=60, rtol=1e-7):
+    """Mass-conserving film run to steady state at fixed kinematics.
+
+    Steps of ``rev_per_step`` revolutions until the force changes by less than
+    ``rtol`` of its size over one step. Returns (bearing, number of steps)."""
+    b = model.JournalBearing(p)
+    b.initialize(x, y, 0.0, 0.0, omega)
+    dt = rev_per_step * 2 * math.pi / omega
+    f_old = np.array([b.outputs["Fx"], b.outputs["Fy"]])
+    for k in range(1, max_steps + 1):
+        b.step(dt, x, y, 0.0, 0.0, omega)
+        f = np.array([b.outputs["Fx"], b.outputs["Fy"]])
+        if np.linalg.norm(f - f_old) <= rtol * np.linalg.norm(f):
+            return b, k
+        f_old = f
+    raise AssertionError(f"no steady state after {max_steps} steps of {rev_per_step} rev")
+
+
+def rel(a, b):
+    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(b))
+
+
+# --------------------------------------------------------------- short-bearing limit
+SQUEEZE_CASES = {
+    "rotation": (0.0, -0.6 * C, 0.0, 0.0),
+    "squeeze+whirl": (0.25 * C, -0.45 * C, 0.08 * C * OMEGA, 0.05 * C * OMEGA),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SQUEEZE_CASES))
+def test_half_sommerfeld_tends_to_ocvirk(case):
+    """HS film force vs Ocvirk's short bearing as B/D -> 0, with squeeze.
+
+    Reference: :func:`bearing_fmu.reference.short_bearing_force` (Ocvirk 1952;
+    Childs 1993, sec. 3.4), exact in the limit B/D -> 0. The finite-length
+    correction is O((B/D)^2) (the circumferential Poiseuille term is (B/D)^2
+    smaller than the axial one), so the error must fall by about 4 per halving of
+    B/D (accepted: 3 to 5.5, leaving room for the O((B/D)^4) term and the grid
+    error, which is about 0.1 % on 360 x 40), and be below 1 % at B/D = 1/16.
+    """
+    x, y, vx, vy = SQUEEZE_CASES[case]
+    errs = []
+    for b_over_d in (0.25, 0.125, 0.0625):
+        B = b_over_d * 2 * R
+        f, _ = hs_force(params(B=B, n_phi=360, n_z=40), x, y, vx, vy)
+        f_ref = ref.short_bearing_force(x, y, vx, vy, OMEGA, R=R, B=B, c=C, eta=ETA)
+        errs.append(rel(f, f_ref))
+    for e1, e2 in zip(errs, errs[1:]):
+        assert 3.0 < e1 / e2 < 5.5
+    assert errs[2] < 0.01
+
+
+# ---------------------------------------------------------------- long-bearing limit
+@pytest.mark.parametrize("case", sorted(SQUEEZE_CASES))
+def test_half_sommerfeld_tends_to_long_bearing(case):
+    """HS film force vs the Guembel long bearing as B/D -> infinity, with squeeze.
+
+    Reference: :func:`bearing_fmu.reference.long_bearing_force` (Sommerfeld 1904;
+    Szeri 2011 ch. 4), exact as B/D -> infinity, with the squeeze constant of the
+    finite bearing with p = p0 at its ends (checked by an independent 2-D FD in
+    ``test_bearing_validation_reference.py``). Near each end a boundary layer of
+    width ~R carries a pressure deficit, so the force error falls like D/B: the
+    error must halve per doubling of B (accepted 1.8 to 2.2), and the Richardson
+    extrapolation in D/B of the force per unit length, 2 F(2B)/(2B) - F(B)/B, must
+    match the reference to 0.5 % (the grid error of 72 cells in phi, measured
+    against 144 cells, is below 0.1 %).
+    """
+    x, y, vx, vy = SQUEEZE_CASES[case]
+    errs, per_len = [], []
+    for b_over_d in (2.0, 4.0, 8.0):
+        B = b_over_d * 2 * R
+        n_phi = 72
+        n_z = int(round(B / (R * 2 * math.pi / n_phi)))  # square cells
+        f, _ = hs_force(params(B=B, n_phi=n_phi, n_z=n_z), x, y, vx, vy)
+        f_ref = ref.long_bearing_force(x, y, vx, vy, OMEGA, R=R, B=B, c=C, eta=ETA)
+        errs.append(rel(f, f_ref))
+        per_len.append(f / B)
+    for e1, e2 in zip(errs, errs[1:]):
+        assert 1.8 < e1 / e2 < 2.2
+    f_ref_len = np.array(ref.long_bearing_force(x, y, vx, vy, OMEGA, R=R, B=1.0, c=C, eta=ETA))
+    assert rel(2 * per_len[2] - per_len[1], f_ref_len) < 0.005
+
+
+# ------------------------------------------------------- finite bearing vs the table
+def finite_case(b_over_d, eps, *, n_phi, n_z, **extra):
+    """Mass-conserving film, oil bath, narrow flooded groove (p_feed = p0) at the
+    thickest film; journal displaced downwards. Returns (S, attitude_deg, bearing)."""
+    B = b_over_d * 2 * R
+    x, y = 0.0, -eps * C
+    p = params(B=B, n_phi=n_phi, n_z=n_z, cavitation=1, axial_bc=0,
+               groove_width=1e-9, groove_angle=math.pi / 2, **extra)
+    b, _ = steady(p, x, y)
+    fx, fy = b.outputs["Fx"], b.outputs["Fy"]
+    s = ref.sommerfeld_number(math.hypot(fx, fy), R=R, B=B, c=C, eta=ETA, omega=OMEGA)
+    att = math.degrees(ref.attitude_angle(fx, fy, x, y))
+    return s, att, b
+
+
+def _table_row(b_over_d, eps):
+    return next(r for r in ref.FINITE_BEARING_TABLE[b_over_d] if r[0] == eps)
+
+
+#: Tolerance on S against the table: 1.5 % is the spread between the two published
+#: sources at L/D = 1 (Khonsari & Booser vs Raimondi & Boyd, up to 1.4 %); the grid
+#: error of the 90 x 30 grid is added from the grid study (below 1 % for the force).
+S_TOL = 0.015 + 0.01
+#: attitude angle: the tables print 0.01 deg, the two sources differ by up to 0.54 deg
+#: (eps = 0.4, L/D = 1: 62.56 vs 63.10); grid error of the angle < 0.5 deg.
+ATT_TOL_DEG = 0.6 + 0.5
+
+
+@pytest.mark.parametrize("b_over_d", [1.0, 0.5, 0.25])
+def test_mass_conserving_matches_finite_bearing_table(b_over_d):
+    """Mass-conserving model with a flooded groove at the thickest film reproduces
+    the Reynolds-condition finite bearing (Khonsari & Booser 2008, Table 8.6;
+    Raimondi & Boyd 1958) at eps = 0.6: Sommerfeld number and attitude angle.
+
+    JFO/Elrod-type mass-conserving models reduce to the Reynolds (Swift-Stieber)
+    rupture condition for a fully flooded bearing in steady state (Floberg 1974;
+    Elrod 1981), and the groove at the thickest film supplies p = p0 on the line of
+    maximum film as in the tables' boundary conditions."""
+    eps, s_tab, att_tab = _table_row(b_over_d, 0.6)
+    s, att, _ = finite_case(b_over_d, eps, n_phi=90, n_z=30)
+    assert s == pytest.approx(s_tab, rel=S_TOL)
+    assert abs(att - att_tab) < ATT_TOL_DEG
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("b_over_d", [1.0, 0.5, 0.25])
+@pytest.mark.parametrize("eps", [0.4, 0.8])
+def test_mass_conserving_matches_finite_bearing_table_more(b_over_d, eps):
+    """As above at eps = 0.4 and 0.8 (same tolerances, same sources)."""
+    _, s_tab, att_tab = _table_row(b_over_d, eps)
+    s, att, _ = finite_case(b_over_d, eps, n_phi=90, n_z=30)
+    assert s == pytest.approx(s_tab, rel=S_TOL)
+    assert abs(att - att_tab) < ATT_TOL_DEG
+
+
+# --------------------------------------------------------------- paper, section 3.1
+PAPER_B = 1.6 * R
+
+
+def paper_case(axial_bc, *, n_phi=40, n_z=40, **extra):
+    """Section 3.1: 100 Hz, eps = 0.7 with the minimum gap at phi = pi, B/R = 1.6,
+    psi = 2.8e-3, eta0 = 12 mPa s, p0 = 1 bar; oil bath without groove (periodic,
+    figure 6a) or free to air with a 15 deg groove at phi = 0, p_inlet = p0 (6b)."""
+    gw = 0.0 if axial_bc == 0 else math.radians(15.0)
+    p = params(B=PAPER_B, n_phi=n_phi, n_z=n_z, cavitation=1, axial_bc=axial_bc,
+               groove_width=gw, groove_angle=0.0, **extra)
+    b, _ = steady(p, -0.7 * C, 0.0)
+    return b
+
+
+def test_mass_conservation_steady_state():
+    """Steady state: inflow through the groove equals the net side outflow to the
+    solver tolerance (free to air: the groove is the only source). For the oil bath
+    without a groove there is no feed, so the net side flow must vanish."""
+    b = paper_case(1)
+    q_feed, q_side = b.outputs["q_feed"], b.outputs["q_side"]
+    assert q_feed > 0
+    assert abs(q_feed - q_side) <= 1e-5 * q_feed
+    b = paper_case(0)
+    q_scale = C * R * OMEGA * PAPER_B  # Couette flow scale
+    assert abs(b.outputs["q_side"] - b.outputs["q_feed"]) <= 1e-6 * q_scale
+
+
+def test_paper_stationary_case():
+    """Paper section 3.1: p_max of the two axial conditions differs by 0.6 % in the
+    paper; p_min is slightly below p0 in both; the cavity reaches the axial edges
+    only when the film is free to air (figures 5b and 7b: theta = 1 at the edges in
+    the oil bath, theta < 1 there when free to air)."""
+    bath, air = paper_case(0), paper_case(1)
+    pmax_b, pmax_a = bath.outputs["p_max"], air.outputs["p_max"]
+    # the pressure scale is 6 eta omega / psi^2 = 5.8 MPa; both peaks are a few MPa
+    assert 1e6 < pmax_b < 1e8 and 1e6 < pmax_a < 1e8
+    # 0.6 % in the paper; our free-to-air peak must be within 2 % of the bath one
+    # (the difference comes only from the cavity region and the groove)
+    assert abs(pmax_a - pmax_b) / pmax_b < 0.02
+    for b in (bath, air):
+        assert b.outputs["p_min"] < P0
+        assert b.outputs["p_min"] > P0 - 0.1 * P0  # "slightly below"
+    th_b = bath.fields()["theta"]
+    th_a = air.fields()["theta"]
+    assert th_b.min() < 0.9 and th_a.min() < 0.9           # a cavity exists
+    assert th_b[[0, -1]].min() > th_a[[0, -1]].min()       # edges refilled in the bath
+    assert th_a[[0, -1]].min() < 0.9                       # cavity open to the air
