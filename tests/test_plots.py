@@ -1,0 +1,128 @@
+"""plot_run on synthetic run directories: files are real, non-trivial PNGs; gaps give messages."""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from orchestrator.analysis import analyze_run
+from orchestrator.errors import CosimError
+from orchestrator.plots import infer_spec, plot_run
+from test_analysis import C, SPEC, whirl_vanishing, write_run
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def fields_npz(path, n_phi=24, n_z=12, bad_shape=False):
+    phi = np.linspace(0, 2 * np.pi, n_phi, endpoint=False)
+    z = np.linspace(0, 0.032, n_z)
+    P, Z = np.meshgrid(phi, z)
+    p = 1e5 + 30e5 * np.clip(np.sin(P - np.pi / 2), 0, None) ** 2 * np.sin(np.pi * Z / 0.032)
+    theta = np.where(P > 1.2 * np.pi, 0.7, 1.0)
+    if bad_shape:
+        p = p.T
+    np.savez(path, phi=phi, z=z, p=p, theta=theta, h=1 - 0.7 * np.cos(P - np.pi), t=0.1)
+
+
+def check_png(path):
+    import matplotlib.image as mpimg
+    data = path.read_bytes()
+    assert data[:8] == PNG_MAGIC, f"{path} is not a PNG"
+    assert len(data) > 10_000, f"{path} is only {len(data)} bytes"
+    img = mpimg.imread(path)
+    assert img.shape[0] > 200 and img.shape[1] > 200
+    assert img[..., :3].std() > 0.05, f"{path} is (nearly) blank"
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("run")
+    write_run(d, whirl_vanishing(), step=4)
+    res = analyze_run(d, {**SPEC, "fields": "bearing1"})
+    (d / "summary.json").write_text(json.dumps({"scenario": "synthetic_run_up", "status": "finished",
+                                                "analysis": res}))
+    fields_npz(d / "bearing1_fields.npz")
+    return d
+
+
+def test_full_run_dir(run_dir):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")          # nothing may be skipped here
+        files = plot_run(run_dir)
+    names = sorted(f.name for f in files)
+    assert names == ["eccentricity.png", "fields_bearing1.png", "orbit_bearing1.png",
+                     "waterfall_bearing1.png"]
+    for f in files:
+        assert f.parent == run_dir / "plots"
+        check_png(f)
+
+
+def test_inferred_signals_without_summary(tmp_path):
+    write_run(tmp_path, whirl_vanishing(), step=4)
+    spec = infer_spec({"time": 0, "rotor.x_1": 0, "rotor.y_1": 0, "rotor.omega": 0, "bearing1.eps": 0})
+    assert spec == {"speed": "rotor.omega",
+                    "journals": {"journal1": {"x": "rotor.x_1", "y": "rotor.y_1", "eps": "bearing1.eps"}}}
+    files = plot_run(tmp_path)
+    assert sorted(f.name for f in files) == ["eccentricity.png", "orbit_journal1.png",
+                                             "waterfall_journal1.png"]
+
+
+def test_spec_from_scenario_file(tmp_path):
+    write_run(tmp_path, whirl_vanishing(), step=4)
+    sc = tmp_path / "sc.yaml"
+    sc.write_text("analysis:\n  speed: rotor.omega\n  journals:\n"
+                  f"    left: {{x: rotor.x_1, y: rotor.y_1, clearance: {C}}}\n")
+    (tmp_path / "summary.json").write_text(json.dumps({"scenario": "s", "scenario_file": str(sc)}))
+    names = sorted(f.name for f in plot_run(tmp_path))
+    assert names == ["eccentricity.png", "orbit_left.png", "waterfall_left.png"]
+
+
+def test_missing_signal_is_a_clear_warning(tmp_path):
+    write_run(tmp_path, whirl_vanishing(), step=4)
+    spec = {"speed": "rotor.omega",
+            "journals": {"b1": {"x": "rotor.x_9", "y": "rotor.y_1", "eps": "bearing1.eps",
+                                "clearance": C}}}
+    (tmp_path / "summary.json").write_text(json.dumps({"scenario": "s", "analysis": {"spec": spec}}))
+    with pytest.warns(UserWarning, match=r"no column 'rotor\.x_9'") as rec:
+        files = plot_run(tmp_path)
+    msgs = " ".join(str(w.message) for w in rec)
+    assert "orbit of 'b1'" in msgs and "waterfall of 'b1'" in msgs
+    assert [f.name for f in files] == ["eccentricity.png"]     # eps still plotted
+
+
+@pytest.mark.filterwarnings("ignore:plot .*skipped")
+def test_nothing_to_plot_raises_cosim_error(tmp_path):
+    with pytest.raises(CosimError, match="not a directory"):
+        plot_run(tmp_path / "nope")
+    with pytest.raises(CosimError, match="results.csv not found"):
+        plot_run(tmp_path)
+
+
+def test_fields_only_and_bad_fields(tmp_path):
+    fields_npz(tmp_path / "b_fields.npz")
+    with pytest.warns(UserWarning, match="results.csv not found"):
+        files = plot_run(tmp_path)
+    assert [f.name for f in files] == ["fields_b.png"]
+    check_png(files[0])
+    fields_npz(tmp_path / "b_fields.npz", bad_shape=True)
+    with pytest.warns(UserWarning, match="p has shape"), pytest.raises(CosimError, match=r"expected \(n_z, n_phi\)"):
+        plot_run(tmp_path)
+
+
+def test_constant_speed_run(tmp_path):
+    t = np.arange(0, 0.5, 1e-4)
+    om = np.full(t.size, 2 * math.pi * 100.0)
+    z = -0.5j * C + 0.05 * C * np.exp(1j * om * t)
+    with (tmp_path / "results.csv").open("w") as fh:
+        fh.write("time,rotor.x_1,rotor.y_1,rotor.omega\n")
+        np.savetxt(fh, np.column_stack([t, z.real, z.imag, om]), delimiter=",")
+    spec = {"speed": "rotor.omega", "journals": {"j": {"x": "rotor.x_1", "y": "rotor.y_1", "clearance": C}}}
+    (tmp_path / "summary.json").write_text(json.dumps({"scenario": "s", "analysis": analyze_run(tmp_path, spec)}))
+    files = plot_run(tmp_path)
+    assert sorted(f.name for f in files) == ["eccentricity.png", "orbit_j.png", "waterfall_j.png"]
+    for f in files:
+        check_png(f)
