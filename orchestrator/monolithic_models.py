@@ -1,0 +1,202 @@
+"""First-order model adapters of the monolithic reference (:mod:`orchestrator.monolithic`).
+
+An adapter wraps one FMU instance's *plain-Python* model (never the FMU) as
+
+* ``initial_state() -> ndarray`` (may be empty),
+* ``rhs(t, s, u) -> ds/dt`` with ``u`` the dict of the FMU's inputs,
+* ``outputs(t, s, u) -> dict`` of the FMU's outputs at state ``s``,
+* ``feedthrough``: True when outputs depend on inputs.
+
+``MODELS`` maps the FMU's ``modelName`` to a factory
+``(instance, model_description, parameters) -> adapter``; parameters are the
+FMU's start values overridden by the scenario's ``parameters``. A parameter the
+Python model does not know raises, so the reference never silently differs from
+the FMU it stands for.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+__all__ = ["ModelAdapter", "MODELS"]
+
+
+class ModelAdapter:
+    """Base class: the rules of an adapter are in the module docstring."""
+
+    input_names: tuple[str, ...] = ()
+    output_names: tuple[str, ...] = ()
+    feedthrough: bool = False
+    n_states: int = 0
+
+    def __init__(self, instance: str, md, params: Mapping[str, Any]):
+        self.instance = instance
+        self.params = _parameters(md, params)
+        self.input_defaults = {n: float(md.variables[n].start or 0.0) for n in self.input_names
+                               if n in md.variables}
+        missing = [n for n in self.input_names + self.output_names if n not in md.variables]
+        if missing:
+            raise KeyError(f"model '{md.model_name}' lacks the variables {missing} the monolithic "
+                           "adapter expects; rebuild the FMU (rotorcosim build-fmus --force)")
+
+    def initial_state(self) -> np.ndarray:
+        return np.zeros(0)
+
+    def rhs(self, t: float, s: np.ndarray, u: Mapping[str, float]) -> np.ndarray:
+        return np.zeros(0)
+
+    def outputs(self, t: float, s: np.ndarray, u: Mapping[str, float]) -> dict[str, float]:
+        raise NotImplementedError
+
+
+def _parameters(md, overrides: Mapping[str, Any]) -> dict[str, Any]:
+    out = {n: v.start for n, v in md.variables.items()
+           if v.causality == "parameter" and v.start is not None}
+    unknown = [k for k in overrides if k not in out and k not in md.variables]
+    if unknown:
+        raise KeyError(f"parameters {unknown} are not variables of model '{md.model_name}'")
+    out.update(overrides)
+    return out
+
+
+def _dataclass_kwargs(cls, params: Mapping[str, Any], ignore=()) -> dict[str, Any]:
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(k for k in params if k not in names and k not in ignore)
+    if unknown:
+        raise ValueError(f"FMU parameters {unknown} have no counterpart in {cls.__name__}; the "
+                         "monolithic reference would silently ignore them")
+    return {k: v for k, v in params.items() if k in names}
+
+
+# --------------------------------------------------------------------------- two-mass oscillator
+
+class LeftMassAdapter(ModelAdapter):
+    """tests/fmus_src/left_mass.py: ``m1 x1'' = -k1 x1 + F``."""
+
+    input_names = ("F",)
+    output_names = ("x1", "v1")
+    n_states = 2
+
+    def initial_state(self):
+        return np.array([self.params["x1_0"], self.params["v1_0"]], dtype=float)
+
+    def rhs(self, t, s, u):
+        p = self.params
+        return np.array([s[1], (-p["k1"] * s[0] + u["F"]) / p["m1"]])
+
+    def outputs(self, t, s, u):
+        return {"x1": float(s[0]), "v1": float(s[1])}
+
+
+class RightMassAdapter(ModelAdapter):
+    """tests/fmus_src/right_mass.py: ``m2 x2'' = -k2 x2 - d2 v2 - F``, ``F = kc (x2-x1) + dc (v2-v1)``."""
+
+    input_names = ("x1", "v1")
+    output_names = ("F", "x2", "v2")
+    feedthrough = True
+    n_states = 2
+
+    def initial_state(self):
+        return np.array([self.params["x2_0"], self.params["v2_0"]], dtype=float)
+
+    def _force(self, s, u):
+        p = self.params
+        return p["kc"] * (s[0] - u["x1"]) + p["dc"] * (s[1] - u["v1"])
+
+    def rhs(self, t, s, u):
+        p = self.params
+        return np.array([s[1], (-p["k2"] * s[0] - p["d2"] * s[1] - self._force(s, u)) / p["m2"]])
+
+    def outputs(self, t, s, u):
+        return {"F": float(self._force(s, u)), "x2": float(s[0]), "v2": float(s[1])}
+
+
+# --------------------------------------------------------------------------- rotor and bearing
+
+_BEARING_FMU_ONLY = ("fields_file",)
+
+
+class JournalBearingAdapter(ModelAdapter):
+    """bearing_fmu.model.JournalBearing, half-Sommerfeld only (quasi-static, no state)."""
+
+    input_names = ("x", "y", "vx", "vy", "omega")
+    feedthrough = True
+
+    def __init__(self, instance, md, params):
+        super().__init__(instance, md, params)
+        from bearing_fmu.model import BearingParams, JournalBearing
+        kw = _dataclass_kwargs(BearingParams, self.params, ignore=_BEARING_FMU_ONLY)
+        if int(kw.get("cavitation", 1)) != 0:
+            raise ValueError(
+                "the monolithic reference supports only half-Sommerfeld bearings (cavitation = 0); "
+                "the mass-conserving film (cavitation = 1) has its own state and is not supported: "
+                "use a co-simulation variant with a much smaller macro step as the reference")
+        self.model = JournalBearing(BearingParams(**kw))
+        u = self.input_defaults
+        self.model.initialize(u["x"], u["y"], u["vx"], u["vy"], u["omega"])
+        self.output_names = tuple(n for n, v in md.variables.items() if v.causality == "output")
+        self._evaluate = getattr(self.model, "evaluate", None)
+
+    def outputs(self, t, s, u):
+        args = (u["x"], u["y"], u["vx"], u["vy"], u["omega"])
+        if self._evaluate is not None:
+            out = self._evaluate(*args)
+        else:   # quasi-static: step() just evaluates at the given kinematics (contract)
+            self.model.step(1e-6, *args)
+            out = self.model.outputs
+        return {n: float(out.get(n, 0.0)) for n in self.output_names}
+
+
+class JeffcottRotorAdapter(ModelAdapter):
+    """rotor_fmu.jeffcott.JeffcottRotor in its first-order form."""
+
+    output_names = ()
+
+    def __init__(self, instance, md, params):
+        from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
+        self.input_names = tuple(n for n, v in md.variables.items() if v.causality == "input")
+        super().__init__(instance, md, params)
+        self.model = JeffcottRotor(JeffcottParams(**_dataclass_kwargs(JeffcottParams, self.params)))
+        self.model.initialize()
+        self.n_b = int(self.model.n_bearings)
+        self.output_names = tuple(n for n, v in md.variables.items() if v.causality == "output")
+        self._s0 = np.asarray(self.model.state_vector(), dtype=float).copy()
+        self.n_states = self._s0.size
+        self._outputs_at: Callable | None = getattr(self.model, "outputs_at", None)
+
+    def _forces(self, u) -> np.ndarray:
+        return np.array([[u[f"Fx_{i + 1}"], u[f"Fy_{i + 1}"]] for i in range(self.n_b)], dtype=float)
+
+    def initial_state(self):
+        return self._s0.copy()
+
+    def rhs(self, t, s, u):
+        return np.asarray(self.model.rhs(t, s, self._forces(u)), dtype=float)
+
+    def outputs(self, t, s, u):
+        if self._outputs_at is not None:
+            out = self._outputs_at(t, s)
+        else:
+            kin = np.asarray(self.model.journal_kinematics(t, s), dtype=float)
+            out = {}
+            for i in range(self.n_b):
+                for j, n in enumerate(("x", "y", "vx", "vy")):
+                    out[f"{n}_{i + 1}"] = kin[i, j]
+            out["omega"] = self.model.drive.omega(t)
+        missing = [n for n in self.output_names if n not in out]
+        if missing:
+            raise KeyError(f"{self.instance}: the rotor model gives no {missing} for a state vector "
+                           "(needs JeffcottRotor.outputs_at(t, s))")
+        return {n: float(out[n]) for n in self.output_names}
+
+
+MODELS: dict[str, Callable[..., ModelAdapter]] = {
+    "LeftMass": LeftMassAdapter,
+    "RightMass": RightMassAdapter,
+    "JournalBearing": JournalBearingAdapter,
+    "JeffcottRotor": JeffcottRotorAdapter,
+}

@@ -1,0 +1,294 @@
+"""Tests of ``rotorcosim compare`` with a fake runner (no master needed).
+
+The fake runner writes the result files of the public contract for a made-up
+"co-simulation" whose error is known in closed form:
+``x(t) = cos t + K h^p sin 3t`` with ``p = 1 + extrapolation_order`` (``p + 1``
+for Gauss-Seidel), and a blow-up when ``h`` exceeds ``H_UNSTABLE``. The
+reference (``scheme: monolithic``) is ``cos t`` plus ``rtol * sin t``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orchestrator.compare import (CompareSpecError, apply_changes, expand_variants, main_compare,
+                                  parse_compare, run_comparison)
+from orchestrator.compare_metrics import check_report, fit_order, signal_errors
+from orchestrator.scenario import (ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario)
+
+K = 0.1
+H_UNSTABLE = 0.3
+
+
+def fake_order(scheme: str, ext: int) -> int:
+    return 1 + ext + (1 if scheme == "gauss-seidel" else 0)
+
+
+def fake_runner(scenario: Scenario, out_dir: Path) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    c = scenario.coupling
+    t = np.arange(0.0, scenario.stop_time + 1e-12, scenario.output.interval)
+    if c.scheme == "monolithic":
+        x = np.cos(t) + c.options.get("rtol", 1e-8) * np.sin(t)
+        steps = 0
+    else:
+        h, p = c.macro_step, fake_order(c.scheme, c.extrapolation_order)
+        x = np.cos(t) + K * h ** p * np.sin(3 * t)
+        if h > H_UNSTABLE:
+            x = x * np.exp(3 * t)
+        steps = int(round(scenario.stop_time / h))
+    y = 2.0 * np.sin(t) if c.scheme == "monolithic" else 2.0 * np.sin(t) + 0.5 * (x - np.cos(t))
+    with open(out_dir / "results.csv", "w") as f:
+        f.write("time,left.x1,left.v1\n")
+        for row in zip(t, x, y):
+            f.write(",".join(repr(float(v)) for v in row) + "\n")
+    summary = {"scenario": scenario.name, "status": "finished", "message": "",
+               "macro_steps": steps, "wall_time_s": 0.01,
+               "fmu_calls": {"left": {"doStep": steps}, "right": {"doStep": steps}},
+               "analysis": {"journals": {"b1": {"onset": {"speed_hz": 100.0 * (1 + float(x[-1] - np.cos(t[-1])))}}}}}
+    (out_dir / "summary.json").write_text(json.dumps(summary))
+
+
+def base_scenario(tmp_path=Path("/nonexistent")) -> Scenario:
+    return Scenario(name="fake", stop_time=4.0,
+                    fmus=(FmuSpec(name="left", path=tmp_path / "L.fmu"),
+                          FmuSpec(name="right", path=tmp_path / "R.fmu")),
+                    connections=(ConnectionSpec(src="left.x1", dst="right.x1"),),
+                    coupling=CouplingSpec(scheme="jacobi", macro_step=0.1),
+                    output=OutputSpec(interval=0.1))
+
+
+SECTION = {
+    "signals": ["left.x1", "left.v1"],
+    "reference": {"scheme": "monolithic", "set": {"coupling.options.rtol": 1e-9}},
+    "variants": [{"scheme": ["jacobi", "gauss-seidel"], "extrapolation_order": [0, 1],
+                  "macro_step": [0.2, 0.1, 0.05]}],
+    "output_interval": 0.2,
+}
+
+
+# --------------------------------------------------------------------------- spec
+
+def test_variant_expansion_is_cartesian_with_unique_names_and_families():
+    base = base_scenario()
+    vs = expand_variants({"scheme": ["jacobi", "gauss-seidel"], "extrapolation_order": [0, 1, 2],
+                          "macro_step": [1e-3, 5e-4], "tolerance": {"rms": 0.01}}, base, {}, {"rms"})
+    assert len(vs) == 12
+    assert len({v.name for v in vs}) == 12
+    assert len({v.family for v in vs}) == 6
+    v = vs[0]
+    assert v.name == "jac-e0i0-h0.001" and v.family == "jac-e0i0"
+    assert v.changes == {"coupling.scheme": "jacobi", "coupling.extrapolation_order": 0,
+                         "coupling.macro_step": 1e-3}
+    assert v.tolerance == {"rms": 0.01}
+    sc = apply_changes(base, v.changes)
+    assert (sc.coupling.scheme, sc.coupling.macro_step) == ("jacobi", 1e-3)
+    # a scalar sequence is one value, not an axis of the product
+    vs = expand_variants({"sequence": ["right", "left"], "macro_step": [0.1, 0.2]}, base, {}, set())
+    assert len(vs) == 2 and apply_changes(base, vs[0].changes).coupling.sequence == ("right", "left")
+
+
+def test_name_template_and_parameter_changes():
+    base = base_scenario()
+    vs = expand_variants({"name": "{scheme}-k{extrapolation_order}-{macro_step:g}",
+                          "extrapolation_order": [1], "macro_step": [0.1, 0.2],
+                          "set": {"right.kc": 5.0}}, base, {}, set())
+    assert [v.name for v in vs] == ["jacobi-k1-0.1", "jacobi-k1-0.2"]
+    assert vs[0].family == "jacobi-k1-"
+    assert apply_changes(base, vs[0].changes).fmu("right").parameters == {"kc": 5.0}
+    with pytest.raises(KeyError, match="unknown coupling field"):
+        apply_changes(base, {"coupling.macrostep": 1.0})
+
+
+def test_invalid_section_lists_every_problem():
+    bad = dict(SECTION, metrics=["max", "l2"], colour="red",
+               variants=[{"scheme": "jacobi", "macro_step": [0.1, -1.0], "tolerance": {"rsm": 0.1}}],
+               output_interval=0.15)
+    with pytest.raises(CompareSpecError) as exc:
+        parse_compare(bad, base_scenario())
+    text = str(exc.value)
+    for needle in ("'compare.colour' is not a known key", "'compare.metrics' must be a list",
+                   "macro_step' must be a positive number", "'rsm'"):
+        assert needle in text, text
+
+
+def test_output_interval_must_be_a_multiple_of_every_macro_step():
+    with pytest.raises(CompareSpecError, match="not a multiple of the macro step"):
+        parse_compare(dict(SECTION, output_interval=0.15), base_scenario())
+
+
+# --------------------------------------------------------------------------- metrics
+
+def test_signal_errors_on_synthetic_signals_with_known_errors():
+    t = np.linspace(0.0, 1.0, 101)
+    r = 2.0 * np.sin(2 * np.pi * t)                      # peak 2
+    e = signal_errors(t, r, t, r + 0.02, scale=2.0)      # constant offset 0.02 -> 1 %
+    assert e["max"] == pytest.approx(0.01) and e["rms"] == pytest.approx(0.01)
+    assert e["end"] == pytest.approx(0.01)
+    bump = np.where(t < 0.5, 0.0, 0.04)                  # 51 of 101 points off by 2 %
+    e = signal_errors(t, r, t, r + bump, scale=2.0)
+    assert e["max"] == pytest.approx(0.02)
+    assert e["rms"] == pytest.approx(0.02 * math.sqrt(51 / 101))
+    # a coarser variant grid whose points coincide with every 2nd reference point:
+    # linear interpolation of a linear error is exact
+    tc = t[::2]
+    e = signal_errors(t, r, tc, 2.0 * np.sin(2 * np.pi * tc) + 0.1 * tc, scale=2.0)
+    assert e["end"] == pytest.approx(0.05)
+    # a run that stops early or produces NaN has an infinite error
+    assert signal_errors(t, r, t[:50], r[:50], 2.0)["max"] == math.inf
+    v = r.copy()
+    v[10] = np.nan
+    assert signal_errors(t, r, t, v, 2.0)["rms"] == math.inf
+
+
+def test_order_fit_recovers_known_orders():
+    h = np.array([0.1, 0.05, 0.025, 0.0125])
+    p, p_fine, n = fit_order(h, 3.0 * h ** 2)
+    assert (p, p_fine, n) == (pytest.approx(2.0), pytest.approx(2.0), 4)
+    p, p_fine, _ = fit_order(h, 0.1 * h + 7 * h ** 2)    # asymptotically first order
+    assert 1.0 < p_fine < p < 2.0                         # the finest pair is nearer the asymptote
+    assert math.isnan(fit_order([0.1], [0.01])[0])
+    assert fit_order(h, [0.1, math.inf, 0.02, 0.01])[2] == 3   # an unstable point is dropped
+
+
+# --------------------------------------------------------------------------- running
+
+def test_run_comparison_measures_errors_orders_and_stability():
+    sec = dict(SECTION, variants=[{"scheme": ["jacobi", "gauss-seidel"], "extrapolation_order": [0, 1],
+                                   "macro_step": [0.4, 0.2, 0.1, 0.05]}], output_interval=0.4)
+    spec = parse_compare(sec, base_scenario())
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:
+        rep = run_comparison(spec, d, runner=fake_runner, workers=1)
+    by = {v["name"]: v for v in rep.variants}
+    assert not by["jac-e0i0-h0.4"]["stable"]                 # past H_UNSTABLE
+    assert by["jac-e0i0-h0.1"]["stable"]
+    assert by["jac-e0i0-h0.1"]["macro_steps"] == 40 and by["jac-e0i0-h0.1"]["fmu_calls"] == 80
+    for o in rep.orders:
+        scheme = "gauss-seidel" if o["family"].startswith("gs") else "jacobi"
+        ext = int(o["family"].split("-e")[1][0])
+        assert o["order"] == pytest.approx(fake_order(scheme, ext), abs=0.05), o
+        assert o["points"] == 3
+    # max error of x at h = 0.1 for Jacobi e0: K h sin(3t) / peak(cos) on the output grid
+    t = np.arange(0, 4.0 + 1e-12, 0.4)
+    expect = np.max(np.abs(K * 0.1 * np.sin(3 * t)))
+    assert by["jac-e0i0-h0.1"]["signal_errors"]["left.x1"]["max"] == pytest.approx(expect, rel=1e-6)
+    assert rep.reference["check"]["errors"]["max"] < 1e-8
+
+
+@pytest.fixture
+def compare_files(tmp_path, test_fmus):
+    """A two-mass scenario (real test FMUs, so the loader can check it) and a comparison file."""
+    (tmp_path / "two_mass.yaml").write_text(f"""
+name: two-mass
+stop_time: 4.0
+fmus:
+  left: {{path: {test_fmus['LeftMass']}}}
+  right: {{path: {test_fmus['RightMass']}}}
+connections:
+  - {{from: left.x1, to: right.x1}}
+  - {{from: left.v1, to: right.v1}}
+  - {{from: right.F, to: left.F}}
+coupling: {{scheme: jacobi, macro_step: 0.1}}
+output: {{interval: 0.2}}
+""")
+
+    def write(extra: str, tol: str = "{rms: 0.05, max: 0.1}") -> Path:
+        p = tmp_path / "cmp.yaml"
+        p.write_text(f"""
+compare:
+  scenario: two_mass.yaml
+  signals: [left.x1, left.v1]
+  reference: {{scheme: monolithic}}
+  tolerance: {tol}
+  baseline: baselines/cmp.json
+  variants:
+    - {{scheme: [jacobi, gauss-seidel], extrapolation_order: [0, 1], macro_step: [0.2, 0.1, 0.05]}}
+{extra}""")
+        return p
+    return write
+
+
+def test_clean_run_passes_and_writes_report(compare_files, tmp_path, capsys):
+    path = compare_files("")
+    rc = main_compare(path, out_dir=tmp_path / "out", runner=fake_runner, workers=2)
+    assert rc == 0, capsys.readouterr()
+    md = (tmp_path / "out" / "report.md").read_text()
+    assert "jac-e0i0-h0.2" in md and "order (fit)" in md and "All checks passed." in md
+    doc = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert doc["passed"] and len(doc["variants"]) == 12
+    assert (tmp_path / "out" / "error_vs_cost.png").stat().st_size > 1000
+
+
+def test_too_tight_tolerance_fails_naming_variant_and_metric(compare_files, tmp_path, capsys):
+    path = compare_files("    - {scheme: jacobi, macro_step: 0.2, name: coarse, tolerance: {max: 0.001}}")
+    rc = main_compare(path, out_dir=tmp_path / "out", runner=fake_runner, workers=1)
+    err = capsys.readouterr().err
+    assert rc == 1
+    assert "variant 'coarse': max error" in err and "exceeds tolerance 0.001" in err
+    assert err.count("FAIL") == 1                      # the others are within their tolerance
+    assert "FAIL variant 'coarse'" in (tmp_path / "out" / "report.md").read_text()
+
+
+def test_unstable_variant_fails_naming_variant(compare_files, tmp_path, capsys):
+    path = compare_files("    - {scheme: jacobi, macro_step: 0.4, name: too-coarse}")
+    rc = main_compare(path, out_dir=tmp_path / "out", runner=fake_runner, workers=1)
+    err = capsys.readouterr().err
+    assert rc == 1
+    assert "variant 'too-coarse': rms error" in err and "unstable" in err
+
+
+def test_expected_order_is_checked(compare_files, tmp_path, capsys):
+    path = compare_files("    - {scheme: jacobi, extrapolation_order: 1, macro_step: [0.2, 0.1, 0.05], "
+                         "name: 'j1-{macro_step:g}', expect_order: 1}")
+    assert main_compare(path, out_dir=tmp_path / "out", runner=fake_runner, workers=1) == 1
+    err = capsys.readouterr().err
+    assert "family 'j1-': observed order 2.00" in err and "expected 1" in err
+
+
+def test_baseline_update_and_regression(compare_files, tmp_path, capsys):
+    path = compare_files("")
+    out = tmp_path / "out"
+    rc = main_compare(path, out_dir=out, update_baseline=True, runner=fake_runner, workers=1)
+    assert rc == 0
+    bfile = tmp_path / "baselines" / "cmp.json"
+    base = json.loads(bfile.read_text())
+    assert set(base["variants"]) == {v["name"] for v in json.loads((out / "report.json").read_text())["variants"]}
+    assert main_compare(path, out_dir=out, runner=fake_runner, workers=1) == 0
+    # floating-point noise across machines (relative 1e-9) is not a regression
+    for v in base["variants"].values():
+        v["errors"] = {m: x * (1 - 1e-9) for m, x in v["errors"].items()}
+    bfile.write_text(json.dumps(base))
+    assert main_compare(path, out_dir=out, runner=fake_runner, workers=1) == 0
+    # a variant whose stored error was half the current one has regressed
+    base["variants"]["gs-e1i0-h0.1"]["errors"]["rms"] /= 2
+    bfile.write_text(json.dumps(base))
+    capsys.readouterr()
+    assert main_compare(path, out_dir=out, runner=fake_runner, workers=1) == 1
+    err = capsys.readouterr().err
+    assert "variant 'gs-e1i0-h0.1': rms error" in err and "regressed vs baseline" in err
+    # --update-baseline accepts the new numbers
+    assert main_compare(path, out_dir=out, update_baseline=True, runner=fake_runner, workers=1) == 0
+    assert main_compare(path, out_dir=out, runner=fake_runner, workers=1) == 0
+
+
+def test_invalid_file_exits_2(compare_files, tmp_path, capsys):
+    path = compare_files("", tol="{rms: -1}")
+    assert main_compare(path, out_dir=tmp_path / "out", runner=fake_runner) == 2
+    assert "'rms' must be a positive number" in capsys.readouterr().err
+
+
+def test_check_report_flags_an_inaccurate_reference():
+    spec = parse_compare(dict(SECTION, tolerance={"rms": 1e-3}), base_scenario())
+
+    class R:
+        reference = {"check": {"ok": True, "message": "", "errors": {"max": 5e-3, "rms": 1e-4, "end": 0},
+                               "smallest_tolerance": 1e-3}}
+        variants, orders = [], []
+    fails = check_report(R(), spec, None)
+    assert len(fails) == 1 and "reference: halving" in fails[0] and "'max'" in fails[0]
