@@ -1,0 +1,254 @@
+"""Command line: every verb, clean errors (no traceback) and exit codes."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from orchestrator import cli
+from orchestrator.cli import main
+from test_scenario_loader import scenario_dir
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def sdir(tmp_path, test_fmus) -> Path:
+    return scenario_dir(tmp_path, test_fmus)
+
+
+def run_cli(*args, cwd=None, timeout=120) -> subprocess.CompletedProcess:
+    """``python -m orchestrator ARGS`` in a subprocess (what a user sees)."""
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    return subprocess.run([sys.executable, "-m", "orchestrator", *map(str, args)], cwd=cwd or REPO,
+                          capture_output=True, text=True, timeout=timeout, env=env)
+
+
+def assert_clean_failure(proc: subprocess.CompletedProcess) -> None:
+    assert proc.returncode != 0, proc
+    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout, proc.stderr
+
+
+# ------------------------------------------------------------------ validate
+@pytest.mark.parametrize("name, needle", [
+    ("malformed.yaml", "malformed YAML"),
+    ("unknown_keys.yaml", "did you mean 'stop_time'?"),
+    ("missing_fmu.yaml", "FMU file of 'right' not found"),
+    ("bad_variable.yaml", "outputs of 'left' (closest first): x1, v1"),
+    ("input_twice.yaml", "input 'right.x1' is connected twice"),
+    ("type_mismatch.yaml", "type mismatch: 'mixed.count' is Integer but 'left.F' is Real"),
+    ("nonpositive_step.yaml", "'coupling.macro_step' must be positive"),
+])
+def test_validate_bad_files_exit_1_with_every_problem(sdir, capsys, name, needle):
+    assert main(["validate", str(sdir / name)]) == 1
+    out, err = capsys.readouterr()
+    assert needle in out
+    assert f"{sdir / name}:" in out                    # file:line on every problem line
+    assert all(line.startswith(f"{sdir / name}:") for line in out.splitlines())
+    assert "problem" in err and "Traceback" not in err
+
+
+def test_validate_subprocess_no_traceback(sdir):
+    proc = run_cli("validate", sdir / "bad_variable.yaml")
+    assert_clean_failure(proc)
+    assert proc.returncode == 1
+    assert "'left' has no variable 'x'" in proc.stdout and "2 problems found" in proc.stderr
+
+
+def test_validate_good_file(sdir, capsys):
+    assert main(["validate", str(sdir / "two_mass.yaml")]) == 0
+    out = capsys.readouterr().out
+    assert "valid (2 FMU instances, 3 connections, gauss-seidel, macro step 0.001 s)" in out
+
+
+def test_validate_with_overrides(sdir, capsys):
+    assert main(["validate", str(sdir / "two_mass.yaml"), "--set", "coupling.macro_step=5e-4"]) == 0
+    assert "macro step 0.0005 s" in capsys.readouterr().out
+    assert main(["validate", str(sdir / "two_mass.yaml"), "--set", "coupling.macro_step=-1"]) == 1
+    out = capsys.readouterr().out
+    assert out.startswith("--set coupling.macro_step=-1: 'coupling.macro_step' must be positive")
+
+
+# ------------------------------------------------------------------ run: bad input never gives a traceback
+@pytest.mark.parametrize("name", ["malformed.yaml", "missing_fmu.yaml", "input_twice.yaml", "nonpositive_step.yaml"])
+def test_run_bad_scenario_fails_cleanly(sdir, capsys, name):
+    assert main(["run", str(sdir / name), "--out", str(sdir / "out")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: invalid scenario")
+    assert f"{sdir / name}:" in err
+    assert not (sdir / "out").exists()
+
+
+def test_run_bad_override_subprocess(sdir):
+    proc = run_cli("run", sdir / "two_mass.yaml", "--out", sdir / "out", "--set", "coupling.macro_stp=1e-4")
+    assert_clean_failure(proc)
+    assert "--set coupling.macro_stp=1e-4: unknown key 'macro_stp' in 'coupling'; did you mean 'macro_step'?" \
+        in proc.stderr
+
+
+def test_run_missing_file(tmp_path, capsys):
+    assert main(["run", str(tmp_path / "nope.yaml")]) == 1
+    err = capsys.readouterr().err
+    assert "nope.yaml: cannot read the scenario file" in err and "Traceback" not in err
+
+
+def test_usage_error_exits_2(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["run"])
+    assert info.value.code == 2
+    assert "FILE" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:
+        main(["frobnicate"])
+    assert info.value.code == 2
+
+
+def _have_run() -> bool:
+    import orchestrator
+    if getattr(orchestrator, "run", None) is not None:
+        return True
+    try:
+        import orchestrator.master as m
+    except ModuleNotFoundError:
+        return False
+    return hasattr(m, "run")
+
+
+@pytest.mark.skipif(not _have_run(), reason="orchestrator.run (master) is not in this checkout yet")
+def test_run_writes_results_and_reports(sdir):
+    out = sdir / "out"
+    proc = run_cli("run", sdir / "two_mass.yaml", "--out", out, "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    assert f"results: {out}" in proc.stdout and "status: finished" in proc.stdout
+    assert "macro steps: 20" in proc.stdout
+    header = (out / "results.csv").read_text().splitlines()[0]
+    assert header == "time,left.x1,right.F"
+    assert json.loads((out / "summary.json").read_text())["status"] == "finished"
+
+
+@pytest.mark.skipif(not _have_run(), reason="orchestrator.run (master) is not in this checkout yet")
+def test_run_default_out_dir_and_failed_run(sdir, test_fmus):
+    import shutil
+    shutil.copy(test_fmus["Faulty"], sdir / "fmus" / "Faulty.fmu")
+    (sdir / "faulty.yaml").write_text(
+        "name: faulty-run\nstop_time: 0.1\nfmus:\n  f: {path: fmus/Faulty.fmu, parameters: {t_fail: 0.05, mode: 1}}\n"
+        "  g: {path: fmus/Gain.fmu}\nconnections:\n  - {from: f.y, to: g.u}\ncoupling: {macro_step: 0.01}\n")
+    proc = run_cli("run", sdir / "faulty.yaml", "--no-progress", cwd=sdir)
+    assert_clean_failure(proc)
+    assert proc.returncode == 1
+    assert f"runs{os.sep}faulty-run" in proc.stdout                # default: runs/<name> under the cwd
+    assert "rows written so far are kept in" in proc.stderr
+    assert (sdir / "runs" / "faulty-run" / "results.csv").is_file()
+    assert json.loads((sdir / "runs" / "faulty-run" / "summary.json").read_text())["status"] == "failed"
+
+
+# ------------------------------------------------------------------ info
+def test_info_shows_variables_and_flags(test_fmus, capsys):
+    assert main(["info", str(test_fmus["LeftMass"])]) == 0
+    out = capsys.readouterr().out
+    assert "model: LeftMass (FMI 2.0" in out
+    for flag in ("canHandleVariableCommunicationStepSize: yes", "canInterpolateInputs: no",
+                 "canGetAndSetFMUstate: yes", "maxOutputDerivativeOrder: 0"):
+        assert flag in out
+    rows = {line.split()[0]: line.split() for line in out.split("variables (")[1].splitlines()[2:]}
+    assert rows["m1"][1:4] == ["parameter", "tunable", "Real"]
+    assert rows["F"][1:4] == ["input", "continuous", "Real"]
+    assert rows["x1"][1:4] == ["output", "continuous", "Real"]
+    assert "position [m]" in out                              # descriptions shown
+    # parameters before inputs before outputs
+    order = [line.split()[1] for line in out.split("variables (")[1].splitlines()[2:]]
+    assert order == sorted(order, key=["parameter", "input", "output"].index)
+
+
+def test_info_on_a_non_fmu_fails_cleanly(tmp_path):
+    bad = tmp_path / "x.fmu"
+    bad.write_text("hello")
+    proc = run_cli("info", bad)
+    assert_clean_failure(proc)
+    assert proc.stderr.startswith(f"error: {bad}: not a valid zip archive")
+
+
+# ------------------------------------------------------------------ delegating verbs
+def test_plot_missing_dir(tmp_path, capsys):
+    assert main(["plot", str(tmp_path / "nope")]) == 1
+    assert "no such run folder" in capsys.readouterr().err
+
+
+def test_missing_feature_module_is_reported_cleanly(capsys, monkeypatch):
+    real = cli._feature
+
+    def fake_feature(module, attr, verb):
+        return real("orchestrator.no_such_module_xyz", attr, verb)
+    monkeypatch.setattr(cli, "_feature", fake_feature)
+    assert main(["build-fmus"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: `rotorcosim build-fmus` is not available in this installation: the module "
+                          "orchestrator.no_such_module_xyz is missing")
+
+
+def test_missing_dependency_is_named(monkeypatch):
+    import importlib
+
+    def fake_import(name):
+        raise ModuleNotFoundError("No module named 'matplotlib.pyplot'", name="matplotlib.pyplot")
+    monkeypatch.setattr(importlib, "import_module", fake_import)
+    with pytest.raises(cli._Unavailable, match=r"needs the Python package 'matplotlib'.*pip install matplotlib"):
+        cli._feature("orchestrator.plots", "plot_run", "plot")
+
+
+def test_verbs_call_the_owners_functions(monkeypatch, tmp_path, capsys):
+    calls = []
+
+    def feature(module, attr, verb):
+        def fn(*a, **kw):
+            calls.append((module, attr, a, kw))
+            return 3 if attr == "main_compare" else [tmp_path / "a.png"]
+        return fn
+    monkeypatch.setattr(cli, "_feature", feature)
+    assert main(["build-fmus", "--force", "--out", str(tmp_path)]) == 0
+    assert calls[-1] == ("orchestrator.build", "build_fmus", (), {"out_dir": str(tmp_path), "force": True})
+    assert main(["plot", str(tmp_path)]) == 0
+    assert calls[-1][:3] == ("orchestrator.plots", "plot_run", (tmp_path,))
+    assert str(tmp_path / "a.png") in capsys.readouterr().out
+    assert main(["compare", "c.yaml", "--update-baseline"]) == 3         # compare's exit code passes through
+    assert calls[-1] == ("orchestrator.compare", "main_compare", ("c.yaml",),
+                         {"out_dir": None, "update_baseline": True})
+
+
+def test_unexpected_exception_is_one_line_unless_debug(monkeypatch, capsys):
+    def boom(args):
+        raise ZeroDivisionError("oops")
+    monkeypatch.setattr(cli, "_cmd_validate", boom)
+    parser_func = cli.build_parser
+    monkeypatch.setattr(cli, "build_parser", lambda: _with_func(parser_func(), boom))
+    assert main(["validate", "x.yaml"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("internal error: ZeroDivisionError: oops") and "--debug" in err
+    with pytest.raises(ZeroDivisionError):
+        main(["validate", "x.yaml", "--debug"])
+
+
+def _with_func(parser, func):
+    parse = parser.parse_args
+
+    def parse_args(argv=None):
+        args = parse(argv)
+        args.func = func
+        return args
+    parser.parse_args = parse_args
+    return parser
+
+
+def test_version_and_help(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0 and capsys.readouterr().out.startswith("rotorcosim ")
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    for verb in ("run", "validate", "info", "build-fmus", "plot", "compare"):
+        assert verb in out
