@@ -82,10 +82,12 @@ def _cmd_run(args) -> int:
     steps = stats.get("macro_steps", "?")
     message = getattr(result, "message", "") or ""
     print(f"results: {where} (results.csv, summary.json)")
-    print(f"status: {status_text}{': ' + message if message and not result.success else ''}")
+    print(f"status: {status_text}")
     print(f"macro steps: {steps}, wall time: {stats.get('wall_time_s', wall):.2f} s")
     if not result.success:
-        print(f"error: the run did not finish: {message or status_text}; the rows written so far are kept in "
+        end = getattr(result, "end_time", None)
+        at = f" at t = {end:g} s" if isinstance(end, (int, float)) else ""
+        print(f"error: the run stopped{at}: {message or status_text}; the rows written so far are kept in "
               f"{where}/results.csv and the reason in {where}/summary.json", file=sys.stderr)
         return 1
     return 0
