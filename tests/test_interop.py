@@ -1,0 +1,184 @@
+"""Interoperability: our FMUs in libcosim (libcosimpy) against our own master.
+
+libcosim's fixed-step algorithm steps all slaves over the same step with the
+inputs their peers produced at the start of the step (Jacobi, zero-order
+hold). Our master with ``scheme: jacobi``, extrapolation order 0 and the same
+step must give the same journal motion to round-off.
+
+libcosim runs in a subprocess (this file executed as a script): a process that
+loaded Python FMUs through both FMPy and libcosim once aborted at exit.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+HERE = Path(__file__).resolve()
+REPO = HERE.parents[1]
+
+
+# ------------------------------------------------------------------ libcosim side
+def run_libcosim(config: dict, out: Path) -> dict[str, np.ndarray]:
+    """Run ``config`` with libcosim in a subprocess; return ``{"time": ..., "inst.var": ...}``.
+
+    config: ``{"fmus": {inst: path}, "parameters": {inst: {var: value}},
+    "connections": [["a.y", "b.u"], ...], "step": h, "n_steps": n, "record": ["inst.var", ...]}``.
+    """
+    cfg = out.with_suffix(".json")
+    cfg.write_text(json.dumps(config))
+    proc = subprocess.run([sys.executable, str(HERE), "--libcosim", str(cfg), str(out)],
+                          capture_output=True, text=True, timeout=900)
+    if proc.returncode != 0:
+        raise RuntimeError(f"libcosim run failed (exit {proc.returncode}):\n{proc.stdout[-3000:]}\n"
+                           f"{proc.stderr[-3000:]}")
+    data = np.load(out)
+    return {k: data[k] for k in data.files}
+
+
+def _libcosim_main(cfg_path: str, out_path: str) -> None:
+    from fmpy import read_model_description
+    from libcosimpy.CosimEnums import CosimVariableType
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy.CosimSlave import CosimLocalSlave
+
+    cfg = json.loads(Path(cfg_path).read_text())
+    h, n = float(cfg["step"]), int(cfg["n_steps"])
+    step_ns = round(h * 1e9)
+    assert abs(step_ns * 1e-9 - h) < 1e-15, "the step must be a whole number of nanoseconds"
+    ex = CosimExecution.from_step_size(step_ns)
+    index, mds = {}, {}
+    for inst, path in cfg["fmus"].items():
+        index[inst] = ex.add_local_slave(CosimLocalSlave(fmu_path=str(path), instance_name=inst))
+        mds[inst] = {v.name: v for v in read_model_description(path).modelVariables}
+    for inst, values in cfg.get("parameters", {}).items():
+        for var, value in values.items():
+            v = mds[inst][var]
+            if v.type == "Real":
+                ok = ex.real_initial_value(index[inst], v.valueReference, float(value))
+            elif v.type == "Integer":
+                ok = ex.integer_initial_value(index[inst], v.valueReference, int(value))
+            elif v.type == "Boolean":
+                ok = ex.boolean_initial_value(index[inst], v.valueReference, bool(value))
+            else:
+                ok = ex.string_initial_value(index[inst], v.valueReference, str(value))
+            assert ok, f"libcosim refused the initial value {inst}.{var} = {value!r}"
+    for src, dst in cfg["connections"]:
+        si, sv = src.split(".", 1)
+        di, dv = dst.split(".", 1)
+        rc = ex.connect_real_variables(index[si], mds[si][sv].valueReference,
+                                       index[di], mds[di][dv].valueReference)
+        if rc != 0:                        # libcosim status code, 0 = success
+            from libcosimpy._internal import get_last_error_message
+            raise AssertionError(f"libcosim refused the connection {src} -> {dst}: {get_last_error_message()}")
+    obs = CosimObserver.create_time_series()
+    ex.add_observer(obs)
+    for sig in cfg["record"]:
+        inst, var = sig.split(".", 1)
+        obs.start_time_series(index[inst], mds[inst][var].valueReference, CosimVariableType.REAL)
+    if not ex.step(n):
+        from libcosimpy._internal import get_last_error_message
+        raise AssertionError(f"libcosim step failed: {get_last_error_message()}")
+    result = {}
+    for sig in cfg["record"]:
+        inst, var = sig.split(".", 1)
+        times, steps, values = obs.time_series_real_samples(
+            index[inst], mds[inst][var].valueReference, from_step=0, sample_count=n + 1)
+        result[sig] = np.asarray(values, float)
+        result["time"] = np.asarray(times, float) * 1e-9
+        result["step_number"] = np.asarray(steps)
+    np.savez(out_path, **result)
+    del obs
+    del ex
+
+
+if __name__ == "__main__" and len(sys.argv) == 4 and sys.argv[1] == "--libcosim":
+    _libcosim_main(sys.argv[2], sys.argv[3])
+    sys.exit(0)
+
+
+# ------------------------------------------------------------------ the tests
+def _connections() -> list[list[str]]:
+    conns = []
+    for i in (1, 2):
+        for v in ("x", "y", "vx", "vy"):
+            conns.append([f"rotor.{v}_{i}", f"bearing{i}.{v}"])
+        conns.append(["rotor.omega", f"bearing{i}.omega"])
+        conns.append([f"bearing{i}.Fx", f"rotor.Fx_{i}"])
+        conns.append([f"bearing{i}.Fy", f"rotor.Fy_{i}"])
+    return conns
+
+
+# A short Jeffcott start-up on two half-Sommerfeld bearings (quasi-static film: the
+# bearings' outputs depend on their inputs only, so initialization order matters
+# only through the initial exchange).
+H = 5e-6
+N_STEPS = 400
+ROTOR = {"f_max": 300.0, "t_ramp": 0.01, "journal_y0": -2.0e-6}
+BEARING = {"R": 0.005, "B": 0.008, "cavitation": 0, "n_phi": 24, "n_z": 12}
+RECORD = ["rotor.x_1", "rotor.y_1", "rotor.vx_1", "rotor.vy_1", "rotor.y_2", "bearing1.Fx", "bearing1.Fy",
+          "bearing2.Fy", "rotor.omega"]
+
+
+def _scenario_yaml(paths: dict[str, Path]) -> str:
+    import yaml
+    doc = {
+        "name": "interop_jeffcott_hs", "version": 1, "start_time": 0.0, "stop_time": H * N_STEPS,
+        "fmus": {"rotor": {"path": str(paths["JeffcottRotor"]), "parameters": ROTOR},
+                 "bearing1": {"path": str(paths["JournalBearing"]), "parameters": BEARING},
+                 "bearing2": {"path": str(paths["JournalBearing"]), "parameters": BEARING}},
+        "connections": [{"from": a, "to": b} for a, b in _connections()],
+        "coupling": {"scheme": "jacobi", "macro_step": H, "extrapolation_order": 0},
+        "output": {"interval": H, "signals": RECORD},
+    }
+    return yaml.safe_dump(doc, sort_keys=False)
+
+
+@pytest.fixture(scope="module")
+def interop_fmus(tmp_path_factory) -> dict[str, Path]:
+    import importlib.util
+    if importlib.util.find_spec("bearing_fmu.model") is None:
+        pytest.skip("bearing_fmu.model not available yet")
+    from orchestrator.build import build_fmus
+    out = tmp_path_factory.mktemp("interop_fmus")
+    return {p.stem: p for p in build_fmus(out, force=True, names=["JournalBearing", "JeffcottRotor"])}
+
+
+@pytest.mark.integration
+def test_libcosim_and_our_jacobi_master_agree(interop_fmus, tmp_path):
+    import orchestrator
+    if not hasattr(orchestrator, "run"):
+        pytest.skip("orchestrator.run not available yet")
+    config = {"fmus": {"rotor": str(interop_fmus["JeffcottRotor"]),
+                       "bearing1": str(interop_fmus["JournalBearing"]),
+                       "bearing2": str(interop_fmus["JournalBearing"])},
+              "parameters": {"rotor": ROTOR, "bearing1": BEARING, "bearing2": BEARING},
+              "connections": _connections(), "step": H, "n_steps": N_STEPS, "record": RECORD}
+    lc = run_libcosim(config, tmp_path / "libcosim.npz")
+    assert lc["time"].size == N_STEPS + 1
+    np.testing.assert_allclose(lc["time"], H * np.arange(N_STEPS + 1), rtol=0, atol=1e-12)
+
+    yml = tmp_path / "interop.yaml"
+    yml.write_text(_scenario_yaml(interop_fmus))
+    sc = orchestrator.load_scenario(yml)
+    res = orchestrator.run(sc, out_dir=tmp_path / "ours", progress=False)
+    assert res.success, res.message
+    t = np.asarray(res.t)
+    # compare on the common time grid (both record every macro step)
+    idx_ours = np.searchsorted(t, lc["time"] - 1e-12)
+    assert np.allclose(t[idx_ours], lc["time"], atol=1e-12)
+    moved = 0.0
+    for sig in RECORD:
+        a, b = lc[sig], np.asarray(res.outputs[sig])[idx_ours]
+        scale = max(np.max(np.abs(a)), 1e-300)
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-9 * scale, err_msg=sig)
+        if sig == "rotor.y_1":
+            moved = np.ptp(a)
+    assert moved > 1e-7          # the journal really moved: the comparison is not trivial
