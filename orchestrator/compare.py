@@ -55,7 +55,7 @@ _ABBR = {"gauss-seidel": "gs", "jacobi": "jac", "monolithic": "mono"}
 _VARIANT_KEYS = set(COUPLING_KEYS) | {"name", "family", "set", "tolerance", "expect_order"}
 _TOP_KEYS = {"name", "scenario", "set", "output_interval", "workers", "reference", "signals",
              "derived", "metrics", "tolerance", "variants", "order_metric", "order_tolerance",
-             "baseline", "regression_margin", "regression_floor"}
+             "baseline", "regression_margin", "regression_floor", "build_fmus"}
 
 
 class CompareSpecError(ScenarioError):
@@ -180,6 +180,12 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
         raise CompareSpecError(f"{path}: expected a mapping with a 'compare:' section "
                                "(see docs/compare.md)")
     sec = doc["compare"]
+    if "build_fmus" in sec:     # e.g. the orchestrator's test FMUs, before the loader reads them
+        b = sec["build_fmus"]
+        if not isinstance(b, dict) or set(b) != {"from", "to"}:
+            raise CompareSpecError(f"{path}{_line(sec, 'build_fmus')}: 'compare.build_fmus' must be "
+                                   "{from: DIR_OF_PYTHONFMU_SOURCES, to: FMU_DIR} (relative to this file)")
+        build_pythonfmu_sources(path.parent / str(b["from"]), path.parent / str(b["to"]))
     if "fmus" in doc:
         if "scenario" in sec:
             raise CompareSpecError(f"{path}{_line(sec, 'scenario')}: 'compare.scenario' must not be "
@@ -191,6 +197,34 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
                                    "(path of the base scenario, relative to this file)")
         base = load_scenario((path.parent / str(sec["scenario"])).resolve())
     return parse_compare(sec, base, source=path)
+
+
+def build_pythonfmu_sources(src_dir: Path, dest: Path) -> list[Path]:
+    """Build every PythonFMU source ``src_dir/*.py`` (not ``_*.py``) into ``dest`` when its FMU
+    is missing or older than the source; return the FMU paths.
+
+    For comparison files whose FMUs are built from sources, such as the two-mass
+    oscillator of ``tests/fmus_src`` (built with ``canGetAndSetFMUstate`` so the
+    master may save and restore them, as ``tests/conftest.py`` does).
+    """
+    import re
+    src_dir, dest = Path(src_dir).resolve(), Path(dest).resolve()
+    sources = sorted(p for p in src_dir.glob("*.py") if not p.name.startswith("_"))
+    if not sources:
+        raise CompareSpecError(f"compare.build_fmus.from: no PythonFMU sources (*.py) in {src_dir}")
+    dest.mkdir(parents=True, exist_ok=True)
+    out = []
+    for src in sources:
+        m = re.search(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", src.read_text(), re.M)
+        if m is None:
+            continue
+        fmu = dest / f"{m.group(1)}.fmu"
+        if not fmu.exists() or fmu.stat().st_mtime < src.stat().st_mtime:
+            from pythonfmu.builder import FmuBuilder
+            log.info("compare: building %s from %s", fmu, src)
+            fmu = Path(FmuBuilder.build_FMU(src, dest=dest, canGetAndSetFMUstate=True))
+        out.append(fmu)
+    return out
 
 
 def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None = None) -> CompareSpec:

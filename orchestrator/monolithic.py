@@ -31,20 +31,18 @@ Output: ``results.csv`` on the grid ``t0 + k * interval`` (``output.interval``,
 else ``coupling.macro_step``) and ``summary.json`` as written by ``run``
 (``macro_steps`` is the number of accepted integrator steps, ``fmu_calls`` is
 empty: no FMU is called; ``rhs_evaluations`` counts the coupled right-hand sides).
+The run-up ``analysis:`` is added by ``orchestrator.run`` afterwards, as for the master.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
 import logging
 import math
-import platform
-import sys
 import time
 import warnings
 from pathlib import Path
-from typing import Any, Mapping
+
 
 import numpy as np
 
@@ -160,11 +158,15 @@ def _columns(scenario: Scenario, system: MonolithicSystem) -> list[str]:
 def run_monolithic(scenario: Scenario, out_dir: str | Path | None = None, progress=None):
     """Integrate ``scenario`` monolithically; write results.csv and summary.json; return CoSimResult.
 
-    ``progress`` is accepted for signature compatibility with ``run`` (the
-    integration reports through ``logging``). Bad input (an unsupported model, an
+    Output rows stream through the master's observers (``CsvWriter``, ``Progress``,
+    ``Recorder`` of :mod:`orchestrator.observers`); ``progress`` is as for ``run``
+    (None: shown on a terminal for long runs). Bad input (an unsupported model, an
     unknown option) raises :class:`ScenarioError`; an integrator failure is a
     ``failed`` status with the integrator's message.
     """
+    from orchestrator.observers import CsvWriter, Progress, Recorder, RunView, versions, write_summary
+    from orchestrator.results import CoSimResult, Status
+
     t_wall = time.perf_counter()
     opts = dict(scenario.coupling.options)
     unknown = set(opts) - _OPTIONS
@@ -172,7 +174,7 @@ def run_monolithic(scenario: Scenario, out_dir: str | Path | None = None, progre
         raise ScenarioError(f"coupling.options {sorted(unknown)} are not options of the monolithic "
                             f"reference (valid: {sorted(_OPTIONS)})")
     for f in scenario.fmus:
-        if any(isinstance(v, str) and v for k, v in f.parameters.items() if k == "fields_file"):
+        if f.parameters.get("fields_file"):
             warnings.warn(f"monolithic reference: '{f.name}.fields_file' is ignored (no film fields "
                           "are written by the monolithic integrator)", stacklevel=2)
     system = MonolithicSystem(scenario)
@@ -186,104 +188,90 @@ def run_monolithic(scenario: Scenario, out_dir: str | Path | None = None, progre
     atol = float(opts.get("atol", DEFAULT_ATOL))
     method = str(opts.get("method", "Radau"))
     max_step = float(opts.get("max_step", interval))
-    S0 = system.initial_state()
-    log.info("monolithic: %d states, %s rtol=%g atol=%g, t = %g .. %g", S0.size, method, rtol, atol, t0, t1)
-    if S0.size:
-        ok, message, t_out, S_out, n_steps = _integrate(system.rhs, S0, t_grid, method=method,
-                                                        rtol=rtol, atol=atol, max_step=max_step)
-    else:  # no state at all: outputs are functions of time only
-        ok, message, t_out, S_out, n_steps = True, "no states", t_grid, np.zeros((t_grid.size, 0)), 0
     columns = _columns(scenario, system)
-    rows = []
-    for t, S in zip(t_out, S_out):
-        _, y = system.evaluate(float(t), S)
-        row = [float(t)]
-        for c in columns:
-            inst, var = c.split(".", 1)
-            if var not in y.get(inst, {}):
-                raise ScenarioError(f"output.signals lists '{c}', which the monolithic model of "
-                                    f"'{inst}' does not compute (has {sorted(y.get(inst, {}))})")
-            row.append(float(y[inst][var]))
-        rows.append(row)
-    if ok and not np.all(np.isfinite(np.asarray(rows, dtype=float))):
-        ok, message = False, "non-finite outputs"
+    S0 = system.initial_state()
+    _row(system, columns, t0, S0)          # unknown output.signals fail before anything is written
+
+    recorder = Recorder()
+    observers = [recorder, Progress(progress)]
+    if out_dir is not None:
+        out_dir = Path(out_dir)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        observers.insert(0, CsvWriter(out_dir / "results.csv"))
+    view = RunView(columns, t0, t1, len(t_grid) - 1)
+    view.is_output = True
+
+    def emit(k: int, t: float, S: np.ndarray) -> bool:
+        view.t, view.n, view.end_time = t, k, t
+        view.row = _row(system, columns, t, S)
+        for o in observers:
+            (o.on_initialized if k == 0 else o.on_step_complete)(view)
+        return bool(np.all(np.isfinite(view.row)))
+
+    log.info("monolithic: %d states, %s rtol=%g atol=%g, t = %g .. %g", S0.size, method, rtol, atol, t0, t1)
+    ok, message, n_steps = _integrate(system.rhs, S0, t_grid, emit, method=method, rtol=rtol,
+                                      atol=atol, max_step=max_step)
+    view.status = Status.FINISHED if ok else Status.FAILED
+    view.message = message
+    for o in observers:
+        o.on_terminated(view)
+    t_out, outputs = recorder.arrays()
     wall = time.perf_counter() - t_wall
-    data = np.asarray(rows, dtype=float).reshape(-1, len(columns) + 1)
     stats = {"macro_steps": n_steps, "wall_time_s": wall, "fmu_calls": {},
              "rhs_evaluations": system.n_rhs}
-    end_time = float(t_out[-1]) if len(t_out) else t0
     if out_dir is not None:
-        _write_files(Path(out_dir), scenario, columns, data, ok, message, stats, end_time,
-                     dict(method=method, rtol=rtol, atol=atol, max_step=max_step))
-    return _result(scenario, data, columns, ok, message, stats, out_dir)
+        coupling = dataclasses.asdict(scenario.coupling)
+        coupling["sequence"] = list(coupling["sequence"])
+        coupling["options"] = dict(coupling["options"], method=method, rtol=rtol, atol=atol,
+                                   max_step=max_step)
+        summary = {"scenario": scenario.name,
+                   "scenario_file": str(scenario.source) if scenario.source else None,
+                   "status": view.status.short, "message": message,
+                   "start_time": t0, "stop_time": t1, "end_time": view.end_time, **stats,
+                   "coupling": coupling, "versions": versions()}
+        write_summary(out_dir / "summary.json", summary)
+    return CoSimResult(status=view.status, message=message, t=t_out, outputs=outputs, stats=stats,
+                       out_dir=out_dir, end_time=view.end_time)
 
 
-def _integrate(fun, S0, t_grid, *, method, rtol, atol, max_step):
-    """Step a ``scipy.integrate`` solver over ``t_grid`` (as ``solve_ivp`` does, but counting
-    accepted steps); dense output gives the states at the grid times."""
+def _row(system: MonolithicSystem, columns: list[str], t: float, S: np.ndarray) -> np.ndarray:
+    _, y = system.evaluate(float(t), S)
+    row = np.empty(len(columns))
+    for i, c in enumerate(columns):
+        inst, var = c.split(".", 1)
+        if var not in y.get(inst, {}):
+            raise ScenarioError(f"output.signals lists '{c}', which the monolithic model of "
+                                f"'{inst}' does not compute (has {sorted(y.get(inst, {}))})")
+        row[i] = y[inst][var]
+    return row
+
+
+def _integrate(fun, S0, t_grid, emit, *, method, rtol, atol, max_step) -> tuple[bool, str, int]:
+    """Step a ``scipy.integrate`` solver over ``t_grid`` as ``solve_ivp`` does, but counting
+    accepted steps and handing every grid point to ``emit(k, t, S)`` (False: stop, non-finite)."""
     from scipy.integrate._ivp.ivp import METHODS
     if method not in METHODS:
         raise ScenarioError(f"coupling.options.method must be one of {sorted(METHODS)} (got {method!r})")
+    if not emit(0, float(t_grid[0]), S0):
+        return False, f"non-finite outputs at t = {t_grid[0]:g} s", 0
+    if S0.size == 0:       # no state: outputs are functions of time only
+        for k in range(1, len(t_grid)):
+            if not emit(k, float(t_grid[k]), S0):
+                return False, f"non-finite outputs at t = {t_grid[k]:g} s", 0
+        return True, "finished", 0
     solver = METHODS[method](fun, float(t_grid[0]), S0, float(t_grid[-1]), rtol=rtol, atol=atol,
                              max_step=max_step)
-    ts, ys = [float(t_grid[0])], [S0.copy()]
-    k, n_steps, message = 1, 0, "finished"
+    k, n_steps = 1, 0
     while solver.status == "running":
         message = solver.step()
         if solver.status == "failed":
-            break
+            return False, f"{method} failed at t = {solver.t:.9g} s: {message}", n_steps
         n_steps += 1
         j = int(np.searchsorted(t_grid, solver.t, side="right"))
         if j > k:
             dense = solver.dense_output()
-            for t in t_grid[k:j]:
-                ts.append(float(t))
-                ys.append(dense(t))
+            for i in range(k, j):
+                if not emit(i, float(t_grid[i]), dense(t_grid[i])):
+                    return False, f"non-finite outputs at t = {t_grid[i]:.9g} s", n_steps
             k = j
-    ok = solver.status == "finished"
-    if ok and k < len(t_grid):          # last grid point == t_bound reached
-        ts.append(float(t_grid[-1]))
-        ys.append(solver.y.copy())
-    return ok, (message or "finished") if not ok else "finished", np.asarray(ts), np.asarray(ys), n_steps
-
-
-def _write_files(out: Path, scenario, columns, data, ok, message, stats, end_time, opts) -> None:
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / "results.csv", "w") as f:
-        f.write(",".join(["time"] + columns) + "\n")
-        for row in data:
-            f.write(",".join(repr(float(x)) for x in row) + "\n")
-    import fmpy
-    import scipy
-    try:
-        from importlib.metadata import version
-        own = version("rotorcosim")
-    except Exception:  # noqa: BLE001 - not installed: version unknown
-        own = "unknown"
-    coupling = dataclasses.asdict(scenario.coupling)
-    coupling["sequence"] = list(coupling["sequence"])
-    coupling["options"] = dict(coupling["options"], **opts)
-    summary = {"scenario": scenario.name,
-               "scenario_file": str(scenario.source) if scenario.source else None,
-               "status": "finished" if ok else "failed", "message": message,
-               "start_time": scenario.start_time, "stop_time": scenario.stop_time,
-               "end_time": end_time, **stats, "coupling": coupling,
-               "versions": {"rotorcosim": own, "python": platform.python_version(),
-                            "numpy": np.__version__, "scipy": scipy.__version__,
-                            "fmpy": fmpy.__version__}}
-    if scenario.analysis:
-        try:
-            from orchestrator.analysis import analyze_run
-            summary["analysis"] = analyze_run(out, scenario.analysis)
-        except ImportError as exc:
-            summary["analysis"] = {"error": f"analysis not available: {exc}"}
-    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str) + "\n")
-
-
-def _result(scenario, data, columns, ok, message, stats, out_dir):
-    from orchestrator import results as _res   # CoSimResult / Status (orchestrator-core)
-    kw = dict(t=data[:, 0], outputs={c: data[:, i + 1] for i, c in enumerate(columns)},
-              stats=stats, status=_res.Status.FINISHED if ok else _res.Status.FAILED,
-              message=message, out_dir=Path(out_dir) if out_dir is not None else None)
-    names = {f.name for f in dataclasses.fields(_res.CoSimResult)}
-    return _res.CoSimResult(**{k: v for k, v in kw.items() if k in names})
+    return True, "finished", n_steps

@@ -166,7 +166,6 @@ class JeffcottRotorAdapter(ModelAdapter):
         self.output_names = tuple(n for n, v in md.variables.items() if v.causality == "output")
         self._s0 = np.asarray(self.model.state_vector(), dtype=float).copy()
         self.n_states = self._s0.size
-        self._outputs_at: Callable | None = getattr(self.model, "outputs_at", None)
 
     def _forces(self, u) -> np.ndarray:
         return np.array([[u[f"Fx_{i + 1}"], u[f"Fy_{i + 1}"]] for i in range(self.n_b)], dtype=float)
@@ -178,19 +177,12 @@ class JeffcottRotorAdapter(ModelAdapter):
         return np.asarray(self.model.rhs(t, s, self._forces(u)), dtype=float)
 
     def outputs(self, t, s, u):
-        if self._outputs_at is not None:
-            out = self._outputs_at(t, s)
-        else:
-            kin = np.asarray(self.model.journal_kinematics(t, s), dtype=float)
-            out = {}
-            for i in range(self.n_b):
-                for j, n in enumerate(("x", "y", "vx", "vy")):
-                    out[f"{n}_{i + 1}"] = kin[i, j]
-            out["omega"] = self.model.drive.omega(t)
+        self.model.set_state({"t": float(t), "s": s})   # exact; recomputes every output
+        out = self.model.outputs
         missing = [n for n in self.output_names if n not in out]
         if missing:
-            raise KeyError(f"{self.instance}: the rotor model gives no {missing} for a state vector "
-                           "(needs JeffcottRotor.outputs_at(t, s))")
+            raise KeyError(f"{self.instance}: the rotor model computes no {missing} "
+                           f"(has {sorted(out)})")
         return {n: float(out[n]) for n in self.output_names}
 
 
