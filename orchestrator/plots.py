@@ -37,6 +37,8 @@ logger = logging.getLogger(__name__)
 
 DPI = 110
 ORBIT_REVS = 20          # revolutions shown per orbit window
+MAX_ORBIT_POINTS = 1500  # orbit points per window (decimated above)
+MAX_TRACE_POINTS = 4000  # above: min/max envelope per bin (looks the same, draws fast)
 
 
 def plot_run(run_dir: str | Path) -> list[Path]:
@@ -183,9 +185,9 @@ class _Context:
                 self.skipped.append(f"eccentricity of '{jn}': neither an eps signal nor x, y and clearance")
                 continue
             col = f"C{i}"
-            axes[0].plot(t, e, lw=0.7, color=col, label=lab)
+            _trace(axes[0], t, e, col, lab)
             if ramp:
-                axes[1].plot(om / TWO_PI, e, lw=0.7, color=col, label=lab)
+                _trace(axes[1], om / TWO_PI, e, col, lab)
             for key, ls in (("onset", "--"), ("vanish", ":")):
                 ev = j["res"].get(key)
                 if ev:
@@ -221,7 +223,8 @@ class _Context:
         fig = Figure(figsize=(4.0 * len(wins), 4.4), layout="constrained")
         axes = fig.subplots(1, len(wins), squeeze=False)[0]
         for ax, (title, t0, t1) in zip(axes, wins):
-            sel = (t >= t0) & (t <= t1)
+            sel = np.nonzero((t >= t0) & (t <= t1))[0]
+            sel = sel[::max(1, sel.size // MAX_ORBIT_POINTS)]
             pts = np.column_stack([x[sel], y[sel]])
             lc = LineCollection(np.stack([pts[:-1], pts[1:]], axis=1), cmap="viridis", lw=0.8)
             lc.set_array(t[sel][:-1])
@@ -357,6 +360,21 @@ class _Context:
             ax.set_xlabel(r"circumferential angle $\varphi$ [deg]")
             ax.set_ylabel("axial position z [mm]")
         self._save(fig, f"fields_{_safe(path.stem.removesuffix('_fields'))}.png")
+
+
+def _trace(ax, xv, yv, color, label) -> None:
+    """Line plot; long dense signals as a min/max envelope over ``MAX_TRACE_POINTS/2`` bins."""
+    n = xv.size
+    if n <= MAX_TRACE_POINTS or not np.all(np.diff(xv) >= 0):
+        ax.plot(xv, yv, lw=0.7, color=color, label=label)
+        return
+    nb = MAX_TRACE_POINTS // 2
+    edges = np.linspace(0, n, nb + 1).astype(int)
+    yv = np.where(np.isfinite(yv), yv, np.nan)
+    lo = np.fmin.reduceat(yv, edges[:-1])
+    hi = np.fmax.reduceat(yv, edges[:-1])
+    xc = xv[(edges[:-1] + edges[1:]) // 2]
+    ax.fill_between(xc, lo, hi, color=color, lw=0.3, alpha=0.8, label=label + " (min-max envelope)")
 
 
 def _orbit_windows(t, omega, res) -> list[tuple[str, float, float]]:

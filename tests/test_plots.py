@@ -87,9 +87,10 @@ def test_missing_signal_is_a_clear_warning(tmp_path):
             "journals": {"b1": {"x": "rotor.x_9", "y": "rotor.y_1", "eps": "bearing1.eps",
                                 "clearance": C}}}
     (tmp_path / "summary.json").write_text(json.dumps({"scenario": "s", "analysis": {"spec": spec}}))
-    with pytest.warns(UserWarning, match=r"no column 'rotor\.x_9'") as rec:
+    with pytest.warns(UserWarning) as rec:
         files = plot_run(tmp_path)
     msgs = " ".join(str(w.message) for w in rec)
+    assert "results.csv has no column 'rotor.x_9'" in msgs
     assert "orbit of 'b1'" in msgs and "waterfall of 'b1'" in msgs
     assert [f.name for f in files] == ["eccentricity.png"]     # eps still plotted
 
@@ -104,13 +105,15 @@ def test_nothing_to_plot_raises_cosim_error(tmp_path):
 
 def test_fields_only_and_bad_fields(tmp_path):
     fields_npz(tmp_path / "b_fields.npz")
-    with pytest.warns(UserWarning, match="results.csv not found"):
+    with pytest.warns(UserWarning) as rec:
         files = plot_run(tmp_path)
+    assert "results.csv not found" in str(rec[0].message)
     assert [f.name for f in files] == ["fields_b.png"]
     check_png(files[0])
     fields_npz(tmp_path / "b_fields.npz", bad_shape=True)
-    with pytest.warns(UserWarning, match="p has shape"), pytest.raises(CosimError, match=r"expected \(n_z, n_phi\)"):
+    with pytest.warns(UserWarning) as rec, pytest.raises(CosimError, match=r"expected \(n_z, n_phi\)"):
         plot_run(tmp_path)
+    assert any("p has shape (24, 12)" in str(w.message) for w in rec)
 
 
 def test_constant_speed_run(tmp_path):
@@ -126,3 +129,28 @@ def test_constant_speed_run(tmp_path):
     assert sorted(f.name for f in files) == ["eccentricity.png", "orbit_j.png", "waterfall_j.png"]
     for f in files:
         check_png(f)
+
+
+if __name__ == "__main__":
+    # Regenerate the example images of docs/analysis.md from synthetic data:
+    #   python tests/test_plots.py docs/img
+    import shutil
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    import orchestrator.plots as plots
+
+    dest = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/img")
+    dest.mkdir(parents=True, exist_ok=True)
+    plots.DPI = 72
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        write_run(d, whirl_vanishing(), step=4)
+        res = analyze_run(d, SPEC)
+        (d / "summary.json").write_text(json.dumps({"scenario": "synthetic whirl (test data)",
+                                                    "analysis": res}))
+        fields_npz(d / "bearing1_fields.npz", n_phi=40, n_z=40)
+        for f in plot_run(d):
+            shutil.copy(f, dest / f"synthetic_{f.name}")
+            print(dest / f"synthetic_{f.name}")
