@@ -1,0 +1,142 @@
+"""Cavitation laws: the smooth fluid fraction theta(p) and its universal variable.
+
+Mass-conserving two-phase model of Nowald et al. (2016) as used in the paper
+(``/work/shared/paper/transient-run-up-mass-conserving-cavitation.md``, eq. 3-4,
+figure 2): the mixture density and viscosity are proportional to a
+pressure-dependent fluid fraction, ``rho/rho0 = eta/eta0 = theta(p)``, a smooth
+step that is 1 in the full film (p >= p0) and falls towards 0 just below p0.
+
+Why a universal variable
+------------------------
+With p itself as the Newton unknown and a tanh-shaped step, Newton failed at
+every step (issue 3): in the cavity ``dtheta/dp`` is huge and the pressure
+is nearly constant, so the Jacobian is badly scaled and the iteration cycles.
+We therefore use an Elrod-type universal variable ``u`` (Elrod 1981; Shi and
+Paranjpe 2002; Alakhramsing et al. 2015 use Boolean switches instead), with a
+*smooth* (softplus = logarithmic) regularisation so that Newton sees a
+C-infinity map:
+
+    p(u)     = p_cav + K * delta * softplus(u / delta)
+    theta(u) = 1 - delta * softplus(-u / delta)
+    softplus(x) = ln(1 + exp(x))
+
+so that for ``u >> delta`` (full film) ``theta ~ 1`` and ``p - p_cav ~ K u``,
+and for ``u << -delta`` (cavity) ``p ~ p_cav`` and ``theta ~ 1 + u``
+(Elrod's two branches). Eliminating u gives ONE fixed relation
+
+    theta(p) = 1 + delta * ln(1 - exp(-(p - p_cav) / (K delta)))
+
+(figure 2 shape: theta ~ 0 at p = p_cav, 1 a few ``K delta`` above), so the
+change of unknown does not change the model, only the Newton iteration.
+Note ``dp/du / K + dtheta/du = 1`` everywhere: the Jacobian never degenerates.
+
+Parameters (see :class:`bearing_fmu.model.BearingParams`):
+
+* ``cav_width`` w [Pa]: the step lies between ``p_cav = p0 - w`` and p0;
+  the shoulder scale is ``s = K delta = w / 3`` so that theta(p0) = 1 + delta
+  ln(1 - e^-3) (~ 1 - 0.05 delta). The cavity pressure is thus ``p0 - w``:
+  "slightly below ambient" as in the paper's figures 5 and 7.
+* ``cav_smoothing`` delta [-]: width of the switch in u (Newton smoothness).
+
+Free-to-air penalty (paper eq. 6, figure 3): outward axial flux
+``g(p) = a_z * [a x + (b - a) s softplus(x / s)]`` with ``x = p - p0``, i.e.
+slope ``a`` (0.01) for p < p0 and slope ``b`` (100) for p > p0, smoothed over
+``s``. Units: g is a flux in the units of the scaled Reynolds equation (eq. 2
+divided by rho0, [1/s] per unit dimensionless length); ``a_z = (R/B)^2
+psi^2 / (6 eta0)`` [1/(Pa s)] is the axial film conductance of the nominal
+gap (H = 1) over the whole width, so ``b = 100`` means the edge resistance is
+1 % of the nominal film's axial resistance and ``a = 0.01`` that sub-ambient
+suction is 100 times weaker than that of the nominal film. This scaling makes
+a and b grid- and unit-independent, which is why we chose it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+#: shoulder scale ``s = K delta`` as a fraction of ``cav_width``
+SHOULDER = 1.0 / 3.0
+
+
+@nb.njit(cache=True, inline="always")
+def softplus(x):
+    """ln(1 + e^x), overflow-free."""
+    if x > 0.0:
+        return x + math.log1p(math.exp(-x))
+    return math.log1p(math.exp(x))
+
+
+@nb.njit(cache=True, inline="always")
+def sigmoid(x):
+    """1 / (1 + e^-x), overflow-free (derivative of softplus)."""
+    if x >= 0.0:
+        return 1.0 / (1.0 + math.exp(-x))
+    e = math.exp(x)
+    return e / (1.0 + e)
+
+
+@nb.njit(cache=True)
+def law_eval(u, p_cav, K, delta, p_out, dp_out, th_out, dth_out):
+    """Evaluate p(u), dp/du, theta(u), dtheta/du for an array u (in place)."""
+    for k in range(u.size):
+        x = u[k] / delta
+        p_out[k] = p_cav + K * delta * softplus(x)
+        dp_out[k] = K * sigmoid(x)
+        th_out[k] = 1.0 - delta * softplus(-x)
+        dth_out[k] = sigmoid(-x)
+
+
+@nb.njit(cache=True, inline="always")
+def penalty(x, a, b, s, a_z):
+    """Outward edge flux g(p) of eq. (6) and dg/dp; ``x = p - p0``."""
+    g = a_z * (a * x + (b - a) * s * softplus(x / s))
+    dg = a_z * (a + (b - a) * sigmoid(x / s))
+    return g, dg
+
+
+class CavitationLaw:
+    """theta(p) and the universal-variable map for given parameters.
+
+    Parameters
+    ----------
+    p0 : ambient pressure [Pa]
+    width : ``cav_width`` [Pa] (> 0)
+    delta : ``cav_smoothing`` [-] (> 0)
+    """
+
+    def __init__(self, p0: float, width: float, delta: float):
+        self.p0 = float(p0)
+        self.width = float(width)
+        self.delta = float(delta)
+        self.p_cav = self.p0 - self.width
+        self.s = SHOULDER * self.width
+        self.K = self.s / self.delta
+
+    def p_theta(self, u):
+        """Return (p, theta) arrays for universal variable u."""
+        u = np.ascontiguousarray(u, dtype=float).ravel()
+        p, dp, th, dth = (np.empty_like(u) for _ in range(4))
+        law_eval(u, self.p_cav, self.K, self.delta, p, dp, th, dth)
+        return p, th
+
+    def u_from_p(self, p):
+        """Universal variable of a full-film-branch pressure (p > p_cav).
+
+        Inverse of p(u): ``u = delta * ln(exp((p - p_cav)/(K delta)) - 1)``.
+        """
+        y = (np.asarray(p, dtype=float) - self.p_cav) / (self.K * self.delta)
+        if np.any(y <= 0.0):
+            raise ValueError(
+                f"u_from_p: pressure must exceed the cavity pressure p_cav = "
+                f"{self.p_cav:g} Pa (got min {np.min(p):g} Pa)")
+        # ln(e^y - 1) = y + ln(1 - e^-y), stable for large y
+        return self.delta * (y + np.log(-np.expm1(-y)))
+
+    def theta_of_p(self, p):
+        """The fluid fraction relation theta(p) (figure 2); nan for p <= p_cav."""
+        y = (np.asarray(p, dtype=float) - self.p_cav) / (self.K * self.delta)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(y > 0, 1.0 + self.delta * np.log(-np.expm1(-y)), np.nan)

@@ -1,0 +1,179 @@
+"""Finite-volume residual and Jacobian of the transient Reynolds equation, and
+the film's integral quantities (forces, torque, flows).
+
+Equation (paper eq. 2 with eq. 3, divided by rho0; rho/eta = rho0/eta0 so the
+Poiseuille term carries no theta), in conservative form on the developed film
+(phi, zbar), unknown the universal variable u (see :mod:`.cavitation`):
+
+    2 H dtheta/dt + 2 theta dH/dt + d/dphi q_phi + d/dzbar q_z = 0
+    q_phi = omega theta H - a_phi H^3 dp/dphi,     a_phi = psi^2 / (6 eta0)
+    q_z   =               - a_z   H^3 dp/dzbar,    a_z   = (R/B)^2 psi^2 / (6 eta0)
+
+The time term is written as in paper eq. (4): the journal kinematics (x, y,
+vx, vy) are inputs held over a step, so H is frozen and dH/dt is the input
+squeeze velocity; theta is the dynamic state.
+
+Finite volumes (cell (j, i), area dphi*dz, fluxes through its four faces):
+
+* Poiseuille: two-point flux with the exact gap at the face, ``-a H_f^3
+  (p_nb - p)/d`` (second order).
+* Couette: ``omega H_f theta_upwind`` -- theta is taken from the upwind cell
+  (cell i for omega >= 0). First-order upwinding of the convected fluid
+  fraction is the stabilisation the paper obtains from artificial diffusion
+  (Kuzmin 2010): it adds a numerical diffusion ``omega H dphi / 2`` acting on
+  theta only. Because theta = 1 in the full film, the pressure region keeps the
+  central, second-order discretisation; in the cavity it transports the
+  striated film downstream without oscillation, keeps theta monotone (an
+  M-matrix Jacobian column-wise) and makes the rupture/reformation mass
+  balance exact at the discrete level (Elrod 1981 uses the same upwind
+  Couette term in the cavity).
+* Axial edges: oil bath (eq. 5) p = p0 at zbar = 0, 1 through a half-cell
+  two-point flux; free to air (eq. 6) outward flux g(p) (:func:`.cavitation.penalty`).
+* Groove cells: Dirichlet ``u = u_feed`` (p = p_feed).
+
+Residuals are the cell balances times the cell area (units 1/s); the sum of
+all non-groove residuals telescopes to (feed inflow - side outflow - film
+volume change), which is how q_feed and q_side balance to solver tolerance.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from .cavitation import law_eval, penalty
+
+
+@nb.njit(cache=True)
+def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
+             dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
+             r, want_jac, pos, bw, ab, p, dp, th, dth):
+    """Residual r(u) (flat cell order) and, if ``want_jac``, the Jacobian.
+
+    The time derivative of theta is ``th_dot0 * theta(u) + th_dot1`` (BDF
+    coefficients folded in by the caller; zero for the steady equations).
+    The Jacobian goes into LAPACK band storage ``ab`` (shape (3 bw + 1, N)),
+    entry (g, g2) at ``ab[2 bw + pos[g] - pos[g2], pos[g2]]``. Couplings into
+    groove cells are omitted (their increments are zero).
+    """
+    n_phi = H.size
+    n_z = u.size // n_phi
+    law_eval(u, p_cav, K, delta, p, dp, th, dth)
+    if want_jac:
+        ab[:, :] = 0.0
+    A = dphi * dz
+    up_e = omega >= 0.0
+    for j in range(n_z):
+        for i in range(n_phi):
+            g = j * n_phi + i
+            pg = pos[g]
+            if groove[i]:
+                r[g] = u[g] - u_feed
+                if want_jac:
+                    ab[2 * bw, pg] = 1.0
+                continue
+            Hi = H[i]
+            # time and squeeze terms (eq. 4 left/right)
+            res = A * (2.0 * Hi * (th_dot0 * th[g] + th_dot1[g]) + 2.0 * Hdot[i] * th[g])
+            diag = A * (2.0 * Hi * th_dot0 + 2.0 * Hdot[i]) * dth[g]
+            # east face (i + 1/2) and west face (i - 1/2)
+            for side in range(2):
+                if side == 0:
+                    i2 = i + 1 if i + 1 < n_phi else 0
+                    Hf = He[i]
+                    sgn = 1.0
+                else:
+                    i2 = i - 1 if i > 0 else n_phi - 1
+                    Hf = He[i2]
+                    sgn = -1.0
+                g2 = j * n_phi + i2
+                cond = a_phi * Hf * Hf * Hf / dphi
+                # outward flux through this face: Couette (upwinded theta) + Poiseuille
+                own_up = up_e if side == 0 else not up_e
+                th_up = th[g] if own_up else th[g2]
+                flux = sgn * omega * Hf * th_up - cond * (p[g2] - p[g])
+                res += dz * flux
+                diag += dz * cond * dp[g]
+                off = -dz * cond * dp[g2]
+                if own_up:
+                    diag += dz * sgn * omega * Hf * dth[g]
+                else:
+                    off += dz * sgn * omega * Hf * dth[g2]
+                if want_jac and not groove[i2]:
+                    ab[2 * bw + pg - pos[g2], pos[g2]] += off
+            # north / south faces (H uniform in z)
+            condz = a_z * Hi * Hi * Hi / dz
+            for side in range(2):
+                j2 = j + 1 if side == 0 else j - 1
+                if 0 <= j2 < n_z:
+                    g2 = j2 * n_phi + i
+                    res += dphi * (-condz * (p[g2] - p[g]))
+                    diag += dphi * condz * dp[g]
+                    if want_jac:
+                        ab[2 * bw + pg - pos[g2], pos[g2]] += -dphi * condz * dp[g2]
+                elif bath:
+                    res += dphi * 2.0 * condz * (p[g] - p0)
+                    diag += dphi * 2.0 * condz * dp[g]
+                else:
+                    gv, dgv = penalty(p[g] - p0, pa, pb, s_pen, a_z)
+                    res += dphi * gv
+                    diag += dphi * dgv * dp[g]
+            r[g] = res
+            if want_jac:
+                ab[2 * bw, pg] += diag
+
+
+@nb.njit(cache=True)
+def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
+              pa, pb, s_pen, R, B, c, eta0):
+    """Film force on the journal, torque on the journal, feed and side flows.
+
+    Returns (Fx, Fy, torque, q_feed, q_side):
+
+    * ``F = -int (p - p0) (cos phi, sin phi) R dphi B dzbar`` (midpoint rule);
+    * torque about +z ON the journal from the wall shear at the journal
+      surface, ``tau = theta eta0 omega R / h + (h / 2) dp/(R dphi)`` (eta =
+      theta eta0 by eq. 3), evaluated at the phi-faces with the upwind theta
+      of the Couette flux; ``T = -R int tau R dphi B dzbar``;
+    * ``q_feed`` volume flow leaving the groove columns into the film and
+      ``q_side`` the net outflow through both axial edges [m^3/s], both from
+      the discrete fluxes times ``R c B / 2`` (the scale between eq. 2 fluxes
+      and volume flows).
+    """
+    n_phi = H.size
+    n_z = p.size // n_phi
+    Fx = 0.0
+    Fy = 0.0
+    T = 0.0
+    qf = 0.0
+    qs = 0.0
+    up_e = omega >= 0.0
+    for i in range(n_phi):
+        cs = math.cos(phi[i])
+        sn = math.sin(phi[i])
+        i2 = i + 1 if i + 1 < n_phi else 0
+        Hf = He[i]
+        cond = a_phi * Hf * Hf * Hf / dphi
+        condz = a_z * H[i] ** 3 / dz
+        for j in range(n_z):
+            g = j * n_phi + i
+            g2 = j * n_phi + i2
+            Fx -= (p[g] - p0) * cs
+            Fy -= (p[g] - p0) * sn
+            th_up = th[g] if up_e else th[g2]
+            T += th_up * eta0 * omega * R / (c * Hf) + 0.5 * c * Hf * (p[g2] - p[g]) / (R * dphi)
+            if groove[i] != groove[i2]:
+                flux = omega * Hf * th_up - cond * (p[g2] - p[g])
+                qf += flux if groove[i] else -flux
+            n_edge = (j == 0) + (j == n_z - 1)
+            if not groove[i] and n_edge > 0:
+                if bath:
+                    qs += n_edge * 2.0 * condz * (p[g] - p0)
+                else:
+                    gv, dgv = penalty(p[g] - p0, pa, pb, s_pen, a_z)
+                    qs += n_edge * gv
+    area = R * dphi * B * dz
+    scale = 0.5 * R * c * B
+    return (Fx * area, Fy * area, -R * T * area, qf * scale * dz, qs * scale * dphi)

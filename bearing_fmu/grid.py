@@ -1,0 +1,134 @@
+"""Finite-volume grid of the developed film and the gap function.
+
+Conventions (project-wide, docs/dev/contracts.md)
+-------------------------------------------------
+* SI units; x horizontal, y vertical up, z along the shaft; the journal spins
+  counter-clockwise (omega > 0 about +z); phi is measured from +x
+  counter-clockwise.
+* Cells: ``n_phi`` cells in phi over [0, 2 pi) (periodic), cell centres
+  ``phi_i = i * dphi`` (cell i spans [phi_i - dphi/2, phi_i + dphi/2]);
+  ``n_z`` cells in the dimensionless axial coordinate zbar in [0, 1], centres
+  ``zbar_j = (j + 1/2) dz``; the physical axial coordinate is ``z = zbar * B``.
+  Field arrays have shape ``(n_z, n_phi)`` (row j, column i); the flat index
+  is ``g = j * n_phi + i``.
+* Gap (rigid, aligned journal whose centre is at (x, y); clearance
+  ``c = psi R``): ``h(phi) = c - x cos(phi) - y sin(phi)``, ``H = h / c``;
+  ``dH/dt = -(vx cos(phi) + vy sin(phi)) / c``. H depends on phi only.
+* Feed groove: an axial groove over the full width, opening angle
+  ``groove_width`` [rad] centred at ``groove_angle``; every cell column whose
+  centre lies within half the opening of the groove centre is a groove column
+  (at least the nearest column when ``groove_width > 0``), held at p_feed.
+
+Unknown ordering
+----------------
+The Newton matrix has the 5-point pattern, periodic in phi. Groove cells are
+Dirichlet (their Newton increment is zero), so couplings *into* them can be
+dropped and a groove column breaks the periodicity. :func:`best_ordering`
+tries a few orderings and keeps the one with the smallest bandwidth (z-fastest
+starting after the groove: bandwidth n_z; phi-fastest: bandwidth n_phi, with the
+periodic wrap inside the band; z-fastest folded: 2 n_z), so that a LAPACK band
+LU (``dgbtrf``) factors it in O(N bw^2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """Cell geometry; build with :func:`make_grid`."""
+
+    n_phi: int
+    n_z: int
+    dphi: float
+    dz: float
+    phi: np.ndarray          # (n_phi,) cell centres [rad]
+    phi_e: np.ndarray        # (n_phi,) east faces phi_i + dphi/2 [rad]
+    zbar: np.ndarray         # (n_z,) cell centres [-]
+    groove: np.ndarray       # (n_phi,) bool, groove columns
+    pos: np.ndarray          # (N,) position of flat cell g in the band ordering
+    order: np.ndarray        # (N,) flat cell at each position (inverse of pos)
+    bw: int                  # half bandwidth (kl = ku = bw)
+    ordering: str            # name of the chosen ordering
+
+    @property
+    def n(self) -> int:
+        return self.n_phi * self.n_z
+
+    def gap(self, x, y, vx, vy, c):
+        """Return H at centres, H at east faces and dH/dt at centres."""
+        cs, sn = np.cos(self.phi), np.sin(self.phi)
+        H = 1.0 - (x * cs + y * sn) / c
+        He = 1.0 - (x * np.cos(self.phi_e) + y * np.sin(self.phi_e)) / c
+        Hdot = -(vx * cs + vy * sn) / c
+        return H, He, Hdot
+
+
+def groove_columns(n_phi: int, width: float, angle: float) -> np.ndarray:
+    """Boolean mask of the groove columns (see module docstring)."""
+    phi = 2 * np.pi * np.arange(n_phi) / n_phi
+    mask = np.zeros(n_phi, dtype=bool)
+    if width <= 0.0:
+        return mask
+    d = np.abs((phi - angle + np.pi) % (2 * np.pi) - np.pi)
+    mask = d <= 0.5 * width + 1e-12
+    if not mask.any():
+        mask[np.argmin(d)] = True
+    return mask
+
+
+def _edges(n_phi, n_z, groove):
+    """Couplings (row g, col g2) of the 5-point stencil between non-groove cells."""
+    i, j = np.meshgrid(np.arange(n_phi), np.arange(n_z))
+    i, j = i.ravel(), j.ravel()
+    g = j * n_phi + i
+    rows, cols = [], []
+    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        i2, j2 = (i + di) % n_phi, j + dj
+        ok = (j2 >= 0) & (j2 < n_z)
+        rows.append(g[ok])
+        cols.append((j2 * n_phi + i2)[ok])
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    keep = ~groove[rows % n_phi] & ~groove[cols % n_phi]
+    return rows[keep], cols[keep]
+
+
+def best_ordering(n_phi: int, n_z: int, groove: np.ndarray):
+    """Return (pos, order, bw, name) of the smallest-bandwidth candidate ordering."""
+    i = np.tile(np.arange(n_phi), n_z)
+    j = np.repeat(np.arange(n_z), n_phi)
+    i0 = int(np.argmax(groove)) if groove.any() else 0
+    ii = (i - i0) % n_phi
+    fold = np.empty(n_phi, dtype=np.int64)     # column rank in 0, n-1, 1, n-2, ...
+    seq = [k // 2 if k % 2 == 0 else n_phi - 1 - k // 2 for k in range(n_phi)]
+    fold[np.array(seq)] = np.arange(n_phi)
+    cands = {
+        "z-fastest": ii * n_z + j,
+        "phi-fastest": j * n_phi + ii,
+        "z-fastest-folded": fold[i] * n_z + j,
+    }
+    rows, cols = _edges(n_phi, n_z, groove)
+    best = None
+    for name, pos in cands.items():
+        bw = int(np.max(np.abs(pos[rows] - pos[cols]))) if rows.size else 0
+        if best is None or bw < best[2]:
+            best = (pos.astype(np.int64), None, max(bw, 1), name)
+    pos = best[0]
+    order = np.empty_like(pos)
+    order[pos] = np.arange(pos.size)
+    return pos, order, best[2], best[3]
+
+
+def make_grid(n_phi: int, n_z: int, groove_width: float, groove_angle: float) -> Grid:
+    """Build the grid and its band ordering."""
+    dphi = 2 * np.pi / n_phi
+    dz = 1.0 / n_z
+    phi = dphi * np.arange(n_phi)
+    groove = groove_columns(n_phi, groove_width, groove_angle)
+    pos, order, bw, name = best_ordering(n_phi, n_z, groove)
+    return Grid(n_phi=n_phi, n_z=n_z, dphi=dphi, dz=dz, phi=phi,
+                phi_e=phi + 0.5 * dphi, zbar=(np.arange(n_z) + 0.5) * dz,
+                groove=groove, pos=pos, order=order, bw=bw, ordering=name)

@@ -1,0 +1,403 @@
+"""Journal-bearing film model: parameters and the stepping API (no FMI import).
+
+Physics: the transient Reynolds equation with the mass-conserving two-phase
+cavitation model of the paper (``/work/shared/paper/transient-run-up-mass-
+conserving-cavitation.md``, eq. 2-6), or the quasi-static half-Sommerfeld
+(Guembel) model. See docs/bearing-model.md for the derivation and choices.
+
+Conventions
+-----------
+* SI units throughout. Frame: x horizontal, y vertical up, z along the shaft;
+  the journal spins counter-clockwise (omega > 0 about +z); phi is measured
+  from +x counter-clockwise (docs/dev/contracts.md).
+* Inputs: journal centre (x, y) [m] relative to the bearing centre, its
+  velocity (vx, vy) [m/s], spin omega [rad/s]. Clearance ``c = psi R``; gap
+  ``h = c - x cos(phi) - y sin(phi)``; ``eps = sqrt(x^2 + y^2) / c`` must stay
+  below 1.
+* Outputs (``JournalBearing.outputs``): ``Fx, Fy`` film force ON the journal
+  [N] (``F = -int (p - p0) (cos phi, sin phi) dA``: a journal displaced down
+  (-y) gets +Fy); ``eps`` [-]; ``attitude`` [rad] angle from the load line
+  (direction of -F) to the eccentricity vector, counter-clockwise positive (> 0
+  for omega > 0); ``p_max, p_min`` [Pa] absolute; ``h_min`` [m]; ``torque``
+  [N m] friction torque ON the journal about +z (< 0 when omega > 0);
+  ``q_feed`` [m^3/s] flow out of the groove into the film, ``q_side`` [m^3/s]
+  net flow out through both axial edges (in a steady state q_feed = q_side).
+* ``fields()``: ``phi`` (n_phi,) [rad], ``z`` (n_z,) [m] from 0 to B, ``p``
+  [Pa], ``theta`` [-], ``h`` [m], each (n_z, n_phi).
+* Time: ``t`` is the film time; ``initialize`` sets t = 0.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, fields as dc_fields
+
+import numpy as np
+
+from .cavitation import CavitationLaw
+from .film import integrals
+from .grid import make_grid
+from .hs import HalfSommerfeld
+from .solver import StepFailed, TransientFilm
+
+__all__ = ["BearingParams", "JournalBearing", "StepFailed", "solve_stationary"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class BearingParams:
+    """Bearing geometry, lubricant, grid and solver settings (SI units).
+
+    Geometry and lubricant
+        R [m] journal radius; B [m] axial width; psi [-] relative clearance
+        (c = psi R); eta0 [Pa s] oil viscosity; p0 [Pa] ambient pressure;
+        p_feed [Pa] groove pressure (>= p0); groove_width [rad] opening angle
+        of the axial feed groove (0: no groove); groove_angle [rad] its centre.
+    Model
+        cavitation: 0 half-Sommerfeld (quasi-static), 1 mass-conserving
+        (transient, paper eq. 4). axial_bc: 0 oil bath (Dirichlet p0, eq. 5),
+        1 free to air (Neumann penalty, eq. 6).
+        cav_width [Pa]: the smooth theta(p) step lies between p0 - cav_width
+        (cavity pressure) and p0; default 1 kPa (1 % of an atmosphere, below
+        0.1 % of typical film pressures of 1-10 MPa; see docs/bearing-model.md
+        for its effect). cav_smoothing [-]: width of the switch in the
+        universal variable (Newton smoothness; 0.05).
+        penalty_a, penalty_b [-]: slopes of g(p) below/above p0 (eq. 6, paper
+        values 0.01 and 100), in units of the nominal axial film conductance.
+    Grid
+        n_phi, n_z: cells in phi (periodic) and across the width.
+    Solver (mass-conserving model)
+        theta_atol: local-error tolerance of theta per internal step (RMS).
+        newton_atol, newton_rtol: Newton increment tolerance on the universal
+        variable u (u ~ theta - 1 in the cavity, (p - p_cav)/K in the film).
+        newton_max_iter; rho_refactor: contraction rate above which the reused
+        Jacobian is refactorised. h_init, h_min, h_max [s]: internal steps.
+        linear_solver: "band" (LAPACK band LU, default) or "splu" (SuperLU).
+    """
+
+    R: float = 0.02
+    B: float = 0.032
+    psi: float = 2.8e-3
+    eta0: float = 0.012
+    p0: float = 1.0e5
+    p_feed: float = 1.0e5
+    groove_width: float = 0.0
+    groove_angle: float = math.pi / 2
+    n_phi: int = 40
+    n_z: int = 40
+    cavitation: int = 1
+    axial_bc: int = 0
+    cav_width: float = 1.0e3
+    cav_smoothing: float = 0.05
+    penalty_a: float = 0.01
+    penalty_b: float = 100.0
+    theta_atol: float = 1.0e-3
+    newton_atol: float = 1.0e-6
+    newton_rtol: float = 1.0e-6
+    newton_max_iter: int = 12
+    rho_refactor: float = 0.3
+    h_init: float = 1.0e-6
+    h_min: float = 1.0e-12
+    h_max: float = 1.0
+    linear_solver: str = "band"
+
+    def __post_init__(self):
+        problems = []
+
+        def need(name, ok, expected):
+            if not ok:
+                problems.append(f"BearingParams.{name} must be {expected} "
+                                f"(got {getattr(self, name)!r})")
+
+        for name in ("R", "B", "psi", "eta0", "cav_width", "cav_smoothing",
+                     "penalty_b", "theta_atol", "newton_atol", "h_init", "h_min",
+                     "h_max"):
+            v = getattr(self, name)
+            need(name, isinstance(v, (int, float)) and math.isfinite(v) and v > 0,
+                 "a positive finite number")
+        need("psi", self.psi < 0.1, "a relative clearance below 0.1 (e.g. 2.8e-3)")
+        for name in ("p0", "p_feed", "groove_width", "groove_angle", "penalty_a",
+                     "newton_rtol"):
+            v = getattr(self, name)
+            need(name, isinstance(v, (int, float)) and math.isfinite(v), "a finite number")
+        need("p0", self.p0 >= 0, ">= 0 (absolute pressure)")
+        need("cav_width", self.cav_width < max(self.p0, 1e-300) or self.cavitation == 0,
+             "below p0 (the cavity pressure p0 - cav_width must stay positive)")
+        need("p_feed", self.p_feed >= self.p0, ">= p0 (a groove feeds oil)")
+        need("groove_width", 0 <= self.groove_width < 2 * math.pi, "in [0, 2 pi) [rad]")
+        need("penalty_a", self.penalty_a >= 0, ">= 0")
+        need("n_phi", isinstance(self.n_phi, int) and self.n_phi >= 8, "an integer >= 8")
+        need("n_z", isinstance(self.n_z, int) and self.n_z >= 2, "an integer >= 2")
+        need("cavitation", self.cavitation in (0, 1),
+             "0 (half-Sommerfeld) or 1 (mass-conserving)")
+        need("axial_bc", self.axial_bc in (0, 1), "0 (oil bath) or 1 (free to air)")
+        need("newton_max_iter", isinstance(self.newton_max_iter, int)
+             and self.newton_max_iter >= 2, "an integer >= 2")
+        need("rho_refactor", 0 < self.rho_refactor < 1, "in (0, 1)")
+        need("h_min", self.h_min <= self.h_init <= self.h_max, "h_min <= h_init <= h_max")
+        need("linear_solver", self.linear_solver in ("band", "splu"), "'band' or 'splu'")
+        if problems:
+            raise ValueError("invalid bearing parameters:\n  " + "\n  ".join(problems))
+        if self.cavitation == 1 and self.axial_bc == 1 and self.groove_width == 0:
+            warnings.warn(
+                "BearingParams: mass-conserving model free to air (axial_bc=1) without "
+                "a feed groove (groove_width=0): nothing refills the cavity except the "
+                "weak sub-ambient suction penalty_a, so the film drains over time. "
+                "Set groove_width > 0 (e.g. 15 deg = 0.2618 rad) to feed the bearing.",
+                stacklevel=3)
+
+    @property
+    def c(self) -> float:
+        """Radial clearance [m]."""
+        return self.psi * self.R
+
+    def replace(self, **kw) -> "BearingParams":
+        vals = {f.name: getattr(self, f.name) for f in dc_fields(self)}
+        vals.update(kw)
+        return BearingParams(**vals)
+
+
+class JournalBearing:
+    """One journal bearing film; call order: ``initialize`` then ``step`` ...
+
+    ``step(dt, x, y, vx, vy, omega)`` advances the film from ``t`` to ``t + dt``
+    with the kinematics held constant (FMI semantics), taking internal BDF
+    sub-steps with error control (mass-conserving model) or evaluating the
+    quasi-static solution at the new kinematics (half-Sommerfeld). A step that
+    cannot be completed raises :class:`StepFailed` and leaves the state as it
+    was before the call (the caller may restore/retry with a smaller dt).
+    """
+
+    def __init__(self, params: BearingParams):
+        if not isinstance(params, BearingParams):
+            raise TypeError(f"JournalBearing(params): expected BearingParams, got "
+                            f"{type(params).__name__}")
+        p = self.params = params
+        self.grid = make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle)
+        self.c = p.c
+        self.a_phi = p.psi ** 2 / (6 * p.eta0)
+        self.a_z = (p.R / p.B) ** 2 * self.a_phi
+        self.p0 = p.p0
+        self.bath = p.axial_bc == 0
+        self.law = CavitationLaw(p.p0, p.cav_width, p.cav_smoothing)
+        self.u_feed = float(self.law.u_from_p(p.p_feed)) if p.cavitation else 0.0
+        self.hs = HalfSommerfeld(self.grid, self.a_phi, self.a_z, p.p0, p.p_feed)
+        self.film = TransientFilm(self, linear_solver=p.linear_solver) if p.cavitation else None
+        self.outputs: dict[str, float] = {}
+        self._t = 0.0
+        self._kin = None
+        self._initialized = False
+
+    # ----------------------------------------------------------- helpers
+    def _kinematics(self, x, y, vx, vy, omega):
+        vals = (x, y, vx, vy, omega)
+        if not all(math.isfinite(float(v)) for v in vals):
+            raise ValueError(f"JournalBearing: non-finite input (x, y, vx, vy, omega) = {vals}")
+        eps = math.hypot(x, y) / self.c
+        if eps >= 1.0:
+            raise StepFailed(
+                f"JournalBearing: journal touches the shell: eps = {eps:.4f} >= 1 "
+                f"(x = {x:g} m, y = {y:g} m, clearance c = {self.c:g} m); the rotor "
+                "left the clearance: reduce the macro step or check the loads")
+        H, He, Hdot = self.grid.gap(x, y, vx, vy, self.c)
+        return (H, He, Hdot, float(omega))
+
+    def _hs_pressure(self, kin):
+        H, He, Hdot, omega = kin
+        P = self.hs.solve(H, He, Hdot, omega)
+        return self.p0 + np.maximum(P, 0.0)
+
+    def _update_outputs(self):
+        p, th = self._pth()
+        H, He, Hdot, omega = self._kin
+        g, prm = self.grid, self.params
+        Fx, Fy, T, qf, qs = integrals(
+            p.ravel(), th.ravel(), H, He, g.groove, g.phi, omega, self.a_phi, self.a_z,
+            g.dphi, g.dz, self.bath, self.p0, prm.penalty_a, prm.penalty_b, self.law.s,
+            prm.R, prm.B, self.c, prm.eta0)
+        x, y = self._xy
+        e_ang = math.atan2(y, x)
+        l_ang = math.atan2(-Fy, -Fx)
+        att = (e_ang - l_ang + math.pi) % (2 * math.pi) - math.pi
+        self.outputs = dict(Fx=Fx, Fy=Fy, eps=math.hypot(x, y) / self.c, attitude=att,
+                            p_max=float(p.max()), p_min=float(p.min()),
+                            h_min=float(H.min() * self.c), torque=T, q_feed=qf, q_side=qs)
+
+    def _pth(self):
+        shape = (self.grid.n_z, self.grid.n_phi)
+        if self.film is None:
+            return self._p_hs, np.ones(shape)
+        p, th = self.law.p_theta(self.film.u)
+        return p.reshape(shape), th.reshape(shape)
+
+    def _check_init(self, what):
+        if not self._initialized:
+            raise RuntimeError(f"JournalBearing.{what}: call initialize(x, y, vx, vy, "
+                               "omega) first")
+
+    # ----------------------------------------------------------- API
+    def initialize(self, x, y, vx, vy, omega, *, init="flooded"):
+        """Build the initial film at t = 0; outputs are valid afterwards.
+
+        ``init="flooded"`` (default, a run-up from rest): theta = 1 everywhere,
+        the universal variable started from the half-Sommerfeld pressure (the
+        first step finds the cavity). ``init="stationary"``: the steady
+        mass-conserving solution at the given kinematics (see
+        :func:`solve_stationary`). Half-Sommerfeld ignores ``init``.
+        """
+        if init not in ("flooded", "stationary"):
+            raise ValueError(f"initialize: init must be 'flooded' or 'stationary' (got {init!r})")
+        kin = self._kinematics(x, y, vx, vy, omega)
+        self._kin, self._t = kin, 0.0
+        self._set_inputs(x, y, vx, vy, omega)
+        if self.film is None:
+            self._p_hs = self._hs_pressure(kin)
+        else:
+            p = self._hs_pressure(kin)
+            u = self.law.u_from_p(p.ravel())
+            self.film.init_state(u)
+            if init == "stationary":
+                self.film.init_state(self._steady(kin, u))
+        self._initialized = True
+        self._update_outputs()
+
+    def step(self, dt, x, y, vx, vy, omega):
+        """Advance the film by dt [s] with the kinematics held constant."""
+        self._check_init("step")
+        if not (dt > 0 and math.isfinite(dt)):
+            raise ValueError(f"JournalBearing.step: dt must be a positive finite time [s] (got {dt!r})")
+        kin = self._kinematics(x, y, vx, vy, omega)
+        if self.film is None:
+            self._p_hs = self._hs_pressure(kin)
+            self._t += dt
+        else:
+            saved = self.film.get_state()
+            try:
+                self.film.advance(dt, kin)
+            except StepFailed:
+                self.film.set_state(saved)
+                raise
+            self._t = self.film.t
+        self._kin = kin
+        self._set_inputs(x, y, vx, vy, omega)
+        self._update_outputs()
+
+    @property
+    def t(self) -> float:
+        return self._t
+
+    @property
+    def stats(self) -> dict:
+        """Counters: internal steps, rejected steps, Newton iterations, factorisations."""
+        return dict(self.film.stats) if self.film else {}
+
+    def get_state(self) -> dict:
+        """Return the complete state as a dict of numpy arrays and floats."""
+        self._check_init("get_state")
+        s = dict(t=self._t, inputs=np.array(self._inputs))
+        if self.film is None:
+            s["p_hs"] = self._p_hs.copy()
+        else:
+            s.update({"film_" + k: v for k, v in self.film.get_state().items()})
+        return s
+
+    def _set_inputs(self, x, y, vx, vy, omega):
+        self._inputs = (float(x), float(y), float(vx), float(vy), float(omega))
+        self._xy = self._inputs[:2]
+
+    def set_state(self, s: dict):
+        """Restore a state from :meth:`get_state` exactly."""
+        self._check_init("set_state")
+        x, y, vx, vy, omega = (float(v) for v in s["inputs"])
+        self._kin = self._kinematics(x, y, vx, vy, omega)
+        self._set_inputs(x, y, vx, vy, omega)
+        self._t = float(s["t"])
+        if self.film is None:
+            self._p_hs = np.array(s["p_hs"])
+        else:
+            self.film.set_state({k[5:]: v for k, v in s.items() if k.startswith("film_")})
+        self._update_outputs()
+
+    def fields(self) -> dict:
+        """Pressure, fluid fraction and gap fields (shape (n_z, n_phi))."""
+        self._check_init("fields")
+        p, th = self._pth()
+        H = self._kin[0]
+        g = self.grid
+        return dict(phi=g.phi.copy(), z=g.zbar * self.params.B, p=p.copy(), theta=th.copy(),
+                    h=np.broadcast_to(H * self.c, (g.n_z, g.n_phi)).copy())
+
+    # ----------------------------------------------------------- steady
+    def _steady(self, kin, u0, max_iter=40):
+        """Steady mass-conserving film: Newton on the steady equations (no time
+        term), falling back to pseudo-transient continuation (BDF1 with growing
+        steps) when plain Newton does not converge."""
+        f = self.film
+        zero = np.zeros(f.n)
+        u, its = self._steady_newton(kin, u0, zero, max_iter)
+        if u is not None:
+            return u
+        # pseudo-transient continuation from a flooded film
+        omega = abs(kin[3]) or 1.0
+        h = 0.1 / omega
+        u = u0.copy()
+        for _ in range(200):
+            th = f.theta(u)
+            f._factored = False
+            un, its = f.newton(u, 1.0 / h, -th / h, kin, max_iter=20)
+            if un is None:
+                h *= 0.25
+                continue
+            change = float(np.max(np.abs(f.theta(un) - th)))
+            u = un
+            h *= 2.0 if its <= 6 else 1.0
+            if change < 1e-8 or h * omega > 1e6:
+                break
+        us, its = self._steady_newton(kin, u, zero, max_iter)
+        if us is None:
+            raise StepFailed("solve_stationary: steady Newton did not converge even "
+                             "after pseudo-transient continuation; check the inputs "
+                             "(eps < 1, a groove or oil bath feeding the film)")
+        return us
+
+    def _steady_newton(self, kin, u0, zero, max_iter):
+        """Full Newton with backtracking on the steady residual."""
+        f = self.film
+        prm = self.params
+        u = u0.copy()
+        r = f.residual(u, 0.0, zero, kin).copy()
+        for it in range(max_iter):
+            f._factor(u, 0.0, kin)
+            r = f.residual(u, 0.0, zero, kin).copy()
+            dx = f._solve(r)
+            if not np.all(np.isfinite(dx)):
+                return None, it
+            nr0 = np.linalg.norm(r)
+            lam = 1.0
+            while lam > 1e-3:
+                un = u + lam * dx
+                rn = f.residual(un, 0.0, zero, kin)
+                if np.linalg.norm(rn) < (1 - 1e-4 * lam) * nr0 or lam == 1.0 and \
+                        np.max(np.abs(dx) / (prm.newton_atol + prm.newton_rtol * np.abs(u))) <= 1:
+                    break
+                lam *= 0.5
+            u = un
+            if lam == 1.0 and np.max(np.abs(dx) / (prm.newton_atol + prm.newton_rtol * np.abs(u))) <= 1:
+                f._factored = False
+                return u, it + 1
+        f._factored = False
+        return None, max_iter
+
+
+def solve_stationary(params: BearingParams, x, y, omega, vx=0.0, vy=0.0) -> JournalBearing:
+    """Stationary film at fixed kinematics; returns the initialised bearing.
+
+    Mass-conserving model: Newton on the steady equations (paper section 3.1,
+    "eq. 4 solved with constant kinematic input variables"), with
+    pseudo-transient continuation as fallback. Half-Sommerfeld: the
+    quasi-static solution. Read ``.outputs`` and ``.fields()`` of the result;
+    it can also be stepped further.
+    """
+    b = JournalBearing(params)
+    b.initialize(x, y, vx, vy, omega, init="stationary")
+    return b

@@ -1,0 +1,312 @@
+"""Time integration of the mass-conserving film: BDF1/2 + modified Newton.
+
+Method
+------
+* Unknown: universal variable u per cell (:mod:`.cavitation`); the dynamic
+  state is theta(u) (paper eq. 4: only 2 H dtheta/dt carries a time
+  derivative, H and dH/dt are inputs held over the step).
+* Time: variable-step BDF2 (BDF1 for the first two steps after
+  initialisation, while history builds up), one nonlinear solve per sub-step.
+* Local error: Milne's device on theta, the difference between the corrector
+  and an extrapolation predictor of the same order (linear for BDF1, quadratic
+  for BDF2), times 1/3 resp. 2/11 (the ratio of the error constants, exact for
+  constant steps). RMS norm over film cells divided by ``theta_atol``; a step is
+  accepted when <= 1; the next step is ``0.9 err^(-1/(q+1))`` times the last,
+  limited to [0.2, 2] (Hairer, Norsett & Wanner, I.II.4).
+* Nonlinear solve: modified Newton. The Jacobian (assembled by numba in LAPACK
+  band storage, ordering of :mod:`.grid`) is factorised with ``dgbtrf`` and the
+  factorisation is REUSED across iterations and across time steps as long as the
+  contraction rate ``rho = |dx_k| / |dx_(k-1)|`` stays below ``rho_refactor``
+  (0.3); otherwise it is refactorised at the current iterate. Converged when the
+  weighted increment ``max |du| / (atol + rtol |u|) <= 1``. A step whose Newton
+  iteration fails with a fresh Jacobian is retried with h/4.
+* Exact restore: the factorisation is a pure function of (u_jac, the BDF
+  coefficient and the kinematics at the last refactorisation), which are part of
+  the state; :meth:`TransientFilm.set_state` refactorises from them, so a
+  restored run repeats the original bit for bit.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+import scipy.sparse as sp
+from scipy.linalg import lapack
+from scipy.sparse.linalg import splu
+
+from .film import assemble
+
+
+@nb.njit(cache=True)
+def _limit_switch(u, un, delta):
+    """Newton damping across the cavitation switch (in place on ``un``).
+
+    A full Newton step taken with the film-branch slope dp/du = K can throw a
+    cell deep into the cavity branch (where dp/du ~ 0) and vice versa, and the
+    iteration then cycles. A cell that crosses the switch u = 0 is stopped one
+    switch width ``delta`` beyond it; the next iteration, with the Jacobian of
+    the new branch, continues from there. Cells are also kept above u = -2
+    (theta = -1), which no solution reaches. Only the path changes, not the
+    solution.
+    """
+    for k in range(u.size):
+        if u[k] > 0.0 and un[k] < -delta:
+            un[k] = -delta
+        elif u[k] < 0.0 and un[k] > delta:
+            un[k] = delta
+        if un[k] < -2.0:
+            un[k] = -2.0
+
+
+class StepFailed(RuntimeError):
+    """The film could not be advanced (Newton or step-size control failed)."""
+
+
+class BandLU:
+    """LAPACK band LU (dgbtrf/dgbtrs) of a matrix in band storage."""
+
+    name = "band"
+
+    def __init__(self, bw: int):
+        self.bw = bw
+
+    def factor(self, ab):
+        lu, piv, info = lapack.dgbtrf(ab, self.bw, self.bw, overwrite_ab=0)
+        if info != 0:
+            raise StepFailed(f"band LU: singular Newton matrix (dgbtrf info={info})")
+        self.lu, self.piv = lu, piv
+
+    def solve(self, b):
+        x, info = lapack.dgbtrs(self.lu, self.bw, self.bw, b, self.piv)
+        return x
+
+
+class SpluLU:
+    """SuperLU (scipy ``splu``) of the same matrix: the reference peer."""
+
+    name = "splu"
+
+    def __init__(self, bw: int):
+        self.bw = bw
+        self.offsets = np.arange(-bw, bw + 1)
+
+    def factor(self, ab):
+        bw = self.bw
+        data = ab[2 * bw - self.offsets]
+        n = ab.shape[1]
+        A = sp.dia_matrix((data, self.offsets), shape=(n, n)).tocsc()
+        self.lu = splu(A)
+
+    def solve(self, b):
+        return self.lu.solve(b)
+
+
+class TransientFilm:
+    """Integrator of the mass-conserving film on a fixed grid.
+
+    ``ctx`` is a :class:`bearing_fmu.model.JournalBearing`-like object with the
+    grid, constants and law (see ``model.py``); the integrator only owns the
+    numerical state.
+    """
+
+    def __init__(self, ctx, linear_solver="band", full_newton=False):
+        self.ctx = ctx
+        g = ctx.grid
+        n = g.n
+        self.n = n
+        self.lin = (BandLU if linear_solver == "band" else SpluLU)(g.bw)
+        self.full_newton = full_newton
+        self.ab = np.zeros((3 * g.bw + 1, n), order="F")
+        self.r = np.empty(n)
+        self.wp, self.wdp, self.wth, self.wdth = (np.empty(n) for _ in range(4))
+        self.film = ~np.tile(g.groove, g.n_z)
+        self.stats = dict(steps=0, rejected=0, newton=0, factor=0, failed_newton=0)
+        self._factored = False
+
+    # ------------------------------------------------------------ kernels
+    def residual(self, u, th_dot0, th_dot1, kin, want_jac=False):
+        c, g = self.ctx, self.ctx.grid
+        H, He, Hdot, omega = kin
+        assemble(u, th_dot0, th_dot1, H, He, Hdot, g.groove, c.u_feed, omega,
+                 c.a_phi, c.a_z, g.dphi, g.dz, c.bath, c.p0, c.law.p_cav, c.law.K,
+                 c.law.delta, c.params.penalty_a, c.params.penalty_b, c.law.s,
+                 self.r, want_jac, g.pos, g.bw, self.ab,
+                 self.wp, self.wdp, self.wth, self.wdth)
+        return self.r
+
+    def _factor(self, u, th_dot0, kin):
+        self.residual(u, th_dot0, self._zero, kin, want_jac=True)
+        self.lin.factor(self.ab)
+        self._factored = True
+        self.stats["factor"] += 1
+        self.jac = dict(u=u.copy(), th_dot0=th_dot0, kin=kin)
+
+    def _solve(self, r):
+        g = self.ctx.grid
+        x = self.lin.solve(-r[g.order])
+        return x[g.pos]
+
+    def theta(self, u):
+        p, th = self.ctx.law.p_theta(u)
+        return th
+
+    # ------------------------------------------------------------ Newton
+    def newton(self, u0, th_dot0, th_dot1, kin, max_iter=None):
+        """Solve r(u) = 0 from u0; return (u, iterations) or (None, its)."""
+        prm = self.ctx.params
+        max_iter = max_iter or prm.newton_max_iter
+        atol, rtol = prm.newton_atol, prm.newton_rtol
+        u = u0.copy()
+        fresh = False
+        if not self._factored or self.full_newton:
+            self._factor(u, th_dot0, kin)
+            fresh = True
+        prev = None
+        its = 0
+        while its < max_iter:
+            r = self.residual(u, th_dot0, th_dot1, kin)
+            dx = self._solve(r)
+            its += 1
+            if not np.all(np.isfinite(dx)):
+                nrm = np.inf
+            else:
+                un = u + dx
+                _limit_switch(u, un, self.ctx.law.delta)
+                dx = un - u
+                u = un
+                nrm = float(np.max(np.abs(dx) / (atol + rtol * np.abs(u))))
+            if nrm <= 1.0:
+                self.stats["newton"] += its
+                return u, its
+            rho = nrm / prev if prev else 0.0
+            if not np.isfinite(nrm):
+                if fresh:
+                    break
+                u = u0.copy()           # diverged with the old Jacobian: restart
+                self._factor(u, th_dot0, kin)
+                fresh, prev = True, None
+                continue
+            if self.full_newton or (prev is not None and rho > prm.rho_refactor):
+                # slow contraction: refresh the Jacobian at the current iterate
+                self._factor(u, th_dot0, kin)
+                fresh = True
+            prev = nrm
+        self.stats["newton"] += its
+        self.stats["failed_newton"] += 1
+        return None, its
+
+    # ------------------------------------------------------------ stepping
+    def init_state(self, u):
+        self.u = np.array(u, dtype=float)
+        n = self.n
+        self.th_nm1 = np.zeros(n)
+        self.th_nm2 = np.zeros(n)
+        self.h_prev = 0.0
+        self.h_prev2 = 0.0
+        self.n_hist = 0
+        self.h_next = self.ctx.params.h_init
+        self.t = 0.0
+        self._zero = np.zeros(n)
+        self._factored = False
+
+    def advance(self, dt, kin):
+        """Advance from t to t + dt with kinematics ``kin`` held constant."""
+        prm = self.ctx.params
+        t_end = self.t + dt
+        last_its = 0
+        while t_end - self.t > 1e-12 * max(abs(t_end), dt):
+            rem = t_end - self.t
+            h = min(self.h_next, prm.h_max, rem)
+            if rem <= 1.1 * h:
+                h = rem
+            while True:
+                if h < prm.h_min:
+                    raise StepFailed(
+                        f"film step size fell below h_min = {prm.h_min:g} s at t = "
+                        f"{self.t:.9g} s (Newton failures {self.stats['failed_newton']}, "
+                        f"rejections {self.stats['rejected']}); the kinematics may be "
+                        "outside the clearance or jump too fast; reduce the macro step "
+                        "or loosen theta_atol")
+                th_n = self.theta(self.u)
+                if self.n_hist == 0:
+                    q, th_dot0, th_dot1 = 1, 1.0 / h, -th_n / h
+                else:
+                    w = h / self.h_prev
+                    q = 2
+                    a0, a1, a2 = (1 + 2 * w) / (1 + w), -(1 + w), w * w / (1 + w)
+                    th_dot0 = a0 / h
+                    th_dot1 = (a1 * th_n + a2 * self.th_nm1) / h
+                u_new, its = self.newton(self.u, th_dot0, th_dot1, kin)
+                last_its = its
+                if u_new is None:
+                    self.stats["rejected"] += 1
+                    h *= 0.25
+                    self._factored = False
+                    continue
+                th_new = self.theta(u_new)
+                # Milne error estimate
+                if self.n_hist >= 2:
+                    h1, h2 = self.h_prev, self.h_prev2
+                    Ln = (h + h1) * (h + h1 + h2) / (h1 * (h1 + h2))
+                    Lm = -h * (h + h1 + h2) / (h1 * h2)
+                    Lmm = h * (h + h1) / ((h1 + h2) * h2)
+                    pred = Ln * th_n + Lm * self.th_nm1 + Lmm * self.th_nm2
+                    est = (2.0 / 11.0) * (th_new - pred)
+                elif self.n_hist == 1:
+                    # BDF2 corrector vs linear predictor: a conservative estimate
+                    pred = th_n + (h / self.h_prev) * (th_n - self.th_nm1)
+                    est = (1.0 / 3.0) * (th_new - pred)
+                else:
+                    est = None
+                if est is not None:
+                    err = float(np.sqrt(np.mean(est[self.film] ** 2))) / prm.theta_atol
+                else:
+                    err = 0.5
+                fac = 0.9 * err ** (-1.0 / (q + 1)) if err > 0 else 2.0
+                if err > 1.0:
+                    self.stats["rejected"] += 1
+                    h *= max(0.2, fac)
+                    continue
+                break
+            # accept
+            self.th_nm2 = self.th_nm1
+            self.th_nm1 = th_n
+            self.u = u_new
+            self.h_prev2 = self.h_prev
+            self.h_prev = h
+            self.n_hist += 1
+            self.t = t_end if h == rem else self.t + h
+            self.stats["steps"] += 1
+            self.h_next = min(prm.h_max, h * min(2.0, max(0.2, fac)))
+            if self.n_hist == 1:
+                self.h_next = min(self.h_next, h)
+        self.t = t_end
+        return last_its
+
+    # ------------------------------------------------------------ state
+    def get_state(self):
+        s = dict(u=self.u.copy(), th_nm1=self.th_nm1.copy(), th_nm2=self.th_nm2.copy(),
+                 h_prev=self.h_prev, h_prev2=self.h_prev2, n_hist=self.n_hist,
+                 h_next=self.h_next, t=self.t, jac_valid=bool(self._factored))
+        if self._factored:
+            H, He, Hdot, omega = self.jac["kin"]
+            s.update(jac_u=self.jac["u"].copy(), jac_th_dot0=self.jac["th_dot0"],
+                     jac_H=H.copy(), jac_He=He.copy(), jac_Hdot=Hdot.copy(),
+                     jac_omega=omega)
+        return s
+
+    def set_state(self, s):
+        self.u = np.array(s["u"], dtype=float)
+        self.th_nm1 = np.array(s["th_nm1"], dtype=float)
+        self.th_nm2 = np.array(s["th_nm2"], dtype=float)
+        self.h_prev = float(s["h_prev"])
+        self.h_prev2 = float(s["h_prev2"])
+        self.n_hist = int(s["n_hist"])
+        self.h_next = float(s["h_next"])
+        self.t = float(s["t"])
+        self._factored = False
+        if s.get("jac_valid", False):
+            kin = (np.array(s["jac_H"]), np.array(s["jac_He"]), np.array(s["jac_Hdot"]),
+                   float(s["jac_omega"]))
+            self._factor(np.array(s["jac_u"]), float(s["jac_th_dot0"]), kin)
+            self.stats["factor"] -= 1      # a restore is not a solver factorisation
