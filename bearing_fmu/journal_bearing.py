@@ -89,6 +89,10 @@ OUTPUTS: dict[str, tuple[str, str]] = {
     "q_feed": ("m3/s", "volume inflow through the feed groove [m^3/s]"),
     "q_side": ("m3/s", "volume outflow through both axial edges [m^3/s]"),
 }
+# Model parameters whose names collide with FMU variables: FMU name -> model field.
+RENAMED = {"solver_h_init": "h_init", "solver_h_min": "h_min", "solver_h_max": "h_max"}
+_FMU_NAME = {v: k for k, v in RENAMED.items()}
+
 # Outputs the model must provide (issue 5 contract); the others default to 0.
 REQUIRED_OUTPUTS = ("Fx", "Fy", "eps", "p_max", "p_min", "h_min")
 
@@ -187,17 +191,28 @@ class JournalBearing(Fmi2Slave):
         for name, default, kind in self._extra_model_parameters():
             self._values[name] = default
             self._extra_types[name] = kind
-            desc = f"bearing model parameter '{name}' (see bearing_fmu.model.BearingParams; SI units)"
+            desc = (f"bearing model parameter '{RENAMED.get(name, name)}' (see bearing_fmu.model.BearingParams; "
+                    "SI units)")
             if kind is float:
                 self._register_real(name, None, desc, **par)
             elif kind is bool:
                 self.register_variable(Boolean(
                     name, description=desc, getter=self._getter(name),
                     setter=self._param_setter(name, bool), **par))
+            elif kind is str:
+                self.register_variable(String(
+                    name, description=desc, getter=self._getter(name),
+                    setter=self._param_setter(name, str), **par))
             else:
                 self.register_variable(Integer(
                     name, description=desc, getter=self._getter(name),
                     setter=self._param_setter(name, int), **par))
+        self._values["init"] = "flooded"
+        self.register_variable(String(
+            "init", description=(
+                "initial film of the mass-conserving model: 'flooded' (theta = 1, a run-up from rest) "
+                "or 'stationary' (steady film at the initial inputs); ignored by half-Sommerfeld"),
+            getter=self._getter("init"), setter=self._param_setter("init", str), **par))
         self.register_variable(String(
             "fields_file", description=(
                 "if not empty: at fmi2Terminate write numpy.savez(fields_file, phi, z, p, theta, h, t) "
@@ -274,37 +289,42 @@ class JournalBearing(Fmi2Slave):
         for f in dataclasses.fields(BearingParams):
             if f.name in known or f.name.startswith("_"):
                 continue
+            name = _FMU_NAME.get(f.name, f.name)
+            if name in INPUTS or name in OUTPUTS or name in ("fields_file", "init", "t_film"):
+                raise NameError(f"BearingParams.{f.name} collides with the FMU variable {name!r}; "
+                                "add it to journal_bearing.RENAMED")
             if f.default is not dataclasses.MISSING:
                 default = f.default
             elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
                 default = f.default_factory()  # type: ignore[misc]
             else:
                 continue
-            if isinstance(default, bool):
-                extra.append((f.name, bool(default), bool))
-            elif isinstance(default, int):
-                extra.append((f.name, int(default), int))
-            elif isinstance(default, float):
-                extra.append((f.name, float(default), float))
+            for kind in (bool, int, float, str):
+                if isinstance(default, kind):
+                    extra.append((name, kind(default), kind))
+                    break
         return extra
 
     # -- model ----------------------------------------------------------------
     def _params(self) -> dict[str, Any]:
+        """Keyword arguments of ``BearingParams`` (model field names)."""
         names = list(REAL_PARAMETERS) + list(INTEGER_PARAMETERS) + list(self._extra_types)
-        return {n: self._values[n] for n in names}
+        return {RENAMED.get(n, n): self._values[n] for n in names}
 
     def _inputs(self) -> tuple[float, ...]:
         return tuple(self._values[n] for n in INPUTS)
 
     def _ensure_model(self) -> None:
         """Build and initialize the model for the current parameters and inputs."""
-        key = (tuple(sorted(self._params().items())), self._inputs())
+        key = (tuple(sorted(self._params().items())), self._inputs(), self._values["init"])
         if self._model is not None and key == self._init_key:
             return
         from bearing_fmu.model import BearingParams
         from bearing_fmu.model import JournalBearing as Model
         model = Model(BearingParams(**self._params()))
-        model.initialize(*self._inputs())
+        if self._values["init"] not in ("flooded", "stationary"):
+            raise ValueError(f"parameter 'init' must be 'flooded' or 'stationary' (got {self._values['init']!r})")
+        model.initialize(*self._inputs(), init=self._values["init"])
         self._model = model
         self._init_key = key
         self._copy_outputs()
@@ -401,6 +421,6 @@ def _is_numerical_failure(exc: Exception) -> bool:
         from bearing_fmu import model as _m
     except ImportError:
         return False
-    kinds = tuple(getattr(_m, n) for n in ("ConvergenceError", "StepFailure", "SolverError")
+    kinds = tuple(getattr(_m, n) for n in ("StepFailed", "ConvergenceError")
                   if isinstance(getattr(_m, n, None), type))
     return bool(kinds) and isinstance(exc, kinds)
