@@ -203,7 +203,8 @@ class _Loader:
         self.origins: dict[int, str] = {}     # id(node) -> "--set k=v" for override nodes
         self.ctor = _YamlLoader("")
         self.mds: dict[str, dict] = {}         # instance -> {variable name: fmpy variable} (readable FMUs)
-        self.instances: list[str] = []         # every instance name written under 'fmus' 
+        self.instances: list[str] = []         # every instance name written under 'fmus'
+        self.fmu_specs: list[dict] = []        # parsed 'fmus' entries
 
     # -- helpers -----------------------------------------------------------
     def loc(self, node) -> str:
@@ -442,6 +443,7 @@ class _Loader:
                 stop = None
         kw["stop_time"] = stop
         fmus = self.load_fmus(get("fmus")) if "fmus" in top else []
+        self.fmu_specs = fmus
         names = [f["name"] for f in fmus]
         coupling = self.load_coupling(get("coupling"), names, start, stop)
         interval, signals = self.load_output(get("output"), stop, start)
@@ -678,6 +680,11 @@ class _Loader:
                            "is an FMI 2.0 co-simulation FMU (`rotorcosim info FILE` shows what it contains)")
             return
         self.mds[name] = dict(md.variables)
+        if md.can_be_instantiated_only_once_per_process:
+            users = [g["name"] for g in self.fmu_specs if g["path"] == path]
+            if len(users) > 1 and users[0] != name:
+                self.err(node, f"FMU {path.name} declares canBeInstantiatedOnlyOncePerProcess, but instances "
+                               f"{', '.join(users)} all use it; use it for one instance only")
 
     def check_parameters(self, f: dict) -> dict:
         name, out = f["name"], {}

@@ -380,3 +380,16 @@ def test_unreadable_scenario_file(tmp_path):
     (tmp_path / "bin.yaml").write_bytes(b"\xff\xfe\x00")
     with pytest.raises(ScenarioError, match="not UTF-8"):
         load_scenario(tmp_path / "bin.yaml")
+
+
+def test_fmu_instantiable_once_cannot_serve_two_instances(sdir):
+    write_md_only_fmu(sdir / "fmus" / "Once.fmu", MIXED_MD.replace(
+        'canHandleVariableCommunicationStepSize="true"',
+        'canHandleVariableCommunicationStepSize="true" canBeInstantiatedOnlyOncePerProcess="true"'))
+    p = write(sdir, "name: x\nstop_time: 1\nfmus:\n  a: {path: fmus/Once.fmu}\n  b: {path: fmus/Once.fmu}\n")
+    problems = problems_of(p)
+    assert len(problems) == 1 and problems[0].startswith(f"{p}:5: FMU Once.fmu declares "
+                                                         "canBeInstantiatedOnlyOncePerProcess")
+    # two instances of an ordinary FMU are fine
+    p = write(sdir, "name: x\nstop_time: 1\nfmus:\n  a: {path: fmus/Mixed.fmu}\n  b: {path: fmus/Mixed.fmu}\n")
+    assert [f.name for f in load_scenario(p).fmus] == ["a", "b"]
