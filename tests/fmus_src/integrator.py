@@ -25,7 +25,7 @@ class Integrator(Fmi2Slave):
         self.register_variable(Real("y", causality=Fmi2Causality.output, description="integral [-]"))
         self.register_variable(Real("time", causality=Fmi2Causality.output, description="time reached [s]"))
 
-    def exit_initialization_mode(self):
+    def enter_initialization_mode(self):
         self.y = self.y0
 
     def do_step(self, current_time, step_size):

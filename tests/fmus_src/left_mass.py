@@ -35,7 +35,7 @@ class LeftMass(Fmi2Slave):
         self.register_variable(Real("x1", causality=Fmi2Causality.output, description="position [m]"))
         self.register_variable(Real("v1", causality=Fmi2Causality.output, description="velocity [m/s]"))
 
-    def exit_initialization_mode(self):
+    def enter_initialization_mode(self):
         self.x1 = self.x1_0
         self.v1 = self.v1_0
 

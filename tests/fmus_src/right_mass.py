@@ -49,7 +49,7 @@ class RightMass(Fmi2Slave):
         self.register_variable(Real("x2", causality=Fmi2Causality.output, description="position [m]"))
         self.register_variable(Real("v2", causality=Fmi2Causality.output, description="velocity [m/s]"))
 
-    def exit_initialization_mode(self):
+    def enter_initialization_mode(self):
         self.x2 = self.x2_0
         self.v2 = self.v2_0
         self._cache = {}

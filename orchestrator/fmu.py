@@ -1,0 +1,409 @@
+"""Subsystems: the one place that calls FMI.
+
+:class:`SubsystemBase` is the interface the master drives; :class:`Subsystem`
+implements it for an FMI 2.0 co-simulation FMU through fmpy's ``FMU2Slave``.
+Tests implement it with plain Python (fake subsystems).
+
+Call order (FMI 2.0 co-simulation, enforced by the master)::
+
+    sub = Subsystem(name, fmu_path, work_dir=...)   # check archive, extract, load, instantiate
+    sub.set_parameters({...}, out_dir=...)          # instantiated state
+    sub.setup_experiment(t0, t_stop)
+    sub.enter_initialization_mode()
+    sub.set_real(batch) / sub.get_real(batch)       # initial exchange
+    sub.exit_initialization_mode()
+    loop: sub.set_real(inputs); [sub.set_real_input_derivatives(d)]; sub.do_step(t, h); sub.get_real(outputs)
+    sub.terminate(); sub.free()                     # free() always, also after errors
+
+Values travel in :class:`RealBatch` objects made once at setup: the value
+references and a value buffer live in ctypes arrays, and ``batch.values`` is a
+numpy view of that buffer, so the hot path allocates nothing. Callers write
+``batch.values[:] = ...`` and call :meth:`set_real`, or call :meth:`get_real`
+and read ``batch.values``.
+
+Every FMI call goes through :meth:`Subsystem._call`, which counts it and turns
+every status worse than fmi2Warning, and every exception, into
+:class:`orchestrator.errors.FmuCallError` carrying the FMU's last log messages.
+"""
+
+from __future__ import annotations
+
+import collections
+import ctypes
+import logging
+import math
+from abc import ABC, abstractmethod
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .errors import FmuCallError, FmuError, LifecycleError, ScenarioError
+from .fmu_archive import ModelDescription, Variable, binary_path, read_model_description, safe_extract
+
+log = logging.getLogger(__name__)
+
+STATUS_NAMES = ("ok", "warning", "discard", "error", "fatal", "pending")
+
+# Statistics keys for the FMI functions (contracts.md: {"doStep", "set", "get", ...}).
+_STAT_KEY = {
+    "fmi2SetReal": "set", "fmi2SetInteger": "set", "fmi2SetBoolean": "set", "fmi2SetString": "set",
+    "fmi2GetReal": "get", "fmi2GetInteger": "get", "fmi2GetBoolean": "get", "fmi2GetString": "get",
+    "fmi2DoStep": "doStep", "fmi2SetRealInputDerivatives": "setRealInputDerivatives",
+    "fmi2GetFMUstate": "getFMUstate", "fmi2SetFMUstate": "setFMUstate", "fmi2FreeFMUstate": "freeFMUstate",
+    "fmi2SetupExperiment": "setupExperiment", "fmi2EnterInitializationMode": "enterInitializationMode",
+    "fmi2ExitInitializationMode": "exitInitializationMode", "fmi2Terminate": "terminate",
+    "fmi2FreeInstance": "freeInstance", "fmi2Instantiate": "instantiate",
+}
+
+
+class RealBatch:
+    """Value references and a value buffer for batched Real set/get.
+
+    ``values`` is a float64 numpy view of the ctypes buffer passed to FMI.
+    ``orders`` is set for input-derivative batches (one entry per (vr, order)).
+    """
+
+    __slots__ = ("names", "vrs", "n", "c_vrs", "c_values", "values", "c_orders", "orders")
+
+    def __init__(self, names: Sequence[str], vrs: Sequence[int], orders: Sequence[int] | None = None):
+        self.names = tuple(names)
+        self.vrs = np.asarray(vrs, dtype=np.int64)
+        self.n = len(vrs)
+        self.c_vrs = (ctypes.c_uint * max(self.n, 1))(*[int(v) for v in vrs])
+        self.c_values = (ctypes.c_double * max(self.n, 1))()
+        self.values = np.ctypeslib.as_array(self.c_values)[: self.n]
+        if orders is not None:
+            self.c_orders = (ctypes.c_int * max(self.n, 1))(*[int(o) for o in orders])
+            self.orders = np.asarray(orders, dtype=np.int64)
+        else:
+            self.c_orders = None
+            self.orders = None
+
+
+class SubsystemBase(ABC):
+    """One simulation unit driven by the master (an FMU, or a plain-Python fake).
+
+    Rules for implementers: see the module docstring for the call order.
+    ``do_step(t, h)`` advances from ``t`` to ``t + h`` with the inputs set
+    before it held constant, unless ``can_interpolate_inputs`` is True, in
+    which case the derivatives given by ``set_real_input_derivatives`` (at
+    ``t``) extend them to a polynomial over the step. Failures raise
+    :class:`FmuCallError`. ``calls`` counts calls per statistics key.
+    """
+
+    name: str
+    can_interpolate_inputs: bool = False
+    can_get_set_state: bool = False
+
+    def __init__(self, name: str):
+        self.name = name
+        self.calls: dict[str, int] = collections.defaultdict(int)
+
+    # -- description --------------------------------------------------------
+    @abstractmethod
+    def variable(self, name: str) -> Variable:
+        """The variable called ``name``; ScenarioError listing valid names if unknown."""
+
+    def real_batch(self, names: Sequence[str]) -> RealBatch:
+        vs = [self.variable(n) for n in names]
+        for v in vs:
+            if v.type != "Real":
+                raise ScenarioError(f"'{self.name}.{v.name}' is of type {v.type}, expected Real for a coupling "
+                                    "or recorded signal; connect or record Real variables only")
+        return RealBatch([v.name for v in vs], [v.value_reference for v in vs])
+
+    def derivative_batch(self, names: Sequence[str], max_order: int) -> RealBatch:
+        """Batch of entries (vr, order) for orders 1..max_order, order-major."""
+        vs = [self.variable(n) for n in names]
+        vrs = [v.value_reference for _ in range(max_order) for v in vs]
+        orders = [o for o in range(1, max_order + 1) for _ in vs]
+        nm = [f"der({v.name},{o})" for o in range(1, max_order + 1) for v in vs]
+        return RealBatch(nm, vrs, orders)
+
+    # -- lifecycle -----------------------------------------------------------
+    def set_parameters(self, values: Mapping[str, Any], *, out_dir: Path | str | None = None) -> None:
+        """Set parameter values by name (before ``setup_experiment``)."""
+
+    def setup_experiment(self, start_time: float, stop_time: float | None) -> None:
+        pass
+
+    def enter_initialization_mode(self) -> None:
+        pass
+
+    def exit_initialization_mode(self) -> None:
+        pass
+
+    @abstractmethod
+    def set_real(self, batch: RealBatch) -> None:
+        """Set ``batch.values`` for ``batch.vrs``."""
+
+    @abstractmethod
+    def get_real(self, batch: RealBatch) -> np.ndarray:
+        """Fill and return ``batch.values``."""
+
+    def set_real_input_derivatives(self, batch: RealBatch) -> None:
+        raise LifecycleError(f"subsystem '{self.name}' cannot interpolate inputs; the master must not call "
+                             "set_real_input_derivatives on it")
+
+    @abstractmethod
+    def do_step(self, t: float, h: float) -> None:
+        """Advance from ``t`` to ``t + h``."""
+
+    def get_state(self) -> Any:
+        raise LifecycleError(f"subsystem '{self.name}' cannot get/set its state (canGetAndSetFMUstate is false)")
+
+    def set_state(self, state: Any) -> None:
+        raise LifecycleError(f"subsystem '{self.name}' cannot get/set its state (canGetAndSetFMUstate is false)")
+
+    def free_state(self, state: Any) -> None:
+        pass
+
+    def terminate(self) -> None:
+        pass
+
+    def free(self) -> None:
+        pass
+
+    def statistics(self) -> dict[str, int]:
+        return dict(self.calls)
+
+
+class Subsystem(SubsystemBase):
+    """An FMI 2.0 co-simulation FMU instance (through fmpy's ``FMU2Slave``).
+
+    Parameters
+    ----------
+    name : instance name in the scenario (also the FMI instance name).
+    fmu_path : the ``.fmu`` file; checked with :mod:`orchestrator.fmu_archive`.
+    work_dir : directory to extract into (``work_dir/name``); the caller
+        removes it after :meth:`free`.
+    """
+
+    def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str):
+        super().__init__(name)
+        self.fmu_path = Path(fmu_path)
+        self.md: ModelDescription = read_model_description(self.fmu_path)
+        self.can_interpolate_inputs = self.md.can_interpolate_inputs
+        self.can_get_set_state = self.md.can_get_and_set_fmu_state
+        self.max_output_derivative_order = self.md.max_output_derivative_order
+        self._log_messages: collections.deque[str] = collections.deque(maxlen=8)
+        self._state = "new"      # new -> instantiated -> initializing -> stepping -> terminated -> freed; "error"
+        self._slave = None
+        self.unzip_dir = safe_extract(self.fmu_path, Path(work_dir) / name)
+        binary_path(self.unzip_dir, self.md)   # clear error when no binary for this platform
+
+        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+        from fmpy import calloc, free
+
+        try:
+            self._slave = FMU2Slave(guid=self.md.guid, unzipDirectory=str(self.unzip_dir),
+                                    modelIdentifier=self.md.model_identifier, instanceName=name)
+        except Exception as e:   # library load failure
+            raise FmuError(f"{self.fmu_path}: cannot load the FMU's shared library ({e}); "
+                           "check that the FMU was built for this platform and its dependencies are installed") from e
+
+        def _logger(env, instance_name, status, category, message):
+            try:
+                text = message.decode("utf-8", "replace") if message else ""
+            except Exception:   # pragma: no cover - defensive
+                text = "<undecodable message>"
+            label = STATUS_NAMES[status] if 0 <= status < len(STATUS_NAMES) else str(status)
+            self._log_messages.append(f"[{label}] {text}")
+            log.log(logging.WARNING if status >= 1 else logging.DEBUG, "%s: [%s] %s", self.name, label, text)
+
+        cb = fmi2CallbackFunctions()
+        cb.logger = fmi2CallbackLoggerTYPE(_logger)
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        try:
+            from fmpy.logging import addLoggerProxy
+            addLoggerProxy(ctypes.byref(cb))
+        except Exception:   # pragma: no cover - the proxy only formats printf arguments
+            pass
+        self._callbacks = cb             # keep alive as long as the instance
+        self._logger_ref = _logger
+        self._f = self._slave._functions
+        self._c_set_real = self._f["fmi2SetReal"]
+        self._c_get_real = self._f["fmi2GetReal"]
+        self._c_do_step = self._f["fmi2DoStep"]
+        self.calls["instantiate"] += 1
+        try:
+            self._slave.instantiate(callbacks=cb, loggingOn=True)
+        except Exception as e:
+            self._free_library()
+            raise FmuCallError(name, "fmi2Instantiate", "failed", self._detail(str(e))) from e
+        self._component = self._slave.component
+        self._state = "instantiated"
+
+    # -- the choke point -----------------------------------------------------
+    def _detail(self, extra: str = "") -> str:
+        msgs = " | ".join(m.strip().replace("\n", " ")[-400:] for m in self._log_messages)
+        parts = [p for p in (extra, f"FMU log: {msgs}" if msgs else "") if p]
+        return "; ".join(parts)
+
+    def _call(self, fname: str, *args) -> int:
+        """Call FMI function ``fname``; raise FmuCallError unless OK/warning."""
+        self.calls[_STAT_KEY.get(fname, fname)] += 1
+        try:
+            res = self._f[fname](*args)
+        except Exception as e:
+            self._state = "error"
+            raise FmuCallError(self.name, fname, "exception", self._detail(f"{type(e).__name__}: {e}")) from e
+        if res:
+            self._status(fname, res)
+        return res
+
+    def _status(self, fname: str, res: int) -> None:
+        if res == 1:
+            log.warning("%s: %s returned warning%s", self.name, fname,
+                        (": " + self._log_messages[-1]) if self._log_messages else "")
+            return
+        label = STATUS_NAMES[res] if 0 <= res < len(STATUS_NAMES) else f"illegal status {res}"
+        if res in (3, 4) or label.startswith("illegal"):
+            self._state = "fatal" if res == 4 else "error"
+        raise FmuCallError(self.name, fname, label, self._detail())
+
+    # -- description ------------------------------------------------------------
+    def variable(self, name: str) -> Variable:
+        try:
+            return self.md.variables[name]
+        except KeyError:
+            raise ScenarioError(f"FMU instance '{self.name}' ({self.fmu_path.name}) has no variable '{name}'; "
+                                f"valid names: {', '.join(self.md.variables)}") from None
+
+    # -- lifecycle ----------------------------------------------------------------
+    def set_parameters(self, values: Mapping[str, Any], *, out_dir: Path | str | None = None) -> None:
+        from fmpy.fmi2 import fmi2Boolean, fmi2Integer, fmi2Real, fmi2String, fmi2ValueReference
+        for pname, value in values.items():
+            v = self.variable(pname)
+            if v.causality not in ("parameter", "input") and v.variability != "tunable":
+                raise ScenarioError(f"'{self.name}.{pname}' has causality '{v.causality}', expected a parameter "
+                                    "(or input); set only parameters under 'parameters:'")
+            vr = (fmi2ValueReference * 1)(v.value_reference)
+            try:
+                if v.type == "Real":
+                    if isinstance(value, bool) or not isinstance(value, (int, float)):
+                        raise TypeError
+                    self._call("fmi2SetReal", self._component, vr, 1, (fmi2Real * 1)(float(value)))
+                elif v.type in ("Integer", "Enumeration"):
+                    if isinstance(value, bool) or not (isinstance(value, int) or
+                                                       (isinstance(value, float) and value.is_integer())):
+                        raise TypeError
+                    self._call("fmi2SetInteger", self._component, vr, 1, (fmi2Integer * 1)(int(value)))
+                elif v.type == "Boolean":
+                    if not isinstance(value, (bool, int)) or value not in (0, 1):
+                        raise TypeError
+                    self._call("fmi2SetBoolean", self._component, vr, 1, (fmi2Boolean * 1)(1 if value else 0))
+                elif v.type == "String":
+                    if not isinstance(value, str):
+                        raise TypeError
+                    if out_dir is not None:
+                        value = value.replace("{out_dir}", str(out_dir))
+                    self._call("fmi2SetString", self._component, vr, 1, (fmi2String * 1)(value.encode("utf-8")))
+            except TypeError:
+                raise ScenarioError(f"parameter '{self.name}.{pname}' is of type {v.type}, got {value!r} "
+                                    f"({type(value).__name__}); give a {v.type} value") from None
+
+    def setup_experiment(self, start_time: float, stop_time: float | None) -> None:
+        self._call("fmi2SetupExperiment", self._component, 0, 0.0, float(start_time),
+                   1 if stop_time is not None else 0, float(stop_time or 0.0))
+
+    def enter_initialization_mode(self) -> None:
+        self._call("fmi2EnterInitializationMode", self._component)
+        self._state = "initializing"
+
+    def exit_initialization_mode(self) -> None:
+        self._call("fmi2ExitInitializationMode", self._component)
+        self._state = "stepping"
+
+    # -- hot path (no allocation) ------------------------------------------------
+    def set_real(self, batch: RealBatch) -> None:
+        self.calls["set"] += 1
+        try:
+            res = self._c_set_real(self._component, batch.c_vrs, batch.n, batch.c_values)
+        except Exception as e:
+            self._state = "error"
+            raise FmuCallError(self.name, "fmi2SetReal", "exception", self._detail(str(e))) from e
+        if res:
+            self._status("fmi2SetReal", res)
+
+    def get_real(self, batch: RealBatch) -> np.ndarray:
+        self.calls["get"] += 1
+        try:
+            res = self._c_get_real(self._component, batch.c_vrs, batch.n, batch.c_values)
+        except Exception as e:
+            self._state = "error"
+            raise FmuCallError(self.name, "fmi2GetReal", "exception", self._detail(str(e))) from e
+        if res:
+            self._status("fmi2GetReal", res)
+        return batch.values
+
+    def do_step(self, t: float, h: float) -> None:
+        self.calls["doStep"] += 1
+        try:
+            res = self._c_do_step(self._component, t, h, 1)
+        except Exception as e:
+            self._state = "error"
+            raise FmuCallError(self.name, "fmi2DoStep", "exception", self._detail(str(e))) from e
+        if res:
+            self._status("fmi2DoStep", res)
+
+    def set_real_input_derivatives(self, batch: RealBatch) -> None:
+        if not self.can_interpolate_inputs:
+            super().set_real_input_derivatives(batch)
+        self._call("fmi2SetRealInputDerivatives", self._component, batch.c_vrs, batch.n,
+                   batch.c_orders, batch.c_values)
+
+    # -- state --------------------------------------------------------------------
+    def get_state(self):
+        if not self.can_get_set_state:
+            super().get_state()
+        from fmpy.fmi2 import fmi2FMUstate
+        s = fmi2FMUstate()
+        self._call("fmi2GetFMUstate", self._component, ctypes.byref(s))
+        return s
+
+    def set_state(self, state) -> None:
+        if not self.can_get_set_state:
+            super().set_state(state)
+        self._call("fmi2SetFMUstate", self._component, state)
+
+    def free_state(self, state) -> None:
+        self._call("fmi2FreeFMUstate", self._component, ctypes.byref(state))
+
+    # -- end ----------------------------------------------------------------------
+    def terminate(self) -> None:
+        """fmi2Terminate, unless the instance is in an error state (FMI forbids it then)."""
+        if self._state in ("initializing", "stepping", "instantiated"):
+            self._state = "terminated"
+            self._call("fmi2Terminate", self._component)
+
+    def free(self) -> None:
+        """fmi2FreeInstance and unload the library; idempotent, never raises."""
+        if self._slave is None or self._state == "freed":
+            return
+        # Freed also after fmi2Fatal: FMI 2.0 allows no call after Fatal, but
+        # PythonFMU reports every Python exception as Fatal, and instances left
+        # alive have aborted processes at exit (fmpy + libcosim in one process).
+        try:
+            self.calls["freeInstance"] += 1
+            self._f["fmi2FreeInstance"](self._component)
+        except Exception as e:   # pragma: no cover - defensive
+            log.warning("%s: fmi2FreeInstance raised %s", self.name, e)
+        self._state = "freed"
+        self._free_library()
+
+    def _free_library(self) -> None:
+        try:
+            self._slave.freeLibrary()
+        except Exception as e:   # pragma: no cover - defensive
+            log.warning("%s: unloading the FMU library failed: %s", self.name, e)
+
+    def __repr__(self) -> str:
+        return f"Subsystem({self.name!r}, {self.fmu_path.name!r}, state={self._state})"
+
+
+def is_finite(x: float) -> bool:
+    return math.isfinite(x)

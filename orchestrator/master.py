@@ -1,0 +1,582 @@
+"""The master algorithm: explicit Jacobi / Gauss-Seidel co-simulation.
+
+Call order::
+
+    m = MasterAlgorithm(scenario, out_dir=..., observers=[...])
+    m.setup()          # load FMUs (checked, extracted), set parameters, precompute the plan
+    m.initialize()     # FMI 2.0 initialization and exchange of initial outputs
+    while m.status is Status.RUNNING:
+        m.step()       # one macro step; numerical failure -> Status.FAILED (no exception)
+    m.terminate()      # fmi2Terminate + fmi2FreeInstance for every FMU, observers told
+    res = m.result()
+
+:meth:`run` does exactly that. Bad input and misuse raise (ScenarioError,
+FmuError, LifecycleError); a failure *during* the run (an FMU returning
+Discard/Error/Fatal or raising, a NaN/inf in a coupling signal) makes the
+status FAILED with a message that names what, where and what to try.
+
+One macro step T(n) -> T(n+1) (T(n) = t0 + n*H from the index):
+for each subsystem in the scheme's stepping order, its inputs are the Lagrange
+polynomials of the coupling signals (extrapolated from T(n), T(n-1), ... or,
+for Gauss-Seidel, interpolated through the producer's new value at T(n+1));
+the polynomial reaches the FMU
+
+* through fmi2SetRealInputDerivatives (value and derivatives at each
+  sub-step start) when the FMU declares ``canInterpolateInputs``, or
+* by ``substeps`` doStep calls of H/substeps each, with the input set to the
+  polynomial's value at the *midpoint* of each sub-step (a piecewise-constant
+  input sampled at midpoints is second-order accurate in the sub-step; sampling
+  at the start would be first order; see docs/coupling.md).
+
+Before the outputs at T(n+1) are read the inputs are set to the polynomial's
+value at T(n+1), so outputs with direct feedthrough are consistent with the
+inputs at the same time. Each output then goes through gain/offset into the
+consumers' histories.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import shutil
+import tempfile
+import time as _time
+import warnings
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .errors import CouplingError, FmuCallError, LifecycleError, ScenarioError
+from .fmu import RealBatch, Subsystem, SubsystemBase
+from .observers import Observer, Recorder, RunView
+from .results import CoSimResult, Status
+from .schemes import ConstantStep, CouplingScheme, StepSizeController, scheme_from_spec
+from .signals import MAX_ORDER, History, LagrangePredictor
+
+log = logging.getLogger(__name__)
+
+INIT_EXCHANGE_ITERATIONS = 10     # fixed-point passes to settle feed-through chains at t0
+
+
+class _Link:
+    """Outputs of one producer going into one consumer block (vectorised)."""
+
+    __slots__ = ("pos", "block", "cols", "gain", "offset", "names", "identity")
+
+    def __init__(self, pos, block, cols, gain, offset, names):
+        self.pos = np.asarray(pos, dtype=np.intp)
+        self.block = block
+        self.cols = np.asarray(cols, dtype=np.intp)
+        self.gain = np.asarray(gain, dtype=float)
+        self.offset = np.asarray(offset, dtype=float)
+        self.names = names          # "src -> dst" per entry, for messages
+        self.identity = bool(np.all(self.gain == 1.0) and np.all(self.offset == 0.0))
+
+
+class _Unit:
+    """Per-subsystem plan, precomputed at setup."""
+
+    def __init__(self, sub: SubsystemBase, substeps: int):
+        self.sub = sub
+        self.name = sub.name
+        self.substeps = substeps
+        self.ext_names: list[str] = []      # inputs extrapolated (producer not yet stepped)
+        self.int_names: list[str] = []      # inputs interpolated (producer stepped before)
+        self.out_names: list[str] = []
+        self.links: list[_Link] = []
+        self.inb: RealBatch | None = None
+        self.outb: RealBatch | None = None
+        self.derb: RealBatch | None = None
+        self.HE = None
+        self.HI = None
+        self.nE = 0
+        self.nI = 0
+
+
+class MasterAlgorithm:
+    """Explicit co-simulation master (see the module docstring for the call order).
+
+    Parameters
+    ----------
+    scenario : orchestrator.scenario.Scenario
+    out_dir : run directory (for ``{out_dir}`` in String parameters); may be None.
+    observers : Observer objects (CSV writer, progress, ...); a Recorder is always added.
+    subsystems : optional ``{name: SubsystemBase}`` to use instead of loading the
+        scenario's FMUs (tests use plain-Python fakes); the master still frees them.
+    scheme, step_size, predictor : policy objects; default from ``scenario.coupling``.
+    """
+
+    def __init__(self, scenario, *, out_dir: Path | str | None = None, observers: Sequence[Observer] = (),
+                 subsystems: Mapping[str, SubsystemBase] | None = None, scheme: CouplingScheme | None = None,
+                 step_size: StepSizeController | None = None, predictor: LagrangePredictor | None = None):
+        self.scenario = scenario
+        c = scenario.coupling
+        self.out_dir = Path(out_dir) if out_dir is not None else None
+        self.scheme = scheme or scheme_from_spec(c.scheme, c.sequence)
+        self.grid = step_size or ConstantStep(scenario.start_time, scenario.stop_time, c.macro_step)
+        self.predictor = predictor or LagrangePredictor(extrapolation_order=c.extrapolation_order,
+                                                        interpolation_order=c.interpolation_order)
+        self.recorder = Recorder()
+        self.observers = [self.recorder, *observers]
+        self._given = dict(subsystems) if subsystems is not None else None
+        self.subsystems: dict[str, SubsystemBase] = {}
+        self.status = Status.NOT_STARTED
+        self.message = ""
+        self.n = 0
+        self.t = float(scenario.start_time)
+        self.end_time = float(scenario.start_time)
+        self.wall_time = 0.0
+        self._work_dir: str | None = None
+        self._phase = "new"
+        self._t_wall0 = 0.0
+
+    # ------------------------------------------------------------------ setup
+    def setup(self) -> None:
+        """Load the subsystems, set parameters and precompute the stepping plan."""
+        if self._phase != "new":
+            raise LifecycleError(f"setup() called twice (phase '{self._phase}'); create a new MasterAlgorithm")
+        self._phase = "setup"
+        self._t_wall0 = _time.perf_counter()
+        sc = self.scenario
+        names = [f.name for f in sc.fmus]
+        try:
+            if self._given is not None:
+                missing = [n for n in names if n not in self._given]
+                if missing:
+                    raise ScenarioError(f"no subsystem given for FMU instances {missing}")
+                self.subsystems = {n: self._given[n] for n in names}
+            else:
+                self._work_dir = tempfile.mkdtemp(prefix="rotorcosim-")
+                for f in sc.fmus:
+                    self.subsystems[f.name] = Subsystem(f.name, f.path, work_dir=self._work_dir)
+            for f in sc.fmus:
+                self.subsystems[f.name].set_parameters(dict(f.parameters), out_dir=self.out_dir)
+            self._plan()
+        except BaseException:
+            self._release()
+            raise
+
+    def _plan(self) -> None:
+        sc = self.scenario
+        order = self.scheme.stepping_order(list(self.subsystems))
+        self.order = order
+        self.history = History(MAX_ORDER + 1)
+        units = {}
+        for f in sc.fmus:
+            sub = self.subsystems[f.name]
+            m = f.substeps if f.substeps is not None else sc.coupling.substeps
+            if not (isinstance(m, int) and m >= 1):
+                raise ScenarioError(f"substeps of '{f.name}' must be an integer >= 1 (got {m!r})")
+            units[f.name] = _Unit(sub, m)
+        problems = []
+        seen_dst = {}
+        conns = []
+        for c in sc.connections:
+            si, di = c.src_instance, c.dst_instance
+            for inst, what in ((si, c.src), (di, c.dst)):
+                if inst not in units:
+                    problems.append(f"connection {c.src} -> {c.dst}: no FMU instance '{inst}' "
+                                    f"(instances: {', '.join(units)})")
+            if si not in units or di not in units:
+                continue
+            try:
+                vs = units[si].sub.variable(c.src_variable)
+                vd = units[di].sub.variable(c.dst_variable)
+            except ScenarioError as e:
+                problems.append(f"connection {c.src} -> {c.dst}: {e.problems[0]}")
+                continue
+            if vs.type != "Real" or vd.type != "Real":
+                problems.append(f"connection {c.src} -> {c.dst}: types {vs.type} -> {vd.type}; the master couples "
+                                "Real variables only")
+                continue
+            if vd.causality != "input":
+                problems.append(f"connection {c.src} -> {c.dst}: '{c.dst}' has causality '{vd.causality}', "
+                                "expected an input")
+                continue
+            if c.dst in seen_dst:
+                problems.append(f"input '{c.dst}' is connected twice (from {seen_dst[c.dst]} and {c.src}); "
+                                "connect each input once")
+                continue
+            seen_dst[c.dst] = c.src
+            conns.append(c)
+        if problems:
+            raise ScenarioError(problems)
+
+        # inputs of each consumer, split by whether the producer is stepped earlier
+        for c in conns:
+            u = units[c.dst_instance]
+            if self.scheme.uses_new_value(c.src_instance, c.dst_instance, order):
+                u.int_names.append(c.dst_variable)
+            else:
+                u.ext_names.append(c.dst_variable)
+        # outputs to read: coupling sources + recorded signals
+        columns = self._columns(units)
+        for c in conns:
+            u = units[c.src_instance]
+            if c.src_variable not in u.out_names:
+                u.out_names.append(c.src_variable)
+        for col in columns:
+            inst, var = col.split(".", 1)
+            if var not in units[inst].out_names:
+                units[inst].out_names.append(var)
+        for u in units.values():
+            u.nE, u.nI = len(u.ext_names), len(u.int_names)
+            u.inb = u.sub.real_batch(u.ext_names + u.int_names)
+            u.outb = u.sub.real_batch(u.out_names)
+            u.HE = self.history.block(u.nE)
+            u.HI = self.history.block(u.nI)
+            if u.sub.can_interpolate_inputs and (u.nE + u.nI):
+                u.derb = u.sub.derivative_batch(u.ext_names + u.int_names, MAX_ORDER)
+        # links producer -> consumer block
+        for prod in units.values():
+            groups: dict[tuple[str, str], list] = {}
+            for c in conns:
+                if c.src_instance != prod.name:
+                    continue
+                cu = units[c.dst_instance]
+                if c.dst_variable in cu.ext_names:
+                    key, col = (cu.name, "E"), cu.ext_names.index(c.dst_variable)
+                else:
+                    key, col = (cu.name, "I"), cu.int_names.index(c.dst_variable)
+                groups.setdefault(key, []).append((prod.out_names.index(c.src_variable), col, c.gain, c.offset,
+                                                   f"{c.src} -> {c.dst}"))
+            for (cname, grp), entries in groups.items():
+                block = units[cname].HE if grp == "E" else units[cname].HI
+                pos, cols, gains, offs, nm = zip(*entries)
+                prod.links.append(_Link(pos, block, cols, gains, offs, list(nm)))
+        self.units = [units[n] for n in order]
+        # record plan: (outb values, positions, row columns)
+        self.columns = columns
+        col_index = {c: i for i, c in enumerate(columns)}
+        self._rec = []
+        for u in self.units:
+            pos = [u.out_names.index(c.split(".", 1)[1]) for c in columns if c.split(".", 1)[0] == u.name]
+            cols = [col_index[c] for c in columns if c.split(".", 1)[0] == u.name]
+            if pos:
+                self._rec.append((u.outb.values, np.asarray(pos, dtype=np.intp), np.asarray(cols, dtype=np.intp)))
+        H = self.scenario.coupling.macro_step
+        interval = self.scenario.output.interval or H
+        stride = max(1, int(round(interval / H)))
+        if not math.isclose(stride * H, interval, rel_tol=1e-9):
+            warnings.warn(f"output.interval {interval} is not a multiple of coupling.macro_step {H}; "
+                          f"writing every {stride} macro steps ({stride * H} s)", stacklevel=3)
+        self.stride = stride
+        k = self.predictor.k
+        can_state = all(u.sub.can_get_set_state for u in self.units)
+        self._startup_iterations = k >= 2 and can_state
+        if k >= 2 and not can_state:
+            log.info("extrapolation_order %d: not every FMU can save its state (canGetAndSetFMUstate), so the "
+                     "first %d macro steps use lower-order extrapolation; this adds an O(H^2) start-up error "
+                     "(see docs/coupling.md)", k, k - 1)
+        self.view = RunView(columns, self.grid.time(0), self.grid.time(self.grid.n_steps), self.grid.n_steps)
+
+    def _columns(self, units) -> list[str]:
+        sig = self.scenario.output.signals
+        if sig is None:
+            cols = []
+            for u in units.values():
+                md = getattr(u.sub, "md", None)
+                if md is not None:
+                    cols += [f"{u.name}.{v.name}" for v in md.outputs() if v.type == "Real"]
+                else:
+                    cols += [f"{u.name}.{n}" for n in getattr(u.sub, "output_names", ())]
+            return cols
+        problems = []
+        for s in sig:
+            if "." not in s or s.split(".", 1)[0] not in units:
+                problems.append(f"output signal '{s}': expected '<instance>.<variable>' with an instance in "
+                                f"{list(units)}")
+                continue
+            inst, var = s.split(".", 1)
+            try:
+                v = units[inst].sub.variable(var)
+                if v.type != "Real":
+                    problems.append(f"output signal '{s}' is of type {v.type}; record Real variables only")
+            except ScenarioError as e:
+                problems.append(f"output signal '{s}': {e.problems[0]}")
+        if problems:
+            raise ScenarioError(problems)
+        return list(dict.fromkeys(sig))
+
+    # ------------------------------------------------------------ initialize
+    def initialize(self) -> None:
+        """FMI 2.0 initialization: setupExperiment, enter init mode, exchange
+        initial values (fixed point over feed-through), exit init mode, exchange again."""
+        if self._phase != "setup":
+            raise LifecycleError(f"initialize() needs setup() first and runs once (phase '{self._phase}')")
+        self._phase = "initializing"
+        sc = self.scenario
+        t0 = self.grid.time(0)
+        try:
+            for u in self.units:
+                u.sub.setup_experiment(t0, sc.stop_time)
+            for u in self.units:
+                u.sub.enter_initialization_mode()
+            self._exchange_initial()
+            for u in self.units:
+                u.sub.exit_initialization_mode()
+            self._exchange_initial()
+        except (FmuCallError, CouplingError) as e:
+            self._fail(f"initialization failed: {e}; check the FMU's parameters and start values", t0)
+            self._phase = "running"
+            return
+        self.history.start(t0)
+        self.status = Status.RUNNING
+        self._phase = "running"
+        self.t = t0
+        self.end_time = t0
+        self._record(t0, 0, True)
+        for o in self.observers:
+            o.on_initialized(self.view)
+
+    def _exchange_initial(self) -> None:
+        for it in range(INIT_EXCHANGE_ITERATIONS):
+            changed = False
+            before = [b.copy() for b in self.history.blocks]
+            for u in self.units:
+                u.sub.get_real(u.outb)
+                self._propagate(u, self.grid.time(0))
+            for u in self.units:
+                if u.nE + u.nI:
+                    u.inb.values[:u.nE] = u.HE[0]
+                    u.inb.values[u.nE:] = u.HI[0]
+                    u.sub.set_real(u.inb)
+            for b, b0 in zip(self.history.blocks, before):
+                if not np.array_equal(b[0], b0[0]):
+                    changed = True
+            if not changed and it > 0:
+                return
+        log.info("initial exchange did not reach a fixed point in %d passes (algebraic loop?)",
+                 INIT_EXCHANGE_ITERATIONS)
+
+    # ------------------------------------------------------------------ step
+    def step(self) -> Status:
+        """Advance one macro step. Returns the status (RUNNING, FINISHED or FAILED)."""
+        if self.status is not Status.RUNNING:
+            raise LifecycleError(f"step() called with status {self.status.short}; "
+                                 + ("call setup() and initialize() first" if self.status is Status.NOT_STARTED
+                                    else "the run is over; read result()"))
+        n = self.n
+        t = self.grid.time(n)
+        t_next = self.grid.time(n + 1)
+        try:
+            if self._startup_iterations and self.history.count < self.predictor.k:
+                self._startup_step(t, t_next)
+            else:
+                self._step_impl(t, t_next)
+        except FmuCallError as e:
+            self._fail(self._fmu_message(e, t, t_next), t)
+            return self.status
+        except CouplingError as e:
+            self._fail(str(e), t)
+            return self.status
+        self.n = n + 1
+        self.t = t_next
+        self.end_time = t_next
+        last = self.n >= self.grid.n_steps
+        self._record(t_next, self.n, last or self.n % self.stride == 0)
+        if last:
+            self.status = Status.FINISHED
+            self.message = f"finished at t={t_next:g} s after {self.n} macro steps"
+        for o in self.observers:
+            o.on_step_complete(self.view)
+        return self.status
+
+    def _startup_step(self, t: float, t_next: float) -> None:
+        """A start-up step while the history is shorter than the extrapolation order.
+
+        With only ``count`` past values the extrapolation has order count-1 < k,
+        whose error (O(H^(count+1)) in the states after the step) would cap the
+        global order below k+1. When every subsystem can save and restore its
+        state, the step is repeated ``k`` times from saved states with *all*
+        inputs interpolated through the new values of the previous pass (a
+        fixed-point iteration that gains one order per pass), so the start-up
+        error is O(H^(k+2)) and the full order k+1 is kept.
+        """
+        hist = self.history
+        states = [u.sub.get_state() for u in self.units]
+        snap = hist.snapshot()
+        try:
+            self._step_impl(t, t_next, commit=False)
+            q = min(self.predictor.k, hist.count)
+            for _ in range(self.predictor.k):
+                new_rows = [b[0].copy() for b in hist.blocks]
+                for u, s in zip(self.units, states):
+                    u.sub.set_state(s)
+                hist.restore(snap)
+                for b, r in zip(hist.blocks, new_rows):
+                    b[0] = r
+                self._step_impl(t, t_next, commit=False, startup_q=q)
+            hist.commit()
+        finally:
+            for u, s in zip(self.units, states):
+                try:
+                    u.sub.free_state(s)
+                except FmuCallError as e:   # pragma: no cover - defensive
+                    log.warning("%s", e)
+
+    def _step_impl(self, t: float, t_next: float, *, commit: bool = True, startup_q: int | None = None) -> None:
+        h = t_next - t
+        hist = self.history
+        hist.times[0] = t_next
+        cache: dict[int, object] = {}
+        predictor = self.predictor
+        for u in self.units:
+            sub = u.sub
+            m = u.substeps
+            w = cache.get(m)
+            if w is None:
+                w = cache[m] = predictor.weights(hist, t, h, m, q=startup_q, all_interp=startup_q is not None)
+            nE, nI = u.nE, u.nI
+            vals = u.inb.values
+            hs = h / m
+            if u.derb is None:
+                if nE or nI:
+                    HE = u.HE[w.e0:w.e1]
+                    HI = u.HI[0:w.q + 1]
+                    for i in range(m):
+                        if nE:
+                            np.dot(w.extrap[i], HE, out=vals[:nE])
+                        if nI:
+                            np.dot(w.interp[i], HI, out=vals[nE:])
+                        sub.set_real(u.inb)
+                        sub.do_step(t + i * hs, hs)
+                    if nE:
+                        np.dot(w.extrap_end, HE, out=vals[:nE])
+                    if nI:
+                        np.dot(w.interp_end, HI, out=vals[nE:])
+                    sub.set_real(u.inb)
+                else:
+                    for i in range(m):
+                        sub.do_step(t + i * hs, hs)
+            else:
+                HE = u.HE[w.e0:w.e1]
+                HI = u.HI[0:w.q + 1]
+                der = u.derb.values.reshape(MAX_ORDER, nE + nI)
+                for i in range(m):
+                    if nE:
+                        np.dot(w.extrap_start[i], HE, out=vals[:nE])
+                        der[:, :nE] = w.extrap_der[i] @ HE
+                    if nI:
+                        np.dot(w.interp_start[i], HI, out=vals[nE:])
+                        der[:, nE:] = w.interp_der[i] @ HI
+                    sub.set_real(u.inb)
+                    sub.set_real_input_derivatives(u.derb)
+                    sub.do_step(t + i * hs, hs)
+                if nE:
+                    np.dot(w.extrap_end, HE, out=vals[:nE])
+                if nI:
+                    np.dot(w.interp_end, HI, out=vals[nE:])
+                sub.set_real(u.inb)
+            sub.get_real(u.outb)
+            self._propagate(u, t_next)
+        if commit:
+            hist.commit()
+
+    def _propagate(self, u: _Unit, t: float) -> None:
+        out = u.outb.values
+        for lk in u.links:
+            v = out[lk.pos]
+            if not lk.identity:
+                v *= lk.gain
+                v += lk.offset
+            s = v.sum()
+            if s - s != 0.0:          # NaN or inf somewhere (cheap test first)
+                bad = [i for i in range(len(v)) if not math.isfinite(v[i])]
+                if bad:
+                    i = bad[0]
+                    raise CouplingError(
+                        f"coupling signal {lk.names[i]} is {v[i]} at t={t:.12g} s (output of '{u.name}'); "
+                        "the coupled system is probably unstable at this macro step or the FMU failed silently. "
+                        f"Try a smaller coupling.macro_step (now {self.scenario.coupling.macro_step:g}), a lower "
+                        "extrapolation_order, or the gauss-seidel scheme")
+            lk.block[0, lk.cols] = v
+
+    # ---------------------------------------------------------------- helpers
+    def _fmu_message(self, e: FmuCallError, t: float, t_next: float) -> str:
+        what = {"discard": "could not complete the step (fmi2Discard)",
+                "error": "reported an error (fmi2Error)",
+                "fatal": "reported a fatal error (fmi2Fatal; PythonFMU reports Python exceptions this way)",
+                "exception": "raised an exception"}.get(e.status, f"returned {e.status}")
+        return (f"FMU instance '{e.instance}' {what} in {e.function} during the macro step from t={t:.12g} s to "
+                f"t={t_next:.12g} s ({e}). Rows up to t={t:.12g} s are kept. Try a smaller coupling.macro_step "
+                f"(now {self.scenario.coupling.macro_step:g}) or more substeps for '{e.instance}', and check the "
+                "FMU's log above")
+
+    def _fail(self, message: str, t: float) -> None:
+        self.status = Status.FAILED
+        self.message = message
+        self.end_time = t
+        self.view.status = self.status
+        self.view.message = message
+        log.error("%s", message)
+
+    def _record(self, t: float, n: int, is_output: bool) -> None:
+        view = self.view
+        view.t = t
+        view.n = n
+        view.end_time = t
+        view.is_output = is_output
+        view.status = self.status
+        if is_output:
+            row = view.row
+            for values, pos, cols in self._rec:
+                row[cols] = values[pos]
+
+    # ------------------------------------------------------------- terminate
+    def terminate(self) -> None:
+        """fmi2Terminate and fmi2FreeInstance for every subsystem (always), then
+        tell the observers. Idempotent."""
+        if self._phase in ("terminated", "new"):
+            return
+        if self.status is Status.RUNNING:
+            self._fail(f"terminated early at t={self.t:.12g} s by the caller", self.t)
+        self.view.status = self.status
+        self.view.message = self.message
+        self.view.end_time = self.end_time
+        try:
+            for u in getattr(self, "units", []):
+                try:
+                    u.sub.terminate()
+                except FmuCallError as e:
+                    log.warning("%s", e)
+        finally:
+            self._release()
+            self._phase = "terminated"
+            self.wall_time = _time.perf_counter() - self._t_wall0
+            for o in self.observers:
+                o.on_terminated(self.view)
+
+    def _release(self) -> None:
+        for sub in self.subsystems.values():
+            try:
+                sub.free()
+            except Exception as e:   # pragma: no cover - defensive
+                log.warning("freeing '%s' failed: %s", sub.name, e)
+        if self._work_dir:
+            shutil.rmtree(self._work_dir, ignore_errors=True)
+            self._work_dir = None
+
+    # ---------------------------------------------------------------- result
+    def statistics(self) -> dict:
+        return {"macro_steps": self.n, "rejected_steps": 0, "wall_time_s": self.wall_time,
+                "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()}}
+
+    def result(self) -> CoSimResult:
+        t, outputs = self.recorder.arrays()
+        return CoSimResult(status=self.status, message=self.message, t=t, outputs=outputs,
+                           stats=self.statistics(), out_dir=self.out_dir, end_time=self.end_time)
+
+    def run(self) -> CoSimResult:
+        """setup (if needed), initialize, step until done, terminate; return the result."""
+        try:
+            if self._phase == "new":
+                self.setup()
+            if self._phase == "setup":
+                self.initialize()
+            while self.status is Status.RUNNING:
+                self.step()
+        finally:
+            self.terminate()
+        return self.result()

@@ -1,0 +1,54 @@
+"""Result of a run: a frozen :class:`CoSimResult` and the :class:`Status` enum.
+
+``Status`` values are readable messages that say what happened and what to do
+(``status.name.lower()`` is the short form written to summary.json).
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+
+class Status(enum.Enum):
+    NOT_STARTED = "not started: call setup() and initialize() first"
+    RUNNING = "running: call step() until the status changes"
+    FINISHED = "finished: the run reached stop_time"
+    FAILED = ("failed: the run stopped early; the message says where and why, the rows written so far are in "
+              "results.csv; try a smaller macro step or check the FMU named in the message")
+
+    @property
+    def short(self) -> str:
+        return self.name.lower()
+
+
+@dataclass(frozen=True, kw_only=True)
+class CoSimResult:
+    """Outcome of :func:`orchestrator.run`.
+
+    ``t``: output times [s]; ``outputs``: ``"inst.var" -> array`` aligned with
+    ``t``; ``stats``: ``macro_steps``, ``wall_time_s``, ``fmu_calls``
+    ``{instance: {"doStep": n, "set": n, "get": n, ...}}``; ``end_time``: last
+    time reached; ``out_dir``: where results.csv and summary.json are.
+    """
+
+    status: Status
+    message: str
+    t: np.ndarray
+    outputs: Mapping[str, np.ndarray]
+    stats: Mapping[str, Any] = field(default_factory=dict)
+    out_dir: Path | None = None
+    end_time: float | None = None
+    analysis: Mapping[str, Any] | None = None
+
+    @property
+    def success(self) -> bool:
+        return self.status is Status.FINISHED
+
+    def __repr__(self) -> str:
+        return (f"CoSimResult(status={self.status.short}, end_time={self.end_time}, rows={len(self.t)}, "
+                f"signals={len(self.outputs)}, message={self.message!r})")
