@@ -1,0 +1,340 @@
+"""Common core of the rotor models: a linear, speed-dependent structure driven kinematically.
+
+Equations of motion (generalized coordinates ``q``, n dofs)::
+
+    M q'' + (C + Omega(t) G) q' + (K + Omega(t) Kc + alpha(t) Ka) q
+        = f_g + B F + f_unb(t)
+
+* ``M`` mass, ``C`` non-rotating + rotating viscous damping, ``K`` stiffness;
+* ``G`` gyroscopic (skew), ``Kc`` circulatory stiffness of rotating (internal)
+  damping, ``Ka`` the angular-acceleration term of the gyroscopic moments
+  (Friswell et al. 2010, "Dynamics of Rotating Machines", sec. 5.2 / eq. 5.50ff);
+* ``f_g`` gravity (-y), ``B F`` the film forces on the bearing stations (``F`` of
+  shape (n_bearings, 2) held constant over a step), ``f_unb`` the unbalance forces
+  from the prescribed angle (``Omega`` = d angle / dt, ``alpha`` = d Omega / dt)::
+
+      f_unb = m e [Omega^2 cos(phi) + alpha sin(phi),  Omega^2 sin(phi) - alpha cos(phi)]
+
+  with ``phi = angle(t) + phase`` (from the acceleration of the unbalance mass at
+  ``r + e (cos phi, sin phi)``).
+
+First-order form (for the monolithic reference): ``s = [q, v]``,
+``ds/dt = [v, M^-1 (f - (C + Omega G) v - (K + Omega Kc + alpha Ka) q)]``.
+
+Time integration inside ``step(dt, F)``: the trapezoidal rule (A-stable, second
+order, no numerical damping; for undamped linear systems it conserves the energy
+``v'Mv/2 + q'Kq/2`` exactly) on ``n_sub`` equal sub-steps, with the speed-dependent
+matrices evaluated at each sub-step's mid time.  ``n_sub`` is chosen so that
+``omega_max * h <= max_phase_per_substep`` where ``omega_max`` is the highest
+undamped natural frequency of the free structure (precomputed), i.e. the stiff
+journal/shaft modes are resolved (relative frequency error of the trapezoidal rule
+~ (omega h)^2 / 12).  One dense n x n solve per sub-step::
+
+    (I + h/2 A_C + h^2/4 A_K) v1 = v0 + h/2 (f0 + f1 - 2 A_K q0 - A_C v0 - h/2 A_K v0)
+    q1 = q0 + h/2 (v0 + v1)
+
+with ``A_C = M^-1 (C + Omega G)``, ``A_K = M^-1 (K + Omega Kc + alpha Ka)`` and
+``f = M^-1 (f_g + B F + f_unb)``; all ``M^-1`` products are precomputed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.linalg as sla
+
+
+class LinearRotor:
+    """Base class: state, stepping, outputs and first-order form of a linear rotor.
+
+    Subclasses build the matrices and call :meth:`_setup`.  Call order:
+    ``initialize()`` once, then ``step(dt, F)`` repeatedly; ``outputs`` is valid
+    after ``initialize``.  ``get_state``/``set_state`` restore exactly.
+    """
+
+    n_bearings: int
+
+    # ------------------------------------------------------------------ set-up
+    def _setup(self, *, M, C, G, K, Kc, Ka, bearing_dofs, unbalances, f_g, drive,
+               t0, max_phase_per_substep, extra_outputs, journal_q0=None, initial_sag=True):
+        """Store the matrices and precompute everything that depends only on parameters.
+
+        bearing_dofs: int array (n_bearings, 2), indices of (x, y) of each bearing station.
+        unbalances: list of (dof_x, dof_y, m_e [kg m], phase [rad]).
+        extra_outputs: dict name -> ("q"|"v", dof index).
+        journal_q0: (n_bearings, 2) initial bearing-station positions [m] (default 0).
+        initial_sag: start the other dofs at the static equilibrium under gravity with
+            the bearing stations held at journal_q0 (else at 0).
+        """
+        self.M = np.asarray(M, float)
+        self.C = np.asarray(C, float)
+        self.G = np.asarray(G, float)
+        self.K = np.asarray(K, float)
+        self.Kc = np.asarray(Kc, float)
+        self.Ka = np.asarray(Ka, float)
+        self.n_dof = n = self.M.shape[0]
+        self.bearing_dofs = np.asarray(bearing_dofs, dtype=int).reshape(-1, 2)
+        self.n_bearings = self.bearing_dofs.shape[0]
+        self.unbalances = [(int(a), int(b), float(me), float(ph)) for a, b, me, ph in unbalances]
+        self.f_g = np.asarray(f_g, float)
+        self.drive = drive
+        self.t0 = float(t0)
+        self.max_phase_per_substep = float(max_phase_per_substep)
+        self.extra_outputs = dict(extra_outputs)
+        self._journal_q0 = (np.zeros((self.bearing_dofs.shape[0], 2)) if journal_q0 is None
+                            else np.asarray(journal_q0, float).reshape(-1, 2))
+        self._initial_sag = bool(initial_sag)
+        self._supports_k = np.zeros((self.n_bearings, 2, 2))
+        self._supports_c = np.zeros((self.n_bearings, 2, 2))
+        self._precompute()
+        self.t = self.t0
+        self.s = np.zeros(2 * n)
+        self._initialized = False
+        self.outputs: dict[str, float] = {}
+
+    def add_linear_supports(self, k, c=None):
+        """Add linear isotropic/anisotropic supports at the bearing stations.
+
+        k, c: arrays (n_bearings, 2, 2) [N/m], [N s/m] (or scalars, isotropic); the
+        support force on station i is ``-k[i] @ [x, y] - c[i] @ [vx, vy]``.  Used by
+        the validation tests and the linear stability analysis; call before
+        ``initialize``.  Film forces ``F`` passed to ``step`` still add.
+        """
+        k = self._as_coeff(k, "k")
+        c = self._as_coeff(0.0 if c is None else c, "c")
+        for i, (ix, iy) in enumerate(self.bearing_dofs):
+            idx = np.ix_([ix, iy], [ix, iy])
+            self.K[idx] += k[i]
+            self.C[idx] += c[i]
+        self._supports_k += k
+        self._supports_c += c
+        self._precompute()
+
+    def _as_coeff(self, a, name):
+        a = np.asarray(a, float)
+        if a.ndim == 0:
+            return np.broadcast_to(a * np.eye(2), (self.n_bearings, 2, 2)).copy()
+        if a.shape == (2, 2):
+            return np.broadcast_to(a, (self.n_bearings, 2, 2)).copy()
+        if a.shape != (self.n_bearings, 2, 2):
+            raise ValueError(f"support {name}: expected a scalar, (2, 2) or "
+                             f"({self.n_bearings}, 2, 2) array (got shape {a.shape})")
+        return a
+
+    def _precompute(self):
+        n = self.n_dof
+        Mi = np.linalg.inv(self.M)
+        self._MiK = Mi @ self.K
+        self._MiC = Mi @ self.C
+        self._MiG = Mi @ self.G
+        self._MiKc = Mi @ self.Kc
+        self._MiKa = Mi @ self.Ka
+        self._Mifg = Mi @ self.f_g
+        B = np.zeros((n, 2 * self.n_bearings))
+        for i, (ix, iy) in enumerate(self.bearing_dofs):
+            B[ix, 2 * i] = 1.0
+            B[iy, 2 * i + 1] = 1.0
+        self.B = B
+        self._MiB = Mi @ B
+        U = np.zeros((n, 2 * len(self.unbalances)))
+        for j, (ix, iy, _, _) in enumerate(self.unbalances):
+            U[ix, 2 * j] = 1.0
+            U[iy, 2 * j + 1] = 1.0
+        self._MiU = Mi @ U
+        self._me = np.array([u[2] for u in self.unbalances])
+        self._ph = np.array([u[3] for u in self.unbalances])
+        self._eye = np.eye(n)
+        # highest undamped natural frequency of the structure (Omega = 0)
+        lam = sla.eigh(0.5 * (self.K + self.K.T), 0.5 * (self.M + self.M.T), eigvals_only=True)
+        self.omega_max = float(np.sqrt(max(lam.max(), 0.0)))
+        self._nsub_cache: dict[float, int] = {}
+
+    # --------------------------------------------------------------- forcing
+    def _unbalance_acc(self, t: float) -> np.ndarray:
+        """M^-1 f_unb(t)."""
+        if not self.unbalances:
+            return np.zeros(self.n_dof)
+        w = self.drive.omega(t)
+        a = self.drive.alpha(t)
+        phi = self.drive.angle(t) + self._ph
+        c, s = np.cos(phi), np.sin(phi)
+        fu = np.empty(2 * len(self._me))
+        fu[0::2] = self._me * (w * w * c + a * s)
+        fu[1::2] = self._me * (w * w * s - a * c)
+        return self._MiU @ fu
+
+    def unbalance_forces(self, t: float) -> np.ndarray:
+        """Unbalance forces [N], shape (n_unbalances, 2), at time t (for checks and plots)."""
+        w, a = self.drive.omega(t), self.drive.alpha(t)
+        phi = self.drive.angle(t) + self._ph
+        return np.stack([self._me * (w * w * np.cos(phi) + a * np.sin(phi)),
+                         self._me * (w * w * np.sin(phi) - a * np.cos(phi))], axis=1)
+
+    def _check_F(self, F) -> np.ndarray:
+        F = np.asarray(F, dtype=float)
+        if F.shape != (self.n_bearings, 2):
+            try:
+                F = F.reshape(self.n_bearings, 2)
+            except ValueError:
+                raise ValueError(
+                    f"{type(self).__name__}.step: F must have shape ({self.n_bearings}, 2) "
+                    f"[N] (film forces Fx, Fy per bearing; got shape {F.shape}); pass "
+                    f"np.array([[Fx_1, Fy_1], [Fx_2, Fy_2]])") from None
+        if not np.all(np.isfinite(F)):
+            raise ValueError(f"{type(self).__name__}.step: F must be finite (got {F.tolist()})")
+        return F
+
+    # ------------------------------------------------------------------ API
+    def initial_state(self) -> np.ndarray:
+        """Initial condition: all velocities 0; bearing stations at ``journal_q0``; the
+        other dofs at the static equilibrium under gravity with the bearing stations held
+        there (``K_ii q_i = f_g,i - K_ib q_b``, supports excluded) if ``initial_sag``,
+        else 0."""
+        n = self.n_dof
+        q = np.zeros(n)
+        b = self.bearing_dofs.reshape(-1)
+        q[b] = self._journal_q0.reshape(-1)
+        if self._initial_sag:
+            i = np.setdiff1d(np.arange(n), b)
+            K = self.K.copy()
+            for j, (ix, iy) in enumerate(self.bearing_dofs):
+                K[np.ix_([ix, iy], [ix, iy])] -= self._supports_k[j]
+            q[i] = np.linalg.solve(K[np.ix_(i, i)], self.f_g[i] - K[np.ix_(i, b)] @ q[b])
+        return np.concatenate([q, np.zeros(n)])
+
+    def initialize(self):
+        """Set t = t0 and the state to :meth:`initial_state`; outputs become valid."""
+        self.t = self.t0
+        self.s = self.initial_state()
+        self._initialized = True
+        self._update_outputs()
+
+    def n_substeps(self, dt: float) -> int:
+        """Number of internal trapezoidal sub-steps used for a macro step dt."""
+        n = self._nsub_cache.get(dt)
+        if n is None:
+            n = max(1, int(math.ceil(self.omega_max * dt / self.max_phase_per_substep - 1e-12)))
+            self._nsub_cache[dt] = n
+        return n
+
+    def step(self, dt: float, F) -> None:
+        """Advance from t to t + dt with the film forces F (n_bearings, 2) held constant."""
+        if not self._initialized:
+            raise RuntimeError(f"{type(self).__name__}.step called before initialize(); "
+                               "call initialize() first")
+        if not (dt > 0.0 and math.isfinite(dt)):
+            raise ValueError(f"{type(self).__name__}.step: dt must be > 0 and finite [s] (got {dt!r})")
+        F = self._check_F(F)
+        n = self.n_dof
+        nsub = self.n_substeps(dt)
+        h = dt / nsub
+        fF = self._Mifg + self._MiB @ F.reshape(-1)
+        q = self.s[:n]
+        v = self.s[n:]
+        ta = self.t
+        fa = fF + self._unbalance_acc(ta)
+        drive = self.drive
+        for k in range(nsub):
+            tb = self.t + (k + 1) * h
+            tm = 0.5 * (ta + tb)
+            w = drive.omega(tm)
+            al = drive.alpha(tm)
+            AK = self._MiK + w * self._MiKc + al * self._MiKa
+            AC = self._MiC + w * self._MiG
+            fb = fF + self._unbalance_acc(tb)
+            S = self._eye + (0.5 * h) * AC + (0.25 * h * h) * AK
+            r = v + (0.5 * h) * (fa + fb - AK @ (2.0 * q + (0.5 * h) * v) - AC @ v)
+            v1 = np.linalg.solve(S, r)
+            q = q + (0.5 * h) * (v + v1)
+            v = v1
+            ta, fa = tb, fb
+        self.s = np.concatenate([q, v])
+        self.t = self.t + dt
+        if not np.all(np.isfinite(self.s)):
+            raise FloatingPointError(
+                f"{type(self).__name__}.step: state became non-finite at t={self.t:.6g} s "
+                f"(film forces {F.tolist()}); check the film forces and dt")
+        self._update_outputs()
+
+    def _update_outputs(self):
+        n = self.n_dof
+        q, v = self.s[:n], self.s[n:]
+        out = {}
+        for i, (ix, iy) in enumerate(self.bearing_dofs, start=1):
+            out[f"x_{i}"] = float(q[ix])
+            out[f"y_{i}"] = float(q[iy])
+            out[f"vx_{i}"] = float(v[ix])
+            out[f"vy_{i}"] = float(v[iy])
+        out["omega"] = float(self.drive.omega(self.t))
+        out["angle"] = float(self.drive.angle(self.t))
+        out["alpha"] = float(self.drive.alpha(self.t))
+        for name, (kind, idx) in self.extra_outputs.items():
+            out[name] = float(q[idx] if kind == "q" else v[idx])
+        self.outputs = out
+
+    def get_state(self) -> dict:
+        """Copy of the complete state: {"t": float, "s": array (2 n_dof,)}."""
+        return {"t": float(self.t), "s": self.s.copy(), "initialized": self._initialized}
+
+    def set_state(self, state: dict) -> None:
+        """Restore a state from :meth:`get_state` exactly (outputs are recomputed)."""
+        s = np.asarray(state["s"], dtype=float)
+        if s.shape != self.s.shape:
+            raise ValueError(f"{type(self).__name__}.set_state: 's' must have shape "
+                             f"{self.s.shape} (got {s.shape}); pass a dict from get_state()")
+        self.t = float(state["t"])
+        self.s = s.copy()
+        self._initialized = bool(state.get("initialized", True))
+        self._update_outputs()
+
+    # ------------------------------------------------ first-order form (monolithic)
+    def state_vector(self) -> np.ndarray:
+        """Copy of the current first-order state s = [q, v] (2 n_dof,)."""
+        return self.s.copy()
+
+    def rhs(self, t: float, s, F) -> np.ndarray:
+        """ds/dt of the first-order form at time t, state s, film forces F (n_bearings, 2)."""
+        n = self.n_dof
+        s = np.asarray(s, float)
+        q, v = s[:n], s[n:]
+        w = self.drive.omega(t)
+        al = self.drive.alpha(t)
+        F = np.asarray(F, float).reshape(-1)
+        a = (self._Mifg + self._MiB @ F + self._unbalance_acc(t)
+             - (self._MiK + w * self._MiKc + al * self._MiKa) @ q
+             - (self._MiC + w * self._MiG) @ v)
+        return np.concatenate([v, a])
+
+    def jacobian(self, t: float):
+        """(ds/dt)/ds (2n x 2n) and (ds/dt)/dF (2n x 2 n_bearings) at time t (linear model)."""
+        n = self.n_dof
+        w = self.drive.omega(t)
+        al = self.drive.alpha(t)
+        J = np.zeros((2 * n, 2 * n))
+        J[:n, n:] = np.eye(n)
+        J[n:, :n] = -(self._MiK + w * self._MiKc + al * self._MiKa)
+        J[n:, n:] = -(self._MiC + w * self._MiG)
+        JF = np.zeros((2 * n, 2 * self.n_bearings))
+        JF[n:] = self._MiB
+        return J, JF
+
+    def journal_kinematics(self, t: float, s) -> np.ndarray:
+        """Bearing-station kinematics (n_bearings, 4): [x, y, vx, vy] from state s."""
+        n = self.n_dof
+        s = np.asarray(s, float)
+        bd = self.bearing_dofs
+        return np.stack([s[bd[:, 0]], s[bd[:, 1]], s[n + bd[:, 0]], s[n + bd[:, 1]]], axis=1)
+
+    # ------------------------------------------------------------ linear analysis
+    def system_matrices(self, omega: float, alpha: float = 0.0):
+        """(M, C + omega G, K + omega Kc + alpha Ka) at a constant speed (incl. supports)."""
+        return (self.M.copy(), self.C + omega * self.G,
+                self.K + omega * self.Kc + alpha * self.Ka)
+
+    def energy(self, s=None) -> float:
+        """Mechanical energy v'Mv/2 + q'Kq/2 [J] (no gravity potential)."""
+        s = self.s if s is None else np.asarray(s, float)
+        n = self.n_dof
+        q, v = s[:n], s[n:]
+        return float(0.5 * v @ self.M @ v + 0.5 * q @ self.K @ q)
