@@ -345,6 +345,12 @@ def analyze_journal(t, x, y, omega, clearance: float, *, eps=None,
     ``max_sync_rel`` (amplitudes / clearance), ``time_resolution_s``
     (half the window duration at the onset, or the median), ``warnings``.
     """
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)     # NaN/inf of a diverged run
+        return _analyze_journal(t, x, y, omega, clearance, eps=eps, params=params)
+
+
+def _analyze_journal(t, x, y, omega, clearance, *, eps, params) -> dict:
     p = params or WhirlParams()
     t = np.asarray(t, float)
     x, y, omega = (np.asarray(v, float) for v in (x, y, omega))
@@ -371,10 +377,24 @@ def analyze_journal(t, x, y, omega, clearance: float, *, eps=None,
             warn.append(f"output interval {dt:g} s gives {1.0 / (dt * f_max):.1f} samples per revolution "
                         f"at {f_max:.4g} Hz (< 8): amplitudes are low-passed; use output.interval <= "
                         f"{1.0 / (8 * f_max):.3g} s")
-    s = order_spectra(t, x + 1j * y, omega, p)
+    z = x + 1j * y
+    n_fin = int(np.count_nonzero(np.isfinite(z)))
+    revs = float(np.nanmax(revolutions(t, np.nan_to_num(omega)))) if t.size else 0.0
+    if n_fin < 2:
+        warn.append(f"x/y have {n_fin} finite value(s) of {z.size}; whirl not analysed")
+        return res
+    if t.size and np.nanmax(omega, initial=-np.inf) <= 0:
+        warn.append("rotor speed has no positive finite value (the convention is omega > 0, "
+                    "counter-clockwise); whirl not analysed")
+        return res
+    if n_fin < z.size:
+        bad = ~np.isfinite(z)
+        warn.append(f"x/y are NaN/inf in {int(bad.sum())} of {z.size} samples (first at t = "
+                    f"{t[np.argmax(bad)]:.6g} s; diverged run?); analysed the finite samples")
+    s = order_spectra(t, z, omega, p)
     if s.n_frames == 0:
         warn.append(f"too little rotation for one analysis window: need {p.window_revs} revolutions, "
-                    f"got {revolutions(t, omega)[-1] if t.size else 0:.3g}; whirl not analysed")
+                    f"got {revs:.3g}; whirl not analysed")
         return res
     sub = s.subsync_amplitude() / clearance
     sync = s.sync_amplitude() / clearance
@@ -503,7 +523,8 @@ def _analyze_run(out_dir: Path, spec: Mapping[str, Any]) -> dict:
         "method": "order-domain short-time spectra; see docs/analysis.md",
         "parameters": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(params).items()},
         "spec": _plain(spec),
-        "speed_max_hz": float(np.nanmax(omega) / TWO_PI),
+        "speed_max_hz": (float(np.max(omega[np.isfinite(omega)])) / TWO_PI
+                         if np.isfinite(omega).any() else None),
         "journals": {},
     }
     journals = spec.get("journals") or {}
@@ -512,10 +533,10 @@ def _analyze_run(out_dir: Path, spec: Mapping[str, Any]) -> dict:
         return out
     for name, js in journals.items():
         try:
-            out["journals"][name] = _analyze_one(name, js, cols, t, omega, params, csv_path)
+            out["journals"][str(name)] = _analyze_one(name, js, cols, t, omega, params, csv_path)
         except (KeyError, ValueError, TypeError) as exc:
-            out["journals"][name] = {"error": exc.args[0] if exc.args else repr(exc)}
-    return out
+            out["journals"][str(name)] = {"error": exc.args[0] if exc.args else repr(exc)}
+    return _plain(out)      # strict JSON for summary.json: NaN/inf -> None
 
 
 def _analyze_one(name, js, cols, t, omega, params, csv_path) -> dict:
@@ -547,11 +568,15 @@ def _analyze_one(name, js, cols, t, omega, params, csv_path) -> dict:
 
 
 def _plain(obj):
-    """Copy of a (nested) mapping with JSON-friendly types."""
+    """Copy of a (nested) mapping with JSON-friendly types (non-finite floats -> None)."""
     if isinstance(obj, Mapping):
         return {str(k): _plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         return [_plain(v) for v in obj]
-    if isinstance(obj, (str, int, float, bool)) or obj is None:
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, (np.integer, np.bool_)):
+        return obj.item()
+    if isinstance(obj, (str, int, bool)) or obj is None:
         return obj
     return str(obj)

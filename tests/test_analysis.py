@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -237,6 +238,40 @@ def test_too_short_data_does_not_raise():
     assert r["whirl"] is False and "too little rotation" in r["warnings"][0]
     r = analyze_journal(t[:1], t[:1], t[:1], om[:1], C)
     assert r["whirl"] is False
+
+
+@pytest.mark.parametrize("case, expect", [
+    ("zero_speed", "no positive finite value"),
+    ("negative_speed", "no positive finite value"),
+    ("nan_speed", "no positive finite value"),
+    ("nan_xy", "0 finite value"),
+    ("diverged", "NaN/inf in 1000 of 2001 samples (first at t = 0.5"),
+])
+def test_odd_data_warns_and_gives_strict_json(tmp_path, case, expect):
+    t = np.linspace(0, 1, 2001)
+    om = np.full(t.size, 2 * math.pi * 100.0)
+    x = 1e-6 * np.cos(2 * math.pi * 100.0 * t)
+    if case == "zero_speed":
+        om = 0 * om
+    elif case == "negative_speed":
+        om = -om
+    elif case == "nan_speed":
+        om = np.nan * om
+    elif case == "nan_xy":
+        x = np.nan * x
+    elif case == "diverged":
+        x = np.where(t > 0.5, np.inf, x)
+    with (tmp_path / "results.csv").open("w") as fh:
+        fh.write("time,rotor.x_1,rotor.y_1,rotor.omega\n")
+        np.savetxt(fh, np.column_stack([t, x, x, om]), delimiter=",")
+    spec = {"speed": "rotor.omega", "journals": {"j": {"x": "rotor.x_1", "y": "rotor.y_1", "clearance": C}}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")          # no numpy RuntimeWarning may escape
+        res = analyze_run(tmp_path, spec)
+    json.dumps(res, allow_nan=False)
+    j = res["journals"]["j"]
+    assert j["whirl"] is False
+    assert any(expect in w for w in j["warnings"]), j["warnings"]
 
 
 def test_invalid_params_listed():
