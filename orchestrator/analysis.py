@@ -355,8 +355,10 @@ def _analyze_journal(t, x, y, omega, clearance, *, eps, params) -> dict:
     t = np.asarray(t, float)
     x, y, omega = (np.asarray(v, float) for v in (x, y, omega))
     warn: list[str] = []
-    res: dict[str, Any] = {"whirl": False, "onset": None, "vanish": None, "episodes": [],
-                           "dominant_ratio": None, "ratio_range": None, "warnings": warn}
+    res: dict[str, Any] = {"whirl": False, "onset": None, "vanish": None,
+                           "onset_time_s": None, "onset_speed_hz": None,      # flat copies for
+                           "vanish_time_s": None, "vanish_speed_hz": None,    # dotted look-ups (compare)
+                           "episodes": [], "dominant_ratio": None, "ratio_range": None, "warnings": warn}
     # eccentricity maximum
     if eps is not None:
         e = np.asarray(eps, float)
@@ -429,8 +431,10 @@ def _analyze_journal(t, x, y, omega, clearance, *, eps, params) -> dict:
                         "present_at_start": first["present_at_start"]}
         res["time_resolution_s"] = float(half[k0])
         last = res["episodes"][-1]
+        res["onset_time_s"], res["onset_speed_hz"] = first["onset_time_s"], first["onset_speed_hz"]
         if last["vanish_time_s"] is not None:
             res["vanish"] = {"time_s": last["vanish_time_s"], "speed_hz": last["vanish_speed_hz"]}
+            res["vanish_time_s"], res["vanish_speed_hz"] = last["vanish_time_s"], last["vanish_speed_hz"]
         r_all = ratio[all_whirl]
         res["dominant_ratio"] = float(np.nanmedian(r_all))
         res["ratio_range"] = [float(np.nanmin(r_all)), float(np.nanmax(r_all))]

@@ -312,6 +312,7 @@ def test_analyze_run_on_results_csv(tmp_path):
     j = res["journals"]["bearing1"]
     assert abs(j["onset"]["time_s"] - d["onset"]) <= d["tol_on"]
     assert abs(j["vanish"]["time_s"] - d["vanish"]) <= d["tol_off"]
+    assert (j["onset_speed_hz"], j["vanish_speed_hz"]) == (j["onset"]["speed_hz"], j["vanish"]["speed_hz"])
     assert j["eps_source"] == "signal"
     assert res["speed_max_hz"] == pytest.approx(F_END, rel=0.01)
     assert res["spec"]["journals"]["bearing1"]["x"] == "rotor.x_1"
