@@ -94,7 +94,7 @@ class BearingParams:
     theta_atol: float = 1.0e-3
     newton_atol: float = 1.0e-6
     newton_rtol: float = 1.0e-6
-    newton_max_iter: int = 12
+    newton_max_iter: int = 30
     rho_refactor: float = 0.3
     h_init: float = 1.0e-6
     h_min: float = 1.0e-12

@@ -44,14 +44,15 @@ def _limit_switch(u, un, delta):
     A full Newton step taken with the film-branch slope dp/du = K can throw a
     cell deep into the cavity branch (where dp/du ~ 0) and vice versa, and the
     iteration then cycles. A cell that crosses the switch u = 0 is stopped one
-    switch width ``delta`` beyond it; the next iteration, with the Jacobian of
+    switch width ``delta`` beyond it (film -> cavity: at the switch u = 0,
+    where both branches have slope 1/2); the next iteration, with the Jacobian of
     the new branch, continues from there. Cells are also kept above u = -2
     (theta = -1), which no solution reaches. Only the path changes, not the
     solution.
     """
     for k in range(u.size):
-        if u[k] > 0.0 and un[k] < -delta:
-            un[k] = -delta
+        if u[k] > 0.0 and un[k] < 0.0:
+            un[k] = 0.0
         elif u[k] < 0.0 and un[k] > delta:
             un[k] = delta
         if un[k] < -2.0:
@@ -172,6 +173,15 @@ class TransientFilm:
             else:
                 un = u + dx
                 _limit_switch(u, un, self.ctx.law.delta)
+                if fresh and its > 1:
+                    # backtracking on |r| (only with a fresh Jacobian, where the
+                    # step is a descent direction for |r|^2)
+                    r0 = float(np.linalg.norm(r))
+                    lam = 1.0
+                    while lam > 0.1 and float(np.linalg.norm(
+                            self.residual(un, th_dot0, th_dot1, kin))) > r0:
+                        lam *= 0.5
+                        un = u + lam * (un - u)
                 dx = un - u
                 u = un
                 nrm = float(np.max(np.abs(dx) / (atol + rtol * np.abs(u))))
@@ -198,6 +208,7 @@ class TransientFilm:
     # ------------------------------------------------------------ stepping
     def init_state(self, u):
         self.u = np.array(u, dtype=float)
+        self.u_prev = self.u.copy()
         n = self.n
         self.th_nm1 = np.zeros(n)
         self.th_nm2 = np.zeros(n)
@@ -236,7 +247,12 @@ class TransientFilm:
                     a0, a1, a2 = (1 + 2 * w) / (1 + w), -(1 + w), w * w / (1 + w)
                     th_dot0 = a0 / h
                     th_dot1 = (a1 * th_n + a2 * self.th_nm1) / h
-                u_new, its = self.newton(self.u, th_dot0, th_dot1, kin)
+                if self.n_hist >= 1:
+                    # linear extrapolation of u as Newton start (not a state change)
+                    u_start = self.u + (h / self.h_prev) * (self.u - self.u_prev)
+                else:
+                    u_start = self.u
+                u_new, its = self.newton(u_start, th_dot0, th_dot1, kin)
                 last_its = its
                 if u_new is None:
                     self.stats["rejected"] += 1
@@ -271,6 +287,7 @@ class TransientFilm:
             # accept
             self.th_nm2 = self.th_nm1
             self.th_nm1 = th_n
+            self.u_prev = self.u
             self.u = u_new
             self.h_prev2 = self.h_prev
             self.h_prev = h
@@ -285,7 +302,7 @@ class TransientFilm:
 
     # ------------------------------------------------------------ state
     def get_state(self):
-        s = dict(u=self.u.copy(), th_nm1=self.th_nm1.copy(), th_nm2=self.th_nm2.copy(),
+        s = dict(u=self.u.copy(), u_prev=self.u_prev.copy(), th_nm1=self.th_nm1.copy(), th_nm2=self.th_nm2.copy(),
                  h_prev=self.h_prev, h_prev2=self.h_prev2, n_hist=self.n_hist,
                  h_next=self.h_next, t=self.t, jac_valid=bool(self._factored))
         if self._factored:
@@ -297,6 +314,7 @@ class TransientFilm:
 
     def set_state(self, s):
         self.u = np.array(s["u"], dtype=float)
+        self.u_prev = np.array(s["u_prev"], dtype=float)
         self.th_nm1 = np.array(s["th_nm1"], dtype=float)
         self.th_nm2 = np.array(s["th_nm2"], dtype=float)
         self.h_prev = float(s["h_prev"])
