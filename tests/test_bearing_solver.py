@@ -1,0 +1,213 @@
+"""Own tests of the bearing film solver (bearing_fmu.model and its modules).
+
+Closed-form/table validation lives in tests/test_bearing_validation*.py
+(bearing-validation); here: API contract, exact state restore, discrete
+Jacobian, mass balance, signs, and a short-bearing sanity check.
+"""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from bearing_fmu.model import BearingParams, JournalBearing, StepFailed, solve_stationary
+from bearing_fmu.grid import make_grid
+
+W100 = 2 * math.pi * 100
+GROOVE = dict(groove_width=math.radians(15), groove_angle=math.pi / 2)
+
+
+def small(**kw):
+    base = dict(n_phi=24, n_z=8)
+    base.update(kw)
+    return BearingParams(**base)
+
+
+# ------------------------------------------------------------------ params
+def test_params_validation_names_parameter():
+    with pytest.raises(ValueError, match=r"BearingParams\.psi .*got -0\.001"):
+        BearingParams(psi=-1e-3)
+    with pytest.raises(ValueError, match=r"axial_bc"):
+        BearingParams(axial_bc=2)
+    with pytest.raises(ValueError, match=r"p_feed"):
+        BearingParams(p_feed=5e4)
+
+
+def test_free_to_air_without_groove_warns():
+    with pytest.warns(UserWarning, match="nothing refills the cavity"):
+        BearingParams(axial_bc=1, groove_width=0.0)
+
+
+# ------------------------------------------------------------------ grid
+@pytest.mark.parametrize("gw", [0.0, math.radians(15)])
+def test_band_ordering_is_narrow(gw):
+    g = make_grid(40, 40, gw, math.pi / 2)
+    assert g.bw == 40
+    assert np.array_equal(np.sort(g.pos), np.arange(g.n))
+
+
+# ------------------------------------------------------------------ Jacobian
+@pytest.mark.parametrize("bc", [0, 1])
+def test_jacobian_matches_finite_differences(bc):
+    p = BearingParams(n_phi=12, n_z=5, axial_bc=bc, **GROOVE)
+    b = JournalBearing(p)
+    b.initialize(0.1 * p.c, -0.5 * p.c, 0.01, 0.02, W100)
+    f, g, kin = b.film, b.grid, b._kin
+    rng = np.random.default_rng(0)
+    u = f.u + rng.normal(size=f.n) * 0.5
+    hist = rng.normal(size=f.n) * 100
+    f.residual(u, 1e4, hist, kin, want_jac=True)
+    ab, bw, n = f.ab.copy(), g.bw, f.n
+    J = np.zeros((n, n))
+    for r_ in range(n):
+        for c_ in range(n):
+            k = 2 * bw + g.pos[r_] - g.pos[c_]
+            if 0 <= k < ab.shape[0]:
+                J[r_, c_] = ab[k, g.pos[c_]]
+    Jfd = np.zeros((n, n))
+    for k in range(n):
+        e = 1e-6 * max(1.0, abs(u[k]))
+        du = np.zeros(n)
+        du[k] = e
+        rp = f.residual(u + du, 1e4, hist, kin).copy()
+        Jfd[:, k] = (rp - f.residual(u - du, 1e4, hist, kin)) / (2 * e)
+    groove_cols = np.tile(g.groove, g.n_z)
+    Jfd[:, groove_cols] = np.eye(n)[:, groove_cols]     # Dirichlet columns dropped
+    assert np.max(np.abs(J - Jfd)) < 1e-7 * np.max(np.abs(Jfd))
+
+
+# ------------------------------------------------------------------ signs
+@pytest.mark.parametrize("cav", [0, 1])
+def test_force_signs_down_displaced_journal(cav):
+    p = small(cavitation=cav, **GROOVE)
+    b = solve_stationary(p, 0.0, -0.5 * p.c, W100)
+    o = b.outputs
+    assert o["Fy"] > 0                       # pushed back up
+    assert o["Fx"] > 0                       # CCW spin: pressure peak lower-left
+    assert 0 < o["attitude"] < math.pi / 2   # eccentricity CCW from the load line
+    assert o["torque"] < 0                   # drag on a CCW journal
+    assert o["p_max"] > p.p0 and o["h_min"] == pytest.approx(0.5 * p.c)
+
+
+def test_half_sommerfeld_short_bearing_limit():
+    """B/D = 1/8: the finite solution approaches Ocvirk's short bearing with
+    the half-Sommerfeld condition (Hamrock, Fundamentals of Fluid Film
+    Lubrication, eq. 21.29/21.32): W = eta U L^3/(4 c^2) eps/(1-eps^2)^2
+    sqrt(pi^2 (1-eps^2) + 16 eps^2), tan(att) = pi sqrt(1-eps^2)/(4 eps).
+    The FV solution converges from below as B/D -> 0; 8 % covers the finite
+    length effect at B/D = 1/8 and the 80 x 20 grid."""
+    R, eps = 0.02, 0.4
+    p = BearingParams(R=R, B=2 * R / 8, cavitation=0, n_phi=80, n_z=20)
+    b = JournalBearing(p)
+    b.initialize(0.0, -eps * p.c, 0.0, 0.0, W100)
+    o = b.outputs
+    W = math.hypot(o["Fx"], o["Fy"])
+    W_oc = (p.eta0 * W100 * R * p.B ** 3 / (4 * p.c ** 2) * eps / (1 - eps ** 2) ** 2
+            * math.sqrt(math.pi ** 2 * (1 - eps ** 2) + 16 * eps ** 2))
+    att_oc = math.atan(math.pi * math.sqrt(1 - eps ** 2) / (4 * eps))
+    assert W == pytest.approx(W_oc, rel=0.08)
+    assert o["attitude"] == pytest.approx(att_oc, abs=0.05)
+
+
+# ------------------------------------------------------------------ stationary
+@pytest.mark.parametrize("bc", [0, 1])
+def test_stationary_mass_balance_and_newton(bc):
+    p = small(axial_bc=bc, **GROOVE)
+    b = solve_stationary(p, 0.0, -0.6 * p.c, W100)
+    o = b.outputs
+    assert o["q_feed"] > 0
+    assert o["q_side"] == pytest.approx(o["q_feed"], rel=1e-6)
+    assert b.stats["factor"] <= 15           # steady Newton iterations (full Newton)
+    f = b.fields()
+    assert f["p"].shape == f["theta"].shape == f["h"].shape == (p.n_z, p.n_phi)
+    assert f["theta"].min() < 0.9            # a cavity exists
+    assert f["p"].min() == pytest.approx(p.p0 - p.cav_width, abs=1.0)
+
+
+def test_stationary_is_a_fixed_point_of_step():
+    p = small(**GROOVE)
+    kin = (0.0, -0.6 * p.c, 0.0, 0.0, W100)
+    b = solve_stationary(p, kin[0], kin[1], kin[4])
+    o0 = dict(b.outputs)
+    for _ in range(10):
+        b.step(1e-4, *kin)
+    assert b.outputs["Fy"] == pytest.approx(o0["Fy"], rel=1e-5)
+    assert b.outputs["q_side"] == pytest.approx(o0["q_side"], rel=1e-4)
+
+
+def test_band_and_splu_agree():
+    out = []
+    for ls in ("band", "splu"):
+        p = small(linear_solver=ls, **GROOVE)
+        b = JournalBearing(p)
+        b.initialize(0.0, -0.5 * p.c, 0.0, 0.0, W100)
+        for _ in range(5):
+            b.step(2e-5, 0.0, -0.5 * p.c, 0.0, 0.0, W100)
+        out.append(b.outputs["Fy"])
+    assert out[0] == pytest.approx(out[1], rel=1e-6)
+
+
+# ------------------------------------------------------------------ step API
+def orbit(c, w, t):
+    return (0.15 * c * math.cos(w * t), -0.5 * c + 0.15 * c * math.sin(w * t),
+            -0.15 * c * w * math.sin(w * t), 0.15 * c * w * math.cos(w * t), w)
+
+
+def test_get_set_state_is_exact():
+    p = small(**GROOVE)
+    w = 2 * math.pi * 200
+    b = JournalBearing(p)
+    b.initialize(*orbit(p.c, w, 0.0))
+    dt = 2e-5
+    for k in range(5):
+        b.step(dt, *orbit(p.c, w, (k + 1) * dt))
+    s = b.get_state()
+    assert all(isinstance(v, (np.ndarray, float, int, bool)) for v in s.values())
+    ref = []
+    for k in range(5, 9):
+        b.step(dt, *orbit(p.c, w, (k + 1) * dt))
+        ref.append(dict(b.outputs))
+    t_ref = b.t
+    b.set_state(s)
+    for k in range(5, 9):
+        b.step(dt, *orbit(p.c, w, (k + 1) * dt))
+        assert b.outputs == ref[k - 5]          # bit for bit
+    assert b.t == t_ref
+    # restoring into a fresh instance also works
+    b2 = JournalBearing(p)
+    b2.initialize(0.0, 0.0, 0.0, 0.0, 0.0)
+    b2.set_state(s)
+    b2.step(dt, *orbit(p.c, w, 6 * dt))
+    assert b2.outputs == ref[0]
+
+
+def test_step_contract_errors_and_time():
+    p = small(**GROOVE)
+    b = JournalBearing(p)
+    with pytest.raises(RuntimeError, match="initialize"):
+        b.step(1e-5, 0, 0, 0, 0, W100)
+    b.initialize(0.0, -0.3 * p.c, 0.0, 0.0, W100)
+    with pytest.raises(ValueError, match="dt"):
+        b.step(0.0, 0, 0, 0, 0, W100)
+    with pytest.raises(StepFailed, match="eps"):
+        b.step(1e-5, 0.0, -1.01 * p.c, 0, 0, W100)
+    for k in range(3):
+        b.step(1e-5, 0.0, -0.3 * p.c, 0.0, 0.0, W100)
+    assert b.t == pytest.approx(3e-5, abs=1e-18)
+    assert set(b.outputs) == {"Fx", "Fy", "eps", "attitude", "p_max", "p_min", "h_min",
+                              "torque", "q_feed", "q_side"}
+
+
+def test_half_sommerfeld_step_is_quasi_static():
+    p = small(cavitation=0, **GROOVE)
+    b = JournalBearing(p)
+    b.initialize(0.0, -0.4 * p.c, 0.0, 0.0, W100)
+    b.step(1e-3, 0.0, -0.5 * p.c, 0.0, 0.0, W100)
+    ref = JournalBearing(p)
+    ref.initialize(0.0, -0.5 * p.c, 0.0, 0.0, W100)
+    assert b.outputs == ref.outputs
+    # squeeze: a journal moving down (vy < 0) gets an extra upward force
+    sq = JournalBearing(p)
+    sq.initialize(0.0, -0.5 * p.c, 0.0, -0.01, W100)
+    assert sq.outputs["Fy"] > ref.outputs["Fy"]
