@@ -13,8 +13,9 @@ else the peak ``max_k |r_k|`` of the reference):
 The error of a variant is the worst over its signals. A derived quantity (a
 number from ``summary.json``, e.g. the whirl-onset speed of
 ``orchestrator.analysis``) has the error ``|d_v - d_r| / S`` with ``S`` given or
-``|d_r|``. A variant that ends before the reference or produces non-finite
-values has infinite error.
+``|d_r|``; when the key is null in both runs (e.g. no whirl onset in either)
+the error is 0, when it is missing or null in only one it is infinite. A variant
+that ends before the reference or produces non-finite values has infinite error.
 """
 
 from __future__ import annotations
@@ -99,9 +100,20 @@ def _lookup(summary: Mapping[str, Any], key: str):
     return cur if isinstance(cur, (int, float)) and not isinstance(cur, bool) else None
 
 
+def _present(summary: Mapping[str, Any], key: str) -> bool:
+    cur: Any = summary
+    for part in key.split("."):
+        if not isinstance(cur, Mapping) or part not in cur:
+            return False
+        cur = cur[part]
+    return True
+
+
 def derived_error(ref_summary, summary, key: str, scale: float | None) -> float:
     """Relative error of the number at dotted ``key`` in summary.json (inf when missing)."""
     r, v = _lookup(ref_summary, key), _lookup(summary, key)
+    if r is None and v is None and _present(ref_summary, key) and _present(summary, key):
+        return 0.0          # both null: e.g. no whirl onset in either run, they agree
     if r is None or v is None or not math.isfinite(v):
         return math.inf
     s = scale if scale else abs(r)

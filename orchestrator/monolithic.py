@@ -84,7 +84,8 @@ class MonolithicSystem:
                     "co-simulation variant with a much smaller macro step as the reference")
                 continue
             try:
-                self.adapters[spec.name] = factory(spec.name, md, dict(spec.parameters))
+                self.adapters[spec.name] = factory(spec.name, md, dict(spec.parameters),
+                                                  start_time=float(scenario.start_time))
             except (ValueError, TypeError, KeyError) as exc:
                 problems.append(f"FMU instance '{spec.name}': {exc}")
         if problems:

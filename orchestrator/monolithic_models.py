@@ -8,7 +8,7 @@ An adapter wraps one FMU instance's *plain-Python* model (never the FMU) as
 * ``feedthrough``: True when outputs depend on inputs.
 
 ``MODELS`` maps the FMU's ``modelName`` to a factory
-``(instance, model_description, parameters) -> adapter``; parameters are the
+``(instance, model_description, parameters, *, start_time) -> adapter``; parameters are the
 FMU's start values overridden by the scenario's ``parameters``. A parameter the
 Python model does not know raises, so the reference never silently differs from
 the FMU it stands for.
@@ -33,7 +33,7 @@ class ModelAdapter:
     feedthrough: bool = False
     n_states: int = 0
 
-    def __init__(self, instance: str, md, params: Mapping[str, Any]):
+    def __init__(self, instance: str, md, params: Mapping[str, Any], *, start_time: float = 0.0):
         self.instance = instance
         self.params = _parameters(md, params)
         self.input_defaults = {n: float(md.variables[n].start or 0.0) for n in self.input_names
@@ -117,7 +117,9 @@ class RightMassAdapter(ModelAdapter):
 
 # --------------------------------------------------------------------------- rotor and bearing
 
-_BEARING_FMU_ONLY = ("fields_file",)
+# FMU parameters without a BearingParams field: the fields file (not written by the reference)
+# and the initial film of the mass-conserving model (half-Sommerfeld ignores it).
+_BEARING_FMU_ONLY = ("fields_file", "init")
 
 
 class JournalBearingAdapter(ModelAdapter):
@@ -126,10 +128,13 @@ class JournalBearingAdapter(ModelAdapter):
     input_names = ("x", "y", "vx", "vy", "omega")
     feedthrough = True
 
-    def __init__(self, instance, md, params):
-        super().__init__(instance, md, params)
+    def __init__(self, instance, md, params, *, start_time=0.0):
+        super().__init__(instance, md, params, start_time=start_time)
+        from bearing_fmu import journal_bearing as slave
         from bearing_fmu.model import BearingParams, JournalBearing
-        kw = _dataclass_kwargs(BearingParams, self.params, ignore=_BEARING_FMU_ONLY)
+        renamed = getattr(slave, "RENAMED", {})          # FMU name -> BearingParams field
+        params = {renamed.get(k, k): v for k, v in self.params.items()}
+        kw = _dataclass_kwargs(BearingParams, params, ignore=_BEARING_FMU_ONLY)
         if int(kw.get("cavitation", 1)) != 0:
             raise ValueError(
                 "the monolithic reference supports only half-Sommerfeld bearings (cavitation = 0); "
@@ -156,11 +161,13 @@ class JeffcottRotorAdapter(ModelAdapter):
 
     output_names = ()
 
-    def __init__(self, instance, md, params):
+    def __init__(self, instance, md, params, *, start_time=0.0):
         from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
         self.input_names = tuple(n for n, v in md.variables.items() if v.causality == "input")
-        super().__init__(instance, md, params)
-        self.model = JeffcottRotor(JeffcottParams(**_dataclass_kwargs(JeffcottParams, self.params)))
+        super().__init__(instance, md, params, start_time=start_time)
+        kw = _dataclass_kwargs(JeffcottParams, self.params)
+        kw["t0"] = start_time            # the FMU takes t0 from the experiment start time
+        self.model = JeffcottRotor(JeffcottParams(**kw))
         self.model.initialize()
         self.n_b = int(self.model.n_bearings)
         self.output_names = tuple(n for n, v in md.variables.items() if v.causality == "output")
