@@ -81,6 +81,46 @@ class RealBatch:
             self.orders = None
 
 
+# FMU log messages. fmpy's logger proxy (which formats the printf arguments)
+# keeps one Python logger for the process, so one callback serves every
+# instance and dispatches on the instance name to that instance's recent
+# messages (used in FmuCallError details).
+_LOG_SINKS: dict[str, collections.deque] = {}
+_CALLBACKS = None
+
+
+def _fmu_logger(env, instance_name, status, category, message):
+    try:
+        inst = instance_name.decode("utf-8", "replace") if instance_name else "?"
+        text = message.decode("utf-8", "replace") if message else ""
+    except Exception:   # pragma: no cover - defensive
+        inst, text = "?", "<undecodable message>"
+    label = STATUS_NAMES[status] if 0 <= status < len(STATUS_NAMES) else str(status)
+    for key, sink in list(_LOG_SINKS.items()):
+        if key.rsplit("#", 1)[0] == inst:
+            sink.append(f"[{label}] {text}")
+    log.log(logging.WARNING if status >= 1 else logging.DEBUG, "%s: [%s] %s", inst, label, text)
+
+
+def _callbacks():
+    global _CALLBACKS
+    if _CALLBACKS is None:
+        from fmpy import calloc, free
+        from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
+                               fmi2CallbackLoggerTYPE)
+        cb = fmi2CallbackFunctions()
+        cb.logger = fmi2CallbackLoggerTYPE(_fmu_logger)
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        try:
+            from fmpy.logging import addLoggerProxy
+            addLoggerProxy(ctypes.byref(cb))
+        except Exception:   # pragma: no cover - the proxy only formats printf arguments
+            pass
+        _CALLBACKS = cb     # module lifetime: FMUs may log until freed
+    return _CALLBACKS
+
+
 class SubsystemBase(ABC):
     """One simulation unit driven by the master (an FMU, or a plain-Python fake).
 
@@ -193,9 +233,7 @@ class Subsystem(SubsystemBase):
         self.unzip_dir = safe_extract(self.fmu_path, Path(work_dir) / name)
         binary_path(self.unzip_dir, self.md)   # clear error when no binary for this platform
 
-        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
-        from fmpy import calloc, free
+        from fmpy.fmi2 import FMU2Slave
 
         try:
             self._slave = FMU2Slave(guid=self.md.guid, unzipDirectory=str(self.unzip_dir),
@@ -204,26 +242,10 @@ class Subsystem(SubsystemBase):
             raise FmuError(f"{self.fmu_path}: cannot load the FMU's shared library ({e}); "
                            "check that the FMU was built for this platform and its dependencies are installed") from e
 
-        def _logger(env, instance_name, status, category, message):
-            try:
-                text = message.decode("utf-8", "replace") if message else ""
-            except Exception:   # pragma: no cover - defensive
-                text = "<undecodable message>"
-            label = STATUS_NAMES[status] if 0 <= status < len(STATUS_NAMES) else str(status)
-            self._log_messages.append(f"[{label}] {text}")
-            log.log(logging.WARNING if status >= 1 else logging.DEBUG, "%s: [%s] %s", self.name, label, text)
-
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(_logger)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        try:
-            from fmpy.logging import addLoggerProxy
-            addLoggerProxy(ctypes.byref(cb))
-        except Exception:   # pragma: no cover - the proxy only formats printf arguments
-            pass
-        self._callbacks = cb             # keep alive as long as the instance
-        self._logger_ref = _logger
+        cb = _callbacks()
+        self._callbacks = cb
+        self._sink_key = f"{name}#{id(self)}"
+        _LOG_SINKS[self._sink_key] = self._log_messages
         self._f = self._slave._functions
         self._c_set_real = self._f["fmi2SetReal"]
         self._c_get_real = self._f["fmi2GetReal"]
@@ -393,6 +415,7 @@ class Subsystem(SubsystemBase):
         except Exception as e:   # pragma: no cover - defensive
             log.warning("%s: fmi2FreeInstance raised %s", self.name, e)
         self._state = "freed"
+        _LOG_SINKS.pop(self._sink_key, None)
         self._free_library()
 
     def _free_library(self) -> None:

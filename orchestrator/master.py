@@ -130,6 +130,8 @@ class MasterAlgorithm:
         self._work_dir: str | None = None
         self._phase = "new"
         self._t_wall0 = 0.0
+        self._wkey = None
+        self._wcache: dict = {}
 
     # ------------------------------------------------------------------ setup
     def setup(self) -> None:
@@ -155,6 +157,7 @@ class MasterAlgorithm:
             self._plan()
         except BaseException:
             self._release()
+            self._phase = "terminated"      # nothing left to terminate; observers never started
             raise
 
     def _plan(self) -> None:
@@ -420,7 +423,15 @@ class MasterAlgorithm:
         h = t_next - t
         hist = self.history
         hist.times[0] = t_next
-        cache: dict[int, object] = {}
+        # weights depend only on the order available and the step sizes of the
+        # levels used: reuse them while those are unchanged (constant steps)
+        ts = hist.times.tolist()
+        key = (hist.count, startup_q, ts[0] - ts[1], ts[1] - ts[2], ts[2] - ts[3], ts[3] - ts[4])
+        if key == self._wkey:
+            cache = self._wcache
+        else:
+            cache = self._wcache = {}
+            self._wkey = key
         predictor = self.predictor
         for u in self.units:
             sub = u.sub
@@ -481,8 +492,7 @@ class MasterAlgorithm:
             if not lk.identity:
                 v *= lk.gain
                 v += lk.offset
-            s = v.sum()
-            if s - s != 0.0:          # NaN or inf somewhere (cheap test first)
+            if not math.isfinite(v.sum()):          # NaN or inf somewhere (cheap test first)
                 bad = [i for i in range(len(v)) if not math.isfinite(v[i])]
                 if bad:
                     i = bad[0]

@@ -89,7 +89,8 @@ class History:
     def commit(self) -> None:
         """Row 0 (level T(n+1), filled by the master) becomes the newest past level."""
         for b in self.blocks:
-            b[1:] = b[:-1]
+            if b.shape[1]:
+                b[1:] = b[:-1]
         self.times[1:] = self.times[:-1]
         self.count = min(self.count + 1, self.depth)
 
