@@ -39,8 +39,12 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import json
 import math
+import os
 import pickle
+import shutil
+import sys
 from pathlib import Path
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement
@@ -150,6 +154,54 @@ def _finish_model_description(root: Element, units: set[str]) -> Element:
     return root
 
 
+def use_stable_code_copy(resources: str | None, package: str = "bearing_fmu") -> Path | None:
+    """Import ``package`` from a content-addressed copy instead of the extracted FMU.
+
+    Every run extracts the FMU into a new temporary folder, which would defeat
+    numba's on-disk cache (``cache=True`` stores compiled code next to the
+    source and keys it by the source path): the film kernels would be
+    recompiled on every run (5-10 s). So, once per source hash, the bundled
+    package is copied to ``$ROTORCOSIM_FMU_CODE_CACHE`` (default
+    ``$XDG_CACHE_HOME/rotorcosim/fmu-code`` or ``~/.cache/rotorcosim/fmu-code``)
+    and that folder is put first on ``sys.path``. The copy is identical to the
+    bundled sources (same hash as ``resources/rotorcosim_build.json``). Set
+    ``ROTORCOSIM_FMU_CODE_CACHE=off`` to import from the extracted FMU instead.
+    Nothing happens when ``package`` is already imported or the FMU has no
+    build record (e.g. while the builder writes modelDescription.xml).
+    """
+    setting = os.environ.get("ROTORCOSIM_FMU_CODE_CACHE", "")
+    if setting.lower() in ("off", "0", "no") or not resources or package in sys.modules:
+        return None
+    try:
+        info = Path(resources) / "rotorcosim_build.json"
+        src = Path(resources) / package
+        if not info.is_file() or not src.is_dir():
+            return None
+        digest = json.loads(info.read_text())["source_sha256"][:20]
+        root = Path(setting) if setting else (
+            Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rotorcosim" / "fmu-code")
+        base = root / f"{package}-{digest}"
+        if not (base / ".complete").is_file():
+            tmp = root / f".{package}-{digest}.{os.getpid()}.tmp"
+            shutil.rmtree(tmp, ignore_errors=True)
+            shutil.copytree(src, tmp / package, ignore=shutil.ignore_patterns("__pycache__"))
+            (tmp / ".complete").write_text(digest + "\n")
+            try:
+                os.replace(tmp, base)          # atomic; fails if another process won the race
+            except OSError:
+                shutil.rmtree(tmp, ignore_errors=True)
+            if not (base / ".complete").is_file():
+                return None
+            # keep the 5 newest copies of this package (one per source version)
+            old = sorted(root.glob(f"{package}-*"), key=lambda d: d.stat().st_mtime, reverse=True)[5:]
+            for d in old:
+                shutil.rmtree(d, ignore_errors=True)
+        sys.path.insert(0, str(base))
+        return base
+    except (OSError, ValueError, KeyError):    # read-only home, odd record: use the extracted copy
+        return None
+
+
 class InitializationStateError(RuntimeError):
     """An FMI call came in the wrong life-cycle phase."""
 
@@ -168,6 +220,7 @@ class JournalBearing(Fmi2Slave):
 
     def __init__(self, **kwargs: Any):
         super().__init__(**kwargs)
+        self.code_dir = use_stable_code_copy(self.resources)
         self._values: dict[str, Any] = {}
         self._extra_types: dict[str, type] = {}
         self._model = None

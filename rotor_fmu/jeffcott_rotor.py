@@ -65,6 +65,9 @@ PARAMETER_DOCS: dict[str, tuple[str | None, str]] = {
     "initial_sag": (None, "start the disc at its static sag below the journals"),
     "max_phase_per_substep": ("rad", "bound of omega_max * h of the internal trapezoidal sub-steps [rad]"),
     "rotor_file": (None, "rotor description file (empty: the bundled default rotor)"),
+    "reduce": (None, "Craig-Bampton reduction of the shaft model (false: full finite-element model)"),
+    "n_modes": (None, "fixed-interface modes per bending plane of the reduction (0: the rotor file's value)"),
+    "shear": (None, "Timoshenko (true) or Euler-Bernoulli (false) beam elements"),
 }
 OUTPUT_DOCS: dict[str, tuple[str, str]] = {
     "x": ("m", "journal {i} centre x in the bearing frame [m]"),
