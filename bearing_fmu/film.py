@@ -49,30 +49,30 @@ from .cavitation import law_eval, penalty
 @nb.njit(cache=True)
 def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
              dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
-             r, want_jac, pos, bw, ab, p, dp, th, dth):
+             r, want_jac, jst, p, dp, th, dth):
     """Residual r(u) (flat cell order) and, if ``want_jac``, the Jacobian.
 
     The time derivative of theta is ``th_dot0 * theta(u) + th_dot1`` (BDF
     coefficients folded in by the caller; zero for the steady equations).
-    The Jacobian goes into LAPACK band storage ``ab`` (shape (3 bw + 1, N)),
-    entry (g, g2) at ``ab[2 bw + pos[g] - pos[g2], pos[g2]]``. Couplings into
-    groove cells are omitted (their increments are zero).
+    The Jacobian is stored as a 5-point stencil ``jst`` (N, 5): derivative of
+    r[g] with respect to u at [centre, east (i+1), west (i-1), north (j+1),
+    south (j-1)]. Couplings into groove cells are zero (their increments are
+    zero), as are couplings across the axial edges.
     """
     n_phi = H.size
     n_z = u.size // n_phi
     law_eval(u, p_cav, K, delta, p, dp, th, dth)
     if want_jac:
-        ab[:, :] = 0.0
+        jst[:, :] = 0.0
     A = dphi * dz
     up_e = omega >= 0.0
     for j in range(n_z):
         for i in range(n_phi):
             g = j * n_phi + i
-            pg = pos[g]
             if groove[i]:
                 r[g] = u[g] - u_feed
                 if want_jac:
-                    ab[2 * bw, pg] = 1.0
+                    jst[g, 0] = 1.0
                 continue
             Hi = H[i]
             # time and squeeze terms (eq. 4 left/right)
@@ -102,7 +102,7 @@ def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z
                 else:
                     off += dz * sgn * omega * Hf * dth[g2]
                 if want_jac and not groove[i2]:
-                    ab[2 * bw + pg - pos[g2], pos[g2]] += off
+                    jst[g, 1 + side] = off
             # north / south faces (H uniform in z)
             condz = a_z * Hi * Hi * Hi / dz
             for side in range(2):
@@ -112,7 +112,7 @@ def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z
                     res += dphi * (-condz * (p[g2] - p[g]))
                     diag += dphi * condz * dp[g]
                     if want_jac:
-                        ab[2 * bw + pg - pos[g2], pos[g2]] += -dphi * condz * dp[g2]
+                        jst[g, 3 + side] = -dphi * condz * dp[g2]
                 elif bath:
                     res += dphi * 2.0 * condz * (p[g] - p0)
                     diag += dphi * 2.0 * condz * dp[g]
@@ -122,7 +122,51 @@ def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z
                     diag += dphi * dgv * dp[g]
             r[g] = res
             if want_jac:
-                ab[2 * bw, pg] += diag
+                jst[g, 0] = diag
+
+
+@nb.njit(cache=True)
+def _neighbours(g, n_phi, n_z):
+    i = g % n_phi
+    j = g // n_phi
+    e = j * n_phi + (i + 1 if i + 1 < n_phi else 0)
+    w = j * n_phi + (i - 1 if i > 0 else n_phi - 1)
+    nn = g + n_phi if j + 1 < n_z else -1
+    ss = g - n_phi if j > 0 else -1
+    return e, w, nn, ss
+
+
+@nb.njit(cache=True)
+def stencil_to_band(jst, n_phi, pos, bw, ab):
+    """Scatter the stencil into LAPACK band storage (entry (g, g2) at
+    ``ab[2 bw + pos[g] - pos[g2], pos[g2]]``, shape (3 bw + 1, N))."""
+    n = jst.shape[0]
+    n_z = n // n_phi
+    ab[:, :] = 0.0
+    for g in range(n):
+        e, w, nn, ss = _neighbours(g, n_phi, n_z)
+        pg = pos[g]
+        ab[2 * bw, pg] += jst[g, 0]
+        nb_ = (e, w, nn, ss)
+        for k in range(4):
+            g2 = nb_[k]
+            if g2 >= 0 and jst[g, 1 + k] != 0.0:
+                ab[2 * bw + pg - pos[g2], pos[g2]] += jst[g, 1 + k]
+
+
+@nb.njit(cache=True)
+def stencil_matvec(jst, n_phi, x, y):
+    """y = J x for the stencil Jacobian."""
+    n = jst.shape[0]
+    n_z = n // n_phi
+    for g in range(n):
+        e, w, nn, ss = _neighbours(g, n_phi, n_z)
+        v = jst[g, 0] * x[g] + jst[g, 1] * x[e] + jst[g, 2] * x[w]
+        if nn >= 0:
+            v += jst[g, 3] * x[nn]
+        if ss >= 0:
+            v += jst[g, 4] * x[ss]
+        y[g] = v
 
 
 @nb.njit(cache=True)

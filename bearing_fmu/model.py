@@ -96,6 +96,8 @@ class BearingParams:
     newton_rtol: float = 1.0e-6
     newton_max_iter: int = 30
     rho_refactor: float = 0.3
+    krylov_tol: float = 1.0e-4
+    krylov_refactor: int = 8
     h_init: float = 1.0e-6
     h_min: float = 1.0e-12
     h_max: float = 1.0
@@ -134,6 +136,9 @@ class BearingParams:
         need("newton_max_iter", isinstance(self.newton_max_iter, int)
              and self.newton_max_iter >= 2, "an integer >= 2")
         need("rho_refactor", 0 < self.rho_refactor < 1, "in (0, 1)")
+        need("krylov_tol", 0 < self.krylov_tol < 1, "in (0, 1)")
+        need("krylov_refactor", isinstance(self.krylov_refactor, int)
+             and self.krylov_refactor >= 1, "an integer >= 1")
         need("h_min", self.h_min <= self.h_init <= self.h_max, "h_min <= h_init <= h_max")
         need("linear_solver", self.linear_solver in ("band", "splu"), "'band' or 'splu'")
         if problems:

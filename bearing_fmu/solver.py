@@ -34,7 +34,7 @@ import scipy.sparse as sp
 from scipy.linalg import lapack
 from scipy.sparse.linalg import splu
 
-from .film import assemble
+from .film import assemble, stencil_matvec, stencil_to_band
 
 
 @nb.njit(cache=True)
@@ -118,10 +118,12 @@ class TransientFilm:
         self.lin = (BandLU if linear_solver == "band" else SpluLU)(g.bw)
         self.full_newton = full_newton
         self.ab = np.zeros((3 * g.bw + 1, n), order="F")
+        self.jst = np.zeros((n, 5))
         self.r = np.empty(n)
+        self._w = np.empty(n)
         self.wp, self.wdp, self.wth, self.wdth = (np.empty(n) for _ in range(4))
         self.film = ~np.tile(g.groove, g.n_z)
-        self.stats = dict(steps=0, rejected=0, newton=0, factor=0, failed_newton=0)
+        self.stats = dict(steps=0, rejected=0, newton=0, factor=0, failed_newton=0, krylov=0)
         self._factored = False
 
     # ------------------------------------------------------------ kernels
@@ -131,12 +133,15 @@ class TransientFilm:
         assemble(u, th_dot0, th_dot1, H, He, Hdot, g.groove, c.u_feed, omega,
                  c.a_phi, c.a_z, g.dphi, g.dz, c.bath, c.p0, c.law.p_cav, c.law.K,
                  c.law.delta, c.params.penalty_a, c.params.penalty_b, c.law.s,
-                 self.r, want_jac, g.pos, g.bw, self.ab,
+                 self.r, want_jac, self.jst,
                  self.wp, self.wdp, self.wth, self.wdth)
         return self.r
 
-    def _factor(self, u, th_dot0, kin):
-        self.residual(u, th_dot0, self._zero, kin, want_jac=True)
+    def _factor(self, u, th_dot0, kin, jst_ready=False):
+        if not jst_ready:
+            self.residual(u, th_dot0, self._zero, kin, want_jac=True)
+        g = self.ctx.grid
+        stencil_to_band(self.jst, g.n_phi, g.pos, g.bw, self.ab)
         self.lin.factor(self.ab)
         self._factored = True
         self.stats["factor"] += 1
@@ -147,59 +152,112 @@ class TransientFilm:
         x = self.lin.solve(-r[g.order])
         return x[g.pos]
 
+    def _psolve(self, v):
+        g = self.ctx.grid
+        return self.lin.solve(v[g.order])[g.pos]
+
+    def _gmres(self, b, tol, maxit):
+        """Right-preconditioned GMRES for ``J x = b`` with J the current stencil
+        Jacobian and the last LU factorisation as preconditioner (Saad & Schultz
+        1986; modified Gram-Schmidt, Givens rotations). Returns (x, its, ok)."""
+        n = b.size
+        beta = float(np.linalg.norm(b))
+        if beta == 0.0:
+            return np.zeros(n), 0, True
+        nphi = self.ctx.grid.n_phi
+        V = np.empty((maxit + 1, n))
+        Z = np.empty((maxit, n))
+        Hm = np.zeros((maxit + 1, maxit))
+        cs = np.zeros(maxit)
+        sn = np.zeros(maxit)
+        gv = np.zeros(maxit + 1)
+        gv[0] = beta
+        V[0] = b / beta
+        w = self._w
+        k = 0
+        ok = False
+        for j in range(maxit):
+            Z[j] = self._psolve(V[j])
+            stencil_matvec(self.jst, nphi, Z[j], w)
+            for i in range(j + 1):
+                Hm[i, j] = V[i] @ w
+                w -= Hm[i, j] * V[i]
+            Hm[j + 1, j] = np.linalg.norm(w)
+            if Hm[j + 1, j] > 0:
+                V[j + 1] = w / Hm[j + 1, j]
+            for i in range(j):
+                t = cs[i] * Hm[i, j] + sn[i] * Hm[i + 1, j]
+                Hm[i + 1, j] = -sn[i] * Hm[i, j] + cs[i] * Hm[i + 1, j]
+                Hm[i, j] = t
+            d = np.hypot(Hm[j, j], Hm[j + 1, j])
+            cs[j], sn[j] = Hm[j, j] / d, Hm[j + 1, j] / d
+            Hm[j, j], Hm[j + 1, j] = d, 0.0
+            gv[j + 1] = -sn[j] * gv[j]
+            gv[j] = cs[j] * gv[j]
+            k = j + 1
+            if abs(gv[j + 1]) <= tol * beta:
+                ok = True
+                break
+        y = np.zeros(k)
+        for i in range(k - 1, -1, -1):
+            y[i] = (gv[i] - Hm[i, i + 1:k] @ y[i + 1:k]) / Hm[i, i]
+        return Z[:k].T @ y, k, ok
+
     def theta(self, u):
         p, th = self.ctx.law.p_theta(u)
         return th
 
     # ------------------------------------------------------------ Newton
     def newton(self, u0, th_dot0, th_dot1, kin, max_iter=None):
-        """Solve r(u) = 0 from u0; return (u, iterations) or (None, its)."""
+        """Solve r(u) = 0 from u0; return (u, iterations) or (None, its).
+
+        Newton-Krylov: each iteration assembles the exact stencil Jacobian
+        (cheap) and solves with GMRES preconditioned by the last band LU,
+        which is typically from an earlier step: it differs from the current
+        Jacobian mainly in the few cells where the film ruptures or reforms, a
+        low-rank change GMRES resolves in a few iterations. When GMRES needs more
+        than ``krylov_refactor`` iterations, the LU is refreshed at the current
+        iterate and the system is solved directly.
+        """
         prm = self.ctx.params
         max_iter = max_iter or prm.newton_max_iter
         atol, rtol = prm.newton_atol, prm.newton_rtol
         u = u0.copy()
-        fresh = False
-        if not self._factored or self.full_newton:
-            self._factor(u, th_dot0, kin)
-            fresh = True
         prev = None
         its = 0
         while its < max_iter:
-            r = self.residual(u, th_dot0, th_dot1, kin)
-            dx = self._solve(r)
+            r = self.residual(u, th_dot0, th_dot1, kin, want_jac=True)
             its += 1
-            if not np.all(np.isfinite(dx)):
-                nrm = np.inf
+            fresh = False
+            if not self._factored or self.full_newton:
+                self._factor(u, th_dot0, kin, jst_ready=True)
+                fresh = True
+                dx = self._solve(r)
             else:
-                un = u + dx
-                _limit_switch(u, un, self.ctx.law.delta)
-                if fresh and its > 1:
-                    # backtracking on |r| (only with a fresh Jacobian, where the
-                    # step is a descent direction for |r|^2)
-                    r0 = float(np.linalg.norm(r))
-                    lam = 1.0
-                    while lam > 0.1 and float(np.linalg.norm(
-                            self.residual(un, th_dot0, th_dot1, kin))) > r0:
-                        lam *= 0.5
-                        un = u + lam * (un - u)
-                dx = un - u
-                u = un
-                nrm = float(np.max(np.abs(dx) / (atol + rtol * np.abs(u))))
+                dx, kits, ok = self._gmres(-r, prm.krylov_tol, prm.krylov_refactor)
+                self.stats["krylov"] += kits
+                if not ok:
+                    self._factor(u, th_dot0, kin, jst_ready=True)
+                    fresh = True
+                    dx = self._solve(r)
+            if not np.all(np.isfinite(dx)):
+                break
+            un = u + dx
+            _limit_switch(u, un, self.ctx.law.delta)
+            if prev is not None:
+                # backtracking on |r| (the Newton step is a descent direction)
+                r0 = float(np.linalg.norm(r))
+                lam = 1.0
+                while lam > 0.1 and float(np.linalg.norm(
+                        self.residual(un, th_dot0, th_dot1, kin))) > r0:
+                    lam *= 0.5
+                    un = u + lam * (un - u)
+            dx = un - u
+            u = un
+            nrm = float(np.max(np.abs(dx) / (atol + rtol * np.abs(u))))
             if nrm <= 1.0:
                 self.stats["newton"] += its
                 return u, its
-            rho = nrm / prev if prev else 0.0
-            if not np.isfinite(nrm):
-                if fresh:
-                    break
-                u = u0.copy()           # diverged with the old Jacobian: restart
-                self._factor(u, th_dot0, kin)
-                fresh, prev = True, None
-                continue
-            if self.full_newton or (prev is not None and rho > prm.rho_refactor):
-                # slow contraction: refresh the Jacobian at the current iterate
-                self._factor(u, th_dot0, kin)
-                fresh = True
             prev = nrm
         self.stats["newton"] += its
         self.stats["failed_newton"] += 1

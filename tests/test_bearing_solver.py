@@ -13,6 +13,7 @@ import pytest
 
 from bearing_fmu.model import BearingParams, JournalBearing, StepFailed, solve_stationary
 from bearing_fmu.grid import make_grid
+from bearing_fmu.film import stencil_matvec, stencil_to_band
 
 W100 = 2 * math.pi * 100
 GROOVE = dict(groove_width=math.radians(15), groove_angle=math.pi / 2)
@@ -58,13 +59,22 @@ def test_jacobian_matches_finite_differences(bc):
     u = f.u + rng.normal(size=f.n) * 0.5
     hist = rng.normal(size=f.n) * 100
     f.residual(u, 1e4, hist, kin, want_jac=True)
-    ab, bw, n = f.ab.copy(), g.bw, f.n
+    n = f.n
     J = np.zeros((n, n))
+    for k in range(n):                       # J from the stencil matvec
+        e = np.zeros(n)
+        e[k] = 1.0
+        y = np.empty(n)
+        stencil_matvec(f.jst, g.n_phi, e, y)
+        J[:, k] = y
+    # the band storage used by the LU holds the same matrix
+    stencil_to_band(f.jst, g.n_phi, g.pos, g.bw, f.ab)
+    bw = g.bw
     for r_ in range(n):
         for c_ in range(n):
             k = 2 * bw + g.pos[r_] - g.pos[c_]
-            if 0 <= k < ab.shape[0]:
-                J[r_, c_] = ab[k, g.pos[c_]]
+            if 0 <= k < f.ab.shape[0]:
+                assert f.ab[k, g.pos[c_]] == J[r_, c_]
     Jfd = np.zeros((n, n))
     for k in range(n):
         e = 1e-6 * max(1.0, abs(u[k]))
@@ -95,8 +105,8 @@ def test_half_sommerfeld_short_bearing_limit():
     the half-Sommerfeld condition (Hamrock, Fundamentals of Fluid Film
     Lubrication, eq. 21.29/21.32): W = eta U L^3/(4 c^2) eps/(1-eps^2)^2
     sqrt(pi^2 (1-eps^2) + 16 eps^2), tan(att) = pi sqrt(1-eps^2)/(4 eps).
-    The FV solution converges from below as B/D -> 0; 8 % covers the finite
-    length effect at B/D = 1/8 and the 80 x 20 grid."""
+    3 % covers the finite
+    length effect at B/D = 1/8 and the 80 x 20 grid (measured: 0.99 W_oc)."""
     R, eps = 0.02, 0.4
     p = BearingParams(R=R, B=2 * R / 8, cavitation=0, n_phi=80, n_z=20)
     b = JournalBearing(p)
@@ -106,7 +116,7 @@ def test_half_sommerfeld_short_bearing_limit():
     W_oc = (p.eta0 * W100 * R * p.B ** 3 / (4 * p.c ** 2) * eps / (1 - eps ** 2) ** 2
             * math.sqrt(math.pi ** 2 * (1 - eps ** 2) + 16 * eps ** 2))
     att_oc = math.atan(math.pi * math.sqrt(1 - eps ** 2) / (4 * eps))
-    assert W == pytest.approx(W_oc, rel=0.08)
+    assert W == pytest.approx(W_oc, rel=0.03)
     assert o["attitude"] == pytest.approx(att_oc, abs=0.05)
 
 
