@@ -62,7 +62,7 @@ INIT_EXCHANGE_ITERATIONS = 10     # fixed-point passes to settle feed-through ch
 class _Link:
     """Outputs of one producer going into one consumer block (vectorised)."""
 
-    __slots__ = ("pos", "block", "cols", "gain", "offset", "names", "identity")
+    __slots__ = ("pos", "block", "cols", "gain", "offset", "names", "identity", "tmp", "small", "row0")
 
     def __init__(self, pos, block, cols, gain, offset, names):
         self.pos = np.asarray(pos, dtype=np.intp)
@@ -72,6 +72,15 @@ class _Link:
         self.offset = np.asarray(offset, dtype=float)
         self.names = names          # "src -> dst" per entry, for messages
         self.identity = bool(np.all(self.gain == 1.0) and np.all(self.offset == 0.0))
+        self.tmp = np.zeros(len(self.pos))
+        self.row0 = block[0]
+        self.small = None
+        if len(self.pos) <= 4:
+            self.small = [(int(p), int(c), float(g), float(o))
+                          for p, c, g, o in zip(self.pos, self.cols, self.gain, self.offset)]
+        c = self.cols
+        if len(c) and np.array_equal(c, np.arange(c[0], c[0] + len(c))):
+            self.cols = slice(int(c[0]), int(c[0]) + len(c))     # contiguous: cheaper assignment
 
 
 class _Unit:
@@ -223,12 +232,16 @@ class MasterAlgorithm:
             inst, var = col.split(".", 1)
             if var not in units[inst].out_names:
                 units[inst].out_names.append(var)
+        sizes = []
         for u in units.values():
             u.nE, u.nI = len(u.ext_names), len(u.int_names)
+            sizes += [u.nE, u.nI]
+        views = iter(self.history.allocate(sizes))
+        for u in units.values():
             u.inb = u.sub.real_batch(u.ext_names + u.int_names)
             u.outb = u.sub.real_batch(u.out_names)
-            u.HE = self.history.block(u.nE)
-            u.HI = self.history.block(u.nI)
+            u.HE = next(views)
+            u.HI = next(views)
             if u.sub.can_interpolate_inputs and (u.nE + u.nI):
                 u.derb = u.sub.derivative_batch(u.ext_names + u.int_names, MAX_ORDER)
         # links producer -> consumer block
@@ -361,8 +374,9 @@ class MasterAlgorithm:
                                  + ("call setup() and initialize() first" if self.status is Status.NOT_STARTED
                                     else "the run is over; read result()"))
         n = self.n
-        t = self.grid.time(n)
-        t_next = self.grid.time(n + 1)
+        grid = self.grid
+        t = grid.time(n)
+        t_next = grid.time(n + 1)
         try:
             if self._startup_iterations and self.history.count < self.predictor.k:
                 self._startup_step(t, t_next)
@@ -426,12 +440,14 @@ class MasterAlgorithm:
         # weights depend only on the order available and the step sizes of the
         # levels used: reuse them while those are unchanged (constant steps)
         ts = hist.times.tolist()
-        key = (hist.count, startup_q, ts[0] - ts[1], ts[1] - ts[2], ts[2] - ts[3], ts[3] - ts[4])
-        if key == self._wkey:
+        d = (ts[0] - ts[1], ts[1] - ts[2], ts[2] - ts[3], ts[3] - ts[4])
+        lk = self._wkey
+        if (lk is not None and lk[0] == hist.count and lk[1] == startup_q
+                and abs(d[0] - lk[2]) + abs(d[1] - lk[3]) + abs(d[2] - lk[4]) + abs(d[3] - lk[5]) <= 1e-9 * h):
             cache = self._wcache
         else:
             cache = self._wcache = {}
-            self._wkey = key
+            self._wkey = (hist.count, startup_q, *d)
         predictor = self.predictor
         for u in self.units:
             sub = u.sub
@@ -453,11 +469,12 @@ class MasterAlgorithm:
                             np.dot(w.interp[i], HI, out=vals[nE:])
                         sub.set_real(u.inb)
                         sub.do_step(t + i * hs, hs)
-                    if nE:
-                        np.dot(w.extrap_end, HE, out=vals[:nE])
-                    if nI:
-                        np.dot(w.interp_end, HI, out=vals[nE:])
-                    sub.set_real(u.inb)
+                    if not ((w.end_same_e or not nE) and (w.end_same_i or not nI)):
+                        if nE:
+                            np.dot(w.extrap_end, HE, out=vals[:nE])
+                        if nI:
+                            np.dot(w.interp_end, HI, out=vals[nE:])
+                        sub.set_real(u.inb)
                 else:
                     for i in range(m):
                         sub.do_step(t + i * hs, hs)
@@ -488,20 +505,31 @@ class MasterAlgorithm:
     def _propagate(self, u: _Unit, t: float) -> None:
         out = u.outb.values
         for lk in u.links:
-            v = out[lk.pos]
+            if lk.small is not None:       # few signals: plain Python floats are faster than numpy calls
+                row = lk.row0
+                for p, c, g, o in lk.small:
+                    x = float(out[p]) * g + o
+                    if x - x != 0.0:
+                        self._nonfinite(u, lk, lk.names[lk.small.index((p, c, g, o))], x, t)
+                    row[c] = x
+                continue
+            v = lk.tmp
+            out.take(lk.pos, out=v)
             if not lk.identity:
                 v *= lk.gain
                 v += lk.offset
             if not math.isfinite(v.sum()):          # NaN or inf somewhere (cheap test first)
                 bad = [i for i in range(len(v)) if not math.isfinite(v[i])]
                 if bad:
-                    i = bad[0]
-                    raise CouplingError(
-                        f"coupling signal {lk.names[i]} is {v[i]} at t={t:.12g} s (output of '{u.name}'); "
-                        "the coupled system is probably unstable at this macro step or the FMU failed silently. "
-                        f"Try a smaller coupling.macro_step (now {self.scenario.coupling.macro_step:g}), a lower "
-                        "extrapolation_order, or the gauss-seidel scheme")
+                    self._nonfinite(u, lk, lk.names[bad[0]], v[bad[0]], t)
             lk.block[0, lk.cols] = v
+
+    def _nonfinite(self, u: _Unit, lk: _Link, name: str, value: float, t: float):
+        raise CouplingError(
+            f"coupling signal {name} is {float(value)} at t={t:.12g} s (output of '{u.name}'); "
+            "the coupled system is probably unstable at this macro step or the FMU failed silently. "
+            f"Try a smaller coupling.macro_step (now {self.scenario.coupling.macro_step:g}), a lower "
+            "extrapolation_order, or the gauss-seidel scheme")
 
     # ---------------------------------------------------------------- helpers
     def _fmu_message(self, e: FmuCallError, t: float, t_next: float) -> str:

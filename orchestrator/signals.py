@@ -73,11 +73,27 @@ class History:
         self.times = np.full(depth + 1, np.nan)
         self.count = 0
         self.blocks: list[np.ndarray] = []
+        self._store: np.ndarray | None = None      # one array for all blocks (see allocate)
 
     def block(self, n_signals: int) -> np.ndarray:
+        """A new stand-alone block (for few blocks; the master uses :meth:`allocate`)."""
+        if self._store is not None:
+            raise RuntimeError("History.block() after allocate(); reserve every block in allocate()")
         b = np.zeros((self.depth + 1, n_signals))
         self.blocks.append(b)
         return b
+
+    def allocate(self, sizes: Sequence[int]) -> list[np.ndarray]:
+        """Blocks of ``sizes`` columns as column views of one array, so that
+        :meth:`commit` shifts all signals with one copy."""
+        if self.blocks:
+            raise RuntimeError("History.allocate() must be called once, before any block()")
+        self._store = np.zeros((self.depth + 1, int(sum(sizes))))
+        start = 0
+        for n in sizes:
+            self.blocks.append(self._store[:, start:start + n])
+            start += n
+        return list(self.blocks)
 
     def start(self, t0: float) -> None:
         """Declare row 0 of every block as the values at ``t0`` and make it level 1."""
@@ -88,8 +104,10 @@ class History:
 
     def commit(self) -> None:
         """Row 0 (level T(n+1), filled by the master) becomes the newest past level."""
-        for b in self.blocks:
-            if b.shape[1]:
+        if self._store is not None:
+            self._store[1:] = self._store[:-1]
+        else:
+            for b in self.blocks:
                 b[1:] = b[:-1]
         self.times[1:] = self.times[:-1]
         self.count = min(self.count + 1, self.depth)
@@ -118,7 +136,7 @@ class StepWeights:
     starts, for subsystems that interpolate inputs themselves.
     """
 
-    __slots__ = ("p", "q", "e0", "e1", "extrap", "interp", "extrap_end", "interp_end", "extrap_der", "interp_der",
+    __slots__ = ("p", "q", "e0", "e1", "end_same_e", "end_same_i", "extrap", "interp", "extrap_end", "interp_end", "extrap_der", "interp_der",
                  "extrap_start", "interp_start")
 
 
@@ -172,6 +190,10 @@ class LagrangePredictor:
         w.interp = lagrange_weights(int_nodes, mids)
         w.extrap_end = lagrange_weights(ext_nodes, [1.0])[0]
         w.interp_end = lagrange_weights(int_nodes, [1.0])[0]
+        # the value at T(n+1) equals the last sub-step's value (e.g. order 0):
+        # the master then skips setting the inputs again before reading outputs
+        w.end_same_e = bool(np.array_equal(w.extrap[-1], w.extrap_end))
+        w.end_same_i = bool(np.array_equal(w.interp[-1], w.interp_end))
         w.extrap_start = lagrange_weights(ext_nodes, starts)
         w.interp_start = lagrange_weights(int_nodes, starts)
         kmax = MAX_ORDER
