@@ -292,3 +292,22 @@ def test_check_report_flags_an_inaccurate_reference():
         variants, orders = [], []
     fails = check_report(R(), spec, None)
     assert len(fails) == 1 and "reference: halving" in fails[0] and "'max'" in fails[0]
+
+
+def test_derived_quantity_error_from_summary():
+    """The fake onset speed is 100 Hz * (1 + end deviation of x): its relative error is
+    |x_N - cos t_N|; a key missing in the runs gives an infinite error."""
+    sec = dict(SECTION, derived={"onset": {"key": "analysis.journals.b1.onset.speed_hz"},
+                                 "missing": {"key": "analysis.journals.b1.nothing"}},
+               tolerance={"onset": 1.0})
+    spec = parse_compare(sec, base_scenario())
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:
+        rep = run_comparison(spec, d, runner=fake_runner, workers=1)
+    v = {v["name"]: v for v in rep.variants}["jac-e0i0-h0.1"]
+    t_end = 4.0
+    ref_end = 1e-9 * math.sin(t_end)                    # the reference's own deviation (rtol 1e-9)
+    expect = abs(100 * (1 + K * 0.1 * math.sin(3 * t_end)) - 100 * (1 + ref_end)) / (100 * (1 + ref_end))
+    assert v["errors"]["onset"] == pytest.approx(expect, rel=1e-6)
+    assert v["errors"]["missing"] == math.inf
+    assert check_report(rep, spec, None) == []
