@@ -105,9 +105,10 @@ def _run_function() -> Callable:
 def _add_validate(sub) -> None:
     p = sub.add_parser("validate", help="check a scenario and its FMUs without running", description=(
         "Check a scenario and its FMUs without running; prints every problem, exit status 1 if any. "
-        "Missing FMUs are reported, not built (`rotorcosim build-fmus` builds ours)."))
+        "Our own FMUs (in the repository's fmus/) are built first when missing or stale, as `run` does."))
     p.add_argument("file", metavar="FILE", help="scenario YAML file")
     _add_set(p)
+    p.add_argument("--no-build", action="store_true", help="do not build missing or stale FMUs; report them")
     p.set_defaults(func=_cmd_validate)
 
 
@@ -115,7 +116,7 @@ def _cmd_validate(args) -> int:
     from orchestrator.scenario import load_scenario
 
     try:
-        scenario = load_scenario(args.file, args.set, build_fmus=False)
+        scenario = load_scenario(args.file, args.set, build_fmus=not args.no_build)
     except ScenarioError as exc:
         for problem in exc.problems:
             print(problem)

@@ -854,11 +854,12 @@ def _line_order(problem: str) -> tuple[int, int]:
 
 
 def validate_scenario(path: str | Path, overrides: Sequence[str] = (), *,
-                      build_fmus: bool = False) -> list[str]:
+                      build_fmus: bool = True) -> list[str]:
     """Every problem of a scenario file as readable lines (empty: the scenario is valid).
 
-    Unlike :func:`load_scenario`, does not build missing FMUs by default: a
-    missing FMU is reported with the command that builds it.
+    Like :func:`load_scenario`, first builds our own FMUs that are missing or
+    stale (``build_fmus=False``: only check, and report a missing FMU with the
+    command that builds it).
     """
     try:
         load_scenario(path, overrides, build_fmus=build_fmus)

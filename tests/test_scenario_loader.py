@@ -393,3 +393,36 @@ def test_fmu_instantiable_once_cannot_serve_two_instances(sdir):
     # two instances of an ordinary FMU are fine
     p = write(sdir, "name: x\nstop_time: 1\nfmus:\n  a: {path: fmus/Mixed.fmu}\n  b: {path: fmus/Mixed.fmu}\n")
     assert [f.name for f in load_scenario(p).fmus] == ["a", "b"]
+
+
+def test_own_fmus_are_built_before_they_are_read(sdir, test_fmus, monkeypatch):
+    """load_scenario hands the draft scenario to orchestrator.build.ensure_fmus first."""
+    from orchestrator import build
+    calls = []
+
+    def fake_ensure(scenario):
+        calls.append(scenario)
+        shutil.copy(test_fmus["RightMass"], sdir / "fmus" / "NoSuchMass.fmu")   # "builds" the missing FMU
+        return [sdir / "fmus" / "NoSuchMass.fmu"]
+    monkeypatch.setattr(build, "ensure_fmus", fake_ensure)
+    path = sdir / "missing_fmu.yaml"
+    # only checking: not built, reported with the command that builds it
+    assert any("rotorcosim build-fmus" in p for p in validate_scenario(path, build_fmus=False))
+    assert calls == []
+    # a scenario with other problems is not built either
+    assert validate_scenario(path, ["stop_time=-1"]) and calls == []
+    sc = load_scenario(path)
+    assert len(calls) == 1 and calls[0].name == "missing-fmu"
+    assert calls[0].fmu("right").path == (sdir / "fmus" / "NoSuchMass.fmu").resolve()
+    assert sc.fmu("right").path.is_file()
+
+
+def test_build_failure_is_a_scenario_problem(sdir, monkeypatch):
+    from orchestrator import build
+
+    def failing(scenario):
+        raise RuntimeError("pythonfmu exploded")
+    monkeypatch.setattr(build, "ensure_fmus", failing)
+    problems = problems_of(sdir / "two_mass.yaml")
+    assert problems == [f"{sdir / 'two_mass.yaml'}: building the scenario's FMUs failed (RuntimeError: pythonfmu "
+                        "exploded); run `rotorcosim build-fmus --force` to see the details"]
