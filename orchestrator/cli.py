@@ -123,7 +123,9 @@ def _cmd_validate(args) -> int:
         n = len(exc.problems)
         print(f"{args.file}: {n} problem{'s' if n != 1 else ''} found", file=sys.stderr)
         return 1
-    print(f"{args.file}: valid ({len(scenario.fmus)} FMU instances, {len(scenario.connections)} connections, "
+    n_fmus, n_conn = len(scenario.fmus), len(scenario.connections)
+    print(f"{args.file}: valid ({n_fmus} FMU instance{'s' if n_fmus != 1 else ''}, "
+          f"{n_conn} connection{'s' if n_conn != 1 else ''}, "
           f"{scenario.coupling.scheme}, macro step {scenario.coupling.macro_step:g} s)")
     return 0
 

@@ -10,6 +10,7 @@ Loading (``load_scenario``) validates everything and raises one
 
 from __future__ import annotations
 
+import copy
 import difflib
 import functools
 import math
@@ -337,7 +338,7 @@ class _Loader:
                 if not parts:
                     node.value[int(part)] = vnode
                     return
-                child = node.value[int(part)]
+                child = node.value[int(part)] = _unshared(node.value[int(part)])
             elif isinstance(node, yaml.MappingNode):
                 entries = {str(self.value(k)): i for i, (k, _) in enumerate(node.value)
                            if isinstance(k, yaml.ScalarNode)}
@@ -356,8 +357,10 @@ class _Loader:
                         self._mark(knode, origin)
                         node.value.append((knode, vnode))
                     return
-                if part in entries:
-                    child = node.value[entries[part]][1]
+                if part in entries:                      # copy: an alias (*anchor) must not change too
+                    knode, child = node.value[entries[part]]
+                    child = _unshared(child)
+                    node.value[entries[part]] = (knode, child)
                 else:                                    # a section not written in the file
                     knode, child = yaml.ScalarNode(_STR, part), yaml.MappingNode(_MAP, [])
                     self._mark(knode, origin)
@@ -800,6 +803,14 @@ class _Loader:
             elif self.variable(s, vnode, f"'{what}'") is not None and recorded is not None and s not in recorded:
                 self.err(vnode, f"'{what}' is {s!r}, which is not recorded (not in output.signals); add it to "
                                 "output.signals")
+
+
+def _unshared(node):
+    """A shallow copy of a collection node (YAML aliases share nodes), scalars as they are."""
+    if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)):
+        node = copy.copy(node)
+        node.value = list(node.value)
+    return node
 
 
 def _convert(value, fmi_type: str):

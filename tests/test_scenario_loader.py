@@ -426,3 +426,13 @@ def test_build_failure_is_a_scenario_problem(sdir, monkeypatch):
     problems = problems_of(sdir / "two_mass.yaml")
     assert problems == [f"{sdir / 'two_mass.yaml'}: building the scenario's FMUs failed (RuntimeError: pythonfmu "
                         "exploded); run `rotorcosim build-fmus --force` to see the details"]
+
+
+def test_override_of_an_aliased_section_changes_only_that_path(sdir):
+    p = write(sdir, "name: m\nstop_time: 1\nfmus:\n  g1: {path: fmus/Gain.fmu, parameters: &p {k: 2.0}}\n"
+                    "  g2: {path: fmus/Gain.fmu, parameters: *p}\n")
+    sc = load_scenario(p, ["fmus.g1.parameters.k=5"])
+    assert sc.fmu("g1").parameters == {"k": 5.0}
+    assert sc.fmu("g2").parameters == {"k": 2.0}
+    problems = problems_of(p, ["fmus.g1.parameters.kk=5"])
+    assert len(problems) == 1 and "'g1' has no parameter 'kk'" in problems[0]
