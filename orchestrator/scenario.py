@@ -405,6 +405,12 @@ class _Loader:
         if root is None:
             raise ScenarioError(f"{self.display}:1: expected a scenario (a mapping with at least "
                                 "'name', 'stop_time' and 'fmus'), got an empty file; see docs/scenario-format.md")
+        try:
+            _flatten_merges(self.ctor, root, set())
+        except yaml.MarkedYAMLError as exc:
+            mark = exc.problem_mark or exc.context_mark
+            raise ScenarioError(f"{self.display}:{mark.line + 1 if mark else 1}: {exc.problem}; '<<' merges "
+                                "mappings only (write '<<: *anchor' or '<<: [*a, *b]')") from None
         for text in self.overrides:
             self.apply_override(root, text)
         top = self.mapping(root, "top level", TOP_KEYS, ("name", "stop_time", "fmus"),
@@ -803,6 +809,26 @@ class _Loader:
             elif self.variable(s, vnode, f"'{what}'") is not None and recorded is not None and s not in recorded:
                 self.err(vnode, f"'{what}' is {s!r}, which is not recorded (not in output.signals); add it to "
                                 "output.signals")
+
+
+def _flatten_merges(ctor, node, seen: set) -> None:
+    """Resolve YAML merge keys (``<<: *defaults``) in place; explicit keys win."""
+    if id(node) in seen:
+        return
+    seen.add(id(node))
+    if isinstance(node, yaml.MappingNode):
+        if any(k.tag == "tag:yaml.org,2002:merge" for k, _ in node.value):
+            ctor.flatten_mapping(node)               # merged pairs first, then the node's own
+            last = {}
+            for i, (k, _) in enumerate(node.value):
+                last[(k.tag, k.value) if isinstance(k, yaml.ScalarNode) else id(k)] = i
+            node.value = [kv for i, kv in enumerate(node.value) if last.get(
+                (kv[0].tag, kv[0].value) if isinstance(kv[0], yaml.ScalarNode) else id(kv[0])) == i]
+        for _, v in node.value:
+            _flatten_merges(ctor, v, seen)
+    elif isinstance(node, yaml.SequenceNode):
+        for v in node.value:
+            _flatten_merges(ctor, v, seen)
 
 
 def _unshared(node):

@@ -436,3 +436,15 @@ def test_override_of_an_aliased_section_changes_only_that_path(sdir):
     assert sc.fmu("g2").parameters == {"k": 2.0}
     problems = problems_of(p, ["fmus.g1.parameters.kk=5"])
     assert len(problems) == 1 and "'g1' has no parameter 'kk'" in problems[0]
+
+
+def test_yaml_merge_keys_explicit_keys_win(sdir):
+    p = write(sdir, "name: m\nstop_time: 1\nbase: &base {path: fmus/Gain.fmu, parameters: {k: 2.0}}\n"
+                    "fmus:\n  g1: {<<: *base}\n  g2: {<<: *base, parameters: {k: 3.0}}\n")
+    problems = problems_of(p)                  # 'base' is not a scenario key: say so
+    assert len(problems) == 1 and "unknown key 'base'" in problems[0]
+    p = write(sdir, "name: m\nstop_time: 1\nfmus:\n  g1: &base {path: fmus/Gain.fmu, parameters: {k: 2.0}}\n"
+                    "  g2: {<<: *base, parameters: {k: 3.0}}\n")
+    sc = load_scenario(p)
+    assert sc.fmu("g1").parameters == {"k": 2.0} and sc.fmu("g2").parameters == {"k": 3.0}
+    assert sc.fmu("g2").path == sc.fmu("g1").path
