@@ -341,3 +341,20 @@ def test_gain_and_offset_applied():
                                                  interpolate=False)}
     res = MasterAlgorithm(sc, subsystems=subs).run()
     assert np.allclose(res.outputs["g1.y"], 2.0 * res.t + 1.0)
+
+
+def orders_table_exact_polynomial() -> str:
+    """Table for docs/coupling.md: fakes that receive the input polynomial (value + derivatives)."""
+    Hs = np.array([4e-3, 2e-3, 1e-3, 5e-4])
+    lines = ["| scheme | k | " + " | ".join(f"H={H:g}" for H in Hs) + " | fitted order |",
+             "|---|---|" + "---|" * len(Hs) + "---|"]
+    for scheme in ("jacobi", "gauss-seidel"):
+        for k in (0, 1, 2):
+            errs = [global_error(run_fake(two_mass_scenario(scheme, H, k))) for H in Hs]
+            lines.append(f"| {scheme} | {k} | " + " | ".join(f"{e:.3e}" for e in errs)
+                         + f" | {fitted_order(Hs, errs):.2f} |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(orders_table_exact_polynomial())
