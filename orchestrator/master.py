@@ -336,6 +336,9 @@ class MasterAlgorithm:
         except (FmuCallError, CouplingError) as e:
             self._fail(f"initialization failed: {e}; check the FMU's parameters and start values", t0)
             self._phase = "running"
+            self.view.is_output = False        # observers start (results.csv gets its header), no row
+            for o in self.observers:
+                o.on_initialized(self.view)
             return
         self.history.start(t0)
         self.status = Status.RUNNING
