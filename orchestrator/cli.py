@@ -171,7 +171,7 @@ def _cmd_info(args) -> int:
     print(f"variables ({len(variables)}):")
     widths = [max(len(r[i]) for r in rows) for i in range(6)]
     for r in rows:
-        print("  " + "  ".join(c.ljust(w) for c, w in zip(r[:6], widths)) + "  " + r[6])
+        print("  " + "  ".join(c.ljust(w) for c, w in zip(r[:6], widths, strict=True)) + "  " + r[6])
     return 0
 
 

@@ -235,7 +235,8 @@ class _Loader:
     def mapping(self, node, where: str, keys=None, required=(), fix="") -> dict | None:
         """{key: (key_node, value_node)} of a mapping node; unknown/missing keys reported."""
         if not isinstance(node, yaml.MappingNode):
-            self.err(node, f"'{where}' must be a mapping (got {self.got(node)}); {fix or 'write it as key: value lines'}")
+            fix = fix or "write it as key: value lines"
+            self.err(node, f"'{where}' must be a mapping (got {self.got(node)}); {fix}")
             return None
         out: dict = {}
         for knode, vnode in node.value:
@@ -262,7 +263,8 @@ class _Loader:
         if isinstance(v, str) and _FLOAT_RE.match(v.strip()):
             v = float(v.replace("_", ""))
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            self.err(node, f"'{what}' must be a finite number (got {self.got(node)}); {fix or 'write a number such as 1.0e-4'}")
+            fix = fix or "write a number such as 1.0e-4"
+            self.err(node, f"'{what}' must be a finite number (got {self.got(node)}); {fix}")
             return None
         if positive and v <= 0:
             self.err(node, f"'{what}' must be positive (got {v!r}); {fix or 'use a value > 0'}")
@@ -517,7 +519,7 @@ class _Loader:
             if "parameters" in entry:
                 pmap = self.mapping(entry["parameters"][1], f"fmus.{name}.parameters",
                                     fix="write 'parameters: {name: value, ...}'")
-                for pname, (pk, pv) in (pmap or {}).items():
+                for pname, (_, pv) in (pmap or {}).items():
                     if not isinstance(pv, yaml.ScalarNode) or self.value(pv) is None:
                         self.err(pv, f"parameter '{name}.{pname}' must be a single value (number, true/false or "
                                      f"text) (got {self.got(pv)}); write one value")
@@ -548,7 +550,7 @@ class _Loader:
             else:
                 order = [s for s, _ in seq]
                 problems = []
-                for s, n in seq:
+                for s, _ in seq:
                     if s not in names:
                         problems.append(f"'{s}' is not an instance ({_did_you_mean(s, names)}instances: "
                                         f"{', '.join(names)})")
@@ -576,7 +578,7 @@ class _Loader:
         for key in ("extrapolation_order", "interpolation_order"):
             if key in section:
                 v = self.integer(section[key][1], f"coupling.{key}", 0, MAX_ORDER,
-                                 f"use 0 (hold), 1 (linear), 2 (quadratic) or 3 (cubic)")
+                                 "use 0 (hold), 1 (linear), 2 (quadratic) or 3 (cubic)")
                 ok &= v is not None
                 c[key] = v
         if "substeps" in section:

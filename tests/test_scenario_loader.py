@@ -153,8 +153,10 @@ def test_unknown_keys_suggest_the_closest_valid_key(sdir):
     text = "\n".join(problems)
     assert f"unknown_keys.yaml:{line_of(path, 'stop_tme')}: unknown key 'stop_tme'" in text
     assert "did you mean 'stop_time'?" in text
-    assert f":{line_of(path, 'parameter:')}: unknown key 'parameter' in 'fmus.left'; did you mean 'parameters'?" in text
-    assert f":{line_of(path, 'macro_stepp')}: unknown key 'macro_stepp' in 'coupling'; did you mean 'macro_step'?" in text
+    assert (f":{line_of(path, 'parameter:')}: unknown key 'parameter' in 'fmus.left'; "
+            "did you mean 'parameters'?") in text
+    assert (f":{line_of(path, 'macro_stepp')}: unknown key 'macro_stepp' in 'coupling'; "
+            "did you mean 'macro_step'?") in text
     # and the misspelt required key is also reported as missing
     assert any("missing the required key 'stop_time'" in p for p in problems)
 
@@ -256,7 +258,8 @@ output:
     ("- a\n- b\n", "'top level' must be a mapping (got a list)"),
     ("name: x\n", "missing the required key 'stop_time'"),
     ("name: x\nstop_time: 1\nfmus: {}\n", "'fmus' must list at least one FMU instance"),
-    ("name: x\nstop_time: soon\nfmus:\n  g: {path: fmus/Gain.fmu}\n", "'stop_time' must be a finite number (got 'soon'"),
+    ("name: x\nstop_time: soon\nfmus:\n  g: {path: fmus/Gain.fmu}\n",
+     "'stop_time' must be a finite number (got 'soon'"),
     ("name: x\nstop_time: .nan\nfmus:\n  g: {path: fmus/Gain.fmu}\n", "'stop_time' must be a finite number"),
     ("name: x\nversion: 2\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\n", "version 2 is not supported"),
     ("name: a/b\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\n", "'name' is used as a folder name"),
