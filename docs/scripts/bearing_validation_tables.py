@@ -42,18 +42,11 @@ def hs_force(p, x, y, vx, vy):
     return np.array([b.outputs["Fx"], b.outputs["Fy"]])
 
 
-def steady(p, x, y, *, rev_per_step=2.0, max_steps=60, rtol=1e-7):
-    b = model.JournalBearing(p)
-    b.initialize(x, y, 0.0, 0.0, OMEGA)
-    dt = rev_per_step * 2 * math.pi / OMEGA
-    f_old = np.array([b.outputs["Fx"], b.outputs["Fy"]])
-    for k in range(1, max_steps + 1):
-        b.step(dt, x, y, 0.0, 0.0, OMEGA)
-        f = np.array([b.outputs["Fx"], b.outputs["Fy"]])
-        if np.linalg.norm(f - f_old) <= rtol * np.linalg.norm(f):
-            return b
-        f_old = f
-    raise RuntimeError(f"no steady state after {max_steps} steps")
+def steady(p, x, y, omega=OMEGA):
+    """Stationary mass-conserving film at fixed kinematics (the solver's steady
+    Newton, ``bearing_fmu.model.solve_stationary``; paper section 3.1 solves eq. 4
+    "with constant kinematic input variables")."""
+    return model.solve_stationary(p, x, y, omega)
 
 
 def rel(a, b):
