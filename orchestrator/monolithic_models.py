@@ -17,7 +17,6 @@ the FMU it stands for.
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Any, Callable, Mapping
 
 import numpy as np

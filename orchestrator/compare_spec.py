@@ -1,0 +1,466 @@
+"""The comparison file of ``rotorcosim compare``: dataclasses, loading and validation.
+
+``load_compare(path)`` reads a YAML with a ``compare:`` section (a scenario file with
+its own section, or a standalone file naming the base scenario), validates every key
+and raises one :class:`CompareSpecError` listing every problem with ``file:line``.
+``expand_variants`` turns a variant group into variants (lists in coupling keys are a
+cartesian product); ``apply_changes`` makes a variant's scenario from the base. The
+format is documented in ``docs/compare.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import logging
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import yaml
+
+from orchestrator.compare_metrics import METRICS
+from orchestrator.errors import ScenarioError
+from orchestrator.scenario import Scenario
+from orchestrator.scenario import _YamlLoader as _ScenarioYamlLoader   # same YAML number rules
+
+log = logging.getLogger(__name__)
+
+__all__ = ["CompareSpecError", "CompareSpec", "VariantSpec", "ReferenceSpec", "load_compare",
+           "parse_compare", "expand_variants", "apply_changes", "build_pythonfmu_sources"]
+
+COUPLING_KEYS = ("scheme", "extrapolation_order", "interpolation_order", "macro_step", "substeps",
+                 "sequence")
+_ABBR = {"gauss-seidel": "gs", "jacobi": "jac", "monolithic": "mono"}
+_VARIANT_KEYS = set(COUPLING_KEYS) | {"name", "family", "set", "tolerance", "expect_order"}
+_TOP_KEYS = {"name", "scenario", "set", "output_interval", "workers", "reference", "signals",
+             "derived", "metrics", "tolerance", "variants", "order_metric", "order_tolerance",
+             "baseline", "regression_margin", "regression_floor", "build_fmus"}
+
+
+class CompareSpecError(ScenarioError):
+    """A comparison file is invalid; ``problems`` lists every problem found."""
+
+    def __init__(self, problems: list[str] | str):
+        super().__init__(problems)
+        self.args = ("invalid comparison:\n  " + "\n  ".join(self.problems),)
+
+
+# --------------------------------------------------------------------------- spec
+
+@dataclass(frozen=True, kw_only=True)
+class VariantSpec:
+    """One variant: the base scenario with ``changes`` (dotted keys) applied."""
+
+    name: str
+    family: str                                   # variants differing only in macro_step
+    changes: Mapping[str, Any]                    # e.g. {"coupling.macro_step": 1e-3}
+    tolerance: Mapping[str, float] = field(default_factory=dict)   # metric -> max allowed
+    expect_order: float | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReferenceSpec:
+    """The reference: ``changes`` applied to the base (monolithic or fine co-simulation)."""
+
+    changes: Mapping[str, Any]
+    check: bool = True          # also run with halved tolerance/step and report the change
+
+    @property
+    def monolithic(self) -> bool:
+        return self.changes.get("coupling.scheme") == "monolithic"
+
+    def halved(self, base: Scenario) -> dict[str, Any]:
+        """Changes of the convergence-check run: rtol/atol (monolithic) or macro step halved."""
+        ch = dict(self.changes)
+        if self.monolithic:
+            from orchestrator.monolithic import DEFAULT_ATOL, DEFAULT_RTOL
+            opts = dict(base.coupling.options)
+            rtol = ch.get("coupling.options.rtol", opts.get("rtol", DEFAULT_RTOL))
+            atol = ch.get("coupling.options.atol", opts.get("atol", DEFAULT_ATOL))
+            ch["coupling.options.rtol"] = float(rtol) / 2
+            ch["coupling.options.atol"] = float(atol) / 2
+        else:
+            h = ch.get("coupling.macro_step", base.coupling.macro_step)
+            ch["coupling.macro_step"] = float(h) / 2
+        return ch
+
+
+@dataclass(frozen=True, kw_only=True)
+class CompareSpec:
+    """A validated comparison (see ``docs/compare.md`` for the YAML keys)."""
+
+    name: str
+    base: Scenario
+    variants: tuple[VariantSpec, ...]
+    reference: ReferenceSpec
+    signals: Mapping[str, float | None]           # signal -> error scale (None: peak of reference)
+    derived: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)  # name -> {key, scale}
+    metrics: tuple[str, ...] = METRICS
+    order_metric: str = "rms"
+    order_tolerance: float = 0.3
+    baseline: Path | None = None
+    regression_margin: float = 0.10
+    regression_floor: float = 1e-6
+    workers: int | None = None
+    output_interval: float | None = None
+    source: Path | None = None
+
+    def scenario(self, changes: Mapping[str, Any]) -> Scenario:
+        """The base scenario with the common output grid and ``changes`` applied."""
+        ch = {}
+        if self.output_interval is not None:
+            ch["output.interval"] = self.output_interval
+        ch.update(changes)
+        return apply_changes(self.base, ch)
+
+    def smallest_tolerance(self) -> float | None:
+        tols = [v for var in self.variants for k, v in var.tolerance.items() if k in self.metrics]
+        return min(tols) if tols else None
+
+
+class _LineLoader(_ScenarioYamlLoader):
+    """The scenario loader's YAML flavour (``1e-4`` is a float), recording the line of every
+    mapping key (``mapping.lines[key]``)."""
+
+
+class _LineDict(dict):
+    lines: dict
+
+
+def _construct_mapping(loader, node, deep=False):
+    d = _LineDict(loader.construct_mapping(node, deep=True))
+    d.lines = {loader.construct_object(k): k.start_mark.line + 1 for k, _ in node.value}
+    return d
+
+
+_LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+def _line(mapping, key) -> str:
+    ln = getattr(mapping, "lines", {}).get(key)
+    return f":{ln}" if ln else ""
+
+
+def load_compare(path: str | os.PathLike) -> CompareSpec:
+    """Load a comparison file: a YAML with a ``compare:`` section.
+
+    Either a standalone file whose ``compare.scenario`` names the base scenario
+    (relative to the file), or a scenario file that carries its own ``compare:``
+    section (the scenario is then the base).
+    """
+    from orchestrator.scenario import load_scenario   # the frontend's validating loader
+
+    path = Path(path).resolve()
+    try:
+        doc = yaml.load(path.read_text(), Loader=_LineLoader)
+    except (OSError, yaml.YAMLError) as exc:
+        raise CompareSpecError(f"{path}: cannot read comparison file: {exc}") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("compare"), dict):
+        raise CompareSpecError(f"{path}: expected a mapping with a 'compare:' section "
+                               "(see docs/compare.md)")
+    sec = doc["compare"]
+    if "build_fmus" in sec:     # e.g. the orchestrator's test FMUs, before the loader reads them
+        b = sec["build_fmus"]
+        if not isinstance(b, dict) or set(b) != {"from", "to"}:
+            raise CompareSpecError(f"{path}{_line(sec, 'build_fmus')}: 'compare.build_fmus' must be "
+                                   "{from: DIR_OF_PYTHONFMU_SOURCES, to: FMU_DIR} (relative to this file)")
+        build_pythonfmu_sources(path.parent / str(b["from"]), path.parent / str(b["to"]))
+    if "fmus" in doc:
+        if "scenario" in sec:
+            raise CompareSpecError(f"{path}{_line(sec, 'scenario')}: 'compare.scenario' must not be "
+                                   "given in a scenario file (the file itself is the base)")
+        base = load_scenario(path)
+    else:
+        if "scenario" not in sec:
+            raise CompareSpecError(f"{path}{_line(doc, 'compare')}: 'compare.scenario' is required "
+                                   "(path of the base scenario, relative to this file)")
+        base = load_scenario((path.parent / str(sec["scenario"])).resolve())
+    return parse_compare(sec, base, source=path)
+
+
+def build_pythonfmu_sources(src_dir: Path, dest: Path) -> list[Path]:
+    """Build every PythonFMU source ``src_dir/*.py`` (not ``_*.py``) into ``dest`` when its FMU
+    is missing or older than the source; return the FMU paths.
+
+    For comparison files whose FMUs are built from sources, such as the two-mass
+    oscillator of ``tests/fmus_src`` (built with ``canGetAndSetFMUstate`` so the
+    master may save and restore them, as ``tests/conftest.py`` does).
+    """
+    import re
+    src_dir, dest = Path(src_dir).resolve(), Path(dest).resolve()
+    sources = sorted(p for p in src_dir.glob("*.py") if not p.name.startswith("_"))
+    if not sources:
+        raise CompareSpecError(f"compare.build_fmus.from: no PythonFMU sources (*.py) in {src_dir}")
+    dest.mkdir(parents=True, exist_ok=True)
+    out = []
+    for src in sources:
+        m = re.search(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", src.read_text(), re.M)
+        if m is None:
+            continue
+        fmu = dest / f"{m.group(1)}.fmu"
+        if not fmu.exists() or fmu.stat().st_mtime < src.stat().st_mtime:
+            from pythonfmu.builder import FmuBuilder
+            log.info("compare: building %s from %s", fmu, src)
+            fmu = Path(FmuBuilder.build_FMU(src, dest=dest, canGetAndSetFMUstate=True))
+        out.append(fmu)
+    return out
+
+
+def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None = None) -> CompareSpec:
+    """Validate a ``compare:`` mapping against ``base``; raise one CompareSpecError listing all problems."""
+    where = str(source) if source else "<compare>"
+    problems: list[str] = []
+
+    def bad(key, msg, m=sec):
+        problems.append(f"{where}{_line(m, key)}: 'compare.{key}' {msg}")
+
+    for k in sec:
+        if k not in _TOP_KEYS:
+            bad(k, f"is not a known key; valid keys: {sorted(_TOP_KEYS)}")
+    name = str(sec.get("name") or (source.stem if source else base.name))
+
+    common = _changes(sec.get("set") or {}, "set", bad)
+    try:
+        base = apply_changes(base, common)
+    except (KeyError, ValueError, TypeError) as exc:
+        bad("set", f"cannot be applied: {exc}")
+
+    metrics = sec.get("metrics", list(METRICS))
+    if not isinstance(metrics, list) or any(m not in METRICS for m in metrics):
+        bad("metrics", f"must be a list drawn from {list(METRICS)} (got {metrics!r})")
+        metrics = list(METRICS)
+
+    signals = _signals(sec.get("signals"), bad)
+    derived = {}
+    for dname, d in (sec.get("derived") or {}).items():
+        if not isinstance(d, dict) or "key" not in d:
+            bad("derived", f"entry '{dname}' must be a mapping with 'key' (a dotted path into "
+                "summary.json, e.g. analysis.bearing1.onset_speed_hz)")
+            continue
+        derived[str(dname)] = {"key": str(d["key"]), "scale": d.get("scale")}
+    known = set(metrics) | set(derived)
+
+    default_tol = _tolerance(sec.get("tolerance") or {}, known, "tolerance", bad)
+    variants: list[VariantSpec] = []
+    groups = sec.get("variants")
+    if not isinstance(groups, list) or not groups:
+        bad("variants", "must be a non-empty list of variant groups")
+        groups = []
+    for i, g in enumerate(groups):
+        variants.extend(expand_variants(g, base, default_tol, known, where=f"variants[{i}]",
+                                        bad=lambda k, msg, m=g, i=i: bad(f"variants[{i}].{k}", msg, m)))
+    seen = set()
+    for v in variants:
+        if v.name in seen:
+            bad("variants", f"produce the variant name '{v.name}' twice; give each group a "
+                "distinct 'name' template such as '{scheme}-e{extrapolation_order}-h{macro_step:g}'")
+        seen.add(v.name)
+
+    ref = sec.get("reference") or {"scheme": "monolithic"}
+    if not isinstance(ref, dict):
+        bad("reference", "must be a mapping, e.g. {scheme: monolithic} or {macro_step: 1e-5}")
+        ref = {"scheme": "monolithic"}
+    ref_changes = {f"coupling.{k}": v for k, v in ref.items() if k in COUPLING_KEYS}
+    ref_changes.update(_changes(ref.get("set") or {}, "reference.set", bad))
+    for k in ref:
+        if k not in set(COUPLING_KEYS) | {"set", "check"}:
+            bad("reference", f"has unknown key '{k}'; valid: {sorted(set(COUPLING_KEYS) | {'set', 'check'})}")
+    if ref_changes.get("coupling.scheme") != "monolithic" and "coupling.macro_step" not in ref_changes:
+        bad("reference", "must be {scheme: monolithic, ...} or a co-simulation variant with a "
+            "'macro_step' finer than every variant's")
+    reference = ReferenceSpec(changes=ref_changes, check=bool(ref.get("check", True)))
+
+    order_metric = sec.get("order_metric", "rms")
+    if order_metric not in metrics:
+        bad("order_metric", f"must be one of the metrics {metrics} (got {order_metric!r})")
+    nums = {}
+    for key, default, lo in (("order_tolerance", 0.3, 0.0), ("regression_margin", 0.10, 0.0),
+                             ("regression_floor", 1e-6, 0.0)):
+        val = sec.get(key, default)
+        if not isinstance(val, (int, float)) or isinstance(val, bool) or val < lo:
+            bad(key, f"must be a number >= {lo} (got {val!r})")
+            val = default
+        nums[key] = float(val)
+    workers = sec.get("workers")
+    if workers is not None and (not isinstance(workers, int) or workers < 1):
+        bad("workers", f"must be a positive integer (got {workers!r})")
+        workers = None
+    interval = sec.get("output_interval")
+    steps = [_macro(v, base) for v in variants]
+    if interval is None and variants:   # the scenario's interval if it suits every variant
+        interval = base.output.interval
+        if interval is None or not all(_multiple(interval, h) for h in steps):
+            interval = max(steps)
+    if interval is not None:
+        for v, h in zip(variants, steps):
+            if not _multiple(interval, h):
+                bad("output_interval", f"({interval:g} s) is not a multiple of the macro step "
+                    f"{h:g} s of variant '{v.name}'; outputs would be interpolated, choose a common "
+                    "multiple of every macro step")
+                break
+    baseline = sec.get("baseline")
+    if baseline is not None:
+        baseline = ((source.parent if source else Path.cwd()) / str(baseline)).resolve()
+    if base.output.signals is not None:
+        for s in signals:
+            if s not in base.output.signals:
+                bad("signals", f"lists '{s}', which the base scenario does not output; add it to "
+                    f"'output.signals' (has {list(base.output.signals)})")
+    if problems:
+        raise CompareSpecError(problems)
+    return CompareSpec(name=name, base=base, variants=tuple(variants), reference=reference,
+                       signals=signals, derived=derived, metrics=tuple(metrics),
+                       order_metric=order_metric, order_tolerance=nums["order_tolerance"],
+                       baseline=baseline, regression_margin=nums["regression_margin"],
+                       regression_floor=nums["regression_floor"], workers=workers,
+                       output_interval=interval, source=source)
+
+
+def _multiple(interval: float, h: float) -> bool:
+    n = round(interval / h)
+    return n >= 1 and math.isclose(interval / h, n, rel_tol=1e-9)
+
+
+def _macro(v: VariantSpec, base: Scenario) -> float:
+    return float(v.changes.get("coupling.macro_step", base.coupling.macro_step))
+
+
+def _changes(m, key, bad) -> dict[str, Any]:
+    if not isinstance(m, dict):
+        bad(key, f"must be a mapping of dotted keys to values, e.g. {{stop_time: 0.1}} (got {m!r})")
+        return {}
+    return {str(k): v for k, v in m.items()}
+
+
+def _signals(sig, bad) -> dict[str, float | None]:
+    if isinstance(sig, list) and sig and all(isinstance(s, str) for s in sig):
+        return {s: None for s in sig}
+    if isinstance(sig, dict) and sig:
+        out = {}
+        for s, opt in sig.items():
+            scale = (opt or {}).get("scale") if isinstance(opt, dict) else opt
+            if scale is not None and (not isinstance(scale, (int, float)) or scale <= 0):
+                bad("signals", f"scale of '{s}' must be a positive number [signal unit] (got {scale!r})")
+                scale = None
+            out[str(s)] = None if scale is None else float(scale)
+        return out
+    bad("signals", "must be a non-empty list of 'instance.variable' names or a mapping "
+        "name -> {scale: value}")
+    return {}
+
+
+def _tolerance(tol, known, key, bad) -> dict[str, float]:
+    if not isinstance(tol, dict):
+        bad(key, f"must be a mapping metric -> relative error, e.g. {{rms: 0.01}} (got {tol!r})")
+        return {}
+    out = {}
+    for k, v in tol.items():
+        if k not in known:
+            bad(key, f"names '{k}', which is neither a metric nor a derived quantity; "
+                f"valid: {sorted(known)}")
+        elif not isinstance(v, (int, float)) or isinstance(v, bool) or v <= 0:
+            bad(key, f"value of '{k}' must be a positive number (got {v!r})")
+        else:
+            out[k] = float(v)
+    return out
+
+
+def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mapping[str, float],
+                    known: set[str], *, where: str = "variants[0]",
+                    bad: Callable[[str, str], None] | None = None) -> list[VariantSpec]:
+    """Expand one variant group (lists in coupling keys -> cartesian product)."""
+    problems = []
+    if bad is None:
+        def bad(k, msg):
+            problems.append(f"{where}.{k} {msg}")
+    if not isinstance(group, dict):
+        bad("", f"must be a mapping of coupling keys {list(COUPLING_KEYS)} (got {group!r})")
+        return []
+    for k in group:
+        if k not in _VARIANT_KEYS:
+            bad(k, f"is not a variant key; valid: {sorted(_VARIANT_KEYS)}")
+    axes = []
+    for k in COUPLING_KEYS:
+        if k in group:
+            vals = group[k]
+            if k == "sequence" or not isinstance(vals, list):
+                vals = [vals]
+            if not vals:
+                bad(k, "is an empty list")
+            axes.append((k, vals))
+    tol = dict(default_tol)
+    tol.update(_tolerance(group.get("tolerance") or {}, known, "tolerance", bad))
+    extra = _changes(group.get("set") or {}, "set", bad)
+    expect = group.get("expect_order")
+    if expect is not None and not isinstance(expect, (int, float)):
+        bad("expect_order", f"must be a number (got {expect!r})")
+        expect = None
+    out = []
+    for combo in itertools.product(*[vals for _, vals in axes]):
+        values = dict(zip([k for k, _ in axes], combo))
+        coupling = {k: values.get(k, getattr(base.coupling, k)) for k in COUPLING_KEYS}
+        for k in ("extrapolation_order", "interpolation_order", "substeps"):
+            if not isinstance(coupling[k], int) or coupling[k] < 0:
+                bad(k, f"must be a non-negative integer (got {coupling[k]!r})")
+        if not isinstance(coupling["macro_step"], (int, float)) or coupling["macro_step"] <= 0:
+            bad("macro_step", f"must be a positive number [s] (got {coupling['macro_step']!r})")
+            continue
+        fields_ = dict(coupling, abbr=_ABBR.get(coupling["scheme"], coupling["scheme"]))
+        default_name = "{abbr}-e{extrapolation_order}i{interpolation_order}"
+        if coupling["substeps"] != 1:
+            default_name += "-s{substeps}"
+        default_name += "-h{macro_step:g}"
+        try:
+            name = str(group.get("name", default_name)).format(**fields_)
+            fam_tmpl = group.get("family") or str(group.get("name", default_name)).replace(
+                "-h{macro_step:g}", "").replace("{macro_step:g}", "").replace("{macro_step}", "")
+            family = str(fam_tmpl).format(**fields_)
+        except (KeyError, ValueError, IndexError) as exc:
+            bad("name", f"template cannot be formatted ({exc}); fields: {sorted(fields_)}")
+            continue
+        changes = {f"coupling.{k}": v for k, v in values.items()}
+        changes.update(extra)
+        out.append(VariantSpec(name=name, family=family, changes=changes, tolerance=tol,
+                               expect_order=None if expect is None else float(expect)))
+    if problems:
+        raise CompareSpecError(problems)
+    return out
+
+
+def apply_changes(scenario: Scenario, changes: Mapping[str, Any]) -> Scenario:
+    """Return ``scenario`` with dotted-key changes applied.
+
+    Keys: ``stop_time``, ``start_time``, ``coupling.<field>``, ``coupling.options.<k>``,
+    ``output.interval``, ``output.signals``, ``<instance>.<parameter>`` (an FMU parameter).
+    """
+    sc = scenario
+    for key, value in changes.items():
+        parts = key.split(".")
+        if key in ("stop_time", "start_time"):
+            sc = dataclasses.replace(sc, **{key: float(value)})
+        elif parts[0] == "coupling" and len(parts) == 3 and parts[1] == "options":
+            opts = dict(sc.coupling.options)
+            opts[parts[2]] = value
+            sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, options=opts))
+        elif parts[0] == "coupling" and len(parts) == 2:
+            if parts[1] not in {f.name for f in dataclasses.fields(sc.coupling)}:
+                raise KeyError(f"'{key}': unknown coupling field")
+            if parts[1] == "sequence":
+                value = tuple(value)
+            sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, **{parts[1]: value}))
+        elif parts[0] == "output" and len(parts) == 2 and parts[1] in ("interval", "signals"):
+            if parts[1] == "signals" and value is not None:
+                value = tuple(value)
+            sc = dataclasses.replace(sc, output=dataclasses.replace(sc.output, **{parts[1]: value}))
+        elif len(parts) == 2 and parts[0] in {f.name for f in sc.fmus}:
+            fmus = tuple(dataclasses.replace(f, parameters={**f.parameters, parts[1]: value})
+                         if f.name == parts[0] else f for f in sc.fmus)
+            sc = dataclasses.replace(sc, fmus=fmus)
+        else:
+            raise KeyError(f"'{key}': expected stop_time, start_time, coupling.<field>, "
+                           "coupling.options.<key>, output.interval, output.signals or "
+                           f"<instance>.<parameter> with an instance in {[f.name for f in sc.fmus]}")
+    return sc
