@@ -220,7 +220,12 @@ class _Loader:
         self.problems.append(f"{self.loc(node)}: {text}")
 
     def value(self, node):
-        return self.ctor.construct_object(node, deep=True)
+        try:
+            return self.ctor.construct_object(node, deep=True)
+        except yaml.YAMLError as exc:                 # e.g. an unknown !!tag or an unhashable key
+            problem = getattr(exc, "problem", None) or str(exc)
+            raise ScenarioError(self.problems + [f"{self.loc(node)}: cannot read this value ({problem}); write a "
+                                                 "plain number, text, list or mapping"]) from None
 
     def got(self, node) -> str:
         if isinstance(node, yaml.MappingNode):

@@ -451,3 +451,9 @@ def test_yaml_merge_keys_explicit_keys_win(sdir):
     sc = load_scenario(p)
     assert sc.fmu("g1").parameters == {"k": 2.0} and sc.fmu("g2").parameters == {"k": 3.0}
     assert sc.fmu("g2").path == sc.fmu("g1").path
+
+
+def test_unreadable_yaml_values_are_reported_with_their_line(sdir):
+    p = write(sdir, "name: x\nstop_time: !!python/object:os.system ls\nfmus:\n  g: {path: fmus/Gain.fmu}\n")
+    problems = problems_of(p)
+    assert problems[-1].startswith(f"{p}:2: cannot read this value (could not determine a constructor")
