@@ -356,5 +356,47 @@ def orders_table_exact_polynomial() -> str:
     return "\n".join(lines)
 
 
+def test_csv_is_streamed_during_the_run(tmp_path):
+    from orchestrator.observers import CsvWriter
+    csv = CsvWriter(tmp_path / "results.csv", flush_interval=0.0)
+    m = MasterAlgorithm(two_mass_scenario("jacobi", 0.01, 1, T=0.1), subsystems=two_mass_fakes(), observers=[csv])
+    m.setup()
+    m.initialize()
+    for _ in range(3):
+        m.step()
+    lines = (tmp_path / "results.csv").read_text().splitlines()
+    assert lines[0] == "time,left.x1,right.x2" and len(lines) == 5          # header + t = 0, 0.01, 0.02, 0.03
+    assert float(lines[-1].split(",")[0]) == pytest.approx(0.03)
+    m.terminate()
+    assert m.status is Status.FAILED and "terminated early" in m.message
+    assert len((tmp_path / "results.csv").read_text().splitlines()) == 5
+
+
+def test_forced_progress_bar_goes_to_the_given_stream():
+    import io
+    from orchestrator.observers import Progress
+    stream = io.StringIO()
+    res = MasterAlgorithm(two_mass_scenario("jacobi", 1e-3, 0, T=0.2), subsystems=two_mass_fakes(),
+                          observers=[Progress(True, delay=0.0, stream=stream)]).run()
+    assert res.success
+    assert "co-simulation" in stream.getvalue() and "200/200" in stream.getvalue()
+    quiet = io.StringIO()          # auto mode on a non-terminal stream: nothing
+    MasterAlgorithm(two_mass_scenario("jacobi", 1e-3, 0, T=0.2), subsystems=two_mass_fakes(),
+                    observers=[Progress(None, delay=0.0, stream=quiet)]).run()
+    assert quiet.getvalue() == ""
+
+
+def test_unknown_scheme_and_bad_sequence_rejected():
+    sc = two_mass_scenario("jacobi", 0.01, 0)
+    import dataclasses
+    bad = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, scheme="gauss_seidel"))
+    with pytest.raises(ScenarioError, match="gauss-seidel.*gauss_seidel"):
+        MasterAlgorithm(bad, subsystems=two_mass_fakes())
+    bad = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, scheme="gauss-seidel",
+                                                               sequence=("left", "middle")))
+    with pytest.raises(ScenarioError, match="middle"):
+        MasterAlgorithm(bad, subsystems=two_mass_fakes()).setup()
+
+
 if __name__ == "__main__":
     print(orders_table_exact_polynomial())
