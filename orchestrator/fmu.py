@@ -31,7 +31,6 @@ from __future__ import annotations
 import collections
 import ctypes
 import logging
-import math
 from abc import ABC, abstractmethod
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -426,7 +425,3 @@ class Subsystem(SubsystemBase):
 
     def __repr__(self) -> str:
         return f"Subsystem({self.name!r}, {self.fmu_path.name!r}, state={self._state})"
-
-
-def is_finite(x: float) -> bool:
-    return math.isfinite(x)

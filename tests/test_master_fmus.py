@@ -21,7 +21,6 @@ from scipy.linalg import expm
 
 from orchestrator import CoSimResult, run
 from orchestrator.errors import ScenarioError
-from orchestrator.master import MasterAlgorithm
 from orchestrator.results import Status
 from orchestrator.scenario import ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario
 
