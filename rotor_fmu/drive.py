@@ -41,23 +41,32 @@ class RampProfile:
         self._w1 = TWO_PI * self.f_max
         self._a = (self._w1 - self._w0) / self.t_ramp if self.t_ramp > 0.0 else 0.0
 
-    def omega(self, t: float) -> float:
-        if t <= 0.0:
-            return self._w0
-        if t >= self.t_ramp:
-            return self._w1
-        return self._w0 + self._a * t
+    # All three accept a float (return a float) or an array of times (return an array).
+    def omega(self, t):
+        tc = np.clip(t, 0.0, self.t_ramp)
+        return _out(self._w0 + self._a * tc, t)
 
-    def alpha(self, t: float) -> float:
-        return self._a if 0.0 < t < self.t_ramp else 0.0
+    def alpha(self, t):
+        ta = np.asarray(t, dtype=float)
+        return _out(np.where((ta > 0.0) & (ta < self.t_ramp), self._a, 0.0), t)
 
-    def angle(self, t: float) -> float:
-        if t <= 0.0:
-            return self._w0 * t
-        if t <= self.t_ramp:
-            return self._w0 * t + 0.5 * self._a * t * t
-        tr = self.t_ramp
-        return self._w0 * tr + 0.5 * self._a * tr * tr + self._w1 * (t - tr)
+    def angle(self, t):
+        ta = np.asarray(t, dtype=float)
+        tc = np.clip(ta, 0.0, self.t_ramp)
+        ang = self._w0 * np.minimum(ta, self.t_ramp) + 0.5 * self._a * tc * tc
+        ang = ang + self._w1 * np.maximum(ta - self.t_ramp, 0.0)
+        return _out(ang, t)
+
+    def table(self):
+        """Piecewise-linear table (t, omega, angle at t) with constant extrapolation and
+        angle(0) = 0, for the compiled stepping kernel."""
+        if self.t_ramp > 0.0:
+            t = np.array([0.0, self.t_ramp])
+            w = np.array([self._w0, self._w1])
+        else:
+            t = np.array([0.0, 1.0])
+            w = np.array([self._w1, self._w1])
+        return t, w, np.array([self.angle(x) for x in t])
 
     def __repr__(self) -> str:
         return f"RampProfile(f_max={self.f_max}, t_ramp={self.t_ramp}, f_start={self.f_start})"
@@ -94,30 +103,37 @@ class TableProfile:
         tt, w, cum = self.t_tab, self.w_tab, self._cum
         return self._raw_unshifted(t, tt, w, cum) - self._offset
 
-    def _raw_unshifted(self, t, tt, w, cum) -> float:
-        if t <= tt[0]:
-            return w[0] * (t - tt[0])
-        if t >= tt[-1]:
-            return cum[-1] + w[-1] * (t - tt[-1])
-        i = int(np.searchsorted(tt, t, side="right") - 1)
-        dt = t - tt[i]
-        return cum[i] + w[i] * dt + 0.5 * self.slopes[i] * dt * dt
+    def _raw_unshifted(self, t, tt, w, cum):
+        ta = np.asarray(t, dtype=float)
+        i = np.clip(np.searchsorted(tt, ta, side="right") - 1, 0, tt.size - 2)
+        dt = np.clip(ta, tt[0], tt[-1]) - tt[i]
+        inside = cum[i] + w[i] * dt + 0.5 * self.slopes[i] * dt * dt
+        return (inside + w[0] * np.minimum(ta - tt[0], 0.0)
+                + w[-1] * np.maximum(ta - tt[-1], 0.0))
 
-    def omega(self, t: float) -> float:
-        return float(np.interp(t, self.t_tab, self.w_tab))
+    def omega(self, t):
+        return _out(np.interp(t, self.t_tab, self.w_tab), t)
 
-    def alpha(self, t: float) -> float:
+    def alpha(self, t):
         tt = self.t_tab
-        if t <= tt[0] or t >= tt[-1]:
-            return 0.0
-        i = int(np.searchsorted(tt, t, side="right") - 1)
-        return float(self.slopes[i])
+        ta = np.asarray(t, dtype=float)
+        i = np.clip(np.searchsorted(tt, ta, side="right") - 1, 0, tt.size - 2)
+        return _out(np.where((ta > tt[0]) & (ta < tt[-1]), self.slopes[i], 0.0), t)
 
-    def angle(self, t: float) -> float:
-        return float(self._raw_angle(t))
+    def angle(self, t):
+        return _out(self._raw_angle(t), t)
+
+    def table(self):
+        """Piecewise-linear table (t, omega, angle at t), see RampProfile.table."""
+        return self.t_tab.copy(), self.w_tab.copy(), np.asarray(self.angle(self.t_tab))
 
     def __repr__(self) -> str:
         return f"TableProfile(t={self.t_tab.tolist()}, f={(self.w_tab / TWO_PI).tolist()})"
+
+
+def _out(val, t):
+    """float for scalar input, array for array input."""
+    return float(val) if np.ndim(t) == 0 else np.asarray(val, dtype=float)
 
 
 def make_profile(*, f_max: float, t_ramp: float, speed_table=None):

@@ -1,0 +1,139 @@
+"""Flexible turbocharger rotor (paper section 3.3) from a rotor file, optionally reduced.
+
+The shaft is modelled with Timoshenko beam elements with gyroscopic matrices
+(:mod:`rotor_fmu.beam`), the wheels as rigid discs (mass, polar and transverse
+inertia, unbalance); the film forces act on the translations of the bearing-station
+nodes.  Default rotor: ``rotor_fmu/data/turbocharger.yaml`` (6 kg, 3 g mm, heavier
+turbine wheel, no external damping).
+
+Reduction (default on): Craig-Bampton (Craig & Bampton 1968, AIAA J. 6:1313) per
+bending plane, with the *translations of the bearing stations and of the wheel
+centres* kept as physical boundary dofs (static constraint modes = static correction
+at the bearing stations and at the unbalance load points) plus ``n_modes``
+fixed-interface normal modes per plane.  The same transformation ``T`` (identical in
+both planes) projects M, K, G, Ka, C, Kc and the gravity load, so gyroscopic coupling,
+rotating damping and loads stay consistent.  Accuracy vs the full model: see
+``docs/rotor-models.md`` and ``tests/test_rotor_turbocharger.py``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .beam import assemble
+from .drive import make_profile
+from .linear_rotor import LinearRotor
+from .rotor_file import RotorDefinition, load_rotor_file
+
+__all__ = ["TurbochargerParams", "TurbochargerRotor", "load_rotor_file", "craig_bampton"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class TurbochargerParams:
+    """Parameters of :class:`TurbochargerRotor` (SI units); defaults from the paper."""
+
+    rotor_file: str | None = None      # YAML rotor file; None -> rotor_fmu/data/turbocharger.yaml
+    f_max: float = 105.0               # ramp end speed [Hz] (paper: 105 Hz)
+    t_ramp: float = 7.0                # ramp duration [s] (paper: 7 s)
+    speed_table: object = None         # optional {"t": [...], "f": [...]} instead of the ramp
+    g: float = 9.81                    # gravity [m/s^2] in -y
+    t0: float = 0.0                    # start time [s]
+    journal_x0: float = 0.0            # initial x of every bearing station [m]
+    journal_y0: float = 0.0            # initial y of every bearing station [m]
+    initial_sag: bool = True           # start in static equilibrium with the stations held
+    reduce: bool = True                # Craig-Bampton reduction (False: full FE model)
+    n_modes: int | None = None         # fixed-interface modes per plane (None: from the file)
+    shear: bool = True                 # Timoshenko (True) or Euler-Bernoulli elements
+    max_phase_per_substep: float = 0.25  # omega_max * h bound of the internal sub-steps [rad]
+
+
+def craig_bampton(M, K, boundary, n_modes):
+    """Craig-Bampton basis T (n x (nb + n_modes)) of a symmetric (M, K) plane model.
+
+    ``q = T [q_b; eta]`` with ``q_b`` the boundary dofs (in the given order) and ``eta``
+    the amplitudes of the ``n_modes`` lowest fixed-interface modes (mass-normalized).
+    """
+    n = M.shape[0]
+    b = np.asarray(boundary, int)
+    i = np.setdiff1d(np.arange(n), b)
+    Kii = K[np.ix_(i, i)]
+    try:
+        Psi = -np.linalg.solve(Kii, K[np.ix_(i, b)])
+    except np.linalg.LinAlgError:
+        raise ValueError("Craig-Bampton: the structure with the boundary dofs held is not "
+                         "statically determinate (singular K_ii); give at least two bearing "
+                         "stations / discs") from None
+    T = np.zeros((n, len(b) + n_modes))
+    T[b, np.arange(len(b))] = 1.0
+    T[np.ix_(i, np.arange(len(b)))] = Psi
+    if n_modes > 0:
+        lam, Phi = sla.eigh(Kii, M[np.ix_(i, i)], subset_by_index=[0, n_modes - 1])
+        T[np.ix_(i, len(b) + np.arange(n_modes))] = Phi
+    return T
+
+
+class TurbochargerRotor(LinearRotor):
+    """Flexible rotor with rigid wheels from a rotor file; API in docs/dev/contracts.md.
+
+    Extra outputs per wheel ``<name>``: ``x_<name>, y_<name>, vx_<name>, vy_<name>``
+    (default file: ``comp``, ``turb``).
+    """
+
+    def __init__(self, params: TurbochargerParams | None = None, *,
+                 rotor: RotorDefinition | None = None):
+        p = TurbochargerParams() if params is None else params
+        self.params = p
+        rd = rotor if rotor is not None else load_rotor_file(p.rotor_file)
+        self.rotor_def = rd
+        fe = assemble(rd.elements, rd.fe_discs(), shear=p.shear, beta_internal=rd.internal_damping)
+        self.fe = fe
+        f_g_full = -p.g * (fe.M @ fe.rigid_translation("y"))
+        nb = len(rd.bearing_nodes)
+        point_nodes = list(rd.bearing_nodes) + list(rd.disc_nodes)
+        npl = 2 * fe.n_nodes
+        if p.reduce:
+            n_modes = rd.n_modes if p.n_modes is None else int(p.n_modes)
+            Mp, Kp = fe.M[:npl, :npl], fe.K[:npl, :npl]
+            Tp = craig_bampton(Mp, Kp, [2 * nd for nd in point_nodes], n_modes)
+            T = sla.block_diag(Tp, Tp)
+            nr = Tp.shape[1]
+            mats = [T.T @ A @ T for A in (fe.M, fe.C, fe.G, fe.K, fe.Kc, fe.Ka)]
+            f_g = T.T @ f_g_full
+            xdof = {nd: k for k, nd in enumerate(point_nodes)}
+            ydof = {nd: nr + k for k, nd in enumerate(point_nodes)}
+            self.T = T
+        else:
+            mats = [fe.M, fe.C, fe.G, fe.K, fe.Kc, fe.Ka]
+            f_g = f_g_full
+            xdof = {nd: fe.dof(nd, "x") for nd in point_nodes}
+            ydof = {nd: fe.dof(nd, "y") for nd in point_nodes}
+            self.T = None
+        M, C, G, K, Kc, Ka = [0.5 * (A + A.T) if k in (0, 3) else A for k, A in enumerate(mats)]
+        extra = {}
+        unb = []
+        for d, nd in zip(rd.discs, rd.disc_nodes):
+            extra[f"x_{d.name}"] = ("q", xdof[nd])
+            extra[f"y_{d.name}"] = ("q", ydof[nd])
+            extra[f"vx_{d.name}"] = ("v", xdof[nd])
+            extra[f"vy_{d.name}"] = ("v", ydof[nd])
+            if d.unbalance > 0:
+                unb.append((xdof[nd], ydof[nd], d.unbalance, d.unbalance_phase))
+        self._setup(
+            M=M, C=C, G=G, K=K, Kc=Kc, Ka=Ka,
+            bearing_dofs=[[xdof[nd], ydof[nd]] for nd in rd.bearing_nodes],
+            unbalances=unb, f_g=f_g,
+            drive=make_profile(f_max=p.f_max, t_ramp=p.t_ramp, speed_table=p.speed_table),
+            t0=p.t0, max_phase_per_substep=p.max_phase_per_substep,
+            extra_outputs=extra,
+            journal_q0=[[p.journal_x0, p.journal_y0]] * nb,
+            initial_sag=p.initial_sag,
+        )
+
+    def full_displacements(self, s=None) -> np.ndarray:
+        """Physical FE dofs q (full model order) from a (reduced) state s."""
+        s = self.s if s is None else np.asarray(s, float)
+        q = s[:self.n_dof]
+        return q if self.T is None else self.T @ q
