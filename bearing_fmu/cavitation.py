@@ -39,9 +39,10 @@ Parameters (see :class:`bearing_fmu.model.BearingParams`):
 * ``cav_smoothing`` delta [-]: width of the switch in u (Newton smoothness).
 
 Free-to-air penalty (paper eq. 6, figure 3): outward axial flux
-``g(p) = a_z * [a x + (b - a) s softplus(x / s)]`` with ``x = p - p0``, i.e.
-slope ``a`` (0.01) for p < p0 and slope ``b`` (100) for p > p0, smoothed over
-``s``. Units: g is a flux in the units of the scaled Reynolds equation (eq. 2
+``g(p) = a_z * [a x + (b - a) q(x)]`` with ``x = p - p0``, i.e.
+slope ``a`` (0.01) for p < p0 and slope ``b`` (100) for p > p0, the kink
+rounded by a C1 quadratic over ``|x| < penalty_smoothing`` (10 Pa, below
+cav_width so that the cavity sees exactly ``a x``). Units: g is a flux in the units of the scaled Reynolds equation (eq. 2
 divided by rho0, [1/s] per unit dimensionless length); ``a_z = (R/B)^2
 psi^2 / (6 eta0)`` [1/(Pa s)] is the axial film conductance of the nominal
 gap (H = 1) over the whole width, so ``b = 100`` means the edge resistance is
@@ -91,10 +92,20 @@ def law_eval(u, p_cav, K, delta, p_out, dp_out, th_out, dth_out):
 
 @nb.njit(cache=True, inline="always")
 def penalty(x, a, b, s, a_z):
-    """Outward edge flux g(p) of eq. (6) and dg/dp; ``x = p - p0``."""
-    g = a_z * (a * x + (b - a) * s * softplus(x / s))
-    dg = a_z * (a + (b - a) * sigmoid(x / s))
-    return g, dg
+    """Outward edge flux g(p) of eq. (6) and dg/dp; ``x = p - p0``.
+
+    ``g = a_z [a x + (b - a) q(x)]`` with the C1 ramp ``q = 0`` for x <= -s,
+    ``(x + s)^2 / (4 s)`` for |x| < s, ``x`` for x >= s: slope a below p0 - s,
+    slope b above p0 + s, and EXACTLY ``a x`` at the cavity pressure as long as
+    s < cav_width (no spurious outflow from the cavity).
+    """
+    if x <= -s:
+        q, dq = 0.0, 0.0
+    elif x < s:
+        q, dq = (x + s) * (x + s) / (4.0 * s), (x + s) / (2.0 * s)
+    else:
+        q, dq = x, 1.0
+    return a_z * (a * x + (b - a) * q), a_z * (a + (b - a) * dq)
 
 
 class CavitationLaw:

@@ -117,6 +117,7 @@ class TransientFilm:
         self.n = n
         self.lin = (BandLU if linear_solver == "band" else SpluLU)(g.bw)
         self.full_newton = full_newton
+        self.predictor = True
         self.ab = np.zeros((3 * g.bw + 1, n), order="F")
         self.jst = np.zeros((n, 5))
         self.r = np.empty(n)
@@ -132,7 +133,7 @@ class TransientFilm:
         H, He, Hdot, omega = kin
         assemble(u, th_dot0, th_dot1, H, He, Hdot, g.groove, c.u_feed, omega,
                  c.a_phi, c.a_z, g.dphi, g.dz, c.bath, c.p0, c.law.p_cav, c.law.K,
-                 c.law.delta, c.params.penalty_a, c.params.penalty_b, c.law.s,
+                 c.law.delta, c.params.penalty_a, c.params.penalty_b, c.params.penalty_smoothing,
                  self.r, want_jac, self.jst,
                  self.wp, self.wdp, self.wth, self.wdth)
         return self.r
@@ -255,7 +256,10 @@ class TransientFilm:
             dx = un - u
             u = un
             nrm = float(np.max(np.abs(dx) / (atol + rtol * np.abs(u))))
-            if nrm <= 1.0:
+            rho = nrm / prev if prev else 1.0
+            # converged: increment small, or the remaining error estimated from
+            # the contraction rate, rho/(1 - rho) |dx|, is (Hairer & Wanner IV.8)
+            if nrm <= 1.0 or (rho < 0.9 and rho / (1.0 - rho) * nrm <= 1.0):
                 self.stats["newton"] += its
                 return u, its
             prev = nrm
@@ -305,7 +309,7 @@ class TransientFilm:
                     a0, a1, a2 = (1 + 2 * w) / (1 + w), -(1 + w), w * w / (1 + w)
                     th_dot0 = a0 / h
                     th_dot1 = (a1 * th_n + a2 * self.th_nm1) / h
-                if self.n_hist >= 1:
+                if self.n_hist >= 1 and self.predictor:
                     # linear extrapolation of u as Newton start (not a state change)
                     u_start = self.u + (h / self.h_prev) * (self.u - self.u_prev)
                 else:

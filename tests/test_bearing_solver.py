@@ -221,3 +221,14 @@ def test_half_sommerfeld_step_is_quasi_static():
     sq = JournalBearing(p)
     sq.initialize(0.0, -0.5 * p.c, 0.0, -0.01, W100)
     assert sq.outputs["Fy"] > ref.outputs["Fy"]
+
+
+def test_free_to_air_cavity_edges_do_not_leak():
+    """Eq. (6): below p0 the edge flux is a * a_z * (p - p0) (tiny inflow),
+    never an outflow; with a wide theta step the cavity must not drain to
+    theta < 0 (it did with a penalty smoothing tied to cav_width)."""
+    p = small(axial_bc=1, cav_width=3e4, **GROOVE)
+    b = solve_stationary(p, 0.0, -0.6 * p.c, W100)
+    f = b.fields()
+    assert f["theta"].min() > 0.0
+    assert b.outputs["q_side"] == pytest.approx(b.outputs["q_feed"], rel=1e-6)
