@@ -134,6 +134,9 @@ class SubsystemBase(ABC):
     name: str
     can_interpolate_inputs: bool = False
     can_get_set_state: bool = False
+    # passed to fmi2DoStep as noSetFMUStatePriorToCurrentPoint; the master sets
+    # it False while it may still restore an earlier state (start-up iteration)
+    no_set_prior_state: bool = True
 
     def __init__(self, name: str):
         self.name = name
@@ -321,7 +324,7 @@ class Subsystem(SubsystemBase):
                     if not isinstance(value, str):
                         raise TypeError
                     if out_dir is not None:
-                        value = value.replace("{out_dir}", str(out_dir))
+                        value = value.replace("{out_dir}", str(Path(out_dir).resolve()))
                     self._call("fmi2SetString", self._component, vr, 1, (fmi2String * 1)(value.encode("utf-8")))
             except TypeError:
                 raise ScenarioError(f"parameter '{self.name}.{pname}' is of type {v.type}, got {value!r} "
@@ -364,7 +367,7 @@ class Subsystem(SubsystemBase):
     def do_step(self, t: float, h: float) -> None:
         self.calls["doStep"] += 1
         try:
-            res = self._c_do_step(self._component, t, h, 1)
+            res = self._c_do_step(self._component, t, h, 1 if self.no_set_prior_state else 0)
         except Exception as e:
             self._state = "error"
             raise FmuCallError(self.name, "fmi2DoStep", "exception", self._detail(str(e))) from e

@@ -417,6 +417,8 @@ class MasterAlgorithm:
         hist = self.history
         states = [u.sub.get_state() for u in self.units]
         snap = hist.snapshot()
+        for u in self.units:
+            u.sub.no_set_prior_state = False      # we will restore the saved state
         try:
             self._step_impl(t, t_next, commit=False)
             q = min(self.predictor.k, hist.count)
@@ -430,6 +432,8 @@ class MasterAlgorithm:
                 self._step_impl(t, t_next, commit=False, startup_q=q)
             hist.commit()
         finally:
+            for u in self.units:
+                u.sub.no_set_prior_state = True
             for u, s in zip(self.units, states):
                 try:
                     u.sub.free_state(s)
