@@ -97,7 +97,17 @@ def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, 
         from .master import MasterAlgorithm
         obs = [CsvWriter(out_dir / "results.csv"), Progress(progress), *observers]
         master = MasterAlgorithm(scenario, out_dir=out_dir, observers=obs)
-        res = master.run()
+        try:
+            res = master.run()
+        except KeyboardInterrupt:
+            # interrupted by the user: record where the run stopped, then re-raise
+            if master.status is not Status.NOT_STARTED:
+                res = master.result()
+                msg = f"interrupted by the user at t={res.end_time:.12g} s; " + (res.message or "")
+                from dataclasses import replace
+                write_summary(out_dir / "summary.json",
+                              _summary(scenario, replace(res, status=Status.FAILED, message=msg), out_dir))
+            raise
         write_summary(out_dir / "summary.json", _summary(scenario, res, out_dir))
 
     if scenario.analysis:

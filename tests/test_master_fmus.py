@@ -262,3 +262,19 @@ def orders_table(fmus_dir: Path | None = None) -> str:
 
 if __name__ == "__main__":
     print(orders_table())
+
+
+def test_keyboard_interrupt_still_writes_summary(test_fmus, tmp_path):
+    from orchestrator.observers import Observer
+
+    class Interrupt(Observer):
+        def on_step_complete(self, view):
+            if view.n == 3:
+                raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run(two_mass(test_fmus, "jacobi", 0.01, 0, T=0.1), out_dir=tmp_path, progress=False,
+            observers=[Interrupt()])
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["status"] == "failed" and "interrupted" in s["message"] and s["end_time"] == pytest.approx(0.03)
+    assert len(pd.read_csv(tmp_path / "results.csv")) == 4
