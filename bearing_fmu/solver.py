@@ -118,6 +118,7 @@ class TransientFilm:
         self.lin = (BandLU if linear_solver == "band" else SpluLU)(g.bw)
         self.full_newton = full_newton
         self.predictor = True
+        self.line_search = True
         self.ab = np.zeros((3 * g.bw + 1, n), order="F")
         self.jst = np.zeros((n, 5))
         self.r = np.empty(n)
@@ -245,7 +246,7 @@ class TransientFilm:
                 break
             un = u + dx
             _limit_switch(u, un, self.ctx.law.delta)
-            if prev is not None:
+            if prev is not None and self.line_search:
                 # backtracking on |r| (the Newton step is a descent direction)
                 r0 = float(np.linalg.norm(r))
                 lam = 1.0
@@ -255,7 +256,7 @@ class TransientFilm:
                     un = u + lam * (un - u)
             dx = un - u
             u = un
-            nrm = float(np.max(np.abs(dx) / (atol + rtol * np.abs(u))))
+            nrm = self._increment_norm(dx, atol, rtol)
             rho = nrm / prev if prev else 1.0
             # converged: increment small, or the remaining error estimated from
             # the contraction rate, rho/(1 - rho) |dx|, is (Hairer & Wanner IV.8)
@@ -266,6 +267,16 @@ class TransientFilm:
         self.stats["newton"] += its
         self.stats["failed_newton"] += 1
         return None, its
+
+    def _increment_norm(self, dx, atol, rtol):
+        """Newton increment in physical terms: max over cells of
+        ``max(|dtheta| / atol, |dp| / (rtol (p_max - p_min) + atol K))`` with
+        dtheta, dp linearised at the last residual evaluation: theta to
+        ``newton_atol``, pressure to ``newton_rtol`` of the pressure range."""
+        law = self.ctx.law
+        p_tol = rtol * (float(self.wp.max()) - float(self.wp.min())) + atol * law.K
+        adx = np.abs(dx)
+        return float(max(np.max(adx * self.wdth) / atol, np.max(adx * self.wdp) / p_tol))
 
     # ------------------------------------------------------------ stepping
     def init_state(self, u):
