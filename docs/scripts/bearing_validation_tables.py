@@ -146,60 +146,88 @@ def sec_flow():
     md(["case", "q_feed [m^3/s]", "q_side [m^3/s]", "difference", "relative"], rows)
 
 
+def _order_table(label, grids, vals, unit):
+    rows = [[g, f"{v:.6g}"] for g, v in zip(grids, vals)]
+    md(["grid", f"{label} [{unit}]"], rows)
+    order = math.log2(abs(vals[-3] - vals[-2]) / abs(vals[-2] - vals[-1]))
+    rich = vals[-1] + (vals[-1] - vals[-2]) / (2**order - 1)
+    errs = ", ".join(f"{g}: {100 * abs(v - rich) / abs(rich):.2f} %" for g, v in zip(grids, vals))
+    print(f"- observed order (three finest grids) {order:.2f}; Richardson estimate "
+          f"{rich:.6g}; error against it: {errs}\n")
+    return rich
+
+
 def sec_grid():
-    print("### Grid convergence (paper case, free to air and oil bath)\n")
-    for bc, name in ((0, "oil bath"), (1, "free to air")):
-        grids = (20, 40, 80, 160)
-        vals = []
-        rows = []
-        for n in grids:
-            t = time.time()
-            b = paper_case(bc, n, n)
-            vals.append((math.hypot(b.outputs["Fx"], b.outputs["Fy"]), b.outputs["p_max"]))
-            rows.append([f"{n} x {n}", f"{vals[-1][0]:.6g}", f"{vals[-1][1]:.6g}",
-                         f"{time.time() - t:.1f}"])
-        print(f"{name}:\n")
-        md(["grid", "|F| [N]", "p_max [Pa]", "wall [s]"], rows)
-        for k, label in ((0, "|F|"), (1, "p_max")):
-            v = [w[k] for w in vals]
-            order = math.log2(abs(v[-3] - v[-2]) / abs(v[-2] - v[-1]))
-            rich = v[-1] + (v[-1] - v[-2]) / (2**order - 1)
-            print(f"- {label}: observed order (from the three finest grids) {order:.2f}; "
-                  f"Richardson estimate {rich:.6g}; error of 40 x 40 "
-                  f"{100 * abs(v[1] - rich) / abs(rich):.2f} %; of 80 x 80 "
-                  f"{100 * abs(v[2] - rich) / abs(rich):.2f} %")
-        print()
+    print("### Grid convergence\n")
+    print("Half-Sommerfeld, paper geometry (B/R = 1.6, eps = 0.7), |F| [N]:\n")
+    grids, vals = [], []
+    for n in (20, 40, 80, 160, 320):
+        f = hs_force(params(B=PAPER_B, n_phi=n, n_z=n), -0.7 * C, 0.0, 0.0, 0.0)
+        grids.append(f"{n} x {n}")
+        vals.append(float(np.linalg.norm(f)))
+    _order_table("|F|", grids, vals, "N")
+    print("Mass-conserving, table case (L/D = 1, eps = 0.6, flooded groove at h_max, "
+          "oil bath), |F| [N]:\n")
+    grids, vals = [], []
+    for n in (40, 80, 160):
+        t = time.time()
+        _, _, b = finite_case(1.0, 0.6, n, n // 2)
+        grids.append(f"{n} x {n // 2} ({time.time() - t:.1f} s)")
+        vals.append(math.hypot(b.outputs["Fx"], b.outputs["Fy"]))
+    rich = _order_table("|F|", grids, vals, "N")
+    s_rich = ref.sommerfeld_number(rich, R=R, B=2 * R, c=C, eta=ETA, omega=OMEGA)
+    print(f"- Sommerfeld number from the Richardson force: {s_rich:.5f} (table 0.1209)\n")
+    print("Mass-conserving, paper case free to air (15 deg groove), |F| [N] and p_max [Pa]:\n")
+    grids, vals, pm = [], [], []
+    for n in (20, 40, 80, 160):
+        t = time.time()
+        b = paper_case(1, n, n)
+        grids.append(f"{n} x {n} ({time.time() - t:.1f} s)")
+        vals.append(math.hypot(b.outputs["Fx"], b.outputs["Fy"]))
+        pm.append(b.outputs["p_max"])
+    _order_table("|F|", grids, vals, "N")
+    _order_table("p_max", grids, pm, "Pa")
 
 
 def sec_paper():
     print("### Paper section 3.1 (40 x 40)\n")
-    rows = []
-    res = {}
-    for bc, name in ((0, "oil bath (eq. 5), no groove"), (1, "free to air (eq. 6), 15 deg groove")):
-        b = paper_case(bc)
-        o = b.outputs
-        area, edge, thmin = cavity_stats(b)
-        res[bc] = o["p_max"]
-        rows.append([name, f"{o['p_max'] / 1e6:.4f}", f"{o['p_min'] / 1e5:.5f}",
-                     f"{math.hypot(o['Fx'], o['Fy']):.2f}",
-                     f"{math.degrees(ref.attitude_angle(o['Fx'], o['Fy'], -0.7 * C, 0)):.2f}",
-                     f"{100 * area:.1f} %", f"{edge:.3f}", f"{thmin:.3f}"])
-    md(["case", "p_max [MPa]", "p_min [bar]", "|F| [N]", "attitude [deg]",
-        "cavity area (theta<0.999)", "min theta at edges", "min theta"], rows)
-    print(f"p_max difference (air - bath)/bath: {100 * (res[1] - res[0]) / res[0]:+.3f} % "
-          f"(paper: 0.6 %)\n")
+    for width in (1e3, 0.9 * P0):
+        rows = []
+        res = {}
+        for bc, name in ((0, "oil bath (eq. 5), no groove"),
+                         (1, "free to air (eq. 6), 15 deg groove")):
+            b = paper_case(bc, cav_width=width)
+            o = b.outputs
+            area, edge, thmin = cavity_stats(b)
+            res[bc] = o["p_max"]
+            rows.append([name, f"{o['p_max'] / 1e6:.4f}", f"{o['p_min'] / 1e5:.5f}",
+                         f"{math.hypot(o['Fx'], o['Fy']):.1f}",
+                         f"{math.degrees(o['attitude']):.2f}",
+                         f"{100 * area:.1f} %", f"{edge:.3f}", f"{thmin:.3f}"])
+        print(f"cav_width = {width:g} Pa:\n")
+        md(["case", "p_max [MPa]", "p_min [bar]", "|F| [N]", "attitude [deg]",
+            "cavity area (theta<0.999)", "min theta at edges", "min theta"], rows)
+        print(f"p_max difference (bath - air)/air: {100 * (res[0] - res[1]) / res[1]:+.2f} % "
+              f"(paper: 0.6 %)\n")
 
 
 def sec_smoothing():
-    print("### Effect of the smoothing width of theta(p) (paper case, free to air, 40 x 40)\n")
+    print("### Effect of the smoothing width of theta(p) (paper case, 40 x 40)\n")
     rows = []
-    for w in (1e2, 1e3, 5e3, 2e4):
-        b = paper_case(1, cav_width=w)
-        o = b.outputs
-        area, edge, _ = cavity_stats(b)
-        rows.append([f"{w:g}", f"{o['p_max'] / 1e6:.4f}", f"{o['p_min'] / 1e5:.5f}",
-                     f"{math.hypot(o['Fx'], o['Fy']):.3f}", f"{100 * area:.1f} %"])
-    md(["cav_width [Pa]", "p_max [MPa]", "p_min [bar]", "|F| [N]", "cavity area"], rows)
+    for bc, name in ((1, "free to air"), (0, "oil bath")):
+        for w in (1e2, 1e3, 1e4, 3e4, 9e4):
+            try:
+                b = paper_case(bc, cav_width=w)
+            except model.StepFailed as e:
+                rows.append([name, f"{w:g}", "no steady solution", "", "", "", "", str(e)[:40]])
+                continue
+            o = b.outputs
+            area, edge, thmin = cavity_stats(b)
+            rows.append([name, f"{w:g}", f"{o['p_max'] / 1e6:.4f}", f"{o['p_min'] / 1e5:.4f}",
+                         f"{math.hypot(o['Fx'], o['Fy']):.1f}", f"{100 * area:.1f} %",
+                         f"{edge:.3f}", f"{thmin:.3f}"])
+    md(["case", "cav_width [Pa]", "p_max [MPa]", "p_min [bar]", "|F| [N]",
+        "cavity area", "min theta at edges", "min theta"], rows)
 
 
 def sec_plots():
@@ -209,8 +237,9 @@ def sec_plots():
     import matplotlib.pyplot as plt
 
     IMG.mkdir(parents=True, exist_ok=True)
-    for bc, name, fig_no in ((0, "oil_bath", 5), (1, "free_to_air", 7)):
-        b = paper_case(bc)
+    for bc, name, fig_no, width in ((0, "oil_bath", 5, 1e3), (1, "free_to_air", 7, 1e3),
+                                    (0, "oil_bath_cav_width_90kPa", 5, 0.9 * P0)):
+        b = paper_case(bc, cav_width=width)
         f = b.fields()
         phi = np.degrees(f["phi"])
         zb = np.asarray(f["z"]) / PAPER_B
@@ -225,8 +254,9 @@ def sec_plots():
         for a in ax:
             a.set_xlabel("phi [deg]")
             a.set_ylabel("z / B")
-        fig.suptitle(f"Stationary case, {name.replace('_', ' ')}: 100 Hz, eps = 0.7, "
-                     "h_min at phi = 180 deg, 40 x 40")
+        fig.suptitle(f"Stationary case, {name.split('_cav')[0].replace('_', ' ')}: 100 Hz, "
+                     "eps = 0.7, "
+                     f"h_min at phi = 180 deg, 40 x 40, cav_width = {width:g} Pa")
         out = IMG / f"bearing_stationary_{name}.png"
         fig.savefig(out, dpi=110)
         plt.close(fig)
