@@ -1,0 +1,169 @@
+"""Linearized film coefficients for interface-Jacobian coupling (docs/stiff-coupling.md).
+
+``linearization(bearing) -> (K, C)``: 2x2 stiffness ``K = -dF/dr`` [N/m] and damping
+``C = -dF/dv`` [N s/m] (r = (x, y), v = (vx, vy), F = film force ON the journal,
+x-y frame of docs/dev/contracts.md) at the bearing's current state, without changing
+it. The rotor uses them to integrate the film force's first-order variation over a
+macro step implicitly (Kuebler & Schiehlen 2000; Sicklinger et al. 2014, "Interface
+Jacobian-based co-simulation", IJNME 98(6); Schweizer & Lu 2015); they only need to
+be accurate enough to stabilize, the converged answer does not depend on them.
+
+* Half-Sommerfeld (``cavitation = 0``, quasi-static): central finite differences of
+  the discrete quasi-static force ``F(x, y, vx, vy, omega)`` (the same DST/cyclic
+  tridiagonal solver and force integral as :meth:`JournalBearing.step`), 8 extra
+  solves. Steps ``dx = rel_step c`` and ``dv = rel_step max(c |omega|, |v|, c / t_ref)``.
+  The clipped pressure ``max(P, 0)`` makes F piecewise smooth; where a cell switches
+  inside the stencil the result is the mean of the one-sided slopes (the classical
+  linearized coefficients of the short bearing, Lund 1987 / Childs 1993 sec. 3.6,
+  are the limit; see the tests vs ``reference.short_bearing_coefficients``).
+
+* Mass-conserving (``cavitation = 1``, transient): the instantaneous sensitivity of
+  the film force to the journal kinematics with the film history held, i.e. of the
+  last implicit (BDF1/2) step ``R(u; kin) = 0`` the film took::
+
+      dF/dkin = dF/du|kin (du/dkin) + dF/dkin|u,   du/dkin = -J^-1 dR/dkin,
+
+  with ``J = dR/du`` the exact stencil Jacobian at the accepted solution (own band
+  LU, the solver's factorisation and buffers are not touched), ``dR/dkin`` and
+  ``dF/dkin|u`` by central differences in the kinematics, ``dF/du (du)`` by a central
+  directional difference through the cavitation law. The full-film part of the
+  Reynolds equation is elliptic, so its squeeze response is instantaneous and
+  captured exactly; the theta transport in the cavity responds over the BDF step
+  ``h`` only (the held history). Before the first film step (no BDF history yet) the
+  half-Sommerfeld coefficients at the same kinematics are returned (documented
+  approximation; they have the right squeeze-damping magnitude).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import lapack
+
+from .film import assemble, integrals, stencil_to_band
+
+__all__ = ["linearization", "hs_force", "film_force_at"]
+
+
+def _kin(b, x, y, vx, vy, omega):
+    H, He, Hdot = b.grid.gap(x, y, vx, vy, b.c)
+    return (H, He, Hdot, float(omega))
+
+
+def _force(b, p, th, kin):
+    H, He, Hdot, omega = kin
+    g, prm = b.grid, b.params
+    Fx, Fy, *_ = integrals(
+        np.ascontiguousarray(p).ravel(), np.ascontiguousarray(th).ravel(), H, He, g.groove,
+        g.phi, omega, b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, prm.penalty_a,
+        prm.penalty_b, b.law.s, prm.R, prm.B, b.c, prm.eta0)
+    return np.array([Fx, Fy])
+
+
+def hs_force(b, x, y, vx, vy, omega) -> np.ndarray:
+    """Quasi-static half-Sommerfeld film force [N] (2,) of bearing ``b`` at the given
+    kinematics; side-effect free (any ``cavitation`` setting)."""
+    kin = _kin(b, x, y, vx, vy, omega)
+    p = b._hs_pressure(kin)
+    return _force(b, p, np.ones_like(p), kin)
+
+
+def _central(f, z0, steps):
+    """-(df/dz) by central differences: columns j = 0..3 over z = (x, y, vx, vy)."""
+    D = np.empty((2, 4))
+    for j in range(4):
+        zp, zm = z0.copy(), z0.copy()
+        zp[j] += steps[j]
+        zm[j] -= steps[j]
+        D[:, j] = -(f(zp) - f(zm)) / (2.0 * steps[j])
+    return D
+
+
+def _steps(b, z, omega, rel_step, t_ref):
+    c = b.c
+    dv = rel_step * max(c * abs(omega), float(np.hypot(z[2], z[3])), c / t_ref)
+    return np.array([rel_step * c, rel_step * c, dv, dv])
+
+
+def hs_linearization(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3):
+    """(K, C) of the half-Sommerfeld force at the given kinematics (see module doc)."""
+    z0 = np.array([x, y, vx, vy], dtype=float)
+    D = _central(lambda z: hs_force(b, z[0], z[1], z[2], z[3], omega), z0,
+                 _steps(b, z0, omega, rel_step, t_ref))
+    return D[:, :2].copy(), D[:, 2:].copy()
+
+
+def _last_bdf(film):
+    """(th_dot0, th_dot1) of the film's last accepted step, or None without history."""
+    if film.n_hist == 0 or film.h_prev <= 0.0:
+        return None
+    h = film.h_prev
+    if film.n_hist == 1:
+        return 1.0 / h, -film.th_nm1 / h
+    w = h / film.h_prev2
+    a0, a1, a2 = (1 + 2 * w) / (1 + w), -(1 + w), w * w / (1 + w)
+    return a0 / h, (a1 * film.th_nm1 + a2 * film.th_nm2) / h
+
+
+def film_force_at(b, u, kin) -> np.ndarray:
+    """Film force [N] (2,) of the universal-variable field ``u`` at kinematics ``kin``."""
+    p, th = b.law.p_theta(u)
+    return _force(b, p, th, kin)
+
+
+def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3):
+    """(K, C) of the mass-conserving film at its current state (see module doc)."""
+    film = b.film
+    x, y, vx, vy, omega = b._inputs
+    bdf = _last_bdf(film)
+    if bdf is None:
+        return hs_linearization(b, x, y, vx, vy, omega, rel_step=rel_step, t_ref=t_ref)
+    th_dot0, th_dot1 = bdf
+    g = b.grid
+    prm = b.params
+    n = film.n
+    u = film.u.copy()
+    bufs = [np.empty(n) for _ in range(4)]
+    r = np.empty(n)
+    jst = np.zeros((n, 5))
+
+    def res(kin, want_jac=False):
+        H, He, Hdot, om = kin
+        assemble(u, th_dot0, th_dot1, H, He, Hdot, g.groove, b.u_feed, om,
+                 b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, b.law.p_cav, b.law.K,
+                 b.law.delta, prm.penalty_a, prm.penalty_b, prm.penalty_smoothing,
+                 r, want_jac, jst, *bufs)
+        return r.copy()
+
+    kin0 = _kin(b, x, y, vx, vy, omega)
+    res(kin0, want_jac=True)
+    ab = np.zeros((3 * g.bw + 1, n), order="F")
+    stencil_to_band(jst, g.n_phi, g.pos, g.bw, ab)
+    lu, piv, info = lapack.dgbtrf(ab, g.bw, g.bw, overwrite_ab=1)
+    if info != 0:   # singular Newton matrix: fall back to the quasi-static coefficients
+        return hs_linearization(b, x, y, vx, vy, omega, rel_step=rel_step, t_ref=t_ref)
+    z0 = np.array([x, y, vx, vy], dtype=float)
+    steps = _steps(b, z0, omega, rel_step, t_ref)
+    D = np.empty((2, 4))
+    for j in range(4):
+        zp, zm = z0.copy(), z0.copy()
+        zp[j] += steps[j]
+        zm[j] -= steps[j]
+        kp, km = _kin(b, *zp, omega), _kin(b, *zm, omega)
+        dR = (res(kp) - res(km)) / (2.0 * steps[j])
+        du, _ = lapack.dgbtrs(lu, g.bw, g.bw, -dR[g.order], piv)
+        du = du[g.pos]
+        # directional difference of F through the cavitation law, scaled to a small u change
+        s = 1e-6 * max(1.0, float(np.abs(u).max())) / max(float(np.abs(du).max()), 1e-300)
+        dF_u = (film_force_at(b, u + s * du, kin0) - film_force_at(b, u - s * du, kin0)) / (2 * s)
+        dF_k = (film_force_at(b, u, kp) - film_force_at(b, u, km)) / (2.0 * steps[j])
+        D[:, j] = -(dF_u + dF_k)
+    return D[:, :2].copy(), D[:, 2:].copy()
+
+
+def linearization(b, *, rel_step=1e-5, t_ref=1e-3):
+    """(K, C) 2x2 [N/m], [N s/m] of :class:`bearing_fmu.model.JournalBearing` ``b`` at
+    its current state (after ``initialize``/``step``); the state is not changed."""
+    b._check_init("linearization")
+    if b.film is None:
+        return hs_linearization(b, *b._inputs, rel_step=rel_step, t_ref=t_ref)
+    return mc_linearization(b, rel_step=rel_step, t_ref=t_ref)
