@@ -93,6 +93,13 @@ OUTPUTS: dict[str, tuple[str, str]] = {
     "q_feed": ("m3/s", "volume inflow through the feed groove [m^3/s]"),
     "q_side": ("m3/s", "volume outflow through both axial edges [m^3/s]"),
 }
+# Interface-Jacobian coupling (docs/stiff-coupling.md, bearing_fmu/linearize.py): film
+# coefficients K = -dF/dr, C = -dF/dv at the current state, computed when the Integer
+# parameter ``linearize`` is 1 (default), else 0.
+LINEARIZATION_OUTPUTS: dict[str, tuple[str, str]] = {
+    f"{kind}{i}{j}": (unit, f"film {what} -dF{i}/d{var}{j} [{unit}] (interface-Jacobian coupling)")
+    for kind, unit, what, var in (("k", "N/m", "stiffness", ""), ("c", "N.s/m", "damping", "v"))
+    for i in "xy" for j in "xy"}
 # Model parameters whose names collide with FMU variables: FMU name -> model field.
 RENAMED = {"solver_h_init": "h_init", "solver_h_min": "h_min", "solver_h_max": "h_max"}
 _FMU_NAME = {v: k for k, v in RENAMED.items()}
@@ -105,6 +112,7 @@ UNITS = {
     "rad/s": dict(rad="1", s="-1"), "Pa": dict(kg="1", m="-1", s="-2"),
     "Pa.s": dict(kg="1", m="-1", s="-1"), "N": dict(kg="1", m="1", s="-2"),
     "N.m": dict(kg="1", m="2", s="-2"), "m3/s": dict(m="3", s="-1"), "1": {},
+    "N/m": dict(kg="1", s="-2"), "N.s/m": dict(kg="1", s="-1"),
 }
 
 
@@ -152,6 +160,55 @@ def _finish_model_description(root: Element, units: set[str]) -> Element:
         for index in indices:
             SubElement(initial, "Unknown", attrib={"index": index})
     return root
+
+
+def shipped_parameters(resources: str | None) -> list[tuple[str, Any, type]] | None:
+    """Parameters declared in the FMU's own ``modelDescription.xml`` (name, start, type), in order.
+
+    At run time the variable list must be the one the importer read, even if the
+    Python model found at run time has other parameter fields (e.g. a process that
+    imported a newer ``bearing_fmu`` before loading an older FMU): value references
+    are positions in this list. ``None`` when there is no shipped description
+    (the builder is writing it).
+    """
+    if not resources:
+        return None
+    path = Path(resources).parent / "modelDescription.xml"
+    if not path.is_file():
+        return None
+    from xml.etree import ElementTree
+    kinds = {"Real": float, "Integer": int, "Boolean": bool, "String": str}
+    out = []
+    for sv in ElementTree.parse(path).getroot().iter("ScalarVariable"):
+        if sv.get("causality") != "parameter":
+            continue
+        for tag, kind in kinds.items():
+            node = sv.find(tag)
+            if node is not None:
+                start = node.get("start", "")
+                value = (start.lower() == "true") if kind is bool else kind(start) if start != "" or kind is str \
+                    else kind()
+                out.append((sv.get("name"), value, kind))
+                break
+    return out
+
+
+def check_shipped_layout(slave) -> None:
+    """Raise if the registered variables differ from the shipped modelDescription.xml."""
+    if not slave.resources:
+        return
+    path = Path(slave.resources).parent / "modelDescription.xml"
+    if not path.is_file():
+        return
+    from xml.etree import ElementTree
+    shipped = [(int(sv.get("valueReference")), sv.get("name"))
+               for sv in ElementTree.parse(path).getroot().iter("ScalarVariable")]
+    have = [(vr, v.name) for vr, v in slave.vars.items()]
+    if shipped != have:
+        diff = sorted(set(shipped) ^ set(have))[:6]
+        raise RuntimeError(f"{type(slave).__name__}: the variables of this slave differ from its "
+                           f"modelDescription.xml (first differences {diff}); rebuild the FMU "
+                           "(`rotorcosim build-fmus --force`)")
 
 
 def use_stable_code_copy(resources: str | None, package: str = "bearing_fmu") -> Path | None:
@@ -271,6 +328,12 @@ class JournalBearing(Fmi2Slave):
                 "if not empty: at fmi2Terminate write numpy.savez(fields_file, phi, z, p, theta, h, t) "
                 "(arrays of JournalBearing.fields(); '{out_dir}' is substituted by the rotorcosim master)"),
             getter=lambda: self.fields_file, setter=self._set_fields_file, **par))
+        self._values["linearize"] = 1
+        self.register_variable(Integer(
+            "linearize", description=(
+                "1: output the film coefficients kxx..cyy after every step (interface-Jacobian "
+                "coupling, docs/stiff-coupling.md); 0: outputs 0, no extra cost"),
+            getter=self._getter("linearize"), setter=self._param_setter("linearize", int), **par))
 
         for name, (unit, desc) in INPUTS.items():
             self._values[name] = 0.0
@@ -284,11 +347,19 @@ class JournalBearing(Fmi2Slave):
                 variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
                 getter=self._output_getter(name)))
             units.add(unit)
+        for name, (unit, desc) in LINEARIZATION_OUTPUTS.items():
+            self._values[name] = 0.0
+            self.register_variable(_RealU(
+                name, unit=unit, description=desc, causality=Fmi2Causality.output,
+                variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
+                getter=self._output_getter(name)))
+            units.add(unit)
         self.register_variable(_RealU(
             "t_film", unit="s", description="film (model) time [s]",
             causality=Fmi2Causality.local, variability=Fmi2Variability.continuous,
             initial=Fmi2Initial.calculated, getter=lambda: self._time))
         units.add("s")
+        check_shipped_layout(self)
         UNITS.setdefault("s", dict(s="1"))
         self._units = units
 
@@ -330,9 +401,16 @@ class JournalBearing(Fmi2Slave):
     def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006 (PythonFMU's signature)
         return _finish_model_description(super().to_xml(model_options), self._units)
 
-    @staticmethod
-    def _extra_model_parameters() -> list[tuple[str, Any, type]]:
-        """Fields of ``BearingParams`` beyond the issue-5 ones, with their defaults."""
+    def _extra_model_parameters(self) -> list[tuple[str, Any, type]]:
+        """Fields of ``BearingParams`` beyond the issue-5 ones, with their defaults.
+
+        At run time: the ones declared in the FMU's modelDescription.xml (see
+        :func:`shipped_parameters`); while building: from ``BearingParams``.
+        """
+        shipped = shipped_parameters(self.resources)
+        if shipped is not None:
+            fixed = set(REAL_PARAMETERS) | set(INTEGER_PARAMETERS) | {"init", "fields_file", "linearize"}
+            return [(n, v, k) for n, v, k in shipped if n not in fixed]
         try:
             from bearing_fmu.model import BearingParams
         except ImportError:
@@ -389,6 +467,13 @@ class JournalBearing(Fmi2Slave):
             raise KeyError(f"bearing model outputs lack {missing}; it provides {sorted(out)}")
         for name in OUTPUTS:
             self._values[name] = float(out.get(name, 0.0))
+        if self._values.get("linearize", 0):
+            from bearing_fmu.linearize import linearization
+            K, C = linearization(self._model)
+            for m, kind in ((K, "k"), (C, "c")):
+                for a, i in enumerate("xy"):
+                    for b, j in enumerate("xy"):
+                        self._values[f"{kind}{i}{j}"] = float(m[a, b])
 
     # -- FMI life cycle --------------------------------------------------------
     def setup_experiment(self, start_time: float, stop_time=None, tolerance=None):

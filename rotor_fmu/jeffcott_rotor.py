@@ -29,6 +29,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import pickle
+from pathlib import Path
 from typing import Any, Callable
 from xml.etree.ElementTree import Element, SubElement
 
@@ -137,6 +138,48 @@ def scalar_fields(params_cls) -> list[tuple[str, Any, type]]:
     return out
 
 
+def shipped_parameters(resources):
+    """Parameters declared in the FMU's modelDescription.xml: see ``bearing_fmu/journal_bearing.py``."""
+    if not resources:
+        return None
+    path = Path(resources).parent / "modelDescription.xml"
+    if not path.is_file():
+        return None
+    from xml.etree import ElementTree
+    kinds = {"Real": float, "Integer": int, "Boolean": bool, "String": str}
+    out = []
+    for sv in ElementTree.parse(path).getroot().iter("ScalarVariable"):
+        if sv.get("causality") != "parameter":
+            continue
+        for tag, kind in kinds.items():
+            node = sv.find(tag)
+            if node is not None:
+                start = node.get("start", "")
+                value = (start.lower() == "true") if kind is bool else kind(start) if start != "" or kind is str \
+                    else kind()
+                out.append((sv.get("name"), value, kind))
+                break
+    return out
+
+
+def check_shipped_layout(slave) -> None:
+    """Raise if the registered variables differ from the shipped modelDescription.xml."""
+    if not slave.resources:
+        return
+    path = Path(slave.resources).parent / "modelDescription.xml"
+    if not path.is_file():
+        return
+    from xml.etree import ElementTree
+    shipped = [(int(sv.get("valueReference")), sv.get("name"))
+               for sv in ElementTree.parse(path).getroot().iter("ScalarVariable")]
+    have = [(vr, v.name) for vr, v in slave.vars.items()]
+    if shipped != have:
+        diff = sorted(set(shipped) ^ set(have))[:6]
+        raise RuntimeError(f"{type(slave).__name__}: the variables of this slave differ from its "
+                           f"modelDescription.xml (first differences {diff}); rebuild the FMU "
+                           "(`rotorcosim build-fmus --force`)")
+
+
 class InitializationStateError(RuntimeError):
     """An FMI call came in the wrong life-cycle phase."""
 
@@ -157,7 +200,10 @@ def rotor_init(self, **kwargs: Any) -> None:
     self._start_time = 0.0
     units: set[str] = set()
     par = dict(causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed)
-    for name, default, kind in self._parameter_fields():
+    fields = shipped_parameters(self.resources)
+    if fields is None:                # building: from the model's parameter dataclass
+        fields = self._parameter_fields()
+    for name, default, kind in fields:
         if name == "t0":          # the experiment start time sets the model start time
             continue
         unit, desc = PARAMETER_DOCS.get(name, (None, f"rotor model parameter '{name}' (SI units)"))
@@ -184,6 +230,18 @@ def rotor_init(self, **kwargs: Any) -> None:
                 causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
                 getter=_getter(self, name), setter=_input_setter(self, name)))
     units.add("N")
+    for i in range(1, N_BEARINGS + 1):   # interface-Jacobian coupling (docs/stiff-coupling.md)
+        for kind, unit, what in (("k", "N/m", "stiffness -dF/dr"), ("c", "N.s/m", "damping -dF/dv")):
+            for comp in ("xx", "xy", "yx", "yy"):
+                name = f"{kind}{comp}_{i}"
+                self._values[name] = 0.0
+                self.register_variable(_RealU(
+                    name, unit=unit, description=(
+                        f"film {what} {comp} of bearing {i} [{unit}] for interface-Jacobian "
+                        "coupling (default 0: plain force coupling)"),
+                    causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
+                    getter=_getter(self, name), setter=_input_setter(self, name)))
+            units.add(unit)
     for name in self._output_names():
         base = name.rsplit("_", 1)[0] if name[-1].isdigit() else name
         unit, desc = OUTPUT_DOCS.get(base, (None, None))
@@ -204,6 +262,7 @@ def rotor_init(self, **kwargs: Any) -> None:
         if unit:
             units.add(unit)
     self._units = units
+    check_shipped_layout(self)
 
 
 def _getter(self, name: str) -> Callable[[], Any]:
@@ -274,6 +333,17 @@ def rotor_forces(self):
                      for i in range(1, N_BEARINGS + 1)])
 
 
+def rotor_coefficients(self):
+    """Film coefficients (K, C), each (N_BEARINGS, 2, 2), from the inputs kxx_i..cyy_i;
+    (None, None) when all are 0 (plain coupling, bit-identical to the old step)."""
+    import numpy as np
+    v = np.array([[[[self._values[f"{kind}{a}{b}_{i}"] for b in "xy"] for a in "xy"]
+                   for i in range(1, N_BEARINGS + 1)] for kind in "kc"])
+    if not np.any(v):
+        return None, None
+    return v[0], v[1]
+
+
 def rotor_setup_experiment(self, start_time: float, stop_time=None, tolerance=None):
     self._start_time = float(start_time)
     self._time = float(start_time)
@@ -294,7 +364,7 @@ def rotor_do_step(self, current_time: float, step_size: float) -> bool:
             "restore a saved FMU state to step from an earlier time")
     saved = copy.deepcopy(self._model.get_state())
     try:
-        self._model.step(step_size, self._forces())
+        self._model.step(step_size, self._forces(), *rotor_coefficients(self))
     except FloatingPointError as exc:   # state became non-finite: cannot complete this step
         self._model.set_state(saved)
         self.log(f"rotor step t={current_time:.9g} dt={step_size:.3g} failed: {exc}", Fmi2Status.discard)

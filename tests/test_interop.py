@@ -83,17 +83,20 @@ def _libcosim_main(cfg_path: str, out_path: str) -> None:
     for sig in cfg["record"]:
         inst, var = sig.split(".", 1)
         obs.start_time_series(index[inst], mds[inst][var].valueReference, CosimVariableType.REAL)
-    if not ex.step(n):
+    # libcosimpy trims the sample arrays by the number of zero step numbers, which drops one
+    # real sample (step 0 has number 0): take one step more and read steps 0..n
+    if not ex.step(n + 1):
         from libcosimpy._internal import get_last_error_message
         raise AssertionError(f"libcosim step failed: {get_last_error_message()}")
     result = {}
     for sig in cfg["record"]:
         inst, var = sig.split(".", 1)
         times, steps, values = obs.time_series_real_samples(
-            index[inst], mds[inst][var].valueReference, from_step=0, sample_count=n + 1)
-        result[sig] = np.asarray(values, float)
-        result["time"] = np.asarray(times, float) * 1e-9
-        result["step_number"] = np.asarray(steps)
+            index[inst], mds[inst][var].valueReference, from_step=0, sample_count=n + 2)
+        assert list(steps[: n + 1]) == list(range(n + 1)), "unexpected libcosim sample layout"
+        result[sig] = np.asarray(values[: n + 1], float)
+        result["time"] = np.asarray(times[: n + 1], float) * 1e-9
+        result["step_number"] = np.asarray(steps[: n + 1])
     np.savez(out_path, **result)
     del obs
     del ex
