@@ -139,10 +139,10 @@ def _neighbours(g, n_phi, n_z):
 @nb.njit(cache=True)
 def stencil_to_band(jst, n_phi, pos, bw, ab):
     """Scatter the stencil into LAPACK band storage (entry (g, g2) at
-    ``ab[2 bw + pos[g] - pos[g2], pos[g2]]``, shape (3 bw + 1, N))."""
+    ``ab[2 bw + pos[g] - pos[g2], pos[g2]]``, shape (3 bw + 1, N)); ``ab``
+    must be zeroed by the caller (a memset in numpy is faster)."""
     n = jst.shape[0]
     n_z = n // n_phi
-    ab[:, :] = 0.0
     for g in range(n):
         e, w, nn, ss = _neighbours(g, n_phi, n_z)
         pg = pos[g]

@@ -72,7 +72,7 @@ class BandLU:
         self.bw = bw
 
     def factor(self, ab):
-        lu, piv, info = lapack.dgbtrf(ab, self.bw, self.bw, overwrite_ab=0)
+        lu, piv, info = lapack.dgbtrf(ab, self.bw, self.bw, overwrite_ab=1)
         if info != 0:
             raise StepFailed(f"band LU: singular Newton matrix (dgbtrf info={info})")
         self.lu, self.piv = lu, piv
@@ -143,6 +143,7 @@ class TransientFilm:
         if not jst_ready:
             self.residual(u, th_dot0, self._zero, kin, want_jac=True)
         g = self.ctx.grid
+        self.ab.fill(0.0)
         stencil_to_band(self.jst, g.n_phi, g.pos, g.bw, self.ab)
         self.lin.factor(self.ab)
         self._factored = True
@@ -161,7 +162,7 @@ class TransientFilm:
     def _gmres(self, b, tol, maxit):
         """Right-preconditioned GMRES for ``J x = b`` with J the current stencil
         Jacobian and the last LU factorisation as preconditioner (Saad & Schultz
-        1986; modified Gram-Schmidt, Givens rotations). Returns (x, its, ok)."""
+        1986; CGS2 orthogonalisation, Givens rotations). Returns (x, its, ok)."""
         n = b.size
         beta = float(np.linalg.norm(b))
         if beta == 0.0:
@@ -181,9 +182,13 @@ class TransientFilm:
         for j in range(maxit):
             Z[j] = self._psolve(V[j])
             stencil_matvec(self.jst, nphi, Z[j], w)
-            for i in range(j + 1):
-                Hm[i, j] = V[i] @ w
-                w -= Hm[i, j] * V[i]
+            # classical Gram-Schmidt, twice (CGS2: as stable as modified GS,
+            # but two matrix-vector products instead of 2 (j + 1) dot/axpy calls)
+            hcol = V[:j + 1] @ w
+            w -= hcol @ V[:j + 1]
+            h2 = V[:j + 1] @ w
+            w -= h2 @ V[:j + 1]
+            Hm[:j + 1, j] = hcol + h2
             Hm[j + 1, j] = np.linalg.norm(w)
             if Hm[j + 1, j] > 0:
                 V[j + 1] = w / Hm[j + 1, j]
