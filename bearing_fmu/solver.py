@@ -1,4 +1,4 @@
-"""Time integration of the mass-conserving film: BDF1/2 + modified Newton.
+"""Time integration of the mass-conserving film: BDF1/2 + Newton-Krylov.
 
 Method
 ------
@@ -13,13 +13,15 @@ Method
   constant steps). RMS norm over film cells divided by ``theta_atol``; a step is
   accepted when <= 1; the next step is ``0.9 err^(-1/(q+1))`` times the last,
   limited to [0.2, 2] (Hairer, Norsett & Wanner, I.II.4).
-* Nonlinear solve: modified Newton. The Jacobian (assembled by numba in LAPACK
-  band storage, ordering of :mod:`.grid`) is factorised with ``dgbtrf`` and the
-  factorisation is REUSED across iterations and across time steps as long as the
-  contraction rate ``rho = |dx_k| / |dx_(k-1)|`` stays below ``rho_refactor``
-  (0.3); otherwise it is refactorised at the current iterate. Converged when the
-  weighted increment ``max |du| / (atol + rtol |u|) <= 1``. A step whose Newton
-  iteration fails with a fresh Jacobian is retried with h/4.
+* Nonlinear solve: Newton-Krylov. Every iteration assembles the exact
+  5-point stencil Jacobian (numba) and solves it with GMRES preconditioned by
+  the LAST band LU (``dgbtrf``, ordering of :mod:`.grid`), which is REUSED
+  across iterations and time steps; when GMRES needs more than
+  ``krylov_refactor`` iterations the LU is refreshed at the current iterate and
+  the system is solved directly. Converged when the increment in theta is below
+  ``newton_atol`` and in p below ``newton_rtol`` of the pressure range (directly
+  or by the contraction-rate estimate). A step whose Newton iteration fails is
+  retried with h/4.
 * Exact restore: the factorisation is a pure function of (u_jac, the BDF
   coefficient and the kinematics at the last refactorisation), which are part of
   the state; :meth:`TransientFilm.set_state` refactorises from them, so a
