@@ -10,7 +10,8 @@ Reduction (default on): Craig-Bampton (Craig & Bampton 1968, AIAA J. 6:1313) per
 bending plane, with the *translations of the bearing stations and of the wheel
 centres* kept as physical boundary dofs (static constraint modes = static correction
 at the bearing stations and at the unbalance load points) plus ``n_modes``
-fixed-interface normal modes per plane.  The same transformation ``T`` (identical in
+fixed-interface normal modes per plane, plus one static-correction vector for the
+distributed gravity load (so the static sag is exact).  The same transformation ``T`` (identical in
 both planes) projects M, K, G, Ka, C, Kc and the gravity load, so gyroscopic coupling,
 rotating damping and loads stay consistent.  Accuracy vs the full model: see
 ``docs/rotor-models.md`` and ``tests/test_rotor_turbocharger.py``.
@@ -50,11 +51,15 @@ class TurbochargerParams:
     max_phase_per_substep: float = 0.25  # omega_max * h bound of the internal sub-steps [rad]
 
 
-def craig_bampton(M, K, boundary, n_modes):
-    """Craig-Bampton basis T (n x (nb + n_modes)) of a symmetric (M, K) plane model.
+def craig_bampton(M, K, boundary, n_modes, loads=()):
+    """Craig-Bampton basis T (n x (nb + n_modes + len(loads))) of a symmetric (M, K)
+    plane model.
 
     ``q = T [q_b; eta]`` with ``q_b`` the boundary dofs (in the given order) and ``eta``
-    the amplitudes of the ``n_modes`` lowest fixed-interface modes (mass-normalized).
+    the amplitudes of the ``n_modes`` lowest fixed-interface modes (mass-normalized),
+    followed by one static-correction vector per distributed load in ``loads`` (the
+    fixed-interface static deflection ``K_ii^-1 f_i``, M-orthogonalized against the
+    modes), so that the statics under those loads are exact (used for gravity).
     """
     n = M.shape[0]
     b = np.asarray(boundary, int)
@@ -66,12 +71,24 @@ def craig_bampton(M, K, boundary, n_modes):
         raise ValueError("Craig-Bampton: the structure with the boundary dofs held is not "
                          "statically determinate (singular K_ii); give at least two bearing "
                          "stations / discs") from None
-    T = np.zeros((n, len(b) + n_modes))
+    Mii = M[np.ix_(i, i)]
+    vecs = []
+    if n_modes > 0:
+        lam, Phi = sla.eigh(Kii, Mii, subset_by_index=[0, n_modes - 1])
+        vecs = [Phi[:, k] for k in range(n_modes)]
+    for f in loads:
+        u = np.linalg.solve(Kii, np.asarray(f, float)[i])
+        for w in vecs:
+            u = u - (w @ Mii @ u) / (w @ Mii @ w) * w
+        nrm = np.sqrt(u @ Mii @ u)
+        if nrm > 1e-12 * np.sqrt(np.abs(np.linalg.solve(Kii, np.asarray(f, float)[i])) @ Mii
+                                 @ np.abs(np.linalg.solve(Kii, np.asarray(f, float)[i]))):
+            vecs.append(u / nrm)
+    T = np.zeros((n, len(b) + len(vecs)))
     T[b, np.arange(len(b))] = 1.0
     T[np.ix_(i, np.arange(len(b)))] = Psi
-    if n_modes > 0:
-        lam, Phi = sla.eigh(Kii, M[np.ix_(i, i)], subset_by_index=[0, n_modes - 1])
-        T[np.ix_(i, len(b) + np.arange(n_modes))] = Phi
+    for k, w in enumerate(vecs):
+        T[i, len(b) + k] = w
     return T
 
 
@@ -97,7 +114,9 @@ class TurbochargerRotor(LinearRotor):
         if p.reduce:
             n_modes = rd.n_modes if p.n_modes is None else int(p.n_modes)
             Mp, Kp = fe.M[:npl, :npl], fe.K[:npl, :npl]
-            Tp = craig_bampton(Mp, Kp, [2 * nd for nd in point_nodes], n_modes)
+            # static correction for the distributed gravity load (plane y == plane x)
+            Tp = craig_bampton(Mp, Kp, [2 * nd for nd in point_nodes], n_modes,
+                               loads=[f_g_full[npl:]])
             T = sla.block_diag(Tp, Tp)
             nr = Tp.shape[1]
             mats = [T.T @ A @ T for A in (fe.M, fe.C, fe.G, fe.K, fe.Kc, fe.Ka)]
