@@ -86,6 +86,7 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
     t_start = time.perf_counter()
     out_dir = Path(out_dir)
     runs = out_dir / "runs"
+    spec = _snapshot_fmus(spec, out_dir / "fmus")
     jobs: list[tuple[str, Scenario]] = [("reference", spec.scenario(spec.reference.changes))]
     if spec.reference.check:
         jobs.append(("reference-check", spec.scenario(spec.reference.halved(spec.base))))
@@ -107,6 +108,12 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
     if not ref.ok:
         raise RuntimeError(f"compare '{spec.name}': the reference run failed ({ref.message}); "
                            f"see {runs / 'reference'}")
+    if spec.window is not None:    # metrics (and scales) over the window only
+        t_from, t_to = spec.window
+        tol = 1e-9 * max(1.0, abs(t_to))
+        keep = (ref.t >= t_from - tol) & (ref.t <= t_to + tol)
+        ref.t = ref.t[keep]
+        ref.outputs = {k: v[keep] for k, v in ref.outputs.items()}
     scales = {}
     for s, scale in spec.signals.items():
         if s not in ref.outputs:
@@ -115,6 +122,7 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
         peak = float(np.max(np.abs(ref.outputs[s])))
         scales[s] = scale if scale is not None else (peak if peak > 0 else 1.0)
     reference = {"changes": dict(spec.reference.changes), "wall_time_s": ref.wall_time_s,
+                 "window": list(spec.window) if spec.window else None,
                  "macro_steps": ref.macro_steps, "fmu_calls": ref.fmu_calls,
                  "scales": scales, "dir": str(runs / "reference")}
     if spec.reference.check:
@@ -154,6 +162,29 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
                        "points": n, "expected": members[0]["expect_order"]})
     return CompareReport(name=spec.name, reference=reference, variants=variants, orders=orders,
                          wall_time_s=time.perf_counter() - t_start)
+
+
+def _snapshot_fmus(spec: CompareSpec, dest: Path) -> CompareSpec:
+    """Copy every FMU of the base into ``dest`` and point the scenario there, so that all
+    runs of one comparison use the same FMU files (nothing rebuilds or replaces them
+    while the comparison runs: ``run`` rebuilds stale FMUs only inside the repo's fmus/)."""
+    import dataclasses
+    import shutil
+    dest.mkdir(parents=True, exist_ok=True)
+    copies: dict[Path, Path] = {}
+    fmus = []
+    for f in spec.base.fmus:
+        src = Path(f.path)
+        if not src.is_file():           # the run reports it
+            fmus.append(f)
+            continue
+        if src not in copies:
+            taken = {c.name for c in copies.values()}
+            target = dest / (src.name if src.name not in taken else f"{len(copies)}-{src.name}")
+            shutil.copy2(src, target)
+            copies[src] = target
+        fmus.append(dataclasses.replace(f, path=copies[src]))
+    return dataclasses.replace(spec, base=dataclasses.replace(spec.base, fmus=tuple(fmus)))
 
 
 def _errors(spec: CompareSpec, ref: RunData, run: RunData, scales) -> dict[str, Any]:

@@ -160,7 +160,8 @@ def check_report(report, spec, baseline: Mapping[str, Any] | None) -> list[str]:
         for m, tol in v["tolerance"].items():
             val = v["errors"].get(m, math.inf)
             if not val <= tol:
-                why = "" if v["stable"] else f" (variant {v['status']}, unstable: {v['message']})"
+                msg = v["message"] if len(v["message"]) <= 160 else v["message"][:157] + "..."
+                why = "" if v["stable"] else f" (unstable, run {v['status']}: {msg or 'error >= 100 %'})"
                 fails.append(f"variant '{v['name']}': {m} error {val:.3g} exceeds tolerance {tol:.3g}{why}")
     for o in report.orders:
         if o["expected"] is not None and not abs(o["order"] - o["expected"]) <= spec.order_tolerance:
@@ -235,6 +236,9 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
                   f"t = {spec.base.start_time:g} .. {spec.base.stop_time:g} s, output interval "
                   f"{_fmt(spec.output_interval, '{:g}')} s.", ""]
     ref = report.reference
+    if ref.get("window"):
+        lines += [f"Errors are measured over t = {ref['window'][0]:g} .. {ref['window'][1]:g} s only "
+                  "(`compare.window`).", ""]
     lines += [f"Reference: `{ref['changes']}` ({_fmt(ref['wall_time_s'], '{:.2f}')} s wall). "
               "Errors are relative to the scale of each signal (peak of the reference unless "
               "given), worst over the signals: " + ", ".join(

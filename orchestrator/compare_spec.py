@@ -37,7 +37,7 @@ _ABBR = {"gauss-seidel": "gs", "jacobi": "jac", "monolithic": "mono"}
 _VARIANT_KEYS = set(COUPLING_KEYS) | {"name", "family", "set", "tolerance", "expect_order"}
 _TOP_KEYS = {"name", "scenario", "set", "output_interval", "workers", "reference", "signals",
              "derived", "metrics", "tolerance", "variants", "order_metric", "order_tolerance",
-             "baseline", "regression_margin", "regression_floor", "build_fmus"}
+             "baseline", "regression_margin", "regression_floor", "build_fmus", "window"}
 
 
 class CompareSpecError(ScenarioError):
@@ -106,6 +106,7 @@ class CompareSpec:
     regression_floor: float = 1e-6
     workers: int | None = None
     output_interval: float | None = None
+    window: tuple[float, float] | None = None    # metrics over t_from <= t <= t_to only
     source: Path | None = None
 
     def scenario(self, changes: Mapping[str, Any]) -> Scenario:
@@ -301,6 +302,17 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
                     f"{h:g} s of variant '{v.name}'; outputs would be interpolated, choose a common "
                     "multiple of every macro step")
                 break
+    window = sec.get("window")
+    if window is not None:
+        ok = (isinstance(window, list) and len(window) == 2
+              and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in window)
+              and base.start_time <= window[0] < window[1] <= base.stop_time)
+        if not ok:
+            bad("window", f"must be [t_from, t_to] [s] with start_time <= t_from < t_to <= stop_time "
+                f"({base.start_time:g}, {base.stop_time:g}) (got {window!r})")
+            window = None
+        else:
+            window = (float(window[0]), float(window[1]))
     baseline = sec.get("baseline")
     if baseline is not None:
         baseline = ((source.parent if source else Path.cwd()) / str(baseline)).resolve()
@@ -316,7 +328,7 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
                        order_metric=order_metric, order_tolerance=nums["order_tolerance"],
                        baseline=baseline, regression_margin=nums["regression_margin"],
                        regression_floor=nums["regression_floor"], workers=workers,
-                       output_interval=interval, source=source)
+                       output_interval=interval, window=window, source=source)
 
 
 def _multiple(interval: float, h: float) -> bool:

@@ -127,22 +127,23 @@ class MonolithicSystem:
         parts = [a.initial_state() for a in self.adapters.values()]
         return np.concatenate(parts) if parts else np.zeros(0)
 
-    def evaluate(self, t: float, S: np.ndarray) -> tuple[dict, dict]:
-        """Inputs and outputs of every model at ``(t, S)``: ``({inst: {in: v}}, {inst: {out: v}})``."""
+    def evaluate(self, t: float, S: np.ndarray, *, full: bool = True) -> tuple[dict, dict]:
+        """Inputs and outputs of every model at ``(t, S)``: ``({inst: {in: v}}, {inst: {out: v}})``.
+        ``full=False`` (right-hand side) lets adapters skip outputs that feed nothing physical."""
         u = {n: dict(a.input_defaults) for n, a in self.adapters.items()}
         y: dict[str, dict[str, float]] = {}
         for n in self.order:
             for si, sv, di, dv, g, o in self.connections:
                 if di == n and si in y:
                     u[n][dv] = g * y[si][sv] + o
-            y[n] = self.adapters[n].outputs(t, S[self.slices[n]], u[n])
+            y[n] = self.adapters[n].outputs(t, S[self.slices[n]], u[n], full=full)
         for si, sv, di, dv, g, o in self.connections:
             u[di][dv] = g * y[si][sv] + o
         return u, y
 
     def rhs(self, t: float, S: np.ndarray) -> np.ndarray:
         self.n_rhs += 1
-        u, _ = self.evaluate(t, S)
+        u, _ = self.evaluate(t, S, full=False)
         dS = np.empty_like(S)
         for n, a in self.adapters.items():
             if a.n_states:

@@ -17,6 +17,8 @@ the FMU it stands for.
 from __future__ import annotations
 
 import dataclasses
+import math
+import re
 from typing import Any, Callable, Mapping
 
 import numpy as np
@@ -48,7 +50,9 @@ class ModelAdapter:
     def rhs(self, t: float, s: np.ndarray, u: Mapping[str, float]) -> np.ndarray:
         return np.zeros(0)
 
-    def outputs(self, t: float, s: np.ndarray, u: Mapping[str, float]) -> dict[str, float]:
+    def outputs(self, t: float, s: np.ndarray, u: Mapping[str, float], *, full: bool = True) -> dict[str, float]:
+        """Outputs at (t, s, u); ``full=False`` (inside the right-hand side) may leave outputs that
+        are expensive and feed nothing physical as NaN (so a misuse fails loudly)."""
         raise NotImplementedError
 
 
@@ -87,7 +91,7 @@ class LeftMassAdapter(ModelAdapter):
         p = self.params
         return np.array([s[1], (-p["k1"] * s[0] + u["F"]) / p["m1"]])
 
-    def outputs(self, t, s, u):
+    def outputs(self, t, s, u, *, full=True):
         return {"x1": float(s[0]), "v1": float(s[1])}
 
 
@@ -110,15 +114,17 @@ class RightMassAdapter(ModelAdapter):
         p = self.params
         return np.array([s[1], (-p["k2"] * s[0] - p["d2"] * s[1] - self._force(s, u)) / p["m2"]])
 
-    def outputs(self, t, s, u):
+    def outputs(self, t, s, u, *, full=True):
         return {"F": float(self._force(s, u)), "x2": float(s[0]), "v2": float(s[1])}
 
 
 # --------------------------------------------------------------------------- rotor and bearing
 
 # FMU parameters without a BearingParams field: the fields file (not written by the reference)
-# and the initial film of the mass-conserving model (half-Sommerfeld ignores it).
-_BEARING_FMU_ONLY = ("fields_file", "init")
+# and the initial film of the mass-conserving model (half-Sommerfeld ignores it), and
+# `linearize` (film coefficient outputs for interface-Jacobian coupling; the reference
+# couples monolithically and leaves those outputs 0).
+_BEARING_FMU_ONLY = ("fields_file", "init", "linearize")
 
 
 class JournalBearingAdapter(ModelAdapter):
@@ -143,20 +149,39 @@ class JournalBearingAdapter(ModelAdapter):
         u = self.input_defaults
         self.model.initialize(u["x"], u["y"], u["vx"], u["vy"], u["omega"])
         self.output_names = tuple(n for n, v in md.variables.items() if v.causality == "output")
-        self._evaluate = getattr(self.model, "evaluate", None)
+        # film coefficients kxx..cyy for interface-Jacobian coupling (FMU parameter linearize)
+        self.coeff_names = tuple(n for n in self.output_names if re.fullmatch(r"[kc][xy][xy]", n))
+        self.linearize = int(self.params.get("linearize", 0)) != 0
+        plain = [n for n in self.output_names if n not in self.coeff_names]
+        missing = [n for n in plain if n not in self.model.outputs]
+        if missing:
+            raise KeyError(f"the bearing model computes no {missing} (has {sorted(self.model.outputs)})")
 
-    def outputs(self, t, s, u):
-        args = (u["x"], u["y"], u["vx"], u["vy"], u["omega"])
-        if self._evaluate is not None:
-            out = self._evaluate(*args)
-        else:   # quasi-static: step() just evaluates at the given kinematics (contract)
-            self.model.step(1e-6, *args)
-            out = self.model.outputs
-        return {n: float(out.get(n, 0.0)) for n in self.output_names}
+    def outputs(self, t, s, u, *, full=True):
+        # quasi-static: step() only evaluates the film at the given kinematics (cavitation = 0)
+        self.model.step(1e-6, u["x"], u["y"], u["vx"], u["vy"], u["omega"])
+        out = {n: float(v) for n, v in self.model.outputs.items() if n in self.output_names}
+        if self.coeff_names:
+            if full and self.linearize:
+                from bearing_fmu.linearize import linearization
+                K, C = linearization(self.model)
+                for m, kind in ((K, "k"), (C, "c")):
+                    for a, i in enumerate("xy"):
+                        for b, j in enumerate("xy"):
+                            out[f"{kind}{i}{j}"] = float(m[a, b])
+            else:   # as the FMU with linearize = 0 outputs 0; NaN inside the rhs (unused there)
+                out.update({n: (0.0 if not self.linearize else math.nan) for n in self.coeff_names})
+        return out
 
 
 class JeffcottRotorAdapter(ModelAdapter):
-    """rotor_fmu.jeffcott.JeffcottRotor in its first-order form."""
+    """rotor_fmu.jeffcott.JeffcottRotor in its first-order form.
+
+    Only the film forces ``Fx_i, Fy_i`` enter ``rhs``. The film-coefficient inputs of
+    interface-Jacobian coupling (``kxx_i`` ... ``cyy_i``) are a device of the
+    co-simulation step and do not change the physical system, which the monolithic
+    integrator solves exactly; they are ignored here.
+    """
 
     output_names = ()
 
@@ -182,7 +207,7 @@ class JeffcottRotorAdapter(ModelAdapter):
     def rhs(self, t, s, u):
         return np.asarray(self.model.rhs(t, s, self._forces(u)), dtype=float)
 
-    def outputs(self, t, s, u):
+    def outputs(self, t, s, u, *, full=True):
         self.model.set_state({"t": float(t), "s": s})   # exact; recomputes every output
         out = self.model.outputs
         missing = [n for n in self.output_names if n not in out]

@@ -311,3 +311,18 @@ def test_derived_quantity_error_from_summary():
     assert v["errors"]["onset"] == pytest.approx(expect, rel=1e-6)
     assert v["errors"]["missing"] == math.inf
     assert check_report(rep, spec, None) == []
+
+
+def test_window_restricts_metrics_and_scales():
+    spec = parse_compare(dict(SECTION, window=[2.0, 4.0]), base_scenario())
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:
+        rep = run_comparison(spec, d, runner=fake_runner, workers=1)
+    t = np.arange(0.0, 4.0 + 1e-12, 0.2)
+    t = t[t >= 2.0 - 1e-9]
+    expect = np.max(np.abs(K * 0.1 * np.sin(3 * t))) / np.max(np.abs(np.cos(t)))
+    v = {v["name"]: v for v in rep.variants}["jac-e0i0-h0.1"]
+    assert v["signal_errors"]["left.x1"]["max"] == pytest.approx(expect, rel=1e-6)
+    assert rep.reference["window"] == [2.0, 4.0]
+    with pytest.raises(CompareSpecError, match="'compare.window' must be"):
+        parse_compare(dict(SECTION, window=[3.0, 1.0]), base_scenario())
