@@ -281,6 +281,12 @@ class LinearRotor:
         lam = sla.eigh(0.5 * (self.K + self.K.T), 0.5 * (self.M + self.M.T), eigvals_only=True)
         self.omega_max = float(np.sqrt(max(lam.max(), 0.0)))
         self._nsub_cache: dict[float, int] = {}
+        out_index = []
+        for i, (ix, iy) in enumerate(self.bearing_dofs, start=1):
+            out_index += [(f"x_{i}", ix), (f"y_{i}", iy), (f"vx_{i}", n + ix), (f"vy_{i}", n + iy)]
+        for name, (kind, idx) in self.extra_outputs.items():
+            out_index.append((name, int(idx) if kind == "q" else n + int(idx)))
+        self._out_index = [(name, int(k)) for name, k in out_index]
 
     # --------------------------------------------------------------- forcing
     def _unbalance_acc(self, t: float) -> np.ndarray:
@@ -403,19 +409,12 @@ class LinearRotor:
         return self._outputs
 
     def _update_outputs(self):
-        n = self.n_dof
-        q, v = self.s[:n], self.s[n:]
-        out = {}
-        for i, (ix, iy) in enumerate(self.bearing_dofs, start=1):
-            out[f"x_{i}"] = float(q[ix])
-            out[f"y_{i}"] = float(q[iy])
-            out[f"vx_{i}"] = float(v[ix])
-            out[f"vy_{i}"] = float(v[iy])
-        out["omega"] = float(self.drive.omega(self.t))
-        out["angle"] = float(self.drive.angle(self.t))
-        out["alpha"] = float(self.drive.alpha(self.t))
-        for name, (kind, idx) in self.extra_outputs.items():
-            out[name] = float(q[idx] if kind == "q" else v[idx])
+        sl = self.s.tolist()
+        out = {name: sl[k] for name, k in self._out_index}
+        w, al, ang = _drive_eval(self.t, *self._drive_tab)
+        out["omega"] = float(w)
+        out["angle"] = float(ang)
+        out["alpha"] = float(al)
         self._outputs = out
 
     def get_state(self) -> dict:
