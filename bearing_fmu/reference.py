@@ -411,8 +411,11 @@ FINITE_BEARING_TABLE: dict[float, list[tuple[float, float, float]]] = {
 #: Source: the R&B design-chart values for L/D = 1 (h0/c = 0.1, 0.2, 0.4, 0.6, 0.8,
 #: 0.9 -> S = 0.0188, 0.0446, 0.121, 0.264, 0.631, 1.33) as listed in the MATLAB Answers
 #: thread "design of journal bearing" (mathworks.com/matlabcentral/answers/707318),
-#: whose code quotes them as the R&B performance parameters for l/d = 1 (the chart data
-#: reproduced in Shigley's Mechanical Engineering Design, ch. 12). Attitude angles for L/D = 1/2 and 1/4 from R&B itself were not found in the
+#: whose code lists them as the "performance parameters" for l/d = 1 without naming a
+#: source; they are the R&B chart values as tabulated in Shigley's Mechanical
+#: Engineering Design, ch. 12 (from memory of that table, not re-read here: treat
+#: this set as a cross-check only). Attitude angles,
+#: and L/D = 1/2 and 1/4 from R&B itself, were not found in the
 #: stored sources, so the Khonsari & Booser table above is the primary reference.
 RAIMONDI_BOYD_LD1_S: dict[float, float] = {
     0.9: 0.0188,

@@ -157,10 +157,11 @@ def _fd_full_sommerfeld_2d(eps, eps_dot, B, n_phi=96, n_z=None):
             rows += [k, k, k]
             cols += [idx[j, (i - 1) % n_phi], idx[j, (i + 1) % n_phi], k]
             vals += [w, e, -(w + e + 2 * s)]
-            if j > 0:
-                rows.append(k), cols.append(idx[j - 1, i]), vals.append(s)
-            if j < ni - 1:
-                rows.append(k), cols.append(idx[j + 1, i]), vals.append(s)
+            for j2 in (j - 1, j + 1):
+                if 0 <= j2 < ni:
+                    rows.append(k)
+                    cols.append(idx[j2, i])
+                    vals.append(s)
     a = sp.csr_matrix((vals, (rows, cols)), shape=(ni * n_phi, ni * n_phi))
     b = np.tile(rhs1, ni)
     p = np.zeros((n_z, n_phi))
