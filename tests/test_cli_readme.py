@@ -64,3 +64,12 @@ def test_readme_links_exist_or_are_owned():
     links = re.findall(r"\]\(([^)#]+)\)", text)
     assert "docs/scenario-format.md" in links
     assert (REPO / "docs" / "scenario-format.md").is_file()
+
+
+def test_readme_run_scenario_is_shipped_and_valid():
+    """README line 1 runs a shipped scenario: it must exist and validate (our FMUs are built if needed)."""
+    from orchestrator.scenario import validate_scenario
+    run_line = readme_block()[0]
+    scenario = REPO / run_line.split(" run ", 1)[1].split()[0]
+    assert scenario.is_file(), f"README line 1 runs {scenario}, which is not in the repository"
+    assert validate_scenario(scenario) == []
