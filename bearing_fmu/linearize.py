@@ -143,6 +143,7 @@ def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3):
         return hs_linearization(b, x, y, vx, vy, omega, rel_step=rel_step, t_ref=t_ref)
     z0 = np.array([x, y, vx, vy], dtype=float)
     steps = _steps(b, z0, omega, rel_step, t_ref)
+    p_u, th_u = b.law.p_theta(u)
     D = np.empty((2, 4))
     for j in range(4):
         zp, zm = z0.copy(), z0.copy()
@@ -155,7 +156,7 @@ def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3):
         # directional difference of F through the cavitation law, scaled to a small u change
         s = 1e-6 * max(1.0, float(np.abs(u).max())) / max(float(np.abs(du).max()), 1e-300)
         dF_u = (film_force_at(b, u + s * du, kin0) - film_force_at(b, u - s * du, kin0)) / (2 * s)
-        dF_k = (film_force_at(b, u, kp) - film_force_at(b, u, km)) / (2.0 * steps[j])
+        dF_k = (_force(b, p_u, th_u, kp) - _force(b, p_u, th_u, km)) / (2.0 * steps[j])
         D[:, j] = -(dF_u + dF_k)
     return D[:, :2].copy(), D[:, 2:].copy()
 
