@@ -84,6 +84,10 @@ def _cmd_run(args) -> int:
     print(f"results: {where} (results.csv, summary.json)")
     print(f"status: {status_text}")
     print(f"macro steps: {steps}, wall time: {stats.get('wall_time_s', wall):.2f} s")
+    analysis = getattr(result, "analysis", None)
+    if analysis:
+        for line in _analysis_lines(analysis):
+            print(line)
     if not result.success:
         end = getattr(result, "end_time", None)
         at = f" at t = {end:g} s" if isinstance(end, (int, float)) else ""
@@ -91,6 +95,37 @@ def _cmd_run(args) -> int:
               f"{where}/results.csv and the reason in {where}/summary.json", file=sys.stderr)
         return 1
     return 0
+
+
+def _num(value, fmt: str, unit: str = "") -> str:
+    return format(value, fmt) + unit if isinstance(value, (int, float)) else "?"
+
+
+def _analysis_lines(analysis) -> list[str]:
+    """Readable lines of the run-up analysis stored in summary.json (formatting only)."""
+    if not isinstance(analysis, dict):
+        return []
+    if analysis.get("error"):
+        return [f"analysis: not available: {analysis['error']}"]
+    lines = ["oil whirl (details in summary.json, \"analysis\"):"]
+    for name, j in (analysis.get("journals") or {}).items():
+        if not isinstance(j, dict) or j.get("error"):
+            lines.append(f"  {name}: not analysed: {j.get('error') if isinstance(j, dict) else j}")
+            continue
+        eps = f"max eps {_num(j.get('max_eps'), '.3f')} at {_num(j.get('max_eps_speed_hz'), '.1f', ' Hz')}"
+        if not j.get("whirl"):
+            lines.append(f"  {name}: no sub-synchronous whirl; {eps}")
+            continue
+        before = (" (already in the first analysis window: it may start earlier)"
+                  if (j.get("onset") or {}).get("present_at_start") else "")
+        vanish = (f"vanishes at {_num(j.get('vanish_speed_hz'), '.1f', ' Hz')}"
+                  if j.get("vanish_speed_hz") is not None else "does not vanish in this run")
+        lines.append(f"  {name}: onset at {_num(j.get('onset_speed_hz'), '.1f', ' Hz')} (t = "
+                     f"{_num(j.get('onset_time_s'), '.4f', ' s')}){before}, whirl/speed ratio "
+                     f"{_num(j.get('dominant_ratio'), '.2f')}, {vanish}; {eps}")
+        if j.get("warnings"):
+            lines.append(f"    ({len(j['warnings'])} warning(s) in summary.json)")
+    return lines
 
 
 def _run_function() -> Callable:

@@ -252,3 +252,19 @@ def test_version_and_help(capsys):
     out = capsys.readouterr().out
     for verb in ("run", "validate", "info", "build-fmus", "plot", "compare"):
         assert verb in out
+
+
+def test_run_prints_the_whirl_analysis():
+    analysis = {"journals": {
+        "bearing1": {"whirl": True, "onset": {"present_at_start": False}, "onset_speed_hz": 256.04,
+                     "onset_time_s": 0.64, "dominant_ratio": 0.47, "vanish_speed_hz": 560.0,
+                     "max_eps": 0.81, "max_eps_speed_hz": 400.0, "warnings": []},
+        "bearing2": {"whirl": False, "max_eps": 0.2, "max_eps_speed_hz": 100.0},
+        "bearing3": {"error": "no signal rotor.x_3"}}}
+    lines = cli._analysis_lines(analysis)
+    assert lines[1] == ("  bearing1: onset at 256.0 Hz (t = 0.6400 s), whirl/speed ratio 0.47, vanishes at "
+                        "560.0 Hz; max eps 0.810 at 400.0 Hz")
+    assert lines[2] == "  bearing2: no sub-synchronous whirl; max eps 0.200 at 100.0 Hz"
+    assert lines[3] == "  bearing3: not analysed: no signal rotor.x_3"
+    assert cli._analysis_lines({"error": "results.csv: not found"}) == [
+        "analysis: not available: results.csv: not found"]
