@@ -189,7 +189,7 @@ def _did_you_mean(name: str, candidates) -> str:
 
 
 def _a(word: str) -> str:
-    return f"an {word}" if word[:1] in "aeiou" else f"a {word}"
+    return f"an {word}" if word[:1].lower() in "aeiou" else f"a {word}"
 
 
 class _Loader:
@@ -753,17 +753,12 @@ class _Loader:
             src, dst = ends.get("from"), ends.get("to")
             if src is None or dst is None:
                 continue
-            kinds = {src.type, dst.type}
-            if src.type != dst.type and kinds != {"Integer", "Enumeration"}:
+            if src.type != dst.type:
                 self.err(c["node"], f"type mismatch: '{c['from']}' is {src.type} but '{c['to']}' is {dst.type}; "
-                                    "connect variables of the same type (e.g. Real to Real)")
-            elif "String" in kinds:
-                self.err(c["node"], f"'{c['from']}' -> '{c['to']}' couples String variables, which cannot be "
-                                    "extrapolated; couple numeric (Real) signals only")
-            elif src.type != "Real" and (c["gain"] != 1.0 or c["offset"] != 0.0):
-                self.err(c.get("gain_node") or c.get("offset_node") or c["node"],
-                         f"gain/offset apply to Real signals only (got gain={c['gain']}, offset={c['offset']} on "
-                         f"{src.type} '{c['from']}'); remove them")
+                                    "connect variables of the same type (Real to Real)")
+            elif src.type != "Real":
+                self.err(c["node"], f"'{c['from']}' -> '{c['to']}' couples {src.type} variables, but the master "
+                                    "couples (and extrapolates) Real signals only; connect Real variables")
 
     def variable(self, signal: str, node, what: str, want: str | None = None):
         """The model variable named by ``instance.variable`` or None (problem reported)."""
@@ -791,8 +786,9 @@ class _Loader:
                 self.err(node, f"'{what}' entries must be 'instance.variable' (got {s!r}); add the instance name")
                 continue
             var = self.variable(s, node, f"'{what}' entry {s!r}")
-            if var is not None and var.type == "String":
-                self.err(node, f"'{what}' entry {s!r} is a String variable; record numeric variables only")
+            if var is not None and var.type != "Real":
+                self.err(node, f"'{what}' entry {s!r} is {_a(var.type)} variable; results.csv records Real "
+                               "variables only: remove it")
 
     def check_analysis(self, node, signals) -> None:
         recorded = None if signals is None else {s for s, _ in signals}

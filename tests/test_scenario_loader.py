@@ -316,7 +316,7 @@ def test_parameter_problems_list_valid_parameters(sdir):
     assert "parameter 'p.out_file' is String (got 3, an integer)" in text
 
 
-def test_string_coupling_and_gain_on_integer_are_rejected(sdir):
+def test_only_real_signals_are_coupled_and_recorded(sdir):
     write_md_only_fmu(sdir / "fmus" / "Mixed2.fmu")
     p = write(sdir, "name: x\nstop_time: 1\nfmus:\n  a: {path: fmus/Mixed.fmu}\n  b: {path: fmus/Mixed2.fmu}\n"
                     "connections:\n  - {from: a.y, to: b.u}\n  - {from: b.y, to: a.u, gain: 2}\n")
@@ -324,8 +324,12 @@ def test_string_coupling_and_gain_on_integer_are_rejected(sdir):
     md = MIXED_MD.replace('<Boolean start="false"/>', '<Integer start="0"/>')
     write_md_only_fmu(sdir / "fmus" / "Mixed3.fmu", md)
     p = write(sdir, "name: x\nstop_time: 1\nfmus:\n  a: {path: fmus/Mixed.fmu}\n  c: {path: fmus/Mixed3.fmu}\n"
-                    "connections:\n  - {from: a.count, to: c.enable, gain: 2}\n")
-    assert any("gain/offset apply to Real signals only" in q for q in problems_of(p))
+                    "connections:\n  - {from: a.count, to: c.enable}\noutput: {signals: [a.y, a.count]}\n")
+    problems = problems_of(p)
+    assert len(problems) == 2, problems
+    assert problems[0].startswith(f"{p}:7: 'a.count' -> 'c.enable' couples Integer variables, but the master "
+                                  "couples (and extrapolates) Real signals only")
+    assert problems[1].startswith(f"{p}:8: 'output.signals' entry 'a.count' is an Integer variable")
 
 
 # ------------------------------------------------------------------ --set overrides
