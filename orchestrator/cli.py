@@ -83,7 +83,8 @@ def _cmd_run(args) -> int:
     message = getattr(result, "message", "") or ""
     print(f"results: {where} (results.csv, summary.json)")
     print(f"status: {status_text}")
-    print(f"macro steps: {steps}, wall time: {stats.get('wall_time_s', wall):.2f} s")
+    wall_s = stats.get("wall_time_s")
+    print(f"macro steps: {steps}, wall time: {wall_s if isinstance(wall_s, (int, float)) else wall:.2f} s")
     analysis = getattr(result, "analysis", None)
     if analysis:
         for line in _analysis_lines(analysis):
