@@ -74,10 +74,11 @@ class BearingParams:
         n_phi, n_z: cells in phi (periodic) and across the width.
     Solver (mass-conserving model)
         theta_atol: local-error tolerance of theta per internal step (RMS).
-        newton_atol, newton_rtol: Newton increment tolerance on the universal
-        variable u (u ~ theta - 1 in the cavity, (p - p_cav)/K in the film).
-        newton_max_iter; rho_refactor: contraction rate above which the reused
-        Jacobian is refactorised. h_init, h_min, h_max [s]: internal steps.
+        newton_atol: Newton tolerance on theta (1e-4, a tenth of theta_atol);
+        newton_rtol: on p, relative to the pressure range of the film (1e-5).
+        newton_max_iter. krylov_tol, krylov_refactor: GMRES relative tolerance
+        and the iteration count after which the reused band LU is refreshed.
+        h_init, h_min, h_max [s]: internal steps.
         linear_solver: "band" (LAPACK band LU, default) or "splu" (SuperLU).
     """
 
@@ -102,7 +103,6 @@ class BearingParams:
     newton_atol: float = 1.0e-4
     newton_rtol: float = 1.0e-5
     newton_max_iter: int = 30
-    rho_refactor: float = 0.3
     krylov_tol: float = 1.0e-4
     krylov_refactor: int = 8
     h_init: float = 1.0e-6
@@ -145,7 +145,6 @@ class BearingParams:
         need("axial_bc", self.axial_bc in (0, 1), "0 (oil bath) or 1 (free to air)")
         need("newton_max_iter", isinstance(self.newton_max_iter, int)
              and self.newton_max_iter >= 2, "an integer >= 2")
-        need("rho_refactor", 0 < self.rho_refactor < 1, "in (0, 1)")
         need("krylov_tol", 0 < self.krylov_tol < 1, "in (0, 1)")
         need("krylov_refactor", isinstance(self.krylov_refactor, int)
              and self.krylov_refactor >= 1, "an integer >= 1")
