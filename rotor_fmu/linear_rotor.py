@@ -44,10 +44,20 @@ import math
 import numpy as np
 import scipy.linalg as sla
 
-try:  # the sub-step loop runs in a numba kernel; pure numpy fallback without numba
-    import numba as _numba
-except ImportError:  # pragma: no cover
-    _numba = None
+import os
+
+# Kernel of the sub-step loop: "numpy" (default) or "numba" (set ROTORCOSIM_ROTOR_KERNEL=numba).
+# numba is not the default: its on-disk cache has known segfaulting races when several
+# processes compile the same module concurrently (numba issues #4807, #10128), which is
+# the normal situation on a shared checkout; without the cache every process pays a
+# multi-second compile.  The numpy kernel is within the cost goal (docs/rotor-models.md).
+KERNEL = os.environ.get("ROTORCOSIM_ROTOR_KERNEL", "numpy").strip().lower()
+_numba = None
+if KERNEL == "numba":
+    try:
+        import numba as _numba
+    except ImportError:  # pragma: no cover
+        _numba = None
 
 
 def _drive_eval(t, tt, ww, aa):
@@ -161,6 +171,9 @@ def _trapezoid_substeps(q, v, t0, h, nsub, fF, tt, ww, aa, me, ph, MiU,
     return q, v
 
 
+_drive_eval_py = _drive_eval
+
+
 def _jit(f):
     try:
         return _numba.njit(cache=True)(f)
@@ -172,8 +185,90 @@ if _numba is not None:
     _drive_eval = _jit(_drive_eval)
     _forcing = _jit(_forcing)
     _kernel = _jit(_trapezoid_substeps)
-else:  # pragma: no cover
-    _kernel = _trapezoid_substeps
+else:
+    _kernel = None
+
+
+def _segment_drive(t0, t1, tt, ww, aa):
+    """(omega, alpha, angle) at t0 if [t0, t1] lies inside one linear segment of the
+    speed table (or outside it), else None."""
+    w0, a0, ang0 = _drive_eval_py(t0, tt, ww, aa)
+    m = tt.shape[0]
+    for k in range(m):
+        if t0 < tt[k] < t1:
+            return None
+    return w0, a0, ang0
+
+
+def _numpy_substeps(rotor, q, v, t0, h, nsub, fF):
+    """numpy form of :func:`_trapezoid_substeps` (same scheme).
+
+    With the matrices frozen over the macro step, one trapezoidal sub-step is the affine
+    map x1 = P x0 + Q (f_a + f_b) on x = [q, v].  P and Q depend on (h, Omega, alpha)
+    only; they are cached for the last key, with Omega quantized to the grid
+    ``rotor.omega_quantum`` (deterministic in t, so save/restore stays exact; the speed-
+    dependent terms then use Omega within omega_quantum / 2 of the mid-step value).
+    """
+    n = q.shape[0]
+    tt, ww, aa = rotor._drive_tab
+    w, a, _ = _drive_eval_py(t0 + 0.5 * nsub * h, tt, ww, aa)
+    dq = rotor.omega_quantum
+    if rotor._speed_dependent and dq > 0.0:
+        w = round(w / dq) * dq
+    elif not rotor._speed_dependent:
+        w, a = 0.0, 0.0
+    # the key holds the matrices themselves (compared by identity: a swapped-in matrix,
+    # e.g. the interface-Jacobian augmented one, never hits a stale entry)
+    mats = (rotor._MiK, rotor._MiC, rotor._MiG, rotor._MiKc, rotor._MiKa)
+    key = (h, nsub, w, a)
+    cache = rotor._pq_cache
+    if (cache is None or cache[0] != key
+            or any(m1 is not m2 for m1, m2 in zip(cache[4], mats))):
+        hh, h2 = 0.5 * h, 0.25 * h * h
+        AK = rotor._MiK + w * rotor._MiKc + a * rotor._MiKa
+        AC = rotor._MiC + w * rotor._MiG
+        Si = np.linalg.inv(rotor._eye + hh * AC + h2 * AK)
+        SiAK = Si @ AK
+        Pvq = (-2.0 * hh) * SiAK
+        Pvv = Si - hh * (Si @ AC) - h2 * SiAK
+        P = np.empty((2 * n, 2 * n))
+        P[:n, :n] = hh * Pvq + rotor._eye
+        P[:n, n:] = hh * Pvv + hh * rotor._eye
+        P[n:, :n] = Pvq
+        P[n:, n:] = Pvv
+        Q = np.empty((2 * n, n))
+        Q[:n] = (hh * hh) * Si
+        Q[n:] = hh * Si
+        # x_N = P^N x_0 + sum_k P^(N-1-k) Q g_k,  g_k = f_k + f_(k+1)
+        R = np.empty((2 * n, nsub * n))
+        Pk = np.eye(2 * n)
+        for k in range(nsub - 1, -1, -1):
+            R[:, k * n:(k + 1) * n] = Pk @ Q
+            Pk = P @ Pk
+        Rsum = R.reshape(2 * n, nsub, n).sum(axis=1)
+        cache = rotor._pq_cache = (key, Pk, R, Rsum, mats)
+    _, PN, R, Rsum, _ = cache
+    x = PN @ np.concatenate([q, v]) + Rsum @ (2.0 * fF)
+    if rotor._me.size:
+        tau = h * np.arange(nsub + 1)
+        seg = _segment_drive(t0, t0 + nsub * h, tt, ww, aa)
+        if seg is None:
+            ev = np.array([_drive_eval_py(t0 + x_, tt, ww, aa) for x_ in tau])
+            wt, at, ang = ev[:, 0:1], ev[:, 1:2], ev[:, 2:3]
+        else:
+            w0, a0, g0 = seg
+            tau = tau[:, None]
+            wt = w0 + a0 * tau
+            at = a0
+            ang = g0 + w0 * tau + 0.5 * a0 * tau * tau
+        phi = ang + rotor._ph
+        c, s_ = np.cos(phi), np.sin(phi)
+        fu = np.empty((nsub + 1, 2 * rotor._me.size))
+        fu[:, 0::2] = rotor._me * (wt * wt * c + at * s_)
+        fu[:, 1::2] = rotor._me * (wt * wt * s_ - at * c)
+        fu = fu[:-1] + fu[1:]
+        x = x + R @ (fu @ rotor._MiU.T).reshape(-1)
+    return x[:n], x[n:]
 
 
 class LinearRotor:
@@ -188,13 +283,16 @@ class LinearRotor:
 
     # ------------------------------------------------------------------ set-up
     def _setup(self, *, M, C, G, K, Kc, Ka, bearing_dofs, unbalances, f_g, drive,
-               t0, max_phase_per_substep, extra_outputs, journal_q0=None, initial_sag=True):
+               t0, max_phase_per_substep, extra_outputs, journal_q0=None, initial_sag=True,
+               omega_quantum=0.5):
         """Store the matrices and precompute everything that depends only on parameters.
 
         bearing_dofs: int array (n_bearings, 2), indices of (x, y) of each bearing station.
         unbalances: list of (dof_x, dof_y, m_e [kg m], phase [rad]).
         extra_outputs: dict name -> ("q"|"v", dof index).
         journal_q0: (n_bearings, 2) initial bearing-station positions [m] (default 0).
+        omega_quantum: grid [rad/s] of the speed used in the speed-dependent matrices of
+            the numpy kernel (lets it reuse the step matrices; 0 = exact mid-step speed).
         initial_sag: start the other dofs at the static equilibrium under gravity with
             the bearing stations held at journal_q0 (else at 0).
         """
@@ -212,6 +310,7 @@ class LinearRotor:
         self.drive = drive
         self.t0 = float(t0)
         self.max_phase_per_substep = float(max_phase_per_substep)
+        self.omega_quantum = float(omega_quantum)
         self.extra_outputs = dict(extra_outputs)
         self._journal_q0 = (np.zeros((self.bearing_dofs.shape[0], 2)) if journal_q0 is None
                             else np.asarray(journal_q0, float).reshape(-1, 2))
@@ -281,6 +380,8 @@ class LinearRotor:
         lam = sla.eigh(0.5 * (self.K + self.K.T), 0.5 * (self.M + self.M.T), eigvals_only=True)
         self.omega_max = float(np.sqrt(max(lam.max(), 0.0)))
         self._nsub_cache: dict[float, int] = {}
+        self._pq_cache = None
+        self._speed_dependent = bool(np.any(self._MiG) or np.any(self._MiKc) or np.any(self._MiKa))
         out_index = []
         for i, (ix, iy) in enumerate(self.bearing_dofs, start=1):
             out_index += [(f"x_{i}", ix), (f"y_{i}", iy), (f"vx_{i}", n + ix), (f"vy_{i}", n + iy)]
@@ -389,9 +490,12 @@ class LinearRotor:
         nsub = self.n_substeps(dt)
         h = dt / nsub
         fF = self._Mifg + self._MiB @ F.reshape(-1)
-        q, v = _kernel(self.s[:n], self.s[n:], self.t, h, nsub, fF, *self._drive_tab,
-                       self._me, self._ph, self._MiU, self._MiK, self._MiKc, self._MiKa,
-                       self._MiC, self._MiG)
+        if _kernel is None:
+            q, v = _numpy_substeps(self, self.s[:n], self.s[n:], self.t, h, nsub, fF)
+        else:
+            q, v = _kernel(self.s[:n], self.s[n:], self.t, h, nsub, fF, *self._drive_tab,
+                           self._me, self._ph, self._MiU, self._MiK, self._MiKc, self._MiKa,
+                           self._MiC, self._MiG)
         self.s = np.concatenate([q, v])
         self.t = self.t + dt
         if not np.all(np.isfinite(self.s)):
@@ -411,7 +515,7 @@ class LinearRotor:
     def _update_outputs(self):
         sl = self.s.tolist()
         out = {name: sl[k] for name, k in self._out_index}
-        w, al, ang = _drive_eval(self.t, *self._drive_tab)
+        w, al, ang = _drive_eval_py(self.t, *self._drive_tab)
         out["omega"] = float(w)
         out["angle"] = float(ang)
         out["alpha"] = float(al)
