@@ -1,6 +1,7 @@
 """Cost per macro step of the rotor models' step() (owner: rotor).
 
 Run:  cd /work/main && OPENBLAS_NUM_THREADS=1 nice -n 10 .venv/bin/python benchmarks/bench_rotor.py
+      (ROTORCOSIM_ROTOR_KERNEL=numba for the compiled kernel; default numpy)
 Goal (issue 4): turbocharger step at dt = 2e-5 s below 10 % of one bearing step
 (~3 ms target) -> < 0.3 ms.  Prints the machine load (shared machine: numbers are noisy).
 """
@@ -14,6 +15,7 @@ import time
 import numpy as np
 
 from rotor_fmu.jeffcott import JeffcottRotor
+from rotor_fmu.linear_rotor import KERNEL
 from rotor_fmu.turbocharger import TurbochargerParams, TurbochargerRotor
 
 
@@ -35,7 +37,13 @@ def main():
     dt = 2e-5
     load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     print(f"uptime: {load}")
-    print(f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}")
+    print(f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}  kernel={KERNEL}")
+    a, x = np.eye(18), np.ones(18)
+    t0 = time.perf_counter()
+    for _ in range(20000):
+        a @ x
+    print(f"machine speed probe: 18x18 mat-vec {(time.perf_counter() - t0) / 20000 * 1e6:.2f} us "
+          "(compare between runs: it scales with the machine load)")
     rows = [("jeffcott", JeffcottRotor())]
     for nm in (2, 4, 6):
         rows.append((f"turbocharger CB n_modes={nm}", TurbochargerRotor(TurbochargerParams(n_modes=nm))))
