@@ -49,7 +49,7 @@ from .cavitation import law_eval, penalty
 @nb.njit(cache=True)
 def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
              dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
-             r, want_jac, jst, p, dp, th, dth):
+             r, want_jac, jst, p, dp, th, dth, sym):
     """Residual r(u) (flat cell order) and, if ``want_jac``, the Jacobian.
 
     The time derivative of theta is ``th_dot0 * theta(u) + th_dot1`` (BDF
@@ -113,6 +113,8 @@ def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z
                     diag += dphi * condz * dp[g]
                     if want_jac:
                         jst[g, 3 + side] = -dphi * condz * dp[g2]
+                elif sym and side == 0:
+                    pass                      # mid-plane: symmetry, no flux
                 elif bath:
                     res += dphi * 2.0 * condz * (p[g] - p0)
                     diag += dphi * 2.0 * condz * dp[g]
@@ -171,7 +173,7 @@ def stencil_matvec(jst, n_phi, x, y):
 
 @nb.njit(cache=True)
 def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
-              pa, pb, s_pen, R, B, c, eta0):
+              pa, pb, s_pen, R, B, c, eta0, sym):
     """Film force on the journal, torque on the journal, feed and side flows.
 
     Returns (Fx, Fy, torque, q_feed, q_side):
@@ -185,6 +187,9 @@ def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
       ``q_side`` the net outflow through both axial edges [m^3/s], both from
       the discrete fluxes times ``R c B / 2`` (the scale between eq. 2 fluxes
       and volume flows).
+
+    ``sym``: the fields are the lower half of a film symmetric about the
+    mid-plane; every integral is doubled and only the zbar = 0 edge is an edge.
     """
     n_phi = H.size
     n_z = p.size // n_phi
@@ -211,7 +216,7 @@ def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
             if groove[i] != groove[i2]:
                 flux = omega * Hf * th_up - cond * (p[g2] - p[g])
                 qf += flux if groove[i] else -flux
-            n_edge = (j == 0) + (j == n_z - 1)
+            n_edge = (j == 0) + (j == n_z - 1 and not sym)
             if not groove[i] and n_edge > 0:
                 if bath:
                     qs += n_edge * 2.0 * condz * (p[g] - p0)
@@ -220,4 +225,7 @@ def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
                     qs += n_edge * gv
     area = R * dphi * B * dz
     scale = 0.5 * R * c * B
+    if sym:
+        area *= 2.0
+        scale *= 2.0
     return (Fx * area, Fy * area, -R * T * area, qf * scale * dz, qs * scale * dphi)

@@ -49,13 +49,17 @@ def _kin(b, x, y, vx, vy, omega):
     return (H, He, Hdot, float(omega))
 
 
-def _force(b, p, th, kin):
+def _force(b, p, th, kin, film=True):
+    """Force of fields on the transient solver's grid (``film=True``: b.grid, which
+    is the lower half of the width when ``b.sym``) or on the full grid."""
     H, He, Hdot, omega = kin
-    g, prm = b.grid, b.params
+    prm = b.params
+    sym = bool(film and b.sym)
+    g = b.grid if film else b.grid_full
     Fx, Fy, *_ = integrals(
         np.ascontiguousarray(p).ravel(), np.ascontiguousarray(th).ravel(), H, He, g.groove,
         g.phi, omega, b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, prm.penalty_a,
-        prm.penalty_b, b.law.s, prm.R, prm.B, b.c, prm.eta0)
+        prm.penalty_b, prm.penalty_smoothing, prm.R, prm.B, b.c, prm.eta0, sym)
     return np.array([Fx, Fy])
 
 
@@ -64,7 +68,7 @@ def hs_force(b, x, y, vx, vy, omega) -> np.ndarray:
     kinematics; side-effect free (any ``cavitation`` setting)."""
     kin = _kin(b, x, y, vx, vy, omega)
     p = b._hs_pressure(kin)
-    return _force(b, p, np.ones_like(p), kin)
+    return _force(b, p, np.ones_like(p), kin, film=False)
 
 
 def _central(f, z0, steps):
@@ -131,7 +135,7 @@ def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3):
         assemble(u, th_dot0, th_dot1, H, He, Hdot, g.groove, b.u_feed, om,
                  b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, b.law.p_cav, b.law.K,
                  b.law.delta, prm.penalty_a, prm.penalty_b, prm.penalty_smoothing,
-                 r, want_jac, jst, *bufs)
+                 r, want_jac, jst, *bufs, b.sym)
         return r.copy()
 
     kin0 = _kin(b, x, y, vx, vy, omega)

@@ -187,7 +187,12 @@ class JournalBearing:
             raise TypeError(f"JournalBearing(params): expected BearingParams, got "
                             f"{type(params).__name__}")
         p = self.params = params
-        self.grid = make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle)
+        # full grid (fields, half-Sommerfeld) and the grid the transient solver
+        # works on: the lower half when n_z is even (mid-plane symmetry, grid.py)
+        self.grid_full = make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle)
+        self.sym = bool(p.cavitation == 1 and p.n_z % 2 == 0)
+        self.grid = (make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle, half=True)
+                     if self.sym else self.grid_full)
         self.c = p.c
         self.a_phi = p.psi ** 2 / (6 * p.eta0)
         self.a_z = (p.R / p.B) ** 2 * self.a_phi
@@ -195,7 +200,7 @@ class JournalBearing:
         self.bath = p.axial_bc == 0
         self.law = CavitationLaw(p.p0, p.cav_width, p.cav_smoothing)
         self.u_feed = float(self.law.u_from_p(p.p_feed)) if p.cavitation else 0.0
-        self.hs = HalfSommerfeld(self.grid, self.a_phi, self.a_z, p.p0, p.p_feed)
+        self.hs = HalfSommerfeld(self.grid_full, self.a_phi, self.a_z, p.p0, p.p_feed)
         self.film = TransientFilm(self, linear_solver=p.linear_solver) if p.cavitation else None
         self.outputs: dict[str, float] = {}
         self._t = 0.0
@@ -217,18 +222,25 @@ class JournalBearing:
         return (H, He, Hdot, float(omega))
 
     def _hs_pressure(self, kin):
+        """Half-Sommerfeld pressure on the full grid, (n_z, n_phi)."""
         H, He, Hdot, omega = kin
         P = self.hs.solve(H, He, Hdot, omega)
         return self.p0 + np.maximum(P, 0.0)
 
+    def _mirror(self, a):
+        """Full-width field from the solver grid's rows (mid-plane symmetry)."""
+        return np.concatenate([a, a[::-1]], axis=0) if self.sym else a
+
     def _update_outputs(self):
-        p, th = self._pth()
+        p, th = self._pth(full=False)
         H, He, Hdot, omega = self._kin
-        g, prm = self.grid, self.params
+        prm = self.params
+        sym = self.sym and self.film is not None
+        g = self.grid if self.film is not None else self.grid_full
         Fx, Fy, T, qf, qs = integrals(
             p.ravel(), th.ravel(), H, He, g.groove, g.phi, omega, self.a_phi, self.a_z,
-            g.dphi, g.dz, self.bath, self.p0, prm.penalty_a, prm.penalty_b, prm.penalty_smoothing,
-            prm.R, prm.B, self.c, prm.eta0)
+            g.dphi, g.dz, self.bath, self.p0, prm.penalty_a, prm.penalty_b,
+            prm.penalty_smoothing, prm.R, prm.B, self.c, prm.eta0, sym)
         x, y = self._xy
         e_ang = math.atan2(y, x)
         l_ang = math.atan2(-Fy, -Fx)
@@ -237,12 +249,16 @@ class JournalBearing:
                             p_max=float(p.max()), p_min=float(p.min()),
                             h_min=float(H.min() * self.c), torque=T, q_feed=qf, q_side=qs)
 
-    def _pth(self):
-        shape = (self.grid.n_z, self.grid.n_phi)
+    def _pth(self, full=True):
+        """(p, theta); full width, or the solver grid's rows (full=False)."""
         if self.film is None:
-            return self._p_hs, np.ones(shape)
+            return self._p_hs, np.ones_like(self._p_hs)
+        shape = (self.grid.n_z, self.grid.n_phi)
         p, th = self.law.p_theta(self.film.u)
-        return p.reshape(shape), th.reshape(shape)
+        p, th = p.reshape(shape), th.reshape(shape)
+        if full:
+            return self._mirror(p), self._mirror(th)
+        return p, th
 
     def _check_init(self, what):
         if not self._initialized:
@@ -267,7 +283,7 @@ class JournalBearing:
         if self.film is None:
             self._p_hs = self._hs_pressure(kin)
         else:
-            p = self._hs_pressure(kin)
+            p = self._hs_pressure(kin)[: self.grid.n_z]
             u = self.law.u_from_p(p.ravel())
             self.film.init_state(u)
             if init == "stationary":
@@ -337,7 +353,7 @@ class JournalBearing:
         self._check_init("fields")
         p, th = self._pth()
         H = self._kin[0]
-        g = self.grid
+        g = self.grid_full
         return dict(phi=g.phi.copy(), z=g.zbar * self.params.B, p=p.copy(), theta=th.copy(),
                     h=np.broadcast_to(H * self.c, (g.n_z, g.n_phi)).copy())
 
