@@ -95,7 +95,7 @@ OUTPUTS: dict[str, tuple[str, str]] = {
 }
 # Interface-Jacobian coupling (docs/stiff-coupling.md, bearing_fmu/linearize.py): film
 # coefficients K = -dF/dr, C = -dF/dv at the current state, computed when the Integer
-# parameter ``linearize`` is 1 (default), else 0.
+# parameter ``linearize`` is 1 (default 0: plain coupling pays nothing).
 LINEARIZATION_OUTPUTS: dict[str, tuple[str, str]] = {
     f"{kind}{i}{j}": (unit, f"film {what} -dF{i}/d{var}{j} [{unit}] (interface-Jacobian coupling)")
     for kind, unit, what, var in (("k", "N/m", "stiffness", ""), ("c", "N.s/m", "damping", "v"))
@@ -328,7 +328,7 @@ class JournalBearing(Fmi2Slave):
                 "if not empty: at fmi2Terminate write numpy.savez(fields_file, phi, z, p, theta, h, t) "
                 "(arrays of JournalBearing.fields(); '{out_dir}' is substituted by the rotorcosim master)"),
             getter=lambda: self.fields_file, setter=self._set_fields_file, **par))
-        self._values["linearize"] = 1
+        self._values["linearize"] = 0
         self.register_variable(Integer(
             "linearize", description=(
                 "1: output the film coefficients kxx..cyy after every step (interface-Jacobian "

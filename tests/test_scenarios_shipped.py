@@ -1,0 +1,105 @@
+"""Every scenario in scenarios/ loads (FMUs, connections, parameters checked by the
+loader) and states the paper's case; short slices of the cheap ones run.
+
+Loading builds our FMUs into the repository's fmus/ folder when they are missing or
+stale (orchestrator.build.ensure_fmus), as `rotorcosim run` does on a fresh clone.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.integration
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+FILES = sorted(SCENARIOS.glob("*.yaml"))
+EXPECTED = {
+    "stationary_oil_bath", "stationary_free_to_air", "jeffcott_runup_half_sommerfeld",
+    "jeffcott_runup_oil_bath", "jeffcott_runup_free_to_air", "turbocharger_runup_half_sommerfeld",
+    "turbocharger_runup_oil_bath", "turbocharger_runup_free_to_air", "quickstart",
+}
+CAVITATION = {"half_sommerfeld": (0, 0), "oil_bath": (1, 0), "free_to_air": (1, 1)}
+
+
+def test_all_paper_scenarios_are_shipped():
+    assert EXPECTED <= {f.stem for f in FILES}
+
+
+@pytest.fixture(scope="module")
+def loaded():
+    from orchestrator import load_scenario
+    return {f.stem: load_scenario(f) for f in FILES}
+
+
+@pytest.mark.parametrize("path", FILES, ids=[f.stem for f in FILES])
+def test_scenario_loads(loaded, path):
+    sc = loaded[path.stem]
+    assert sc.name == path.stem
+    assert sc.stop_time > sc.start_time
+    for spec in sc.fmus:
+        assert spec.path.is_file(), spec.path
+
+
+@pytest.mark.parametrize("name", sorted(n for n in EXPECTED if "runup" in n))
+def test_runups_are_the_papers(loaded, name):
+    sc = loaded[name]
+    rotor = sc.fmu("rotor").parameters
+    if name.startswith("jeffcott"):
+        assert (rotor["f_max"], rotor["t_ramp"], rotor["d_external"]) == (800.0, 2.0, 500.0)
+        assert rotor["m_disc"] + 2 * rotor["m_journal"] == pytest.approx(6.0)
+    else:
+        assert (rotor["f_max"], rotor["t_ramp"]) == (105.0, 7.0)
+    assert sc.stop_time == rotor["t_ramp"]
+    kind = name.split("_runup_")[1]
+    for b in ("bearing1", "bearing2"):
+        p = sc.fmu(b).parameters
+        assert (p["cavitation"], p["axial_bc"]) == CAVITATION[kind]
+        assert p["B"] == pytest.approx(1.6 * p["R"]) and p["psi"] == 2.8e-3 and p["eta0"] == 0.012
+        assert (p["n_phi"], p["n_z"]) == (40, 40) and p["p0"] == p["p_feed"] == 1.0e5
+        if kind == "free_to_air":      # feed groove at the top of the shell, 15 deg
+            assert p["groove_width"] == pytest.approx(math.radians(15.0))
+            assert p["groove_angle"] == pytest.approx(math.pi / 2)
+        clearance = sc.analysis["journals"][b]["clearance"]
+        assert clearance == pytest.approx(p["psi"] * p["R"], rel=1e-3)
+    assert sc.analysis["speed"] == "rotor.omega"
+
+
+@pytest.mark.parametrize("name", ["stationary_oil_bath", "stationary_free_to_air"])
+def test_stationary_cases_are_the_papers(loaded, name):
+    p = loaded[name].fmu("bearing").parameters
+    c = p["psi"] * p["R"]
+    assert math.hypot(p["x"], p["y"]) / c == pytest.approx(0.7, rel=1e-3)
+    assert p["x"] < 0 and p["y"] == 0.0                      # minimum gap at phi = pi
+    assert p["omega"] == pytest.approx(2 * math.pi * 100.0)
+    assert p["fields_file"] == "{out_dir}/bearing_fields.npz"
+    assert p["axial_bc"] == (1 if "free_to_air" in name else 0)
+
+
+def test_stationary_free_to_air_slice_runs_and_writes_fields(loaded, tmp_path):
+    from dataclasses import replace
+    from orchestrator import run
+    sc = replace(loaded["stationary_free_to_air"], stop_time=3e-4)
+    res = run(sc, out_dir=tmp_path, progress=False)
+    assert res.success, res.message
+    fields = np.load(tmp_path / "bearing_fields.npz")
+    p, theta = fields["p"], fields["theta"]
+    assert p.shape == (40, 40) and p.max() > 10 * 1e5          # a loaded film (MPa peak)
+    assert theta.min() < 0.9                                   # and a cavity
+    fy = np.asarray(res.outputs["bearing.Fy"])
+    assert np.ptp(fy) <= 1e-6 * np.max(np.abs(fy))             # steady film stays steady
+
+
+def test_quickstart_slice_runs(loaded, tmp_path):
+    from dataclasses import replace
+    from orchestrator import run
+    sc = loaded["quickstart"]
+    sc = replace(sc, stop_time=sc.start_time + 2e-3)
+    res = run(sc, out_dir=tmp_path, progress=False)
+    assert res.success, res.message
+    y1 = np.asarray(res.outputs["rotor.y_1"])
+    assert y1[-1] < 0.0                                         # the journals start to sink
+    assert np.all(np.asarray(res.outputs["bearing1.eps"]) < 1.0)
