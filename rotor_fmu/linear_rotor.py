@@ -24,27 +24,29 @@ First-order form (for the monolithic reference): ``s = [q, v]``,
 Time integration inside ``step(dt, F)``: the trapezoidal rule (A-stable, second
 order, no numerical damping; for undamped linear systems it conserves the energy
 ``v'Mv/2 + q'Kq/2`` exactly) on ``n_sub`` equal sub-steps, with the speed-dependent
-matrices evaluated at the macro step's mid time (factorized once per step).  ``n_sub`` is chosen so that
-``omega_max * h <= max_phase_per_substep`` where ``omega_max`` is the highest
-undamped natural frequency of the free structure (precomputed), i.e. the stiff
-journal/shaft modes are resolved (relative frequency error of the trapezoidal rule
-~ (omega h)^2 / 12).  One dense n x n solve per sub-step::
+matrices evaluated at the macro step's mid time (factorized once per step).
+``n_sub`` is chosen so that ``omega_max * h <= max_phase_per_substep`` where
+``omega_max`` is the highest undamped natural frequency of the free structure
+(precomputed), i.e. the stiff journal/shaft modes are resolved (relative frequency
+error of the trapezoidal rule ~ (omega h)^2 / 12).  Each sub-step solves::
 
     (I + h/2 A_C + h^2/4 A_K) v1 = v0 + h/2 (f0 + f1 - 2 A_K q0 - A_C v0 - h/2 A_K v0)
     q1 = q0 + h/2 (v0 + v1)
 
 with ``A_C = M^-1 (C + Omega G)``, ``A_K = M^-1 (K + Omega Kc + alpha Ka)`` and
-``f = M^-1 (f_g + B F + f_unb)``; all ``M^-1`` products are precomputed.
+``f = M^-1 (f_g + B F + f_unb)``; all ``M^-1`` products are precomputed.  Kernels:
+numpy (default; the sub-steps as one affine map, cached per quantized speed, see
+:func:`_numpy_substeps`) or numba (``ROTORCOSIM_ROTOR_KERNEL=numba``); see
+docs/rotor-models.md.
 """
 
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import scipy.linalg as sla
-
-import os
 
 # Kernel of the sub-step loop: "numpy" (default) or "numba" (set ROTORCOSIM_ROTOR_KERNEL=numba).
 # numba is not the default: its on-disk cache has known segfaulting races when several
