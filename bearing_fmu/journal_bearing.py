@@ -85,7 +85,7 @@ OUTPUTS: dict[str, tuple[str, str]] = {
     "Fx": ("N", "film force on the journal, x [N]"),
     "Fy": ("N", "film force on the journal, y [N]"),
     "eps": ("1", "relative eccentricity |e|/C [-]"),
-    "attitude": ("rad", "angle of the journal centre, from +x counter-clockwise [rad]"),
+    "attitude": ("rad", "attitude angle: from the load line (direction of -F) to the eccentricity vector, counter-clockwise positive [rad]"),
     "p_max": ("Pa", "maximum film pressure [Pa]"),
     "p_min": ("Pa", "minimum film pressure [Pa]"),
     "h_min": ("m", "minimum film thickness [m]"),

@@ -185,3 +185,68 @@ def test_libcosim_and_our_jacobi_master_agree(interop_fmus, tmp_path):
         if sig == "rotor.y_1":
             moved = np.ptp(a)
     assert moved > 1e-7          # the journal really moved: the comparison is not trivial
+
+
+# ------------------------------------------------------- a third-party bearing FMU
+THIRD_PARTY_BEARING = '''
+from pythonfmu import Fmi2Causality, Fmi2Slave, Real
+
+
+class SpringDamperBearing(Fmi2Slave):
+    """A linear 'bearing' by another author: F = -k r - d v, plain attributes, no state hooks."""
+
+    author = "someone else"
+    description = "isotropic spring-damper support with the JournalBearing interface"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.k = 2.0e7
+        self.d = 2.0e4
+        self.x = self.y = self.vx = self.vy = self.omega = 0.0
+        self.Fx = self.Fy = 0.0
+        for name in ("k", "d"):
+            self.register_variable(Real(name, causality=Fmi2Causality.parameter))
+        for name in ("x", "y", "vx", "vy", "omega"):
+            self.register_variable(Real(name, causality=Fmi2Causality.input))
+        for name in ("Fx", "Fy"):
+            self.register_variable(Real(name, causality=Fmi2Causality.output))
+
+    def do_step(self, current_time, step_size):
+        self.Fx = -self.k * self.x - self.d * self.vx
+        self.Fy = -self.k * self.y - self.d * self.vy
+        return True
+'''
+
+
+@pytest.mark.integration
+def test_third_party_bearing_replaces_ours_by_editing_the_yaml(tmp_path):
+    """scenarios/quickstart.yaml with both bearings swapped for another author's FMU:
+    only the YAML changes (path, its parameters, the recorded signals)."""
+    import yaml
+    from pythonfmu.builder import FmuBuilder
+
+    import orchestrator
+    if not hasattr(orchestrator, "run"):
+        pytest.skip("orchestrator.run not available yet")
+    src = tmp_path / "spring_damper_bearing.py"
+    src.write_text(THIRD_PARTY_BEARING)
+    fmu = Path(FmuBuilder.build_FMU(src, dest=tmp_path))
+    doc = yaml.safe_load((REPO / "scenarios" / "quickstart.yaml").read_text())
+    doc["fmus"]["rotor"]["path"] = str(REPO / "fmus" / "JeffcottRotor.fmu")
+    for b in ("bearing1", "bearing2"):
+        doc["fmus"][b] = {"path": str(fmu), "parameters": {"k": 2.0e7, "d": 2.0e4}}
+    doc["output"]["signals"] = [s for s in doc["output"]["signals"] if not s.startswith("bearing")] + [
+        "bearing1.Fy", "bearing2.Fy"]
+    doc["analysis"]["journals"] = {b: {"x": f"rotor.x_{i}", "y": f"rotor.y_{i}", "clearance": 1.372e-5}
+                                   for i, b in ((1, "bearing1"), (2, "bearing2"))}
+    doc["start_time"], doc["stop_time"] = 0.5, 0.53
+    yml = tmp_path / "quickstart_third_party.yaml"
+    yml.write_text(yaml.safe_dump(doc, sort_keys=False))
+    sc = orchestrator.load_scenario(yml)
+    res = orchestrator.run(sc, out_dir=tmp_path / "run", progress=False)
+    assert res.success, res.message
+    # the journals settle where the springs carry the weight: 2 k |y| = (m_disc + 2 m_journal) g
+    y1 = np.asarray(res.outputs["rotor.y_1"])
+    fy = np.asarray(res.outputs["bearing1.Fy"]) + np.asarray(res.outputs["bearing2.Fy"])
+    assert fy[-1] == pytest.approx(6.0 * 9.81, rel=0.05)
+    assert y1[-1] == pytest.approx(-fy[-1] / 2 / 2.0e7, rel=0.05)
