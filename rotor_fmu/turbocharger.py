@@ -50,6 +50,21 @@ class TurbochargerParams:
     shear: bool = True                 # Timoshenko (True) or Euler-Bernoulli elements
     max_phase_per_substep: float = 0.25  # omega_max * h bound of the internal sub-steps [rad]
 
+    def validate(self) -> None:
+        problems = []
+        for name in ("g", "f_max", "t_ramp"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                problems.append(f"TurbochargerParams.{name} must be >= 0 and finite (got {v!r})")
+        if not self.max_phase_per_substep > 0:
+            problems.append(f"TurbochargerParams.max_phase_per_substep must be > 0 "
+                            f"(got {self.max_phase_per_substep!r}); 0.25 is a good value")
+        if self.n_modes is not None and not (int(self.n_modes) == self.n_modes and self.n_modes >= 0):
+            problems.append(f"TurbochargerParams.n_modes must be an integer >= 0 or None "
+                            f"(got {self.n_modes!r})")
+        if problems:
+            raise ValueError("; ".join(problems))
+
 
 def craig_bampton(M, K, boundary, n_modes, loads=()):
     """Craig-Bampton basis T (n x (nb + n_modes + len(loads))) of a symmetric (M, K)
@@ -102,6 +117,7 @@ class TurbochargerRotor(LinearRotor):
     def __init__(self, params: TurbochargerParams | None = None, *,
                  rotor: RotorDefinition | None = None):
         p = TurbochargerParams() if params is None else params
+        p.validate()
         self.params = p
         rd = rotor if rotor is not None else load_rotor_file(p.rotor_file)
         self.rotor_def = rd

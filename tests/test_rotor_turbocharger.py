@@ -157,3 +157,10 @@ def test_outputs_and_round_trip():
     r.set_state(s)
     r.step(2e-5, F); r.step(2e-5, F)
     assert r.outputs == o
+
+
+def test_params_errors_name_the_field():
+    with pytest.raises(ValueError, match=r"TurbochargerParams.t_ramp must be >= 0"):
+        TurbochargerRotor(TurbochargerParams(t_ramp=-1.0))
+    with pytest.raises(ValueError, match=r"n_modes must be an integer"):
+        TurbochargerRotor(TurbochargerParams(n_modes=-2))
