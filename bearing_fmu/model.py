@@ -76,8 +76,10 @@ class BearingParams:
         theta_atol: local-error tolerance of theta per internal step (RMS).
         newton_atol: Newton tolerance on theta (1e-4, a tenth of theta_atol);
         newton_rtol: on p, relative to the pressure range of the film (1e-5).
-        newton_max_iter. krylov_tol, krylov_refactor: GMRES relative tolerance
-        and the iteration count after which the reused band LU is refreshed.
+        newton_max_iter. krylov_refactor: 0 (default) = fresh band LU and a
+        direct solve every Newton iteration; m > 0 = GMRES preconditioned by
+        the reused LU, refreshed after m GMRES iterations (krylov_tol: GMRES
+        relative tolerance).
         h_init, h_min, h_max [s]: internal steps.
         linear_solver: "band" (LAPACK band LU, default) or "splu" (SuperLU).
     """
@@ -104,7 +106,7 @@ class BearingParams:
     newton_rtol: float = 1.0e-5
     newton_max_iter: int = 30
     krylov_tol: float = 1.0e-4
-    krylov_refactor: int = 8
+    krylov_refactor: int = 0
     h_init: float = 1.0e-6
     h_min: float = 1.0e-12
     h_max: float = 1.0
@@ -147,7 +149,7 @@ class BearingParams:
              and self.newton_max_iter >= 2, "an integer >= 2")
         need("krylov_tol", 0 < self.krylov_tol < 1, "in (0, 1)")
         need("krylov_refactor", isinstance(self.krylov_refactor, int)
-             and self.krylov_refactor >= 1, "an integer >= 1")
+             and self.krylov_refactor >= 0, "an integer >= 0 (0: fresh LU every Newton iteration)")
         need("h_min", self.h_min <= self.h_init <= self.h_max, "h_min <= h_init <= h_max")
         need("linear_solver", self.linear_solver in ("band", "splu"), "'band' or 'splu'")
         if problems:

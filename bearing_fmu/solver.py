@@ -13,12 +13,14 @@ Method
   constant steps). RMS norm over film cells divided by ``theta_atol``; a step is
   accepted when <= 1; the next step is ``0.9 err^(-1/(q+1))`` times the last,
   limited to [0.2, 2] (Hairer, Norsett & Wanner, I.II.4).
-* Nonlinear solve: Newton-Krylov. Every iteration assembles the exact
-  5-point stencil Jacobian (numba) and solves it with GMRES preconditioned by
-  the LAST band LU (``dgbtrf``, ordering of :mod:`.grid`), which is REUSED
-  across iterations and time steps; when GMRES needs more than
-  ``krylov_refactor`` iterations the LU is refreshed at the current iterate and
-  the system is solved directly. Converged when the increment in theta is below
+* Nonlinear solve: Newton. Every iteration assembles the exact 5-point
+  stencil Jacobian (numba). Default (``krylov_refactor = 0``): band LU
+  (``dgbtrf``, ordering of :mod:`.grid`) and a direct solve every iteration;
+  on the half-width grid the LU is cheap (n_z/2 bandwidth), and this measured
+  fastest on 40x40, 80x80 and 160x40. Option ``krylov_refactor = m > 0``:
+  Newton-Krylov, GMRES preconditioned by the LAST band LU, REUSED across
+  iterations and time steps, refreshed when GMRES needs more than m
+  iterations (pays off when the LU is expensive relative to a solve). Converged when the increment in theta is below
   ``newton_atol`` and in p below ``newton_rtol`` of the pressure range (directly
   or by the contraction-rate estimate). A step whose Newton iteration fails is
   retried with h/4.
@@ -238,7 +240,7 @@ class TransientFilm:
             r = self.residual(u, th_dot0, th_dot1, kin, want_jac=True)
             its += 1
             fresh = False
-            if not self._factored or self.full_newton:
+            if not self._factored or self.full_newton or prm.krylov_refactor == 0:
                 self._factor(u, th_dot0, kin, jst_ready=True)
                 fresh = True
                 dx = self._solve(r)
