@@ -331,8 +331,9 @@ class JournalBearing(Fmi2Slave):
         self._values["linearize"] = 0
         self.register_variable(Integer(
             "linearize", description=(
-                "1: output the film coefficients kxx..cyy after every step (interface-Jacobian "
-                "coupling, docs/stiff-coupling.md); 0: outputs 0, no extra cost"),
+                "N >= 1: output the film coefficients kxx..cyy (interface-Jacobian coupling, "
+                "docs/stiff-coupling.md), recomputed every N-th step and held in between "
+                "(1: every step); 0: outputs 0, no extra cost"),
             getter=self._getter("linearize"), setter=self._param_setter("linearize", int), **par))
 
         for name, (unit, desc) in INPUTS.items():
@@ -467,13 +468,18 @@ class JournalBearing(Fmi2Slave):
             raise KeyError(f"bearing model outputs lack {missing}; it provides {sorted(out)}")
         for name in OUTPUTS:
             self._values[name] = float(out.get(name, 0.0))
-        if self._values.get("linearize", 0):
-            from bearing_fmu.linearize import linearization
-            K, C = linearization(self._model)
-            for m, kind in ((K, "k"), (C, "c")):
-                for a, i in enumerate("xy"):
-                    for b, j in enumerate("xy"):
-                        self._values[f"{kind}{i}{j}"] = float(m[a, b])
+        n_lin = int(self._values.get("linearize", 0))
+        if n_lin > 0:   # every n_lin-th step (held in between; "_lin_age" is in the FMU state)
+            age = int(self._values.get("_lin_age", n_lin))
+            if age >= n_lin or not self._initialized:
+                from bearing_fmu.linearize import linearization
+                K, C = linearization(self._model)
+                for m, kind in ((K, "k"), (C, "c")):
+                    for a, i in enumerate("xy"):
+                        for b, j in enumerate("xy"):
+                            self._values[f"{kind}{i}{j}"] = float(m[a, b])
+                age = 0
+            self._values["_lin_age"] = age + 1
 
     # -- FMI life cycle --------------------------------------------------------
     def setup_experiment(self, start_time: float, stop_time=None, tolerance=None):
