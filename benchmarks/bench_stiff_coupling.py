@@ -48,9 +48,10 @@ def main(argv=None):
                     help="hs: half-Sommerfeld bearings, monolithic reference; mc: mass-conserving "
                          "bearings (no monolithic model), reference = --ref co-simulation")
     ap.add_argument("--ref", default="plain:1.25e-6", help="mc reference MODE:H")
+    ap.add_argument("--set", action="append", default=[], help="extra scenario override (all runs)")
     a = ap.parse_args(argv)
     common = [f"start_time={a.start}", f"stop_time={a.stop}", f"output.interval={a.interval}",
-              f"output.signals=[{','.join(SIG + ['bearing1.eps', 'bearing2.eps'])}]"]
+              f"output.signals=[{','.join(SIG + ['bearing1.eps', 'bearing2.eps'])}]"] + a.set
     out = Path(a.out)
     scen = {m: HERE / f"jeffcott_{a.film}_{m}.yaml" for m in ("plain", "ij")}
     if a.film == "hs":
