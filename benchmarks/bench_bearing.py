@@ -69,7 +69,7 @@ def run_case(n_phi, n_z, n_steps, *, peer=False, warmup=20, dt=1e-5):
     f = b.film
     arrays = sum(a.nbytes for a in (f.ab, f.jst, f.u, f.th_nm1, f.th_nm2, f.u_prev))
     micro = st["steps"] / n_steps
-    return dict(grid=f"{n_phi}x{n_z}", solver="splu full Newton" if peer else "band LU + GMRES",
+    return dict(grid=f"{n_phi}x{n_z}", solver="splu full Newton (peer)" if peer else "band LU full Newton (half width)",
                 bw=b.grid.bw, cpu=cpu, med=float(np.median(ms)), p90=float(np.percentile(ms, 90)),
                 micro=micro, med_micro=float(np.median(ms)) / micro,
                 newton=st["newton"] / st["steps"], factor=st["factor"] / st["steps"],
