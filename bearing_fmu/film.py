@@ -41,7 +41,6 @@ from __future__ import annotations
 import math
 
 import numba as nb
-import numpy as np
 
 from .cavitation import law_eval, penalty
 

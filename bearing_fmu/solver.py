@@ -111,7 +111,10 @@ class TransientFilm:
 
     ``ctx`` is a :class:`bearing_fmu.model.JournalBearing`-like object with the
     grid, constants and law (see ``model.py``); the integrator only owns the
-    numerical state.
+    numerical state. Diagnostics switches (attributes, default True):
+    ``predictor`` (extrapolate u as Newton start), ``line_search``
+    (backtracking on |r|); ``full_newton=True`` refactorises every iteration
+    whatever ``krylov_refactor`` says (the benchmark peer).
     """
 
     def __init__(self, ctx, linear_solver="band", full_newton=False):
