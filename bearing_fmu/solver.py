@@ -386,11 +386,17 @@ class TransientFilm:
         return last_its
 
     # ------------------------------------------------------------ state
+    def _reuses_lu(self):
+        """True when a factorisation carries over between steps (Newton-Krylov);
+        with a fresh LU every Newton iteration it is not part of the state."""
+        return self.ctx.params.krylov_refactor > 0 and not self.full_newton
+
     def get_state(self):
         s = dict(u=self.u.copy(), u_prev=self.u_prev.copy(), th_nm1=self.th_nm1.copy(), th_nm2=self.th_nm2.copy(),
                  h_prev=self.h_prev, h_prev2=self.h_prev2, n_hist=self.n_hist,
-                 h_next=self.h_next, t=self.t, jac_valid=bool(self._factored))
-        if self._factored:
+                 h_next=self.h_next, t=self.t,
+                 jac_valid=bool(self._factored and self._reuses_lu()))
+        if s["jac_valid"]:
             H, He, Hdot, omega = self.jac["kin"]
             s.update(jac_u=self.jac["u"].copy(), jac_th_dot0=self.jac["th_dot0"],
                      jac_H=H.copy(), jac_He=He.copy(), jac_Hdot=Hdot.copy(),
