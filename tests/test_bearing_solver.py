@@ -258,3 +258,31 @@ def test_half_width_grid_equals_full_grid():
     for key in ("Fx", "Fy", "torque", "q_feed", "q_side", "p_max"):
         assert res[0][0][key] == pytest.approx(res[1][0][key], rel=1e-7)
     assert np.allclose(res[0][1]["theta"], res[1][1]["theta"], atol=1e-7)
+
+
+@pytest.mark.parametrize("bc", [0, 1])
+def test_transient_volume_balance(bc):
+    """Film volume change rate (the BDF derivative of sum theta h dA plus the
+    squeeze term) equals q_feed - q_side after every transient step, to the
+    Newton tolerance: the flows of ``outputs`` are the discrete fluxes."""
+    p = small(axial_bc=bc, **GROOVE)
+    w = 2 * math.pi * 400
+    b = JournalBearing(p)
+    b.initialize(*orbit(p.c, w, 0.0), init="stationary")
+    f, g = b.film, b.grid
+    dt = 2e-5
+    for k in range(8):
+        b.step(dt, *orbit(p.c, w, (k + 1) * dt))
+        if f.n_hist < 2:
+            continue
+        h, w_ = f.h_prev, f.h_prev / f.h_prev2
+        a0, a1, a2 = (1 + 2 * w_) / (1 + w_), -(1 + w_), w_ * w_ / (1 + w_)
+        th = f.theta(f.u).reshape(g.n_z, g.n_phi)
+        th_dot = (a0 * th + (a1 * f.th_nm1 + a2 * f.th_nm2).reshape(th.shape)) / h
+        H, _, Hdot, _ = b._kin
+        film = ~g.groove[None, :]
+        rate = np.sum(np.where(film, 2 * H * th_dot + 2 * Hdot * th, 0.0)) * g.dphi * g.dz
+        rate *= 0.5 * p.R * p.c * p.B * (2 if b.sym else 1)          # [m^3/s]
+        o = b.outputs
+        assert rate == pytest.approx(o["q_feed"] - o["q_side"],
+                                     abs=1e-4 * abs(o["q_feed"]) + 1e-12)
