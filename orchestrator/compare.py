@@ -68,6 +68,40 @@ def _run_job(runner, scenario: Scenario, out_dir: str) -> dict[str, Any]:
     return {"error": error, "wall_time_s": time.perf_counter() - t0}
 
 
+def _run_isolated(runner, scenario: Scenario, out_dir: str) -> dict[str, Any]:
+    """Run one job in a fresh Python process (``python -m orchestrator.compare JOB``).
+
+    Every run gets its own process: FMUs that load Python packages in-process (ours
+    do) cannot mix versions with the monolithic reference's imports, and a run that
+    crashes the interpreter fails only itself ("worker process died")."""
+    import pickle
+    import subprocess
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    job = out / "compare_job.pickle"
+    job.write_bytes(pickle.dumps((runner, scenario, str(out))))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "orchestrator.compare", str(job)], env=env)
+    result_file = out / "compare_job.json"
+    if proc.returncode == 0 and result_file.exists():
+        import json
+        return json.loads(result_file.read_text())
+    how = (f"killed by signal {-proc.returncode}" if proc.returncode < 0
+           else f"exit code {proc.returncode}")
+    return {"error": f"worker process died ({how}); see the messages above",
+            "wall_time_s": time.perf_counter() - t0}
+
+
+def _worker_main(job_file: str) -> int:
+    import json
+    import pickle
+    runner, scenario, out_dir = pickle.loads(Path(job_file).read_bytes())
+    result = _run_job(runner, scenario, out_dir)
+    (Path(out_dir) / "compare_job.json").write_text(json.dumps(result))
+    return 0
+
+
 @dataclass
 class CompareReport:
     """Everything measured; written by :func:`orchestrator.compare_metrics.write_report`."""
@@ -97,9 +131,9 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
         for label, sc in jobs:
             log.info("compare: running %s", label)
             results[label] = _run_job(runner, sc, str(runs / label))
-    else:
-        with concurrent.futures.ProcessPoolExecutor(max_workers=min(workers, 2)) as pool:
-            futs = {pool.submit(_run_job, runner, sc, str(runs / label)): label for label, sc in jobs}
+    else:   # threads that each wait for one fresh process per run
+        with concurrent.futures.ThreadPoolExecutor(max_workers=min(workers, 2)) as pool:
+            futs = {pool.submit(_run_isolated, runner, sc, str(runs / label)): label for label, sc in jobs}
             for fut in concurrent.futures.as_completed(futs):
                 results[futs[fut]] = fut.result()
                 log.info("compare: finished %s", futs[fut])
@@ -249,3 +283,7 @@ def main_compare(path: str | os.PathLike, out_dir: str | os.PathLike | None = No
     if not failures:
         print("compare: all checks passed")
     return 1 if failures else 0
+
+
+if __name__ == "__main__":   # worker of run_comparison (one run per process)
+    sys.exit(_worker_main(sys.argv[1]))
