@@ -239,8 +239,13 @@ class TransientFilm:
         u = u0.copy()
         prev = None
         its = 0
+        r_ready = False
         while its < max_iter:
-            r = self.residual(u, th_dot0, th_dot1, kin, want_jac=True)
+            if r_ready:             # evaluated at u by the line search below
+                r = self.r
+            else:
+                r = self.residual(u, th_dot0, th_dot1, kin, want_jac=True)
+            r_ready = False
             its += 1
             fresh = False
             if not self._factored or self.full_newton or prm.krylov_refactor == 0:
@@ -259,13 +264,19 @@ class TransientFilm:
             un = u + dx
             _limit_switch(u, un, self.ctx.law.delta)
             if prev is not None and self.line_search:
-                # backtracking on |r| (the Newton step is a descent direction)
+                # backtracking on |r| (the Newton step is a descent direction);
+                # the residual and Jacobian at the accepted point are kept for
+                # the next iteration
                 r0 = float(np.linalg.norm(r))
                 lam = 1.0
-                while lam > 0.1 and float(np.linalg.norm(
-                        self.residual(un, th_dot0, th_dot1, kin))) > r0:
+                rn = float(np.linalg.norm(
+                    self.residual(un, th_dot0, th_dot1, kin, want_jac=True)))
+                while rn > r0 and lam > 0.1:
                     lam *= 0.5
-                    un = u + lam * (un - u)
+                    un = u + 0.5 * (un - u)
+                    rn = float(np.linalg.norm(
+                        self.residual(un, th_dot0, th_dot1, kin, want_jac=True)))
+                r_ready = True
             dx = un - u
             u = un
             nrm = self._increment_norm(dx, atol, rtol)
