@@ -221,7 +221,8 @@ class SpringDamperBearing(Fmi2Slave):
 @pytest.mark.integration
 def test_third_party_bearing_replaces_ours_by_editing_the_yaml(tmp_path):
     """scenarios/quickstart.yaml with both bearings swapped for another author's FMU:
-    only the YAML changes (path, its parameters, the recorded signals)."""
+    only the YAML changes (path, its parameters, the recorded signals, and the
+    interface-Jacobian connections the other FMU does not offer)."""
     import yaml
     from pythonfmu.builder import FmuBuilder
 
@@ -239,6 +240,10 @@ def test_third_party_bearing_replaces_ours_by_editing_the_yaml(tmp_path):
         "bearing1.Fy", "bearing2.Fy"]
     doc["analysis"]["journals"] = {b: {"x": f"rotor.x_{i}", "y": f"rotor.y_{i}", "clearance": 1.372e-5}
                                    for i, b in ((1, "bearing1"), (2, "bearing2"))}
+    # it has no film coefficients: plain coupling, with a step its damping allows (H < 2 m / d)
+    doc["connections"] = [c for c in doc["connections"] if c["from"].split(".")[1] in ("Fx", "Fy")
+                          or c["from"].startswith("rotor.")]
+    doc["coupling"]["macro_step"] = 2.0e-5
     doc["start_time"], doc["stop_time"] = 0.5, 0.53
     yml = tmp_path / "quickstart_third_party.yaml"
     yml.write_text(yaml.safe_dump(doc, sort_keys=False))
