@@ -170,7 +170,9 @@ def build_one(recipe: FmuRecipe, out_dir: Path) -> Path:
         tmp_target = out_dir / f".{recipe.name}.fmu.{os.getpid()}.tmp"
         shutil.copyfile(built, tmp_target)
         os.replace(tmp_target, target)
-    _stamp_path(target).write_text(json.dumps(info, indent=1) + "\n")
+    stamp_tmp = out_dir / f".{recipe.name}.stamp.{os.getpid()}.tmp"
+    stamp_tmp.write_text(json.dumps(info, indent=1) + "\n")
+    os.replace(stamp_tmp, _stamp_path(target))          # atomic: concurrent runs may check it
     log.info("built %s in %.1f s", target, time.perf_counter() - t0)
     return target
 
