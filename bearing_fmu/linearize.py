@@ -114,11 +114,19 @@ def film_force_at(b, u, kin) -> np.ndarray:
     return _force(b, p, th, kin)
 
 
-def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3):
-    """(K, C) of the mass-conserving film at its current state (see module doc)."""
+def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3, horizon=None):
+    """(K, C) of the mass-conserving film at its current state (see module doc).
+
+    ``horizon`` [s] (optional): instead of the last internal BDF step, linearize an
+    implicit Euler step of that length from the current film (Jacobian at the current
+    u, theta history = theta(u)): the film's response over a macro step of that length
+    (cavity transport included to first order), not only the instantaneous one."""
     film = b.film
     x, y, vx, vy, omega = b._inputs
-    bdf = _last_bdf(film)
+    if horizon:
+        bdf = (1.0 / horizon, -film.theta(film.u) / horizon)
+    else:
+        bdf = _last_bdf(film)
     if bdf is None:
         return hs_linearization(b, x, y, vx, vy, omega, rel_step=rel_step, t_ref=t_ref)
     th_dot0, th_dot1 = bdf
@@ -165,10 +173,11 @@ def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3):
     return D[:, :2].copy(), D[:, 2:].copy()
 
 
-def linearization(b, *, rel_step=1e-5, t_ref=1e-3):
+def linearization(b, *, rel_step=1e-5, t_ref=1e-3, horizon=None):
     """(K, C) 2x2 [N/m], [N s/m] of :class:`bearing_fmu.model.JournalBearing` ``b`` at
-    its current state (after ``initialize``/``step``); the state is not changed."""
+    its current state (after ``initialize``/``step``); the state is not changed.
+    ``horizon``: see :func:`mc_linearization` (ignored by half-Sommerfeld)."""
     b._check_init("linearization")
     if b.film is None:
         return hs_linearization(b, *b._inputs, rel_step=rel_step, t_ref=t_ref)
-    return mc_linearization(b, rel_step=rel_step, t_ref=t_ref)
+    return mc_linearization(b, rel_step=rel_step, t_ref=t_ref, horizon=horizon)
