@@ -17,7 +17,9 @@ be accurate enough to stabilize, the converged answer does not depend on them.
   linearized coefficients of the short bearing, Lund 1987 / Childs 1993 sec. 3.6,
   are the limit; see the tests vs ``reference.short_bearing_coefficients``).
 
-* Mass-conserving (``cavitation = 1``, transient): the instantaneous sensitivity of
+* Mass-conserving (``cavitation = 1``, transient): by default (and in the FMU) the
+  half-Sommerfeld coefficients at the same kinematics (see :func:`linearization` for
+  the measured reasons). With ``method="film"``: the instantaneous sensitivity of
   the film force to the journal kinematics with the film history held, i.e. of the
   last implicit (BDF1/2) step ``R(u; kin) = 0`` the film took::
 
@@ -173,11 +175,27 @@ def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3, horizon=None):
     return D[:, :2].copy(), D[:, 2:].copy()
 
 
-def linearization(b, *, rel_step=1e-5, t_ref=1e-3, horizon=None):
+def linearization(b, *, method="quasi-static", rel_step=1e-5, t_ref=1e-3, horizon=None):
     """(K, C) 2x2 [N/m], [N s/m] of :class:`bearing_fmu.model.JournalBearing` ``b`` at
     its current state (after ``initialize``/``step``); the state is not changed.
-    ``horizon``: see :func:`mc_linearization` (ignored by half-Sommerfeld)."""
+
+    ``method="quasi-static"`` (default, what the FMU outputs): the half-Sommerfeld
+    coefficients at the bearing's current kinematics, for both film models.
+    ``method="film"``: for the mass-conserving film its own sensitivity
+    (:func:`mc_linearization`, ``horizon`` see there); half-Sommerfeld is the same.
+
+    Why the quasi-static default for the mass-conserving film (measured,
+    docs/stiff-coupling.md): the film's instantaneous sensitivity is exact for its last
+    BDF step but jumps from step to step where cells cavitate/reform (damping 5e3 <->
+    5e4 N s/m between consecutive 10 us steps) and is exactly 0 for a just-cavitated
+    film, and coefficients that underestimate the film make the coupling unstable
+    (amplification 1 - c_true / (m/H + c_used)); the smooth quasi-static coefficients
+    have the right magnitude, gave 2-4x smaller coupling errors at 10-100 us, and can be
+    held over several steps. The coefficients only set the stabilizing correction; the
+    force itself is always the film's."""
     b._check_init("linearization")
-    if b.film is None:
+    if method not in ("quasi-static", "film"):
+        raise ValueError(f"linearization: method must be 'quasi-static' or 'film' (got {method!r})")
+    if b.film is None or method == "quasi-static":
         return hs_linearization(b, *b._inputs, rel_step=rel_step, t_ref=t_ref)
     return mc_linearization(b, rel_step=rel_step, t_ref=t_ref, horizon=horizon)

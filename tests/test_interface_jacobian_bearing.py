@@ -89,7 +89,7 @@ def test_mc_coefficients_equal_the_finite_difference_of_one_film_step():
     n0 = b.film.stats["steps"]
     b.step(dt, *z, w)
     assert b.film.stats["steps"] == n0 + 1          # one internal step: same sensitivity
-    K, C = linearization(b)
+    K, C = linearization(b, method="film")
 
     def force(zz):
         b.set_state(S)
@@ -109,3 +109,19 @@ def test_mc_coefficients_equal_the_finite_difference_of_one_film_step():
     from bearing_fmu.linearize import hs_linearization
     Kh, Ch = hs_linearization(b, *z, w)
     assert rel(K, Kh) > 0.05
+
+
+def test_mc_default_coefficients_are_the_quasi_static_ones_at_the_kinematics():
+    """The FMU's default for the mass-conserving film: half-Sommerfeld coefficients at the
+    film's current kinematics (bearing_fmu.linearize.linearization docstring)."""
+    from bearing_fmu.linearize import hs_linearization
+    w = 2 * math.pi * 200
+    b = JournalBearing(params(cavitation=1))
+    z = np.array([0.2 * C_CL, -0.5 * C_CL, 0.01 * C_CL * w, 0.02 * C_CL * w])
+    b.initialize(*z, w)
+    b.step(2e-5, *z, w)
+    K, C = linearization(b)
+    Kh, Ch = hs_linearization(b, *z, w)
+    assert np.array_equal(K, Kh) and np.array_equal(C, Ch)
+    with pytest.raises(ValueError):
+        linearization(b, method="exact")
