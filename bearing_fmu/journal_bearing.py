@@ -259,10 +259,55 @@ def use_stable_code_copy(resources: str | None, package: str = "bearing_fmu") ->
         return None
 
 
+# ----------------------------------------------------------------------------
+# PythonFMU 0.7.0 reference-count bug: when a Python exception escapes an FMI
+# callback, its C++ handle_py_exception() calls cleanPyObject(), which
+# Py_XDECREFs the slave class, the slave instance and its log queue WITHOUT
+# clearing the pointers; fmi2FreeInstance later decrefs them again. The objects
+# end up with one reference too few and Python's cyclic GC later crashes on them
+# (seen as segfaults in unrelated tests). Until PythonFMU fixes it (pinned to
+# 0.7.0 in pyproject.toml), every callback that lets an exception escape first
+# adds the one reference that the extra decref will take away, so the FMU still
+# reports the error (fmi2Fatal) and nothing is corrupted.
+# ----------------------------------------------------------------------------
+def _compensate_pythonfmu_decref(slave) -> None:
+    import ctypes
+    for obj in (type(slave), slave, getattr(slave, "log_queue", None)):
+        if obj is not None:
+            ctypes.pythonapi.Py_IncRef(ctypes.py_object(obj))
+
+
+def fmi_callback(fn):
+    """Wrap a method PythonFMU calls from C++ (see _compensate_pythonfmu_decref)."""
+    import functools
+
+    @functools.wraps(fn)
+    def wrapper(self, *args, **kwargs):
+        try:
+            return fn(self, *args, **kwargs)
+        except BaseException:
+            _compensate_pythonfmu_decref(self)
+            raise
+    return wrapper
+
+
+CALLBACKS = ("setup_experiment", "enter_initialization_mode", "exit_initialization_mode", "do_step",
+             "terminate", "get_integer", "get_real", "get_boolean", "get_string", "set_integer",
+             "set_real", "set_boolean", "set_string", "_get_fmu_state", "_set_fmu_state")
+
+
+def guard_callbacks(cls):
+    """Class decorator: wrap every PythonFMU callback of ``cls`` with :func:`fmi_callback`."""
+    for name in CALLBACKS:
+        setattr(cls, name, fmi_callback(getattr(cls, name)))
+    return cls
+
+
 class InitializationStateError(RuntimeError):
     """An FMI call came in the wrong life-cycle phase."""
 
 
+@guard_callbacks
 class JournalBearing(Fmi2Slave):
     """Hydrodynamic journal bearing (short/finite film on a (phi, z) grid).
 

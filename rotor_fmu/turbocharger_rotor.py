@@ -57,6 +57,7 @@ def _copy_outputs(self) -> None:
             raise KeyError(f"turbocharger model lacks output {name!r}")
 
 
+@_slave.guard_callbacks
 class TurbochargerRotor(Fmi2Slave):
     """Flexible turbocharger rotor with two journal bearings between the wheels."""
 
