@@ -408,9 +408,19 @@ class Subsystem(SubsystemBase):
         """fmi2FreeInstance and unload the library; idempotent, never raises."""
         if self._slave is None or self._state == "freed":
             return
-        # Freed also after fmi2Fatal: FMI 2.0 allows no call after Fatal, but
-        # PythonFMU reports every Python exception as Fatal, and instances left
-        # alive have aborted processes at exit (fmpy + libcosim in one process).
+        if self._state == "fatal":
+            # FMI 2.0 allows no call after fmi2Fatal, fmi2FreeInstance included:
+            # the instance and its library are left alone (a small leak). This also
+            # avoids a PythonFMU 0.7.0 bug: after a Python exception escaped a
+            # callback (reported as Fatal) its handle_py_exception() has already
+            # released the slave class, instance and log queue, and
+            # fmi2FreeInstance releases them a second time; the cyclic GC then
+            # crashes later in an unrelated place (docs/dev/requests.md).
+            log.warning("%s: not freeing the instance after fmi2Fatal (FMI 2.0 forbids "
+                        "any further call); its memory stays allocated until exit", self.name)
+            self._state = "freed"
+            _LOG_SINKS.pop(self._sink_key, None)
+            return
         try:
             self.calls["freeInstance"] += 1
             self._f["fmi2FreeInstance"](self._component)

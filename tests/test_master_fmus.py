@@ -278,3 +278,16 @@ def test_keyboard_interrupt_still_writes_summary(test_fmus, tmp_path):
     s = json.loads((tmp_path / "summary.json").read_text())
     assert s["status"] == "failed" and "interrupted" in s["message"] and s["end_time"] == pytest.approx(0.03)
     assert len(pd.read_csv(tmp_path / "results.csv")) == 4
+
+
+def test_no_call_after_fatal_not_even_free_instance(test_fmus, tmp_path):
+    """FMI 2.0 (section 2.1.3): after fmi2Fatal no function may be called, fmi2FreeInstance
+    included. PythonFMU reports an escaped Python exception as Fatal and has already
+    released the slave's objects then; freeing again corrupted the interpreter (a segfault
+    in the cyclic GC much later). The faulty instance must not be freed, the others must."""
+    res = run(chain(test_fmus, "gauss-seidel", mode=1, t_fail=0.05, H=0.01, T=0.1), out_dir=tmp_path,
+              progress=False)
+    assert res.status is Status.FAILED
+    calls = res.stats["fmu_calls"]
+    assert calls["src"].get("freeInstance", 0) == 0, calls["src"]
+    assert calls["gain"].get("freeInstance", 0) == 1 and calls["integ"].get("freeInstance", 0) == 1, calls
