@@ -1,0 +1,454 @@
+/* LinearBearing: a native (C) FMI 2.0 co-simulation FMU.
+ *
+ * A linear isotropic spring-damper "journal bearing":
+ *     Fx = -k x - c vx,   Fy = -k y - c vy      [N]
+ * with the same variable names as rotorcosim's JournalBearing FMU (inputs x, y,
+ * vx, vy, omega; outputs Fx, Fy), so it can replace it in a rotor scenario.
+ * omega is accepted and ignored. The outputs are algebraic (direct feedthrough):
+ * fmi2GetReal computes them from the current inputs; fmi2DoStep only advances
+ * the time. Parameters k, c are fixed (settable before initialization ends).
+ *
+ * Value references (must match modelDescription.xml):
+ *   0 k [N/m]  1 c [N s/m]  2 x  3 y  4 vx  5 vy  6 omega  7 Fx  8 Fy
+ *
+ * Built by tests/fmus_c/build_c_fmu.py (gcc -shared -fPIC -O2) against the
+ * FMI 2.0 headers shipped with fmpy.
+ */
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "fmi2Functions.h"
+
+#define MODEL_GUID "{8c4e810f-3df3-4a00-8276-176fa3c9f001}"
+
+enum { VR_K, VR_C, VR_X, VR_Y, VR_VX, VR_VY, VR_OMEGA, VR_FX, VR_FY, N_VARS };
+
+typedef enum {
+    ST_INSTANTIATED = 1,
+    ST_INITIALIZATION = 2,
+    ST_STEP_COMPLETE = 4,
+    ST_TERMINATED = 8,
+    ST_ERROR = 16
+} ModelState;
+
+typedef struct {
+    double v[N_VARS];   /* all variables; outputs computed on demand */
+    double time;
+    ModelState state;
+} Data;
+
+typedef struct {
+    Data d;
+    char *instanceName;
+    fmi2CallbackFunctions cb;   /* copy: the importer's struct may go away */
+    fmi2Boolean loggingOn;
+} Instance;
+
+static const double START[N_VARS] = {1.0e6, 200.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+
+/* ------------------------------------------------------------------ helpers */
+
+static void logf_(Instance *inst, fmi2Status status, const char *category, const char *fmt, ...)
+{
+    char msg[512], esc[1024];
+    va_list ap;
+    size_t i, j = 0;
+    if (!inst || !inst->cb.logger) return;
+    if (status == fmi2OK && !inst->loggingOn) return;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    /* the message is a printf format for the importer: escape '%' */
+    for (i = 0; msg[i] && j + 2 < sizeof esc; i++) {
+        esc[j++] = msg[i];
+        if (msg[i] == '%') esc[j++] = '%';
+    }
+    esc[j] = '\0';
+    inst->cb.logger(inst->cb.componentEnvironment, inst->instanceName, status, category, esc);
+}
+
+static fmi2Status fail(Instance *inst, const char *fn, const char *why)
+{
+    logf_(inst, fmi2Error, "logStatusError", "%s: %s", fn, why);
+    return fmi2Error;
+}
+
+/* check the instance and the allowed states; on a wrong state log and fail */
+static int bad(fmi2Component c, const char *fn, int allowed)
+{
+    Instance *inst = (Instance *)c;
+    if (!inst) return 1;
+    if (!(inst->d.state & allowed)) {
+        logf_(inst, fmi2Error, "logStatusError", "%s: not allowed in the current state (%d)", fn,
+              (int)inst->d.state);
+        return 1;
+    }
+    return 0;
+}
+
+static void compute_outputs(Data *d)
+{
+    d->v[VR_FX] = -d->v[VR_K] * d->v[VR_X] - d->v[VR_C] * d->v[VR_VX];
+    d->v[VR_FY] = -d->v[VR_K] * d->v[VR_Y] - d->v[VR_C] * d->v[VR_VY];
+}
+
+#define ALL_STATES (ST_INSTANTIATED | ST_INITIALIZATION | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR)
+#define RUNNING (ST_INITIALIZATION | ST_STEP_COMPLETE)
+
+/* -------------------------------------------------------- inquiry, logging */
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
+                               const fmi2String categories[])
+{
+    (void)nCategories; (void)categories;
+    if (bad(c, "fmi2SetDebugLogging", ALL_STATES)) return fmi2Error;
+    ((Instance *)c)->loggingOn = loggingOn;
+    return fmi2OK;
+}
+
+/* ------------------------------------------------------ create and destroy */
+
+fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                              fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                              fmi2Boolean visible, fmi2Boolean loggingOn)
+{
+    Instance *inst;
+    (void)fmuResourceLocation; (void)visible;
+    if (!functions || !functions->allocateMemory || !functions->freeMemory) return NULL;
+    if (!instanceName || !instanceName[0]) {
+        if (functions->logger)
+            functions->logger(functions->componentEnvironment, "?", fmi2Error, "logStatusError",
+                              "fmi2Instantiate: missing instance name");
+        return NULL;
+    }
+    if (fmuType != fmi2CoSimulation) {
+        if (functions->logger)
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
+                              "fmi2Instantiate: LinearBearing supports co-simulation only");
+        return NULL;
+    }
+    if (!fmuGUID || strcmp(fmuGUID, MODEL_GUID) != 0) {
+        if (functions->logger)
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
+                              "fmi2Instantiate: wrong GUID (modelDescription.xml does not match the binary)");
+        return NULL;
+    }
+    inst = (Instance *)functions->allocateMemory(1, sizeof(Instance));
+    if (!inst) return NULL;
+    inst->instanceName = (char *)functions->allocateMemory(strlen(instanceName) + 1, 1);
+    if (!inst->instanceName) {
+        functions->freeMemory(inst);
+        return NULL;
+    }
+    strcpy(inst->instanceName, instanceName);
+    inst->cb = *functions;
+    inst->loggingOn = loggingOn;
+    memcpy(inst->d.v, START, sizeof START);
+    compute_outputs(&inst->d);
+    inst->d.time = 0.0;
+    inst->d.state = ST_INSTANTIATED;
+    logf_(inst, fmi2OK, "logEvents", "fmi2Instantiate: k = %g N/m, c = %g N s/m", inst->d.v[VR_K],
+          inst->d.v[VR_C]);
+    return inst;
+}
+
+void fmi2FreeInstance(fmi2Component c)
+{
+    Instance *inst = (Instance *)c;
+    fmi2CallbackFreeMemory freeMemory;
+    if (!inst) return;
+    freeMemory = inst->cb.freeMemory;
+    freeMemory(inst->instanceName);
+    freeMemory(inst);
+}
+
+/* ------------------------------------------------------------ initialization */
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
+{
+    Instance *inst = (Instance *)c;
+    (void)toleranceDefined; (void)tolerance;
+    if (bad(c, "fmi2SetupExperiment", ST_INSTANTIATED)) return fmi2Error;
+    if (stopTimeDefined && stopTime < startTime)
+        return fail(inst, "fmi2SetupExperiment", "stopTime < startTime");
+    inst->d.time = startTime;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c)
+{
+    if (bad(c, "fmi2EnterInitializationMode", ST_INSTANTIATED)) return fmi2Error;
+    ((Instance *)c)->d.state = ST_INITIALIZATION;
+    return fmi2OK;
+}
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component c)
+{
+    if (bad(c, "fmi2ExitInitializationMode", ST_INITIALIZATION)) return fmi2Error;
+    ((Instance *)c)->d.state = ST_STEP_COMPLETE;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Terminate(fmi2Component c)
+{
+    if (bad(c, "fmi2Terminate", ST_STEP_COMPLETE)) return fmi2Error;
+    ((Instance *)c)->d.state = ST_TERMINATED;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Reset(fmi2Component c)
+{
+    Instance *inst = (Instance *)c;
+    if (bad(c, "fmi2Reset", ALL_STATES)) return fmi2Error;
+    memcpy(inst->d.v, START, sizeof START);
+    compute_outputs(&inst->d);
+    inst->d.time = 0.0;
+    inst->d.state = ST_INSTANTIATED;
+    return fmi2OK;
+}
+
+/* ---------------------------------------------------------- get/set values */
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
+{
+    Instance *inst = (Instance *)c;
+    size_t i;
+    if (bad(c, "fmi2GetReal", ST_INITIALIZATION | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR))
+        return fmi2Error;
+    if (nvr > 0 && (!vr || !value)) return fail(inst, "fmi2GetReal", "NULL argument");
+    compute_outputs(&inst->d);
+    for (i = 0; i < nvr; i++) {
+        if (vr[i] >= N_VARS) {
+            logf_(inst, fmi2Error, "logStatusError", "fmi2GetReal: unknown value reference %u", vr[i]);
+            return fmi2Error;
+        }
+        value[i] = inst->d.v[vr[i]];
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
+{
+    Instance *inst = (Instance *)c;
+    size_t i;
+    if (bad(c, "fmi2SetReal", ST_INSTANTIATED | ST_INITIALIZATION | ST_STEP_COMPLETE)) return fmi2Error;
+    if (nvr > 0 && (!vr || !value)) return fail(inst, "fmi2SetReal", "NULL argument");
+    for (i = 0; i < nvr; i++) {
+        fmi2ValueReference r = vr[i];
+        if (r >= N_VARS) {
+            logf_(inst, fmi2Error, "logStatusError", "fmi2SetReal: unknown value reference %u", r);
+            return fmi2Error;
+        }
+        if (r == VR_FX || r == VR_FY) {
+            logf_(inst, fmi2Error, "logStatusError", "fmi2SetReal: %s is an output and cannot be set",
+                  r == VR_FX ? "Fx" : "Fy");
+            return fmi2Error;
+        }
+        if ((r == VR_K || r == VR_C) && inst->d.state == ST_STEP_COMPLETE) {
+            logf_(inst, fmi2Error, "logStatusError",
+                  "fmi2SetReal: parameter %s is fixed; set it before fmi2ExitInitializationMode",
+                  r == VR_K ? "k" : "c");
+            return fmi2Error;
+        }
+        inst->d.v[r] = value[i];
+    }
+    return fmi2OK;
+}
+
+/* no Integer, Boolean or String variables: only empty requests succeed */
+#define NO_VARS(NAME, T, CONST)                                                              \
+    fmi2Status NAME(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, CONST T value[]) \
+    {                                                                                        \
+        (void)vr; (void)value;                                                               \
+        if (bad(c, #NAME, ALL_STATES)) return fmi2Error;                                     \
+        if (nvr == 0) return fmi2OK;                                                         \
+        logf_((Instance *)c, fmi2Error, "logStatusError",                                    \
+              #NAME ": unknown value reference %u (LinearBearing has Real variables only)",  \
+              vr ? vr[0] : 0u);                                                              \
+        return fmi2Error;                                                                    \
+    }
+
+NO_VARS(fmi2GetInteger, fmi2Integer, )
+NO_VARS(fmi2SetInteger, fmi2Integer, const)
+NO_VARS(fmi2GetBoolean, fmi2Boolean, )
+NO_VARS(fmi2SetBoolean, fmi2Boolean, const)
+NO_VARS(fmi2GetString, fmi2String, )
+NO_VARS(fmi2SetString, fmi2String, const)
+
+/* --------------------------------------------------------------- FMU state */
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
+{
+    Instance *inst = (Instance *)c;
+    Data *s;
+    if (bad(c, "fmi2GetFMUstate", ALL_STATES)) return fmi2Error;
+    if (!FMUstate) return fail(inst, "fmi2GetFMUstate", "NULL argument");
+    s = (Data *)*FMUstate;
+    if (!s) {
+        s = (Data *)inst->cb.allocateMemory(1, sizeof(Data));
+        if (!s) return fail(inst, "fmi2GetFMUstate", "out of memory");
+        *FMUstate = s;
+    }
+    *s = inst->d;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
+{
+    Instance *inst = (Instance *)c;
+    if (bad(c, "fmi2SetFMUstate", ALL_STATES)) return fmi2Error;
+    if (!FMUstate) return fail(inst, "fmi2SetFMUstate", "NULL state");
+    inst->d = *(Data *)FMUstate;
+    return fmi2OK;
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
+{
+    Instance *inst = (Instance *)c;
+    if (bad(c, "fmi2FreeFMUstate", ALL_STATES)) return fmi2Error;
+    if (!FMUstate) return fmi2OK;
+    if (*FMUstate) inst->cb.freeMemory(*FMUstate);
+    *FMUstate = NULL;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
+{
+    (void)FMUstate;
+    if (bad(c, "fmi2SerializedFMUstateSize", ALL_STATES)) return fmi2Error;
+    if (!size) return fail((Instance *)c, "fmi2SerializedFMUstateSize", "NULL argument");
+    *size = sizeof(Data);
+    return fmi2OK;
+}
+
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
+                                 size_t size)
+{
+    if (bad(c, "fmi2SerializeFMUstate", ALL_STATES)) return fmi2Error;
+    if (!FMUstate || !serializedState || size < sizeof(Data))
+        return fail((Instance *)c, "fmi2SerializeFMUstate", "bad argument or buffer too small");
+    memcpy(serializedState, FMUstate, sizeof(Data));
+    return fmi2OK;
+}
+
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
+                                   fmi2FMUstate *FMUstate)
+{
+    Instance *inst = (Instance *)c;
+    if (bad(c, "fmi2DeSerializeFMUstate", ALL_STATES)) return fmi2Error;
+    if (!serializedState || !FMUstate || size != sizeof(Data))
+        return fail(inst, "fmi2DeSerializeFMUstate", "bad argument or size (not a LinearBearing state)");
+    if (!*FMUstate) {
+        *FMUstate = inst->cb.allocateMemory(1, sizeof(Data));
+        if (!*FMUstate) return fail(inst, "fmi2DeSerializeFMUstate", "out of memory");
+    }
+    memcpy(*FMUstate, serializedState, sizeof(Data));
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[],
+                                        size_t nUnknown, const fmi2ValueReference vKnown_ref[], size_t nKnown,
+                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[])
+{
+    (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown; (void)dvUnknown;
+    if (!c) return fmi2Error;
+    return fail((Instance *)c, "fmi2GetDirectionalDerivative", "not supported (providesDirectionalDerivative=false)");
+}
+
+/* ---------------------------------------------------------- co-simulation */
+
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                       const fmi2Integer order[], const fmi2Real value[])
+{
+    (void)vr; (void)nvr; (void)order; (void)value;
+    if (!c) return fmi2Error;
+    return fail((Instance *)c, "fmi2SetRealInputDerivatives", "not supported (canInterpolateInputs=false)");
+}
+
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                        const fmi2Integer order[], fmi2Real value[])
+{
+    (void)vr; (void)nvr; (void)order; (void)value;
+    if (!c) return fmi2Error;
+    return fail((Instance *)c, "fmi2GetRealOutputDerivatives", "not supported (maxOutputDerivativeOrder=0)");
+}
+
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
+                      fmi2Boolean noSetFMUStatePriorToCurrentPoint)
+{
+    Instance *inst = (Instance *)c;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (bad(c, "fmi2DoStep", ST_STEP_COMPLETE)) return fmi2Error;
+    if (!(communicationStepSize > 0.0)) {
+        logf_(inst, fmi2Error, "logStatusError", "fmi2DoStep: communicationStepSize must be > 0 (got %g)",
+              communicationStepSize);
+        return fmi2Error;
+    }
+    inst->d.time = currentCommunicationPoint + communicationStepSize;
+    compute_outputs(&inst->d);
+    return fmi2OK;
+}
+
+fmi2Status fmi2CancelStep(fmi2Component c)
+{
+    if (!c) return fmi2Error;
+    return fail((Instance *)c, "fmi2CancelStep", "not supported (fmi2DoStep never returns fmi2Pending)");
+}
+
+fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value)
+{
+    (void)s; (void)value;
+    if (!c) return fmi2Error;
+    return fail((Instance *)c, "fmi2GetStatus", "not supported (synchronous FMU)");
+}
+
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
+{
+    Instance *inst = (Instance *)c;
+    if (!c) return fmi2Error;
+    if (s == fmi2LastSuccessfulTime && value) {
+        *value = inst->d.time;
+        return fmi2OK;
+    }
+    return fail(inst, "fmi2GetRealStatus", "only fmi2LastSuccessfulTime is supported");
+}
+
+fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value)
+{
+    (void)s; (void)value;
+    if (!c) return fmi2Error;
+    return fail((Instance *)c, "fmi2GetIntegerStatus", "not supported");
+}
+
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
+{
+    (void)s; (void)value;
+    if (!c) return fmi2Error;
+    return fail((Instance *)c, "fmi2GetBooleanStatus", "not supported");
+}
+
+fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value)
+{
+    (void)s; (void)value;
+    if (!c) return fmi2Error;
+    return fail((Instance *)c, "fmi2GetStringStatus", "not supported");
+}
+
+/* ------------------------------ Model Exchange functions (not provided) */
+
+fmi2Status fmi2EnterEventMode(fmi2Component c) { return c ? fail((Instance *)c, "fmi2EnterEventMode", "co-simulation only") : fmi2Error; }
+fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *e) { (void)e; return c ? fail((Instance *)c, "fmi2NewDiscreteStates", "co-simulation only") : fmi2Error; }
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) { return c ? fail((Instance *)c, "fmi2EnterContinuousTimeMode", "co-simulation only") : fmi2Error; }
+fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean n, fmi2Boolean *e, fmi2Boolean *t) { (void)n; (void)e; (void)t; return c ? fail((Instance *)c, "fmi2CompletedIntegratorStep", "co-simulation only") : fmi2Error; }
+fmi2Status fmi2SetTime(fmi2Component c, fmi2Real t) { (void)t; return c ? fail((Instance *)c, "fmi2SetTime", "co-simulation only") : fmi2Error; }
+fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t n) { (void)x; (void)n; return c ? fail((Instance *)c, "fmi2SetContinuousStates", "co-simulation only") : fmi2Error; }
+fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real d[], size_t n) { (void)d; (void)n; return c ? fail((Instance *)c, "fmi2GetDerivatives", "co-simulation only") : fmi2Error; }
+fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real e[], size_t n) { (void)e; (void)n; return c ? fail((Instance *)c, "fmi2GetEventIndicators", "co-simulation only") : fmi2Error; }
+fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t n) { (void)x; (void)n; return c ? fail((Instance *)c, "fmi2GetContinuousStates", "co-simulation only") : fmi2Error; }
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x[], size_t n) { (void)x; (void)n; return c ? fail((Instance *)c, "fmi2GetNominalsOfContinuousStates", "co-simulation only") : fmi2Error; }

@@ -1,0 +1,75 @@
+"""Build the native (C) test FMU ``LinearBearing`` with gcc.
+
+``build_c_fmu(dest_dir) -> Path`` compiles ``LinearBearing/linear_bearing.c``
+against the FMI 2.0 headers shipped with fmpy (``fmpy/c-code``) into
+``binaries/linux64/LinearBearing.so`` (``gcc -shared -fPIC -O2``) and zips it with
+``modelDescription.xml`` (and the C source under ``sources/``) into
+``dest_dir/LinearBearing.fmu``. Nothing is committed in binary form: tests build
+the FMU into a temporary folder. Linux x86_64 only (the platform rotorcosim runs on).
+
+Run as a script to build into a folder: ``python tests/fmus_c/build_c_fmu.py OUT_DIR``.
+"""
+
+from __future__ import annotations
+
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+MODEL = "LinearBearing"
+SRC_DIR = HERE / MODEL
+
+
+def fmi2_headers() -> Path:
+    """Folder holding fmi2Functions.h (fmpy ships the FMI 2.0 standard headers)."""
+    import fmpy
+
+    inc = Path(fmpy.__file__).resolve().parent / "c-code"
+    if not (inc / "fmi2Functions.h").is_file():
+        raise FileNotFoundError(f"FMI 2.0 headers not found in {inc}; fmpy installation incomplete?")
+    return inc
+
+
+def gcc() -> str | None:
+    """Path of gcc, or None."""
+    return shutil.which("gcc")
+
+
+def build_c_fmu(dest_dir: str | Path, name: str = MODEL) -> Path:
+    """Compile and zip the C FMU ``name`` into ``dest_dir``; return the .fmu path."""
+    if name != MODEL:
+        raise ValueError(f"unknown C FMU {name!r}; known: [{MODEL!r}]")
+    cc = gcc()
+    if cc is None:
+        raise RuntimeError("gcc not found on PATH; install gcc to build the native test FMU")
+    if sys.platform != "linux" or platform.machine() not in ("x86_64", "AMD64"):
+        raise RuntimeError(f"build_c_fmu builds linux64 binaries only (this is {sys.platform}/{platform.machine()})")
+    dest_dir = Path(dest_dir)
+    dest_dir.mkdir(parents=True, exist_ok=True)
+    sources = sorted(SRC_DIR.glob("*.c"))
+    with tempfile.TemporaryDirectory(prefix=f"{name}-build-") as tmp:
+        so = Path(tmp) / f"{name}.so"
+        cmd = [cc, "-shared", "-fPIC", "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror",
+               "-fvisibility=default", "-I", str(fmi2_headers()), "-o", str(so), *map(str, sources), "-lm"]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"gcc failed ({proc.returncode}):\n{' '.join(cmd)}\n{proc.stderr}")
+        fmu = dest_dir / f"{name}.fmu"
+        tmp_fmu = fmu.with_suffix(".fmu.part")
+        with zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as zf:
+            zf.write(SRC_DIR / "modelDescription.xml", "modelDescription.xml")
+            zf.write(so, f"binaries/linux64/{name}.so")
+            for src in sources:
+                zf.write(src, f"sources/{src.name}")
+        tmp_fmu.replace(fmu)
+    return fmu
+
+
+if __name__ == "__main__":
+    out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(".")
+    print(build_c_fmu(out))
