@@ -35,6 +35,17 @@ The onset is therefore "the sub-synchronous orbit reaches ``threshold`` times
 the clearance", with a time uncertainty of about half a window
 (``window_revs / (2 f_rot)``), reported as ``time_resolution_s``.
 
+6. Instability threshold (:func:`growth_threshold`): the growth rate
+   ``sigma = d ln(a) / dt`` is the least-squares slope of the log
+   amplitude ``a`` in the order band ``growth_band`` over sliding fits of ``growth_fit_revs``
+   revolutions of frames. Before the first onset (or to the end of the data
+   when there is none), the threshold is where ``sigma`` last changes sign from
+   <= 0 to > 0 and stays positive, with the amplitude growing by at least
+   ``growth_min_factor`` from there; interpolated linearly between frames. For a
+   linear(ised) rotor whose least-damped forward mode has the real part
+   ``sigma(t)``, this is where that mode crosses into the right half plane:
+   unlike the onset it does not depend on how small the seed of the whirl is.
+
 Public functions work on numpy arrays; :func:`analyze_run` reads a run
 directory and never raises (it returns ``{"error": ...}``).
 """
@@ -75,6 +86,17 @@ class WhirlParams:
         The episode ends below ``off_fraction * threshold`` (hysteresis).
     persist_revs : float
         The state change must persist this many revolutions.
+    growth_fit_revs : float
+        Span of the least-squares fit of ln(sub) against time that gives the growth
+        rate (threshold estimate, :func:`growth_threshold`) [revolutions].
+    growth_min_factor : float
+        The sub-synchronous amplitude must grow by at least this factor after the
+        sign change of the growth rate for a threshold to be reported.
+    growth_band : (float, float)
+        Order band of the amplitude whose growth rate gives the threshold: narrower
+        than ``band`` so that the leakage of the static drift (order 0) and of the
+        unbalance response (order 1) stays out of it near the threshold, where the
+        growing mode is smallest.
     """
 
     window_revs: int = 16
@@ -84,6 +106,9 @@ class WhirlParams:
     threshold: float = 0.05
     off_fraction: float = 0.5
     persist_revs: float = 16.0
+    growth_fit_revs: float = 16.0
+    growth_min_factor: float = 10.0
+    growth_band: tuple[float, float] = (0.25, 0.75)
 
     def check(self) -> list[str]:
         """Problems with these values (empty when valid)."""
@@ -106,6 +131,14 @@ class WhirlParams:
             p.append(f"off_fraction must be in (0, 1] (got {self.off_fraction})")
         if not self.persist_revs >= 0:
             p.append(f"persist_revs must be >= 0 (got {self.persist_revs})")
+        if not self.growth_fit_revs >= 2 * self.hop_revs:
+            p.append(f"growth_fit_revs must be >= 2 hop_revs = {2 * self.hop_revs} "
+                     f"(got {self.growth_fit_revs})")
+        glo, ghi = self.growth_band
+        if not 0.0 < glo < ghi < 1.0:
+            p.append(f"growth_band must satisfy 0 < low < high < 1 (got {self.growth_band})")
+        if not self.growth_min_factor > 1:
+            p.append(f"growth_min_factor must be > 1 (got {self.growth_min_factor})")
         return p
 
     @classmethod
@@ -118,8 +151,9 @@ class WhirlParams:
         if unknown:
             raise ValueError(f"analysis.whirl: unknown key(s) {unknown}; valid keys: {sorted(known)}")
         kw = dict(m)
-        if "band" in kw:
-            kw["band"] = tuple(float(v) for v in kw["band"])
+        for key in ("band", "growth_band"):
+            if key in kw:
+                kw[key] = tuple(float(v) for v in kw[key])
         out = replace(cls(), **kw)
         problems = out.check()
         if problems:
@@ -334,6 +368,67 @@ def detect_episodes(t, amp, on: float, off: float, persist: int) -> list[tuple[f
     return out
 
 
+def growth_rate(t, amp, fit_frames: int) -> np.ndarray:
+    """Growth rate ``d ln(amp) / dt`` [1/s] per frame: least-squares slope of ``ln(amp)``
+    against ``t`` over the ``fit_frames`` frames centred on each frame (odd count;
+    shortened at the ends, NaN where fewer than 3 finite positive frames fit)."""
+    t = np.asarray(t, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        la = np.log(np.asarray(amp, float))
+    ok = np.isfinite(la) & np.isfinite(t)
+    half = max(int(fit_frames) // 2, 1)
+    sig = np.full(t.size, np.nan)
+    for k in range(t.size):
+        sl = slice(max(k - half, 0), min(k + half + 1, t.size))
+        m = ok[sl]
+        if np.count_nonzero(m) < 3:
+            continue
+        tt, yy = t[sl][m], la[sl][m]
+        tc = tt - tt.mean()
+        den = float(np.sum(tc * tc))
+        if den > 0:
+            sig[k] = float(np.sum(tc * (yy - yy.mean())) / den)
+    return sig
+
+
+def growth_threshold(t, amp, sigma, k_end: int, min_factor: float):
+    """Instability threshold from the growth rate (module doc, step 6).
+
+    Among frames ``0 .. k_end - 1`` (``k_end``: first frame of the first whirl
+    episode, or the number of frames), find the last frame ``k`` with
+    ``sigma[k] <= 0``; every later finite ``sigma`` up to ``k_end`` must be > 0 and
+    ``amp`` must grow by ``min_factor`` from frame ``k`` to its maximum before
+    ``k_end`` (else the sign change is noise). Returns ``(t_threshold, reason)``:
+    the crossing time interpolated linearly between frames ``k`` and ``k + 1``, or
+    None and why not.
+    """
+    t = np.asarray(t, float)
+    sigma = np.asarray(sigma, float)
+    amp = np.asarray(amp, float)
+    k_end = min(int(k_end), t.size)
+    idx = np.nonzero(np.isfinite(sigma[:k_end]))[0]
+    if idx.size < 2:
+        return None, "too few frames before the onset to fit a growth rate"
+    neg = idx[sigma[idx] <= 0.0]
+    if neg.size == 0:
+        return None, ("the sub-synchronous amplitude grows from the first analysable frame "
+                      f"(t = {t[idx[0]]:.4g} s): the threshold lies before it")
+    k = int(neg[-1])
+    later = idx[idx > k]
+    if later.size == 0:
+        return None, "the sub-synchronous amplitude does not grow at the end of the data (no threshold)"
+    k1 = int(later[0])
+    a0 = amp[k]
+    a_max = float(np.nanmax(amp[k:k_end])) if k_end > k else a0
+    if not (a0 > 0 and a_max >= min_factor * a0):
+        return None, (f"the sub-synchronous amplitude grows only by {a_max / a0 if a0 > 0 else float('nan'):.3g}"
+                      f" (< growth_min_factor = {min_factor:g}) after the last sign change of its "
+                      "growth rate: no threshold")
+    s0, s1 = sigma[k], sigma[k1]
+    f = 0.0 if s1 == s0 else min(max(-s0 / (s1 - s0), 0.0), 1.0)
+    return float(t[k] + f * (t[k1] - t[k])), None
+
+
 def analyze_journal(t, x, y, omega, clearance: float, *, eps=None,
                     params: WhirlParams | None = None) -> dict:
     """Whirl analysis of one journal (arrays in SI units); JSON-ready dict.
@@ -358,6 +453,8 @@ def _analyze_journal(t, x, y, omega, clearance, *, eps, params) -> dict:
     res: dict[str, Any] = {"whirl": False, "onset": None, "vanish": None,
                            "onset_time_s": None, "onset_speed_hz": None,      # flat copies for
                            "vanish_time_s": None, "vanish_speed_hz": None,    # dotted look-ups (compare)
+                           "threshold_time_s": None, "threshold_speed_hz": None,  # growth rate crosses 0
+                           "threshold_snr": None,
                            "episodes": [], "dominant_ratio": None, "ratio_range": None, "warnings": warn}
     # eccentricity maximum
     if eps is not None:
@@ -423,6 +520,29 @@ def _analyze_journal(t, x, y, omega, clearance, *, eps, params) -> dict:
             "ratio_at_onset": float(ratio[k0]),
             "max_subsync_rel": float(np.nanmax(sub[k0:k1])),
         })
+    # instability threshold: where the growth rate of the sub-synchronous amplitude turns positive
+    fit_frames = 2 * max(int(round(p.growth_fit_revs / p.hop_revs / 2)), 1) + 1
+    gsub = s.band_amplitude(*p.growth_band) / clearance
+    sigma = growth_rate(s.t, gsub, fit_frames)
+    k_end = eps_list[0][2] if eps_list else s.n_frames
+    t_th, why = growth_threshold(s.t, gsub, sigma, k_end, p.growth_min_factor)
+    if t_th is not None:
+        res["threshold_time_s"], res["threshold_speed_hz"] = t_th, spd(t_th)
+        # how clearly the growing mode stands out at the crossing: largest band bin over
+        # the median band bin (a broadband numerical floor near the threshold biases the
+        # zero crossing late, docs/analysis.md)
+        kk = int(np.argmin(np.abs(s.t - t_th)))
+        sel = (s.orders >= p.growth_band[0] - 1e-12) & (s.orders <= p.growth_band[1] + 1e-12)
+        mags = np.abs(s.X[kk, sel])
+        med = float(np.median(mags))
+        res["threshold_snr"] = float(np.max(mags) / med) if med > 0 else None
+        if res["threshold_snr"] is not None and res["threshold_snr"] < 3.0:
+            warn.append(f"threshold_speed_hz {res['threshold_speed_hz']:.4g} Hz: the growing mode is not "
+                        f"above the broadband floor there (peak / median bin = {res['threshold_snr']:.2g} "
+                        "< 3): the zero crossing lies in the floor and is unreliable (typically late, "
+                        "where the mode rises out of the floor)")
+    else:
+        warn.append(f"threshold_speed_hz not estimated: {why}")
     if eps_list:
         first = res["episodes"][0]
         k0 = eps_list[0][2]
