@@ -44,6 +44,8 @@ class TurbochargerParams:
     t0: float = 0.0                    # start time [s]
     journal_x0: float = 0.0            # initial x of every bearing station [m]
     journal_y0: float = 0.0            # initial y of every bearing station [m]
+    journal_dx0_2: float = 0.0         # station 2 starts at (journal_x0 + journal_dx0_2,
+    journal_dy0_2: float = 0.0         #   journal_y0 + journal_dy0_2) [m] (unequal bearing loads)
     initial_sag: bool = True           # start in static equilibrium with the stations held
     reduce: bool = True                # Craig-Bampton reduction (False: full FE model)
     n_modes: int | None = None         # fixed-interface modes per plane (None: from the file)
@@ -125,7 +127,8 @@ class TurbochargerRotor(LinearRotor):
         self.fe = fe
         f_g_full = -p.g * (fe.M @ fe.rigid_translation("y"))
         nb = len(rd.bearing_nodes)
-        point_nodes = list(rd.bearing_nodes) + list(rd.disc_nodes)
+        # boundary nodes, each once (a disc may sit on a bearing station, e.g. a journal sleeve)
+        point_nodes = list(dict.fromkeys(list(rd.bearing_nodes) + list(rd.disc_nodes)))
         npl = 2 * fe.n_nodes
         if p.reduce:
             n_modes = rd.n_modes if p.n_modes is None else int(p.n_modes)
@@ -163,7 +166,8 @@ class TurbochargerRotor(LinearRotor):
             drive=make_profile(f_max=p.f_max, t_ramp=p.t_ramp, speed_table=p.speed_table),
             t0=p.t0, max_phase_per_substep=p.max_phase_per_substep,
             extra_outputs=extra,
-            journal_q0=[[p.journal_x0, p.journal_y0]] * nb,
+            journal_q0=[[p.journal_x0 + (p.journal_dx0_2 if k == 1 else 0.0),
+                         p.journal_y0 + (p.journal_dy0_2 if k == 1 else 0.0)] for k in range(nb)],
             initial_sag=p.initial_sag,
         )
 

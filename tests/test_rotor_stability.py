@@ -113,3 +113,32 @@ def test_external_damping_raises_threshold():
     r0 = JeffcottRotor(JeffcottParams(d_external=0.0))
     r1 = JeffcottRotor(JeffcottParams(d_external=500.0))
     assert threshold_speed(r1, fn(r1))[0] > threshold_speed(r0, fn(r0))[0]
+
+
+# ------------------------------------------------------------ shipped turbocharger rotor
+def test_turbocharger_threshold_inside_the_runup():
+    """The shipped turbocharger (rotor_fmu/data/turbocharger.yaml) on the paper's bearings
+    (R = 4.9 mm, B = 1.6 R, psi = 2.8e-3, eta0 = 12 mPa s) loses stability on HS films
+    inside the 0 -> 105 Hz ramp, as documented (docs/rotor-models.md): 56.54 Hz with the
+    40 x 40 film of the bearing model (docs/turbocharger_threshold.py), half-frequency
+    whirl of the lightly loaded compressor-side journal; the short-bearing theory
+    (independent closed form) agrees to ~6 % (60.0 Hz)."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "docs"))
+    import turbocharger_threshold as tt
+    from rotor_fmu.turbocharger import TurbochargerRotor
+
+    rotor = TurbochargerRotor()
+    bearings = [tt.hs_bearing(4.9e-3, 40) for _ in range(2)]
+    f, st = tt.threshold_hz(rotor, bearings, f_lo=30.0, f_hi=105.0, df=5.0)
+    assert f == pytest.approx(56.54, rel=5e-3)
+    assert st["whirl_hz"] / f == pytest.approx(0.5, abs=0.01)
+    v = st["vec"]
+    (i1, _), (i2, _) = rotor.bearing_dofs
+    assert abs(v[i2]) < 0.1 * abs(v[i1])                 # the compressor-side journal whirls
+    assert tt.max_real(rotor, bearings, 2 * math.pi * 45.0, {}) < 0    # stable before
+    assert tt.max_real(rotor, bearings, 2 * math.pi * 80.0, {}) > 5.0  # growing after
+    fn = short_bearing_coefficient_fn(rotor, R=4.9e-3, L=7.84e-3, C=2.8e-3 * 4.9e-3, eta=0.012)
+    w_sb, _ = threshold_speed(rotor, fn, omega_max=2 * math.pi * 300.0)
+    assert w_sb / (2 * math.pi) == pytest.approx(f, rel=0.1)

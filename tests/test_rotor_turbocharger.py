@@ -34,13 +34,44 @@ def eig_freqs(r, Om):
 
 
 def test_rotor_file_matches_paper_constraints():
+    """Paper: 6 kg, 3 g mm, heavier turbine wheel, bearings between the wheels; ours:
+    journals d = 2 R = 9.8 mm (the bearing FMUs' R = 4.9 mm), 8 mm long (B = 7.84 mm)."""
     rd = load_rotor_file()
     assert rd.total_mass() == pytest.approx(6.0, rel=1e-4)            # paper: 6 kg
     assert sum(d.unbalance for d in rd.discs) == pytest.approx(3e-6)   # paper: 3 g mm
-    comp, turb = rd.discs
+    discs = {d.name: d for d in rd.discs}
+    comp, turb = discs["comp"], discs["turb"]
     assert turb.mass > comp.mass                                       # heavier turbine wheel
     zb = [rd.z_nodes[n] for n in rd.bearing_nodes]
     assert comp.z < min(zb) and max(zb) < turb.z                       # bearings between wheels
+    for n in rd.bearing_nodes:                                         # journal diameter = 2 R
+        touching = [el for el in rd.elements
+                    if abs(el.z0 - rd.z_nodes[n]) < 1e-9 or abs(el.z0 + el.length - rd.z_nodes[n]) < 1e-9]
+        assert [el.d_outer for el in touching] == pytest.approx([2 * 4.9e-3] * 2)
+
+
+def test_shaft_nodes_shared_by_disc_and_bearing():
+    """A disc on a bearing station (collar1/2) is one boundary node of the CB basis, not two:
+    the reduced model is regular and its statics equal the full model's."""
+    rd = load_rotor_file()
+    shared = set(rd.bearing_nodes) & set(rd.disc_nodes)
+    assert len(shared) == 2
+    red = TurbochargerRotor()
+    full = TurbochargerRotor(TurbochargerParams(reduce=False))
+    assert red.n_dof == 2 * (2 + 2 + rd.n_modes + 1)                  # 4 distinct nodes, modes, gravity
+    assert np.linalg.eigvalsh(red.M).min() > 0                         # was singular with a node twice
+    np.testing.assert_allclose(static_bearing_loads(red), static_bearing_loads(full), rtol=1e-9)
+
+
+def test_station_two_initial_offset():
+    """journal_x0/y0 place every station, journal_dx0_2/dy0_2 shift station 2 (the two
+    journals carry different loads, so their equilibria differ)."""
+    p = TurbochargerParams(journal_x0=1e-6, journal_y0=-2e-7, journal_dx0_2=5e-6, journal_dy0_2=-8e-6)
+    r = TurbochargerRotor(p)
+    r.initialize()
+    o = r.outputs
+    assert (o["x_1"], o["y_1"]) == pytest.approx((1e-6, -2e-7), rel=1e-12)
+    assert (o["x_2"], o["y_2"]) == pytest.approx((6e-6, -8.2e-6), rel=1e-12)
 
 
 def test_rotor_file_errors_list_every_problem():

@@ -103,3 +103,24 @@ def test_quickstart_slice_runs(loaded, tmp_path):
     y1 = np.asarray(res.outputs["rotor.y_1"])
     assert y1[-1] < 0.0                                         # the journals start to sink
     assert np.all(np.asarray(res.outputs["bearing1.eps"]) < 1.0)
+
+
+def test_turbocharger_runups_start_at_the_journal_equilibria(loaded, tmp_path):
+    """The turbocharger run-ups start each journal at its own HS static equilibrium
+    (bearing1 eps 0.083, bearing2 eps 0.803 at 30 Hz; journal_dx0_2/dy0_2 shift station 2):
+    over the first 5 ms of the HS run-up neither journal moves by more than 1 % of the
+    clearance (from a common start position they would move by tens of %)."""
+    from dataclasses import replace
+    from orchestrator import run
+    for name in ("turbocharger_runup_oil_bath", "turbocharger_runup_free_to_air"):
+        assert loaded[name].fmu("rotor").parameters == loaded["turbocharger_runup_half_sommerfeld"].fmu("rotor").parameters
+        assert loaded[name].start_time == loaded["turbocharger_runup_half_sommerfeld"].start_time
+    sc = loaded["turbocharger_runup_half_sommerfeld"]
+    sc = replace(sc, stop_time=sc.start_time + 5e-3)
+    res = run(sc, out_dir=tmp_path, progress=False)
+    assert res.success, res.message
+    c = sc.analysis["journals"]["bearing1"]["clearance"]
+    for j, eps0 in ((1, 0.083), (2, 0.803)):
+        x, y = (np.asarray(res.outputs[f"rotor.{k}_{j}"]) for k in "xy")
+        assert math.hypot(x[0], y[0]) / c == pytest.approx(eps0, abs=2e-3)
+        assert np.max(np.hypot(x - x[0], y - y[0])) < 0.01 * c
