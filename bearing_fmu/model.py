@@ -36,7 +36,7 @@ from dataclasses import dataclass, fields as dc_fields
 import numpy as np
 
 from .cavitation import CavitationLaw
-from .film import integrals
+from .film import hs_force_pressure, integrals
 from .grid import make_grid
 from .hs import HalfSommerfeld
 from .solver import StepFailed, TransientFilm
@@ -223,11 +223,31 @@ class JournalBearing:
         H, He, Hdot = self.grid.gap(x, y, vx, vy, self.c)
         return (H, He, Hdot, float(omega))
 
-    def _hs_pressure(self, kin):
-        """Half-Sommerfeld pressure on the full grid, (n_z, n_phi)."""
+    def _hs_clipped(self, kin):
+        """Half-Sommerfeld pressure ``p0 + max(P, 0)`` on the full grid, (n_z, n_phi)."""
         H, He, Hdot, omega = kin
         P = self.hs.solve(H, He, Hdot, omega)
         return self.p0 + np.maximum(P, 0.0)
+
+    def _hs_pressure(self, kin):
+        """Cell pressures of the half-Sommerfeld FORCE on the full grid, (n_z, n_phi):
+        equal to ``p0 + max(P, 0)`` except in the cells at the rupture/inception lines,
+        where the zero crossing is located inside the cell (:func:`.film.hs_force_pressure`);
+        their midpoint force (``integrals``) is ``outputs`` Fx, Fy exactly. Used by
+        :func:`bearing_fmu.linearize.hs_force`; fields and p_max/p_min use the clipped
+        pressure."""
+        return self._hs_fields(kin)[1]
+
+    def _hs_fields(self, kin):
+        """(clipped pressure, force pressure) of the half-Sommerfeld film on the full grid:
+        ``p0 + max(P, 0)`` (outputs p_max/p_min, fields, torque, flows) and the cell
+        pressures of the force quadrature (:func:`.film.hs_force_pressure`)."""
+        H, He, Hdot, omega = kin
+        P = self.hs.solve(H, He, Hdot, omega)
+        pf = np.empty_like(P)
+        hs_force_pressure(P, pf)
+        return self.p0 + np.maximum(P, 0.0), self.p0 + pf
+
 
     def _mirror(self, a):
         """Full-width field from the solver grid's rows (mid-plane symmetry)."""
@@ -243,6 +263,11 @@ class JournalBearing:
             p.ravel(), th.ravel(), H, He, g.groove, g.phi, omega, self.a_phi, self.a_z,
             g.dphi, g.dz, self.bath, self.p0, prm.penalty_a, prm.penalty_b,
             prm.penalty_smoothing, prm.R, prm.B, self.c, prm.eta0, sym)
+        if self.film is None:       # half-Sommerfeld: force with the rupture inside the cells
+            Fx, Fy, *_ = integrals(
+                self._pf_hs.ravel(), th.ravel(), H, He, g.groove, g.phi, omega, self.a_phi,
+                self.a_z, g.dphi, g.dz, self.bath, self.p0, prm.penalty_a, prm.penalty_b,
+                prm.penalty_smoothing, prm.R, prm.B, self.c, prm.eta0, sym)
         x, y = self._xy
         e_ang = math.atan2(y, x)
         l_ang = math.atan2(-Fy, -Fx)
@@ -283,9 +308,9 @@ class JournalBearing:
         self._kin, self._t = kin, 0.0
         self._set_inputs(x, y, vx, vy, omega)
         if self.film is None:
-            self._p_hs = self._hs_pressure(kin)
+            self._p_hs, self._pf_hs = self._hs_fields(kin)
         else:
-            p = self._hs_pressure(kin)[: self.grid.n_z]
+            p = self._hs_clipped(kin)[: self.grid.n_z]
             u = self.law.u_from_p(p.ravel())
             self.film.init_state(u)
             if init == "stationary":
@@ -300,7 +325,7 @@ class JournalBearing:
             raise ValueError(f"JournalBearing.step: dt must be a positive finite time [s] (got {dt!r})")
         kin = self._kinematics(x, y, vx, vy, omega)
         if self.film is None:
-            self._p_hs = self._hs_pressure(kin)
+            self._p_hs, self._pf_hs = self._hs_fields(kin)
             self._t += dt
         else:
             saved = self.film.get_state()
@@ -329,6 +354,7 @@ class JournalBearing:
         s = dict(t=self._t, inputs=np.array(self._inputs))
         if self.film is None:
             s["p_hs"] = self._p_hs.copy()
+            s["pf_hs"] = self._pf_hs.copy()
         else:
             s.update({"film_" + k: v for k, v in self.film.get_state().items()})
         return s
@@ -346,6 +372,7 @@ class JournalBearing:
         self._t = float(s["t"])
         if self.film is None:
             self._p_hs = np.array(s["p_hs"])
+            self._pf_hs = np.array(s["pf_hs"])
         else:
             self.film.set_state({k[5:]: v for k, v in s.items() if k.startswith("film_")})
         self._update_outputs()

@@ -274,9 +274,12 @@ def test_fluid_fraction_stays_physical_for_wide_steps(width):
 # ------------------------------------------------------------------ grid convergence
 def test_grid_convergence_half_sommerfeld():
     """HS force on the paper geometry (eps = 0.7) on 40, 80, 160 squared grids: the
-    scheme is second order (two-point fluxes, midpoint force), so the observed order
-    must be 2 (accepted 1.7 to 2.3); the 40 x 40 error against the Richardson
-    estimate is below 0.2 % (measured 0.06 %)."""
+    scheme is second order (two-point fluxes, force with the rupture located inside
+    the cells, film.hs_force_pressure), so the observed order must be 2 (accepted 1.7
+    to 2.3); the 40 x 40 error against the Richardson estimate is below 1 % (measured
+    0.65 %; 0.06 % with the former cell-resolution clip, whose averaged kink error
+    happened to cancel the discretisation error in this case - on the Jeffcott bearing
+    both quadratures give the same 0.08-1.1 % at eps 0.2-0.8, docs/bearing-validation.md)."""
     f = []
     for n in (40, 80, 160):
         fn, _ = hs_force(params(B=PAPER_B, n_phi=n, n_z=n), -0.7 * C, 0.0, 0.0, 0.0)
@@ -284,7 +287,7 @@ def test_grid_convergence_half_sommerfeld():
     order = math.log2(abs(f[0] - f[1]) / abs(f[1] - f[2]))
     assert 1.7 < order < 2.3
     rich = f[2] + (f[2] - f[1]) / (2**order - 1)
-    assert abs(f[0] - rich) / rich < 2e-3
+    assert abs(f[0] - rich) / rich < 1e-2
 
 
 @pytest.mark.slow
