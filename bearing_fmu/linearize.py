@@ -38,10 +38,13 @@ be accurate enough to stabilize, the converged answer does not depend on them.
 
 from __future__ import annotations
 
+import math
+
+import numba as nb
 import numpy as np
 from scipy.linalg import lapack
 
-from .film import assemble, integrals, stencil_to_band
+from .film import assemble, hs_force_pressure, integrals, stencil_to_band
 
 __all__ = ["linearization", "hs_force", "film_force_at"]
 
@@ -84,6 +87,63 @@ def _central(f, z0, steps):
     return D
 
 
+@nb.njit(cache=False)   # no on-disk cache (numba's cache races between processes); compiles in ~1 s
+def _hs_forces_many(P, phi, p0, area, F):
+    """Half-Sommerfeld forces F (m, 2) of m unclipped gauge pressure fields P (m, n_z, n_phi):
+    the cell pressures of the force quadrature (:func:`.film.hs_force_pressure`, exactly
+    what ``JournalBearing._hs_pressure`` returns, minus p0) summed as
+    :func:`.film.integrals` sums Fx, Fy (same order and operations, so each row equals
+    ``_force(b, b._hs_pressure(kin), ..., film=False)`` bit for bit)."""
+    m, n_z, n_phi = P.shape
+    pf = np.empty((n_z, n_phi))
+    for k in range(m):
+        hs_force_pressure(P[k], pf)
+        Fx = 0.0
+        Fy = 0.0
+        for i in range(n_phi):
+            cs = math.cos(phi[i])
+            sn = math.sin(phi[i])
+            for j in range(n_z):
+                p = p0 + pf[j, i]
+                Fx -= (p - p0) * cs
+                Fy -= (p - p0) * sn
+        F[k, 0] = Fx * area
+        F[k, 1] = Fy * area
+
+
+def hs_forces_many(b, Z, omega) -> np.ndarray:
+    """:func:`hs_force` at m kinematics ``Z`` (m, 4) rows (x, y, vx, vy), one omega: (m, 2) [N].
+    One batched half-Sommerfeld solve (:meth:`.hs.HalfSommerfeld.solve_many`); equal to m
+    :func:`hs_force` calls to round-off (tests/test_interface_jacobian_bearing.py)."""
+    g = b.grid_full
+    c = b.c
+    x, y, vx, vy = (Z[:, k:k + 1] for k in range(4))
+    cs, sn = np.cos(g.phi), np.sin(g.phi)           # the operations of Grid.gap
+    H = 1.0 - (x * cs + y * sn) / c
+    He = 1.0 - (x * np.cos(g.phi_e) + y * np.sin(g.phi_e)) / c
+    Hdot = -(vx * cs + vy * sn) / c
+    P = b.hs.solve_many(H, He, Hdot, float(omega))
+    prm = b.params
+    F = np.empty((Z.shape[0], 2))
+    _hs_forces_many(P, g.phi, b.p0, prm.R * g.dphi * prm.B * g.dz, F)
+    return F
+
+
+def _central_many(fm, z0, steps):
+    """:func:`_central` with the 8 perturbed evaluations in one call ``fm(Z) -> (8, 2)``."""
+    Z = np.empty((8, 4))
+    for j in range(4):
+        zp, zm = z0.copy(), z0.copy()
+        zp[j] += steps[j]
+        zm[j] -= steps[j]
+        Z[2 * j], Z[2 * j + 1] = zp, zm
+    F = fm(Z)
+    D = np.empty((2, 4))
+    for j in range(4):
+        D[:, j] = -(F[2 * j] - F[2 * j + 1]) / (2.0 * steps[j])
+    return D
+
+
 def _steps(b, z, omega, rel_step, t_ref):
     c = b.c
     dv = rel_step * max(c * abs(omega), float(np.hypot(z[2], z[3])), c / t_ref)
@@ -92,6 +152,15 @@ def _steps(b, z, omega, rel_step, t_ref):
 
 def hs_linearization(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3):
     """(K, C) of the half-Sommerfeld force at the given kinematics (see module doc)."""
+    z0 = np.array([x, y, vx, vy], dtype=float)
+    D = _central_many(lambda Z: hs_forces_many(b, Z, omega), z0,
+                      _steps(b, z0, omega, rel_step, t_ref))
+    return D[:, :2].copy(), D[:, 2:].copy()
+
+
+def hs_linearization_scalar(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3):
+    """:func:`hs_linearization` with 8 separate :func:`hs_force` calls (the reference the
+    batched version is tested against; ~8x slower)."""
     z0 = np.array([x, y, vx, vy], dtype=float)
     D = _central(lambda z: hs_force(b, z[0], z[1], z[2], z[3], omega), z0,
                  _steps(b, z0, omega, rel_step, t_ref))

@@ -1,0 +1,75 @@
+"""The batched half-Sommerfeld path of the interface-Jacobian coefficients
+(bearing_fmu/hs.py solve_many, bearing_fmu/linearize.py hs_forces_many) against the
+scalar reference it replaced: equal to round-off (a performance change, not a model one)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bearing_fmu.linearize import (hs_force, hs_forces_many, hs_linearization,
+                                   hs_linearization_scalar, linearization)
+from bearing_fmu.model import BearingParams, JournalBearing
+
+R, PSI = 4.9e-3, 2.8e-3
+C = R * PSI
+
+CASES = {
+    "jeffcott-bath": dict(n_phi=40, n_z=40, cavitation=1, axial_bc=0, groove_width=0.0, cav_width=9e4),
+    "groove-air": dict(n_phi=48, n_z=30, cavitation=0, axial_bc=1, groove_width=0.26,
+                       groove_angle=0.3, p_feed=2e5),
+    "odd-hs": dict(n_phi=36, n_z=15, cavitation=0, axial_bc=0, groove_width=0.0),
+}
+KINS = [(0.36 * C, -0.15 * C, 0.0, 0.0, 2 * math.pi * 100),
+        (0.2 * C, -0.5 * C, 0.3, -0.1, 2 * math.pi * 300),
+        (-0.6 * C, 0.3 * C, -2e-2, 1e-2, 2 * math.pi * 500),
+        (0.7 * C, 0.5 * C, 0.0, 0.0, 2 * math.pi * 50)]
+
+
+def bearing(**kw):
+    base = dict(R=R, B=1.6 * R, psi=PSI, eta0=0.012, p0=1e5, p_feed=1e5)
+    base.update(kw)
+    return JournalBearing(BearingParams(**base))
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_solve_many_equals_solve(case):
+    b = bearing(**CASES[case])
+    g = b.grid_full
+    gaps = [g.gap(*k[:4], b.c) for k in KINS]
+    w = KINS[1][4]
+    P = b.hs.solve_many(*(np.array([gp[i] for gp in gaps]) for i in range(3)), w)
+    for k, (H, He, Hdot) in enumerate(gaps):
+        ref = b.hs.solve(H, He, Hdot, w)
+        np.testing.assert_allclose(P[k], ref, rtol=0, atol=1e-13 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_batched_forces_and_coefficients_equal_scalar(case):
+    b = bearing(**CASES[case])
+    for k in KINS:
+        Z = np.array([k[:4], [k[0] * 0.9, k[1] * 1.1, 0.01, -0.02]])
+        F = hs_forces_many(b, Z, k[4])
+        for z, f in zip(Z, F):
+            ref = hs_force(b, *z, k[4])
+            np.testing.assert_allclose(f, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+        K, Cm = hs_linearization(b, *k)
+        Ks, Cs = hs_linearization_scalar(b, *k)
+        # central differences over 2e-5 of the clearance amplify round-off by ~1e5
+        np.testing.assert_allclose(K, Ks, rtol=0, atol=1e-8 * np.abs(Ks).max())
+        np.testing.assert_allclose(Cm, Cs, rtol=0, atol=1e-8 * np.abs(Cs).max())
+
+
+def test_fmu_default_coefficients_use_the_batched_path_unchanged():
+    """linearization(b) (what the FMU outputs) after film steps equals the scalar path."""
+    b = bearing(**CASES["jeffcott-bath"])
+    w = 2 * math.pi * 200
+    b.initialize(0.3 * C, -0.2 * C, 0.0, 0.0, w, init="stationary")
+    for n in range(3):
+        b.step(1e-4, 0.3 * C, (-0.2 + 0.01 * n) * C, 0.0, 0.1 * C * w, w)
+        K, Cm = linearization(b)
+        Ks, Cs = hs_linearization_scalar(b, *b._inputs)
+        np.testing.assert_allclose(K, Ks, rtol=0, atol=1e-8 * np.abs(Ks).max())
+        np.testing.assert_allclose(Cm, Cs, rtol=0, atol=1e-8 * np.abs(Cs).max())
