@@ -73,15 +73,19 @@ class ReferenceSpec:
         return self.changes.get("coupling.scheme") == "monolithic"
 
     def halved(self, base: Scenario) -> dict[str, Any]:
-        """Changes of the convergence-check run: rtol/atol (monolithic) or macro step halved."""
+        """Changes of the convergence-check run: rtol/atol and the BDF2 step (monolithic) or
+        the macro step halved. (The step only matters to the BDF2 integrator, which the
+        mass-conserving film needs; Radau ignores it.)"""
         ch = dict(self.changes)
         if self.monolithic:
-            from orchestrator.monolithic import DEFAULT_ATOL, DEFAULT_RTOL
+            from orchestrator.monolithic import DEFAULT_ATOL, DEFAULT_RTOL, DEFAULT_STEP
             opts = dict(base.coupling.options)
             rtol = ch.get("coupling.options.rtol", opts.get("rtol", DEFAULT_RTOL))
             atol = ch.get("coupling.options.atol", opts.get("atol", DEFAULT_ATOL))
+            step = ch.get("coupling.options.step", opts.get("step", DEFAULT_STEP))
             ch["coupling.options.rtol"] = float(rtol) / 2
             ch["coupling.options.atol"] = float(atol) / 2
+            ch["coupling.options.step"] = float(step) / 2
         else:
             h = ch.get("coupling.macro_step", base.coupling.macro_step)
             ch["coupling.macro_step"] = float(h) / 2

@@ -7,6 +7,12 @@ An adapter wraps one FMU instance's *plain-Python* model (never the FMU) as
 * ``outputs(t, s, u) -> dict`` of the FMU's outputs at state ``s``,
 * ``feedthrough``: True when outputs depend on inputs.
 
+Adapters with ``implicit = True`` (the mass-conserving bearing) have an internal discrete
+state advanced by the BDF2 integrator of :mod:`orchestrator.monolithic`: ``start(u, step,
+tol)``, ``trial(h, u)`` (one film step from the committed state), ``commit(h, u)``;
+bearing adapters give ``fd_steps(u)`` (difference steps of their inputs) for the
+integrator's Newton matrix.
+
 ``MODELS`` maps the FMU's ``modelName`` to a factory
 ``(instance, model_description, parameters, *, start_time) -> adapter``; parameters are the
 FMU's start values overridden by the scenario's ``parameters``. A parameter the
@@ -33,6 +39,7 @@ class ModelAdapter:
     output_names: tuple[str, ...] = ()
     feedthrough: bool = False
     n_states: int = 0
+    implicit: bool = False       # internal discrete state advanced by the BDF2 integrator's steps
 
     def __init__(self, instance: str, md, params: Mapping[str, Any], *, start_time: float = 0.0):
         self.instance = instance
@@ -141,10 +148,8 @@ class JournalBearingAdapter(ModelAdapter):
         params = {renamed.get(k, k): v for k, v in self.params.items()}
         kw = _dataclass_kwargs(BearingParams, params, ignore=_BEARING_FMU_ONLY)
         if int(kw.get("cavitation", 1)) != 0:
-            raise ValueError(
-                "the monolithic reference supports only half-Sommerfeld bearings (cavitation = 0); "
-                "the mass-conserving film (cavitation = 1) has its own state and is not supported: "
-                "use a co-simulation variant with a much smaller macro step as the reference")
+            raise ValueError("JournalBearingAdapter is the half-Sommerfeld adapter; the "
+                             "mass-conserving film (cavitation = 1) is MassConservingBearingAdapter")
         self.model = JournalBearing(BearingParams(**kw))
         u = self.input_defaults
         self.model.initialize(u["x"], u["y"], u["vx"], u["vy"], u["omega"])
@@ -156,6 +161,9 @@ class JournalBearingAdapter(ModelAdapter):
         missing = [n for n in plain if n not in self.model.outputs]
         if missing:
             raise KeyError(f"the bearing model computes no {missing} (has {sorted(self.model.outputs)})")
+
+    def fd_steps(self, u):
+        return _fd_steps(self.model.c, u)
 
     def outputs(self, t, s, u, *, full=True):
         # quasi-static: step() only evaluates the film at the given kinematics (cavitation = 0)
@@ -171,6 +179,145 @@ class JournalBearingAdapter(ModelAdapter):
                             out[f"{kind}{i}{j}"] = float(m[a, b])
             else:   # as the FMU with linearize = 0 outputs 0; NaN inside the rhs (unused there)
                 out.update({n: (0.0 if not self.linearize else math.nan) for n in self.coeff_names})
+        return out
+
+
+def _coefficient_outputs(model, names, linearize, full) -> dict[str, float]:
+    """Film coefficients kxx..cyy as the FMU outputs them (``linearize``), NaN inside the rhs."""
+    if not names:
+        return {}
+    if full and linearize:
+        from bearing_fmu.linearize import linearization
+        K, C = linearization(model)
+        out = {}
+        for m, kind in ((K, "k"), (C, "c")):
+            for a, i in enumerate("xy"):
+                for b, j in enumerate("xy"):
+                    out[f"{kind}{i}{j}"] = float(m[a, b])
+        return out
+    return {n: (0.0 if not linearize else math.nan) for n in names}
+
+
+def _fd_steps(c: float, u: Mapping[str, float]) -> dict[str, float]:
+    """Finite-difference steps of the bearing inputs (as bearing_fmu.linearize): 1e-5 of the
+    clearance for x, y and of max(c |omega|, |v|, c / 1 ms) for vx, vy. omega is a function
+    of time only in our rotor models and is not differenced."""
+    dv = 1e-5 * max(c * abs(u["omega"]), abs(u["vx"]), abs(u["vy"]), c / 1e-3)
+    return {"x": 1e-5 * c, "y": 1e-5 * c, "vx": dv, "vy": dv}
+
+
+class MassConservingBearingAdapter(ModelAdapter):
+    """bearing_fmu.model.JournalBearing with ``cavitation = 1`` (mass-conserving film).
+
+    The film has its own state (the universal variable u per cell: pressure in the full
+    film, fluid fraction theta in the cavity), advanced by the *reference's* BDF steps:
+    the adapter is ``implicit`` and is only usable by the BDF2 integrator of
+    :mod:`orchestrator.monolithic` (not by ``solve_ivp``). Per integrator step of size h:
+
+    * ``trial(h, u)``: restore the film state at t_n, take ONE film step of size h with
+      the journal kinematics ``u`` (the end-of-step kinematics x, y, vx, vy, omega at
+      t_{n+1}) through the public ``JournalBearing.step``, return the outputs at t_{n+1};
+      memoized per (h, u) within the step;
+    * ``commit(h, u)``: keep the film state of the converged ``u`` as the new t_n state.
+
+    The film is built with its own error control disabled (``theta_atol = 1e30``),
+    ``h_init = h_max = h`` and ``h_min = h / 1000``, so that ``JournalBearing.step(h)`` is
+    exactly one BDF step (BDF1 for the first, variable-coefficient BDF2 after it: the
+    same formula and step sequence as the reference's rotor step), never a sub-stepped
+    one; the film Newton is exact (``krylov_refactor = 0``) with ``newton_atol =
+    newton_rtol = tol``. A film step that would need sub-steps or fails raises
+    :class:`bearing_fmu.model.StepFailed`. The film keeps its own time ``t`` from 0;
+    its equations do not depend on absolute time.
+    """
+
+    input_names = ("x", "y", "vx", "vy", "omega")
+    feedthrough = True
+    implicit = True
+
+    def __init__(self, instance, md, params, *, start_time=0.0):
+        super().__init__(instance, md, params, start_time=start_time)
+        from bearing_fmu import journal_bearing as slave
+        from bearing_fmu.model import BearingParams
+        renamed = getattr(slave, "RENAMED", {})
+        params = {renamed.get(k, k): v for k, v in self.params.items()}
+        self._kw = _dataclass_kwargs(BearingParams, params, ignore=_BEARING_FMU_ONLY)
+        self._kw["cavitation"] = 1
+        self.init = str(self.params.get("init", "flooded"))
+        if self.init not in ("flooded", "stationary"):
+            raise ValueError(f"parameter 'init' must be 'flooded' or 'stationary' (got {self.init!r})")
+        BearingParams(**self._kw)            # validate now (bad parameters fail before running)
+        self.output_names = tuple(n for n, v in md.variables.items() if v.causality == "output")
+        self.coeff_names = tuple(n for n in self.output_names if re.fullmatch(r"[kc][xy][xy]", n))
+        self.linearize = int(self.params.get("linearize", 0)) != 0
+        self.model = None
+        self.film_steps = 0                  # film steps taken (trials included)
+
+    def start(self, u: Mapping[str, float], *, step: float, tol: float) -> None:
+        """Build the film for reference steps of size ``step`` and Newton tolerance ``tol``
+        and initialise it at the inputs ``u`` (t0), as the FMU does at exit_initialization_mode."""
+        from bearing_fmu.model import BearingParams, JournalBearing
+        kw = dict(self._kw, theta_atol=1e30, h_init=float(step), h_max=float(step),
+                  h_min=1e-3 * float(step), krylov_refactor=0, newton_atol=float(tol),
+                  newton_rtol=float(tol), newton_max_iter=max(int(self._kw.get("newton_max_iter", 30)), 50))
+        self.model = JournalBearing(BearingParams(**kw))
+        plain = [n for n in self.output_names if n not in self.coeff_names]
+        self.model.initialize(*(float(u[n]) for n in self.input_names), init=self.init)
+        missing = [n for n in plain if n not in self.model.outputs]
+        if missing:
+            raise KeyError(f"the bearing model computes no {missing} (has {sorted(self.model.outputs)})")
+        self._saved = self.model.get_state()
+        self._out = self._plain()
+        self._held = None                   # key of the trial whose state the model holds
+        self._cache: dict[tuple, dict[str, float]] = {}
+        self.c = self.model.c
+
+    def _plain(self) -> dict[str, float]:
+        return {n: float(v) for n, v in self.model.outputs.items() if n in self.output_names}
+
+    def trial(self, h: float, u: Mapping[str, float]) -> dict[str, float]:
+        from bearing_fmu.model import StepFailed
+        key = (float(h),) + tuple(float(u[n]) for n in self.input_names)
+        out = self._cache.get(key)
+        if out is not None:
+            return out
+        m = self.model
+        m.set_state(self._saved)
+        n0, r0 = m.stats["steps"], m.stats["rejected"]
+        self._held = None
+        m.step(key[0], *key[1:])
+        self.film_steps += 1
+        if m.stats["steps"] != n0 + 1 or m.stats["rejected"] != r0:
+            raise StepFailed(f"{self.instance}: the film took {m.stats['steps'] - n0} steps "
+                             f"({m.stats['rejected'] - r0} rejected) for one reference step of "
+                             f"{h:g} s; reduce coupling.options.step")
+        self._held = key
+        out = self._plain()
+        out.update({n: 0.0 for n in self.coeff_names})
+        if len(self._cache) > 64:
+            self._cache.clear()
+        self._cache[key] = out
+        return out
+
+    def commit(self, h: float, u: Mapping[str, float]) -> None:
+        key = (float(h),) + tuple(float(u[n]) for n in self.input_names)
+        if self._held != key:
+            self._cache.pop(key, None)
+            self.trial(h, u)
+        self._saved = self.model.get_state()
+        self._out = self._plain()
+        self._cache.clear()
+
+    def fd_steps(self, u: Mapping[str, float]) -> dict[str, float]:
+        return _fd_steps(self.c, u)
+
+    def outputs(self, t, s, u, *, full=True):
+        """Outputs of the committed film state (t_n); coefficients as the FMU outputs them."""
+        out = dict(self._out)
+        if self.coeff_names:
+            if full and self.linearize and self._held is not None:
+                self.model.set_state(self._saved)
+                self._held = None
+            out.update(_coefficient_outputs(self.model, self.coeff_names, self.linearize, full))
         return out
 
 
@@ -217,9 +364,17 @@ class JeffcottRotorAdapter(ModelAdapter):
         return {n: float(out[n]) for n in self.output_names}
 
 
+def journal_bearing_adapter(instance, md, params, *, start_time=0.0) -> ModelAdapter:
+    """``JournalBearing``: half-Sommerfeld (cavitation = 0) or mass-conserving (1) adapter."""
+    p = _parameters(md, params)
+    cav = int(p.get("cavitation", 1))
+    cls = MassConservingBearingAdapter if cav == 1 else JournalBearingAdapter
+    return cls(instance, md, params, start_time=start_time)
+
+
 MODELS: dict[str, Callable[..., ModelAdapter]] = {
     "LeftMass": LeftMassAdapter,
     "RightMass": RightMassAdapter,
-    "JournalBearing": JournalBearingAdapter,
+    "JournalBearing": journal_bearing_adapter,
     "JeffcottRotor": JeffcottRotorAdapter,
 }
