@@ -65,6 +65,61 @@ def cyclic_tridiag_many(a, b, c, d, x):
             x[k, i] = y[i] - fact * zz[i]
 
 
+@nb.njit(cache=False)   # no on-disk cache (numba's cache races between processes)
+def _solve_many_kernel(ce, cw, H3, rhs, lam, ck, coef, groove, feed_hat, x):
+    """:func:`cyclic_tridiag_many` over the m n_z systems of :meth:`HalfSommerfeld.solve_many`,
+    building each system's coefficients on the fly from the per-kinematics vectors
+    (m, n_phi) with the operations ``solve`` uses (a = -cw, c = -ce,
+    b = (ce + cw) + coef (lam_k H^3), d = ck_k rhs; groove rows identity / feed), so the
+    result is the same to the last bit."""
+    m, n = ce.shape
+    n_z = lam.size
+    a = np.empty(n)
+    b = np.empty(n)
+    c = np.empty(n)
+    d = np.empty(n)
+    cp = np.empty(n)
+    bb = np.empty(n)
+    y = np.empty(n)
+    zz = np.empty(n)
+    for q in range(m):
+        for k in range(n_z):
+            for i in range(n):
+                if groove[i]:
+                    a[i] = 0.0
+                    c[i] = 0.0
+                    b[i] = 1.0
+                    d[i] = feed_hat[k]
+                else:
+                    a[i] = -cw[q, i]
+                    c[i] = -ce[q, i]
+                    b[i] = (ce[q, i] + cw[q, i]) + coef * (lam[k] * H3[q, i])
+                    d[i] = ck[k] * rhs[q, i]
+            alpha = c[n - 1]
+            beta = a[0]
+            gamma = -b[0]
+            for i in range(n):
+                bb[i] = b[i]
+            bb[0] -= gamma
+            bb[n - 1] -= alpha * beta / gamma
+            mm = bb[0]
+            cp[0] = c[0] / mm
+            y[0] = d[0] / mm
+            zz[0] = gamma / mm
+            for i in range(1, n):
+                mm = bb[i] - a[i] * cp[i - 1]
+                cp[i] = c[i] / mm
+                ui = alpha if i == n - 1 else 0.0
+                y[i] = (d[i] - a[i] * y[i - 1]) / mm
+                zz[i] = (ui - a[i] * zz[i - 1]) / mm
+            for i in range(n - 2, -1, -1):
+                y[i] -= cp[i] * y[i + 1]
+                zz[i] -= cp[i] * zz[i + 1]
+            fact = (y[0] + beta * y[n - 1] / gamma) / (1.0 + zz[0] + beta * zz[n - 1] / gamma)
+            for i in range(n):
+                x[q, k, i] = y[i] - fact * zz[i]
+
+
 class HalfSommerfeld:
     """Quasi-static half-Sommerfeld solver bound to a grid and the constants."""
 
@@ -123,20 +178,7 @@ class HalfSommerfeld:
         ce = dz * self.a_phi * He3 / dphi
         cw = dz * self.a_phi * Hw3 / dphi
         rhs = -(dz * omega * (He - Hw) + 2.0 * dphi * dz * Hdot)      # (m, n_phi)
-        shape = (m, n_z, n_phi)
-        a = np.empty(shape)
-        c = np.empty(shape)
-        a[:] = -cw[:, None, :]
-        c[:] = -ce[:, None, :]
-        b = (ce + cw)[:, None, :] + (dphi * self.a_z / dz) * (self.lam[None, :, None] * (H ** 3)[:, None, :])
-        d = self.ck[None, :, None] * rhs[:, None, :]
-        if self.gr.any():
-            a[:, :, self.gr] = 0.0
-            c[:, :, self.gr] = 0.0
-            b[:, :, self.gr] = 1.0
-            d[:, :, self.gr] = self.feed_hat[None, :, None]
-        x = np.empty(shape)
-        cyclic_tridiag_many(a.reshape(m * n_z, n_phi), b.reshape(m * n_z, n_phi),
-                            c.reshape(m * n_z, n_phi), d.reshape(m * n_z, n_phi),
-                            x.reshape(m * n_z, n_phi))
+        x = np.empty((m, n_z, n_phi))
+        _solve_many_kernel(ce, cw, H ** 3, rhs, self.lam, self.ck, dphi * self.a_z / dz,
+                           self.gr, self.feed_hat, x)
         return sfft.idst(x, type=2, norm="ortho", axis=1)

@@ -545,7 +545,7 @@ class JournalBearing(Fmi2Slave):
                 "restore a saved FMU state to step from an earlier time")
         if step_size <= 0.0:
             raise ValueError(f"step_size must be > 0 (got {step_size!r})")
-        saved = copy.deepcopy(self._model.get_state())
+        saved = self._model.get_state()     # fresh copies of every array (no deepcopy needed)
         try:
             self._model.step(step_size, *self._inputs())
         except Exception as exc:  # the film could not be advanced: Discard, keep the state at t

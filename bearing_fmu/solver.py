@@ -315,6 +315,7 @@ class TransientFilm:
         self.t = 0.0
         self._zero = np.zeros(n)
         self._factored = False
+        self._theta_u = None
 
     def advance(self, dt, kin):
         """Advance from t to t + dt with kinematics ``kin`` held constant."""
@@ -334,7 +335,10 @@ class TransientFilm:
                         f"rejections {self.stats['rejected']}); the kinematics may be "
                         "outside the clearance or jump too fast; reduce the macro step "
                         "or loosen theta_atol")
-                th_n = self.theta(self.u)
+                # theta(u) of the current state: kept from the last accepted step (same
+                # array, so bit for bit what theta(self.u) returns; one law evaluation less)
+                th_n = self._theta_u if self._theta_u is not None else self.theta(self.u)
+                self._theta_u = th_n
                 if self.n_hist == 0:
                     q, th_dot0, th_dot1 = 1, 1.0 / h, -th_n / h
                 else:
@@ -385,6 +389,7 @@ class TransientFilm:
             self.th_nm1 = th_n
             self.u_prev = self.u
             self.u = u_new
+            self._theta_u = th_new
             self.h_prev2 = self.h_prev
             self.h_prev = h
             self.n_hist += 1
@@ -425,6 +430,7 @@ class TransientFilm:
         self.h_next = float(s["h_next"])
         self.t = float(s["t"])
         self._factored = False
+        self._theta_u = None
         if s.get("jac_valid", False):
             kin = (np.array(s["jac_H"]), np.array(s["jac_He"]), np.array(s["jac_Hdot"]),
                    float(s["jac_omega"]))
