@@ -150,7 +150,9 @@ class TransientFilm:
         if not jst_ready:
             self.residual(u, th_dot0, self._zero, kin, want_jac=True)
         g = self.ctx.grid
-        self.ab.fill(0.0)
+        # rows 0 .. bw-1 of LAPACK band storage are dgbtrf's fill-in workspace and "need not
+        # be set" on entry (it zeroes them itself); splu reads rows bw .. 3 bw only
+        self.ab[g.bw:].fill(0.0)
         stencil_to_band(self.jst, g.n_phi, g.pos, g.bw, self.ab)
         self.lin.factor(self.ab)
         self._factored = True

@@ -2,6 +2,7 @@
 
     nice -n 5 .venv/bin/python benchmarks/bench_runup.py [--models hs,air,bath]
         [--start 0.25] [--stop 2.0] [--macro-step 1e-4] [--grid 80,80] [--repeat 1] [--out /tmp/bench_runup]
+        [--repo DIR]   # scenarios (and, with PYTHONPATH=DIR, code) of another checkout: the old-code peer
     .venv/bin/python benchmarks/bench_runup.py --table DIR [DIR ...]   # tabulate finished runs
 
 Each model is the shipped scenario (scenarios/jeffcott_runup_{half_sommerfeld,oil_bath,
@@ -12,13 +13,23 @@ extrapolates the wall time linearly to the 1.75 s run-up (0.25 -> 2.0 s) and say
 
 Wall time is ``summary.json: wall_time_s`` (master loop incl. FMU start-up); the median is
 taken over ``--repeat`` runs. The load average (``/proc/loadavg``) is printed with every run:
-the machine is shared (up to 9 engineers on 2 cores) and the numbers are noisy.
+the machine is shared (up to 9 engineers on 2 cores) and the numbers are noisy. Each run also
+records the process CPU time (the FMUs run in this process, so it covers film, rotor and
+master; less sensitive to other users than wall time), the UTC date and the load before and
+after, as one JSON line in ``OUT/bench.jsonl``.
+
+Old-code peer (same session, same machine): check the old commit out in a worktree and run
+this script with its code and scenarios, e.g.
+``git worktree add /tmp/old <commit> && PYTHONPATH=/tmp/old .venv/bin/python
+benchmarks/bench_runup.py --repo /tmp/old ...`` (the FMUs are then built from /tmp/old).
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
+import os
 import statistics
 import time
 from pathlib import Path
@@ -28,8 +39,8 @@ SCEN = {"hs": "half_sommerfeld", "bath": "oil_bath", "air": "free_to_air"}
 FULL_SPAN = 1.75   # s, 0.25 -> 2.0 (100 -> 800 Hz) as shipped
 
 
-def scenario_path(model: str) -> Path:
-    return REPO / "scenarios" / f"jeffcott_runup_{SCEN[model]}.yaml"
+def scenario_path(model: str, repo: Path = REPO) -> Path:
+    return Path(repo) / "scenarios" / f"jeffcott_runup_{SCEN[model]}.yaml"
 
 
 def loadavg() -> str:
@@ -72,18 +83,24 @@ def main(argv=None):
     ap.add_argument("--grid", default=None, help="n_phi,n_z (default: the scenario's 40,40)")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--out", default="/tmp/bench_runup")
+    ap.add_argument("--repo", default=str(REPO),
+                    help="checkout whose scenarios are run (default: this one)")
     ap.add_argument("--table", nargs="*", help="only tabulate these finished run directories")
     a = ap.parse_args(argv)
     if a.table:
         print_table([row(Path(d)) for d in a.table])
         return 0
 
+    import orchestrator
     from orchestrator import load_scenario, run
+
+    print(f"code: {Path(orchestrator.__file__).parent}, scenarios: {a.repo}, "
+          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}", flush=True)
 
     out = Path(a.out)
     rows = []
     for model in a.models.split(","):
-        path = scenario_path(model)
+        path = scenario_path(model, Path(a.repo))
         overrides = [f"start_time={a.start}", f"stop_time={a.stop}",
                      f"coupling.macro_step={a.macro_step}"]
         if a.grid:
@@ -94,13 +111,26 @@ def main(argv=None):
         for k in range(a.repeat):
             d = out / f"{model}_{k}"
             load0 = loadavg()
+            date0 = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S")
             t0 = time.perf_counter()
+            c0 = time.process_time()
             res = run(load_scenario(str(path), overrides=overrides), out_dir=d, progress=False)
+            cpu = time.process_time() - c0
             wall = time.perf_counter() - t0
             walls.append(wall)
-            print(f"{model} run {k}: {res.status.name} {wall:.1f} s wall (process), load before "
-                  f"{load0}, after {loadavg()}", flush=True)
-            rows.append(row(d))
+            load1 = loadavg()
+            print(f"{model} run {k}: {res.status.name} {wall:.1f} s wall (process), {cpu:.1f} s CPU, "
+                  f"started {date0} UTC, load before {load0}, after {load1}", flush=True)
+            r = row(d)
+            rows.append(r)
+            rec = dict(r, model=model, repeat=k, process_wall_s=wall, cpu_s=cpu, date_utc=date0,
+                       load_before=load0, load_after=load1, repo=str(a.repo),
+                       code=str(Path(orchestrator.__file__).parent),
+                       ms_per_step_wall=1e3 * r["wall_s"] / max(r["macro_steps"], 1),
+                       ms_per_step_cpu=1e3 * cpu / max(r["macro_steps"], 1))
+            out.mkdir(parents=True, exist_ok=True)
+            with open(out / "bench.jsonl", "a") as f:
+                f.write(json.dumps(rec) + "\n")
         print(f"{model}: median wall {statistics.median(walls):.1f} s over {len(walls)} run(s)")
     print_table(rows)
     return 0
