@@ -43,6 +43,20 @@ def scenario_path(model: str, repo: Path = REPO) -> Path:
     return Path(repo) / "scenarios" / f"jeffcott_runup_{SCEN[model]}.yaml"
 
 
+def git_commit(repo) -> str:
+    """HEAD of the checkout whose code runs (+ '-dirty' with uncommitted changes), or '?'."""
+    import subprocess
+    try:
+        head = subprocess.run(["git", "-C", str(repo), "rev-parse", "--short", "HEAD"],
+                              capture_output=True, text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(repo), "status", "--porcelain", "--untracked-files=no",
+                                "--", "bearing_fmu", "rotor_fmu", "orchestrator"],
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+        return (head + ("-dirty" if dirty else "")) or "?"
+    except (OSError, subprocess.SubprocessError):
+        return "?"
+
+
 def loadavg() -> str:
     try:
         return " ".join(Path("/proc/loadavg").read_text().split()[:3])
@@ -126,6 +140,7 @@ def main(argv=None):
             rec = dict(r, model=model, repeat=k, process_wall_s=wall, cpu_s=cpu, date_utc=date0,
                        load_before=load0, load_after=load1, repo=str(a.repo),
                        code=str(Path(orchestrator.__file__).parent),
+                       commit=git_commit(Path(orchestrator.__file__).parents[1]),
                        ms_per_step_wall=1e3 * r["wall_s"] / max(r["macro_steps"], 1),
                        ms_per_step_cpu=1e3 * cpu / max(r["macro_steps"], 1))
             out.mkdir(parents=True, exist_ok=True)
