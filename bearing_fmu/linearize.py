@@ -11,7 +11,9 @@ be accurate enough to stabilize, the converged answer does not depend on them.
 * Half-Sommerfeld (``cavitation = 0``, quasi-static): central finite differences of
   the discrete quasi-static force ``F(x, y, vx, vy, omega)`` (the same DST/cyclic
   tridiagonal solver and force integral as :meth:`JournalBearing.step`), 8 extra
-  solves. Steps ``dx = rel_step c`` and ``dv = rel_step max(c |omega|, |v|, c / t_ref)``.
+  solves, done as ONE batched solve (:meth:`.hs.HalfSommerfeld.solve_many`,
+  :func:`hs_forces_many`; bit-identical to 8 :func:`hs_force` calls, ~3x cheaper:
+  ~0.9 vs ~2.5 ms CPU per call at 40 x 40 on the shared machine). Steps ``dx = rel_step c`` and ``dv = rel_step max(c |omega|, |v|, c / t_ref)``.
   The clipped pressure ``max(P, 0)`` makes F piecewise smooth; where a cell switches
   inside the stencil the result is the mean of the one-sided slopes (the classical
   linearized coefficients of the short bearing, Lund 1987 / Childs 1993 sec. 3.6,
