@@ -439,7 +439,7 @@ def _integrate_bdf2(system: MonolithicSystem, S0, t_grid, emit, *, step, rtol, a
 
     for k in range(1, len(t_grid)):
         t_out = float(t_grid[k])
-        m = max(1, int(math.ceil((t_out - t) / step * (1 - 1e-12))))
+        m = max(1, int(math.ceil((t_out - t) / step * (1 - 1e-9))))   # t rounds: 1e-12 too tight
         H = (t_out - t) / m
         ends = [t + i * H for i in range(1, m)] + [t_out]
         if n_steps == 0:    # start: BDF1 at H/16, then doubling (ratio 2 < 1 + sqrt 2) to H
