@@ -397,8 +397,8 @@ def growth_threshold(t, amp, sigma, k_end: int, min_factor: float):
     Among frames ``0 .. k_end - 1`` (``k_end``: first frame of the first whirl
     episode, or the number of frames), find the last frame ``k`` with
     ``sigma[k] <= 0``; every later finite ``sigma`` up to ``k_end`` must be > 0 and
-    ``amp`` must grow by ``min_factor`` from frame ``k`` to its maximum before
-    ``k_end`` (else the sign change is noise). Returns ``(t_threshold, reason)``:
+    ``amp`` must grow by ``min_factor`` from frame ``k`` to its maximum after it
+    (whirl included; else the sign change is noise). Returns ``(t_threshold, reason)``:
     the crossing time interpolated linearly between frames ``k`` and ``k + 1``, or
     None and why not.
     """
@@ -419,7 +419,7 @@ def growth_threshold(t, amp, sigma, k_end: int, min_factor: float):
         return None, "the sub-synchronous amplitude does not grow at the end of the data (no threshold)"
     k1 = int(later[0])
     a0 = amp[k]
-    a_max = float(np.nanmax(amp[k:k_end])) if k_end > k else a0
+    a_max = float(np.nanmax(amp[k:]))      # significance: growth after the crossing, onset included
     if not (a0 > 0 and a_max >= min_factor * a0):
         return None, (f"the sub-synchronous amplitude grows only by {a_max / a0 if a0 > 0 else float('nan'):.3g}"
                       f" (< growth_min_factor = {min_factor:g}) after the last sign change of its "
