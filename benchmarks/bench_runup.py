@@ -126,6 +126,7 @@ def main(argv=None):
             d = out / f"{model}_{k}"
             load0 = loadavg()
             date0 = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S")
+            commit = git_commit(Path(orchestrator.__file__).parents[1])   # before the run
             t0 = time.perf_counter()
             c0 = time.process_time()
             res = run(load_scenario(str(path), overrides=overrides), out_dir=d, progress=False)
@@ -140,7 +141,7 @@ def main(argv=None):
             rec = dict(r, model=model, repeat=k, process_wall_s=wall, cpu_s=cpu, date_utc=date0,
                        load_before=load0, load_after=load1, repo=str(a.repo),
                        code=str(Path(orchestrator.__file__).parent),
-                       commit=git_commit(Path(orchestrator.__file__).parents[1]),
+                       commit=commit,
                        ms_per_step_wall=1e3 * r["wall_s"] / max(r["macro_steps"], 1),
                        ms_per_step_cpu=1e3 * cpu / max(r["macro_steps"], 1))
             out.mkdir(parents=True, exist_ok=True)
