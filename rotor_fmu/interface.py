@@ -34,6 +34,19 @@ slowly decaying, sign-alternating velocity error (amplification
 fastest damped mode in [0, 1] (no ringing); the structural bound
 (``max_phase_per_substep``) still applies.
 
+Dissipative damping: the symmetric part of each station's ``C`` is projected onto the
+positive semi-definite matrices (negative eigenvalues set to 0, skew part kept) before
+it is used (:func:`dissipative_damping`).  A physical film dissipates, but the
+finite-difference half-Sommerfeld coefficients near contact are not smooth (40 x 40,
+eps >= ~0.988: the pressure spike at the minimum gap spans about one cell; a 0.1 %
+change of eps moved ``cyy`` 9e6 -> 3e6 -> 1.2e7 N s/m) and their symmetric part is
+then sometimes indefinite (down to -4e5 N s/m at eps 0.988, 66 Hz, measured). Held
+over a macro step, a negative damping ``-d`` on a ~0.26 kg journal is an exponential
+instability at ~d / m ~ 1e6 1/s, i.e. a factor ~e^165 per 0.1 ms step in the linear
+model (any integrator): the turbocharger mass-conserving run-ups blew up there
+(docs/runups.md section 4).  The correction only has to stabilize, so changing C
+keeps the scheme consistent; a positive semi-definite C is used unchanged (bit-identical).
+
 With K = C = 0 the rotor's plain ``step`` is used unchanged.
 """
 
@@ -57,6 +70,22 @@ def as_station_coeffs(a, n_bearings: int, name: str) -> np.ndarray:
     if not np.all(np.isfinite(a)):
         raise ValueError(f"interface Jacobian {name} must be finite (got {a.tolist()})")
     return a
+
+
+def dissipative_damping(C: np.ndarray) -> np.ndarray:
+    """Station damping matrices (n_bearings, 2, 2) with the symmetric part of each
+    projected onto the positive semi-definite cone (eigenvalues < 0 -> 0), the skew
+    (gyroscopic-like, non-dissipative) part kept; ``C`` itself is returned when every
+    symmetric part is already positive semi-definite (see the module doc)."""
+    S = 0.5 * (C + np.swapaxes(C, -1, -2))
+    lam, Q = np.linalg.eigh(S)
+    if not np.any(lam < 0.0):
+        return C
+    out = C.copy()
+    for i in np.nonzero(np.any(lam < 0.0, axis=-1))[0]:
+        Si = (Q[i] * np.maximum(lam[i], 0.0)) @ Q[i].T
+        out[i] = Si + (C[i] - S[i])
+    return out
 
 
 def augmented(rotor, F, K, C):
@@ -92,6 +121,7 @@ def step_with_interface_jacobian(rotor, dt: float, F, K=None, C=None) -> bool:
     C = as_station_coeffs(C, nb, "C")
     if not (np.any(K) or np.any(C)):
         return False
+    C = dissipative_damping(C)
     if not (dt > 0.0 and math.isfinite(dt)):
         raise ValueError(f"{type(rotor).__name__}.step: dt must be > 0 and finite [s] (got {dt!r})")
     F = rotor._check_F(F)

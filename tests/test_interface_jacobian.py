@@ -174,3 +174,61 @@ def test_turbocharger_rotor_accepts_coefficients():
     b = np.array([r2.outputs[f"y_{i}"] for i in range(1, r.n_bearings + 1)])
     assert np.all(np.isfinite(a))
     assert np.abs(a - b).max() < 1e-3 * max(np.abs(b).max(), 1e-9), (a, b)
+
+
+# Half-Sommerfeld coefficients (bearing_fmu.linearize.hs_linearization) of the turbocharger
+# bearing (R 4.9 mm, B 7.84 mm, psi 2.8e-3, 40 x 40) at 66 Hz, eps 0.988, journal moving
+# at 0.05 omega c outward and 1.05 omega c eps tangentially: symmetric part of C indefinite
+# (eigenvalues -4.33e5, 1.37e7 N s/m), the state where the mass-conserving turbocharger
+# run-ups blew up at 0.1 ms macro steps (docs/runups.md section 4).
+K_NEAR_CONTACT = np.array([[4.2816e10, -4.9687e10], [-5.6990e10, 6.8650e10]])
+C_NEAR_CONTACT = np.array([[6510470.9765, -7184268.6464], [-6967998.1558, 6778941.9122]])
+
+
+def test_dissipative_damping_projection():
+    from rotor_fmu.interface import dissipative_damping
+    good = np.array([LinearBearing().C, np.zeros((2, 2))])
+    assert dissipative_damping(good) is good               # PSD: untouched (bit-identical runs)
+    C = np.array([C_NEAR_CONTACT, LinearBearing().C])
+    P = dissipative_damping(C)
+    assert np.array_equal(P[1], C[1])
+    S, A = 0.5 * (P[0] + P[0].T), 0.5 * (P[0] - P[0].T)
+    assert np.allclose(A, 0.5 * (C[0] - C[0].T), rtol=0, atol=1e-9)   # skew part kept
+    lam = np.linalg.eigvalsh(S)
+    lam0 = np.linalg.eigvalsh(0.5 * (C[0] + C[0].T))
+    assert lam0[0] < -4e5 and abs(lam[0]) < 1e-6 * lam0[1]             # negative one -> 0
+    assert lam[1] == pytest.approx(lam0[1], rel=1e-12)                 # positive one kept
+
+
+def test_indefinite_film_damping_does_not_blow_up_the_turbocharger(monkeypatch):
+    """Measured near-contact HS coefficients held over 0.1 ms steps on the turbocharger's
+    compressor-side journal: with the damping used as given (negative damping 4.3e5 N s/m
+    on a ~0.26 kg journal, growth ~1.7e6 1/s) the linear step explodes; with the
+    dissipative projection the journal stays put."""
+    tc = pytest.importorskip("rotor_fmu.turbocharger")
+    import rotor_fmu.interface as interface
+
+    K = np.array([K_NEAR_CONTACT, K_LIN * np.eye(2)])
+    C = np.array([C_NEAR_CONTACT, D_LIN * np.eye(2)])
+
+    def run(n=5, H=1e-4):
+        r = tc.TurbochargerRotor()
+        r.initialize()
+        s = r.state_vector()
+        s[r.n_dof + r.bearing_dofs[0, 0]] = 1e-4       # 0.1 mm/s velocity seed at journal 1
+        r.set_state({"t": r.t, "s": s})
+        for _ in range(n):
+            r.step(H, np.zeros((2, 2)), K, C)
+        return r
+
+    r = run()
+    x = np.array([r.outputs["x_1"], r.outputs["y_1"]])
+    assert np.all(np.isfinite(r.s)) and np.abs(x).max() < 1e-7, x    # << clearance 13.7 um
+    monkeypatch.setattr(interface, "dissipative_damping", lambda C: C)
+    try:
+        with np.errstate(all="ignore"):
+            r = run()
+        grown = np.abs(r.s).max()
+    except FloatingPointError:
+        grown = np.inf
+    assert grown > 1.0, grown          # without the projection: blow-up (> 1 m)
