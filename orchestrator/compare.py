@@ -34,7 +34,7 @@ from typing import Any, Callable
 import numpy as np
 
 from orchestrator.compare_metrics import (
-    METRICS, RunData, check_report, derived_error, fit_order, read_run, signal_errors,
+    METRICS, RunData, _lookup, check_report, derived_error, fit_order, read_run, signal_errors,
     write_baseline, write_report)
 from orchestrator.compare_spec import (  # noqa: F401 - re-exported: the public API of compare
     CompareSpec, CompareSpecError, ReferenceSpec, VariantSpec, apply_changes, build_pythonfmu_sources,
@@ -158,13 +158,17 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
     reference = {"changes": dict(spec.reference.changes), "wall_time_s": ref.wall_time_s,
                  "window": list(spec.window) if spec.window else None,
                  "macro_steps": ref.macro_steps, "fmu_calls": ref.fmu_calls,
-                 "scales": scales, "dir": str(runs / "reference")}
+                 "scales": scales, "dir": str(runs / "reference"),
+                 "derived": {d: _lookup(ref.summary, x["key"]) for d, x in spec.derived.items()}}
     if spec.reference.check:
         chk = read_run(runs / "reference-check", results["reference-check"])
         errs = _errors(spec, ref, chk, scales)
         reference["check"] = {"changes": dict(spec.reference.halved(spec.base)), "ok": chk.ok,
                               "message": chk.message, "errors": errs["total"],
-                              "smallest_tolerance": spec.smallest_tolerance()}
+                              "smallest_tolerance": spec.smallest_tolerance(),
+                              "derived_tolerances": spec.derived_tolerances(),
+                              "derived": {d: _lookup(chk.summary, x["key"])
+                                          for d, x in spec.derived.items()}}
     variants = []
     for v in spec.variants:
         data = read_run(runs / v.name, results[v.name])
@@ -182,7 +186,8 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
             "status": "finished" if data.ok else "failed", "message": data.message,
             "wall_time_s": data.wall_time_s, "macro_steps": data.macro_steps,
             "fmu_calls": data.fmu_calls, "tolerance": dict(v.tolerance),
-            "expect_order": v.expect_order, "dir": str(runs / v.name)})
+            "expect_order": v.expect_order, "dir": str(runs / v.name),
+            "derived": {d: _lookup(data.summary, x["key"]) for d, x in spec.derived.items()}})
     orders = []
     for fam in dict.fromkeys(v["family"] for v in variants):
         members = [v for v in variants if v["family"] == fam]

@@ -156,6 +156,12 @@ def check_report(report, spec, baseline: Mapping[str, Any] | None) -> list[str]:
                     fails.append(f"reference: halving its tolerance/step changes the '{m}' error by "
                                  f"{chk['errors'][m]:.3g} >= the smallest tolerance in use "
                                  f"{small:.3g}; tighten the reference")
+        if chk["ok"]:   # a derived quantity with a tolerance: its own change below its smallest one
+            for d, tol in (chk.get("derived_tolerances") or {}).items():
+                val = chk["errors"].get(d, math.inf)
+                if not val < tol:
+                    fails.append(f"reference: halving its tolerance/step changes '{d}' by {val:.3g} "
+                                 f">= the smallest tolerance on it {tol:.3g}; tighten the reference")
     for v in report.variants:
         for m, tol in v["tolerance"].items():
             val = v["errors"].get(m, math.inf)
@@ -239,15 +245,21 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
     if ref.get("window"):
         lines += [f"Errors are measured over t = {ref['window'][0]:g} .. {ref['window'][1]:g} s only "
                   "(`compare.window`).", ""]
-    lines += [f"Reference: `{ref['changes']}` ({_fmt(ref['wall_time_s'], '{:.2f}')} s wall). "
+    values = ", ".join(f"{d} = {_fmt(x, '{:.6g}')}" for d, x in (ref.get("derived") or {}).items())
+    lines += [f"Reference: `{ref['changes']}` ({_fmt(ref['wall_time_s'], '{:.2f}')} s wall"
+              + (f"; {values}" if values else "") + "). "
               "Errors are relative to the scale of each signal (peak of the reference unless "
               "given), worst over the signals: " + ", ".join(
                   f"`{s}` (scale {_fmt(v, '{:.3g}')})" for s, v in ref["scales"].items()) + ".", ""]
     if "check" in ref:
         c = ref["check"]
+        dtol = c.get("derived_tolerances") or {}
+        chk_values = ", ".join(f"{d} = {_fmt(x, '{:.6g}')}" for d, x in (c.get("derived") or {}).items())
         lines += [f"Reference convergence check (`{c['changes']}`): change " + ", ".join(
-            f"{m} {_fmt(c['errors'].get(m))}" for m in spec.metrics) +
-            f"; smallest tolerance in use {_fmt(c['smallest_tolerance'])}.", ""]
+            f"{m} {_fmt(c['errors'].get(m))}" for m in list(spec.metrics) + list(spec.derived)) +
+            f"; smallest tolerance in use {_fmt(c['smallest_tolerance'])}" +
+            "".join(f", on {d} {t:g}" for d, t in dtol.items()) +
+            (f" (check run: {chk_values})" if chk_values else "") + ".", ""]
     head = (["variant", "scheme", "ext", "int", "h [s]"] + [f"{c} err" for c in cols] +
             ["wall [s]", "macro steps", "FMU calls", "stable", "tolerance", "check"])
     lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -260,6 +272,15 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
                 _fmt(v["fmu_calls"], "{}"), "yes" if v["stable"] else "NO", tol,
                 "FAIL" if v["name"] in failed_names else "ok"])
         lines.append("| " + " | ".join(row) + " |")
+    if spec.derived:   # the derived numbers themselves (the table above has their errors)
+        lines += ["", "Derived values (`" + "`, `".join(d["key"] for d in spec.derived.values()) + "`):",
+                  "", "| run | " + " | ".join(spec.derived) + " |", "|---|" + "---|" * len(spec.derived)]
+        rows = [("reference", ref.get("derived") or {})]
+        if "check" in ref:
+            rows.append(("reference-check", ref["check"].get("derived") or {}))
+        rows += [(v["name"], v.get("derived") or {}) for v in report.variants]
+        for name, vals in rows:
+            lines.append(f"| {name} | " + " | ".join(_fmt(vals.get(d), "{:.6g}") for d in spec.derived) + " |")
     if report.orders:
         lines += ["", f"Observed order of convergence of the `{spec.order_metric}` error over the "
                   "macro step (least-squares slope over the stable points; slope of the two "

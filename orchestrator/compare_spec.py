@@ -125,6 +125,16 @@ class CompareSpec:
         tols = [v for var in self.variants for k, v in var.tolerance.items() if k in self.metrics]
         return min(tols) if tols else None
 
+    def derived_tolerances(self) -> dict[str, float]:
+        """Derived quantity -> the smallest tolerance any variant has on it (only those with
+        one): the reference's own change in that quantity must stay below it."""
+        out: dict[str, float] = {}
+        for var in self.variants:
+            for k, v in var.tolerance.items():
+                if k in self.derived:
+                    out[k] = min(v, out.get(k, math.inf))
+        return out
+
 
 class _LineLoader(_ScenarioYamlLoader):
     """The scenario loader's YAML flavour (``1e-4`` is a float), recording the line of every

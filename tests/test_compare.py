@@ -326,3 +326,30 @@ def test_window_restricts_metrics_and_scales():
     assert rep.reference["window"] == [2.0, 4.0]
     with pytest.raises(CompareSpecError, match="'compare.window' must be"):
         parse_compare(dict(SECTION, window=[3.0, 1.0]), base_scenario())
+
+
+def test_reference_check_covers_derived_tolerances(tmp_path):
+    """A tolerance on a derived quantity (e.g. 1 % on the whirl-onset speed) is 'in use':
+    the reference's own change in that quantity under halving must stay below it. The fake
+    reference's onset is 100 Hz * (1 + rtol sin 4): at rtol 0.1 halving moves it by 4.1 %."""
+    sec = dict(SECTION, derived={"onset": {"key": "analysis.journals.b1.onset.speed_hz"}},
+               reference={"scheme": "monolithic", "set": {"coupling.options.rtol": 0.1}})
+    ref_on = 100 * (1 + 0.1 * math.sin(4.0))
+    change = abs(100 * (1 + 0.05 * math.sin(4.0)) - ref_on) / ref_on
+    spec = parse_compare(dict(sec, tolerance={"onset": 0.01}), base_scenario())
+    assert spec.smallest_tolerance() is None and spec.derived_tolerances() == {"onset": 0.01}
+    rep = run_comparison(spec, tmp_path / "a", runner=fake_runner, workers=1)
+    assert rep.reference["check"]["errors"]["onset"] == pytest.approx(change, rel=1e-9)
+    assert rep.reference["derived"]["onset"] == pytest.approx(ref_on)
+    fails = [f for f in check_report(rep, spec, None) if f.startswith("reference:")]
+    assert len(fails) == 1 and "changes 'onset' by 0.0409" in fails[0]
+    # a looser tolerance on it: the reference is good enough
+    spec = parse_compare(dict(sec, tolerance={"onset": 0.1}), base_scenario())
+    rep = run_comparison(spec, tmp_path / "b", runner=fake_runner, workers=1)
+    assert not [f for f in check_report(rep, spec, None) if f.startswith("reference:")]
+    # the report gives the change and the derived values themselves
+    from orchestrator.compare_metrics import write_report
+    write_report(rep, spec, tmp_path / "b", [])
+    md = (tmp_path / "b" / "report.md").read_text()
+    assert f"onset {change:.3g}" in md and ", on onset 0.1" in md
+    assert f"| reference | {ref_on:.6g} |" in md and "| jac-e0i0-h0.1 | " in md
