@@ -12,7 +12,11 @@ For step-by-step control use :class:`orchestrator.master.MasterAlgorithm`.
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import signal
+import sys
+import threading
 import time as _time
 from pathlib import Path
 
@@ -59,6 +63,38 @@ def _summary(scenario, res: CoSimResult, out_dir: Path) -> dict:
     }
 
 
+@contextlib.contextmanager
+def _interrupt_between_steps(master):
+    """Defer Ctrl-C (SIGINT) to the end of the current macro step.
+
+    A KeyboardInterrupt raised while an FMU's Python code runs (PythonFMU slaves run in
+    this process) escapes through the FMU as fmi2Fatal, which the master would report as
+    a numerical failure of that FMU ("try a smaller macro step"), and PythonFMU 0.7.0 then
+    leaves the slave's objects one reference short (docs/dev/requests.md). So the first
+    Ctrl-C only sets ``master.interrupt_requested``; ``master.run`` raises KeyboardInterrupt
+    before the next macro step, from master code, after which ``run`` writes summary.json
+    ("interrupted by the user at t=...") and the FMUs are terminated and freed normally.
+    A second Ctrl-C interrupts at once. Only in the main thread (elsewhere Python does
+    not deliver signals and nothing changes).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        if master.interrupt_requested:
+            raise KeyboardInterrupt
+        master.interrupt_requested = True
+        print("\ninterrupt: stopping after this macro step (Ctrl-C again to stop at once)",
+              file=sys.stderr, flush=True)
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, observers=()) -> CoSimResult:
     """Run ``scenario`` and write ``out_dir/results.csv`` and ``out_dir/summary.json``.
 
@@ -98,7 +134,8 @@ def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, 
         obs = [CsvWriter(out_dir / "results.csv"), Progress(progress), *observers]
         master = MasterAlgorithm(scenario, out_dir=out_dir, observers=obs)
         try:
-            res = master.run()
+            with _interrupt_between_steps(master):
+                res = master.run()
         except KeyboardInterrupt:
             # interrupted by the user: record where the run stopped, then re-raise
             if master.status is not Status.NOT_STARTED:

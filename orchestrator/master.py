@@ -132,6 +132,9 @@ class MasterAlgorithm:
         self.subsystems: dict[str, SubsystemBase] = {}
         self.status = Status.NOT_STARTED
         self.message = ""
+        # set (e.g. by a SIGINT handler, see orchestrator.run) to stop cleanly between macro
+        # steps: run() then raises KeyboardInterrupt from master code, never inside an FMU
+        self.interrupt_requested = False
         self.n = 0
         self.t = float(scenario.start_time)
         self.end_time = float(scenario.start_time)
@@ -621,6 +624,8 @@ class MasterAlgorithm:
             if self._phase == "setup":
                 self.initialize()
             while self.status is Status.RUNNING:
+                if self.interrupt_requested:
+                    raise KeyboardInterrupt
                 self.step()
         finally:
             self.terminate()

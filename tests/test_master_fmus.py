@@ -280,6 +280,24 @@ def test_keyboard_interrupt_still_writes_summary(test_fmus, tmp_path):
     assert len(pd.read_csv(tmp_path / "results.csv")) == 4
 
 
+def test_ctrl_c_inside_fmu_code_stops_cleanly_after_the_macro_step(test_fmus, tmp_path):
+    """A SIGINT delivered while a Python FMU's do_step runs must not surface as fmi2Fatal of
+    that FMU ("try a smaller macro step"): orchestrator.run defers it to the end of the macro
+    step, writes summary.json as interrupted by the user and restores the SIGINT handler."""
+    import signal
+    before = signal.getsignal(signal.SIGINT)
+    with pytest.raises(KeyboardInterrupt):
+        run(chain(test_fmus, "gauss-seidel", mode=4, t_fail=0.025, H=0.01, T=0.1), out_dir=tmp_path,
+            progress=False)
+    assert signal.getsignal(signal.SIGINT) is before
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["status"] == "failed"
+    assert s["message"].startswith("interrupted by the user at t=0.03 s"), s["message"]
+    assert "fatal" not in s["message"].lower()
+    assert s["end_time"] == pytest.approx(0.03)
+    assert len(pd.read_csv(tmp_path / "results.csv")) == 4      # t = 0, 0.01, 0.02, 0.03
+
+
 def test_no_call_after_fatal_not_even_free_instance(test_fmus, tmp_path):
     """FMI 2.0 (section 2.1.3): after fmi2Fatal no function may be called, fmi2FreeInstance
     included. PythonFMU reports an escaped Python exception as Fatal and has already

@@ -1,8 +1,14 @@
 """Faulty: a ramp source y = t that misbehaves from time `t_fail` on.
 
 mode 0: do_step returns False (fmi2Discard); mode 1: do_step raises
-(fmi2Error); mode 2: the output becomes NaN; mode 3: the output becomes +inf.
+(fmi2Error); mode 2: the output becomes NaN; mode 3: the output becomes +inf;
+mode 4: the first step past t_fail sends SIGINT to its own process (a Ctrl-C that
+arrives while FMU code runs) and then completes normally.
 """
+
+import os
+import signal
+
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
@@ -22,7 +28,7 @@ class Faulty(Fmi2Slave):
                                     variability=Fmi2Variability.tunable, description="failure time [s]"))
         self.register_variable(Integer("mode", causality=Fmi2Causality.parameter,
                                        variability=Fmi2Variability.tunable,
-                                       description="0 discard, 1 raise, 2 NaN output, 3 inf output"))
+                                       description="0 discard, 1 raise, 2 NaN output, 3 inf output, 4 SIGINT once"))
         self.register_variable(Real("u", causality=Fmi2Causality.input, description="ignored input [-]"))
         self.register_variable(Real("y", causality=Fmi2Causality.output, description="ramp output [-]"))
 
@@ -39,5 +45,8 @@ class Faulty(Fmi2Slave):
             if self.mode == 3:
                 self.y = float("inf")
                 return True
+            if self.mode == 4 and not getattr(self, "_interrupted", False):
+                self._interrupted = True
+                os.kill(os.getpid(), signal.SIGINT)
         self.y = t_end
         return True
