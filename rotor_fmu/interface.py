@@ -47,6 +47,12 @@ model (any integrator): the turbocharger mass-conserving run-ups blew up there
 (docs/runups.md section 4).  The correction only has to stabilize, so changing C
 keeps the scheme consistent; a positive semi-definite C is used unchanged (bit-identical).
 
+Sub-step limit: near contact the film coefficients grow without bound (cyy ~1e9 N s/m
+at eps 0.9998), and so does the sub-step count; above :data:`MAX_INTERFACE_SUBSTEPS`
+the step raises :class:`StiffFilmError` (the rotor FMU returns fmi2Discard with its
+message): the journal is at the bearing shell, which the models do not represent (no
+contact model). Without the limit such a run crawled (seconds per 0.1 ms step).
+
 With K = C = 0 the rotor's plain ``step`` is used unchanged.
 """
 
@@ -55,6 +61,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+
+MAX_INTERFACE_SUBSTEPS = 50_000
+"""Most rotor sub-steps one interface-Jacobian macro step may take (~0.1-0.3 s of work for
+the turbocharger); reached only with film damping ~1e8-1e9 N s/m, i.e. a journal at the shell."""
+
+
+class StiffFilmError(FloatingPointError):
+    """The film coefficients need more than MAX_INTERFACE_SUBSTEPS rotor sub-steps."""
 
 
 def as_station_coeffs(a, n_bearings: int, name: str) -> np.ndarray:
@@ -127,7 +142,16 @@ def step_with_interface_jacobian(rotor, dt: float, F, K=None, C=None) -> bool:
     F = rotor._check_F(F)
     MiK, MiC, F_eff = augmented(rotor, F, K, C)
     rho = max(np.linalg.norm(MiC, 2), math.sqrt(np.linalg.norm(MiK, 2)))
-    nsub = max(rotor.n_substeps(dt), int(math.ceil(dt * rho / 2.0 - 1e-12)))
+    need = dt * rho / 2.0
+    if not need <= MAX_INTERFACE_SUBSTEPS:          # also NaN
+        peak = max(float(np.max(np.abs(C))), 0.0)
+        raise StiffFilmError(
+            f"{type(rotor).__name__}: the film coefficients need {need:.3g} sub-steps in this "
+            f"macro step of {dt:.3g} s (limit {MAX_INTERFACE_SUBSTEPS}; ||M^-1 C|| = {rho:.3g} 1/s, "
+            f"largest station damping {peak:.3g} N s/m): a journal is at the bearing shell, which "
+            "the models do not represent (no contact). Stop the run-up before this speed, or "
+            "reduce the unbalance or the load")
+    nsub = max(rotor.n_substeps(dt), int(math.ceil(need - 1e-12)))
     saved = (rotor._MiK, rotor._MiC, rotor._nsub_cache)
     try:
         rotor._MiK, rotor._MiC, rotor._nsub_cache = MiK, MiC, {dt: nsub}

@@ -53,6 +53,11 @@ import scipy.linalg as sla
 # processes compile the same module concurrently (numba issues #4807, #10128), which is
 # the normal situation on a shared checkout; without the cache every process pays a
 # multi-second compile.  The numpy kernel is within the cost goal (docs/rotor-models.md).
+# above this many entries nsub * n_dof^2 (= 1/2 of the sub-step matrix R's size), the numpy
+# sub-steps iterate the affine map instead of building R (see _numpy_substeps): 2 M entries =
+# 32 MB for R. The Jeffcott rotor (n_dof 6) never gets there; the turbocharger (n_dof ~40) at
+# nsub > ~1250, i.e. only with a near-contact film through the interface Jacobian.
+DIRECT_SUBSTEP_SIZE = 2_000_000
 KERNEL = os.environ.get("ROTORCOSIM_ROTOR_KERNEL", "numpy").strip().lower()
 _numba = None
 if KERNEL == "numba":
@@ -224,6 +229,12 @@ def _numpy_substeps(rotor, q, v, t0, h, nsub, fF):
     mats = (rotor._MiK, rotor._MiC, rotor._MiG, rotor._MiKc, rotor._MiKa)
     key = (h, nsub, w, a)
     cache = rotor._pq_cache
+    # many sub-steps (a stiff film near contact through the interface Jacobian, whose
+    # matrices change every macro step): iterate the affine map instead of building the
+    # (2n, nsub n) matrix R -- memory O(n^2) instead of O(nsub n^2) (4.5 GB were seen for
+    # the turbocharger at eps 0.9998) and O(nsub n^2) work instead of O(nsub n^3). The
+    # key holds nsub, so a cache entry of the same key is always of the same kind.
+    direct = nsub * n * n > DIRECT_SUBSTEP_SIZE
     if (cache is None or cache[0] != key
             or any(m1 is not m2 for m1, m2 in zip(cache[4], mats))):
         hh, h2 = 0.5 * h, 0.25 * h * h
@@ -241,36 +252,54 @@ def _numpy_substeps(rotor, q, v, t0, h, nsub, fF):
         Q = np.empty((2 * n, n))
         Q[:n] = (hh * hh) * Si
         Q[n:] = hh * Si
-        # x_N = P^N x_0 + sum_k P^(N-1-k) Q g_k,  g_k = f_k + f_(k+1)
-        R = np.empty((2 * n, nsub * n))
-        Pk = np.eye(2 * n)
-        for k in range(nsub - 1, -1, -1):
-            R[:, k * n:(k + 1) * n] = Pk @ Q
-            Pk = P @ Pk
-        Rsum = R.reshape(2 * n, nsub, n).sum(axis=1)
-        cache = rotor._pq_cache = (key, Pk, R, Rsum, mats)
+        if direct:
+            cache = rotor._pq_cache = (key, P, Q, None, mats)
+        else:
+            # x_N = P^N x_0 + sum_k P^(N-1-k) Q g_k,  g_k = f_k + f_(k+1)
+            R = np.empty((2 * n, nsub * n))
+            Pk = np.eye(2 * n)
+            for k in range(nsub - 1, -1, -1):
+                R[:, k * n:(k + 1) * n] = Pk @ Q
+                Pk = P @ Pk
+            Rsum = R.reshape(2 * n, nsub, n).sum(axis=1)
+            cache = rotor._pq_cache = (key, Pk, R, Rsum, mats)
+    if direct:
+        _, P, Q, _, _ = cache
+        g = np.empty((nsub, n))
+        g[:] = 2.0 * fF
+        if rotor._me.size:
+            g += _unbalance_pairs(rotor, t0, h, nsub) @ rotor._MiU.T
+        x = np.concatenate([q, v])
+        for k in range(nsub):
+            x = P @ x + Q @ g[k]
+        return x[:n], x[n:]
     _, PN, R, Rsum, _ = cache
     x = PN @ np.concatenate([q, v]) + Rsum @ (2.0 * fF)
     if rotor._me.size:
-        tau = h * np.arange(nsub + 1)
-        seg = _segment_drive(t0, t0 + nsub * h, tt, ww, aa)
-        if seg is None:
-            ev = np.array([_drive_eval_py(t0 + x_, tt, ww, aa) for x_ in tau])
-            wt, at, ang = ev[:, 0:1], ev[:, 1:2], ev[:, 2:3]
-        else:
-            w0, a0, g0 = seg
-            tau = tau[:, None]
-            wt = w0 + a0 * tau
-            at = a0
-            ang = g0 + w0 * tau + 0.5 * a0 * tau * tau
-        phi = ang + rotor._ph
-        c, s_ = np.cos(phi), np.sin(phi)
-        fu = np.empty((nsub + 1, 2 * rotor._me.size))
-        fu[:, 0::2] = rotor._me * (wt * wt * c + at * s_)
-        fu[:, 1::2] = rotor._me * (wt * wt * s_ - at * c)
-        fu = fu[:-1] + fu[1:]
-        x = x + R @ (fu @ rotor._MiU.T).reshape(-1)
+        x = x + R @ (_unbalance_pairs(rotor, t0, h, nsub) @ rotor._MiU.T).reshape(-1)
     return x[:n], x[n:]
+
+
+def _unbalance_pairs(rotor, t0, h, nsub):
+    """f_k + f_(k+1) of the unbalance forces at the sub-step times t0 + k h, (nsub, 2 n_unb)."""
+    tt, ww, aa = rotor._drive_tab
+    tau = h * np.arange(nsub + 1)
+    seg = _segment_drive(t0, t0 + nsub * h, tt, ww, aa)
+    if seg is None:
+        ev = np.array([_drive_eval_py(t0 + x_, tt, ww, aa) for x_ in tau])
+        wt, at, ang = ev[:, 0:1], ev[:, 1:2], ev[:, 2:3]
+    else:
+        w0, a0, g0 = seg
+        tau = tau[:, None]
+        wt = w0 + a0 * tau
+        at = a0
+        ang = g0 + w0 * tau + 0.5 * a0 * tau * tau
+    phi = ang + rotor._ph
+    c, s_ = np.cos(phi), np.sin(phi)
+    fu = np.empty((nsub + 1, 2 * rotor._me.size))
+    fu[:, 0::2] = rotor._me * (wt * wt * c + at * s_)
+    fu[:, 1::2] = rotor._me * (wt * wt * s_ - at * c)
+    return fu[:-1] + fu[1:]
 
 
 class LinearRotor:

@@ -232,3 +232,48 @@ def test_indefinite_film_damping_does_not_blow_up_the_turbocharger(monkeypatch):
     except FloatingPointError:
         grown = np.inf
     assert grown > 1.0, grown          # without the projection: blow-up (> 1 m)
+
+
+def test_many_substeps_iterate_the_map_and_agree_with_the_matrix_form(monkeypatch):
+    """Near contact the interface Jacobian asks for thousands of rotor sub-steps. The numpy
+    sub-stepping then iterates the affine map instead of building its (2n, nsub n) matrix R
+    (memory O(n^2), not O(nsub n^2)); both forms are the same scheme and must agree to
+    round-off, unbalance forcing included."""
+    tc = pytest.importorskip("rotor_fmu.turbocharger")
+    import rotor_fmu.linear_rotor as lr
+    if lr._kernel is not None:
+        pytest.skip("numba rotor kernel selected (ROTORCOSIM_ROTOR_KERNEL)")
+    K = np.array([K_NEAR_CONTACT, K_LIN * np.eye(2)])
+    C = np.array([C_NEAR_CONTACT, D_LIN * np.eye(2)])
+
+    def run(limit):
+        monkeypatch.setattr(lr, "DIRECT_SUBSTEP_SIZE", limit)
+        r = tc.TurbochargerRotor(tc.TurbochargerParams(f_max=105.0))
+        r.initialize()
+        s = r.state_vector()
+        s[r.n_dof + r.bearing_dofs[0, 0]] = 1e-4
+        r.set_state({"t": 3.0, "s": s})
+        for _ in range(3):
+            r.step(1e-4, np.array([[1.0, -50.0], [0.5, -20.0]]), K, C)
+        return r.s
+
+    matrix, direct = run(10 ** 12), run(0)
+    assert np.all(np.isfinite(direct))
+    assert np.abs(direct - matrix).max() <= 1e-9 * np.abs(matrix).max(), np.abs(direct - matrix).max()
+
+
+def test_film_at_the_shell_fails_the_step_with_a_clear_message():
+    """Damping of a journal at the shell (~1e10 N s/m) would need ~1e6 sub-steps per 0.1 ms:
+    the step stops (StiffFilmError, a FloatingPointError: the FMU turns it into fmi2Discard)
+    instead of crawling, and says what happened."""
+    tc = pytest.importorskip("rotor_fmu.turbocharger")
+    from rotor_fmu.interface import MAX_INTERFACE_SUBSTEPS, StiffFilmError
+    r = tc.TurbochargerRotor()
+    r.initialize()
+    s0 = r.state_vector()
+    K = np.array([K_NEAR_CONTACT, K_LIN * np.eye(2)])
+    C = np.array([1e10 * np.eye(2), D_LIN * np.eye(2)])
+    with pytest.raises(StiffFilmError, match="bearing shell") as err:
+        r.step(1e-4, np.zeros((2, 2)), K, C)
+    assert isinstance(err.value, FloatingPointError) and str(MAX_INTERFACE_SUBSTEPS) in str(err.value)
+    assert np.array_equal(r.state_vector(), s0)          # nothing was done
