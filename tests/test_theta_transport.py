@@ -270,3 +270,19 @@ def test_grid_order_steady_oil_bath_force():
         order[tt] = math.log2((F[0] - F[1]) / (F[1] - F[2]))
     assert order[0] < 1.2
     assert order[1] > 1.5
+
+
+@pytest.mark.parametrize("krylov", [0, 8])
+def test_linear_solvers_agree(krylov):
+    """Band LU, SuperLU and Newton-Krylov (GMRES with the exact 7-point matvec) give the
+    same film with theta_transport = 1, to the Newton tolerance."""
+    out = []
+    for ls in ("band", "splu"):
+        p = BearingParams(n_phi=24, n_z=8, theta_transport=1, linear_solver=ls,
+                          krylov_refactor=krylov, **GROOVE)
+        b = JournalBearing(p)
+        b.initialize(0.0, -0.5 * p.c, 0.0, 0.0, W100)
+        for k in range(5):
+            b.step(2e-5, *orbit(p.c, W100, (k + 1) * 2e-5))
+        out.append(b.outputs["Fy"])
+    assert out[0] == pytest.approx(out[1], rel=1e-5)
