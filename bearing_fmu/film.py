@@ -27,6 +27,22 @@ Finite volumes (cell (j, i), area dphi*dz, fluxes through its four faces):
   M-matrix Jacobian column-wise) and makes the rupture/reformation mass
   balance exact at the discrete level (Elrod 1981 uses the same upwind
   Couette term in the cavity).
+* Couette, option ``theta_transport = 1`` (:func:`assemble_muscl`): limited
+  second-order (MUSCL) face value. For omega >= 0 at face i+1/2
+  ``theta_f = theta_i + L(theta_i - theta_{i-1}, theta_{i+1} - theta_i) / 2``
+  (mirrored for omega < 0) with the smooth limiter of :func:`limiter`,
+  ``L(a, b) = 2 a^2 b^2 (a + b) / ((a^2 + b^2)^2 + eps)`` for a b > 0, else 0:
+  van Albada's ``a b (a + b) / (a^2 + b^2)`` times the switch ``2 a b / (a^2 +
+  b^2)``, i.e. ``phi(r) = 2 r^2 (1 + r) / (1 + r^2)^2`` (r = a / b) in Sweby's
+  form: phi(1) = 1 (second order where theta is smooth and monotone),
+  0 <= phi <= min(2 r, 2) (TVD region), and C1 across a b = 0 (L and both
+  derivatives vanish there), so Newton sees a differentiable residual. A face
+  next to a groove cell (Dirichlet) keeps the first-order upwind value, so no
+  flux couples cells across a groove (the band ordering stays valid). Each face
+  flux is computed once per face value and enters both cells with opposite
+  signs, so the discrete mass balance is exact as before. The Jacobian gains
+  the couplings i +- 2 (stencil columns 5, 6). Full film: theta = 1, the
+  Couette flux is unchanged.
 * Axial edges: oil bath (eq. 5) p = p0 at zbar = 0, 1 through a half-cell
   two-point flux; free to air (eq. 6) outward flux g(p) (:func:`.cavitation.penalty`).
 * Groove cells: Dirichlet ``u = u_feed`` (p = p_feed).
@@ -132,6 +148,150 @@ def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z
                 jst[g, 0] = diag
 
 
+#: regularisation of the limiter's denominator (theta differences are O(1) or smaller;
+#: differences below ~1e-6 switch the reconstruction smoothly off)
+LIM_EPS = 1.0e-24
+
+
+@nb.njit(cache=True, inline="always")
+def limiter(a, b):
+    """Smooth TVD limiter L(a, b) and its partial derivatives (L, dL/da, dL/db).
+
+    ``L = 2 a^2 b^2 (a + b) / ((a^2 + b^2)^2 + eps)`` for a b > 0, else 0 (module doc):
+    L(a, a) = a, 0 <= L / b <= 2, 0 <= L / a <= 2, C1 at a b = 0.
+    """
+    ab = a * b
+    if ab <= 0.0:
+        return 0.0, 0.0, 0.0
+    s = a * a + b * b
+    d = s * s + LIM_EPS
+    num = 2.0 * ab * ab * (a + b)
+    L = num / d
+    dn_da = 4.0 * ab * b * (a + b) + 2.0 * ab * ab
+    dn_db = 4.0 * ab * a * (a + b) + 2.0 * ab * ab
+    La = (dn_da - L * 4.0 * s * a) / d
+    Lb = (dn_db - L * 4.0 * s * b) / d
+    return L, La, Lb
+
+
+@nb.njit(cache=True, inline="always")
+def face_theta(th, groove, i, row, n_phi, up_e):
+    """Couette theta at the east face of cell (row, i) (i + 1/2), second order
+    limited (module doc), and its stencil: returns (theta_f, k_uu, k_u, k_d, d_uu,
+    d_u, d_d) with the flat cells upwind-upwind, upwind, downwind and the partial
+    derivatives of theta_f with respect to their theta (k_uu = -1, d_uu = 0: first
+    order next to a groove cell)."""
+    i2 = i + 1 if i + 1 < n_phi else 0
+    if up_e:
+        iu, id_ = i, i2
+        iuu = i - 1 if i > 0 else n_phi - 1
+    else:
+        iu, id_ = i2, i
+        iuu = i2 + 1 if i2 + 1 < n_phi else 0
+    ku = row + iu
+    if groove[i] or groove[i2]:
+        return th[ku], -1, ku, -1, 0.0, 1.0, 0.0
+    kuu = row + iuu
+    kd = row + id_
+    a = th[ku] - th[kuu]
+    b = th[kd] - th[ku]
+    L, La, Lb = limiter(a, b)
+    return th[ku] + 0.5 * L, kuu, ku, kd, -0.5 * La, 1.0 + 0.5 * (La - Lb), 0.5 * Lb
+
+
+@nb.njit(cache=True, inline="always")
+def _col(k, g, n_phi):
+    """Stencil column of flat cell k (same row as g) in row g's 7-point stencil:
+    0 centre, 1 east, 2 west, 5 east-east, 6 west-west."""
+    d = (k - g) % n_phi
+    if d == 0:
+        return 0
+    if d == 1:
+        return 1
+    if d == n_phi - 1:
+        return 2
+    if d == 2:
+        return 5
+    return 6
+
+
+@nb.njit(cache=True)
+def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
+                   dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
+                   r, want_jac, jst, p, dp, th, dth, sym):
+    """:func:`assemble` with the limited second-order Couette transport of theta
+    (``theta_transport = 1``, module doc). Same arguments; ``jst`` is (N, 7): the
+    5-point columns of :func:`assemble` plus [east-east (i+2), west-west (i-2)]."""
+    n_phi = H.size
+    n_z = u.size // n_phi
+    law_eval(u, p_cav, K, delta, p, dp, th, dth)
+    if want_jac:
+        jst[:, :] = 0.0
+    A = dphi * dz
+    up_e = omega >= 0.0
+    for j in range(n_z):
+        row = j * n_phi
+        for i in range(n_phi):
+            g = row + i
+            if groove[i]:
+                r[g] = u[g] - u_feed
+                if want_jac:
+                    jst[g, 0] = 1.0
+                continue
+            Hi = H[i]
+            res = A * (2.0 * Hi * (th_dot0 * th[g] + th_dot1[g]) + 2.0 * Hdot[i] * th[g])
+            diag = A * (2.0 * Hi * th_dot0 + 2.0 * Hdot[i]) * dth[g]
+            for side in range(2):
+                if side == 0:
+                    i2 = i + 1 if i + 1 < n_phi else 0
+                    Hf = He[i]
+                    sgn = 1.0
+                    fi = i
+                else:
+                    i2 = i - 1 if i > 0 else n_phi - 1
+                    Hf = He[i2]
+                    sgn = -1.0
+                    fi = i2
+                g2 = row + i2
+                cond = a_phi * Hf * Hf * Hf / dphi
+                thf, k1, k2, k3, d1, d2, d3 = face_theta(th, groove, fi, row, n_phi, up_e)
+                flux = sgn * omega * Hf * thf - cond * (p[g2] - p[g])
+                res += dz * flux
+                diag += dz * cond * dp[g]
+                if want_jac:
+                    if not groove[i2]:
+                        jst[g, 1 + side] += -dz * cond * dp[g2]
+                    cf = dz * sgn * omega * Hf
+                    for kk, dd in ((k1, d1), (k2, d2), (k3, d3)):
+                        if kk >= 0 and dd != 0.0 and not groove[kk - row]:
+                            col = _col(kk, g, n_phi)
+                            if col == 0:
+                                diag += cf * dd * dth[kk]
+                            else:
+                                jst[g, col] += cf * dd * dth[kk]
+            condz = a_z * Hi * Hi * Hi / dz
+            for side in range(2):
+                j2 = j + 1 if side == 0 else j - 1
+                if 0 <= j2 < n_z:
+                    g2 = j2 * n_phi + i
+                    res += dphi * (-condz * (p[g2] - p[g]))
+                    diag += dphi * condz * dp[g]
+                    if want_jac:
+                        jst[g, 3 + side] = -dphi * condz * dp[g2]
+                elif sym and side == 0:
+                    pass
+                elif bath:
+                    res += dphi * 2.0 * condz * (p[g] - p0)
+                    diag += dphi * 2.0 * condz * dp[g]
+                else:
+                    gv, dgv = penalty(p[g] - p0, pa, pb, s_pen, a_z)
+                    res += dphi * gv
+                    diag += dphi * dgv * dp[g]
+            r[g] = res
+            if want_jac:
+                jst[g, 0] = diag
+
+
 @nb.njit(cache=True)
 def _neighbours(g, n_phi, n_z):
     i = g % n_phi
@@ -144,8 +304,16 @@ def _neighbours(g, n_phi, n_z):
 
 
 @nb.njit(cache=True)
+def _neighbours2(g, n_phi):
+    """Flat cells i + 2 and i - 2 (periodic) of cell g."""
+    i = g % n_phi
+    row = g - i
+    return row + (i + 2) % n_phi, row + (i - 2) % n_phi
+
+
+@nb.njit(cache=True)
 def stencil_to_band(jst, n_phi, pos, bw, ab):
-    """Scatter the stencil into LAPACK band storage (entry (g, g2) at
+    """Scatter the stencil (5 or 7 columns) into LAPACK band storage (entry (g, g2) at
     ``ab[2 bw + pos[g] - pos[g2], pos[g2]]``, shape (3 bw + 1, N)); ``ab``
     must be zeroed by the caller (a memset in numpy is faster)."""
     n = jst.shape[0]
@@ -159,11 +327,17 @@ def stencil_to_band(jst, n_phi, pos, bw, ab):
             g2 = nb_[k]
             if g2 >= 0 and jst[g, 1 + k] != 0.0:
                 ab[2 * bw + pg - pos[g2], pos[g2]] += jst[g, 1 + k]
+        if jst.shape[1] > 5:           # 7-point stencil (theta_transport = 1): i + 2, i - 2
+            ee, ww = _neighbours2(g, n_phi)
+            if jst[g, 5] != 0.0:
+                ab[2 * bw + pg - pos[ee], pos[ee]] += jst[g, 5]
+            if jst[g, 6] != 0.0:
+                ab[2 * bw + pg - pos[ww], pos[ww]] += jst[g, 6]
 
 
 @nb.njit(cache=True)
 def stencil_matvec(jst, n_phi, x, y):
-    """y = J x for the stencil Jacobian."""
+    """y = J x for the stencil Jacobian (5 or 7 columns)."""
     n = jst.shape[0]
     n_z = n // n_phi
     for g in range(n):
@@ -173,12 +347,15 @@ def stencil_matvec(jst, n_phi, x, y):
             v += jst[g, 3] * x[nn]
         if ss >= 0:
             v += jst[g, 4] * x[ss]
+        if jst.shape[1] > 5:
+            ee, ww = _neighbours2(g, n_phi)
+            v += jst[g, 5] * x[ee] + jst[g, 6] * x[ww]
         y[g] = v
 
 
 @nb.njit(cache=True)
 def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
-              pa, pb, s_pen, R, B, c, eta0, sym):
+              pa, pb, s_pen, R, B, c, eta0, sym, order=0):
     """Film force on the journal, torque on the journal, feed and side flows.
 
     Returns (Fx, Fy, torque, q_feed, q_side):
@@ -187,7 +364,8 @@ def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
     * torque about +z ON the journal from the wall shear at the journal
       surface, ``tau = theta eta0 omega R / h + (h / 2) dp/(R dphi)`` (eta =
       theta eta0 by eq. 3), evaluated at the phi-faces with the upwind theta
-      of the Couette flux; ``T = -R int tau R dphi B dzbar``;
+      of the Couette flux (``order`` = theta_transport: 0 upwind, 1 the limited
+      face value of :func:`face_theta`, as in the residual); ``T = -R int tau R dphi B dzbar``;
     * ``q_feed`` volume flow leaving the groove columns into the film and
       ``q_side`` the net outflow through both axial edges [m^3/s], both from
       the discrete fluxes times ``R c B / 2`` (the scale between eq. 2 fluxes
@@ -216,7 +394,10 @@ def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
             g2 = j * n_phi + i2
             Fx -= (p[g] - p0) * cs
             Fy -= (p[g] - p0) * sn
-            th_up = th[g] if up_e else th[g2]
+            if order == 0:
+                th_up = th[g] if up_e else th[g2]
+            else:
+                th_up = face_theta(th, groove, i, j * n_phi, n_phi, up_e)[0]
             T += th_up * eta0 * omega * R / (c * Hf) + 0.5 * c * Hf * (p[g2] - p[g]) / (R * dphi)
             if groove[i] != groove[i2]:
                 flux = omega * Hf * th_up - cond * (p[g2] - p[g])

@@ -89,13 +89,15 @@ def groove_columns(n_phi: int, width: float, angle: float) -> np.ndarray:
     return mask
 
 
-def _edges(n_phi, n_z, groove):
-    """Couplings (row g, col g2) of the 5-point stencil between non-groove cells."""
+def _edges(n_phi, n_z, groove, wide=False):
+    """Couplings (row g, col g2) of the 5-point stencil between non-groove cells
+    (``wide``: plus i +- 2, the 7-point stencil of ``theta_transport = 1``)."""
     i, j = np.meshgrid(np.arange(n_phi), np.arange(n_z))
     i, j = i.ravel(), j.ravel()
     g = j * n_phi + i
     rows, cols = [], []
-    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+    steps = ((1, 0), (-1, 0), (0, 1), (0, -1)) + (((2, 0), (-2, 0)) if wide else ())
+    for di, dj in steps:
         i2, j2 = (i + di) % n_phi, j + dj
         ok = (j2 >= 0) & (j2 < n_z)
         rows.append(g[ok])
@@ -105,8 +107,9 @@ def _edges(n_phi, n_z, groove):
     return rows[keep], cols[keep]
 
 
-def best_ordering(n_phi: int, n_z: int, groove: np.ndarray):
-    """Return (pos, order, bw, name) of the smallest-bandwidth candidate ordering."""
+def best_ordering(n_phi: int, n_z: int, groove: np.ndarray, wide: bool = False):
+    """Return (pos, order, bw, name) of the smallest-bandwidth candidate ordering
+    (``wide``: for the 7-point stencil with the i +- 2 couplings)."""
     i = np.tile(np.arange(n_phi), n_z)
     j = np.repeat(np.arange(n_z), n_phi)
     i0 = int(np.argmax(groove)) if groove.any() else 0
@@ -119,7 +122,7 @@ def best_ordering(n_phi: int, n_z: int, groove: np.ndarray):
         "phi-fastest": j * n_phi + ii,
         "z-fastest-folded": fold[i] * n_z + j,
     }
-    rows, cols = _edges(n_phi, n_z, groove)
+    rows, cols = _edges(n_phi, n_z, groove, wide)
     best = None
     for name, pos in cands.items():
         bw = int(np.max(np.abs(pos[rows] - pos[cols]))) if rows.size else 0
@@ -132,12 +135,15 @@ def best_ordering(n_phi: int, n_z: int, groove: np.ndarray):
 
 
 def make_grid(n_phi: int, n_z: int, groove_width: float, groove_angle: float,
-              half: bool = False) -> Grid:
+              half: bool = False, wide: bool = False) -> Grid:
     """Build the grid and its band ordering.
 
     ``half=True`` (n_z even): only the cells of the lower half of the width,
     zbar in [0, 1/2], are built (``n_z // 2`` rows of the full grid's cell
     size); the mid-plane zbar = 1/2 is a symmetry plane (see model.py).
+    ``wide=True``: the band ordering covers the i +- 2 couplings of the second-order
+    theta transport (``theta_transport = 1``; without a groove the phi-fastest
+    ordering keeps bandwidth n_phi, with a groove the z-fastest one doubles to 2 n_z).
     """
     if half and n_z % 2:
         raise ValueError(f"make_grid: half=True needs an even n_z (got {n_z})")
@@ -146,7 +152,7 @@ def make_grid(n_phi: int, n_z: int, groove_width: float, groove_angle: float,
     rows = n_z // 2 if half else n_z
     phi = dphi * np.arange(n_phi)
     groove = groove_columns(n_phi, groove_width, groove_angle)
-    pos, order, bw, name = best_ordering(n_phi, rows, groove)
+    pos, order, bw, name = best_ordering(n_phi, rows, groove, wide)
     return Grid(n_phi=n_phi, n_z=rows, dphi=dphi, dz=dz, phi=phi,
                 phi_e=phi + 0.5 * dphi, zbar=(np.arange(rows) + 0.5) * dz,
                 groove=groove, pos=pos, order=order, bw=bw, ordering=name)

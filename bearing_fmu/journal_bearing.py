@@ -73,6 +73,8 @@ INTEGER_PARAMETERS: dict[str, tuple[int, str]] = {
     "n_z": (40, "number of grid cells in the axial direction [-]"),
     "cavitation": (1, "cavitation model: 0 half-Sommerfeld (quasi-static), 1 mass-conserving two-phase (transient)"),
     "axial_bc": (0, "axial boundary condition: 0 oil bath (Dirichlet p0), 1 free to air (Neumann penalty)"),
+    "theta_transport": (0, "Couette transport of the fluid fraction (mass-conserving film): "
+                           "0 first-order upwind, 1 limited second order (MUSCL)"),
 }
 INPUTS: dict[str, tuple[str, str]] = {
     "x": ("m", "journal centre x relative to the bearing centre [m] (x horizontal)"),

@@ -46,7 +46,7 @@ import numba as nb
 import numpy as np
 from scipy.linalg import lapack
 
-from .film import assemble, hs_force_pressure, integrals, stencil_to_band
+from .film import assemble, assemble_muscl, hs_force_pressure, integrals, stencil_to_band
 
 __all__ = ["linearization", "hs_force", "film_force_at"]
 
@@ -66,7 +66,8 @@ def _force(b, p, th, kin, film=True):
     Fx, Fy, *_ = integrals(
         np.ascontiguousarray(p).ravel(), np.ascontiguousarray(th).ravel(), H, He, g.groove,
         g.phi, omega, b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, prm.penalty_a,
-        prm.penalty_b, prm.penalty_smoothing, prm.R, prm.B, b.c, prm.eta0, sym)
+        prm.penalty_b, prm.penalty_smoothing, prm.R, prm.B, b.c, prm.eta0, sym,
+        prm.theta_transport if film else 0)
     return np.array([Fx, Fy])
 
 
@@ -209,11 +210,13 @@ def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3, horizon=None):
     u = film.u.copy()
     bufs = [np.empty(n) for _ in range(4)]
     r = np.empty(n)
-    jst = np.zeros((n, 5))
+    muscl = prm.theta_transport == 1
+    jst = np.zeros((n, 7 if muscl else 5))
+    asm = assemble_muscl if muscl else assemble
 
     def res(kin, want_jac=False):
         H, He, Hdot, om = kin
-        assemble(u, th_dot0, th_dot1, H, He, Hdot, g.groove, b.u_feed, om,
+        asm(u, th_dot0, th_dot1, H, He, Hdot, g.groove, b.u_feed, om,
                  b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, b.law.p_cav, b.law.K,
                  b.law.delta, prm.penalty_a, prm.penalty_b, prm.penalty_smoothing,
                  r, want_jac, jst, *bufs, b.sym)

@@ -57,6 +57,10 @@ class BearingParams:
         cavitation: 0 half-Sommerfeld (quasi-static), 1 mass-conserving
         (transient, paper eq. 4). axial_bc: 0 oil bath (Dirichlet p0, eq. 5),
         1 free to air (Neumann penalty, eq. 6).
+        theta_transport: Couette transport of the fluid fraction in the
+        mass-conserving film: 0 (default) first-order upwind, 1 limited second
+        order (MUSCL, smooth TVD limiter; bearing_fmu/film.py). Only the cavity
+        (theta < 1) is affected; the half-Sommerfeld model ignores it.
         cav_width [Pa]: the smooth theta(p) step lies between p0 - cav_width
         (cavity pressure) and p0; default 1 kPa (1 % of an atmosphere, below
         0.1 % of typical film pressures of 1-10 MPa; see docs/bearing-model.md
@@ -96,6 +100,7 @@ class BearingParams:
     n_z: int = 40
     cavitation: int = 1
     axial_bc: int = 0
+    theta_transport: int = 0
     cav_width: float = 1.0e3
     cav_smoothing: float = 0.05
     penalty_a: float = 0.01
@@ -145,6 +150,8 @@ class BearingParams:
         need("cavitation", self.cavitation in (0, 1),
              "0 (half-Sommerfeld) or 1 (mass-conserving)")
         need("axial_bc", self.axial_bc in (0, 1), "0 (oil bath) or 1 (free to air)")
+        need("theta_transport", self.theta_transport in (0, 1),
+             "0 (first-order upwind) or 1 (limited second order)")
         need("newton_max_iter", isinstance(self.newton_max_iter, int)
              and self.newton_max_iter >= 2, "an integer >= 2")
         need("krylov_tol", 0 < self.krylov_tol < 1, "in (0, 1)")
@@ -193,8 +200,12 @@ class JournalBearing:
         # works on: the lower half when n_z is even (mid-plane symmetry, grid.py)
         self.grid_full = make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle)
         self.sym = bool(p.cavitation == 1 and p.n_z % 2 == 0)
-        self.grid = (make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle, half=True)
-                     if self.sym else self.grid_full)
+        muscl = bool(p.cavitation == 1 and p.theta_transport == 1)   # 7-point Jacobian
+        self.grid = (make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle, half=True,
+                               wide=muscl)
+                     if self.sym else
+                     make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle, wide=True)
+                     if muscl else self.grid_full)
         self.c = p.c
         self.a_phi = p.psi ** 2 / (6 * p.eta0)
         self.a_z = (p.R / p.B) ** 2 * self.a_phi
@@ -262,7 +273,8 @@ class JournalBearing:
         Fx, Fy, T, qf, qs = integrals(
             p.ravel(), th.ravel(), H, He, g.groove, g.phi, omega, self.a_phi, self.a_z,
             g.dphi, g.dz, self.bath, self.p0, prm.penalty_a, prm.penalty_b,
-            prm.penalty_smoothing, prm.R, prm.B, self.c, prm.eta0, sym)
+            prm.penalty_smoothing, prm.R, prm.B, self.c, prm.eta0, sym,
+            prm.theta_transport if self.film is not None else 0)
         if self.film is None:       # half-Sommerfeld: force with the rupture inside the cells
             Fx, Fy, *_ = integrals(
                 self._pf_hs.ravel(), th.ravel(), H, He, g.groove, g.phi, omega, self.a_phi,

@@ -14,7 +14,8 @@ Method
   accepted when <= 1; the next step is ``0.9 err^(-1/(q+1))`` times the last,
   limited to [0.2, 2] (Hairer, Norsett & Wanner, I.II.4).
 * Nonlinear solve: Newton. Every iteration assembles the exact 5-point
-  stencil Jacobian (numba). Default (``krylov_refactor = 0``): band LU
+  stencil Jacobian (numba; 7-point with ``theta_transport = 1``, whose limited
+  second-order face values couple i +- 2; the band ordering covers them). Default (``krylov_refactor = 0``): band LU
   (``dgbtrf``, ordering of :mod:`.grid`) and a direct solve every iteration;
   on the half-width grid the LU is cheap (n_z/2 bandwidth), and this measured
   fastest on 40x40, 80x80 and 160x40. Option ``krylov_refactor = m > 0``:
@@ -38,7 +39,7 @@ import scipy.sparse as sp
 from scipy.linalg import lapack
 from scipy.sparse.linalg import splu
 
-from .film import assemble, stencil_matvec, stencil_to_band
+from .film import assemble, assemble_muscl, stencil_matvec, stencil_to_band
 
 
 @nb.njit(cache=True)
@@ -127,7 +128,11 @@ class TransientFilm:
         self.predictor = True
         self.line_search = True
         self.ab = np.zeros((3 * g.bw + 1, n), order="F")
-        self.jst = np.zeros((n, 5))
+        # theta_transport = 1: limited second-order Couette transport of theta, whose
+        # exact Jacobian has the 7-point stencil (i +- 2; the grid's band covers it)
+        self.muscl = getattr(ctx.params, "theta_transport", 0) == 1
+        self._assemble = assemble_muscl if self.muscl else assemble
+        self.jst = np.zeros((n, 7 if self.muscl else 5))
         self.r = np.empty(n)
         self._w = np.empty(n)
         self.wp, self.wdp, self.wth, self.wdth = (np.empty(n) for _ in range(4))
@@ -139,7 +144,7 @@ class TransientFilm:
     def residual(self, u, th_dot0, th_dot1, kin, want_jac=False):
         c, g = self.ctx, self.ctx.grid
         H, He, Hdot, omega = kin
-        assemble(u, th_dot0, th_dot1, H, He, Hdot, g.groove, c.u_feed, omega,
+        self._assemble(u, th_dot0, th_dot1, H, He, Hdot, g.groove, c.u_feed, omega,
                  c.a_phi, c.a_z, g.dphi, g.dz, c.bath, c.p0, c.law.p_cav, c.law.K,
                  c.law.delta, c.params.penalty_a, c.params.penalty_b, c.params.penalty_smoothing,
                  self.r, want_jac, self.jst,

@@ -169,6 +169,35 @@ def _orbit(t: float, c: float) -> list[float]:
     return [a * math.cos(w * t), -0.5 * c + a * math.sin(w * t), -a * w * math.sin(w * t), a * w * math.cos(w * t)]
 
 
+
+def test_bearing_theta_transport_parameter(built_fmus):
+    """Integer parameter ``theta_transport`` (default 0): 1 switches the mass-conserving film
+    to the limited second-order Couette transport of theta (BearingParams.theta_transport)."""
+    from fmpy import read_model_description
+    path = _fmu(built_fmus, "JournalBearing")
+    md = read_model_description(path)
+    v = {x.name: x for x in md.modelVariables}["theta_transport"]
+    assert v.type == "Integer" and v.causality == "parameter" and int(v.start) == 0
+    c = PSI * R_TEST
+    res = {}
+    for tt in (None, 0, 1):
+        with open_slave(path) as (s, vr):
+            s.setupExperiment(startTime=0.0)
+            s.enterInitializationMode()
+            s.setReal([vr["R"], vr["B"], vr["psi"]], [R_TEST, 1.6 * R_TEST, PSI])
+            s.setInteger([vr["n_phi"], vr["n_z"], vr["cavitation"]], [16, 16, 1])
+            if tt is not None:
+                s.setInteger([vr["theta_transport"]], [tt])
+            s.setReal([vr[n] for n in ("x", "y", "vx", "vy", "omega")],
+                      _orbit(0.0, c) + [2 * math.pi * 100.0])
+            s.exitInitializationMode()
+            for k in range(3):
+                s.setReal([vr[n] for n in ("x", "y", "vx", "vy")], _orbit((k + 1) * 2e-5, c))
+                s.doStep(k * 2e-5, 2e-5)
+            res[tt] = s.getReal([vr["Fx"], vr["Fy"]])
+    assert res[None] == res[0]
+    assert res[1] != res[0] and np.allclose(res[1], res[0], rtol=0.05)
+
 @pytest.mark.parametrize("cavitation", [0, 1])
 def test_bearing_state_round_trip_is_exact(built_fmus, cavitation):
     """step / save / step / restore / step: identical outputs; the journal moves, so a

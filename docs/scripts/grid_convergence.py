@@ -20,6 +20,8 @@ Observed order from three grids h, h/2, h/4: p = log2((f_h - f_h2) / (f_h2 - f_h
 Richardson value f_h4 + (f_h4 - f_h2) / (2^p - 1) (p from the three finest grids).
 
 Run: ``nice -n 10 .venv/bin/python docs/scripts/grid_convergence.py [hs bath air] [--grids 20,40,80,160]``
+``--theta-transport 1``: the mass-conserving cases with the limited second-order Couette
+transport of theta (BearingParams.theta_transport).
 """
 
 from __future__ import annotations
@@ -49,12 +51,14 @@ CASES = {
 }
 F_HZ = 250.0
 LOAD = (0.5 * 5.0 + 0.5) * 9.81
+EXTRA: dict = {}            # BearingParams overrides for the mass-conserving cases (--theta-transport)
 NAMES = ["Fx", "Fy", "kxx", "kxy", "kyx", "kyy", "cxx", "cxy", "cyx", "cyy"]
 
 
 def params(case, n, **kw):
+    extra = EXTRA if CASES[case]["cavitation"] == 1 else {}
     return BearingParams(**BASE, **CASES[case], n_phi=n, n_z=n, newton_atol=1e-10,
-                         newton_rtol=1e-11, **kw)
+                         newton_rtol=1e-11, **extra, **kw)
 
 
 def hs_equilibrium(n=40):
@@ -143,7 +147,9 @@ def main(argv=None):
     ap.add_argument("--grids", default="20,40,80,160")
     ap.add_argument("--threshold", action="store_true", help="HS linear threshold per grid")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--theta-transport", type=int, default=0)
     a = ap.parse_args(argv)
+    EXTRA["theta_transport"] = a.theta_transport
     grids = [int(g) for g in a.grids.split(",")]
     omega = 2 * math.pi * F_HZ
     q = hs_equilibrium(40)
