@@ -68,6 +68,34 @@ from .cavitation import law_eval, penalty
 
 
 @nb.njit(cache=True)
+def _axial_faces(res, diag, g, i, j, n_phi, n_z, Hi, a_z, dz, dphi, p, dp, p0, bath, sym,
+                 pa, pb, s_pen, want_jac, jst):
+    """Add the north/south (axial) face fluxes of cell (j, i) to its residual ``res`` and
+    Jacobian diagonal ``diag`` (returned, same operation order as inline code) and set its
+    north/south stencil entries: Poiseuille between cells, oil bath (eq. 5: p = p0 through a
+    half cell) or free to air (eq. 6: penalty flux) at the edges, no flux at a symmetry plane."""
+    condz = a_z * Hi * Hi * Hi / dz
+    for side in range(2):
+        j2 = j + 1 if side == 0 else j - 1
+        if 0 <= j2 < n_z:
+            g2 = j2 * n_phi + i
+            res += dphi * (-condz * (p[g2] - p[g]))
+            diag += dphi * condz * dp[g]
+            if want_jac:
+                jst[g, 3 + side] = -dphi * condz * dp[g2]
+        elif sym and side == 0:
+            pass                      # mid-plane: symmetry, no flux
+        elif bath:
+            res += dphi * 2.0 * condz * (p[g] - p0)
+            diag += dphi * 2.0 * condz * dp[g]
+        else:
+            gv, dgv = penalty(p[g] - p0, pa, pb, s_pen, a_z)
+            res += dphi * gv
+            diag += dphi * dgv * dp[g]
+    return res, diag
+
+
+@nb.njit(cache=True)
 def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
              dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
              r, want_jac, jst, p, dp, th, dth, sym):
@@ -125,24 +153,8 @@ def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z
                 if want_jac and not groove[i2]:
                     jst[g, 1 + side] = off
             # north / south faces (H uniform in z)
-            condz = a_z * Hi * Hi * Hi / dz
-            for side in range(2):
-                j2 = j + 1 if side == 0 else j - 1
-                if 0 <= j2 < n_z:
-                    g2 = j2 * n_phi + i
-                    res += dphi * (-condz * (p[g2] - p[g]))
-                    diag += dphi * condz * dp[g]
-                    if want_jac:
-                        jst[g, 3 + side] = -dphi * condz * dp[g2]
-                elif sym and side == 0:
-                    pass                      # mid-plane: symmetry, no flux
-                elif bath:
-                    res += dphi * 2.0 * condz * (p[g] - p0)
-                    diag += dphi * 2.0 * condz * dp[g]
-                else:
-                    gv, dgv = penalty(p[g] - p0, pa, pb, s_pen, a_z)
-                    res += dphi * gv
-                    diag += dphi * dgv * dp[g]
+            res, diag = _axial_faces(res, diag, g, i, j, n_phi, n_z, Hi, a_z, dz, dphi, p, dp, p0,
+                                     bath, sym, pa, pb, s_pen, want_jac, jst)
             r[g] = res
             if want_jac:
                 jst[g, 0] = diag
@@ -269,24 +281,9 @@ def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_ph
                                 diag += cf * dd * dth[kk]
                             else:
                                 jst[g, col] += cf * dd * dth[kk]
-            condz = a_z * Hi * Hi * Hi / dz
-            for side in range(2):
-                j2 = j + 1 if side == 0 else j - 1
-                if 0 <= j2 < n_z:
-                    g2 = j2 * n_phi + i
-                    res += dphi * (-condz * (p[g2] - p[g]))
-                    diag += dphi * condz * dp[g]
-                    if want_jac:
-                        jst[g, 3 + side] = -dphi * condz * dp[g2]
-                elif sym and side == 0:
-                    pass
-                elif bath:
-                    res += dphi * 2.0 * condz * (p[g] - p0)
-                    diag += dphi * 2.0 * condz * dp[g]
-                else:
-                    gv, dgv = penalty(p[g] - p0, pa, pb, s_pen, a_z)
-                    res += dphi * gv
-                    diag += dphi * dgv * dp[g]
+            # north / south faces (H uniform in z)
+            res, diag = _axial_faces(res, diag, g, i, j, n_phi, n_z, Hi, a_z, dz, dphi, p, dp, p0,
+                                     bath, sym, pa, pb, s_pen, want_jac, jst)
             r[g] = res
             if want_jac:
                 jst[g, 0] = diag

@@ -548,10 +548,10 @@ class MasterAlgorithm:
                 "fatal": "reported a fatal error (fmi2Fatal; PythonFMU reports Python exceptions this way)",
                 "exception": "raised an exception"}.get(e.status, f"returned {e.status}")
         return (f"FMU instance '{e.instance}' {what} in {e.function} during the macro step from t={t:.12g} s to "
-                f"t={t_next:.12g} s ({e}). Rows up to t={t:.12g} s are kept. Where the FMU's message names "
-                "a physical cause (e.g. a journal at the bearing shell), a smaller step will not help; otherwise "
-                f"try a smaller coupling.macro_step (now {self.scenario.coupling.macro_step:g}) or more substeps "
-                f"for '{e.instance}', and check the FMU's log above")
+                f"t={t_next:.12g} s ({e}). Rows up to t={t:.12g} s are kept. Follow the fix the FMU's message "
+                "gives, if any; a numerically unstable coupling shows up the same way, so also try a smaller "
+                f"coupling.macro_step (now {self.scenario.coupling.macro_step:g}) or more substeps for "
+                f"'{e.instance}', and check the FMU's log above")
 
     def _fail(self, message: str, t: float) -> None:
         self.status = Status.FAILED
