@@ -260,12 +260,15 @@ def test_half_width_grid_equals_full_grid():
     assert np.allclose(res[0][1]["theta"], res[1][1]["theta"], atol=1e-7)
 
 
+@pytest.mark.parametrize("tt", [0, 1])
 @pytest.mark.parametrize("bc", [0, 1])
-def test_transient_volume_balance(bc):
+def test_transient_volume_balance(bc, tt):
     """Film volume change rate (the BDF derivative of sum theta h dA plus the
     squeeze term) equals q_feed - q_side after every transient step, to the
-    Newton tolerance: the flows of ``outputs`` are the discrete fluxes."""
-    p = small(axial_bc=bc, **GROOVE)
+    Newton tolerance: the flows of ``outputs`` are the discrete fluxes. Both theta
+    transports (``tt``: first-order upwind, limited second order): the face flux is
+    shared by both cells either way."""
+    p = small(axial_bc=bc, theta_transport=tt, **GROOVE)
     w = 2 * math.pi * 400
     b = JournalBearing(p)
     b.initialize(*orbit(p.c, w, 0.0), init="stationary")

@@ -184,34 +184,8 @@ def test_wide_band_ordering():
 
 
 # ------------------------------------------------------------------ conservation, bounds
-@pytest.mark.parametrize("bc", [0, 1])
-def test_transient_volume_balance(bc):
-    """q_feed - q_side equals the film volume change rate to the Newton tolerance
-    (the face flux is shared by both cells)."""
-    p = BearingParams(n_phi=24, n_z=8, axial_bc=bc, theta_transport=1, **GROOVE)
-    w = 2 * math.pi * 400
-    b = JournalBearing(p)
-    b.initialize(*orbit(p.c, w, 0.0), init="stationary")
-    f, g = b.film, b.grid
-    dt = 2e-5
-    checked = 0
-    for k in range(8):
-        b.step(dt, *orbit(p.c, w, (k + 1) * dt))
-        if f.n_hist < 2:
-            continue
-        h, w_ = f.h_prev, f.h_prev / f.h_prev2
-        a0, a1, a2 = (1 + 2 * w_) / (1 + w_), -(1 + w_), w_ * w_ / (1 + w_)
-        th = f.theta(f.u).reshape(g.n_z, g.n_phi)
-        th_dot = (a0 * th + (a1 * f.th_nm1 + a2 * f.th_nm2).reshape(th.shape)) / h
-        H, _, Hdot, _ = b._kin
-        film = ~g.groove[None, :]
-        rate = np.sum(np.where(film, 2 * H * th_dot + 2 * Hdot * th, 0.0)) * g.dphi * g.dz
-        rate *= 0.5 * p.R * p.c * p.B * (2 if b.sym else 1)
-        o = b.outputs
-        assert rate == pytest.approx(o["q_feed"] - o["q_side"],
-                                     abs=1e-4 * abs(o["q_feed"]) + 1e-12)
-        checked += 1
-    assert checked >= 5
+# the transient volume balance with theta_transport = 1: tests/test_bearing_solver.py
+# (test_transient_volume_balance, parametrized over both transports)
 
 
 @pytest.mark.parametrize("bc", [0, 1])
