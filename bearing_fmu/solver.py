@@ -337,8 +337,9 @@ class TransientFilm:
             while True:
                 if h < prm.h_min:
                     raise StepFailed(
-                        f"film step size fell below h_min = {prm.h_min:g} s at t = "
-                        f"{self.t:.9g} s (Newton failures {self.stats['failed_newton']}, "
+                        f"film step size fell below h_min = {prm.h_min:g} s "
+                        f"{t_end - self.t:.3g} s before the end of the macro step (film time "
+                        f"{self.t:.9g} s since its initialisation; Newton failures {self.stats['failed_newton']}, "
                         f"rejections {self.stats['rejected']}); the kinematics may be "
                         "outside the clearance or jump too fast; reduce the macro step "
                         "or loosen theta_atol")
