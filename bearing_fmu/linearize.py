@@ -217,9 +217,9 @@ def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3, horizon=None):
     def res(kin, want_jac=False):
         H, He, Hdot, om = kin
         asm(u, th_dot0, th_dot1, H, He, Hdot, g.groove, b.u_feed, om,
-                 b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, b.law.p_cav, b.law.K,
-                 b.law.delta, prm.penalty_a, prm.penalty_b, prm.penalty_smoothing,
-                 r, want_jac, jst, *bufs, b.sym)
+            b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, b.law.p_cav, b.law.K,
+            b.law.delta, prm.penalty_a, prm.penalty_b, prm.penalty_smoothing,
+            r, want_jac, jst, *bufs, b.sym)
         return r.copy()
 
     kin0 = _kin(b, x, y, vx, vy, omega)

@@ -201,11 +201,8 @@ class JournalBearing:
         self.grid_full = make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle)
         self.sym = bool(p.cavitation == 1 and p.n_z % 2 == 0)
         muscl = bool(p.cavitation == 1 and p.theta_transport == 1)   # 7-point Jacobian
-        self.grid = (make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle, half=True,
-                               wide=muscl)
-                     if self.sym else
-                     make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle, wide=True)
-                     if muscl else self.grid_full)
+        self.grid = (make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle, half=self.sym, wide=muscl)
+                     if self.sym or muscl else self.grid_full)
         self.c = p.c
         self.a_phi = p.psi ** 2 / (6 * p.eta0)
         self.a_z = (p.R / p.B) ** 2 * self.a_phi

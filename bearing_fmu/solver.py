@@ -130,7 +130,7 @@ class TransientFilm:
         self.ab = np.zeros((3 * g.bw + 1, n), order="F")
         # theta_transport = 1: limited second-order Couette transport of theta, whose
         # exact Jacobian has the 7-point stencil (i +- 2; the grid's band covers it)
-        self.muscl = getattr(ctx.params, "theta_transport", 0) == 1
+        self.muscl = ctx.params.theta_transport == 1
         self._assemble = assemble_muscl if self.muscl else assemble
         self.jst = np.zeros((n, 7 if self.muscl else 5))
         self.r = np.empty(n)
@@ -145,10 +145,10 @@ class TransientFilm:
         c, g = self.ctx, self.ctx.grid
         H, He, Hdot, omega = kin
         self._assemble(u, th_dot0, th_dot1, H, He, Hdot, g.groove, c.u_feed, omega,
-                 c.a_phi, c.a_z, g.dphi, g.dz, c.bath, c.p0, c.law.p_cav, c.law.K,
-                 c.law.delta, c.params.penalty_a, c.params.penalty_b, c.params.penalty_smoothing,
-                 self.r, want_jac, self.jst,
-                 self.wp, self.wdp, self.wth, self.wdth, c.sym)
+                       c.a_phi, c.a_z, g.dphi, g.dz, c.bath, c.p0, c.law.p_cav, c.law.K,
+                       c.law.delta, c.params.penalty_a, c.params.penalty_b, c.params.penalty_smoothing,
+                       self.r, want_jac, self.jst,
+                       self.wp, self.wdp, self.wth, self.wdth, c.sym)
         return self.r
 
     def _factor(self, u, th_dot0, kin, jst_ready=False):

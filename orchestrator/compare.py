@@ -34,7 +34,7 @@ from typing import Any, Callable
 import numpy as np
 
 from orchestrator.compare_metrics import (
-    METRICS, RunData, _lookup, check_report, derived_error, fit_order, read_run, signal_errors,
+    METRICS, RunData, check_report, derived_error, derived_values, fit_order, read_run, signal_errors,
     write_baseline, write_report)
 from orchestrator.compare_spec import (  # noqa: F401 - re-exported: the public API of compare
     CompareSpec, CompareSpecError, ReferenceSpec, VariantSpec, apply_changes, build_pythonfmu_sources,
@@ -159,7 +159,7 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
                  "window": list(spec.window) if spec.window else None,
                  "macro_steps": ref.macro_steps, "fmu_calls": ref.fmu_calls,
                  "scales": scales, "dir": str(runs / "reference"),
-                 "derived": {d: _lookup(ref.summary, x["key"]) for d, x in spec.derived.items()}}
+                 "derived": derived_values(spec.derived, ref.summary)}
     if spec.reference.check:
         chk = read_run(runs / "reference-check", results["reference-check"])
         errs = _errors(spec, ref, chk, scales)
@@ -167,8 +167,7 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
                               "message": chk.message, "errors": errs["total"],
                               "smallest_tolerance": spec.smallest_tolerance(),
                               "derived_tolerances": spec.derived_tolerances(),
-                              "derived": {d: _lookup(chk.summary, x["key"])
-                                          for d, x in spec.derived.items()}}
+                              "derived": derived_values(spec.derived, chk.summary)}
     variants = []
     for v in spec.variants:
         data = read_run(runs / v.name, results[v.name])
@@ -187,7 +186,7 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
             "wall_time_s": data.wall_time_s, "macro_steps": data.macro_steps,
             "fmu_calls": data.fmu_calls, "tolerance": dict(v.tolerance),
             "expect_order": v.expect_order, "dir": str(runs / v.name),
-            "derived": {d: _lookup(data.summary, x["key"]) for d, x in spec.derived.items()}})
+            "derived": derived_values(spec.derived, data.summary)})
     orders = []
     for fam in dict.fromkeys(v["family"] for v in variants):
         members = [v for v in variants if v["family"] == fam]

@@ -100,6 +100,12 @@ def _lookup(summary: Mapping[str, Any], key: str):
     return cur if isinstance(cur, (int, float)) and not isinstance(cur, bool) else None
 
 
+def derived_values(derived: Mapping[str, Mapping[str, Any]], summary: Mapping[str, Any]) -> dict[str, Any]:
+    """Value of every derived quantity (``compare.derived``: name -> {key: dotted summary
+    key}) in a run's summary.json; None where it is missing or not a number."""
+    return {d: _lookup(summary, x["key"]) for d, x in derived.items()}
+
+
 def _present(summary: Mapping[str, Any], key: str) -> bool:
     cur: Any = summary
     for part in key.split("."):

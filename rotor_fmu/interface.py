@@ -144,7 +144,7 @@ def step_with_interface_jacobian(rotor, dt: float, F, K=None, C=None) -> bool:
     rho = max(np.linalg.norm(MiC, 2), math.sqrt(np.linalg.norm(MiK, 2)))
     need = dt * rho / 2.0
     if not need <= MAX_INTERFACE_SUBSTEPS:          # also NaN
-        peak = max(float(np.max(np.abs(C))), 0.0)
+        peak = float(np.max(np.abs(C)))
         raise StiffFilmError(
             f"{type(rotor).__name__}: the film coefficients need {need:.3g} sub-steps in this "
             f"macro step of {dt:.3g} s (limit {MAX_INTERFACE_SUBSTEPS}; ||M^-1 C|| = {rho:.3g} 1/s, "

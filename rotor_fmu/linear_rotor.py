@@ -53,11 +53,6 @@ import scipy.linalg as sla
 # processes compile the same module concurrently (numba issues #4807, #10128), which is
 # the normal situation on a shared checkout; without the cache every process pays a
 # multi-second compile.  The numpy kernel is within the cost goal (docs/rotor-models.md).
-# above this many entries nsub * n_dof^2 (= 1/2 of the sub-step matrix R's size), the numpy
-# sub-steps iterate the affine map instead of building R (see _numpy_substeps): 2 M entries =
-# 32 MB for R. The Jeffcott rotor (n_dof 6) never gets there; the turbocharger (n_dof ~40) at
-# nsub > ~1250, i.e. only with a near-contact film through the interface Jacobian.
-DIRECT_SUBSTEP_SIZE = 2_000_000
 KERNEL = os.environ.get("ROTORCOSIM_ROTOR_KERNEL", "numpy").strip().lower()
 _numba = None
 if KERNEL == "numba":
@@ -65,6 +60,12 @@ if KERNEL == "numba":
         import numba as _numba
     except ImportError:  # pragma: no cover
         _numba = None
+
+# Above this many entries nsub * n_dof^2 (= 1/2 of the sub-step matrix R's size), the numpy
+# sub-steps iterate the affine map instead of building R (see _numpy_substeps): 2 M entries =
+# 32 MB for R. The Jeffcott rotor (n_dof 6) never gets there; the turbocharger (n_dof ~40) at
+# nsub > ~1250, i.e. only with a near-contact film through the interface Jacobian.
+DIRECT_SUBSTEP_SIZE = 2_000_000
 
 
 def _drive_eval(t, tt, ww, aa):

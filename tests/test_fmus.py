@@ -169,7 +169,6 @@ def _orbit(t: float, c: float) -> list[float]:
     return [a * math.cos(w * t), -0.5 * c + a * math.sin(w * t), -a * w * math.sin(w * t), a * w * math.cos(w * t)]
 
 
-
 def test_bearing_theta_transport_parameter(built_fmus):
     """Integer parameter ``theta_transport`` (default 0): 1 switches the mass-conserving film
     to the limited second-order Couette transport of theta (BearingParams.theta_transport)."""
@@ -197,6 +196,7 @@ def test_bearing_theta_transport_parameter(built_fmus):
             res[tt] = s.getReal([vr["Fx"], vr["Fy"]])
     assert res[None] == res[0]
     assert res[1] != res[0] and np.allclose(res[1], res[0], rtol=0.05)
+
 
 @pytest.mark.parametrize("cavitation", [0, 1])
 def test_bearing_state_round_trip_is_exact(built_fmus, cavitation):

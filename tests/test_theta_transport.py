@@ -219,7 +219,7 @@ def test_theta_stays_in_unit_interval_cavity_transport():
         w = 2 * math.pi * 200
         c = p.c
 
-        def kin(t):
+        def kin(t, c=c, w=w):
             return (0.6 * c * math.cos(0.5 * w * t), 0.6 * c * math.sin(0.5 * w * t),
                     -0.3 * c * w * math.sin(0.5 * w * t), 0.3 * c * w * math.cos(0.5 * w * t), w)
         b.initialize(*kin(0.0))

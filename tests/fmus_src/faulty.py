@@ -9,7 +9,6 @@ arrives while FMU code runs) and then completes normally.
 import os
 import signal
 
-
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 
@@ -22,6 +21,7 @@ class Faulty(Fmi2Slave):
         super().__init__(**kwargs)
         self.t_fail = 1.0
         self.mode = 0
+        self._interrupted = False      # mode 4: SIGINT sent already
         self.u = 0.0
         self.y = 0.0
         self.register_variable(Real("t_fail", causality=Fmi2Causality.parameter,
@@ -45,7 +45,7 @@ class Faulty(Fmi2Slave):
             if self.mode == 3:
                 self.y = float("inf")
                 return True
-            if self.mode == 4 and not getattr(self, "_interrupted", False):
+            if self.mode == 4 and not self._interrupted:
                 self._interrupted = True
                 os.kill(os.getpid(), signal.SIGINT)
         self.y = t_end
