@@ -11,10 +11,11 @@ import math
 import numpy as np
 import pytest
 
-from bearing_fmu.film import face_theta, limiter, stencil_matvec, stencil_to_band
+from bearing_fmu.film import face_theta, limiter, stencil_to_band
 from bearing_fmu.grid import make_grid
 from bearing_fmu.linearize import linearization
 from bearing_fmu.model import BearingParams, JournalBearing, solve_stationary
+from test_bearing_solver import fd_jacobian, stencil_matrix
 
 GROOVE = dict(groove_width=math.radians(15), groove_angle=math.pi / 2)
 W100 = 2 * math.pi * 100
@@ -156,13 +157,7 @@ def test_jacobian_matches_finite_differences(bc, groove, sign):
     hist = rng.normal(size=f.n) * 100
     f.residual(u, 1e4, hist, kin, want_jac=True)
     n = f.n
-    J = np.zeros((n, n))
-    for k in range(n):
-        e = np.zeros(n)
-        e[k] = 1.0
-        y = np.empty(n)
-        stencil_matvec(f.jst, g.n_phi, e, y)
-        J[:, k] = y
+    J = stencil_matrix(f)
     f.ab.fill(0.0)
     stencil_to_band(f.jst, g.n_phi, g.pos, g.bw, f.ab)
     for r_ in range(n):                          # the band holds every coupling
@@ -172,15 +167,7 @@ def test_jacobian_matches_finite_differences(bc, groove, sign):
                 assert f.ab[k, g.pos[c_]] == J[r_, c_]
             else:
                 assert J[r_, c_] == 0.0
-    Jfd = np.zeros((n, n))
-    for k in range(n):
-        e = 1e-6 * max(1.0, abs(u[k]))
-        du = np.zeros(n)
-        du[k] = e
-        rp = f.residual(u + du, 1e4, hist, kin).copy()
-        Jfd[:, k] = (rp - f.residual(u - du, 1e4, hist, kin)) / (2 * e)
-    gc = np.tile(g.groove, g.n_z)
-    Jfd[:, gc] = np.eye(n)[:, gc]
+    Jfd = fd_jacobian(f, u, 1e4, hist, kin)
     assert np.max(np.abs(J - Jfd)) < 1e-7 * np.max(np.abs(Jfd))
     assert np.count_nonzero(f.jst[:, 5:]) > 0       # the i +- 2 couplings are there
 
