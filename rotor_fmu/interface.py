@@ -47,11 +47,24 @@ model (any integrator): the turbocharger mass-conserving run-ups blew up there
 (docs/runups.md section 4).  The correction only has to stabilize, so changing C
 keeps the scheme consistent; a positive semi-definite C is used unchanged (bit-identical).
 
-Sub-step limit: near contact the film coefficients grow without bound (cyy ~1e9 N s/m
-at eps 0.9998), and so does the sub-step count; above :data:`MAX_INTERFACE_SUBSTEPS`
-the step raises :class:`StiffFilmError` (the rotor FMU returns fmi2Discard with its
-message): the journal is at the bearing shell, which the models do not represent (no
-contact model). Without the limit such a run crawled (seconds per 0.1 ms step).
+L-stable path near contact: the film coefficients grow without bound near the shell
+(cyy ~1e8-1e9 N s/m at eps > ~0.995), and ``ceil(H rho / 2)`` trapezoidal sub-steps with
+them (~3e4 per 0.1 ms at 1e8 N s/m on the turbocharger; the shipped free-to-air run-up
+used to stop at 5.1867 s asking for 5.02e4).  Above :data:`LSTABLE_SWITCH` needed
+sub-steps the step therefore uses :meth:`LinearRotor._step_lstable` instead: Alexander's
+2-stage L-stable SDIRK (second order, stiffly accurate) on
+``max(rotor.n_substeps(H), ceil(H ||M^-1 K_aug||_2^(1/2) / 2))`` sub-steps, i.e. the
+structure's and the film stiffness's oscillations are resolved as before, while the
+overdamped film modes (rate ~ d / m, h d / m >> 1) are damped out by L-stability -- their
+physical quasi-static limit -- instead of by sub-steps.  The rest of the coupling (augmented
+matrices, ``F_eff``, dissipative projection) is the same.  Below the switch the trapezoidal
+path is unchanged (bit-identical).  The journal reaching the shell is still not modelled
+(no contact model): this only removes the cost barrier, and what a run does at eps -> 1 is
+up to the bearing model (the bearing FMU refuses eps >= 1).  :class:`StiffFilmError` (a
+FloatingPointError: the rotor FMU returns fmi2Discard with its message) is now raised only
+when the augmented matrices or the L-stable result are not finite;
+:data:`MAX_INTERFACE_SUBSTEPS` is the former hard limit, kept for reference and no longer
+used.
 
 With K = C = 0 the rotor's plain ``step`` is used unchanged.
 """
@@ -63,13 +76,29 @@ import math
 import numpy as np
 
 
+LSTABLE_SWITCH = 2000
+"""Trapezoidal sub-steps ``ceil(H rho / 2)`` above which a macro step uses the L-stable path.
+
+Why 2000: every step that worked before and needs at most this many sub-steps stays
+bit-identical (same trapezoidal code, same sub-step count), so the shipped runs that worked
+before are unchanged as long as their need stays below it.  On the turbocharger at 0.1 ms,
+need ~ 3.4e-4 x (station damping [N s/m]), so the switch sits at ~6e6 N s/m; ~1400
+sub-steps per 50 us (~2800 per 0.1 ms) were seen at eps 0.99 (docs/runups.md section 4), so
+(estimated, not measured per run) the runs change only beyond eps ~0.98, past the whirl
+onsets the results are about.  The trapezoidal cost grows linearly with C / m, while the
+L-stable path needs O(omega_max H + H ||M^-1 K_aug||^(1/2)) sub-steps, a few dozen
+(measured, turbocharger, 0.1 ms steps: trapezoidal 14.7 ms/step at need 1971 and 75 ms/step
+at need 3.4e4 (C = 1e8 N s/m); L-stable 0.6-0.8 ms/step, 31-44 sub-steps)."""
+
 MAX_INTERFACE_SUBSTEPS = 50_000
-"""Most rotor sub-steps one interface-Jacobian macro step may take (~0.1-0.3 s of work for
-the turbocharger); reached only with film damping ~1e8-1e9 N s/m, i.e. a journal at the shell."""
+"""Former hard limit (no longer used): above this many trapezoidal sub-steps a macro step
+raised :class:`StiffFilmError`; such steps now take the L-stable path (see the module doc)."""
 
 
 class StiffFilmError(FloatingPointError):
-    """The film coefficients need more than MAX_INTERFACE_SUBSTEPS rotor sub-steps."""
+    """The film coefficients make the rotor step non-finite (overflowing augmented matrices
+    or a non-finite L-stable result); formerly also: more than MAX_INTERFACE_SUBSTEPS
+    sub-steps needed."""
 
 
 def as_station_coeffs(a, n_bearings: int, name: str) -> np.ndarray:
@@ -127,9 +156,10 @@ def step_with_interface_jacobian(rotor, dt: float, F, K=None, C=None) -> bool:
     """Linearly-implicit rotor step; returns False (nothing done) when K = C = 0.
 
     ``rotor`` is a :class:`rotor_fmu.linear_rotor.LinearRotor` (Jeffcott or
-    turbocharger). The rotor's own ``step`` performs the integration with the
-    augmented matrices swapped in for this one call (restored afterwards, also on
-    errors), so the integrator is exactly the rotor's.
+    turbocharger). The augmented matrices are swapped in for this one call (restored
+    afterwards, also on errors); up to :data:`LSTABLE_SWITCH` needed sub-steps the
+    rotor's own ``step`` (trapezoidal) integrates, above it ``_step_lstable`` (L-stable
+    SDIRK, see the module doc).
     """
     nb = rotor.n_bearings
     K = as_station_coeffs(K, nb, "K")
@@ -141,21 +171,35 @@ def step_with_interface_jacobian(rotor, dt: float, F, K=None, C=None) -> bool:
         raise ValueError(f"{type(rotor).__name__}.step: dt must be > 0 and finite [s] (got {dt!r})")
     F = rotor._check_F(F)
     MiK, MiC, F_eff = augmented(rotor, F, K, C)
-    rho = max(np.linalg.norm(MiC, 2), math.sqrt(np.linalg.norm(MiK, 2)))
-    need = dt * rho / 2.0
-    if not need <= MAX_INTERFACE_SUBSTEPS:          # also NaN
-        peak = float(np.max(np.abs(C)))
+    if not (np.all(np.isfinite(MiK)) and np.all(np.isfinite(MiC)) and np.all(np.isfinite(F_eff))):
         raise StiffFilmError(
-            f"{type(rotor).__name__}: the film coefficients need {need:.3g} sub-steps in this "
-            f"macro step of {dt:.3g} s (limit {MAX_INTERFACE_SUBSTEPS}; ||M^-1 C|| = {rho:.3g} 1/s, "
-            f"largest station damping {peak:.3g} N s/m): a journal is at the bearing shell, which "
-            "the models do not represent (no contact). Stop the run-up before this speed, or "
-            "reduce the unbalance or the load")
-    nsub = max(rotor.n_substeps(dt), int(math.ceil(need - 1e-12)))
-    saved = (rotor._MiK, rotor._MiC, rotor._nsub_cache)
+            f"{type(rotor).__name__}: the film coefficients give non-finite rotor matrices "
+            f"(overflow; largest station damping {float(np.max(np.abs(C))):.3g} N s/m, "
+            f"largest station stiffness {float(np.max(np.abs(K))):.3g} N/m)")
+    rho_k = math.sqrt(np.linalg.norm(MiK, 2))
+    rho = max(np.linalg.norm(MiC, 2), rho_k)
+    need = dt * rho / 2.0
+    if need <= LSTABLE_SWITCH:
+        # trapezoidal sub-steps (unchanged, bit-identical to the code before the L-stable path)
+        nsub = max(rotor.n_substeps(dt), int(math.ceil(need - 1e-12)))
+        saved = (rotor._MiK, rotor._MiC, rotor._nsub_cache)
+        try:
+            rotor._MiK, rotor._MiC, rotor._nsub_cache = MiK, MiC, {dt: nsub}
+            rotor.step(dt, F_eff)
+        finally:
+            rotor._MiK, rotor._MiC, rotor._nsub_cache = saved
+        return True
+    # stiff film: L-stable SDIRK; sub-steps resolve the structure and the film stiffness,
+    # the overdamped film modes are damped by L-stability (see the module doc)
+    nsub = max(rotor.n_substeps(dt), int(math.ceil(dt * rho_k / 2.0 - 1e-12)))
+    saved = (rotor._MiK, rotor._MiC)
     try:
-        rotor._MiK, rotor._MiC, rotor._nsub_cache = MiK, MiC, {dt: nsub}
-        rotor.step(dt, F_eff)
+        rotor._MiK, rotor._MiC = MiK, MiC
+        rotor._step_lstable(dt, F_eff, nsub)
+    except FloatingPointError as exc:
+        raise StiffFilmError(
+            f"{exc} (L-stable interface-Jacobian step, {nsub} sub-steps, ||M^-1 C_aug|| = "
+            f"{rho:.3g} 1/s, largest station damping {float(np.max(np.abs(C))):.3g} N s/m)") from exc
     finally:
-        rotor._MiK, rotor._MiC, rotor._nsub_cache = saved
+        rotor._MiK, rotor._MiC = saved
     return True
