@@ -67,6 +67,9 @@ REAL_PARAMETERS: dict[str, tuple[float, str, str]] = {
     "p_feed": (1.0e5, "Pa", "feed pressure in the axial groove p_feed [Pa]"),
     "groove_width": (0.0, "rad", "opening angle of the axial feed groove [rad] (0: no groove)"),
     "groove_angle": (math.pi / 2, "rad", "groove centre, from +x counter-clockwise [rad]"),
+    "sigma_rough": (0.3e-6, "m", "composite RMS surface roughness of journal and shell [m] (asperity contact, contact = 1)"),
+    "contact_KE": (2.0e7, "Pa", "Greenwood-Tripp factor K E' of the asperity contact pressure [Pa] (contact = 1)"),
+    "mu_contact": (0.1, "1", "boundary friction coefficient of the asperity contact [-] (contact = 1)"),
 }
 INTEGER_PARAMETERS: dict[str, tuple[int, str]] = {
     "n_phi": (40, "number of grid cells in the circumferential direction [-]"),
@@ -75,6 +78,8 @@ INTEGER_PARAMETERS: dict[str, tuple[int, str]] = {
     "axial_bc": (0, "axial boundary condition: 0 oil bath (Dirichlet p0), 1 free to air (Neumann penalty)"),
     "theta_transport": (0, "Couette transport of the fluid fraction (mass-conserving film): "
                            "0 first-order upwind, 1 limited second order (MUSCL)"),
+    "contact": (0, "asperity contact of journal and shell: 0 none, 1 Greenwood-Tripp contact with "
+                   "boundary friction added to the film force (bearing_fmu/contact.py)"),
 }
 INPUTS: dict[str, tuple[str, str]] = {
     "x": ("m", "journal centre x relative to the bearing centre [m] (x horizontal)"),
@@ -84,8 +89,8 @@ INPUTS: dict[str, tuple[str, str]] = {
     "omega": ("rad/s", "journal angular speed about +z (counter-clockwise positive) [rad/s]"),
 }
 OUTPUTS: dict[str, tuple[str, str]] = {
-    "Fx": ("N", "film force on the journal, x [N]"),
-    "Fy": ("N", "film force on the journal, y [N]"),
+    "Fx": ("N", "film force on the journal, x [N] (plus the asperity contact force when contact = 1)"),
+    "Fy": ("N", "film force on the journal, y [N] (plus the asperity contact force when contact = 1)"),
     "eps": ("1", "relative eccentricity |e|/C [-]"),
     "attitude": ("rad", "attitude angle: from the load line (direction of -F) to the eccentricity vector, counter-clockwise positive [rad]"),
     "p_max": ("Pa", "maximum film pressure [Pa]"),
@@ -94,6 +99,7 @@ OUTPUTS: dict[str, tuple[str, str]] = {
     "torque": ("N.m", "friction torque of the film on the journal about +z [N m]"),
     "q_feed": ("m3/s", "volume inflow through the feed groove [m^3/s]"),
     "q_side": ("m3/s", "volume outflow through both axial edges [m^3/s]"),
+    "F_contact": ("N", "normal asperity contact force of journal and shell [N] (0 unless contact = 1)"),
 }
 # Interface-Jacobian coupling (docs/stiff-coupling.md, bearing_fmu/linearize.py): film
 # coefficients K = -dF/dr, C = -dF/dv at the current state, computed when the Integer

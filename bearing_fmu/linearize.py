@@ -46,6 +46,7 @@ import numba as nb
 import numpy as np
 from scipy.linalg import lapack
 
+from .contact import contact_coefficients
 from .film import assemble, assemble_muscl, hs_force_pressure, integrals, stencil_to_band
 
 __all__ = ["linearization", "hs_force", "film_force_at"]
@@ -266,10 +267,18 @@ def linearization(b, *, method="quasi-static", rel_step=1e-5, t_ref=1e-3, horizo
     (amplification 1 - c_true / (m/H + c_used)); the smooth quasi-static coefficients
     have the right magnitude, gave 2-4x smaller coupling errors at 10-100 us, and can be
     held over several steps. The coefficients only set the stabilizing correction; the
-    force itself is always the film's."""
+    force itself is always the film's.
+
+    With ``contact = 1`` the coefficients of the asperity contact force
+    (:func:`.contact.contact_coefficients`) are added."""
     b._check_init("linearization")
     if method not in ("quasi-static", "film"):
         raise ValueError(f"linearization: method must be 'quasi-static' or 'film' (got {method!r})")
     if b.film is None or method == "quasi-static":
-        return hs_linearization(b, *b._inputs, rel_step=rel_step, t_ref=t_ref)
-    return mc_linearization(b, rel_step=rel_step, t_ref=t_ref, horizon=horizon)
+        K, C = hs_linearization(b, *b._inputs, rel_step=rel_step, t_ref=t_ref)
+    else:
+        K, C = mc_linearization(b, rel_step=rel_step, t_ref=t_ref, horizon=horizon)
+    if b.params.contact:        # asperity contact (bearing_fmu/contact.py): its own exact part
+        Kc, Cc = contact_coefficients(*b._inputs, **b.contact_kw)
+        K, C = K + Kc, C + Cc
+    return K, C

@@ -36,6 +36,7 @@ from dataclasses import dataclass, fields as dc_fields
 import numpy as np
 
 from .cavitation import CavitationLaw
+from .contact import contact_force
 from .film import hs_force_pressure, integrals
 from .grid import make_grid
 from .hs import HalfSommerfeld
@@ -74,6 +75,13 @@ class BearingParams:
         values 0.01 and 100), in units of the nominal axial film conductance.
         penalty_smoothing [Pa]: half-width of the C1 rounding of the g(p) kink
         at p0 (10 Pa; must be below cav_width).
+    Asperity contact (bearing_fmu/contact.py; both cavitation models)
+        contact: 0 (default) none, the journal must stay off the shell; 1
+        Greenwood-Tripp asperity contact with boundary friction, added to the
+        film force (outputs Fx, Fy, torque; F_contact its normal part).
+        sigma_rough [m]: composite RMS roughness of journal and shell (0.3 um);
+        contact_KE [Pa]: Greenwood-Tripp K E' (2e7 Pa); mu_contact [-]: boundary
+        friction coefficient (0.1). Defaults and their sources: docs/bearing-model.md.
     Grid
         n_phi, n_z: cells in phi (periodic) and across the width.
     Solver (mass-conserving model)
@@ -106,6 +114,10 @@ class BearingParams:
     penalty_a: float = 0.01
     penalty_b: float = 100.0
     penalty_smoothing: float = 10.0
+    contact: int = 0
+    sigma_rough: float = 0.3e-6
+    contact_KE: float = 2.0e7
+    mu_contact: float = 0.1
     theta_atol: float = 1.0e-3
     newton_atol: float = 1.0e-4
     newton_rtol: float = 1.0e-5
@@ -152,6 +164,12 @@ class BearingParams:
         need("axial_bc", self.axial_bc in (0, 1), "0 (oil bath) or 1 (free to air)")
         need("theta_transport", self.theta_transport in (0, 1),
              "0 (first-order upwind) or 1 (limited second order)")
+        need("contact", self.contact in (0, 1), "0 (no contact) or 1 (Greenwood-Tripp asperity contact)")
+        for name in ("sigma_rough", "contact_KE", "mu_contact"):
+            v = getattr(self, name)
+            need(name, isinstance(v, (int, float)) and math.isfinite(v) and v >= 0,
+                 "a finite number >= 0")
+        need("sigma_rough", self.sigma_rough > 0, "> 0 [m] (composite RMS roughness, e.g. 0.3e-6)")
         need("newton_max_iter", isinstance(self.newton_max_iter, int)
              and self.newton_max_iter >= 2, "an integer >= 2")
         need("krylov_tol", 0 < self.krylov_tol < 1, "in (0, 1)")
@@ -204,6 +222,8 @@ class JournalBearing:
         self.grid = (make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle, half=self.sym, wide=muscl)
                      if self.sym or muscl else self.grid_full)
         self.c = p.c
+        self.contact_kw = dict(c=p.c, R=p.R, B=p.B, sigma=p.sigma_rough, KE=p.contact_KE,
+                               mu=p.mu_contact)
         self.a_phi = p.psi ** 2 / (6 * p.eta0)
         self.a_z = (p.R / p.B) ** 2 * self.a_phi
         self.p0 = p.p0
@@ -278,12 +298,17 @@ class JournalBearing:
                 self.a_z, g.dphi, g.dz, self.bath, self.p0, prm.penalty_a, prm.penalty_b,
                 prm.penalty_smoothing, prm.R, prm.B, self.c, prm.eta0, sym)
         x, y = self._xy
+        Fc = 0.0
+        if prm.contact:             # asperity contact on top of the film (bearing_fmu/contact.py)
+            cx, cy, Fc, Tc = contact_force(*self._inputs, **self.contact_kw)
+            Fx, Fy, T = Fx + cx, Fy + cy, T + Tc
         e_ang = math.atan2(y, x)
         l_ang = math.atan2(-Fy, -Fx)
         att = (e_ang - l_ang + math.pi) % (2 * math.pi) - math.pi
         self.outputs = dict(Fx=Fx, Fy=Fy, eps=math.hypot(x, y) / self.c, attitude=att,
                             p_max=float(p.max()), p_min=float(p.min()),
-                            h_min=float(H.min() * self.c), torque=T, q_feed=qf, q_side=qs)
+                            h_min=float(H.min() * self.c), torque=T, q_feed=qf, q_side=qs,
+                            F_contact=Fc)
 
     def _pth(self, full=True):
         """(p, theta); full width, or the solver grid's rows (full=False)."""
@@ -339,7 +364,7 @@ class JournalBearing:
         else:
             saved = self.film.get_state()
             try:
-                self.film.advance(dt, kin)
+                self.film.advance_restarting(dt, kin)
             except StepFailed:
                 self.film.set_state(saved)
                 raise

@@ -227,7 +227,7 @@ def test_step_contract_errors_and_time():
         b.step(1e-5, 0.0, -0.3 * p.c, 0.0, 0.0, W100)
     assert b.t == pytest.approx(3e-5, abs=1e-18)
     assert set(b.outputs) == {"Fx", "Fy", "eps", "attitude", "p_max", "p_min", "h_min",
-                              "torque", "q_feed", "q_side"}
+                              "torque", "q_feed", "q_side", "F_contact"}
 
 
 def test_half_sommerfeld_step_is_quasi_static():

@@ -1,0 +1,174 @@
+"""Asperity contact of journal and shell (bearing_fmu/contact.py), checked against
+independent quadratures of the Greenwood-Tripp integrals."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from bearing_fmu.contact import F52, H_CUTOFF, contact_coefficients, contact_force, normal_force
+from bearing_fmu.linearize import linearization
+from bearing_fmu.model import BearingParams, JournalBearing
+
+R, B, PSI = 4.9e-3, 7.84e-3, 2.8e-3
+C = PSI * R
+KW = dict(c=C, R=R, B=B, sigma=0.3e-6, KE=2.0e7, mu=0.1)
+
+
+def f52_quad(H):
+    """F_5/2 by direct quadrature of its definition (Greenwood & Tripp 1970)."""
+    val, _ = quad(lambda s: (s - H) ** 2.5 * math.exp(-0.5 * s * s), H, np.inf,
+                  epsabs=0.0, epsrel=1e-12, limit=200)
+    return val / math.sqrt(2.0 * math.pi)
+
+
+@pytest.mark.parametrize("H", [-1.5, 0.0, 0.7, 2.0, 3.5, 5.0])
+def test_f52_closed_form_matches_its_integral(H):
+    assert float(F52(H)) == pytest.approx(f52_quad(H), rel=1e-7)
+
+
+def force_by_quadrature(x, y, vx, vy, omega, *, c, R, B, sigma, KE, mu):
+    """Contact force ON the journal by adaptive quadrature over the whole circumference,
+    h(phi) = c - x cos phi - y sin phi, friction against the sliding direction; no
+    line-of-centres argument (independent of the model's closed form)."""
+    e = math.hypot(x, y)
+    tx, ty = -y / e, x / e
+    s = math.tanh((vx * tx + vy * ty + omega * R) / 1e-3)
+
+    def p(phi):
+        H = (c - x * math.cos(phi) - y * math.sin(phi)) / sigma
+        return KE * f52_quad(H) if H < H_CUTOFF else 0.0
+
+    a = math.atan2(y, x)
+    pts = [a + d for d in (-0.5, -0.2, 0.0, 0.2, 0.5)]
+    fx = -R * B * quad(lambda f: p(f) * math.cos(f), a - math.pi, a + math.pi, points=pts, limit=400)[0]
+    fy = -R * B * quad(lambda f: p(f) * math.sin(f), a - math.pi, a + math.pi, points=pts, limit=400)[0]
+    fn = math.hypot(fx, fy)
+    return fx - mu * fn * s * tx, fy - mu * fn * s * ty, fn
+
+
+@pytest.mark.parametrize("eps,ang", [(0.95, -1.2), (0.985, 2.0), (1.0, 0.3), (1.01, -2.8)])
+def test_contact_force_matches_full_circumference_quadrature(eps, ang):
+    x, y = eps * C * math.cos(ang), eps * C * math.sin(ang)
+    Fx, Fy, Fn, T = contact_force(x, y, 1e-3, -2e-3, 500.0, **KW)
+    qx, qy, qn = force_by_quadrature(x, y, 1e-3, -2e-3, 500.0, **KW)
+    assert Fn == pytest.approx(qn, rel=1e-6)
+    assert Fx == pytest.approx(qx, rel=1e-6, abs=1e-9 * qn)
+    assert Fy == pytest.approx(qy, rel=1e-6, abs=1e-9 * qn)
+    # pushes the journal back (normal part) and brakes it (torque against omega > 0)
+    assert (Fx * x + Fy * y) < 0
+    assert T == pytest.approx(-KW["mu"] * Fn * R, rel=1e-9)
+
+
+def test_no_contact_away_from_the_shell():
+    e = C - H_CUTOFF * KW["sigma"] - 1e-9
+    assert contact_force(e, 0.0, 0.0, 0.0, 500.0, **KW) == (0.0, 0.0, 0.0, 0.0)
+    K, Cc = contact_coefficients(0.5 * C, 0.0, 0.0, 0.0, 500.0, **KW)
+    assert not K.any() and not Cc.any()
+
+
+def test_contact_force_grows_monotonically_into_the_shell():
+    e = np.linspace(0.9, 1.02, 61) * C
+    f = [normal_force(v, c=C, R=R, B=B, sigma=KW["sigma"], KE=KW["KE"]) for v in e]
+    assert np.all(np.diff(f) > 0)
+
+
+def test_contact_coefficients_match_the_line_of_centres_derivatives():
+    """Normal part: K = dFn/de e e^T + Fn/e t t^T (derivative of Fn(e) e_r), checked
+    with mu = 0 against a derivative of the independent quadrature."""
+    kw = dict(KW, mu=0.0)
+    ang = 0.7
+    e0 = 0.99 * C
+    x, y = e0 * math.cos(ang), e0 * math.sin(ang)
+    K, Cc = contact_coefficients(x, y, 0.0, 0.0, 500.0, **kw)
+    d = 1e-10
+    dfn = (force_by_quadrature(x + d * math.cos(ang), y + d * math.sin(ang), 0, 0, 500.0, **kw)[2]
+           - force_by_quadrature(x - d * math.cos(ang), y - d * math.sin(ang), 0, 0, 500.0, **kw)[2]) / (2 * d)
+    fn = normal_force(e0, c=C, R=R, B=B, sigma=kw["sigma"], KE=kw["KE"])
+    er = np.array([math.cos(ang), math.sin(ang)])
+    et = np.array([-er[1], er[0]])
+    want = dfn * np.outer(er, er) + fn / e0 * np.outer(et, et)
+    assert np.allclose(K, want, rtol=1e-4, atol=1e-6 * np.abs(want).max())
+    assert np.allclose(Cc, 0.0)
+
+
+def small(**kw):
+    return BearingParams(R=R, B=B, psi=PSI, eta0=0.012, n_phi=24, n_z=8, **kw)
+
+
+@pytest.mark.parametrize("cav", [0, 1])
+def test_bearing_adds_contact_to_film_force_and_coefficients(cav):
+    x, y, w = 0.25 * C, -0.93 * C, 2 * math.pi * 70
+    kw = dict(cavitation=cav, groove_width=0.26, axial_bc=1)
+    b0, b1 = JournalBearing(small(contact=0, **kw)), JournalBearing(small(contact=1, **kw))
+    for b in (b0, b1):
+        b.initialize(x, y, 0.0, 0.0, w)
+    fx, fy, fn, tq = contact_force(x, y, 0.0, 0.0, w, **KW)
+    assert fn > 1.0
+    o0, o1 = b0.outputs, b1.outputs
+    assert o0["F_contact"] == 0.0 and o1["F_contact"] == fn
+    assert o1["Fx"] == pytest.approx(o0["Fx"] + fx, rel=1e-12)
+    assert o1["Fy"] == pytest.approx(o0["Fy"] + fy, rel=1e-12)
+    assert o1["torque"] == pytest.approx(o0["torque"] + tq, rel=1e-12)
+    K0, C0 = linearization(b0)
+    K1, C1 = linearization(b1)
+    Kc, Cc = contact_coefficients(x, y, 0.0, 0.0, w, **KW)
+    assert np.allclose(K1, K0 + Kc) and np.allclose(C1, C0 + Cc)
+
+
+def test_contact_parameters_are_checked():
+    with pytest.raises(ValueError, match="contact"):
+        small(contact=2)
+    with pytest.raises(ValueError, match="sigma_rough"):
+        small(contact=1, sigma_rough=0.0)
+    with pytest.raises(ValueError, match="mu_contact"):
+        small(contact=1, mu_contact=-0.1)
+
+
+# -- film solver: BDF restart when a macro step fails (bearing_fmu/solver.py) ---------
+
+def _mc_bearing():
+    b = JournalBearing(small(cavitation=1, axial_bc=1, groove_width=0.26))
+    b.initialize(0.2 * C, -0.6 * C, 0.0, 0.0, 2 * math.pi * 70, init="stationary")
+    for _ in range(3):
+        b.step(1e-4, 0.2 * C, -0.6 * C, 1e-3, -1e-3, 2 * math.pi * 70)
+    return b
+
+
+def test_restart_is_not_used_when_the_step_succeeds():
+    a, b = _mc_bearing(), _mc_bearing()
+    kin = (0.25 * C, -0.62 * C, 2e-3, -1e-3, 2 * math.pi * 70)
+    a.step(1e-4, *kin)
+    b.film.advance(1e-4, b._kinematics(*kin))
+    assert np.array_equal(a.film.u, b.film.u)
+    assert a.film.stats["restarts"] == 0
+
+
+def test_failed_macro_step_is_retried_with_restarted_history(monkeypatch):
+    from bearing_fmu.solver import StepFailed, TransientFilm
+    kin = (0.25 * C, -0.62 * C, 2e-3, -1e-3, 2 * math.pi * 70)
+    ref = _mc_bearing()                       # what the retry must compute
+    ref.film.restart_history()
+    ref.film.advance(1e-4, ref._kinematics(*kin))
+    b = _mc_bearing()
+    orig = TransientFilm.advance
+
+    def fails_with_history(self, dt, k):      # the history-based estimate "fails"
+        if self.n_hist > 0:
+            raise StepFailed("film step size fell below h_min (simulated)")
+        return orig(self, dt, k)
+
+    monkeypatch.setattr(TransientFilm, "advance", fails_with_history)
+    b.step(1e-4, *kin)
+    assert b.film.stats["restarts"] == 1
+    assert np.array_equal(b.film.u, ref.film.u)
+
+    def always_fails(self, dt, k):
+        raise StepFailed("film step size fell below h_min (simulated)")
+
+    monkeypatch.setattr(TransientFilm, "advance", always_fails)
+    u0, t0 = b.film.u.copy(), b.t
+    with pytest.raises(StepFailed, match="also after restarting the BDF history"):
+        b.step(1e-4, *kin)
+    assert np.array_equal(b.film.u, u0) and b.t == t0
