@@ -46,14 +46,14 @@ import numba as nb
 import numpy as np
 from scipy.linalg import lapack
 
-from .contact import contact_coefficients
+from .contact import average_gap, contact_coefficients
 from .film import assemble, assemble_muscl, hs_force_pressure, integrals, stencil_to_band
 
 __all__ = ["linearization", "hs_force", "film_force_at"]
 
 
 def _kin(b, x, y, vx, vy, omega):
-    H, He, Hdot = b.grid.gap(x, y, vx, vy, b.c)
+    H, He, Hdot = b.gap(x, y, vx, vy)
     return (H, He, Hdot, float(omega))
 
 
@@ -121,13 +121,15 @@ def hs_forces_many(b, Z, omega) -> np.ndarray:
     :func:`hs_force` calls to round-off (tests/test_interface_jacobian_bearing.py)."""
     g = b.grid_full
     c = b.c
+    prm = b.params
     x, y, vx, vy = (Z[:, k:k + 1] for k in range(4))
     cs, sn = np.cos(g.phi), np.sin(g.phi)           # the operations of Grid.gap
     H = 1.0 - (x * cs + y * sn) / c
     He = 1.0 - (x * np.cos(g.phi_e) + y * np.sin(g.phi_e)) / c
     Hdot = -(vx * cs + vy * sn) / c
+    if prm.contact:     # the expected gap of the roughness, as JournalBearing.gap
+        H, He, Hdot = average_gap(H, He, Hdot, prm.sigma_rough / c)
     P = b.hs.solve_many(H, He, Hdot, float(omega))
-    prm = b.params
     F = np.empty((Z.shape[0], 2))
     _hs_forces_many(P, g.phi, b.p0, prm.R * g.dphi * prm.B * g.dz, F)
     return F

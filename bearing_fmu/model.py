@@ -36,7 +36,7 @@ from dataclasses import dataclass, fields as dc_fields
 import numpy as np
 
 from .cavitation import CavitationLaw
-from .contact import contact_force
+from .contact import H_PENETRATION, average_gap, contact_force
 from .film import hs_force_pressure, integrals
 from .grid import make_grid
 from .hs import HalfSommerfeld
@@ -243,13 +243,30 @@ class JournalBearing:
         if not all(math.isfinite(float(v)) for v in vals):
             raise ValueError(f"JournalBearing: non-finite input (x, y, vx, vy, omega) = {vals}")
         eps = math.hypot(x, y) / self.c
-        if eps >= 1.0:
+        if self.params.contact:
+            lim = 1.0 + H_PENETRATION * self.params.sigma_rough / self.c
+            if eps >= lim:
+                raise StepFailed(
+                    f"JournalBearing: journal pressed {H_PENETRATION:g} sigma_rough into the shell's "
+                    f"asperity layer: eps = {eps:.4f} >= {lim:.4f} (x = {x:g} m, y = {y:g} m, "
+                    f"clearance c = {self.c:g} m, sigma_rough = {self.params.sigma_rough:g} m); "
+                    "the contact cannot hold the journal: check the loads, or raise contact_KE "
+                    "or sigma_rough")
+        elif eps >= 1.0:
             raise StepFailed(
                 f"JournalBearing: journal touches the shell: eps = {eps:.4f} >= 1 "
                 f"(x = {x:g} m, y = {y:g} m, clearance c = {self.c:g} m); the rotor "
-                "left the clearance: reduce the macro step or check the loads")
+                "left the clearance: reduce the macro step or check the loads, or set "
+                "contact = 1 (asperity contact) if the journal really reaches the shell")
+        return self.gap(x, y, vx, vy) + (float(omega),)
+
+    def gap(self, x, y, vx, vy):
+        """(H, He, Hdot) of the film (non-dimensional, grid.Grid.gap); with contact = 1
+        the expected gap of the roughness (:func:`.contact.average_gap`)."""
         H, He, Hdot = self.grid.gap(x, y, vx, vy, self.c)
-        return (H, He, Hdot, float(omega))
+        if self.params.contact:
+            return average_gap(H, He, Hdot, self.params.sigma_rough / self.c)
+        return H, He, Hdot
 
     def _hs_clipped(self, kin):
         """Half-Sommerfeld pressure ``p0 + max(P, 0)`` on the full grid, (n_z, n_phi)."""

@@ -99,6 +99,9 @@ def small(**kw):
 
 @pytest.mark.parametrize("cav", [0, 1])
 def test_bearing_adds_contact_to_film_force_and_coefficients(cav):
+    """Outputs = the film's force on the (expected) gap + contact_force; coefficients =
+    the film's + contact_coefficients."""
+    from bearing_fmu.linearize import _force, hs_linearization
     x, y, w = 0.25 * C, -0.93 * C, 2 * math.pi * 70
     kw = dict(cavitation=cav, groove_width=0.26, axial_bc=1)
     b0, b1 = JournalBearing(small(contact=0, **kw)), JournalBearing(small(contact=1, **kw))
@@ -108,13 +111,20 @@ def test_bearing_adds_contact_to_film_force_and_coefficients(cav):
     assert fn > 1.0
     o0, o1 = b0.outputs, b1.outputs
     assert o0["F_contact"] == 0.0 and o1["F_contact"] == fn
-    assert o1["Fx"] == pytest.approx(o0["Fx"] + fx, rel=1e-12)
-    assert o1["Fy"] == pytest.approx(o0["Fy"] + fy, rel=1e-12)
-    assert o1["torque"] == pytest.approx(o0["torque"] + tq, rel=1e-12)
-    K0, C0 = linearization(b0)
+    if cav == 0:
+        film = _force(b1, b1._pf_hs, np.ones_like(b1._pf_hs), b1._kin, film=False)
+    else:
+        p, th = b1._pth(full=False)
+        film = _force(b1, p, th, b1._kin)
+    assert o1["Fx"] == pytest.approx(film[0] + fx, rel=1e-12)
+    assert o1["Fy"] == pytest.approx(film[1] + fy, rel=1e-12)
+    # the expected gap changes the film only a little at h_min = 1.9 sigma
+    assert o1["Fx"] - fx == pytest.approx(o0["Fx"], rel=0.02)
+    assert o1["Fy"] - fy == pytest.approx(o0["Fy"], rel=0.02)
     K1, C1 = linearization(b1)
+    Kf, Cf = hs_linearization(b1, *b1._inputs)
     Kc, Cc = contact_coefficients(x, y, 0.0, 0.0, w, **KW)
-    assert np.allclose(K1, K0 + Kc) and np.allclose(C1, C0 + Cc)
+    assert np.allclose(K1, Kf + Kc) and np.allclose(C1, Cf + Cc)
 
 
 def test_contact_parameters_are_checked():
@@ -172,3 +182,46 @@ def test_failed_macro_step_is_retried_with_restarted_history(monkeypatch):
     with pytest.raises(StepFailed, match="also after restarting the BDF history"):
         b.step(1e-4, *kin)
     assert np.array_equal(b.film.u, u0) and b.t == t0
+
+
+# -- the film's expected gap with contact (bearing_fmu/contact.average_gap) ---------------
+
+def test_average_gap_is_the_expected_gap_of_gaussian_roughness():
+    from bearing_fmu.contact import average_gap
+    s = KW["sigma"] / C
+    H = np.array([-2.0, -0.5, 0.0, 0.4, 1.0, 3.0, 7.9, 8.0, 20.0]) * s
+    Hdot = np.linspace(-1.0, 1.0, H.size)
+    HT, HeT, HdT = average_gap(H, H + 0.1 * s, Hdot, s)
+    for h, ht in zip(H / s, HT / s):
+        # E[max(h + delta, 0)], delta ~ N(0, 1): by quadrature of its definition
+        want = quad(lambda d: (h + d) * math.exp(-0.5 * d * d) / math.sqrt(2 * math.pi), -h, np.inf,
+                    epsabs=0.0, epsrel=1e-12)[0]
+        assert ht == pytest.approx(want, rel=1e-9, abs=1e-15)
+    assert np.all(HT > 0) and np.all(HT >= H)
+    assert np.array_equal(HT[-2:], H[-2:])          # h >= 8 sigma: unchanged
+    # dH_T/dt = dH_T/dH * dH/dt, checked by a difference quotient
+    d = 1e-7 * s
+    dH = (average_gap(H + d, H, Hdot, s)[0] - average_gap(H - d, H, Hdot, s)[0]) / (2 * d)
+    assert np.allclose(HdT, dH * Hdot, rtol=1e-6, atol=1e-12)
+
+
+@pytest.mark.parametrize("cav", [0, 1])
+def test_film_with_contact_runs_into_the_asperity_layer(cav):
+    """eps slightly above 1 (nominal gap -0.3 sigma): the film uses the expected gap and
+    runs; the contact pushes back; 4 sigma into the layer is refused with a clear message."""
+    from bearing_fmu.solver import StepFailed
+    w = 2 * math.pi * 70
+    e = C + 0.3 * KW["sigma"]
+    b = JournalBearing(small(contact=1, cavitation=cav, groove_width=0.26, axial_bc=1))
+    b.initialize(0.0, -e, 0.0, 0.0, w)
+    for _ in range(3):
+        b.step(1e-5, 0.0, -e, 0.0, 1e-4, w)
+    o = b.outputs
+    assert o["eps"] > 1.0 and o["h_min"] > 0.0 and o["F_contact"] > 100.0
+    assert o["Fy"] > o["F_contact"] * 0.99          # film + contact push the journal up
+    assert np.all(np.isfinite([o["Fx"], o["Fy"], o["p_max"]]))
+    with pytest.raises(StepFailed, match="asperity layer.*contact_KE"):
+        b.step(1e-5, 0.0, -(C + 4.01 * KW["sigma"]), 0.0, 0.0, w)
+    b0 = JournalBearing(small(contact=0, cavitation=cav, groove_width=0.26, axial_bc=1))
+    with pytest.raises(StepFailed, match="contact = 1"):
+        b0.initialize(0.0, -e, 0.0, 0.0, w)

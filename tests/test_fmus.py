@@ -198,6 +198,40 @@ def test_bearing_theta_transport_parameter(built_fmus):
     assert res[1] != res[0] and np.allclose(res[1], res[0], rtol=0.05)
 
 
+def test_bearing_contact_parameters_and_output(built_fmus):
+    """``contact`` (Integer, default 0), ``sigma_rough`` [m], ``contact_KE`` [Pa],
+    ``mu_contact`` and the output ``F_contact`` [N]: near the shell the FMU's force is the
+    film's plus bearing_fmu.contact.contact_force, and F_contact its normal part
+    (tests/test_bearing_contact.py checks the model to round-off)."""
+    from fmpy import read_model_description
+    from bearing_fmu.contact import contact_force
+    path = _fmu(built_fmus, "JournalBearing")
+    md = read_model_description(path)
+    var = {x.name: x for x in md.modelVariables}
+    assert var["contact"].type == "Integer" and int(var["contact"].start) == 0
+    for name, unit in (("sigma_rough", "m"), ("contact_KE", "Pa"), ("mu_contact", "1")):
+        assert var[name].causality == "parameter" and var[name].unit == unit
+    assert var["F_contact"].causality == "output" and var["F_contact"].unit == "N"
+    c = PSI * R_TEST
+    kin = [0.1 * c, -0.99 * c, 0.0, 0.0, 2 * math.pi * 100.0]
+    res = {}
+    for contact in (0, 1):
+        with open_slave(path) as (s, vr):
+            s.setupExperiment(startTime=0.0)
+            s.enterInitializationMode()
+            s.setReal([vr["R"], vr["B"], vr["psi"]], [R_TEST, 1.6 * R_TEST, PSI])
+            s.setInteger([vr["n_phi"], vr["n_z"], vr["cavitation"], vr["contact"]], [16, 16, 0, contact])
+            s.setReal([vr[n] for n in ("x", "y", "vx", "vy", "omega")], kin)
+            s.exitInitializationMode()
+            s.doStep(0.0, 1e-5)
+            res[contact] = s.getReal([vr["Fx"], vr["Fy"], vr["F_contact"], vr["torque"]])
+    fx, fy, fn, _ = contact_force(*kin, c=c, R=R_TEST, B=1.6 * R_TEST, sigma=0.3e-6, KE=2.0e7, mu=0.1)
+    assert res[0][2] == 0.0 and res[1][2] == pytest.approx(fn, rel=1e-12) and fn > 0.1
+    # the film itself sees the expected gap of the roughness with contact (a small change here)
+    assert res[1][0] == pytest.approx(res[0][0] + fx, rel=1e-2)
+    assert res[1][1] == pytest.approx(res[0][1] + fy, rel=1e-2)
+
+
 @pytest.mark.parametrize("cavitation", [0, 1])
 def test_bearing_state_round_trip_is_exact(built_fmus, cavitation):
     """step / save / step / restore / step: identical outputs; the journal moves, so a
