@@ -32,6 +32,15 @@ Before the outputs at T(n+1) are read the inputs are set to the polynomial's
 value at T(n+1), so outputs with direct feedthrough are consistent with the
 inputs at the same time. Each output then goes through gain/offset into the
 consumers' histories.
+
+Discard retries (``coupling.discard_retries`` = N > 0, FMI 2.0 sec. 4.2.3):
+every FMU's state and the coupling history are saved before each macro step;
+if an FMU returns fmi2Discard, everything is restored to T(n) and the step is
+redone as two half steps (each an ordinary step that commits its end point to
+the history, so later half steps use the newest values like a run with the
+smaller step), recursively down to H/2^N. Afterwards the history is rebuilt on
+the nominal grid (levels T(n+1), T(n), T(n-1), ...), so the following macro
+steps extrapolate exactly as without the retry. N = 0 is the old behaviour.
 """
 
 from __future__ import annotations
@@ -57,6 +66,16 @@ from .signals import MAX_ORDER, History, LagrangePredictor
 log = logging.getLogger(__name__)
 
 INIT_EXCHANGE_ITERATIONS = 10     # fixed-point passes to settle feed-through chains at t0
+MAX_DISCARD_RETRIES = 30          # coupling.discard_retries: smallest step H / 2^30
+RETRY_LOG_LINES = 20              # INFO lines about retried macro steps before only counting them
+
+
+class _RetriesExhausted(Exception):
+    """A sub-step at the smallest allowed step (H / 2^N) was discarded again."""
+
+    def __init__(self, error: FmuCallError, t_a: float, t_b: float):
+        super().__init__(str(error))
+        self.error, self.t_a, self.t_b = error, t_a, t_b
 
 
 class _Link:
@@ -144,6 +163,22 @@ class MasterAlgorithm:
         self._t_wall0 = 0.0
         self._wkey = None
         self._wcache: dict = {}
+        n_retry = getattr(c, "discard_retries", 0)
+        if isinstance(n_retry, bool) or not isinstance(n_retry, int) or not 0 <= n_retry <= MAX_DISCARD_RETRIES:
+            raise ScenarioError(f"{self._where()}coupling.discard_retries must be an integer between 0 and "
+                                f"{MAX_DISCARD_RETRIES} (got {n_retry!r}); use 0 (stop on fmi2Discard) or the "
+                                "number of step halvings to try, e.g. 3")
+        self.discard_retries = n_retry
+        # noSetFMUStatePriorToCurrentPoint for every doStep: False while the master may restore a state
+        self._no_prior = not n_retry
+        self.retried_steps = 0          # macro steps redone after a discard
+        self.retry_substeps = 0         # extra doStep rounds (sub-intervals attempted) in those retries
+        self.rejected_steps = 0         # (sub-)step attempts discarded and rolled back
+        self._retry_depth = 0
+
+    def _where(self) -> str:
+        src = getattr(self.scenario, "source", None)
+        return f"{src}: " if src else ""
 
     # ------------------------------------------------------------------ setup
     def setup(self) -> None:
@@ -288,6 +323,16 @@ class MasterAlgorithm:
             log.info("extrapolation_order %d: not every FMU can save its state (canGetAndSetFMUstate), so the "
                      "first %d macro steps use lower-order extrapolation; this adds an O(H^2) start-up error "
                      "(see docs/coupling.md)", k, k - 1)
+        if self.discard_retries:
+            stateless = [u.name for u in self.units if not u.sub.can_get_set_state]
+            if stateless:
+                raise ScenarioError(
+                    f"{self._where()}coupling.discard_retries = {self.discard_retries} needs every FMU to save and "
+                    f"restore its state (canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} "
+                    "cannot (got canGetAndSetFMUstate false); set coupling.discard_retries: 0 or use an FMU "
+                    "built with state support")
+            for u in self.units:
+                u.sub.no_set_prior_state = False    # we may restore the state saved before each macro step
         self.view = RunView(columns, self.grid.time(0), self.grid.time(self.grid.n_steps), self.grid.n_steps)
 
     def _columns(self, units) -> list[str]:
@@ -384,10 +429,21 @@ class MasterAlgorithm:
         t = grid.time(n)
         t_next = grid.time(n + 1)
         try:
-            if self._startup_iterations and self.history.count < self.predictor.k:
+            if self.discard_retries:
+                self._retry_step(t, t_next)
+            elif self._startup_iterations and self.history.count < self.predictor.k:
                 self._startup_step(t, t_next)
             else:
                 self._step_impl(t, t_next)
+        except _RetriesExhausted as x:
+            n_h = self.discard_retries
+            self._fail(self._fmu_message(x.error, t, t_next)
+                       + f". The master restored every FMU's state and retried this macro step with {n_h} "
+                       f"halving{'s' if n_h != 1 else ''} of the step (coupling.discard_retries = {n_h}, smallest "
+                       f"step {(t_next - t) / 2 ** n_h:g} s); the sub-step from t={x.t_a:.12g} s to "
+                       f"t={x.t_b:.12g} s was still discarded. Allow more halvings (a larger "
+                       "coupling.discard_retries) or use a smaller coupling.macro_step", t)
+            return self.status
         except FmuCallError as e:
             self._fail(self._fmu_message(e, t, t_next), t)
             return self.status
@@ -436,12 +492,107 @@ class MasterAlgorithm:
             hist.commit()
         finally:
             for u in self.units:
-                u.sub.no_set_prior_state = True
+                u.sub.no_set_prior_state = self._no_prior
             for u, s in zip(self.units, states):
                 try:
                     u.sub.free_state(s)
                 except FmuCallError as e:   # pragma: no cover - defensive
                     log.warning("%s", e)
+
+    def _advance(self, t: float, t_next: float) -> None:
+        """One ordinary step [t, t_next] (start-up iteration while the history is short)."""
+        if self._startup_iterations and self.history.count < self.predictor.k:
+            self._startup_step(t, t_next)
+        else:
+            self._step_impl(t, t_next)
+
+    def _save_states(self) -> list:
+        states = []
+        try:
+            for u in self.units:
+                states.append(u.sub.get_state())
+        except BaseException:
+            self._free_states(states)
+            raise
+        return states
+
+    def _free_states(self, states) -> None:
+        for u, s in zip(self.units, states, strict=False):     # states may be partial
+            try:
+                u.sub.free_state(s)
+            except FmuCallError as e:   # pragma: no cover - defensive
+                log.warning("%s", e)
+
+    def _retry_step(self, t: float, t_next: float) -> None:
+        """A macro step that may be redone in halves after an fmi2Discard (coupling.discard_retries > 0).
+
+        Saves every FMU's state and the history at ``t``, tries the step; on a
+        discard restores both and redoes [t, t_next] as halves (:meth:`_split`).
+        The history is then rebuilt so that its newest level is ``t_next`` and
+        the older ones are the nominal grid points before the step.
+        """
+        hist = self.history
+        states = self._save_states()
+        try:
+            snap = hist.snapshot()
+            try:
+                self._advance(t, t_next)
+                return
+            except FmuCallError as e:
+                if e.status != "discard":
+                    raise
+                first = e
+            self.retried_steps += 1
+            self.rejected_steps += 1
+            self._retry_depth = 0
+            rounds0 = self.retry_substeps
+            self._split(t, t_next, 1, states, snap)
+            # the sub-steps committed their end points; keep only t_next on the nominal grid
+            new_rows = [b[1].copy() for b in hist.blocks]
+            hist.restore(snap)
+            hist.times[0] = t_next
+            for b, r in zip(hist.blocks, new_rows, strict=True):
+                b[0] = r
+            hist.commit()
+            if self.retried_steps <= RETRY_LOG_LINES:
+                log.info("FMU instance '%s' discarded the macro step t=%.12g..%.12g s; redone from the saved "
+                         "states with %d halving(s) (smallest step %g s, %d extra step rounds)%s", first.instance,
+                         t, t_next, self._retry_depth, (t_next - t) / 2 ** self._retry_depth,
+                         self.retry_substeps - rounds0,
+                         "; further retried macro steps are only counted (statistics: retried_steps)"
+                         if self.retried_steps == RETRY_LOG_LINES else "")
+        finally:
+            self._free_states(states)
+
+    def _split(self, t_a: float, t_b: float, level: int, states_a: list, snap_a) -> None:
+        """Restore the FMU states and history at ``t_a`` and do [t_a, t_b] as two halves; a half that
+        is discarded again is split further while ``level < discard_retries``."""
+        hist = self.history
+        for u, s in zip(self.units, states_a, strict=True):
+            u.sub.set_state(s)
+        hist.restore(snap_a)
+        self._retry_depth = max(self._retry_depth, level)
+        t_m = t_a + 0.5 * (t_b - t_a)
+        deepest = level >= self.discard_retries
+        for a, b in ((t_a, t_m), (t_m, t_b)):
+            if a == t_a or deepest:
+                st, sn = states_a, snap_a        # first half starts from the restored state; deepest: no reuse
+            else:
+                st, sn = self._save_states(), hist.snapshot()
+            try:
+                self.retry_substeps += 1
+                try:
+                    self._advance(a, b)
+                except FmuCallError as e:
+                    if e.status != "discard":
+                        raise
+                    if deepest:
+                        raise _RetriesExhausted(e, a, b) from e
+                    self.rejected_steps += 1
+                    self._split(a, b, level + 1, st, sn)
+            finally:
+                if st is not states_a:
+                    self._free_states(st)
 
     def _step_impl(self, t: float, t_next: float, *, commit: bool = True, startup_q: int | None = None) -> None:
         h = t_next - t
@@ -584,6 +735,10 @@ class MasterAlgorithm:
         self.view.status = self.status
         self.view.message = self.message
         self.view.end_time = self.end_time
+        if self.retried_steps:
+            log.info("%d macro step(s) were redone in smaller steps after an fmi2Discard (%d extra step rounds, "
+                     "%d rejected attempts)%s", self.retried_steps, self.retry_substeps, self.rejected_steps,
+                     f"; only the first {RETRY_LOG_LINES} were logged" if self.retried_steps > RETRY_LOG_LINES else "")
         try:
             for u in getattr(self, "units", []):
                 try:
@@ -609,7 +764,11 @@ class MasterAlgorithm:
 
     # ---------------------------------------------------------------- result
     def statistics(self) -> dict:
-        return {"macro_steps": self.n, "rejected_steps": 0, "wall_time_s": self.wall_time,
+        """``rejected_steps``: (sub-)step attempts discarded by an FMU and rolled back;
+        ``retried_steps``: macro steps redone in smaller steps; ``retry_substeps``: the extra
+        step rounds (sub-intervals attempted) of those retries (all 0 without discard_retries)."""
+        return {"macro_steps": self.n, "rejected_steps": self.rejected_steps, "retried_steps": self.retried_steps,
+                "retry_substeps": self.retry_substeps, "wall_time_s": self.wall_time,
                 "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()}}
 
     def result(self) -> CoSimResult:

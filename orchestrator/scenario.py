@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import difflib
 import functools
+import logging
 import math
 import re
 from dataclasses import dataclass, field
@@ -22,6 +23,8 @@ from typing import Any, Mapping, Sequence
 import yaml
 
 from orchestrator.errors import CosimError, ScenarioError
+
+log = logging.getLogger(__name__)
 
 SCENARIO_VERSION = 1
 SCHEMES = ("gauss-seidel", "jacobi", "monolithic")
@@ -75,6 +78,7 @@ class CouplingSpec:
     extrapolation_order: int = 0             # 0..3
     interpolation_order: int = 0             # 0..3
     substeps: int = 1                        # >= 1
+    discard_retries: int = 0                 # 0..30: halvings of a macro step an FMU discards (0: stop)
     options: Mapping[str, Any] = field(default_factory=dict)  # scheme-specific extras (e.g. monolithic rtol)
 
 
@@ -120,9 +124,10 @@ TOP_KEYS = ("name", "version", "description", "start_time", "stop_time", "fmus",
 FMU_KEYS = ("path", "parameters", "substeps")
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
-                 "interpolation_order", "substeps", "options")
+                 "interpolation_order", "substeps", "discard_retries", "options")
 OUTPUT_KEYS = ("interval", "signals")
 MAX_ORDER = 3
+MAX_DISCARD_RETRIES = 30          # smallest retried step H / 2^30 (orchestrator.master has the same limit)
 # override navigation: (schema, key) -> schema of the child; (schema) -> default
 _CHILD_SCHEMA = {
     ("top", "fmus"): "instances", ("top", "connections"): "connections",
@@ -591,6 +596,16 @@ class _Loader:
                              "use a whole number of sub-steps >= 1")
             ok &= v is not None
             c["substeps"] = v
+        if "discard_retries" in section:
+            v = self.integer(section["discard_retries"][1], "coupling.discard_retries", 0, MAX_DISCARD_RETRIES,
+                             "use 0 (stop the run when an FMU returns fmi2Discard) or the number of times a "
+                             "discarded macro step may be halved, e.g. 3 (smallest step macro_step / 2^3)")
+            ok &= v is not None
+            c["discard_retries"] = v
+            if v and c.get("scheme") == "monolithic":
+                log.warning("%s: coupling.discard_retries = %d is ignored by the monolithic scheme (one "
+                            "integrator with its own step-size control, no macro steps to retry)",
+                            self.loc(section["discard_retries"][1]), v)
         if "options" in section:
             if not isinstance(section["options"][1], yaml.MappingNode):
                 self.err(section["options"][1], f"'coupling.options' must be a mapping (got "
