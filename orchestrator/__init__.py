@@ -55,6 +55,8 @@ def _summary(scenario, res: CoSimResult, out_dir: Path) -> dict:
         "end_time": res.end_time,
         "macro_steps": stats.get("macro_steps"),
         "rejected_steps": stats.get("rejected_steps", 0),
+        "retried_steps": stats.get("retried_steps", 0),
+        "retry_substeps": stats.get("retry_substeps", 0),
         "wall_time_s": stats.get("wall_time_s"),
         "fmu_calls": stats.get("fmu_calls", {}),
         "coupling": coupling,

@@ -117,6 +117,7 @@ def test_every_step_split_equals_the_small_step_run(limited_fmu, test_fmus, tmp_
     assert st["retried_steps"] == 50 and st["retry_substeps"] == 50 * 6 and st["rejected_steps"] == 50 * 3
     s = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert s["status"] == "finished" and s["rejected_steps"] == 150 and s["coupling"]["discard_retries"] == 3
+    assert (s["retried_steps"], s["retry_substeps"]) == (50, 300)
     lines = [r.getMessage() for r in caplog.records if "discarded the macro step" in r.getMessage()]
     assert len(lines) == 20 and "2 halving(s)" in lines[0] and "only counted" in lines[-1]
     assert any("50 macro step(s) were redone" in r.getMessage() and "only the first 20" in r.getMessage()
