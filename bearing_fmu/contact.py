@@ -62,15 +62,13 @@ import math
 import numpy as np
 from scipy.special import ndtr, pbdv
 
-__all__ = ["contact_force", "contact_coefficients", "average_gap", "F52", "H_CUTOFF",
-           "H_PENETRATION"]
+__all__ = ["contact_force", "contact_coefficients", "average_gap", "F52", "H_CUTOFF"]
 
 H_CUTOFF = 6.0               # p_c = 0 for h / sigma >= 6 (F_5/2(6) / F_5/2(0) = 6e-9)
 _F52_C = math.gamma(3.5) / math.sqrt(2.0 * math.pi)
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(48)
 V_REG = 1.0e-3               # friction regularization velocity [m/s]
 H_AVG = 8.0                  # average gap = nominal gap where h / sigma >= 8
-H_PENETRATION = 4.0          # the film refuses a nominal gap below -4 sigma
 
 
 def F52(H):

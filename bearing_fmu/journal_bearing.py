@@ -70,6 +70,8 @@ REAL_PARAMETERS: dict[str, tuple[float, str, str]] = {
     "sigma_rough": (0.3e-6, "m", "composite RMS surface roughness of journal and shell [m] (asperity contact, contact = 1)"),
     "contact_KE": (2.0e7, "Pa", "Greenwood-Tripp factor K E' of the asperity contact pressure [Pa] (contact = 1)"),
     "mu_contact": (0.1, "1", "boundary friction coefficient of the asperity contact [-] (contact = 1)"),
+    "contact_h_limit": (-1.0, "1", "smallest nominal gap h/sigma_rough a step may reach; deeper: fmi2Discard "
+                                   "(retry with smaller steps: coupling.discard_retries) (contact = 1)"),
 }
 INTEGER_PARAMETERS: dict[str, tuple[int, str]] = {
     "n_phi": (40, "number of grid cells in the circumferential direction [-]"),

@@ -36,7 +36,7 @@ from dataclasses import dataclass, fields as dc_fields
 import numpy as np
 
 from .cavitation import CavitationLaw
-from .contact import H_PENETRATION, average_gap, contact_force
+from .contact import average_gap, contact_force
 from .film import hs_force_pressure, integrals
 from .grid import make_grid
 from .hs import HalfSommerfeld
@@ -81,7 +81,10 @@ class BearingParams:
         film force (outputs Fx, Fy, torque; F_contact its normal part).
         sigma_rough [m]: composite RMS roughness of journal and shell (0.3 um);
         contact_KE [Pa]: Greenwood-Tripp K E' (2e7 Pa); mu_contact [-]: boundary
-        friction coefficient (0.1). Defaults and their sources: docs/bearing-model.md.
+        friction coefficient (0.1); contact_h_limit [-]: smallest nominal gap
+        h / sigma_rough a step may reach (-1: the film refuses the step, fmi2Discard in
+        the FMU, so that a master can retry with smaller steps). Defaults and their
+        sources: docs/bearing-model.md.
     Grid
         n_phi, n_z: cells in phi (periodic) and across the width.
     Solver (mass-conserving model)
@@ -118,6 +121,7 @@ class BearingParams:
     sigma_rough: float = 0.3e-6
     contact_KE: float = 2.0e7
     mu_contact: float = 0.1
+    contact_h_limit: float = -1.0
     theta_atol: float = 1.0e-3
     newton_atol: float = 1.0e-4
     newton_rtol: float = 1.0e-5
@@ -169,6 +173,8 @@ class BearingParams:
             v = getattr(self, name)
             need(name, isinstance(v, (int, float)) and math.isfinite(v) and v >= 0,
                  "a finite number >= 0")
+        need("contact_h_limit", isinstance(self.contact_h_limit, (int, float))
+             and -6.0 <= self.contact_h_limit <= 0.0, "in [-6, 0] (units of sigma_rough; e.g. -1)")
         need("sigma_rough", self.sigma_rough > 0, "> 0 [m] (composite RMS roughness, e.g. 0.3e-6)")
         need("newton_max_iter", isinstance(self.newton_max_iter, int)
              and self.newton_max_iter >= 2, "an integer >= 2")
@@ -244,14 +250,18 @@ class JournalBearing:
             raise ValueError(f"JournalBearing: non-finite input (x, y, vx, vy, omega) = {vals}")
         eps = math.hypot(x, y) / self.c
         if self.params.contact:
-            lim = 1.0 + H_PENETRATION * self.params.sigma_rough / self.c
+            depth = -self.params.contact_h_limit
+            lim = 1.0 + depth * self.params.sigma_rough / self.c
             if eps >= lim:
                 raise StepFailed(
-                    f"JournalBearing: journal pressed {H_PENETRATION:g} sigma_rough into the shell's "
-                    f"asperity layer: eps = {eps:.4f} >= {lim:.4f} (x = {x:g} m, y = {y:g} m, "
-                    f"clearance c = {self.c:g} m, sigma_rough = {self.params.sigma_rough:g} m); "
-                    "the contact cannot hold the journal: check the loads, or raise contact_KE "
-                    "or sigma_rough")
+                    f"JournalBearing: journal pressed {depth:g} sigma_rough into the shell's "
+                    f"asperity layer (nominal gap below contact_h_limit = "
+                    f"{self.params.contact_h_limit:g} sigma_rough): eps = {eps:.4f} >= {lim:.4f} "
+                    f"(x = {x:g} m, y = {y:g} m, clearance c = {self.c:g} m, sigma_rough = "
+                    f"{self.params.sigma_rough:g} m). Either the coupling step overshot the stiff "
+                    "contact (set coupling.discard_retries so that the master retries with smaller "
+                    "steps, or reduce the macro step) or the contact cannot carry the load (raise "
+                    "contact_KE or sigma_rough, or lower contact_h_limit)")
         elif eps >= 1.0:
             raise StepFailed(
                 f"JournalBearing: journal touches the shell: eps = {eps:.4f} >= 1 "

@@ -134,6 +134,8 @@ def test_contact_parameters_are_checked():
         small(contact=1, sigma_rough=0.0)
     with pytest.raises(ValueError, match="mu_contact"):
         small(contact=1, mu_contact=-0.1)
+    with pytest.raises(ValueError, match="contact_h_limit"):
+        small(contact=1, contact_h_limit=0.5)
 
 
 # -- film solver: BDF restart when a macro step fails (bearing_fmu/solver.py) ---------
@@ -208,7 +210,8 @@ def test_average_gap_is_the_expected_gap_of_gaussian_roughness():
 @pytest.mark.parametrize("cav", [0, 1])
 def test_film_with_contact_runs_into_the_asperity_layer(cav):
     """eps slightly above 1 (nominal gap -0.3 sigma): the film uses the expected gap and
-    runs; the contact pushes back; 4 sigma into the layer is refused with a clear message."""
+    runs; the contact pushes back; deeper than contact_h_limit (-1 sigma) is refused with a
+    clear message."""
     from bearing_fmu.solver import StepFailed
     w = 2 * math.pi * 70
     e = C + 0.3 * KW["sigma"]
@@ -220,8 +223,11 @@ def test_film_with_contact_runs_into_the_asperity_layer(cav):
     assert o["eps"] > 1.0 and o["h_min"] > 0.0 and o["F_contact"] > 100.0
     assert o["Fy"] > o["F_contact"] * 0.99          # film + contact push the journal up
     assert np.all(np.isfinite([o["Fx"], o["Fy"], o["p_max"]]))
-    with pytest.raises(StepFailed, match="asperity layer.*contact_KE"):
-        b.step(1e-5, 0.0, -(C + 4.01 * KW["sigma"]), 0.0, 0.0, w)
+    with pytest.raises(StepFailed, match="asperity layer.*discard_retries.*contact_KE"):
+        b.step(1e-5, 0.0, -(C + 1.01 * KW["sigma"]), 0.0, 0.0, w)
+    b2 = JournalBearing(small(contact=1, contact_h_limit=-3.0, cavitation=cav, groove_width=0.26, axial_bc=1))
+    b2.initialize(0.0, -(C + 2.0 * KW["sigma"]), 0.0, 0.0, w)
+    assert b2.outputs["F_contact"] > b.outputs["F_contact"]
     b0 = JournalBearing(small(contact=0, cavitation=cav, groove_width=0.26, axial_bc=1))
     with pytest.raises(StepFailed, match="contact = 1"):
         b0.initialize(0.0, -e, 0.0, 0.0, w)
