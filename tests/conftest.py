@@ -18,6 +18,8 @@ _OPTIONS = {
     "integrator": {"canGetAndSetFMUstate": True},
     "left_mass": {"canGetAndSetFMUstate": True},
     "right_mass": {"canGetAndSetFMUstate": True},
+    # a LeftMass subclass: left_mass.py goes into the FMU's resources (on its sys.path)
+    "step_limited_mass": {"project_files": {FMU_SRC / "left_mass.py"}},
 }
 
 

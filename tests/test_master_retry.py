@@ -36,7 +36,8 @@ def limited_fmu(tmp_path_factory):
     """StepLimitedMass.fmu with canGetAndSetFMUstate (tests/conftest.py builds it without)."""
     from pythonfmu.builder import FmuBuilder
     src = Path(__file__).parent / "fmus_src" / "step_limited_mass.py"
-    return Path(FmuBuilder.build_FMU(src, dest=tmp_path_factory.mktemp("retry_fmu"), canGetAndSetFMUstate=True))
+    return Path(FmuBuilder.build_FMU(src, dest=tmp_path_factory.mktemp("retry_fmu"), canGetAndSetFMUstate=True,
+                                     project_files={src.parent / "left_mass.py"}))
 
 
 def two_mass(limited, fmus, *, H, retries=0, scheme="gauss-seidel", first="left", k=0, q=1, T=0.2,
