@@ -263,11 +263,17 @@ class JournalBearing:
                     "steps, or reduce the macro step) or the contact cannot carry the load (raise "
                     "contact_KE or sigma_rough, or lower contact_h_limit)")
         elif eps >= 1.0:
+            where = (f"eps = {eps:.4f} (x = {x:g} m, y = {y:g} m, clearance c = {self.c:g} m)")
+            if eps < 1.05:
+                raise StepFailed(
+                    f"JournalBearing: journal touches the shell: {where} >= 1; the rotor left "
+                    "the clearance: reduce the macro step or check the loads, or set contact = 1 "
+                    "(asperity contact) if the journal really reaches the shell")
             raise StepFailed(
-                f"JournalBearing: journal touches the shell: eps = {eps:.4f} >= 1 "
-                f"(x = {x:g} m, y = {y:g} m, clearance c = {self.c:g} m); the rotor "
-                "left the clearance: reduce the macro step or check the loads, or set "
-                "contact = 1 (asperity contact) if the journal really reaches the shell")
+                f"JournalBearing: journal far outside the clearance: {where}; the coupled "
+                "simulation went unstable before this step (a blow-up, not a contact): reduce "
+                "the macro step or use interface-Jacobian coupling (linearize: 1), and check "
+                "the loads")
         return self.gap(x, y, vx, vy) + (float(omega),)
 
     def gap(self, x, y, vx, vy):

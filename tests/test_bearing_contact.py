@@ -231,3 +231,13 @@ def test_film_with_contact_runs_into_the_asperity_layer(cav):
     b0 = JournalBearing(small(contact=0, cavitation=cav, groove_width=0.26, axial_bc=1))
     with pytest.raises(StepFailed, match="contact = 1"):
         b0.initialize(0.0, -e, 0.0, 0.0, w)
+
+
+def test_outside_the_clearance_messages_tell_contact_from_blow_up():
+    from bearing_fmu.solver import StepFailed
+    b = JournalBearing(small(cavitation=0))
+    b.initialize(0.0, -0.5 * C, 0.0, 0.0, 500.0)
+    with pytest.raises(StepFailed, match="touches the shell.*contact = 1"):
+        b.step(1e-5, 0.0, -1.01 * C, 0.0, 0.0, 500.0)
+    with pytest.raises(StepFailed, match="far outside the clearance.*unstable"):
+        b.step(1e-5, 0.0, -9.8 * C, 0.0, 0.0, 500.0)
