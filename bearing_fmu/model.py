@@ -13,13 +13,16 @@ Conventions
 * Inputs: journal centre (x, y) [m] relative to the bearing centre, its
   velocity (vx, vy) [m/s], spin omega [rad/s]. Clearance ``c = psi R``; gap
   ``h = c - x cos(phi) - y sin(phi)``; ``eps = sqrt(x^2 + y^2) / c`` must stay
-  below 1.
+  below 1 (with ``contact = 1``: below ``1 - contact_h_limit sigma_rough / c``, the
+  film then using the expected gap of the roughness, bearing_fmu/contact.py).
 * Outputs (``JournalBearing.outputs``): ``Fx, Fy`` film force ON the journal
   [N] (``F = -int (p - p0) (cos phi, sin phi) dA``: a journal displaced down
   (-y) gets +Fy); ``eps`` [-]; ``attitude`` [rad] angle from the load line
   (direction of -F) to the eccentricity vector, counter-clockwise positive (> 0
-  for omega > 0); ``p_max, p_min`` [Pa] absolute; ``h_min`` [m]; ``torque``
-  [N m] friction torque ON the journal about +z (< 0 when omega > 0);
+  for omega > 0); ``p_max, p_min`` [Pa] absolute; ``h_min`` [m] (the film's gap:
+  with contact the expected gap); ``torque`` [N m] friction torque ON the journal
+  about +z (< 0 when omega > 0; plus the contact friction); ``F_contact`` [N] normal
+  asperity contact force (0 without contact; Fx, Fy include the contact force);
   ``q_feed`` [m^3/s] flow out of the groove into the film, ``q_side`` [m^3/s]
   net flow out through both axial edges (in a steady state q_feed = q_side).
 * ``fields()``: ``phi`` (n_phi,) [rad], ``z`` (n_z,) [m] from 0 to B, ``p``
