@@ -113,10 +113,9 @@ def contact_coefficients(x, y, vx, vy, omega, *, c, R, B, sigma, KE, mu, rel_ste
     kw = dict(c=c, R=R, B=B, sigma=sigma, KE=KE, mu=mu)
     z0 = np.array([x, y, vx, vy], dtype=float)
     steps = (rel_step * sigma, rel_step * sigma, 1e-2 * V_REG, 1e-2 * V_REG)
+    if math.hypot(x, y) + 2 * steps[0] < c - H_CUTOFF * sigma:    # no stencil point in contact
+        return np.zeros((2, 2)), np.zeros((2, 2))
     D = np.zeros((2, 4))
-    if contact_force(x, y, vx, vy, omega, **kw)[2] == 0.0 and \
-            math.hypot(x, y) + 2 * steps[0] < c - H_CUTOFF * sigma:
-        return D[:, :2].copy(), D[:, 2:].copy()
     for j, hstep in enumerate(steps):
         zp, zm = z0.copy(), z0.copy()
         zp[j] += hstep
@@ -132,19 +131,17 @@ def average_gap(H, He, Hdot, s):
     dH/dt replaced by the expected gap of Gaussian roughness (module doc), ``s = sigma / c``.
     Entries with h >= 8 sigma are returned unchanged (new arrays in any case)."""
     def avg(G):
-        Hs = np.asarray(G, dtype=float) / s
-        near = Hs < H_AVG
-        if not near.any():
-            return np.array(G, dtype=float), None
-        Hn = Hs[near]
+        """(h_T / c, mask of the entries below 8 sigma, Phi there)."""
         out = np.array(G, dtype=float)
-        out[near] = s * (Hn * ndtr(Hn) + np.exp(-0.5 * Hn * Hn) / math.sqrt(2.0 * math.pi))
-        return out, (near, ndtr(Hn))
+        Hs = out / s
+        near = Hs < H_AVG
+        Hn = Hs[near]
+        Phi = ndtr(Hn)
+        out[near] = s * (Hn * Phi + np.exp(-0.5 * Hn * Hn) / math.sqrt(2.0 * math.pi))
+        return out, near, Phi
 
-    HT, d = avg(H)
-    HeT, _ = avg(He)
+    HT, near, Phi = avg(H)
+    HeT = avg(He)[0]
     HdT = np.array(Hdot, dtype=float)
-    if d is not None:
-        near, Phi = d
-        HdT[near] = Phi * HdT[near]
+    HdT[near] *= Phi
     return HT, HeT, HdT

@@ -400,7 +400,7 @@ class JournalBearing:
         else:
             saved = self.film.get_state()
             try:
-                self.film.advance_restarting(dt, kin)
+                self.film.advance_restarting(dt, kin, saved)
             except StepFailed:
                 self.film.set_state(saved)
                 raise

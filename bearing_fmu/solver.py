@@ -334,9 +334,11 @@ class TransientFilm:
         self.u_prev = self.u.copy()
         self.h_next = self.ctx.params.h_init
 
-    def advance_restarting(self, dt, kin):
-        """:meth:`advance`; if that fails (step size below h_min), retry the macro step
-        once from the same state with the BDF history restarted (:meth:`restart_history`).
+    def advance_restarting(self, dt, kin, saved):
+        """:meth:`advance`; if that fails (step size below h_min), restore ``saved`` (the
+        caller's :meth:`get_state` from before the call) and retry the macro step once with
+        the BDF history restarted (:meth:`restart_history`). On a second failure the
+        state is ``saved`` again and StepFailed names both attempts.
 
         Why: the kinematics are piecewise constant over macro steps, so the film
         solution's time derivative jumps at each macro-step boundary. BDF2 and its Milne
@@ -350,7 +352,6 @@ class TransientFilm:
         Petzold 1996, sec. 5.4). Only a step that would otherwise fail takes this path,
         so every run that worked before is unchanged bit for bit; ``stats["restarts"]``
         counts them."""
-        saved = self.get_state()
         try:
             return self.advance(dt, kin)
         except StepFailed as first:

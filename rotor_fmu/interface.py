@@ -58,13 +58,12 @@ structure's and the film stiffness's oscillations are resolved as before, while 
 overdamped film modes (rate ~ d / m, h d / m >> 1) are damped out by L-stability -- their
 physical quasi-static limit -- instead of by sub-steps.  The rest of the coupling (augmented
 matrices, ``F_eff``, dissipative projection) is the same.  Below the switch the trapezoidal
-path is unchanged (bit-identical).  The journal reaching the shell is still not modelled
-(no contact model): this only removes the cost barrier, and what a run does at eps -> 1 is
-up to the bearing model (the bearing FMU refuses eps >= 1).  :class:`StiffFilmError` (a
-FloatingPointError: the rotor FMU returns fmi2Discard with its message) is now raised only
-when the augmented matrices or the L-stable result are not finite;
-:data:`MAX_INTERFACE_SUBSTEPS` is the former hard limit, kept for reference and no longer
-used.
+path is unchanged (bit-identical).  This only removes the cost barrier; what happens at
+the shell is the bearing model's business (its optional asperity contact, ``contact = 1``,
+bearing_fmu/contact.py; without it the bearing FMU refuses eps >= 1).  :class:`StiffFilmError`
+(a FloatingPointError: the rotor FMU returns fmi2Discard with its message) is raised only
+when the augmented matrices or the L-stable result are not finite (it used to be raised
+above 50 000 trapezoidal sub-steps).
 
 With K = C = 0 the rotor's plain ``step`` is used unchanged.
 """
@@ -90,15 +89,9 @@ L-stable path needs O(omega_max H + H ||M^-1 K_aug||^(1/2)) sub-steps, a few doz
 (measured, turbocharger, 0.1 ms steps: trapezoidal 14.7 ms/step at need 1971 and 75 ms/step
 at need 3.4e4 (C = 1e8 N s/m); L-stable 0.6-0.8 ms/step, 31-44 sub-steps)."""
 
-MAX_INTERFACE_SUBSTEPS = 50_000
-"""Former hard limit (no longer used): above this many trapezoidal sub-steps a macro step
-raised :class:`StiffFilmError`; such steps now take the L-stable path (see the module doc)."""
-
-
 class StiffFilmError(FloatingPointError):
     """The film coefficients make the rotor step non-finite (overflowing augmented matrices
-    or a non-finite L-stable result); formerly also: more than MAX_INTERFACE_SUBSTEPS
-    sub-steps needed."""
+    or a non-finite L-stable result)."""
 
 
 def as_station_coeffs(a, n_bearings: int, name: str) -> np.ndarray:
