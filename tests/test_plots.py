@@ -9,9 +9,9 @@ import warnings
 import numpy as np
 import pytest
 
-from orchestrator.analysis import analyze_run
+from orchestrator.results.whirl import analyze_run
 from orchestrator.errors import CosimError
-from orchestrator.plots import infer_spec, plot_run
+from orchestrator.results.plots import infer_spec, plot_run
 from test_analysis import C, SPEC, whirl_vanishing, write_run
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -139,7 +139,7 @@ if __name__ == "__main__":
     import tempfile
     from pathlib import Path
 
-    import orchestrator.plots as plots
+    import orchestrator.results.plots as plots
 
     dest = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/img")
     dest.mkdir(parents=True, exist_ok=True)

@@ -12,7 +12,7 @@ What is drawn, when the data exist (see ``docs/analysis.md``):
   for every ``*_fields.npz`` (stationary runs), cavity (theta < 1) outlined.
 
 The signals come from ``summary.json`` (the ``analysis.spec`` written by
-:func:`orchestrator.analysis.analyze_run`), else the ``analysis:`` section of the
+:func:`orchestrator.results.whirl.analyze_run`), else the ``analysis:`` section of the
 scenario file named in ``summary.json``, else they are inferred from the column
 names (``<inst>.omega``, ``<inst>.x_<i>``/``<inst>.y_<i>``, ``<inst>.eps``).
 Whatever cannot be drawn is skipped with a ``UserWarning`` that says why.
@@ -21,7 +21,6 @@ Uses matplotlib's object API with the Agg canvas (no pyplot, no display).
 
 from __future__ import annotations
 
-import json
 import logging
 import re
 import warnings
@@ -30,7 +29,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from orchestrator.analysis import TWO_PI, WhirlParams, analyze_run, read_results, waterfall
+from orchestrator.results.run_directory import RunDirectory
+from orchestrator.results.whirl import TWO_PI, WhirlParams, analyze_run, waterfall
 from orchestrator.errors import CosimError
 
 logger = logging.getLogger(__name__)
@@ -66,6 +66,7 @@ class _Context:
 
     def __init__(self, run_dir: Path):
         self.run_dir = run_dir
+        self.dir = RunDirectory(run_dir)
         self.out = run_dir / "plots"
         self.written: list[Path] = []
         self.skipped: list[str] = []
@@ -77,11 +78,11 @@ class _Context:
 
     # ------------------------------------------------------------------ inputs
     def _load_summary(self) -> dict:
-        p = self.run_dir / "summary.json"
+        p = self.dir.summary_json
         if not p.is_file():
             return {}
         try:
-            return json.loads(p.read_text())
+            return self.dir.summary()
         except (OSError, ValueError) as exc:
             self.skipped.append(f"{p.name} (unreadable: {exc}); using results.csv only")
             return {}
@@ -104,10 +105,10 @@ class _Context:
         return infer_spec(self.cols), "inferred from results.csv column names"
 
     def run(self) -> None:
-        csv_path = self.run_dir / "results.csv"
+        csv_path = self.dir.results_csv
         if csv_path.is_file():
             try:
-                self.cols = read_results(csv_path)
+                self.cols = self.dir.columns()
             except (OSError, ValueError) as exc:
                 self.skipped.append(f"time histories: {exc}")
         else:
@@ -317,7 +318,7 @@ class _Context:
         self._save(fig, f"waterfall_{_safe(jn)}.png")
 
     def _fields(self) -> None:
-        files = sorted(self.run_dir.glob("*_fields.npz"))
+        files = self.dir.field_files()
         want = self.spec.get("fields") if self.spec else None
         if want and not (self.run_dir / f"{want}_fields.npz").is_file():
             self.skipped.append(f"fields of '{want}': {self.run_dir / (str(want) + '_fields.npz')} not "
