@@ -154,3 +154,17 @@ if __name__ == "__main__":
         for f in plot_run(d):
             shutil.copy(f, dest / f"synthetic_{f.name}")
             print(dest / f"synthetic_{f.name}")
+
+
+def test_in_memory_result_gives_the_same_figures(run_dir, tmp_path):
+    """plot_result draws from a CoSimResult (here the run folder read back), no folder needed."""
+    from orchestrator import CoSimResult
+    from orchestrator.results.plots import plot_result
+    res = CoSimResult.load(run_dir)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        files = plot_result(res, tmp_path / "mem", name="synthetic_run_up")
+    assert sorted(f.name for f in files) == ["eccentricity.png", "orbit_bearing1.png", "waterfall_bearing1.png"]
+    for f in files:
+        assert f.parent == tmp_path / "mem"
+        check_png(f)
