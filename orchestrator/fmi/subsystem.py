@@ -24,6 +24,9 @@ and read ``batch.values``.
 Every FMI call goes through :meth:`Subsystem._call`, which counts it and turns
 every status worse than fmi2Warning, and every exception, into
 :class:`orchestrator.errors.FmuCallError` carrying the FMU's last log messages.
+
+Length: every FMI call of the project lives here (the one place that calls FMI), with its
+status handling; above ~400 lines for that reason.
 """
 
 from __future__ import annotations

@@ -82,6 +82,10 @@ else ``coupling.macro_step``) and ``summary.json`` as written by ``run``
 empty: no FMU is called; ``rhs_evaluations`` counts the coupled right-hand sides; BDF2
 adds ``newton_iterations``, ``jacobians`` and ``film_steps``, trial steps included).
 The run-up ``analysis:`` is added by ``orchestrator.run`` afterwards, as for the master.
+
+Length: the system assembly and its two integrators (solve_ivp and the BDF2 with the
+mass-conserving film's Newton matrix) share the evaluation order and are documented together
+above; above ~400 lines for that reason.
 """
 
 from __future__ import annotations
