@@ -1,0 +1,391 @@
+"""Floating-ring bearing: a ring with mass and polar inertia between two oil films (no FMI import).
+
+Physics (docs/floating-ring.md)
+-------------------------------
+* **Inner film** (journal to ring bore, radius ``R_i``): our Reynolds film
+  (:class:`bearing_fmu.model.JournalBearing`, any of its options) on the ring's own
+  kinematics. The gap depends on the journal centre relative to the ring centre,
+  ``h = c_i - (x - x_r) cos(phi) - (y - y_r) sin(phi)``, its squeeze on the relative
+  velocity, and the wedge on the *sum* of the surface speeds: the Couette flux of the
+  generalised Reynolds equation is ``(U_journal + U_ring) h / 2`` (Hamrock, Schmid &
+  Jacobson 2004, *Fundamentals of Fluid Film Lubrication*, eq. 7.57; Szeri 2011 ch. 2),
+  so the film is evaluated with the spin ``omega + Omega``. The film force on the
+  journal is ``F_i``; the ring gets ``-F_i``.
+* **Outer film** (ring to housing, radius ``R_o``): a plain film on the ring's position,
+  velocity and spin ``Omega`` (housing at rest). Its force on the ring is ``F_o``.
+* **Friction torques** from the wall shear of each film (:func:`shear_torques`), the
+  Couette part carrying the fluid fraction (``eta = theta eta0``, paper eq. 3) and the
+  Poiseuille part ``(h / 2) dp / (R dphi)``; on the journal (y = 0) and on the shell
+  (y = h) of the velocity profile ``u = U_j (1 - y/h) + U_s y/h + dp/dx (y^2 - y h)/(2 eta)``::
+
+      tau_journal =  theta eta (U_s - U_j) / h - (h / 2) dp/dx
+      tau_shell   =  theta eta (U_j - U_s) / h - (h / 2) dp/dx,  T = R int tau dA.
+
+  A centred journal in a full film gives Petroff's ``T = -2 pi eta R^3 B (omega - Omega) / c``.
+* **Ring**: ``m_r r'' = -F_i + F_o - m_r g e_y`` and ``J_r Omega' = T_ring,inner +
+  T_ring,outer`` (the issue's ``T_inner - T_outer`` with magnitudes). ``floating = 0``
+  (semi-floating): ``Omega = 0`` always, translation free (the outer film is then a
+  squeeze-film damper).
+
+Time integration (one :meth:`FloatingRing.step` = one FMU step)
+---------------------------------------------------------------
+The journal kinematics are held over the step (FMI zero-order hold). The ring is light
+(its films damp it with time constants ``m_r / (C_i + C_o)`` of some 10 us), so it is
+advanced *inside* the step, together with its films, in ``ceil(dt / h_ring)`` sub-steps
+of a linearly implicit trapezoidal rule (a W-method of order 2 with the exact Jacobian;
+A-stable)::
+
+    (M + h/2 C + h^2/4 K) dv = h F0 - h^2/2 K v0,   v1 = v0 + dv,   r1 = r0 + h (v0 + v1)/2
+    (J - h/2 D) dOmega = h T0
+
+with ``K = K_i + K_o``, ``C = C_i + C_o`` the films' quasi-static coefficients
+(:func:`bearing_fmu.linearize.linearization`, refreshed after every step) and ``D`` the
+Petroff torque slope. Each sub-step then advances both films over ``h`` with the new ring
+kinematics and reads their forces and torques. The force at the start of a step is that of
+the last film step corrected to first order for the change of the journal inputs.
+
+Interface coefficients seen by the journal (:meth:`FloatingRing.linearization`): the
+impedances ``Z = K + s C`` of the films in series with the ring, ``Z_eff(s) = Z_i (Z_i + Z_o
++ m_r s^2)^-1 Z_o``, to first order in s (the ring mass enters at second order)::
+
+    K_eff = K_i S^-1 K_o,    S = K_i + K_o,
+    C_eff = C_i S^-1 K_o + K_i S^-1 C_o - K_i S^-1 (C_i + C_o) S^-1 K_o
+
+(the series damper ``C_i (C_i + C_o)^-1 C_o`` when S is singular, e.g. both films at rest).
+
+Units SI; frame of docs/dev/contracts.md (x horizontal, y up, spin CCW about +z).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields as dc_fields
+
+import numpy as np
+
+from .linearize import linearization as film_linearization
+from .model import BearingParams, JournalBearing, StepFailed
+
+__all__ = ["RingParams", "FloatingRing", "shear_torques", "petroff_coefficient", "petroff_ratio", "StepFailed"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class RingParams:
+    """Floating-ring bearing: the two films and the ring (SI units).
+
+    inner: film between journal and ring bore (``R`` the journal radius, ``psi`` its
+    relative clearance); outer: film between ring and housing (``R`` the ring's outer
+    radius). m_ring [kg], J_ring [kg m^2] ring mass and polar inertia; floating: 1 full
+    floating (spin free), 0 semi-floating (spin locked, translation free); gravity
+    [m/s^2] acting on the ring in -y; h_ring [s] largest ring sub-step inside a step;
+    jacobian_every: the films' coefficients (ring integration and :meth:`FloatingRing.linearization`)
+    are recomputed after every jacobian_every-th step and held in between (1: every step).
+    """
+
+    inner: BearingParams
+    outer: BearingParams
+    m_ring: float = 0.01
+    J_ring: float = 1.0e-6
+    floating: int = 1
+    gravity: float = 9.81
+    h_ring: float = 1.0e-4
+    jacobian_every: int = 1
+
+    def __post_init__(self):
+        problems = []
+        for name in ("inner", "outer"):
+            v = getattr(self, name)
+            if not isinstance(v, BearingParams):
+                problems.append(f"RingParams.{name} must be a BearingParams (got {type(v).__name__})")
+            elif v.contact:
+                problems.append(f"RingParams.{name}.contact must be 0: asperity contact is not "
+                                "modelled in the floating-ring bearing (got 1)")
+        for name in ("m_ring", "J_ring", "h_ring"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                problems.append(f"RingParams.{name} must be a positive finite number (got {v!r})")
+        if not (isinstance(self.jacobian_every, int) and self.jacobian_every >= 1):
+            problems.append(f"RingParams.jacobian_every must be an integer >= 1 (got {self.jacobian_every!r})")
+        if self.floating not in (0, 1):
+            problems.append(f"RingParams.floating must be 1 (full floating) or 0 (semi-floating) "
+                            f"(got {self.floating!r})")
+        if not (isinstance(self.gravity, (int, float)) and math.isfinite(self.gravity)):
+            problems.append(f"RingParams.gravity must be a finite number [m/s^2] (got {self.gravity!r})")
+        if not problems and self.outer.R <= self.inner.R * (1 + self.inner.psi):
+            problems.append(f"RingParams: the ring's outer radius R_outer = {self.outer.R:g} m must exceed "
+                            f"its bore R_inner (1 + psi_inner) = {self.inner.R * (1 + self.inner.psi):g} m")
+        if problems:
+            raise ValueError("invalid floating-ring parameters:\n  " + "\n  ".join(problems))
+
+    def replace(self, **kw) -> "RingParams":
+        vals = {f.name: getattr(self, f.name) for f in dc_fields(self)}
+        vals.update(kw)
+        return RingParams(**vals)
+
+
+def petroff_coefficient(p: BearingParams) -> float:
+    """``eta0 R^3 B / c`` [N m s]: Petroff's torque is ``-2 pi`` times this times the slip."""
+    return p.eta0 * p.R ** 3 * p.B / p.c
+
+
+def petroff_ratio(params: RingParams) -> float:
+    """Steady ring speed ratio Omega / omega of two concentric full films: a / (a + b)
+    with a = eta_i R_i^3 B_i / c_i, b = eta_o R_o^3 B_o / c_o (Petroff torque balance)."""
+    a, b = petroff_coefficient(params.inner), petroff_coefficient(params.outer)
+    return a / (a + b)
+
+
+def shear_torques(fields: dict, x: float, y: float, c: float, R: float, B: float, eta0: float,
+                  omega_j: float, omega_s: float, omega_film: float) -> tuple[float, float]:
+    """(T_journal, T_shell) [N m] about +z: wall-shear torques of a film ON its journal
+    (inner surface, speed ``omega_j``) and ON its shell (outer surface, ``omega_s``).
+
+    ``fields`` from :meth:`JournalBearing.fields` (full grid), (x, y) the journal centre
+    relative to the shell's. Shear at the phi-faces as in :func:`.film.integrals`: the gap
+    at the face, the fluid fraction from the upwind cell of the film's Couette transport
+    (``omega_film = omega_j + omega_s``), the pressure gradient across the face (module doc).
+    """
+    phi, p, th = fields["phi"], fields["p"], fields["theta"]
+    n_z, n_phi = p.shape
+    dphi = 2 * math.pi / n_phi
+    phi_e = phi + 0.5 * dphi
+    h_e = c - x * np.cos(phi_e) - y * np.sin(phi_e)                 # (n_phi,) [m]
+    th_up = th if omega_film >= 0 else np.roll(th, -1, axis=1)
+    dpdx = (np.roll(p, -1, axis=1) - p) / (R * dphi)
+    couette = th_up * eta0 * R * (omega_j - omega_s) / h_e         # eta (U_j - U_s) / h
+    poise = 0.5 * h_e * dpdx
+    dA = R * dphi * B / n_z
+    T_j = R * float(np.sum(-couette - poise)) * dA
+    T_s = R * float(np.sum(couette - poise)) * dA
+    return T_j, T_s
+
+
+def _series(Ki, Ci, Ko, Co):
+    """First-order (in s) coefficients of Z_i (Z_i + Z_o)^-1 Z_o (module doc)."""
+    S = Ki + Ko
+    if np.linalg.cond(S) < 1e10:
+        Si = np.linalg.inv(S)
+        K = Ki @ Si @ Ko
+        C = Ci @ Si @ Ko + Ki @ Si @ Co - Ki @ Si @ (Ci + Co) @ Si @ Ko
+        return K, C
+    Sc = Ci + Co
+    if np.linalg.cond(Sc) < 1e10:
+        return np.zeros((2, 2)), Ci @ np.linalg.inv(Sc) @ Co
+    return np.zeros((2, 2)), np.zeros((2, 2))
+
+
+class FloatingRing:
+    """A floating-ring bearing; call order ``initialize`` then ``step`` ... (module doc).
+
+    ``outputs``: ``Fx, Fy`` [N] inner-film force on the journal; ``eps`` [-] inner
+    eccentricity |r_j - r_r| / c_i; ``eps_outer`` [-] |r_r| / c_o; ``omega_ring`` [rad/s];
+    ``x_ring, y_ring`` [m], ``vx_ring, vy_ring`` [m/s]; ``T_journal`` [N m] friction torque
+    on the journal about +z; ``T_ring_inner, T_ring_outer`` [N m] torques of the two films
+    on the ring; ``P_loss`` [W] friction power of both films ``-(T_journal omega +
+    (T_ring_inner + T_ring_outer) Omega)``; ``p_max``, ``h_min`` of the inner film and
+    ``p_max_outer``, ``h_min_outer``.
+    """
+
+    def __init__(self, params: RingParams):
+        if not isinstance(params, RingParams):
+            raise TypeError(f"FloatingRing(params): expected RingParams, got {type(params).__name__}")
+        self.params = params
+        self.inner = JournalBearing(params.inner)
+        self.outer = JournalBearing(params.outer)
+        self.D = 2 * math.pi * (petroff_coefficient(params.inner) + petroff_coefficient(params.outer))
+        self.outputs: dict[str, float] = {}
+        self._initialized = False
+
+    # ------------------------------------------------------------- kinematics
+    def _film_inputs(self, journal, ring, Om):
+        x, y, vx, vy, om = journal
+        xr, yr, vxr, vyr = ring
+        return (x - xr, y - yr, vx - vxr, vy - vyr, om + Om), (xr, yr, vxr, vyr, Om)
+
+    def _read_films(self):
+        """Forces and torques of both films at their current states."""
+        j, r, Om = self._journal, self._ring, self._Om
+        pi_, po = self.params.inner, self.params.outer
+        xi, yi = j[0] - r[0], j[1] - r[1]
+        Tj, Tri = shear_torques(self.inner.fields(), xi, yi, pi_.c, pi_.R, pi_.B, pi_.eta0,
+                                j[4], Om, j[4] + Om)
+        Tro, _ = shear_torques(self.outer.fields(), r[0], r[1], po.c, po.R, po.B, po.eta0,
+                               Om, 0.0, Om)
+        oi, oo = self.inner.outputs, self.outer.outputs
+        self._Fi = np.array([oi["Fx"], oi["Fy"]])
+        self._Fo = np.array([oo["Fx"], oo["Fy"]])
+        self._T = (Tj, Tri, Tro)
+
+    def _refresh_jacobians(self):
+        self._Ki, self._Ci = film_linearization(self.inner)
+        self._Ko, self._Co = film_linearization(self.outer)
+        self._jac_age = 0
+
+    def _update_outputs(self):
+        j, r, Om = self._journal, self._ring, self._Om
+        pi_, po = self.params.inner, self.params.outer
+        Tj, Tri, Tro = self._T
+        oi, oo = self.inner.outputs, self.outer.outputs
+        self.outputs = dict(
+            Fx=float(self._Fi[0]), Fy=float(self._Fi[1]),
+            eps=math.hypot(j[0] - r[0], j[1] - r[1]) / pi_.c, eps_outer=math.hypot(r[0], r[1]) / po.c,
+            omega_ring=float(Om), x_ring=float(r[0]), y_ring=float(r[1]), vx_ring=float(r[2]),
+            vy_ring=float(r[3]), T_journal=Tj, T_ring_inner=Tri, T_ring_outer=Tro,
+            P_loss=-(Tj * j[4] + (Tri + Tro) * Om), p_max=oi["p_max"], h_min=oi["h_min"],
+            p_max_outer=oo["p_max"], h_min_outer=oo["h_min"])
+
+    # ------------------------------------------------------------- API
+    def initialize(self, x, y, vx, vy, omega, *, ring=(0.0, 0.0, 0.0, 0.0), omega_ring=None,
+                   init="flooded"):
+        """Build both films at t = 0 with the journal at (x, y, vx, vy, omega) and the ring at
+        ``ring`` = (x_r, y_r, vx_r, vy_r) [m, m/s], or ``ring="equilibrium"`` (the ring's
+        static balance of the two quasi-static films and its weight, :meth:`equilibrium`).
+        ``omega_ring`` [rad/s] defaults to the concentric Petroff ratio times omega
+        (:func:`petroff_ratio`; 0 when semi-floating). ``init``: initial film of the
+        mass-conserving model, as :meth:`JournalBearing.initialize`.
+        """
+        p = self.params
+        self._journal = tuple(float(v) for v in (x, y, vx, vy, omega))
+        if omega_ring is None:
+            omega_ring = petroff_ratio(p) * omega
+        self._Om = float(omega_ring) if p.floating else 0.0
+        if isinstance(ring, str):
+            if ring != "equilibrium":
+                raise ValueError(f"initialize: ring must be (x, y, vx, vy) or 'equilibrium' (got {ring!r})")
+            ring = (*self.equilibrium(), 0.0, 0.0)
+        self._ring = np.array([float(v) for v in ring])
+        if self._ring.shape != (4,) or not np.all(np.isfinite(self._ring)):
+            raise ValueError(f"initialize: ring must be 4 finite numbers (x, y, vx, vy) (got {ring!r})")
+        ki, ko = self._film_inputs(self._journal, self._ring, self._Om)
+        self.inner.initialize(*ki, init=init)
+        self.outer.initialize(*ko, init=init)
+        self._t = 0.0
+        self._read_films()
+        self._refresh_jacobians()
+        self._initialized = True
+        self._update_outputs()
+
+    def equilibrium(self, tol=1e-9, max_iter=50):
+        """Ring position (x_r, y_r) [m] where the quasi-static (half-Sommerfeld) forces of both
+        films and the ring's weight balance, for the current journal kinematics and ring spin
+        (Newton with the films' stiffness, damped to stay inside both clearances)."""
+        from .linearize import hs_force, hs_linearization
+        x, y, vx, vy, om = self._journal
+        p = self.params
+        r = np.zeros(2)
+        W = np.array([0.0, -p.m_ring * p.gravity])
+        for _ in range(max_iter):
+            Fi = hs_force(self.inner, x - r[0], y - r[1], vx, vy, om + self._Om)
+            Fo = hs_force(self.outer, r[0], r[1], 0.0, 0.0, self._Om)
+            res = -Fi + Fo + W
+            Ki, _ = hs_linearization(self.inner, x - r[0], y - r[1], vx, vy, om + self._Om)
+            Ko, _ = hs_linearization(self.outer, r[0], r[1], 0.0, 0.0, self._Om)
+            J = -(Ki + Ko)
+            try:
+                dr = np.linalg.solve(J, -res)
+            except np.linalg.LinAlgError:
+                raise StepFailed("FloatingRing.equilibrium: singular film stiffness (journal and ring "
+                                 "at rest?); start the ring at a given position instead") from None
+            lam = 1.0
+            while lam > 1e-4:
+                rn = r + lam * dr
+                if (math.hypot(*rn) < 0.95 * p.outer.c
+                        and math.hypot(x - rn[0], y - rn[1]) < 0.95 * p.inner.c):
+                    break
+                lam *= 0.5
+            r = rn
+            if np.linalg.norm(lam * dr) < tol * p.outer.c:
+                return float(r[0]), float(r[1])
+        raise StepFailed(f"FloatingRing.equilibrium: Newton did not converge in {max_iter} iterations "
+                         f"(last ring position {r} m)")
+
+    def _check_init(self, what):
+        if not self._initialized:
+            raise RuntimeError(f"FloatingRing.{what}: call initialize(x, y, vx, vy, omega) first")
+
+    def step(self, dt, x, y, vx, vy, omega):
+        """Advance ring and both films by dt [s] with the journal kinematics held (module doc).
+        Raises :class:`StepFailed` (state unchanged) when a film cannot be advanced."""
+        self._check_init("step")
+        if not (dt > 0 and math.isfinite(dt)):
+            raise ValueError(f"FloatingRing.step: dt must be a positive finite time [s] (got {dt!r})")
+        journal = tuple(float(v) for v in (x, y, vx, vy, omega))
+        if not all(math.isfinite(v) for v in journal):
+            raise ValueError(f"FloatingRing.step: non-finite journal input (x, y, vx, vy, omega) = {journal}")
+        saved = self.get_state()
+        try:
+            self._advance(dt, journal)
+        except StepFailed:
+            self.set_state(saved)
+            raise
+        self._jac_age += 1
+        if self._jac_age >= self.params.jacobian_every:
+            self._refresh_jacobians()
+        self._update_outputs()
+
+    def _advance(self, dt, journal):
+        p = self.params
+        n = max(1, math.ceil(dt / p.h_ring - 1e-9))
+        h = dt / n
+        Ki, Ci, Ko, Co = self._Ki, self._Ci, self._Ko, self._Co
+        # inner-film force at the new journal inputs, to first order (module doc)
+        dj = np.array(journal[:4]) - np.array(self._journal[:4])
+        Fi = self._Fi - Ki @ dj[:2] - Ci @ dj[2:]
+        self._journal = journal
+        K, C = Ki + Ko, Ci + Co
+        M = p.m_ring * np.eye(2)
+        A = M + 0.5 * h * C + 0.25 * h * h * K
+        W = np.array([0.0, -p.m_ring * p.gravity])
+        for _ in range(n):
+            r0, v0 = self._ring[:2], self._ring[2:]
+            F0 = -Fi + self._Fo + W
+            dv = np.linalg.solve(A, h * F0 - 0.5 * h * h * (K @ v0))
+            v1 = v0 + dv
+            r1 = r0 + 0.5 * h * (v0 + v1)
+            if p.floating:
+                T0 = self._T[1] + self._T[2]
+                self._Om += h * T0 / (p.J_ring + 0.5 * h * self.D)
+            self._ring = np.concatenate([r1, v1])
+            ki, ko = self._film_inputs(journal, self._ring, self._Om)
+            self.inner.step(h, *ki)
+            self.outer.step(h, *ko)
+            self._t += h
+            self._read_films()
+            Fi = self._Fi
+
+    def linearization(self) -> tuple[np.ndarray, np.ndarray]:
+        """(K, C) 2x2 of the whole ring bearing as the journal sees it (module doc)."""
+        self._check_init("linearization")
+        return _series(self._Ki, self._Ci, self._Ko, self._Co)
+
+    def film_coefficients(self) -> dict[str, np.ndarray]:
+        """The films' own quasi-static coefficients at the current state: Ki, Ci (inner, in
+        the journal-minus-ring coordinates), Ko, Co (outer)."""
+        self._check_init("film_coefficients")
+        return dict(Ki=self._Ki.copy(), Ci=self._Ci.copy(), Ko=self._Ko.copy(), Co=self._Co.copy())
+
+    @property
+    def t(self) -> float:
+        return self._t
+
+    def get_state(self) -> dict:
+        """Complete state (both films, ring, coefficients) as a dict of arrays and floats."""
+        self._check_init("get_state")
+        return dict(t=self._t, journal=np.array(self._journal), ring=self._ring.copy(), Om=self._Om,
+                    inner=self.inner.get_state(), outer=self.outer.get_state(),
+                    jac=np.array([self._Ki, self._Ci, self._Ko, self._Co]),
+                    jac_age=self._jac_age)
+
+    def set_state(self, s: dict):
+        """Restore a state from :meth:`get_state` exactly."""
+        self._check_init("set_state")
+        self._t = float(s["t"])
+        self._journal = tuple(float(v) for v in s["journal"])
+        self._ring = np.array(s["ring"], dtype=float)
+        self._Om = float(s["Om"])
+        self.inner.set_state(s["inner"])
+        self.outer.set_state(s["outer"])
+        self._Ki, self._Ci, self._Ko, self._Co = (np.array(m) for m in s["jac"])
+        self._jac_age = int(s["jac_age"])
+        self._read_films()
+        self._update_outputs()
