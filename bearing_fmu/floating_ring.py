@@ -66,7 +66,8 @@ import numpy as np
 from .linearize import linearization as film_linearization
 from .model import BearingParams, JournalBearing, StepFailed
 
-__all__ = ["RingParams", "FloatingRing", "shear_torques", "petroff_coefficient", "petroff_ratio", "StepFailed"]
+__all__ = ["RingParams", "FloatingRing", "shear_torques", "petroff_coefficient", "petroff_ratio",
+           "static_equilibrium", "StepFailed"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -158,6 +159,41 @@ def shear_torques(fields: dict, x: float, y: float, c: float, R: float, B: float
     T_j = R * float(np.sum(-couette - poise)) * dA
     T_s = R * float(np.sum(couette - poise)) * dA
     return T_j, T_s
+
+
+def _film_balance(b: JournalBearing, F_target, omega, tol=1e-10, max_iter=60):
+    """Journal position (x, y) [m] in film ``b`` at which its quasi-static force at spin
+    ``omega`` is ``F_target`` (Newton with the film stiffness, kept inside 0.98 c)."""
+    from .linearize import hs_force, hs_linearization
+    c = b.c
+    z = np.array([0.0, -0.3 * c])
+    for _ in range(max_iter):
+        res = hs_force(b, z[0], z[1], 0.0, 0.0, omega) - F_target
+        K, _ = hs_linearization(b, z[0], z[1], 0.0, 0.0, omega)
+        dz = np.linalg.solve(K, res)            # F(z + dz) ~ F - K dz = F_target
+        lam = 1.0
+        while math.hypot(*(z + lam * dz)) >= 0.98 * c:
+            lam *= 0.5
+        z = z + lam * dz
+        if np.linalg.norm(lam * dz) < tol * c:
+            return z
+    raise StepFailed(f"static_equilibrium: no film position carries {F_target} N at omega = {omega:g} rad/s "
+                     f"(last {z / c} c): the load is too high for this film")
+
+
+def static_equilibrium(params: RingParams, load: float, omega: float, omega_ring=None):
+    """Static equilibrium of a journal carrying ``load`` [N] (downwards, -y) in a floating-ring
+    bearing at journal speed ``omega``: returns ((x, y) journal, (x_r, y_r) ring) [m].
+
+    The inner film carries the load (F_i = (0, load)), the outer film the load plus the ring
+    weight (F_o = F_i + m_r g e_y), each at its own spin (omega + Omega, Omega); Omega defaults
+    to the concentric Petroff ratio times omega (0 semi-floating). Quasi-static (half-Sommerfeld)
+    films, as :meth:`FloatingRing.equilibrium`."""
+    Om = (petroff_ratio(params) * omega if omega_ring is None else omega_ring) if params.floating else 0.0
+    inner, outer = JournalBearing(params.inner), JournalBearing(params.outer)
+    e = _film_balance(inner, np.array([0.0, load]), omega + Om)
+    r = _film_balance(outer, np.array([0.0, load + params.m_ring * params.gravity]), Om)
+    return (float(r[0] + e[0]), float(r[1] + e[1])), (float(r[0]), float(r[1]))
 
 
 def _series(Ki, Ci, Ko, Co):
@@ -252,7 +288,10 @@ class FloatingRing:
         if isinstance(ring, str):
             if ring != "equilibrium":
                 raise ValueError(f"initialize: ring must be (x, y, vx, vy) or 'equilibrium' (got {ring!r})")
-            ring = (*self.equilibrium(), 0.0, 0.0)
+            if omega == 0.0 and self._Om == 0.0:     # no wedge: nothing to balance (e.g. inputs not set yet)
+                ring = (*self._ring_guess(), 0.0, 0.0)
+            else:
+                ring = (*self.equilibrium(), 0.0, 0.0)
         self._ring = np.array([float(v) for v in ring])
         if self._ring.shape != (4,) or not np.all(np.isfinite(self._ring)):
             raise ValueError(f"initialize: ring must be 4 finite numbers (x, y, vx, vy) (got {ring!r})")
@@ -265,6 +304,13 @@ class FloatingRing:
         self._initialized = True
         self._update_outputs()
 
+    def _ring_guess(self):
+        """Ring position with the journal half an inner clearance off its centre (or concentric
+        with it when closer): inside both clearances whenever the journal is."""
+        x, y = self._journal[:2]
+        rj = math.hypot(x, y)
+        return np.array([x, y]) * (max(0.0, 1 - 0.5 * self.params.inner.c / rj) if rj > 0 else 0.0)
+
     def equilibrium(self, tol=1e-9, max_iter=50):
         """Ring position (x_r, y_r) [m] where the quasi-static (half-Sommerfeld) forces of both
         films and the ring's weight balance, for the current journal kinematics and ring spin
@@ -272,7 +318,7 @@ class FloatingRing:
         from .linearize import hs_force, hs_linearization
         x, y, vx, vy, om = self._journal
         p = self.params
-        r = np.zeros(2)
+        r = self._ring_guess()
         W = np.array([0.0, -p.m_ring * p.gravity])
         for _ in range(max_iter):
             Fi = hs_force(self.inner, x - r[0], y - r[1], vx, vy, om + self._Om)

@@ -72,6 +72,8 @@ class FmuRecipe:
 RECIPES: dict[str, FmuRecipe] = {
     "JournalBearing": FmuRecipe("JournalBearing", REPO / "bearing_fmu" / "journal_bearing.py",
                                 (REPO / "bearing_fmu",)),
+    "FloatingRingBearing": FmuRecipe("FloatingRingBearing", REPO / "bearing_fmu" / "floating_ring_bearing.py",
+                                     (REPO / "bearing_fmu",)),
     "JeffcottRotor": FmuRecipe("JeffcottRotor", REPO / "rotor_fmu" / "jeffcott_rotor.py",
                                (REPO / "rotor_fmu",)),
     "TurbochargerRotor": FmuRecipe("TurbochargerRotor", REPO / "rotor_fmu" / "turbocharger_rotor.py",
