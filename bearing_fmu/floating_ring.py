@@ -44,14 +44,25 @@ Petroff torque slope. Each sub-step then advances both films over ``h`` with the
 kinematics and reads their forces and torques. The force at the start of a step is that of
 the last film step corrected to first order for the change of the journal inputs.
 
-Interface coefficients seen by the journal (:meth:`FloatingRing.linearization`): the
-impedances ``Z = K + s C`` of the films in series with the ring, ``Z_eff(s) = Z_i (Z_i + Z_o
-+ m_r s^2)^-1 Z_o``, to first order in s (the ring mass enters at second order)::
+Interface coefficients seen by the journal (:meth:`FloatingRing.linearization`), for the
+master's interface-Jacobian coupling: by default (``H = 0``, what the FMU outputs) the
+*instantaneous* response, the inner film's own ``K_i, C_i``: the ring's inertia holds it at the
+instant the journal moves. :func:`step_coefficients` gives the response over a step of length
+H with the ring following both films linearly (ring perturbation ``q = (r, w)``,
+``q' = A q + B u`` with the held input ``u = (x_j, v_j)``)::
 
-    K_eff = K_i S^-1 K_o,    S = K_i + K_o,
-    C_eff = C_i S^-1 K_o + K_i S^-1 C_o - K_i S^-1 (C_i + C_o) S^-1 K_o
+    A = [[0, I], [-S_K / m_r, -S_C / m_r]],   B = [[0, 0], [K_i / m_r, C_i / m_r]],
+    S_K = K_i + K_o,  S_C = C_i + C_o,   q(H) = Phi_qu u   (Phi = expm(H [[A, B], [0, 0]]))
 
-(the series damper ``C_i (C_i + C_o)^-1 C_o`` when S is singular, e.g. both films at rest).
+    K = K_i - K_i Phi_ru,x - C_i Phi_wu,x,   C = C_i - K_i Phi_ru,v - C_i Phi_wu,v
+
+-> K_i, C_i as H -> 0 and the films in series, ``K_i (K_i + K_o)^-1 K_o``, as H -> infinity.
+Measured (docs/floating-ring.md): both the low-frequency series and the step response (lower
+than K_i, C_i: the ring moves within a 0.1 ms step, its velocity relaxes in m_r / c ~ 0.2 ms)
+made the Jeffcott run-up unstable at the macro-step rate; coefficients that underestimate the
+force's response destabilise the coupling (bearing_fmu/linearize.py), the instantaneous ones
+bound it from above. They only set the stabilising correction; the converged answer does not
+depend on them.
 
 Units SI; frame of docs/dev/contracts.md (x horizontal, y up, spin CCW about +z).
 """
@@ -67,7 +78,7 @@ from .linearize import linearization as film_linearization
 from .model import BearingParams, JournalBearing, StepFailed
 
 __all__ = ["RingParams", "FloatingRing", "shear_torques", "petroff_coefficient", "petroff_ratio",
-           "static_equilibrium", "StepFailed"]
+           "static_equilibrium", "step_coefficients", "StepFailed"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -196,18 +207,16 @@ def static_equilibrium(params: RingParams, load: float, omega: float, omega_ring
     return (float(r[0] + e[0]), float(r[1] + e[1])), (float(r[0]), float(r[1]))
 
 
-def _series(Ki, Ci, Ko, Co):
-    """First-order (in s) coefficients of Z_i (Z_i + Z_o)^-1 Z_o (module doc)."""
-    S = Ki + Ko
-    if np.linalg.cond(S) < 1e10:
-        Si = np.linalg.inv(S)
-        K = Ki @ Si @ Ko
-        C = Ci @ Si @ Ko + Ki @ Si @ Co - Ki @ Si @ (Ci + Co) @ Si @ Ko
-        return K, C
-    Sc = Ci + Co
-    if np.linalg.cond(Sc) < 1e10:
-        return np.zeros((2, 2)), Ci @ np.linalg.inv(Sc) @ Co
-    return np.zeros((2, 2)), np.zeros((2, 2))
+def step_coefficients(Ki, Ci, Ko, Co, m_ring, H):
+    """(K, C) of the ring bearing seen by the journal over a step H [s] (module doc)."""
+    from scipy.linalg import expm
+    Z, I = np.zeros((2, 2)), np.eye(2)
+    G = np.block([[Z, I, Z, Z],
+                  [-(Ki + Ko) / m_ring, -(Ci + Co) / m_ring, Ki / m_ring, Ci / m_ring],
+                  [Z, Z, Z, Z], [Z, Z, Z, Z]])
+    Phi = expm(H * G)[:4, 4:]                  # ring (r, w) at H per held input (x_j, v_j)
+    resp = Ki @ Phi[:2] + Ci @ Phi[2:]        # force from the ring's motion, per input
+    return Ki - resp[:, :2], Ci - resp[:, 2:]
 
 
 class FloatingRing:
@@ -299,6 +308,7 @@ class FloatingRing:
         self.inner.initialize(*ki, init=init)
         self.outer.initialize(*ko, init=init)
         self._t = 0.0
+        self._last_dt = self.params.h_ring
         self._read_films()
         self._refresh_jacobians()
         self._initialized = True
@@ -361,6 +371,7 @@ class FloatingRing:
         saved = self.get_state()
         try:
             self._advance(dt, journal)
+            self._last_dt = dt
         except StepFailed:
             self.set_state(saved)
             raise
@@ -399,10 +410,13 @@ class FloatingRing:
             self._read_films()
             Fi = self._Fi
 
-    def linearization(self) -> tuple[np.ndarray, np.ndarray]:
-        """(K, C) 2x2 of the whole ring bearing as the journal sees it (module doc)."""
+    def linearization(self, H: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """(K, C) 2x2 of the whole ring bearing as the journal sees it over a step of H [s]
+        (default 0: the instantaneous response K_i, C_i; module doc, :func:`step_coefficients`)."""
         self._check_init("linearization")
-        return _series(self._Ki, self._Ci, self._Ko, self._Co)
+        if H == 0.0:
+            return self._Ki.copy(), self._Ci.copy()
+        return step_coefficients(self._Ki, self._Ci, self._Ko, self._Co, self.params.m_ring, H)
 
     def film_coefficients(self) -> dict[str, np.ndarray]:
         """The films' own quasi-static coefficients at the current state: Ki, Ci (inner, in
@@ -420,7 +434,7 @@ class FloatingRing:
         return dict(t=self._t, journal=np.array(self._journal), ring=self._ring.copy(), Om=self._Om,
                     inner=self.inner.get_state(), outer=self.outer.get_state(),
                     jac=np.array([self._Ki, self._Ci, self._Ko, self._Co]),
-                    jac_age=self._jac_age)
+                    jac_age=self._jac_age, last_dt=self._last_dt)
 
     def set_state(self, s: dict):
         """Restore a state from :meth:`get_state` exactly."""
@@ -433,5 +447,6 @@ class FloatingRing:
         self.outer.set_state(s["outer"])
         self._Ki, self._Ci, self._Ko, self._Co = (np.array(m) for m in s["jac"])
         self._jac_age = int(s["jac_age"])
+        self._last_dt = float(s["last_dt"])
         self._read_films()
         self._update_outputs()

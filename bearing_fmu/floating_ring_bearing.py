@@ -10,19 +10,19 @@ scenario. Variables, units and defaults: the tables below and docs/fmus.md.
 The life cycle and the FMU state follow ``JournalBearing`` (model built on the first output
 read in initialization mode or in exit_initialization_mode; full model state in
 get/set FMU state; a step the films cannot complete returns fmi2Discard with the state kept).
-The FMI plumbing shared with it (units, modelDescription completion, the stable code copy for
-numba's cache, the PythonFMU callback guard, the numerical-failure test) is imported from
-``journal_bearing``'s helpers, loaded by file path so that ``bearing_fmu`` itself is imported
-only after the stable code copy is in place.
+The FMI plumbing shared with it (units, modelDescription completion, the PythonFMU callback
+guard, the numerical-failure test) is imported from ``bearing_fmu.journal_bearing``. That import
+happens before ``use_stable_code_copy`` can redirect ``bearing_fmu`` to the content-addressed
+copy, so this FMU imports its code from the extracted FMU and numba recompiles the film kernels
+once per run (measured below in docs/fmus.md). Loading journal_bearing.py by file path instead
+made PythonFMU 0.7.0 crash (segfault) on the second instantiation in a process.
 """
 
 from __future__ import annotations
 
 import copy
-import importlib.util
 import math
 import pickle
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -30,21 +30,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, String
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 
-def _load_helpers():
-    mod = sys.modules.get("bearing_fmu.journal_bearing")
-    if mod is not None:
-        return mod
-    here = Path(__file__).resolve().parent
-    path = here / "journal_bearing.py"
-    if not path.is_file():                  # the FMU's resources/: the package is bundled beside us
-        path = here / "bearing_fmu" / "journal_bearing.py"
-    spec = importlib.util.spec_from_file_location("_rotorcosim_journal_bearing_helpers", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-_jb = _load_helpers()
+from bearing_fmu import journal_bearing as _jb  # shared FMI plumbing
 
 _FILM_REAL = {   # per film (suffix _inner / _outer): name -> (inner default, outer default, unit, description)
     "R": (4.9e-3, 7.84e-3, "m", "film radius: journal radius (inner), ring outer radius (outer) [m]"),

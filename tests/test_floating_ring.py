@@ -194,3 +194,32 @@ def test_bad_parameters_name_the_field():
         ring_params(floating=2)
     with pytest.raises(ValueError, match="m_ring"):
         ring_params(m_ring=-1.0)
+
+
+def test_step_coefficients_limits():
+    """Short step: the inner film alone (the ring's inertia holds it); long step: the two
+    films in series, K_i (K_i + K_o)^-1 K_o (the ring settles under the held input)."""
+    from bearing_fmu.floating_ring import step_coefficients
+    Ki = np.array([[1e6, 4e5], [-2e6, 2e6]])
+    Ko = np.array([[3e6, -1e5], [-1e6, 1e6]])
+    Ci = np.array([[1e4, -2e3], [-3e3, 2e4]])
+    Co = np.array([[3e4, -4e3], [-4e3, 1e4]])
+    K0, C0 = step_coefficients(Ki, Ci, Ko, Co, 7e-3, 1e-14)
+    assert np.allclose(K0, Ki, rtol=1e-6) and np.allclose(C0, Ci, rtol=1e-6)
+    Kl, _ = step_coefficients(Ki, Ci, Ko, Co, 7e-3, 1.0)
+    assert np.allclose(Kl, Ki @ np.linalg.solve(Ki + Ko, Ko), rtol=1e-6)
+
+
+def test_static_equilibrium_balances_both_films():
+    """At static_equilibrium the inner film carries the load and the outer film the load plus
+    the ring weight (the ring's net force vanishes)."""
+    from bearing_fmu.floating_ring import static_equilibrium
+    P = ring_params(gravity=9.81, m_ring=7.3e-3)
+    journal, ring = static_equilibrium(P, 29.43, OMEGA)
+    fr = FloatingRing(P)
+    fr.initialize(*journal, 0.0, 0.0, OMEGA, ring=(*ring, 0.0, 0.0))
+    assert fr.outputs["Fx"] == pytest.approx(0.0, abs=1e-6)
+    assert fr.outputs["Fy"] == pytest.approx(29.43, rel=1e-8)
+    fo = fr.outer.outputs
+    assert fo["Fy"] == pytest.approx(29.43 + 7.3e-3 * 9.81, rel=1e-8)
+    assert fr.equilibrium() == pytest.approx(ring, rel=1e-6)
