@@ -32,17 +32,21 @@ Time integration (one :meth:`FloatingRing.step` = one FMU step)
 The journal kinematics are held over the step (FMI zero-order hold). The ring is light
 (its films damp it with time constants ``m_r / (C_i + C_o)`` of some 10 us), so it is
 advanced *inside* the step, together with its films, in ``ceil(dt / h_ring)`` sub-steps
-of a linearly implicit trapezoidal rule (a W-method of order 2 with the exact Jacobian;
-A-stable)::
+of a linearly implicit BDF2 (second order, L-stable: the ring's stiffest mode, ``m_r / C`` of
+about 1 us, is damped in one sub-step; the trapezoidal rule tried first leaves it oscillating
+and stalled the convergence, tests/test_floating_ring.py) for ``q = (r, v)``::
 
-    (M + h/2 C + h^2/4 K) dv = h F0 - h^2/2 K v0,   v1 = v0 + dv,   r1 = r0 + h (v0 + v1)/2
-    (J - h/2 D) dOmega = h T0
+    (3/2 - h J) dq = h (f(q0) + B dj) + (q0 - q_-1) / 2      (implicit Euler on the first
+                                                              step or when h changes)
+    J = [[0, I], [-K / m_r, -C / m_r]],  B dj = [0, (K_i dx_j + C_i dv_j) / m_r]
+    (J_r + h/2 D) dOmega = h T0                                 (spin, not stiff)
 
 with ``K = K_i + K_o``, ``C = C_i + C_o`` the films' quasi-static coefficients
-(:func:`bearing_fmu.linearize.linearization`, refreshed after every step) and ``D`` the
+(:func:`bearing_fmu.linearize.linearization`, refreshed after every ``jacobian_every`` steps),
+``dj`` the journal input change over the sub-step (``input_hold``: 0 the new input over the
+whole step, 1 linear from the previous step's input; equal for one sub-step) and ``D`` the
 Petroff torque slope. Each sub-step then advances both films over ``h`` with the new ring
-kinematics and reads their forces and torques. The force at the start of a step is that of
-the last film step corrected to first order for the change of the journal inputs.
+kinematics and reads their forces and torques.
 
 Interface coefficients seen by the journal (:meth:`FloatingRing.linearization`), for the
 master's interface-Jacobian coupling: by default (``H = 0``, what the FMU outputs) the
@@ -91,7 +95,10 @@ class RingParams:
     floating (spin free), 0 semi-floating (spin locked, translation free); gravity
     [m/s^2] acting on the ring in -y; h_ring [s] largest ring sub-step inside a step;
     jacobian_every: the films' coefficients (ring integration and :meth:`FloatingRing.linearization`)
-    are recomputed after every jacobian_every-th step and held in between (1: every step).
+    are recomputed after every jacobian_every-th step and held in between (1: every step);
+    input_hold: journal inputs inside a step, 0 zero-order hold (the new input over the whole
+    step, FMI semantics), 1 first-order hold (linear from the previous step's input to the new
+    one: second order in time when the master steps the bearing after the rotor, Gauss-Seidel).
     """
 
     inner: BearingParams
@@ -102,6 +109,7 @@ class RingParams:
     gravity: float = 9.81
     h_ring: float = 1.0e-4
     jacobian_every: int = 1
+    input_hold: int = 0
 
     def __post_init__(self):
         problems = []
@@ -118,6 +126,9 @@ class RingParams:
                 problems.append(f"RingParams.{name} must be a positive finite number (got {v!r})")
         if not (isinstance(self.jacobian_every, int) and self.jacobian_every >= 1):
             problems.append(f"RingParams.jacobian_every must be an integer >= 1 (got {self.jacobian_every!r})")
+        if self.input_hold not in (0, 1):
+            problems.append(f"RingParams.input_hold must be 0 (zero-order hold) or 1 (first-order hold) "
+                            f"(got {self.input_hold!r})")
         if self.floating not in (0, 1):
             problems.append(f"RingParams.floating must be 1 (full floating) or 0 (semi-floating) "
                             f"(got {self.floating!r})")
@@ -308,6 +319,7 @@ class FloatingRing:
         self.inner.initialize(*ki, init=init)
         self.outer.initialize(*ko, init=init)
         self._t = 0.0
+        self._q_prev, self._h_prev = None, 0.0
         self._last_dt = self.params.h_ring
         self._read_films()
         self._refresh_jacobians()
@@ -385,30 +397,41 @@ class FloatingRing:
         n = max(1, math.ceil(dt / p.h_ring - 1e-9))
         h = dt / n
         Ki, Ci, Ko, Co = self._Ki, self._Ci, self._Ko, self._Co
-        # inner-film force at the new journal inputs, to first order (module doc)
-        dj = np.array(journal[:4]) - np.array(self._journal[:4])
-        Fi = self._Fi - Ki @ dj[:2] - Ci @ dj[2:]
-        self._journal = journal
-        K, C = Ki + Ko, Ci + Co
-        M = p.m_ring * np.eye(2)
-        A = M + 0.5 * h * C + 0.25 * h * h * K
+        j_old, j_new = np.array(self._journal), np.array(journal)
+        dj = j_new - j_old
+        if p.input_hold == 0:
+            # zero-order hold: the new input over the whole step; the inner-film force at the
+            # start corrected to first order for the jump of the input
+            self._Fi = self._Fi - Ki @ dj[:2] - Ci @ dj[2:4]
+            self._journal = journal
+            j_step = np.zeros(5)
+        else:
+            j_step = dj / n                  # first-order hold: linear from the previous input
+        Z2, I2 = np.zeros((2, 2)), np.eye(2)
+        Jq = np.block([[Z2, I2], [-(Ki + Ko) / p.m_ring, -(Ci + Co) / p.m_ring]])
         W = np.array([0.0, -p.m_ring * p.gravity])
-        for _ in range(n):
-            r0, v0 = self._ring[:2], self._ring[2:]
-            F0 = -Fi + self._Fo + W
-            dv = np.linalg.solve(A, h * F0 - 0.5 * h * h * (K @ v0))
-            v1 = v0 + dv
-            r1 = r0 + 0.5 * h * (v0 + v1)
+        for k in range(1, n + 1):
+            q0 = self._ring.copy()
+            F0 = -self._Fi + self._Fo + W
+            f0 = np.concatenate([q0[2:], F0 / p.m_ring])
+            fj = np.concatenate([np.zeros(2), (Ki @ j_step[:2] + Ci @ j_step[2:4]) / p.m_ring])
+            if self._q_prev is not None and abs(self._h_prev - h) <= 1e-12 * h:
+                # linearly implicit BDF2: (3/2 - h J) dq = h (f0 + f_j) + (q0 - q_-1) / 2
+                dq = np.linalg.solve(1.5 * np.eye(4) - h * Jq, h * (f0 + fj) + 0.5 * (q0 - self._q_prev))
+            else:       # first step or new step size: linearly implicit Euler
+                dq = np.linalg.solve(np.eye(4) - h * Jq, h * (f0 + fj))
+            self._q_prev, self._h_prev = q0, h
             if p.floating:
                 T0 = self._T[1] + self._T[2]
                 self._Om += h * T0 / (p.J_ring + 0.5 * h * self.D)
-            self._ring = np.concatenate([r1, v1])
-            ki, ko = self._film_inputs(journal, self._ring, self._Om)
+            self._ring = q0 + dq
+            jk = tuple(journal) if (p.input_hold == 0 or k == n) else tuple(j_old + k * j_step)
+            self._journal = jk
+            ki, ko = self._film_inputs(jk, self._ring, self._Om)
             self.inner.step(h, *ki)
             self.outer.step(h, *ko)
             self._t += h
             self._read_films()
-            Fi = self._Fi
 
     def linearization(self, H: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """(K, C) 2x2 of the whole ring bearing as the journal sees it over a step of H [s]
@@ -434,7 +457,8 @@ class FloatingRing:
         return dict(t=self._t, journal=np.array(self._journal), ring=self._ring.copy(), Om=self._Om,
                     inner=self.inner.get_state(), outer=self.outer.get_state(),
                     jac=np.array([self._Ki, self._Ci, self._Ko, self._Co]),
-                    jac_age=self._jac_age, last_dt=self._last_dt)
+                    jac_age=self._jac_age, last_dt=self._last_dt, h_prev=self._h_prev,
+                    q_prev=None if self._q_prev is None else self._q_prev.copy())
 
     def set_state(self, s: dict):
         """Restore a state from :meth:`get_state` exactly."""
@@ -448,5 +472,7 @@ class FloatingRing:
         self._Ki, self._Ci, self._Ko, self._Co = (np.array(m) for m in s["jac"])
         self._jac_age = int(s["jac_age"])
         self._last_dt = float(s["last_dt"])
+        self._h_prev = float(s["h_prev"])
+        self._q_prev = None if s["q_prev"] is None else np.array(s["q_prev"], dtype=float)
         self._read_films()
         self._update_outputs()

@@ -69,6 +69,8 @@ INTEGER_PARAMETERS.update({
     "linearize": (0, "N >= 1: output kxx..cyy of the whole ring bearing, refreshed every N-th step; 0: outputs 0"),
     "jacobian_every": (1, "the films' coefficients used by the ring integration are recomputed after "
                           "every N-th step [-]"),
+    "input_hold": (0, "journal inputs inside a step: 0 zero-order hold (FMI semantics), 1 first-order hold "
+                      "from the previous step's input (second order when stepped after the rotor, Gauss-Seidel)"),
 })
 STRING_PARAMETERS: dict[str, tuple[str, str]] = {
     "init": ("flooded", "initial film of the mass-conserving films: 'flooded' or 'stationary'"),
@@ -190,7 +192,8 @@ class FloatingRingBearing(Fmi2Slave):
             kw = {n: v[f"{n}_{side}"] for n in (*_FILM_REAL, *_FILM_INT)}
             films[side] = BearingParams(p0=v["p0"], **kw)
         return RingParams(**films, m_ring=v["m_ring"], J_ring=v["J_ring"], floating=v["floating"],
-                          gravity=v["gravity"], h_ring=v["h_ring"], jacobian_every=v["jacobian_every"])
+                          gravity=v["gravity"], h_ring=v["h_ring"], jacobian_every=v["jacobian_every"],
+                          input_hold=v["input_hold"])
 
     def _inputs(self):
         return tuple(self._values[n] for n in INPUTS)
