@@ -18,9 +18,12 @@ and journal speed omega:
    and the eigenvalues of the first-order system; the threshold is the lowest speed at which
    an eigenvalue crosses Re = 0 (scan + Brent, as :func:`rotor_fmu.stability.threshold_speed`).
 
-The ring spin is held at its steady value (its perturbation enters the forces at second order
-in the whirl amplitude for a centred film and is neglected, as in the classical linear
-analyses of Tatara 1970, Tanaka & Hori 1972, Li & Rohde 1981).
+``spin=False`` holds the ring spin at its steady value, as the classical linear analyses do
+(Tatara 1970, Tanaka & Hori 1972, Li & Rohde 1981); ``spin=True`` adds the spin perturbation
+of each ring as a first-order DOF, ``J_r dOmega' = dT/dq q + dT/dq' q' + dT/dOmega dOmega``, and the
+films' force sensitivity to Omega (wedge speeds omega + Omega and Omega), all by central
+differences of the quasi-static model (:func:`_spin_terms`): with eccentric films the torque
+depends linearly on the whirl displacement.
 """
 
 from __future__ import annotations
@@ -88,35 +91,84 @@ def _augmented(rotor, omega, points):
     return Ma, Ca, Ka
 
 
-def ring_system_eigen(rotor, params_list, omega):
+def _spin_terms(fr: FloatingRing):
+    """Central differences of the quasi-static ring bearing at its state: (dT, dFi, dFo) with
+    dT (9,) the net ring torque per (x_j, y_j, vx_j, vy_j, x_r, y_r, vx_r, vy_r, Omega) and
+    dFi, dFo (2,) the inner/outer film force per Omega."""
+    j = np.array(fr._journal, dtype=float)
+    z0 = np.concatenate([j[:4], fr._ring, [fr._Om]])
+    c = fr.params.inner.c
+    steps = np.array([1e-5 * c] * 2 + [1e-5 * c * j[4]] * 2 + [1e-5 * c] * 2 + [1e-5 * c * j[4]] * 2
+                     + [1e-6 * j[4]])
+
+    def ev(z):
+        m = FloatingRing(fr.params.replace(floating=1))
+        m.initialize(*z[:4], j[4], ring=tuple(z[4:8]), omega_ring=z[8])
+        o = m.outputs
+        return o["T_ring_inner"] + o["T_ring_outer"], np.array([o["Fx"], o["Fy"]]), m._Fo.copy()
+
+    dT = np.empty(9)
+    for k in range(9):
+        zp, zm = z0.copy(), z0.copy()
+        zp[k] += steps[k]
+        zm[k] -= steps[k]
+        (tp, fip, fop), (tm, fim, fom) = ev(zp), ev(zm)
+        dT[k] = (tp - tm) / (2 * steps[k])
+    dFi, dFo = (fip - fim) / (2 * steps[8]), (fop - fom) / (2 * steps[8])
+    return dT, dFi, dFo
+
+
+def ring_system_eigen(rotor, params_list, omega, spin=False):
     """Eigenvalues [1/s] of the rotor in floating-ring bearings (one RingParams per bearing
-    station) at journal speed omega [rad/s], and the operating points used."""
+    station) at journal speed omega [rad/s], and the operating points used (module doc)."""
     loads = static_bearing_loads(rotor)
     points = [operating_point(p, float(-ld[1]), omega) for p, ld in zip(params_list, loads)]
     M, C, K = _augmented(rotor, omega, points)
     N = M.shape[0]
+    n = rotor.n_dof
     Mi = np.linalg.inv(M)
-    A = np.block([[np.zeros((N, N)), np.eye(N)], [-Mi @ K, -Mi @ C]])
+    ns = len(points) if spin and all(p.floating for p in params_list) else 0
+    A = np.zeros((2 * N + ns, 2 * N + ns))
+    A[:N, N:2 * N] = np.eye(N)
+    A[N:2 * N, :N] = -Mi @ K
+    A[N:2 * N, N:2 * N] = -Mi @ C
+    for k in range(ns):
+        fr = points[k]
+        dT, dFi, dFo = _spin_terms(fr)
+        jd = list(rotor.bearing_dofs[k])
+        rd = [n + 2 * k, n + 2 * k + 1]
+        col = 2 * N + k
+        F = np.zeros(N)                            # force per Omega on each DOF
+        F[jd] += dFi
+        F[rd] += -dFi + dFo
+        A[N:2 * N, col] = Mi @ F
+        row = np.zeros(2 * N + ns)
+        row[jd] += dT[0:2]
+        row[[N + d for d in jd]] += dT[2:4]
+        row[rd] += dT[4:6]
+        row[[N + d for d in rd]] += dT[6:8]
+        row[col] = dT[8]
+        A[col] = row / fr.params.J_ring
     return np.linalg.eigvals(A), points
 
 
-def _max_re(rotor, params_list, omega):
-    lam, _ = ring_system_eigen(rotor, params_list, omega)
+def _max_re(rotor, params_list, omega, spin=False):
+    lam, _ = ring_system_eigen(rotor, params_list, omega, spin)
     k = int(np.argmax(lam.real))
     return float(lam.real[k]), float(abs(lam.imag[k]))
 
 
-def ring_threshold_speed(rotor, params_list, omega_min, omega_max, n_scan=40):
+def ring_threshold_speed(rotor, params_list, omega_min, omega_max, n_scan=40, spin=False):
     """(lowest unstable speed [rad/s], whirl frequency there [rad/s]) in [omega_min, omega_max],
     or (None, None); (omega_min, whirl) when already unstable at omega_min."""
     ws = np.linspace(omega_min, omega_max, n_scan)
-    f = lambda w: _max_re(rotor, params_list, w)[0]
+    f = lambda w: _max_re(rotor, params_list, w, spin)[0]
     prev = ws[0]
     if f(prev) >= 0:
-        return float(prev), _max_re(rotor, params_list, prev)[1]
+        return float(prev), _max_re(rotor, params_list, prev, spin)[1]
     for w in ws[1:]:
         if f(w) >= 0:
             wt = brentq(f, prev, w, xtol=1e-6 * w, rtol=1e-9)
-            return wt, _max_re(rotor, params_list, wt)[1]
+            return wt, _max_re(rotor, params_list, wt, spin)[1]
         prev = w
     return None, None

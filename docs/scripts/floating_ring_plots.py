@@ -25,7 +25,7 @@ def main(run_dir, prefix, bearing="bearing1", station="1"):
     cols = read_results(Path(run_dir) / "results.csv")
     t, om = cols["time"], cols["rotor.omega"]
     z = cols[f"rotor.x_{station}"] + 1j * cols[f"rotor.y_{station}"]
-    wf = waterfall(t, z, om, WhirlParams())
+    wf = waterfall(t, z, om, WhirlParams(window_revs=32))
     ratio = cols[f"{bearing}.omega_ring"] / np.where(om > 0, om, np.nan)
     f_hz = om / (2 * np.pi)
     fig, ax = plt.subplots(figsize=(7, 5))
