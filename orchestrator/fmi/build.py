@@ -75,6 +75,8 @@ SLAVE_PLUMBING = REPO / "fmu_common"
 RECIPES: dict[str, FmuRecipe] = {
     "JournalBearing": FmuRecipe("JournalBearing", REPO / "bearing_fmu" / "journal_bearing.py",
                                 (REPO / "bearing_fmu", SLAVE_PLUMBING)),
+    "FloatingRingBearing": FmuRecipe("FloatingRingBearing", REPO / "bearing_fmu" / "floating_ring_bearing.py",
+                                     (REPO / "bearing_fmu", SLAVE_PLUMBING)),
     "JeffcottRotor": FmuRecipe("JeffcottRotor", REPO / "rotor_fmu" / "jeffcott_rotor.py",
                                (REPO / "rotor_fmu", SLAVE_PLUMBING)),
     "TurbochargerRotor": FmuRecipe("TurbochargerRotor", REPO / "rotor_fmu" / "turbocharger_rotor.py",
