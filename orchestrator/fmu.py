@@ -38,6 +38,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .errors import FmuCallError, FmuError, LifecycleError, ScenarioError
+from .fmi.values import FAMILY, TypedBatch, settable_problem
 from .fmu_archive import ModelDescription, Variable, binary_path, read_model_description, safe_extract
 
 log = logging.getLogger(__name__)
@@ -154,6 +155,26 @@ class SubsystemBase(ABC):
                 raise ScenarioError(f"'{self.name}.{v.name}' is of type {v.type}, expected Real for a coupling "
                                     "or recorded signal; connect or record Real variables only")
         return RealBatch([v.name for v in vs], [v.value_reference for v in vs])
+
+    def typed_batch(self, names: Sequence[str], family: str) -> TypedBatch:
+        """A :class:`TypedBatch` of ``family`` ("Integer" also holds Enumeration) for variables ``names``."""
+        vs = [self.variable(n) for n in names]
+        for v in vs:
+            if FAMILY.get(v.type) != family:
+                raise ScenarioError(f"'{self.name}.{v.name}' is of type {v.type}, not of the {family} family")
+        return TypedBatch(family, [v.name for v in vs], [v.value_reference for v in vs])
+
+    def set_values(self, batch: TypedBatch) -> None:
+        """fmi2SetInteger/Boolean/String with ``batch`` (non-Real coupling signals)."""
+        raise LifecycleError(f"subsystem '{self.name}' has no {batch.family} variables to set")
+
+    def get_values(self, batch: TypedBatch) -> None:
+        """fmi2GetInteger/Boolean/String into ``batch``."""
+        raise LifecycleError(f"subsystem '{self.name}' has no {batch.family} variables to get")
+
+    def terminated_by_fmu(self) -> bool:
+        """True if the FMU has ended the simulation (fmi2GetBooleanStatus(fmi2Terminated) after fmi2Discard)."""
+        return False
 
     def derivative_batch(self, names: Sequence[str], max_order: int) -> RealBatch:
         """Batch of entries (vr, order) for orders 1..max_order, order-major."""
@@ -302,9 +323,10 @@ class Subsystem(SubsystemBase):
         from fmpy.fmi2 import fmi2Boolean, fmi2Integer, fmi2Real, fmi2String, fmi2ValueReference
         for pname, value in values.items():
             v = self.variable(pname)
-            if v.causality not in ("parameter", "input") and v.variability != "tunable":
-                raise ScenarioError(f"'{self.name}.{pname}' has causality '{v.causality}', expected a parameter "
-                                    "(or input); set only parameters under 'parameters:'")
+            why = settable_problem(v)
+            if why is not None:
+                raise ScenarioError(f"'{self.name}.{pname}' cannot be given a value before initialization: it is "
+                                    f"{why}; remove it from 'parameters:'")
             vr = (fmi2ValueReference * 1)(v.value_reference)
             try:
                 if v.type == "Real":
@@ -341,6 +363,26 @@ class Subsystem(SubsystemBase):
     def exit_initialization_mode(self) -> None:
         self._call("fmi2ExitInitializationMode", self._component)
         self._state = "stepping"
+
+    def set_values(self, batch: TypedBatch) -> None:
+        if batch.n:
+            self._call(f"fmi2Set{batch.family}", self._component, batch.c_vrs, batch.n, batch.c_values)
+
+    def get_values(self, batch: TypedBatch) -> None:
+        if batch.n:
+            self._call(f"fmi2Get{batch.family}", self._component, batch.c_vrs, batch.n, batch.c_values)
+
+    def terminated_by_fmu(self) -> bool:
+        """fmi2GetBooleanStatus(fmi2Terminated) (FMI 2.0 sec. 4.2.3); False if the FMU cannot answer."""
+        from fmpy.fmi2 import fmi2Boolean
+        flag = fmi2Boolean(0)
+        try:
+            res = self._f["fmi2GetBooleanStatus"](self._component, 3, ctypes.byref(flag))   # 3 = fmi2Terminated
+        except Exception as e:   # PythonFMU and others may not implement it
+            log.debug("%s: fmi2GetBooleanStatus(fmi2Terminated) raised %s", self.name, e)
+            return False
+        self.calls["getStatus"] += 1
+        return res == 0 and bool(flag.value)
 
     # -- hot path (no allocation) ------------------------------------------------
     def set_real(self, batch: RealBatch) -> None:
@@ -399,8 +441,10 @@ class Subsystem(SubsystemBase):
 
     # -- end ----------------------------------------------------------------------
     def terminate(self) -> None:
-        """fmi2Terminate, unless the instance is in an error state (FMI forbids it then)."""
-        if self._state in ("initializing", "stepping", "instantiated"):
+        """fmi2Terminate after initialization (states stepComplete/stepFailed) only: FMI 2.0 allows
+        fmi2Terminate in no other state (sec. 4.2.4), so an instance still instantiated or in
+        initialization mode, or in an error state, is only freed."""
+        if self._state == "stepping":
             self._state = "terminated"
             self._call("fmi2Terminate", self._component)
 

@@ -56,10 +56,12 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from .coupling.discrete import DiscreteSignals
 from .errors import CouplingError, FmuCallError, LifecycleError, ScenarioError
 from .fmu import RealBatch, Subsystem, SubsystemBase
 from .observers import Observer, Recorder, RunView
 from .results import CoSimResult, Status
+from .results_writer import TimeGrid
 from .schemes import ConstantStep, CouplingScheme, StepSizeController, scheme_from_spec
 from .signals import MAX_ORDER, History, LagrangePredictor
 
@@ -120,6 +122,7 @@ class _Unit:
         self.HI = None
         self.nE = 0
         self.nI = 0
+        self.disc = False                   # has non-Real inputs or outputs (orchestrator.coupling.discrete)
 
 
 class MasterAlgorithm:
@@ -222,6 +225,7 @@ class MasterAlgorithm:
         problems = []
         seen_dst = {}
         conns = []
+        discrete = []
         for c in sc.connections:
             si, di = c.src_instance, c.dst_instance
             for inst, what in ((si, c.src), (di, c.dst)):
@@ -236,9 +240,9 @@ class MasterAlgorithm:
             except ScenarioError as e:
                 problems.append(f"connection {c.src} -> {c.dst}: {e.problems[0]}")
                 continue
-            if vs.type != "Real" or vd.type != "Real":
-                problems.append(f"connection {c.src} -> {c.dst}: types {vs.type} -> {vd.type}; the master couples "
-                                "Real variables only")
+            if vs.type != vd.type:
+                problems.append(f"connection {c.src} -> {c.dst}: type mismatch, '{c.src}' is {vs.type} but "
+                                f"'{c.dst}' is {vd.type}; connect variables of the same type")
                 continue
             if vd.causality != "input":
                 problems.append(f"connection {c.src} -> {c.dst}: '{c.dst}' has causality '{vd.causality}', "
@@ -249,6 +253,12 @@ class MasterAlgorithm:
                                 "connect each input once")
                 continue
             seen_dst[c.dst] = c.src
+            if vs.type != "Real":
+                if c.gain != 1.0 or c.offset != 0.0:
+                    problems.append(f"connection {c.src} -> {c.dst}: gain/offset apply to Real connections only "
+                                    f"(this one is {vs.type}); remove them")
+                discrete.append((si, c.src_variable, di, c.dst_variable))
+                continue
             conns.append(c)
         if problems:
             raise ScenarioError(problems)
@@ -262,14 +272,22 @@ class MasterAlgorithm:
                 u.ext_names.append(c.dst_variable)
         # outputs to read: coupling sources + recorded signals
         columns = self._columns(units)
+        kinds = [units[c.split(".", 1)[0]].sub.variable(c.split(".", 1)[1]).type for c in columns]
         for c in conns:
             u = units[c.src_instance]
             if c.src_variable not in u.out_names:
                 u.out_names.append(c.src_variable)
-        for col in columns:
+        for col, kind in zip(columns, kinds):
             inst, var = col.split(".", 1)
-            if var not in units[inst].out_names:
+            if kind == "Real" and var not in units[inst].out_names:
                 units[inst].out_names.append(var)
+        self.discrete = DiscreteSignals(
+            {n: u.sub for n, u in units.items()}, discrete,
+            [c for c, k in zip(columns, kinds) if k != "Real"],
+            lambda a, b: self.scheme.uses_new_value(a, b, order))
+        for u in units.values():
+            port = self.discrete.ports[u.name]
+            u.disc = bool(port.inb or port.outb)
         sizes = []
         for u in units.values():
             u.nE, u.nI = len(u.ext_names), len(u.int_names)
@@ -302,11 +320,15 @@ class MasterAlgorithm:
         self.units = [units[n] for n in order]
         # record plan: (outb values, positions, row columns)
         self.columns = columns
+        self.kinds = kinds
         col_index = {c: i for i, c in enumerate(columns)}
         self._rec = []
+        real_cols = [c for c, k in zip(columns, kinds) if k == "Real"]
+        self._rec_typed = [(col_index[c], self.discrete.value_reader(*c.split(".", 1)))
+                           for c, k in zip(columns, kinds) if k != "Real"]
         for u in self.units:
-            pos = [u.out_names.index(c.split(".", 1)[1]) for c in columns if c.split(".", 1)[0] == u.name]
-            cols = [col_index[c] for c in columns if c.split(".", 1)[0] == u.name]
+            pos = [u.out_names.index(c.split(".", 1)[1]) for c in real_cols if c.split(".", 1)[0] == u.name]
+            cols = [col_index[c] for c in real_cols if c.split(".", 1)[0] == u.name]
             if pos:
                 self._rec.append((u.outb.values, np.asarray(pos, dtype=np.intp), np.asarray(cols, dtype=np.intp)))
         H = self.scenario.coupling.macro_step
@@ -333,7 +355,9 @@ class MasterAlgorithm:
                     "built with state support")
             for u in self.units:
                 u.sub.no_set_prior_state = False    # we may restore the state saved before each macro step
-        self.view = RunView(columns, self.grid.time(0), self.grid.time(self.grid.n_steps), self.grid.n_steps)
+        g = self.grid
+        tgrid = (TimeGrid(g.t0, g.h, t_stop=g.t_stop, n_stop=g.n_steps) if isinstance(g, ConstantStep) else None)
+        self.view = RunView(columns, g.time(0), g.time(g.n_steps), g.n_steps, kinds=kinds, grid=tgrid)
 
     def _columns(self, units) -> list[str]:
         sig = self.scenario.output.signals
@@ -342,7 +366,7 @@ class MasterAlgorithm:
             for u in units.values():
                 md = getattr(u.sub, "md", None)
                 if md is not None:
-                    cols += [f"{u.name}.{v.name}" for v in md.outputs() if v.type == "Real"]
+                    cols += [f"{u.name}.{v.name}" for v in md.outputs()]
                 else:
                     cols += [f"{u.name}.{n}" for n in getattr(u.sub, "output_names", ())]
             return cols
@@ -354,9 +378,7 @@ class MasterAlgorithm:
                 continue
             inst, var = s.split(".", 1)
             try:
-                v = units[inst].sub.variable(var)
-                if v.type != "Real":
-                    problems.append(f"output signal '{s}' is of type {v.type}; record Real variables only")
+                units[inst].sub.variable(var)
             except ScenarioError as e:
                 problems.append(f"output signal '{s}': {e.problems[0]}")
         if problems:
@@ -401,6 +423,10 @@ class MasterAlgorithm:
         for it in range(INIT_EXCHANGE_ITERATIONS):
             changed = False
             before = [b.copy() for b in self.history.blocks]
+            if self.discrete.active:
+                d_before = self.discrete.snapshot()
+                self.discrete.exchange_all()
+                changed = any(not np.array_equal(a, b) for a, b in zip(d_before, self.discrete.snapshot()))
             for u in self.units:
                 u.sub.get_real(u.outb)
                 self._propagate(u, self.grid.time(0))
@@ -445,6 +471,8 @@ class MasterAlgorithm:
                        "coupling.discard_retries) or use a smaller coupling.macro_step", t)
             return self.status
         except FmuCallError as e:
+            if self._fmu_ended(e):
+                return self._stopped_by_fmu(e.instance, t)
             self._fail(self._fmu_message(e, t, t_next), t)
             return self.status
         except CouplingError as e:
@@ -476,6 +504,7 @@ class MasterAlgorithm:
         hist = self.history
         states = [u.sub.get_state() for u in self.units]
         snap = hist.snapshot()
+        dsnap = self.discrete.snapshot()
         for u in self.units:
             u.sub.no_set_prior_state = False      # we will restore the saved state
         try:
@@ -486,10 +515,12 @@ class MasterAlgorithm:
                 for u, s in zip(self.units, states):
                     u.sub.set_state(s)
                 hist.restore(snap)
+                self.discrete.restore(dsnap)
                 for b, r in zip(hist.blocks, new_rows):
                     b[0] = r
                 self._step_impl(t, t_next, commit=False, startup_q=q)
             hist.commit()
+            self.discrete.commit()
         finally:
             for u in self.units:
                 u.sub.no_set_prior_state = self._no_prior
@@ -535,18 +566,19 @@ class MasterAlgorithm:
         states = self._save_states()
         try:
             snap = hist.snapshot()
+            dsnap = self.discrete.snapshot()
             try:
                 self._advance(t, t_next)
                 return
             except FmuCallError as e:
-                if e.status != "discard":
+                if e.status != "discard" or self._fmu_ended(e):
                     raise
                 first = e
             self.retried_steps += 1
             self.rejected_steps += 1
             self._retry_depth = 0
             rounds0 = self.retry_substeps
-            self._split(t, t_next, 1, states, snap)
+            self._split(t, t_next, 1, states, (snap, dsnap))
             # the sub-steps committed their end points; keep only t_next on the nominal grid
             new_rows = [b[1].copy() for b in hist.blocks]
             hist.restore(snap)
@@ -570,7 +602,8 @@ class MasterAlgorithm:
         hist = self.history
         for u, s in zip(self.units, states_a, strict=True):
             u.sub.set_state(s)
-        hist.restore(snap_a)
+        hist.restore(snap_a[0])
+        self.discrete.restore(snap_a[1])
         self._retry_depth = max(self._retry_depth, level)
         t_m = t_a + 0.5 * (t_b - t_a)
         deepest = level >= self.discard_retries
@@ -578,13 +611,13 @@ class MasterAlgorithm:
             if a == t_a or deepest:
                 st, sn = states_a, snap_a        # first half starts from the restored state; deepest: no reuse
             else:
-                st, sn = self._save_states(), hist.snapshot()
+                st, sn = self._save_states(), (hist.snapshot(), self.discrete.snapshot())
             try:
                 self.retry_substeps += 1
                 try:
                     self._advance(a, b)
                 except FmuCallError as e:
-                    if e.status != "discard":
+                    if e.status != "discard" or self._fmu_ended(e):
                         raise
                     if deepest:
                         raise _RetriesExhausted(e, a, b) from e
@@ -619,6 +652,8 @@ class MasterAlgorithm:
             nE, nI = u.nE, u.nI
             vals = u.inb.values
             hs = h / m
+            if u.disc:
+                self.discrete.set_inputs(u.name)
             if u.derb is None:
                 if nE or nI:
                     HE = u.HE[w.e0:w.e1]
@@ -660,8 +695,11 @@ class MasterAlgorithm:
                 sub.set_real(u.inb)
             sub.get_real(u.outb)
             self._propagate(u, t_next)
+            if u.disc:
+                self.discrete.read(u.name)
         if commit:
             hist.commit()
+            self.discrete.commit()
 
     def _propagate(self, u: _Unit, t: float) -> None:
         out = u.outb.values
@@ -693,6 +731,25 @@ class MasterAlgorithm:
             "extrapolation_order, or the gauss-seidel scheme")
 
     # ---------------------------------------------------------------- helpers
+    def _fmu_ended(self, e: FmuCallError) -> bool:
+        """Did the FMU that discarded this step end the simulation (fmi2Terminated, FMI 2.0 sec. 4.2.3)?"""
+        if e.status != "discard" or e.function != "fmi2DoStep":
+            return False
+        sub = self.subsystems.get(e.instance)
+        return sub is not None and sub.terminated_by_fmu()
+
+    def _stopped_by_fmu(self, instance: str, t: float) -> Status:
+        """Finish cleanly at ``t`` (the last communication point every FMU completed): rows kept, no retry."""
+        self.status = Status.STOPPED_BY_FMU
+        self.message = (f"FMU instance '{instance}' ended the simulation at t={t:.12g} s (fmi2DoStep returned "
+                        f"fmi2Discard and fmi2GetBooleanStatus(fmi2Terminated) is true) after {self.n} macro steps; "
+                        f"rows up to t={t:.12g} s are kept")
+        self.end_time = t
+        self.view.status = self.status
+        self.view.message = self.message
+        log.info("%s", self.message)
+        return self.status
+
     def _fmu_message(self, e: FmuCallError, t: float, t_next: float) -> str:
         what = {"discard": "could not complete the step (fmi2Discard)",
                 "error": "reported an error (fmi2Error)",
@@ -723,6 +780,11 @@ class MasterAlgorithm:
             row = view.row
             for values, pos, cols in self._rec:
                 row[cols] = values[pos]
+            if self._rec_typed:
+                typed = view.typed
+                for i, read in self._rec_typed:
+                    v = typed[i] = read()
+                    row[i] = math.nan if isinstance(v, str) else float(v)
 
     # ------------------------------------------------------------- terminate
     def terminate(self) -> None:

@@ -83,15 +83,15 @@ def _formatter(kind: str):
 
 
 class ResultsWriter:
-    """Stream result rows to ``out_dir/results.csv`` (or ``results.parquet``).
+    """Stream result rows to ``path`` (``results.csv``, or ``results.parquet`` with ``format="parquet"``).
 
-    Call order: ``w = ResultsWriter(out_dir, columns, kinds)``; ``w.open()``;
+    Call order: ``w = ResultsWriter(path, columns, kinds)``; ``w.open()``;
     ``w.write(t, values)`` per row (``values`` aligned with ``columns``);
     ``w.close()`` (idempotent; also flushes). ``kinds`` gives the FMI type of
     each column (default all Real).
     """
 
-    def __init__(self, out_dir: Path | str, columns: Sequence[str], kinds: Sequence[str] | None = None, *,
+    def __init__(self, path: Path | str, columns: Sequence[str], kinds: Sequence[str] | None = None, *,
                  format: str = "csv", flush_interval: float = 1.0, parquet_rows: int = 65536):
         if format not in FORMATS:
             raise ValueError(f"output.format must be one of {list(FORMATS)} (got {format!r})")
@@ -102,7 +102,7 @@ class ResultsWriter:
         if "time" in self.columns:
             raise ValueError("a recorded signal may not be called 'time' (the first column)")
         self.format = format
-        self.path = Path(out_dir) / ("results.csv" if format == "csv" else "results.parquet")
+        self.path = Path(path)
         self.flush_interval = flush_interval
         self.rows = 0
         self._fmt = [_formatter(k) for k in self.kinds]
@@ -132,7 +132,8 @@ class ResultsWriter:
             if self._csv is None:
                 raise RuntimeError(f"{self.path}: write() before open() or after close()")
             if self._all_real:
-                self._csv.writerow((repr(float(t)), *map(repr, map(float, values))))
+                vals = values.tolist() if hasattr(values, "tolist") else map(float, values)
+                self._csv.writerow((repr(float(t)), *map(repr, vals)))
             else:
                 self._csv.writerow((repr(float(t)), *[f(v) for f, v in zip(self._fmt, values)]))
         else:

@@ -23,6 +23,7 @@ from typing import Any, Mapping, Sequence
 import yaml
 
 from orchestrator.errors import CosimError, ScenarioError
+from orchestrator.fmi.values import check_value, settable_problem
 
 log = logging.getLogger(__name__)
 
@@ -724,23 +725,28 @@ class _Loader:
             if variables is None:
                 out[pname] = value
                 continue
-            settable = [v.name for v in variables.values()
-                        if v.causality in ("parameter", "input") and v.variability != "constant"]
+            settable = [v.name for v in variables.values() if settable_problem(v) is None]
             var = variables.get(pname)
             if var is None:
                 self.err(node, f"'{name}' has no parameter '{pname}'; parameters of '{name}' (closest first): "
                                f"{_ranked(pname, settable)}")
                 continue
-            if pname not in settable:
-                self.err(node, f"'{name}.{pname}' is {_a(var.variability)} {var.causality}, not a parameter; only "
-                               f"parameters and inputs can be given values: {_ranked(pname, settable)}")
+            why = settable_problem(var)
+            if why is not None:
+                self.err(node, f"'{name}.{pname}' is {_a(var.variability)} {var.causality}, not a parameter, and "
+                               f"cannot be given a value before initialization: it is {why}; variables that can "
+                               f"(closest first): {_ranked(pname, settable)}")
                 continue
-            conv = _convert(value, var.type)
+            conv = _convert(value, var.type) if var.type != "Enumeration" or not isinstance(value, str) else value
             if conv is None:
                 example = {"Real": "1.5", "Integer": "3", "Enumeration": "1", "Boolean": "true",
                            "String": '"text"'}.get(var.type, "a value")
                 self.err(node, f"parameter '{name}.{pname}' is {var.type} (got {self.got(node)}); write a "
                                f"{var.type} value such as {example}")
+                continue
+            conv, problem = check_value(var, conv, f"{name}.{pname}")
+            if problem is not None:
+                self.err(node, f"parameter {problem}")
                 continue
             out[pname] = conv
         return out
@@ -770,10 +776,13 @@ class _Loader:
                 continue
             if src.type != dst.type:
                 self.err(c["node"], f"type mismatch: '{c['from']}' is {src.type} but '{c['to']}' is {dst.type}; "
-                                    "connect variables of the same type (Real to Real)")
+                                    "connect variables of the same type (Real to Real, Integer to Integer, ...)")
             elif src.type != "Real":
-                self.err(c["node"], f"'{c['from']}' -> '{c['to']}' couples {src.type} variables, but the master "
-                                    "couples (and extrapolates) Real signals only; connect Real variables")
+                for key in ("gain", "offset"):
+                    if key + "_node" in c:
+                        self.err(c[key + "_node"], f"'{key}' of the connection '{c['from']}' -> '{c['to']}': gain "
+                                                   f"and offset apply to Real connections only (this one is "
+                                                   f"{src.type}, held over the macro step); remove '{key}'")
 
     def variable(self, signal: str, node, what: str, want: str | None = None):
         """The model variable named by ``instance.variable`` or None (problem reported)."""
@@ -800,10 +809,7 @@ class _Loader:
             if "." not in s:
                 self.err(node, f"'{what}' entries must be 'instance.variable' (got {s!r}); add the instance name")
                 continue
-            var = self.variable(s, node, f"'{what}' entry {s!r}")
-            if var is not None and var.type != "Real":
-                self.err(node, f"'{what}' entry {s!r} is {_a(var.type)} variable; results.csv records Real "
-                               "variables only: remove it")
+            self.variable(s, node, f"'{what}' entry {s!r}")
 
     def check_analysis(self, node, signals) -> None:
         recorded = None if signals is None else {s for s, _ in signals}

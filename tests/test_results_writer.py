@@ -28,7 +28,7 @@ def test_time_grid_prints_as_written():
 
 def test_quoted_header_keeps_structured_names_in_one_column(tmp_path):
     cols = ["m[1,2]", "a.b", 'q"x']
-    w = ResultsWriter(tmp_path, cols)
+    w = ResultsWriter(tmp_path / "results.csv", cols)
     w.open()
     w.write(0.0, [1.0, 2.0, 3.0])
     w.write(0.5, [4.0, 5.0, 6.0])
@@ -40,7 +40,7 @@ def test_quoted_header_keeps_structured_names_in_one_column(tmp_path):
 
 
 def test_no_signals_gives_time_only(tmp_path):
-    w = ResultsWriter(tmp_path, [])
+    w = ResultsWriter(tmp_path / "results.csv", [])
     w.open()
     w.write(0.0, [])
     w.write(0.1, [])
@@ -49,7 +49,7 @@ def test_no_signals_gives_time_only(tmp_path):
 
 
 def test_types_are_written_as_their_type(tmp_path):
-    w = ResultsWriter(tmp_path, ["r", "i", "b", "s", "e"], ["Real", "Integer", "Boolean", "String", "Enumeration"])
+    w = ResultsWriter(tmp_path / "results.csv", ["r", "i", "b", "s", "e"], ["Real", "Integer", "Boolean", "String", "Enumeration"])
     w.open()
     w.write(0.0, [0.5, 3, True, "a,b", 2])
     w.write(1.0, [np.float64(1.5), np.int32(-4), False, "", 1])
@@ -60,7 +60,7 @@ def test_types_are_written_as_their_type(tmp_path):
 
 
 def test_rows_reach_the_file_before_close(tmp_path):
-    w = ResultsWriter(tmp_path, ["x"], flush_interval=0.0)
+    w = ResultsWriter(tmp_path / "results.csv", ["x"], flush_interval=0.0)
     w.open()
     w.write(0.0, [1.0])
     assert (tmp_path / "results.csv").read_text() == "time,x\n0.0,1.0\n"
@@ -68,7 +68,7 @@ def test_rows_reach_the_file_before_close(tmp_path):
 
 
 def test_memory_is_flat_in_rows(tmp_path):
-    w = ResultsWriter(tmp_path, [f"s{i}" for i in range(8)])
+    w = ResultsWriter(tmp_path / "results.csv", [f"s{i}" for i in range(8)])
     w.open()
     row = [0.1 * i for i in range(8)]
     g = TimeGrid(0.0, 1e-4)
@@ -87,7 +87,7 @@ def test_memory_is_flat_in_rows(tmp_path):
 
 def test_parquet_same_columns(tmp_path):
     pq = pytest.importorskip("pyarrow.parquet")
-    w = ResultsWriter(tmp_path, ["m[1,2]", "i", "b", "s"], ["Real", "Integer", "Boolean", "String"],
+    w = ResultsWriter(tmp_path / "results.parquet", ["m[1,2]", "i", "b", "s"], ["Real", "Integer", "Boolean", "String"],
                       format="parquet", parquet_rows=2)
     w.open()
     for n in range(5):
@@ -102,6 +102,6 @@ def test_parquet_same_columns(tmp_path):
 
 def test_bad_arguments_are_reported(tmp_path):
     with pytest.raises(ValueError, match="output.format"):
-        ResultsWriter(tmp_path, ["x"], format="xlsx")
+        ResultsWriter(tmp_path / "results.csv", ["x"], format="xlsx")
     with pytest.raises(ValueError, match="'time'"):
-        ResultsWriter(tmp_path, ["time"])
+        ResultsWriter(tmp_path / "results.csv", ["time"])
