@@ -1,0 +1,193 @@
+"""Every FMI 2.0 variable type through the master, with the native AllTypes test FMU (tests/fmus_c).
+
+AllTypes is compiled with gcc at test time. Two instances are coupled with Real, Integer,
+Boolean, Enumeration and String connections. Closed forms: with ``b.n_in`` fed by ``a.count``
+(a.count(T(k)) = k) and ``b.count += 1 + b.n_in`` per step,
+
+* Jacobi (zero-order hold, b sees a's value at T(k) during step k): b.count(n) = n + n(n-1)/2;
+* Gauss-Seidel [a, b] (b sees a's new value at T(k+1)): b.count(n) = n + n(n+1)/2.
+
+The Jacobi run is also compared with libcosim (in a subprocess, as tests/test_interop.py does)
+for the Integer and Boolean signals: libcosim's fixed-step algorithm is Jacobi with zero-order hold.
+"""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+HERE = Path(__file__).resolve()
+H, N = 0.1, 20
+
+pytestmark = [pytest.mark.integration,
+              pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")]
+
+
+def _builder():
+    spec = importlib.util.spec_from_file_location("build_c_fmu", HERE.parent / "fmus_c" / "build_c_fmu.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory) -> Path:
+    d = tmp_path_factory.mktemp("alltypes")
+    b = _builder()
+    b.build_c_fmu(d, "AllTypes")
+    b.build_c_fmu(d, "AllTypes", fixed_step=True)
+    return d
+
+
+CONNECTIONS = [("a.count", "b.n_in"), ("a.b_out", "b.b_in"), ("b.b_out", "a.b_in"), ("a.e_out", "b.e_in"),
+               ("a.s_out", "b.s_in"), ("a.y", "b.u")]
+SIGNALS = ["a.count", "b.count", "a.b_out", "b.b_out", "b.e_out", "b.s_out", "b.x", "b.n_out"]
+
+
+def _yaml(d: Path, scheme: str = "jacobi", extra: str = "", params_a: str = "", stop: float = H * N) -> Path:
+    conns = "\n".join(f"  - {{from: {s}, to: {t}}}" for s, t in CONNECTIONS)
+    seq = ", sequence: [a, b]" if scheme == "gauss-seidel" else ""
+    p = d / f"s_{scheme}.yaml"
+    p.write_text(f"""name: alltypes
+stop_time: {stop}
+fmus:
+  a: {{path: AllTypes.fmu, parameters: {{u: 1.0, e_in: Fast, label: alpha{params_a}}}}}
+  b: {{path: AllTypes.fmu, parameters: {{x: 1.5, label: beta}}}}
+connections:
+{conns}
+coupling: {{scheme: {scheme}{seq}, macro_step: {H}, extrapolation_order: 0{extra}}}
+output: {{signals: [{', '.join(SIGNALS)}]}}
+""")
+    return p
+
+
+def _run(path: Path, out: Path):
+    import orchestrator
+    sc = orchestrator.load_scenario(path)
+    return orchestrator.run(sc, out_dir=out, progress=False)
+
+
+@pytest.mark.parametrize("scheme, delay", [("jacobi", 1), ("gauss-seidel", 0)])
+def test_non_real_signals_held_with_the_scheme_delay(fmus, tmp_path, scheme, delay):
+    res = _run(_yaml(fmus, scheme), tmp_path / scheme)
+    assert res.success, res.message
+    n = np.arange(N + 1)
+    np.testing.assert_array_equal(res.outputs["a.count"], n)
+    expected = n + n * (n - 1) // 2 if delay else n + n * (n + 1) // 2
+    np.testing.assert_array_equal(res.outputs["b.count"], expected)
+    assert set(res.outputs["b.e_out"]) == {3.0}                        # Enumeration item Fast travelled
+    assert list(res.outputs["b.s_out"]) == ["alpha"] * (N + 1)          # String travelled
+    np.testing.assert_allclose(res.outputs["b.x"], 1.5 + 2.0 * H * n, rtol=0, atol=1e-12)   # start value of a state
+    rows = list(csv.reader(open(tmp_path / scheme / "results.csv")))
+    assert rows[0] == ["time", *SIGNALS]
+    assert rows[4][0] == "0.3"                                          # time from the step index
+    assert rows[4][SIGNALS.index("b.s_out") + 1] == "alpha"
+    assert rows[4][SIGNALS.index("a.b_out") + 1] in ("0", "1")
+    assert rows[4][SIGNALS.index("b.count") + 1] == str(expected[3])
+
+
+def test_fmu_requested_stop_finishes_cleanly_without_retries(fmus, tmp_path):
+    import orchestrator
+    path = _yaml(fmus, "jacobi", extra=", discard_retries: 3", params_a=", stop_after: 7")
+    res = _run(path, tmp_path / "stop")
+    assert res.status is orchestrator.Status.STOPPED_BY_FMU and res.success
+    assert "FMU instance 'a' ended the simulation at t=0.7 s" in res.message
+    assert res.end_time == pytest.approx(0.7)
+    assert res.stats["retried_steps"] == 0 and res.stats["rejected_steps"] == 0
+    np.testing.assert_array_equal(res.outputs["a.count"], np.arange(8))
+    summary = json.loads((tmp_path / "stop" / "summary.json").read_text())
+    assert summary["status"] == "stopped_by_fmu"
+
+
+def test_value_outside_the_declared_range_is_a_load_error(fmus):
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    path = _yaml(fmus, "jacobi", params_a=", gain: 200, mode: Auto")
+    with pytest.raises(ScenarioError) as info:
+        orchestrator.load_scenario(path)
+    text = str(info.value)
+    assert "'a.gain' = 200.0 is outside its declared range [0.0, 100.0] (min/max of type Gain)" in text
+    assert "'a.mode' is an Enumeration of type Mode with items {Off=1, Slow=2, Fast=3}; got 'Auto'" in text
+
+
+def test_terminate_is_not_called_in_initialization_mode(fmus, tmp_path):
+    """FMI 2.0 allows fmi2Terminate only after initialization; AllTypes logs an illegal call otherwise."""
+    from orchestrator.fmu import Subsystem
+    sub = Subsystem("a", fmus / "AllTypes.fmu", work_dir=tmp_path)
+    try:
+        sub.setup_experiment(0.0, 1.0)
+        sub.enter_initialization_mode()
+        sub.terminate()
+        assert sub.calls["terminate"] == 0
+        assert not any("illegal" in m for m in sub._log_messages)
+    finally:
+        sub.free()
+
+
+# ------------------------------------------------------------------ libcosim cross-check
+def _libcosim_main(cfg_path: str, out_path: str) -> None:
+    from fmpy import read_model_description
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy.CosimSlave import CosimLocalSlave
+
+    cfg = json.loads(Path(cfg_path).read_text())
+    ex = CosimExecution.from_step_size(round(cfg["step"] * 1e9))
+    index, mds = {}, {}
+    for inst in ("a", "b"):
+        index[inst] = ex.add_local_slave(CosimLocalSlave(fmu_path=cfg["fmu"], instance_name=inst))
+        mds[inst] = {v.name: v for v in read_model_description(cfg["fmu"]).modelVariables}
+    vr = lambda sig: mds[sig.split(".")[0]][sig.split(".")[1]].valueReference
+    ex.real_initial_value(index["a"], vr("a.u"), 1.0)
+    ex.integer_initial_value(index["a"], vr("a.e_in"), 3)
+    ex.real_initial_value(index["b"], vr("b.x"), 1.5)
+    for s, t in cfg["connections"]:
+        kind = mds[s.split(".")[0]][s.split(".")[1]].type
+        # libcosimpy 0.0.6's connect_integer_variables calls a misspelt private attribute
+        connect = {"Real": ex.connect_real_variables, "Boolean": ex.connect_boolean_variables,
+                   "Integer": ex._CosimExecution__connect_int_variables}[kind]
+        args = (index[s.split(".")[0]], vr(s), index[t.split(".")[0]], vr(t))
+        rc = connect(ex._CosimExecution__ptr, *args) if kind == "Integer" else connect(*args)
+        assert rc == 0, f"libcosim refused {s} -> {t}"
+    obs = CosimObserver.create_last_value()
+    ex.add_observer(obs)
+    out = {k: [] for k in cfg["record"]}
+    for _ in range(cfg["n"]):
+        assert ex.step(1)
+        for sig in cfg["record"]:
+            inst = sig.split(".")[0]
+            kind = mds[inst][sig.split(".")[1]].type
+            get = obs.last_boolean_values if kind == "Boolean" else obs.last_integer_values
+            out[sig].append(int(get(index[inst], [vr(sig)])[0]))
+    np.savez(out_path, **{k: np.asarray(v) for k, v in out.items()})
+
+
+if __name__ == "__main__" and len(sys.argv) == 4 and sys.argv[1] == "--libcosim":
+    _libcosim_main(sys.argv[2], sys.argv[3])
+    sys.exit(0)
+
+
+def test_jacobi_integer_and_boolean_match_libcosim(fmus, tmp_path):
+    pytest.importorskip("libcosimpy")
+    record = ["a.count", "b.count", "a.b_out", "b.b_out", "b.n_out"]
+    conns = [c for c in CONNECTIONS if c[0].split(".")[1] in ("count", "b_out", "y")]
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(json.dumps({"fmu": str(fmus / "AllTypes.fmu"), "step": H, "n": N, "connections": conns,
+                               "record": record}))
+    proc = subprocess.run([sys.executable, str(HERE), "--libcosim", str(cfg), str(tmp_path / "lc.npz")],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    lc = np.load(tmp_path / "lc.npz")
+    res = _run(_yaml(fmus, "jacobi"), tmp_path / "ours")
+    assert res.success, res.message
+    for sig in record:
+        np.testing.assert_array_equal(np.asarray(res.outputs[sig])[1:], lc[sig], err_msg=sig)
+    assert len(set(lc["b.b_out"])) == 2                  # the Boolean loop really toggles
