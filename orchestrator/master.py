@@ -62,7 +62,7 @@ from .fmu import RealBatch, Subsystem, SubsystemBase
 from .observers import Observer, Recorder, RunView
 from .results import CoSimResult, Status
 from .results_writer import TimeGrid
-from .schemes import ConstantStep, CouplingScheme, StepSizeController, scheme_from_spec
+from .schemes import ConstantStep, CouplingScheme, StepSizeController, fixed_step_problem, scheme_from_spec
 from .signals import MAX_ORDER, History, LagrangePredictor
 
 log = logging.getLogger(__name__)
@@ -136,11 +136,14 @@ class MasterAlgorithm:
     subsystems : optional ``{name: SubsystemBase}`` to use instead of loading the
         scenario's FMUs (tests use plain-Python fakes); the master still frees them.
     scheme, step_size, predictor : policy objects; default from ``scenario.coupling``.
+    record_in_memory : keep the output rows for :meth:`result` (False: the caller streams them to
+        a file and reads them back, so memory stays flat in the number of rows).
     """
 
     def __init__(self, scenario, *, out_dir: Path | str | None = None, observers: Sequence[Observer] = (),
                  subsystems: Mapping[str, SubsystemBase] | None = None, scheme: CouplingScheme | None = None,
-                 step_size: StepSizeController | None = None, predictor: LagrangePredictor | None = None):
+                 step_size: StepSizeController | None = None, predictor: LagrangePredictor | None = None,
+                 record_in_memory: bool = True):
         self.scenario = scenario
         c = scenario.coupling
         self.out_dir = Path(out_dir) if out_dir is not None else None
@@ -148,7 +151,7 @@ class MasterAlgorithm:
         self.grid = step_size or ConstantStep(scenario.start_time, scenario.stop_time, c.macro_step)
         self.predictor = predictor or LagrangePredictor(extrapolation_order=c.extrapolation_order,
                                                         interpolation_order=c.interpolation_order)
-        self.recorder = Recorder()
+        self.recorder = Recorder(keep=record_in_memory)
         self.observers = [self.recorder, *observers]
         self._given = dict(subsystems) if subsystems is not None else None
         self.subsystems: dict[str, SubsystemBase] = {}
@@ -345,6 +348,12 @@ class MasterAlgorithm:
             log.info("extrapolation_order %d: not every FMU can save its state (canGetAndSetFMUstate), so the "
                      "first %d macro steps use lower-order extrapolation; this adds an O(H^2) start-up error "
                      "(see docs/coupling.md)", k, k - 1)
+        fixed = [u.name for u in self.units if getattr(getattr(u.sub, "md", None), "can_handle_variable_step", True)
+                 is False]
+        if isinstance(self.grid, ConstantStep):
+            why = fixed_step_problem(self.grid.t0, self.grid.t_stop, self.grid.h, fixed, self.discard_retries)
+            if why:
+                raise ScenarioError(f"{self._where()}{why}")
         if self.discard_retries:
             stateless = [u.name for u in self.units if not u.sub.can_get_set_state]
             if stateless:

@@ -206,3 +206,38 @@ def _clean(v, arrow_type):
     if str(arrow_type) == "double":
         return float(v)
     return v
+
+
+def read_back(path: Path | str, columns: Sequence[str], kinds: Sequence[str]):
+    """Read a file written by :class:`ResultsWriter` into ``(t, {column: array})``.
+
+    Numeric columns come back as float64 arrays (Integer/Boolean as their
+    numbers), String columns as object arrays of str.
+    """
+    import numpy as np
+
+    path = Path(path)
+    columns, kinds = list(columns), list(kinds)
+    if path.suffix == ".parquet":
+        import pyarrow.parquet as pq
+        table = pq.read_table(path)
+        t = np.asarray(table.column("time").to_numpy(), dtype=float)
+        out = {}
+        for c, k in zip(columns, kinds):
+            col = table.column(c).to_pylist()
+            out[c] = np.asarray(col, dtype=object if k == "String" else float)
+        return t, out
+    if "String" not in kinds:
+        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
+        data = data.reshape(-1, len(columns) + 1)
+        return data[:, 0].copy(), {c: data[:, i + 1].copy() for i, c in enumerate(columns)}
+    with open(path, newline="", encoding="utf-8") as f:
+        reader = csv.reader(f)
+        next(reader, None)
+        rows = list(reader)
+    t = np.asarray([float(r[0]) for r in rows])
+    out = {}
+    for i, (c, k) in enumerate(zip(columns, kinds)):
+        vals = [r[i + 1] for r in rows]
+        out[c] = np.asarray(vals, dtype=object) if k == "String" else np.asarray(vals, dtype=float)
+    return t, out

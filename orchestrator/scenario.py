@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import difflib
 import functools
+import importlib.util
 import logging
 import math
 import re
@@ -89,6 +90,7 @@ class OutputSpec:
 
     interval: float | None = None            # [s]; None -> macro_step
     signals: tuple[str, ...] | None = None   # None -> every connected or FMU output
+    format: str = "csv"                      # "csv" (results.csv) | "parquet" (results.parquet, needs pyarrow)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -107,6 +109,7 @@ class Scenario:
     source: Path | None = None               # the YAML file, if loaded from one
     analysis: Mapping[str, Any] | None = None  # optional run-up analysis section (see docs/scenario-format.md)
     compare: Mapping[str, Any] | None = None   # optional compare section (see docs/compare.md)
+    defaults: Mapping[str, str] = field(default_factory=dict)  # values taken from the FMUs' DefaultExperiment
 
     def fmu(self, name: str) -> FmuSpec:
         for f in self.fmus:
@@ -126,7 +129,8 @@ FMU_KEYS = ("path", "parameters", "substeps")
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
                  "interpolation_order", "substeps", "discard_retries", "options")
-OUTPUT_KEYS = ("interval", "signals")
+OUTPUT_KEYS = ("interval", "signals", "format")
+OUTPUT_FORMATS = ("csv", "parquet")
 MAX_ORDER = 3
 MAX_DISCARD_RETRIES = 30          # smallest retried step H / 2^30 (orchestrator.master has the same limit)
 # override navigation: (schema, key) -> schema of the child; (schema) -> default
@@ -194,6 +198,9 @@ def _did_you_mean(name: str, candidates) -> str:
     return f"did you mean '{close[0]}'? " if close else ""
 
 
+_FROM_FMUS = object()        # stop_time not written: taken from the FMUs' DefaultExperiment
+
+
 def _a(word: str) -> str:
     return f"an {word}" if word[:1].lower() in "aeiou" else f"a {word}"
 
@@ -212,6 +219,9 @@ class _Loader:
         self.mds: dict[str, dict] = {}         # instance -> {variable name: fmpy variable} (readable FMUs)
         self.instances: list[str] = []         # every instance name written under 'fmus'
         self.fmu_specs: list[dict] = []        # parsed 'fmus' entries
+        self.des: dict[str, dict] = {}         # instance -> DefaultExperiment {startTime, stopTime, stepSize}
+        self.fixed_step: list[str] = []        # instances with canHandleVariableCommunicationStepSize false
+        self.output_format = "csv"
 
     # -- helpers -----------------------------------------------------------
     def loc(self, node) -> str:
@@ -426,8 +436,8 @@ class _Loader:
                                 "mappings only (write '<<: *anchor' or '<<: [*a, *b]')") from None
         for text in self.overrides:
             self.apply_override(root, text)
-        top = self.mapping(root, "top level", TOP_KEYS, ("name", "stop_time", "fmus"),
-                           fix="a scenario is a mapping with at least 'name', 'stop_time' and 'fmus'")
+        top = self.mapping(root, "top level", TOP_KEYS, ("name", "fmus"),
+                           fix="a scenario is a mapping with at least 'name' and 'fmus'")
         if top is None:
             return None
         get = lambda key: top[key][1] if key in top else None      # noqa: E731
@@ -456,7 +466,7 @@ class _Loader:
                 kw["description"] = d
         start = self.number(get("start_time"), "start_time") if "start_time" in top else 0.0
         kw["start_time"] = start
-        stop = None
+        stop = _FROM_FMUS if "stop_time" not in top else None
         if "stop_time" in top:
             stop = self.number(get("stop_time"), "stop_time", fix="write the end time in seconds, e.g. 0.5")
             if stop is not None and start is not None and stop <= start:
@@ -467,8 +477,9 @@ class _Loader:
         fmus = self.load_fmus(get("fmus")) if "fmus" in top else []
         self.fmu_specs = fmus
         names = [f["name"] for f in fmus]
-        coupling = self.load_coupling(get("coupling"), names, start, stop)
-        interval, signals = self.load_output(get("output"), stop, start)
+        given_stop = None if stop is _FROM_FMUS else stop
+        coupling = self.load_coupling(get("coupling"), names, start, given_stop)
+        interval, signals = self.load_output(get("output"), given_stop, start)
         connections = self.load_connections(get("connections"))
         for key in ("analysis", "compare"):
             if key in top:
@@ -483,6 +494,8 @@ class _Loader:
             self.ensure_fmus(kw, fmus, connections, coupling, interval, signals)
         for f in fmus:
             self.read_fmu(f)
+        kw["defaults"] = self.apply_defaults(kw, coupling, top, fmus, root)
+        self.check_fixed_step(kw, coupling, root)
         params = {f["name"]: self.check_parameters(f) for f in fmus}
         self.check_connections(connections)
         self.check_signals(signals, "output.signals")
@@ -496,7 +509,8 @@ class _Loader:
             connections=tuple(ConnectionSpec(src=c["from"], dst=c["to"], gain=c["gain"], offset=c["offset"],
                                              line=c["line"]) for c in connections),
             coupling=CouplingSpec(**coupling),
-            output=OutputSpec(interval=interval, signals=signals and tuple(s for s, _ in signals)),
+            output=OutputSpec(interval=interval, signals=signals and tuple(s for s, _ in signals),
+                              format=self.output_format),
             **kw)
 
     # -- sections ----------------------------------------------------------
@@ -617,12 +631,24 @@ class _Loader:
         return c if ok else None
 
     def load_output(self, node, stop, start):
+        self.output_format = "csv"
         if node is None:
             return None, None
         section = self.mapping(node, "output", OUTPUT_KEYS)
         if section is None:
             return None, None
         interval = signals = None
+        if "format" in section:
+            fnode = section["format"][1]
+            fmt = self.string(fnode, "output.format", "write 'csv' or 'parquet'")
+            if fmt is not None and fmt not in OUTPUT_FORMATS:
+                self.err(fnode, f"'output.format' must be one of {list(OUTPUT_FORMATS)} (got {fmt!r}); write 'csv' "
+                                "or 'parquet'")
+            elif fmt == "parquet" and importlib.util.find_spec("pyarrow") is None:
+                self.err(fnode, "'output.format: parquet' needs pyarrow, which is not installed; "
+                                "`pip install pyarrow` (or 'rotorcosim[parquet]') or write 'output.format: csv'")
+            elif fmt is not None:
+                self.output_format = fmt
         if "interval" in section:
             interval = self.number(section["interval"][1], "output.interval", positive=True,
                                    fix="give the output interval in seconds, e.g. 1.0e-3")
@@ -685,12 +711,61 @@ class _Loader:
             connections=tuple(ConnectionSpec(src=c["from"], dst=c["to"], gain=c["gain"], offset=c["offset"],
                                              line=c["line"]) for c in connections),
             coupling=CouplingSpec(**coupling),
-            output=OutputSpec(interval=interval, signals=signals and tuple(s for s, _ in signals)), **kw)
+            output=OutputSpec(interval=interval, signals=signals and tuple(s for s, _ in signals),
+                              format=self.output_format), **kw)
         try:
             build.ensure_fmus(draft)
         except Exception as exc:                        # reported with the scenario's other problems
             self.problems.append(f"{self.display}: building the scenario's FMUs failed ({type(exc).__name__}: "
                                  f"{exc}); run `rotorcosim build-fmus --force` to see the details")
+
+    def apply_defaults(self, kw: dict, coupling: dict | None, top: dict, fmus: list[dict], root) -> dict:
+        """start_time, stop_time and coupling.macro_step the scenario omits, from the FMUs' DefaultExperiment
+        (the first FMU in 'fmus' that declares the value); returns ``{key: "value from 'instance'"}``."""
+        taken: dict[str, str] = {}
+
+        def first(attr):
+            for f in fmus:
+                de = self.des.get(f["name"], {})
+                if attr in de:
+                    return de[attr], f["name"]
+            return None, None
+
+        if "start_time" not in top:
+            v, who = first("startTime")
+            if v is not None:
+                kw["start_time"] = v
+                taken["start_time"] = f"{v!r} (DefaultExperiment startTime of '{who}')"
+        if kw.get("stop_time") is _FROM_FMUS:
+            v, who = first("stopTime")
+            if v is None:
+                kw["stop_time"] = None
+                if self.mds or not fmus:          # FMUs unreadable: their problem is reported already
+                    self.err(root, "'stop_time' is missing and no FMU declares a DefaultExperiment stopTime; add "
+                                   "'stop_time: <seconds>' to the scenario")
+            elif kw.get("start_time") is not None and v <= kw["start_time"]:
+                kw["stop_time"] = None
+                self.err(root, f"'stop_time' is missing and the DefaultExperiment stopTime {v!r} of '{who}' is not "
+                               f"after start_time {kw['start_time']!r}; add 'stop_time: <seconds>' to the scenario")
+            else:
+                kw["stop_time"] = v
+                taken["stop_time"] = f"{v!r} (DefaultExperiment stopTime of '{who}')"
+        if coupling is not None and "macro_step" not in coupling:
+            v, who = first("stepSize")
+            if v is not None and v > 0:
+                coupling["macro_step"] = v
+                taken["coupling.macro_step"] = f"{v!r} (DefaultExperiment stepSize of '{who}')"
+        return taken
+
+    def check_fixed_step(self, kw: dict, coupling: dict | None, root) -> None:
+        from orchestrator.schemes import fixed_step_problem
+        t0, t1 = kw.get("start_time"), kw.get("stop_time")
+        if coupling is None or not isinstance(t0, float) or not isinstance(t1, float):
+            return
+        why = fixed_step_problem(t0, t1, coupling.get("macro_step", CouplingSpec.macro_step), self.fixed_step,
+                                 coupling.get("discard_retries", 0) or 0)
+        if why:
+            self.err(root, why)
 
     def read_fmu(self, f: dict) -> None:
         name, path = f["name"], f["path"]
@@ -712,6 +787,9 @@ class _Loader:
                            "is an FMI 2.0 co-simulation FMU (`rotorcosim info FILE` shows what it contains)")
             return
         self.mds[name] = dict(md.variables)
+        self.des[name] = dict(md.default_experiment)
+        if not md.can_handle_variable_step:
+            self.fixed_step.append(name)
         if md.can_be_instantiated_only_once_per_process:
             users = [g["name"] for g in self.fmu_specs if g["path"] == path]
             if len(users) > 1 and users[0] != name:

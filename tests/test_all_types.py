@@ -191,3 +191,53 @@ def test_jacobi_integer_and_boolean_match_libcosim(fmus, tmp_path):
     for sig in record:
         np.testing.assert_array_equal(np.asarray(res.outputs[sig])[1:], lc[sig], err_msg=sig)
     assert len(set(lc["b.b_out"])) == 2                  # the Boolean loop really toggles
+
+
+def test_parquet_output_has_the_same_columns_and_values(fmus, tmp_path):
+    pq = pytest.importorskip("pyarrow.parquet")
+    csv_run = _run(_yaml(fmus, "jacobi"), tmp_path / "csv")
+    path = _yaml(fmus, "jacobi")
+    path.write_text(path.read_text().replace("output: {signals:", "output: {format: parquet, signals:"))
+    pq_run = _run(path, tmp_path / "pq")
+    assert pq_run.success, pq_run.message
+    table = pq.read_table(tmp_path / "pq" / "results.parquet")
+    assert table.column_names == ["time", *SIGNALS]
+    assert table.column("b.count").to_pylist() == [int(v) for v in csv_run.outputs["b.count"]]
+    assert table.column("b.s_out").to_pylist() == ["alpha"] * (N + 1)
+    np.testing.assert_array_equal(pq_run.t, csv_run.t)
+    for sig in SIGNALS:
+        np.testing.assert_array_equal(pq_run.outputs[sig], csv_run.outputs[sig], err_msg=sig)
+
+
+def test_default_experiment_fills_what_the_scenario_omits(fmus, tmp_path):
+    import orchestrator
+    p = fmus / "defaults.yaml"
+    p.write_text("name: defaults\nfmus:\n  a: {path: AllTypes.fmu}\noutput: {signals: [a.count]}\n")
+    sc = orchestrator.load_scenario(p)
+    assert (sc.start_time, sc.stop_time, sc.coupling.macro_step) == (0.0, 1.0, 0.1)
+    assert sc.defaults == {"start_time": "0.0 (DefaultExperiment startTime of 'a')",
+                           "stop_time": "1.0 (DefaultExperiment stopTime of 'a')",
+                           "coupling.macro_step": "0.1 (DefaultExperiment stepSize of 'a')"}
+    res = orchestrator.run(sc, out_dir=tmp_path / "run", progress=False)
+    assert res.success and list(res.outputs["a.count"]) == list(range(11))
+    assert [r[0] for r in csv.reader(open(tmp_path / "run" / "results.csv"))][1:4] == ["0.0", "0.1", "0.2"]
+
+
+def test_fixed_step_fmu_gets_no_shortened_step(fmus, tmp_path):
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    p = fmus / "fixed.yaml"
+    p.write_text("name: fixed\nstop_time: 1.05\nfmus:\n  a: {path: AllTypesFixed.fmu}\n"
+                 "coupling: {macro_step: 0.1}\n")
+    with pytest.raises(ScenarioError) as info:
+        orchestrator.load_scenario(p)
+    text = str(info.value)
+    assert "stop_time 1.05 is not on the macro-step grid" in text and "'a' cannot vary" in text
+    assert "use stop_time 1 or 1.1" in text
+    p.write_text(p.read_text().replace("1.05", "1.0"))
+    res = orchestrator.run(orchestrator.load_scenario(p), out_dir=tmp_path / "fixed", progress=False)
+    assert res.success, res.message
+    # discard retries would halve the step: refused too
+    p.write_text(p.read_text().replace("macro_step: 0.1}", "macro_step: 0.1, discard_retries: 2}"))
+    with pytest.raises(ScenarioError, match="discard_retries = 2 redoes discarded steps with halved"):
+        orchestrator.load_scenario(p)
