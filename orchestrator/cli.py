@@ -72,6 +72,8 @@ def _cmd_run(args) -> int:
     run = _run_function()
     print(f"running {scenario.name} ({args.file}): {scenario.start_time:g} s -> {scenario.stop_time:g} s, "
           f"{scenario.coupling.scheme}, macro step {scenario.coupling.macro_step:g} s", flush=True)
+    for key, text in getattr(scenario, "defaults", {}).items():
+        print(f"{key} = {text}")
     t0 = time.perf_counter()
     result = run(scenario, out_dir=out_dir, progress=args.progress)
     wall = time.perf_counter() - t0
@@ -159,6 +161,17 @@ def _cmd_validate(args) -> int:
         n = len(exc.problems)
         print(f"{args.file}: {n} problem{'s' if n != 1 else ''} found", file=sys.stderr)
         return 1
+    from orchestrator.preflight import preflight
+    problems, notes = preflight(scenario)
+    for line in (*problems, *notes):
+        print(line)
+    if problems:
+        n = len(problems)
+        print(f"{args.file}: {n} problem{'s' if n != 1 else ''} found (the checks `run` makes before its "
+              "first step)", file=sys.stderr)
+        return 1
+    for key, text in getattr(scenario, "defaults", {}).items():
+        print(f"{key} = {text}")
     n_fmus, n_conn = len(scenario.fmus), len(scenario.connections)
     print(f"{args.file}: valid ({n_fmus} FMU instance{'s' if n_fmus != 1 else ''}, "
           f"{n_conn} connection{'s' if n_conn != 1 else ''}, "

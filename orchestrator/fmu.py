@@ -38,7 +38,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .errors import FmuCallError, FmuError, LifecycleError, ScenarioError
-from .fmi.bundled_python import prepare_imports
+from .fmi.bundled_python import own_imports
 from .fmi.values import FAMILY, TypedBatch, settable_problem
 from .fmu_archive import ModelDescription, Variable, binary_path, read_model_description, safe_extract
 
@@ -275,9 +275,9 @@ class Subsystem(SubsystemBase):
         self._c_get_real = self._f["fmi2GetReal"]
         self._c_do_step = self._f["fmi2DoStep"]
         self.calls["instantiate"] += 1
-        prepare_imports(self.unzip_dir)     # a PythonFMU FMU imports the packages it bundles, not a cached copy
         try:
-            self._slave.instantiate(callbacks=cb, loggingOn=True)
+            with own_imports(self.unzip_dir):   # a PythonFMU FMU imports the packages it bundles, not a cached copy
+                self._slave.instantiate(callbacks=cb, loggingOn=True)
         except Exception as e:
             self._free_library()
             raise FmuCallError(name, "fmi2Instantiate", "failed", self._detail(str(e))) from e
