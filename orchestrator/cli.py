@@ -213,15 +213,37 @@ def _cmd_info(args) -> int:
         print("default experiment: " + ", ".join(f"{k}={v:g}" for k, v in md.default_experiment.items()))
     rank = {c: i for i, c in enumerate(_CAUSALITY_ORDER)}
     variables = sorted(md.variables.values(), key=lambda v: rank.get(v.causality, len(rank)))
-    rows = [("name", "causality", "variability", "type", "start", "unit", "description")]
-    rows += [(v.name, v.causality, v.variability, v.type, "" if v.start is None else repr(v.start)
-              if isinstance(v.start, str) else f"{v.start}", v.unit or "", v.description or "")
-             for v in variables]
+    by_ref: dict = {}
+    for v in md.variables.values():               # aliases: same type family and value reference
+        by_ref.setdefault((_family(v.type), v.value_reference), []).append(v.name)
+    rows = [("name", "vr", "causality", "variability", "type", "start", "unit", "range", "nominal",
+             "description")]
+    for v in variables:
+        start = "" if v.start is None else repr(v.start) if isinstance(v.start, str) else f"{v.start}"
+        aliases = [n for n in by_ref[(_family(v.type), v.value_reference)] if n != v.name]
+        desc = (v.description or "") + (f" [alias of {', '.join(aliases)}]" if aliases else "")
+        kind = v.type + (f" ({v.declared_type})" if v.declared_type else "")
+        rows.append((v.name, str(v.value_reference), v.causality, v.variability, kind, start, v.unit or "",
+                     _range_text(v), "" if v.nominal is None else f"{v.nominal:g}", desc))
     print(f"variables ({len(variables)}):")
-    widths = [max(len(r[i]) for r in rows) for i in range(6)]
+    n = len(rows[0]) - 1
+    widths = [max(len(r[i]) for r in rows) for i in range(n)]
     for r in rows:
-        print("  " + "  ".join(c.ljust(w) for c, w in zip(r[:6], widths, strict=True)) + "  " + r[6])
+        print("  " + "  ".join(c.ljust(w) for c, w in zip(r[:n], widths, strict=True)) + "  " + r[n])
     return 0
+
+
+def _family(fmi_type: str) -> str:
+    return "Integer" if fmi_type == "Enumeration" else fmi_type
+
+
+def _range_text(v) -> str:
+    """min/max, or the enumeration items, as declared (empty when nothing is declared)."""
+    if v.type == "Enumeration" and v.items:
+        return "{" + ", ".join(f"{name}={value}" for name, value, _ in v.items) + "}"
+    if v.min is None and v.max is None:
+        return ""
+    return f"[{'' if v.min is None else v.min}, {'' if v.max is None else v.max}]"
 
 
 def _add_build_fmus(sub) -> None:
@@ -246,6 +268,9 @@ def _cmd_build_fmus(args) -> int:
 def _add_plot(sub) -> None:
     p = sub.add_parser("plot", help="draw the figures of a finished run")
     p.add_argument("dir", metavar="DIR", help="output folder of a run (holds results.csv, summary.json)")
+    p.add_argument("--signals", nargs="+", metavar="SIGNAL",
+                   help="recorded signals to draw over time (names or '*' patterns, e.g. 'osc.x[*]' 'drv.*'); "
+                        "default: every signal of a run without journals")
     p.set_defaults(func=_cmd_plot)
 
 
@@ -255,7 +280,7 @@ def _cmd_plot(args) -> int:
         raise CosimError(f"{run_dir}: no such run folder; give the --out folder of a run (it holds "
                          "results.csv and summary.json)")
     plot_run = _feature("orchestrator.plots", "plot_run", "plot")
-    for path in plot_run(run_dir):
+    for path in plot_run(run_dir, signals=args.signals):
         print(path)
     return 0
 

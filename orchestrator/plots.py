@@ -9,7 +9,9 @@ What is drawn, when the data exist (see ``docs/analysis.md``):
 * ``waterfall_<journal>.png``: run-up waterfall, frequency of the forward journal
   motion against rotor speed, colour = amplitude / clearance, 1x and 0.5x lines;
 * ``fields_<name>.png``: pressure [bar] and fluid fraction over (phi [deg], z [mm])
-  for every ``*_fields.npz`` (stationary runs), cavity (theta < 1) outlined.
+  for every ``*_fields.npz`` (stationary runs), cavity (theta < 1) outlined;
+* ``signals_<instance>.png``: the recorded signals over time, one figure per
+  instance, for a run without journals (any FMUs) or the ``--signals`` picked.
 
 The signals come from ``summary.json`` (the ``analysis.spec`` written by
 :func:`orchestrator.analysis.analyze_run`), else the ``analysis:`` section of the
@@ -41,8 +43,12 @@ MAX_ORBIT_POINTS = 1500  # orbit points per window (decimated above)
 MAX_TRACE_POINTS = 4000  # above: min/max envelope per bin (looks the same, draws fast)
 
 
-def plot_run(run_dir: str | Path) -> list[Path]:
+def plot_run(run_dir: str | Path, signals: list[str] | None = None) -> list[Path]:
     """Write the plots of a run into ``run_dir/plots/``; return the written files.
+
+    A run without journals (any third-party system) gets the time histories of its
+    recorded signals (:mod:`orchestrator.plot_signals`); ``signals`` (names or ``*``
+    patterns) picks which, and draws them also for a run with journals.
 
     Skips (with a ``UserWarning`` naming file, signal and fix) what the run's
     files do not support. Raises :class:`CosimError` when ``run_dir`` is not a
@@ -53,6 +59,7 @@ def plot_run(run_dir: str | Path) -> list[Path]:
         raise CosimError(f"{run_dir}: not a directory; give the output directory of a run "
                          "(the one holding results.csv and summary.json)")
     ctx = _Context(run_dir)
+    ctx.signals = list(signals) if signals else None
     ctx.run()
     for msg in dict.fromkeys(ctx.skipped):     # each reason once, in order
         warnings.warn(f"plot {run_dir}: skipped {msg}", UserWarning, stacklevel=2)
@@ -74,6 +81,7 @@ class _Context:
         self.cols: dict[str, np.ndarray] = {}
         self.spec: dict[str, Any] = {}
         self.result: dict[str, Any] = {}
+        self.signals: list[str] | None = None
 
     # ------------------------------------------------------------------ inputs
     def _load_summary(self) -> dict:
@@ -115,11 +123,13 @@ class _Context:
         if self.cols.get("time", np.empty(0)).size >= 2:
             self.spec, src = self._load_spec()
             logger.info("plot signals from %s: %s", src, self.spec)
+            if not self.spec.get("journals") or self.signals:
+                from orchestrator.plot_signals import plot_signals
+                files, notes = plot_signals(self.cols, self.out, self.name, self.signals)
+                self.written += files
+                self.skipped += notes
             if not self.spec.get("journals"):
-                self.skipped.append(
-                    f"journal plots: no journals in the analysis spec ({src}) and no columns named "
-                    "like '<inst>.x_1', '<inst>.y_1' in results.csv; add an 'analysis:' section "
-                    "(docs/analysis.md)")
+                logger.info("journal plots: no journals in the analysis spec (%s); drew the recorded signals", src)
             else:
                 self._analysis()
                 self._eccentricity()

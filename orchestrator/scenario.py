@@ -497,7 +497,9 @@ class _Loader:
         kw["defaults"] = self.apply_defaults(kw, coupling, top, fmus, root)
         self.check_fixed_step(kw, coupling, root)
         params = {f["name"]: self.check_parameters(f) for f in fmus}
+        connections = self.expand_arrays(connections)
         self.check_connections(connections)
+        signals = self.expand_patterns(signals)
         self.check_signals(signals, "output.signals")
         if "analysis" in top and isinstance(kw.get("analysis"), dict):
             self.check_analysis(get("analysis"), signals)
@@ -675,6 +677,11 @@ class _Loader:
         out = []
         for i, item in enumerate(node.value):
             where = f"connections[{i}]"
+            if isinstance(item, yaml.ScalarNode) and isinstance(self.value(item), str) and "->" in item.value:
+                c = self.arrow_connection(item, where)     # the one-line form "a.y -> b.u"
+                if c is not None:
+                    out.append(c)
+                continue
             entry = self.mapping(item, where, CONNECTION_KEYS, ("from", "to"),
                                  fix="write '- {from: instance.output, to: instance.input}'")
             if entry is None:
@@ -695,6 +702,16 @@ class _Loader:
                     c[key + "_node"] = entry[key][1]
             out.append(c)
         return out
+
+    def arrow_connection(self, item, where: str) -> dict | None:
+        """``"drv.f[0] -> osc.f[0]"``: a connection without gain/offset written as one string."""
+        parts = [p.strip() for p in str(self.value(item)).split("->")]
+        if len(parts) != 2 or not all("." in p and " " not in p for p in parts):
+            self.err(item, f"'{where}' {item.value!r} is not 'instance.output -> instance.input'; write one "
+                           "arrow between two 'instance.variable' names (or a mapping {from: ..., to: ...})")
+            return None
+        return {"line": item.start_mark.line + 1 if item.start_mark else None, "node": item, "gain": 1.0,
+                "offset": 0.0, "from": parts[0], "from_node": item, "to": parts[1], "to_node": item}
 
     # -- FMU checks ----------------------------------------------------------
     def ensure_fmus(self, kw, fmus, connections, coupling, interval, signals) -> None:
@@ -827,6 +844,62 @@ class _Loader:
                 self.err(node, f"parameter {problem}")
                 continue
             out[pname] = conv
+        return out
+
+    def expand_arrays(self, connections: list[dict]) -> list[dict]:
+        """``drv.f -> osc.f`` between two arrays (no variable ``f``, elements ``f[...]``) becomes one
+        connection per element; both sides must have the same index set."""
+        from orchestrator.names import array_elements, index_of
+        out = []
+        for c in connections:
+            ends = [c.get("from"), c.get("to")]
+            if None in ends or any(e.split(".", 1)[0] not in self.mds for e in ends):
+                out.append(c)
+                continue
+            (si, sv), (di, dv) = (e.split(".", 1) for e in ends)
+            if sv in self.mds[si] or dv in self.mds[di]:
+                out.append(c)
+                continue
+            se, de = array_elements(sv, list(self.mds[si])), array_elements(dv, list(self.mds[di]))
+            if not se or not de:
+                out.append(c)                            # reported as an unknown variable by the checks
+                continue
+            si_set, di_set = [index_of(e) for e in se], [index_of(e) for e in de]
+            if sorted(si_set) != sorted(di_set):
+                self.err(c["node"], f"'{c['from']}' -> '{c['to']}' connects two arrays element by element, but "
+                                    f"their index sets differ ({', '.join(si_set)} vs {', '.join(di_set)}); "
+                                    "connect the elements one by one")
+                continue
+            for idx in si_set:
+                out.append({**c, "from": f"{si}.{sv}[{idx}]", "to": f"{di}.{dv}[{idx}]"})
+        return out
+
+    def expand_patterns(self, signals):
+        """``output.signals`` entries with ``*`` (e.g. ``osc.x[*]``, ``bearing1.*``, ``*.omega``) become the
+        matching outputs, in file order; a pattern that matches nothing is a problem."""
+        from orchestrator.names import is_pattern, match
+        if signals is None:
+            return None
+        out, seen = [], set()
+        for sig, node in signals:
+            if not is_pattern(sig):
+                if sig not in seen:
+                    out.append((sig, node))
+                    seen.add(sig)
+                continue
+            inst_pat, _, var_pat = sig.partition(".")
+            hits = []
+            for inst in match(inst_pat, self.instances):
+                outs = [v.name for v in self.mds.get(inst, {}).values() if v.causality == "output"]
+                hits += [f"{inst}.{v}" for v in match(var_pat or "*", outs)]
+            if not hits and all(i in self.mds for i in match(inst_pat, self.instances)):
+                self.err(node, f"'output.signals' pattern {sig!r} matches no output ('*' stands for any "
+                               "characters, e.g. 'osc.x[*]' or 'bearing1.*'); check the names with "
+                               "`rotorcosim info FMU`")
+            for h in hits:
+                if h not in seen:
+                    out.append((h, node))
+                    seen.add(h)
         return out
 
     def check_connections(self, connections: list[dict]) -> None:

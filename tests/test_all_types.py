@@ -241,3 +241,47 @@ def test_fixed_step_fmu_gets_no_shortened_step(fmus, tmp_path):
     p.write_text(p.read_text().replace("macro_step: 0.1}", "macro_step: 0.1, discard_retries: 2}"))
     with pytest.raises(ScenarioError, match="discard_retries = 2 redoes discarded steps with halved"):
         orchestrator.load_scenario(p)
+
+
+def test_info_shows_declared_types_ranges_items_references_and_aliases(fmus, capsys):
+    from orchestrator.cli import main
+    assert main(["info", str(fmus / "AllTypes.fmu")]) == 0
+    out = capsys.readouterr().out
+    lines = {ln.split()[0]: ln for ln in out.splitlines() if ln.startswith("  ") and ln.split()}
+    assert "m/s" in lines["u"] and "Real (Speed)" in lines["u"]           # unit through the declaredType
+    assert "[0.0, 100.0]" in lines["gain"] and " 2 " in lines["gain"]     # min/max and nominal of type Gain
+    assert "{Off=1, Slow=2, Fast=3}" in lines["mode"] and "Enumeration (Mode)" in lines["mode"]
+    assert lines["count"].split()[1] == "11"                              # value reference
+    assert "[alias of y_alias]" in lines["y"]
+
+
+def test_arrays_connect_element_by_element_and_signals_take_wildcards(fmus, tmp_path):
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    p = fmus / "arrays.yaml"
+    p.write_text("""name: arrays
+stop_time: 0.3
+fmus:
+  a: {path: AllTypes.fmu, parameters: {"f[0]": 1.0, "f[1]": 2.0, "f[2]": 3.0}}
+  b: {path: AllTypes.fmu, parameters: {gain: 3.0}}
+connections:
+  - {from: a.g, to: b.f}
+  - a.y -> b.u
+  - from: a.count
+    to: b.n_in
+coupling: {scheme: jacobi, macro_step: 0.1}
+output: {signals: ["b.g[*]", "*.n_out", b.y]}
+""")
+    sc = orchestrator.load_scenario(p)
+    assert [(c.src, c.dst) for c in sc.connections] == [
+        ("a.g[0]", "b.f[0]"), ("a.g[1]", "b.f[1]"), ("a.g[2]", "b.f[2]"), ("a.y", "b.u"), ("a.count", "b.n_in")]
+    assert sc.output.signals == ("b.g[0]", "b.g[1]", "b.g[2]", "a.n_out", "b.n_out", "b.y")
+    res = orchestrator.run(sc, out_dir=tmp_path / "arrays", progress=False)
+    assert res.success, res.message
+    for i, f in enumerate((1.0, 2.0, 3.0)):                   # b.g = 3 * a.g = 3 * 2 * a.f
+        assert res.outputs[f"b.g[{i}]"][-1] == pytest.approx(6.0 * f)
+    assert list(res.outputs["b.n_out"]) == [0, 0, 2, 4]       # 2 * a.count one step late (Jacobi)
+    p.write_text(p.read_text().replace("to: b.f}", "to: b.g}").replace('"b.g[*]"', '"b.q[*]"'))
+    with pytest.raises(ScenarioError) as info:
+        orchestrator.load_scenario(p)
+    assert "pattern 'b.q[*]' matches no output" in str(info.value)
