@@ -54,7 +54,8 @@ def _add_run(sub) -> None:
     p = sub.add_parser("run", help="run a scenario", description=(
         "Run a scenario. Writes DIR/results.csv and DIR/summary.json; our own FMUs are built first when "
         "missing or stale."))
-    p.add_argument("file", metavar="FILE", help="scenario YAML file")
+    p.add_argument("file", metavar="FILE", help="scenario YAML file, or the name of a shipped scenario "
+                                                "(`rotorcosim scenarios` lists them), e.g. quickstart")
     p.add_argument("--out", metavar="DIR", help="output folder (default: runs/<scenario name> under the "
                                                 "current folder)")
     _add_set(p)
@@ -66,7 +67,9 @@ def _add_run(sub) -> None:
 
 def _cmd_run(args) -> int:
     from orchestrator.scenario import load_scenario
+    from orchestrator.shipped import resolve
 
+    args.file = str(resolve(args.file))
     scenario = load_scenario(args.file, args.set, build_fmus=True)
     out_dir = Path(args.out) if args.out else Path("runs") / scenario.name
     run = _run_function()
@@ -144,7 +147,7 @@ def _add_validate(sub) -> None:
     p = sub.add_parser("validate", help="check a scenario and its FMUs without running", description=(
         "Check a scenario and its FMUs without running; prints every problem, exit status 1 if any. "
         "Our own FMUs (in the repository's fmus/) are built first when missing or stale, as `run` does."))
-    p.add_argument("file", metavar="FILE", help="scenario YAML file")
+    p.add_argument("file", metavar="FILE", help="scenario YAML file, or the name of a shipped scenario")
     _add_set(p)
     p.add_argument("--no-build", action="store_true", help="do not build missing or stale FMUs; report them")
     p.set_defaults(func=_cmd_validate)
@@ -152,7 +155,9 @@ def _add_validate(sub) -> None:
 
 def _cmd_validate(args) -> int:
     from orchestrator.scenario import load_scenario
+    from orchestrator.shipped import resolve
 
+    args.file = str(resolve(args.file))
     try:
         scenario = load_scenario(args.file, args.set, build_fmus=not args.no_build)
     except ScenarioError as exc:
@@ -249,18 +254,23 @@ def _range_text(v) -> str:
 def _add_build_fmus(sub) -> None:
     p = sub.add_parser("build-fmus", help="build rotorcosim's own FMUs (bearing, rotors)")
     p.add_argument("--force", action="store_true", help="rebuild even when up to date")
-    p.add_argument("--out", metavar="DIR", help="destination folder (default: the repository's fmus/)")
+    p.add_argument("--out", metavar="DIR", help="destination folder, e.g. to hand the FMUs to other tools "
+                                                "(default: the repository's fmus/ in a source checkout, else the "
+                                                "per-user cache that 'fmu: NAME' in a scenario uses)")
     p.set_defaults(func=_cmd_build_fmus)
 
 
 def _cmd_build_fmus(args) -> int:
     build_fmus = _feature("orchestrator.build", "build_fmus", "build-fmus")
-    out_dir = args.out
-    if out_dir is None:
-        from orchestrator import build
-        out_dir = getattr(build, "FMU_DIR", "fmus")
+    from orchestrator import build
     logging.getLogger("orchestrator.build").setLevel(logging.INFO)
-    for path in build_fmus(out_dir=out_dir, force=args.force):
+    if args.out is None and not build.in_checkout():
+        # an installed package: into the per-user cache where `fmu: NAME` finds them (never site-packages)
+        for name in build.RECIPES:
+            target = build.fmu_location(name)
+            print(build_fmus(out_dir=target.parent, force=args.force, names=[name])[0])
+        return 0
+    for path in build_fmus(out_dir=args.out if args.out is not None else build.FMU_DIR, force=args.force):
         print(path)
     return 0
 
@@ -303,7 +313,40 @@ def _add_set(p) -> None:
                    help="override a scenario value, e.g. --set coupling.macro_step=5e-5 (repeatable)")
 
 
-VERBS = (_add_run, _add_validate, _add_info, _add_build_fmus, _add_plot, _add_compare)
+def _add_scenarios(sub) -> None:
+    p = sub.add_parser("scenarios", help="list the scenarios shipped with rotorcosim (run one by name)")
+    p.set_defaults(func=_cmd_scenarios)
+
+
+def _cmd_scenarios(args) -> int:
+    from orchestrator.shipped import describe, scenario_dir, shipped
+
+    files = shipped()
+    width = max((len(n) for n in files), default=0)
+    for name, path in files.items():
+        print(f"{name.ljust(width)}  {describe(path)}")
+    print(f"({len(files)} scenarios in {scenario_dir()}; `{PROG} run NAME` runs one, `{PROG} init DIR` copies "
+          "them for editing)")
+    return 0
+
+
+def _add_init(sub) -> None:
+    p = sub.add_parser("init", help="copy the shipped scenarios into a folder for editing")
+    p.add_argument("dir", metavar="DIR", help="folder to create (or fill)")
+    p.add_argument("--force", action="store_true", help="overwrite scenario files that exist already")
+    p.set_defaults(func=_cmd_init)
+
+
+def _cmd_init(args) -> int:
+    from orchestrator.shipped import init
+
+    files = init(args.dir, force=args.force)
+    print(f"{args.dir}: {len(files)} scenarios copied; edit one and run it with `{PROG} run {args.dir}/"
+          f"{files[0].name if files else 'X.yaml'}`")
+    return 0
+
+
+VERBS = (_add_run, _add_validate, _add_info, _add_build_fmus, _add_plot, _add_compare, _add_scenarios, _add_init)
 
 
 # --------------------------------------------------------------------------- entry point

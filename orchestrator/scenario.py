@@ -125,7 +125,7 @@ class Scenario:
 
 TOP_KEYS = ("name", "version", "description", "start_time", "stop_time", "fmus",
             "connections", "coupling", "output", "analysis", "compare")
-FMU_KEYS = ("path", "parameters", "substeps")
+FMU_KEYS = ("path", "fmu", "parameters", "substeps")
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
                  "interpolation_order", "substeps", "discard_retries", "options")
@@ -196,6 +196,11 @@ def _ranked(name: str, candidates, limit: int = 15) -> str:
 def _did_you_mean(name: str, candidates) -> str:
     close = difflib.get_close_matches(name, list(candidates), n=1, cutoff=0.5)
     return f"did you mean '{close[0]}'? " if close else ""
+
+
+def _our_fmus() -> list[str]:
+    from orchestrator.build import RECIPES
+    return list(RECIPES)
 
 
 _FROM_FMUS = object()        # stop_time not written: taken from the FMUs' DefaultExperiment
@@ -529,10 +534,14 @@ class _Loader:
                 self.err(knode, f"instance name must start with a letter or '_' and contain only letters, digits, "
                                 f"'_' and '-' (got {name!r}); rename it (signals are written 'instance.variable')")
                 continue
-            entry = self.mapping(vnode, f"fmus.{name}", FMU_KEYS, ("path",),
-                                 fix=f"write '{name}: {{path: X.fmu}}'")
+            entry = self.mapping(vnode, f"fmus.{name}", FMU_KEYS, (),
+                                 fix=f"write '{name}: {{path: X.fmu}}' or '{name}: {{fmu: JournalBearing}}'")
             if entry is None:
                 continue
+            if ("path" in entry) == ("fmu" in entry):
+                self.err(vnode, f"'fmus.{name}' needs exactly one of 'path' (an FMU file) and 'fmu' (one of ours by "
+                                f"name: {', '.join(_our_fmus())}) (got {'both' if 'path' in entry else 'neither'}); "
+                                f"write '{name}: {{path: X.fmu}}' or '{name}: {{fmu: JournalBearing}}'")
             spec = {"name": name, "line": knode.start_mark.line + 1 if knode.start_mark else None,
                     "node": knode, "path": None, "parameters": {}, "substeps": None}
             if "path" in entry:
@@ -540,6 +549,17 @@ class _Loader:
                 if p is not None:
                     spec["path"] = (self.path.parent / Path(p).expanduser()).resolve()
                     spec["path_node"] = entry["path"][1]
+            elif "fmu" in entry:
+                key = self.string(entry["fmu"][1], f"fmus.{name}.fmu", f"name one of ours: {', '.join(_our_fmus())}")
+                if key is not None and key not in _our_fmus():
+                    self.err(entry["fmu"][1], f"'fmus.{name}.fmu' names our FMUs by name, one of "
+                                              f"{', '.join(_our_fmus())} (got {key!r}); "
+                                              f"{_did_you_mean(key, _our_fmus())}for another FMU write 'path: X.fmu'")
+                elif key is not None:
+                    from orchestrator.build import fmu_location
+                    spec["path"] = fmu_location(key)
+                    spec["path_node"] = entry["fmu"][1]
+                    spec["ours"] = key
             if "substeps" in entry:
                 spec["substeps"] = self.integer(entry["substeps"][1], f"fmus.{name}.substeps", 1, None,
                                                 "use a whole number of sub-steps >= 1")
@@ -789,6 +809,10 @@ class _Loader:
         if path is None:
             return
         node = f["path_node"]
+        if not path.exists() and f.get("ours"):
+            self.err(node, f"our FMU {f['ours']} of '{name}' is not built yet ({path}); run without --no-build, "
+                           "or build it with `rotorcosim build-fmus`")
+            return
         if not path.exists():
             self.err(node, f"FMU file of '{name}' not found: {path} (paths are relative to the scenario's "
                            f"folder {self.path.parent.resolve()}); fix 'fmus.{name}.path', or build our FMUs "
