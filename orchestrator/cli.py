@@ -346,7 +346,26 @@ def _cmd_init(args) -> int:
     return 0
 
 
-VERBS = (_add_run, _add_validate, _add_info, _add_build_fmus, _add_plot, _add_compare, _add_scenarios, _add_init)
+def _add_export_ssp(sub) -> None:
+    p = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive (runs in libcosim)")
+    p.add_argument("file", metavar="SCENARIO", help="scenario YAML file (or a shipped scenario's name)")
+    p.add_argument("out", metavar="OUT.ssp", help="archive to write")
+    _add_set(p)
+    p.set_defaults(func=_cmd_export_ssp)
+
+
+def _cmd_export_ssp(args) -> int:
+    from orchestrator.scenario import load_scenario
+    from orchestrator.shipped import resolve
+    from orchestrator.ssp import export_ssp
+
+    scenario = load_scenario(str(resolve(args.file)), args.set, build_fmus=True)
+    print(export_ssp(scenario, args.out))
+    return 0
+
+
+VERBS = (_add_run, _add_validate, _add_info, _add_build_fmus, _add_plot, _add_compare, _add_scenarios, _add_init,
+         _add_export_ssp)
 
 
 # --------------------------------------------------------------------------- entry point
