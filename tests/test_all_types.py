@@ -285,3 +285,18 @@ output: {signals: ["b.g[*]", "*.n_out", b.y]}
     with pytest.raises(ScenarioError) as info:
         orchestrator.load_scenario(p)
     assert "pattern 'b.q[*]' matches no output" in str(info.value)
+
+
+def test_plot_draws_the_signals_of_any_run(fmus, tmp_path):
+    from orchestrator.cli import main
+    res = _run(_yaml(fmus, "jacobi"), tmp_path / "run")
+    assert res.success
+    assert main(["plot", str(tmp_path / "run")]) == 0
+    pngs = sorted(p.name for p in (tmp_path / "run" / "plots").glob("*.png"))
+    assert pngs == ["signals_a.png", "signals_b.png"]
+    assert (tmp_path / "run" / "plots" / "signals_b.png").stat().st_size > 5000
+    for p in (tmp_path / "run" / "plots").glob("*.png"):
+        p.unlink()
+    with pytest.warns(UserWarning, match="'b.s_out' has no numeric values"):
+        main(["plot", str(tmp_path / "run"), "--signals", "b.*"])
+    assert sorted(p.name for p in (tmp_path / "run" / "plots").glob("*.png")) == ["signals_b.png"]
