@@ -708,7 +708,8 @@ class MasterAlgorithm:
                 self.discrete.read(u.name)
         if commit:
             hist.commit()
-            self.discrete.commit()
+            if self.discrete.active:
+                self.discrete.commit()
 
     def _propagate(self, u: _Unit, t: float) -> None:
         out = u.outb.values
