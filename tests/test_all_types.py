@@ -120,7 +120,7 @@ def test_value_outside_the_declared_range_is_a_load_error(fmus):
 
 def test_terminate_is_not_called_in_initialization_mode(fmus, tmp_path):
     """FMI 2.0 allows fmi2Terminate only after initialization; AllTypes logs an illegal call otherwise."""
-    from orchestrator.fmu import Subsystem
+    from orchestrator.fmi.subsystem import Subsystem
     sub = Subsystem("a", fmus / "AllTypes.fmu", work_dir=tmp_path)
     try:
         sub.setup_experiment(0.0, 1.0)

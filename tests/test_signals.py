@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from orchestrator.signals import History, LagrangePredictor, lagrange_derivative_weights, lagrange_weights
+from orchestrator.coupling.signals import History, LagrangePredictor, lagrange_derivative_weights, lagrange_weights
 
 
 def poly(c, t):

@@ -28,7 +28,7 @@ from typing import Sequence
 
 import numpy as np
 
-MAX_ORDER = 3
+from orchestrator.scenario.model import MAX_ORDER
 
 
 def lagrange_weights(nodes: Sequence[float], x: Sequence[float]) -> np.ndarray:
@@ -141,7 +141,7 @@ class StepWeights:
 
 
 class LagrangePredictor:
-    """Computes (and caches) :class:`StepWeights` for the master.
+    """Computes (and caches: the one weight cache of the master) :class:`StepWeights`.
 
     Parameters
     ----------
