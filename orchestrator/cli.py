@@ -217,15 +217,14 @@ def _cmd_info(args) -> int:
     by_ref: dict = {}
     for v in md.variables.values():               # aliases: same type family and value reference
         by_ref.setdefault((_family(v.type), v.value_reference), []).append(v.name)
-    rows = [("name", "vr", "causality", "variability", "type", "start", "unit", "range", "nominal",
+    rows = [("name", "causality", "variability", "type", "start", "unit", "vr", "declaredType", "range", "nominal",
              "description")]
     for v in variables:
         start = "" if v.start is None else repr(v.start) if isinstance(v.start, str) else f"{v.start}"
         aliases = [n for n in by_ref[(_family(v.type), v.value_reference)] if n != v.name]
         desc = (v.description or "") + (f" [alias of {', '.join(aliases)}]" if aliases else "")
-        kind = v.type + (f" ({v.declared_type})" if v.declared_type else "")
-        rows.append((v.name, str(v.value_reference), v.causality, v.variability, kind, start, v.unit or "",
-                     _range_text(v), "" if v.nominal is None else f"{v.nominal:g}", desc))
+        rows.append((v.name, v.causality, v.variability, v.type, start, v.unit or "", str(v.value_reference),
+                     v.declared_type, _range_text(v), "" if v.nominal is None else f"{v.nominal:g}", desc))
     print(f"variables ({len(variables)}):")
     n = len(rows[0]) - 1
     widths = [max(len(r[i]) for r in rows) for i in range(n)]

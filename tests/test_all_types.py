@@ -248,10 +248,11 @@ def test_info_shows_declared_types_ranges_items_references_and_aliases(fmus, cap
     assert main(["info", str(fmus / "AllTypes.fmu")]) == 0
     out = capsys.readouterr().out
     lines = {ln.split()[0]: ln for ln in out.splitlines() if ln.startswith("  ") and ln.split()}
-    assert "m/s" in lines["u"] and "Real (Speed)" in lines["u"]           # unit through the declaredType
+    assert lines["u"].split()[1:7] == ["input", "continuous", "Real", "0.0", "m/s", "1"]   # unit via declaredType
+    assert "Speed" in lines["u"].split()
     assert "[0.0, 100.0]" in lines["gain"] and " 2 " in lines["gain"]     # min/max and nominal of type Gain
-    assert "{Off=1, Slow=2, Fast=3}" in lines["mode"] and "Enumeration (Mode)" in lines["mode"]
-    assert lines["count"].split()[1] == "11"                              # value reference
+    assert "{Off=1, Slow=2, Fast=3}" in lines["mode"] and "Mode" in lines["mode"].split()
+    assert lines["count"].split()[:5] == ["count", "output", "discrete", "Integer", "0"] and "11" in lines["count"].split()
     assert "[alias of y_alias]" in lines["y"]
 
 
