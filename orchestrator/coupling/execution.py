@@ -40,11 +40,12 @@ from orchestrator.coupling.plan import make_plan
 from orchestrator.coupling.schemes import CouplingScheme, scheme_from_spec
 from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
-    RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController, controller_from_spec, fixed_step_problem)
+    RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController, controller_from_spec)
 from orchestrator.errors import CouplingError, FmuCallError, LifecycleError, ScenarioError
 from orchestrator.fmi.subsystem import Subsystem, SubsystemBase
 from orchestrator.results.result import CoSimResult, Status
 from orchestrator.results.writer import TimeGrid
+from orchestrator.scenario.completion import fixed_step_problem
 from orchestrator.scenario.model import MAX_DISCARD_RETRIES
 
 log = logging.getLogger(__name__)

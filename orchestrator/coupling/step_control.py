@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Sequence
 
 from orchestrator.errors import FmuCallError, ScenarioError
 
@@ -167,32 +166,6 @@ class DiscardHalving(ConstantStep):
             finally:
                 if cp is not cp_a:
                     stepper.release(cp)
-
-
-def fixed_step_problem(t0: float, t_stop: float, h: float, fixed: Sequence[str], discard_retries: int = 0) -> str | None:
-    """Why a run cannot honour FMUs that cannot vary their communication step size, or None.
-
-    ``fixed`` names the instances whose model description says
-    ``canHandleVariableCommunicationStepSize="false"``. Such an FMU must get the
-    same step every time (FMI 2.0 sec. 4.3.1), so the run needs ``stop_time`` on
-    the grid ``start_time + n*macro_step`` (no shortened last step) and no discard
-    retries (which halve the step).
-    """
-    if not fixed:
-        return None
-    who = ", ".join(repr(f) for f in fixed)
-    why = (f"FMU instance{'s' if len(fixed) > 1 else ''} {who} cannot vary the communication step size "
-           "(canHandleVariableCommunicationStepSize=\"false\")")
-    steps = (t_stop - t0) / h
-    if abs(steps - round(steps)) > 1e-9 * max(1.0, steps):
-        lo, hi = t0 + math.floor(steps) * h, t0 + math.ceil(steps) * h
-        return (f"stop_time {t_stop!r} is not on the macro-step grid start_time + n*{h!r}, so the last step would "
-                f"be shortened, but {why}; use stop_time {lo:.12g} or {hi:.12g}, or a macro_step that divides "
-                "stop_time - start_time")
-    if discard_retries:
-        return (f"coupling.discard_retries = {discard_retries} redoes discarded steps with halved step sizes, but "
-                f"{why}; set coupling.discard_retries: 0")
-    return None
 
 
 def controller_from_spec(scenario) -> StepSizeController:

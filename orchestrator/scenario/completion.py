@@ -15,9 +15,38 @@
 
 from __future__ import annotations
 
+import math
+from typing import Sequence
+
 from orchestrator.names import array_elements, index_of, is_pattern, match
 from orchestrator.scenario.model import CouplingSpec
 from orchestrator.scenario.sections import FROM_FMUS
+
+
+def fixed_step_problem(t0: float, t_stop: float, h: float, fixed: Sequence[str], discard_retries: int = 0) -> str | None:
+    """Why a run cannot honour FMUs that cannot vary their communication step size, or None.
+
+    ``fixed`` names the instances whose model description says
+    ``canHandleVariableCommunicationStepSize="false"``. Such an FMU must get the
+    same step every time (FMI 2.0 sec. 4.3.1), so the run needs ``stop_time`` on
+    the grid ``start_time + n*macro_step`` (no shortened last step) and no discard
+    retries (which halve the step).
+    """
+    if not fixed:
+        return None
+    who = ", ".join(repr(f) for f in fixed)
+    why = (f"FMU instance{'s' if len(fixed) > 1 else ''} {who} cannot vary the communication step size "
+           "(canHandleVariableCommunicationStepSize=\"false\")")
+    steps = (t_stop - t0) / h
+    if abs(steps - round(steps)) > 1e-9 * max(1.0, steps):
+        lo, hi = t0 + math.floor(steps) * h, t0 + math.ceil(steps) * h
+        return (f"stop_time {t_stop!r} is not on the macro-step grid start_time + n*{h!r}, so the last step would "
+                f"be shortened, but {why}; use stop_time {lo:.12g} or {hi:.12g}, or a macro_step that divides "
+                "stop_time - start_time")
+    if discard_retries:
+        return (f"coupling.discard_retries = {discard_retries} redoes discarded steps with halved step sizes, but "
+                f"{why}; set coupling.discard_retries: 0")
+    return None
 
 
 class Completion:
@@ -66,7 +95,6 @@ class Completion:
             taken["stop_time"] = f"{v!r} (DefaultExperiment stopTime of '{who}')"
 
     def check_fixed_step(self, draft) -> None:
-        from orchestrator.coupling.step_control import fixed_step_problem
         t0, t1, coupling = draft.kw.get("start_time"), draft.kw.get("stop_time"), draft.coupling
         if coupling is None or not isinstance(t0, float) or not isinstance(t1, float):
             return
