@@ -84,8 +84,8 @@ class Completion:
         if v is None:
             kw["stop_time"] = None
             if self.mds or not self.fmu_specs:          # FMUs unreadable: their problem is reported already
-                self.err(root, "'stop_time' is missing and no FMU declares a DefaultExperiment stopTime; add "
-                               "'stop_time: <seconds>' to the scenario")
+                self.err(root, "top level: missing the required key 'stop_time' (no FMU declares a "
+                               "DefaultExperiment stopTime to take it from); add 'stop_time: <seconds>'")
         elif kw.get("start_time") is not None and v <= kw["start_time"]:
             kw["stop_time"] = None
             self.err(root, f"'stop_time' is missing and the DefaultExperiment stopTime {v!r} of '{who}' is not "
