@@ -170,7 +170,8 @@ class MacroStep:
                 discrete.read(u.name)
         if commit:
             hist.commit()
-            discrete.commit()
+            if discrete.active:
+                discrete.commit()
 
     def propagate(self, u: Unit, t: float) -> None:
         """Unit ``u``'s outputs (in ``u.outb``) through gain/offset into the consumers' new level."""
