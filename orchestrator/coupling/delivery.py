@@ -28,6 +28,13 @@ class InputDelivery:
         raise NotImplementedError
 
 
+def _operands(u, w, h):
+    """What a delivery with inputs works on: subsystem, sub-steps, block sizes, the input
+    values buffer, the sub-step size and the history rows the weights apply to."""
+    m = u.substeps
+    return u.sub, m, u.nE, u.nI, u.inb.values, h / m, u.HE[w.e0:w.e1], u.HI[0:w.q + 1]
+
+
 class NoInputs(InputDelivery):
     def advance(self, u, w, t, h):
         sub, m = u.sub, u.substeps
@@ -38,12 +45,7 @@ class NoInputs(InputDelivery):
 
 class HeldAtMidpoints(InputDelivery):
     def advance(self, u, w, t, h):
-        sub, m = u.sub, u.substeps
-        nE, nI = u.nE, u.nI
-        vals = u.inb.values
-        hs = h / m
-        HE = u.HE[w.e0:w.e1]
-        HI = u.HI[0:w.q + 1]
+        sub, m, nE, nI, vals, hs, HE, HI = _operands(u, w, h)
         for i in range(m):
             if nE:
                 np.dot(w.extrap[i], HE, out=vals[:nE])
@@ -61,12 +63,7 @@ class HeldAtMidpoints(InputDelivery):
 
 class InputDerivatives(InputDelivery):
     def advance(self, u, w, t, h):
-        sub, m = u.sub, u.substeps
-        nE, nI = u.nE, u.nI
-        vals = u.inb.values
-        hs = h / m
-        HE = u.HE[w.e0:w.e1]
-        HI = u.HI[0:w.q + 1]
+        sub, m, nE, nI, vals, hs, HE, HI = _operands(u, w, h)
         der = u.derb.values.reshape(MAX_ORDER, nE + nI)
         for i in range(m):
             if nE:

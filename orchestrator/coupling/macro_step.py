@@ -1,9 +1,9 @@
 """The macro step T(n) -> T(n+1) over a :class:`~orchestrator.coupling.plan.Plan`.
 
-For each unit in stepping order: the step's Lagrange weights (one cache, in the
-predictor), the unit's input delivery (:mod:`.delivery`), the outputs read at T(n+1)
-and sent through gain/offset into the consumers' histories (:meth:`MacroStep.propagate`),
-NaN/inf stopped there.
+For each unit in stepping order: the step's Lagrange weights (cached in the predictor,
+:meth:`~orchestrator.coupling.signals.LagrangePredictor.step_weights`), the unit's input
+delivery (:mod:`.delivery`), the outputs read at T(n+1) and sent through gain/offset
+into the consumers' histories (:meth:`MacroStep.propagate`), NaN/inf stopped there.
 
 Seam for iterative schemes and step-size control: :meth:`MacroStep.save` takes a
 :class:`Checkpoint` (every FMU state and the history), :meth:`restore` goes back to
@@ -157,10 +157,9 @@ class MacroStep:
         hist = self.history
         hist.times[0] = t_next
         predictor = self.predictor
-        all_interp = startup_q is not None
         discrete = self.discrete
         for u in self.units:
-            w = predictor.weights(hist, t, h, u.substeps, q=startup_q, all_interp=all_interp)
+            w = predictor.step_weights(hist, t, h, u.substeps, q=startup_q)
             if u.disc:
                 discrete.set_inputs(u.name)          # non-Real inputs: held over the whole step
             u.delivery.advance(u, w, t, h)
