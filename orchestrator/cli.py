@@ -135,11 +135,7 @@ def _analysis_lines(analysis) -> list[str]:
 
 
 def _run_function() -> Callable:
-    import orchestrator
-
-    run = getattr(orchestrator, "run", None)
-    if run is None:
-        run = _feature("orchestrator.master", "run", "run")
+    from orchestrator.workflow import run
     return run
 
 
@@ -194,7 +190,7 @@ _CAUSALITY_ORDER = ("parameter", "calculatedParameter", "input", "output", "loca
 
 
 def _cmd_info(args) -> int:
-    from orchestrator.scenario import read_model_description
+    from orchestrator.fmi.archive import cached_model_description as read_model_description
 
     md = read_model_description(args.fmu)
     yes = lambda b: "yes" if b else "no"      # noqa: E731
@@ -260,9 +256,9 @@ def _add_build_fmus(sub) -> None:
 
 
 def _cmd_build_fmus(args) -> int:
-    build_fmus = _feature("orchestrator.build", "build_fmus", "build-fmus")
-    from orchestrator import build
-    logging.getLogger("orchestrator.build").setLevel(logging.INFO)
+    build_fmus = _feature("orchestrator.fmi.build", "build_fmus", "build-fmus")
+    from orchestrator.fmi import build
+    logging.getLogger("orchestrator.fmi.build").setLevel(logging.INFO)
     if args.out is None and not build.in_checkout():
         # an installed package: into the per-user cache where `fmu: NAME` finds them (never site-packages)
         for name in build.RECIPES:
@@ -288,7 +284,7 @@ def _cmd_plot(args) -> int:
     if not run_dir.is_dir():
         raise CosimError(f"{run_dir}: no such run folder; give the --out folder of a run (it holds "
                          "results.csv and summary.json)")
-    plot_run = _feature("orchestrator.plots", "plot_run", "plot")
+    plot_run = _feature("orchestrator.results.plots", "plot_run", "plot")
     for path in plot_run(run_dir, signals=args.signals):
         print(path)
     return 0
@@ -356,7 +352,7 @@ def _add_export_ssp(sub) -> None:
 def _cmd_export_ssp(args) -> int:
     from orchestrator.scenario import load_scenario
     from orchestrator.shipped import resolve
-    from orchestrator.ssp import export_ssp
+    from orchestrator.scenario.ssp import export_ssp
 
     scenario = load_scenario(str(resolve(args.file)), args.set, build_fmus=True)
     print(export_ssp(scenario, args.out))
@@ -415,7 +411,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
     if not args.debug:
-        logging.getLogger("orchestrator.build").setLevel(logging.INFO)   # say when FMUs are being built
+        logging.getLogger("orchestrator.fmi.build").setLevel(logging.INFO)   # say when FMUs are being built
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:

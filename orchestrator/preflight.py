@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import warnings
 
-from .errors import CosimError
+from orchestrator.errors import CosimError
 
 
 def preflight(scenario) -> tuple[list[str], list[str]]:
@@ -25,10 +25,10 @@ def preflight(scenario) -> tuple[list[str], list[str]]:
         warnings.simplefilter("always")
         try:
             if scenario.coupling.scheme == "monolithic":
-                from .monolithic import preflight as monolithic_preflight
+                from orchestrator.reference.monolithic import preflight as monolithic_preflight
                 monolithic_preflight(scenario)
             else:
-                from .master import MasterAlgorithm
+                from orchestrator.coupling.execution import MasterAlgorithm
                 master = MasterAlgorithm(scenario)
                 try:
                     master.setup()

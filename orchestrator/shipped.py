@@ -12,7 +12,7 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from .errors import CosimError
+from orchestrator.errors import CosimError
 
 
 def scenario_dir() -> Path:

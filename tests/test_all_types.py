@@ -120,7 +120,7 @@ def test_value_outside_the_declared_range_is_a_load_error(fmus):
 
 def test_terminate_is_not_called_in_initialization_mode(fmus, tmp_path):
     """FMI 2.0 allows fmi2Terminate only after initialization; AllTypes logs an illegal call otherwise."""
-    from orchestrator.fmu import Subsystem
+    from orchestrator.fmi.subsystem import Subsystem
     sub = Subsystem("a", fmus / "AllTypes.fmu", work_dir=tmp_path)
     try:
         sub.setup_experiment(0.0, 1.0)
@@ -301,3 +301,31 @@ def test_plot_draws_the_signals_of_any_run(fmus, tmp_path):
     with pytest.warns(UserWarning, match="'b.s_out' has no numeric values"):
         main(["plot", str(tmp_path / "run"), "--signals", "b.*"])
     assert sorted(p.name for p in (tmp_path / "run" / "plots").glob("*.png")) == ["signals_b.png"]
+
+
+def test_memory_is_flat_in_rows_during_a_run(fmus, tmp_path):
+    """run() streams rows and keeps none: traced memory between row 2000 and row 20000 stays flat."""
+    import tracemalloc
+
+    import orchestrator
+    from orchestrator.coupling.observers import Observer
+
+    class Probe(Observer):
+        def __init__(self):
+            self.at = {}
+
+        def on_step_complete(self, view):
+            if view.n in (2000, 20000):
+                self.at[view.n] = tracemalloc.get_traced_memory()[0]
+
+    path = _yaml(fmus, "jacobi", stop=2000.0)
+    sc = orchestrator.load_scenario(path, ["coupling.macro_step=0.1"])
+    probe = Probe()
+    tracemalloc.start()
+    try:
+        res = orchestrator.run(sc, out_dir=tmp_path / "long", progress=False, observers=[probe])
+    finally:
+        tracemalloc.stop()
+    assert res.success and len(res.t) == 20001
+    grown = probe.at[20000] - probe.at[2000]
+    assert grown < 300_000, f"memory grew by {grown} bytes over 18000 rows"

@@ -8,7 +8,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from orchestrator.results_writer import ResultsWriter, TimeGrid
+from orchestrator.results.writer import ResultsWriter, TimeGrid
 
 
 def test_time_grid_prints_as_written():

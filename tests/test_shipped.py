@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from orchestrator import build
+from orchestrator.fmi import build
 from orchestrator.cli import main
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario import load_scenario

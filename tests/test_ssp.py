@@ -112,7 +112,7 @@ def test_exported_ssp_runs_in_libcosim_to_our_jacobi_values(scenario_file, tmp_p
 
 
 def test_our_master_runs_the_ssp_and_a_scenario_can_name_it(scenario_file, tmp_path):
-    from orchestrator.ssp import export_ssp
+    from orchestrator.scenario.ssp import export_ssp
     import orchestrator
     sc = orchestrator.load_scenario(scenario_file)
     with pytest.warns(UserWarning, match="b.x are start values of outputs"):

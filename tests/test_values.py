@@ -8,7 +8,7 @@ import pytest
 
 from orchestrator.fmi.values import (INT32_MAX, TypedBatch, check_value, declared_range, default_initial,
                                      settable_problem)
-from orchestrator.fmu_archive import Variable, parse_model_description
+from orchestrator.fmi.archive import Variable, parse_model_description
 
 
 def V(name="v", type="Real", causality="parameter", variability="fixed", **kw):

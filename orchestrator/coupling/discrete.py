@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from typing import Callable, Mapping, Sequence
 
-from ..fmi.values import FAMILY, TypedBatch
+from orchestrator.fmi.values import FAMILY, TypedBatch
 
 FAMILIES = ("Integer", "Boolean", "String")
 

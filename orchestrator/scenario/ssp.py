@@ -34,7 +34,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 from xml.etree import ElementTree as ET
 
-from .errors import ScenarioError
+from orchestrator.errors import ScenarioError
 
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
@@ -218,7 +218,7 @@ def _type_el(parent: ET.Element, ns: str, fmi_type: str, value=None) -> None:
 
 def export_ssp(scenario, out: Path | str) -> Path:
     """Write ``scenario`` as an SSP 1.0 archive ``out`` (see the module docstring); return its path."""
-    from .fmu_archive import read_model_description
+    from orchestrator.fmi.archive import read_model_description
     out = Path(out)
     c = scenario.coupling
     if c.scheme != "jacobi" or c.extrapolation_order or c.substeps != 1 or any(f.substeps for f in scenario.fmus):

@@ -1,0 +1,148 @@
+"""Loading a scenario: read the sections, build our FMUs if asked, check against the FMUs.
+
+:func:`load_scenario` raises one :class:`orchestrator.errors.ScenarioError` listing every
+problem with ``file:line``; :func:`validate_scenario` returns them as lines.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Sequence
+
+import yaml
+
+from orchestrator.errors import ScenarioError
+from orchestrator.scenario.checks import FmuChecks
+from orchestrator.scenario.model import Scenario
+from orchestrator.scenario.sections import Draft, SectionReader
+
+
+class ScenarioLoader(FmuChecks, SectionReader):
+    """One loading pass over one file: :meth:`read_sections`, optionally :meth:`build`, :meth:`check`."""
+
+    def build(self, draft: Draft) -> None:
+        """Let :func:`orchestrator.fmi.build.ensure_fmus` build our own FMUs when missing or stale."""
+        from orchestrator.fmi import build
+        try:
+            build.ensure_fmus(draft.scenario())
+        except Exception as exc:                        # reported with the scenario's other problems
+            self.problems.append(f"{self.display}: building the scenario's FMUs failed ({type(exc).__name__}: "
+                                 f"{exc}); run `rotorcosim build-fmus --force` to see the details")
+
+    def check(self, draft: Draft) -> Scenario | None:
+        """Check ``draft`` against its FMUs; the scenario, or None when any problem was found."""
+        params = self.check_draft(draft)
+        if self.problems:
+            return None
+        return draft.scenario(params)
+
+
+def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus: bool = True) -> Scenario:
+    """Load and validate a scenario file (format version 1).
+
+    Parameters
+    ----------
+    path : the YAML file; FMU paths in it are relative to its folder.
+    overrides : ``"key.path=value"`` strings (the CLI's ``--set``), applied before
+        validation; the value is read as YAML (``5e-5``, ``true``, ``[a, b]``).
+        Examples: ``coupling.macro_step=5e-5``, ``fmus.bearing1.parameters.n_phi=60``,
+        ``connections.0.gain=2``. Unknown paths are errors.
+    build_fmus : when the scenario is otherwise valid, let
+        :func:`orchestrator.fmi.build.ensure_fmus` build or rebuild our own FMUs (in the
+        repository's ``fmus/``) that are missing or stale, before their model descriptions
+        are read. Building is a step between reading and checking, not part of the
+        loader: ``build_fmus=False`` reads and checks only.
+
+    Raises
+    ------
+    ScenarioError
+        listing every problem found, each as ``file:line: what is wrong (got X); fix``.
+    """
+    path = from_ssp(Path(path))
+    loader = ScenarioLoader(Path(path), overrides)
+    draft = loader.read_sections()
+    if build_fmus and draft is not None and not loader.problems and draft.complete:
+        loader.build(draft)
+    scenario = loader.check(draft) if draft is not None else None
+    if loader.problems or scenario is None:
+        raise ScenarioError(sorted(loader.problems, key=line_order) or [f"{path}: invalid scenario"])
+    return scenario
+
+
+def from_ssp(path: Path) -> Path:
+    """An ``.ssp``/``.ssd`` file, or a YAML scenario with ``ssp: FILE``, as a generated YAML scenario.
+
+    The SSP is read by :func:`orchestrator.ssp.scenario_from_ssp` (an archive is extracted into a
+    temporary folder that lives until the process exits); a YAML scenario's own keys then add to or
+    override it: ``fmus.<instance>`` entries are merged key by key (so ``parameters`` can be added),
+    ``connections`` are appended, every other key replaces the SSP's. The generated file is written
+    next to the extracted SSP and loaded as any scenario (problems name that file).
+    """
+    import atexit
+    import shutil
+    import tempfile
+
+    from orchestrator.scenario.ssp import scenario_from_ssp
+    overlay: dict = {}
+    ssp = path
+    if path.suffix.lower() in (".yaml", ".yml") and path.is_file():
+        try:
+            doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+            return path                                  # the loader reports it with line numbers
+        if not isinstance(doc, dict) or "ssp" not in doc:
+            return path
+        if not isinstance(doc["ssp"], str):
+            raise ScenarioError(f"{path}: 'ssp' must name an .ssp or .ssd file (got {doc['ssp']!r})")
+        ssp = (path.parent / doc.pop("ssp")).resolve()
+        overlay = doc
+    elif path.suffix.lower() not in (".ssp", ".ssd"):
+        return path
+    if not ssp.is_file():
+        raise ScenarioError(f"{path}: SSP file {ssp} not found; check the path")
+    work = Path(tempfile.mkdtemp(prefix="rotorcosim-ssp-"))
+    atexit.register(shutil.rmtree, work, True)
+    doc = scenario_from_ssp(ssp, work / "ssp")
+    for key, value in overlay.items():
+        if key == "fmus" and isinstance(value, dict):
+            for inst, entry in value.items():
+                base = doc["fmus"].get(inst, {})
+                merged = {**base, **(entry or {})}
+                if isinstance(base.get("parameters"), dict) and isinstance((entry or {}).get("parameters"), dict):
+                    merged["parameters"] = {**base["parameters"], **entry["parameters"]}
+                if "path" in (entry or {}):
+                    merged["path"] = str((path.parent / entry["path"]).resolve())
+                doc["fmus"][inst] = merged
+        elif key == "connections" and isinstance(value, list):
+            doc["connections"] = doc.get("connections", []) + value
+        elif key == "coupling" and isinstance(value, dict) and isinstance(doc.get("coupling"), dict):
+            doc["coupling"] = {**doc["coupling"], **value}
+        else:
+            doc[key] = value
+    out = work / f"{ssp.stem}.yaml"
+    out.write_text(f"# generated from {ssp} by rotorcosim\n" + yaml.safe_dump(doc, sort_keys=False))
+    return out
+
+
+def line_order(problem: str) -> tuple[int, int]:
+    """Sort key: ``--set`` problems first, then by line number in the file."""
+    if problem.startswith("--set"):
+        return (0, 0)
+    m = re.match(r"^.*?:(\d+)(?::\d+)?: ", problem)
+    return (1, int(m.group(1)) if m else 0)
+
+
+def validate_scenario(path: str | Path, overrides: Sequence[str] = (), *,
+                      build_fmus: bool = True) -> list[str]:
+    """Every problem of a scenario file as readable lines (empty: the scenario is valid).
+
+    Like :func:`load_scenario`, first builds our own FMUs that are missing or
+    stale (``build_fmus=False``: only check, and report a missing FMU with the
+    command that builds it).
+    """
+    try:
+        load_scenario(path, overrides, build_fmus=build_fmus)
+    except ScenarioError as exc:
+        return list(exc.problems)
+    return []
