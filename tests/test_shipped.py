@@ -53,7 +53,7 @@ def test_fmu_key_errors(tmp_path):
     with pytest.raises(ScenarioError) as info:
         load_scenario(p, build_fmus=False)
     text = str(info.value)
-    assert "'fmus.a.fmu' names our FMUs by name, one of JournalBearing, JeffcottRotor, TurbochargerRotor " \
+    assert "'fmus.a.fmu' names our FMUs by name, one of JournalBearing, FloatingRingBearing, JeffcottRotor, TurbochargerRotor " \
            "(got 'JournalBaering'); did you mean 'JournalBearing'?" in text
     assert "'fmus.b' needs exactly one of 'path' (an FMU file) and 'fmu'" in text and "(got both)" in text
     assert "(got neither)" in text
