@@ -91,7 +91,7 @@ def _central(f, z0, steps):
     return D
 
 
-@nb.njit(cache=False)   # no on-disk cache (numba's cache races between processes); compiles in ~1 s
+@nb.njit(cache=True)
 def _hs_forces_many(P, phi, p0, area, F):
     """Half-Sommerfeld forces F (m, 2) of m unclipped gauge pressure fields P (m, n_z, n_phi):
     the cell pressures of the force quadrature (:func:`.film.hs_force_pressure`, exactly
