@@ -44,7 +44,9 @@ Finite volumes (cell (j, i), area dphi*dz, fluxes through its four faces):
   the couplings i +- 2 (stencil columns 5, 6). Full film: theta = 1, the
   Couette flux is unchanged.
 * Axial edges: oil bath (eq. 5) p = p0 at zbar = 0, 1 through a half-cell
-  two-point flux; free to air (eq. 6) outward flux g(p) (:func:`.cavitation.penalty`).
+  two-point flux; free to air (eq. 6) outward flux g(p_edge) at the edge itself, the edge
+  pressure from the flux continuity through the same half cell
+  (:func:`.cavitation.penalty_edge`; second order, the Dirichlet flux for b -> infinity).
 * Groove cells: Dirichlet ``u = u_feed`` (p = p_feed).
 
 Half-Sommerfeld force quadrature (:func:`hs_force_pressure`): the force of the
@@ -64,7 +66,7 @@ import math
 
 import numba as nb
 
-from .cavitation import law_eval, penalty
+from .cavitation import law_eval, penalty_edge
 
 
 @nb.njit(cache=True)
@@ -88,8 +90,8 @@ def _axial_faces(res, diag, g, i, j, n_phi, n_z, Hi, a_z, dz, dphi, p, dp, p0, b
         elif bath:
             res += dphi * 2.0 * condz * (p[g] - p0)
             diag += dphi * 2.0 * condz * dp[g]
-        else:
-            gv, dgv = penalty(p[g] - p0, pa, pb, s_pen, a_z)
+        else:                          # eq. 6 at the edge, through the half cell
+            gv, dgv = penalty_edge(p[g] - p0, 2.0 * condz, pa, pb, s_pen, a_z)
             res += dphi * gv
             diag += dphi * dgv * dp[g]
     return res, diag
@@ -404,7 +406,7 @@ def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
                 if bath:
                     qs += n_edge * 2.0 * condz * (p[g] - p0)
                 else:
-                    gv, dgv = penalty(p[g] - p0, pa, pb, s_pen, a_z)
+                    gv, dgv = penalty_edge(p[g] - p0, 2.0 * condz, pa, pb, s_pen, a_z)
                     qs += n_edge * gv
     area = R * dphi * B * dz
     scale = 0.5 * R * c * B
