@@ -236,8 +236,12 @@ class JournalBearing:
         self.grid_full = make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle)
         self.sym = bool(p.cavitation == 1 and p.n_z % 2 == 0)
         muscl = bool(p.cavitation == 1 and p.theta_transport == 1)   # 7-point Jacobian
-        self.grid = (make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle, half=self.sym, wide=muscl)
-                     if self.sym or muscl else self.grid_full)
+        # the mass-conserving film holds the groove at its true width (grid.groove_weights);
+        # grid_full (fields, the half-Sommerfeld solver and its coefficients) keeps whole columns
+        true_groove = bool(p.cavitation == 1 and p.groove_width > 0)
+        self.grid = (make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle, half=self.sym,
+                               wide=muscl, true_groove=true_groove)
+                     if self.sym or muscl or true_groove else self.grid_full)
         self.c = p.c
         self.contact_kw = dict(c=p.c, R=p.R, B=p.B, sigma=p.sigma_rough, KE=p.contact_KE,
                                mu=p.mu_contact)
@@ -287,10 +291,11 @@ class JournalBearing:
                 "the loads")
         return self.gap(x, y, vx, vy) + (float(omega),)
 
-    def gap(self, x, y, vx, vy):
-        """(H, He, Hdot) of the film (non-dimensional, grid.Grid.gap); with contact = 1
+    def gap(self, x, y, vx, vy, grid=None):
+        """(H, He, Hdot) of the film (non-dimensional, grid.Grid.gap; ``grid``: another grid
+        of this bearing, e.g. ``grid_full`` for the half-Sommerfeld solver); with contact = 1
         the expected gap of the roughness (:func:`.contact.average_gap`)."""
-        H, He, Hdot = self.grid.gap(x, y, vx, vy, self.c)
+        H, He, Hdot = (grid or self.grid).gap(x, y, vx, vy, self.c)
         if self.params.contact:
             return average_gap(H, He, Hdot, self.params.sigma_rough / self.c)
         return H, He, Hdot
@@ -335,7 +340,7 @@ class JournalBearing:
             p.ravel(), th.ravel(), H, He, g.groove, g.phi, omega, self.a_phi, self.a_z,
             g.dphi, g.dz, self.bath, self.p0, prm.penalty_a, prm.penalty_b,
             prm.penalty_smoothing, prm.R, prm.B, self.c, prm.eta0, sym,
-            prm.theta_transport if self.film is not None else 0)
+            prm.theta_transport if self.film is not None else 0, g.wrel, g.frel)
         if self.film is None:       # half-Sommerfeld: force with the rupture inside the cells
             Fx, Fy, *_ = integrals(
                 self._pf_hs.ravel(), th.ravel(), H, He, g.groove, g.phi, omega, self.a_phi,
