@@ -34,10 +34,39 @@ def load_scenario(path, overrides=(), **kwargs):
     package imports even while the loader is being developed.
     """
     from . import scenario as _scenario
+    _check_overrides(overrides)
     loader = getattr(_scenario, "load_scenario", None)
     if loader is None:   # pragma: no cover - only while the frontend part is missing
         raise NotImplementedError("orchestrator.scenario.load_scenario is not available in this installation")
     return loader(path, overrides=overrides, **kwargs)
+
+
+def _check_overrides(overrides) -> None:
+    """``overrides`` must be a sequence of "key.path=value" texts (not one text, which
+    would be read letter by letter)."""
+    if isinstance(overrides, (str, bytes)):
+        raise TypeError(f"load_scenario(overrides=...) takes a list of 'key.path=value' texts (got the text "
+                        f"{overrides!r}); write overrides=[{overrides!r}]")
+    try:
+        items = list(overrides)
+    except TypeError:
+        raise TypeError(f"load_scenario(overrides=...) takes a list of 'key.path=value' texts (got "
+                        f"{type(overrides).__name__}); e.g. overrides=['coupling.macro_step=5e-5']") from None
+    bad = [o for o in items if not isinstance(o, str)]
+    if bad:
+        raise TypeError(f"load_scenario(overrides=...): every override is a 'key.path=value' text (got {bad[0]!r}); "
+                        "e.g. overrides=['coupling.macro_step=5e-5']")
+
+
+def _check_scenario(scenario) -> None:
+    from .scenario import Scenario
+    if isinstance(scenario, Scenario):
+        return
+    if isinstance(scenario, (str, Path)):
+        raise TypeError(f"run() takes a loaded scenario, not the file name {str(scenario)!r}; write "
+                        f"run(load_scenario({str(scenario)!r}), out_dir=...)")
+    raise TypeError(f"run() takes a Scenario from load_scenario() (got {type(scenario).__name__}); write "
+                    "run(load_scenario('file.yaml'), out_dir=...)")
 
 
 def _summary(scenario, res: CoSimResult, out_dir: Path) -> dict:
@@ -119,6 +148,7 @@ def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, 
     """
     from .observers import CsvWriter, Progress, write_summary
 
+    _check_scenario(scenario)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     try:
@@ -142,7 +172,8 @@ def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, 
             # interrupted by the user: record where the run stopped, then re-raise
             if master.status is not Status.NOT_STARTED:
                 res = master.result()
-                msg = f"interrupted by the user at t={res.end_time:.12g} s; " + (res.message or "")
+                msg = res.message if (res.message or "").startswith("interrupted by the user") else (
+                    f"interrupted by the user at t={res.end_time:.12g} s; " + (res.message or ""))
                 from dataclasses import replace
                 write_summary(out_dir / "summary.json",
                               _summary(scenario, replace(res, status=Status.FAILED, message=msg), out_dir))

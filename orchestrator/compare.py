@@ -39,7 +39,7 @@ from orchestrator.compare_metrics import (
 from orchestrator.compare_spec import (  # noqa: F401 - re-exported: the public API of compare
     CompareSpec, CompareSpecError, ReferenceSpec, VariantSpec, apply_changes, build_pythonfmu_sources,
     expand_variants, load_compare, parse_compare)
-from orchestrator.errors import ScenarioError
+from orchestrator.errors import CosimError, ScenarioError
 from orchestrator.scenario import Scenario
 
 log = logging.getLogger(__name__)
@@ -261,6 +261,16 @@ def main_compare(path: str | os.PathLike, out_dir: str | os.PathLike | None = No
     except ScenarioError as exc:
         print(f"rotorcosim compare: {exc}", file=sys.stderr)
         return 2
+    baseline = None
+    try:         # before the runs: a missing or broken baseline must not switch the gate off
+        if spec.baseline is not None and not update_baseline:
+            baseline = load_baseline(spec.baseline)
+        if update_baseline and spec.baseline is None:
+            raise CosimError(f"{spec.source}: --update-baseline given but the file has no 'compare.baseline' path; "
+                             "add 'baseline: baselines/NAME.json' to its compare: section")
+    except CosimError as exc:
+        print(f"rotorcosim compare: {exc}", file=sys.stderr)
+        return 2
     out = Path(out_dir) if out_dir is not None else Path("out") / "compare" / spec.name
     out.mkdir(parents=True, exist_ok=True)
     try:
@@ -268,16 +278,9 @@ def main_compare(path: str | os.PathLike, out_dir: str | os.PathLike | None = No
     except RuntimeError as exc:
         print(f"rotorcosim compare: {exc}", file=sys.stderr)
         return 2
-    baseline = None
-    if spec.baseline is not None and not update_baseline:
-        baseline = load_baseline(spec.baseline)
     failures = check_report(report, spec, baseline)
     write_report(report, spec, out, failures)
     if update_baseline:
-        if spec.baseline is None:
-            print("rotorcosim compare: --update-baseline given but the file has no "
-                  "'compare.baseline' path", file=sys.stderr)
-            return 2
         write_baseline(report, spec, spec.baseline)
         print(f"baseline written: {spec.baseline}")
     print(f"report: {out / 'report.md'}  ({len(report.variants)} variants, "

@@ -25,6 +25,8 @@ from orchestrator.compare_metrics import METRICS
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario import Scenario
 from orchestrator.scenario import _YamlLoader as _ScenarioYamlLoader   # same YAML number rules
+from orchestrator.untrusted import (InputError, check_name, construct_yaml, format_template, name_problem,
+                                   read_yaml_tree)
 
 log = logging.getLogger(__name__)
 
@@ -33,6 +35,7 @@ __all__ = ["CompareSpecError", "CompareSpec", "VariantSpec", "ReferenceSpec", "l
 
 COUPLING_KEYS = ("scheme", "extrapolation_order", "interpolation_order", "macro_step", "substeps",
                  "sequence")
+MAX_VARIANTS = 500             # variants of one comparison (each is a run)
 _ABBR = {"gauss-seidel": "gs", "jacobi": "jac", "monolithic": "mono"}
 _VARIANT_KEYS = set(COUPLING_KEYS) | {"name", "family", "set", "tolerance", "expect_order"}
 _TOP_KEYS = {"name", "scenario", "set", "output_interval", "workers", "reference", "signals",
@@ -170,9 +173,14 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
 
     path = Path(path).resolve()
     try:
-        doc = yaml.load(path.read_text(), Loader=_LineLoader)
-    except (OSError, yaml.YAMLError) as exc:
-        raise CompareSpecError(f"{path}: cannot read comparison file: {exc}") from None
+        root = read_yaml_tree(path, what="comparison file", loader_cls=_LineLoader)
+        doc = None if root is None else construct_yaml(root, display=str(path), loader_cls=_LineLoader)
+    except InputError as exc:
+        raise CompareSpecError(str(exc)) from None
+    except yaml.YAMLError as exc:                   # e.g. an unknown !!tag or an unhashable key
+        problem = getattr(exc, "problem", None) or exc
+        raise CompareSpecError(f"{path}: cannot read the comparison file ({problem}); write plain numbers, "
+                               "texts, lists and mappings") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("compare"), dict):
         raise CompareSpecError(f"{path}: expected a mapping with a 'compare:' section "
                                "(see docs/compare.md)")
@@ -192,7 +200,10 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
         if "scenario" not in sec:
             raise CompareSpecError(f"{path}{_line(doc, 'compare')}: 'compare.scenario' is required "
                                    "(path of the base scenario, relative to this file)")
-        base = load_scenario((path.parent / str(sec["scenario"])).resolve())
+        if not isinstance(sec["scenario"], str) or not sec["scenario"].strip():
+            raise CompareSpecError(f"{path}{_line(sec, 'scenario')}: 'compare.scenario' must be the path of the "
+                                   f"base scenario, relative to this file (got {sec['scenario']!r})")
+        base = load_scenario((path.parent / sec["scenario"]).resolve())
     return parse_compare(sec, base, source=path)
 
 
@@ -236,6 +247,8 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
         if k not in _TOP_KEYS:
             bad(k, f"is not a known key; valid keys: {sorted(_TOP_KEYS)}")
     name = str(sec.get("name") or (source.stem if source else base.name))
+    if name_problem(name) is not None:              # the default report folder is out/compare/<name>
+        bad("name", f"becomes a folder name, but {name_problem(name)}; use letters, digits, '-', '_' and '.'")
 
     common = _changes(sec.get("set") or {}, "set", bad)
     try:
@@ -267,6 +280,9 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     for i, g in enumerate(groups):
         variants.extend(expand_variants(g, base, default_tol, known, where=f"variants[{i}]",
                                         bad=lambda k, msg, m=g, i=i: bad(f"variants[{i}].{k}", msg, m)))
+    if len(variants) > MAX_VARIANTS:
+        bad("variants", f"make {len(variants)} variants (the limit is {MAX_VARIANTS}, each is a run); use fewer")
+        variants = variants[:MAX_VARIANTS]
     seen = set()
     for v in variants:
         if v.name in seen:
@@ -424,8 +440,13 @@ def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mappi
     if expect is not None and not isinstance(expect, (int, float)):
         bad("expect_order", f"must be a number (got {expect!r})")
         expect = None
+    count = math.prod(len(vals) for _, vals in axes)
+    if count > MAX_VARIANTS:
+        bad("", f"expands to {count} variants (the product of its lists; the limit is {MAX_VARIANTS}); split it "
+            "into smaller groups or shorten the lists")
     out = []
-    for combo in itertools.product(*[vals for _, vals in axes]):
+    combos = itertools.product(*[vals for _, vals in axes]) if count <= MAX_VARIANTS else ()
+    for combo in combos:
         values = dict(zip([k for k, _ in axes], combo))
         coupling = {k: values.get(k, getattr(base.coupling, k)) for k in COUPLING_KEYS}
         for k in ("extrapolation_order", "interpolation_order", "substeps"):
@@ -439,13 +460,15 @@ def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mappi
         if coupling["substeps"] != 1:
             default_name += "-s{substeps}"
         default_name += "-h{macro_step:g}"
-        try:
-            name = str(group.get("name", default_name)).format(**fields_)
-            fam_tmpl = group.get("family") or str(group.get("name", default_name)).replace(
+        try:     # names become folders (runs/<name>): plain fields only, then the one name check
+            template = group.get("name", default_name)
+            name = check_name(format_template(template, fields_, what="the name template"),
+                              what=f"the variant name made from {template!r}")
+            fam_tmpl = group.get("family") or str(template).replace(
                 "-h{macro_step:g}", "").replace("{macro_step:g}", "").replace("{macro_step}", "")
-            family = str(fam_tmpl).format(**fields_)
-        except (KeyError, ValueError, IndexError) as exc:
-            bad("name", f"template cannot be formatted ({exc}); fields: {sorted(fields_)}")
+            family = format_template(fam_tmpl, fields_, what="the family template")
+        except InputError as exc:
+            bad("name", f"is not usable: {exc}")
             continue
         changes = {f"coupling.{k}": v for k, v in values.items()}
         changes.update(extra)

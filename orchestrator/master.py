@@ -787,6 +787,13 @@ class MasterAlgorithm:
                 if self.interrupt_requested:
                     raise KeyboardInterrupt
                 self.step()
+        except BaseException as exc:
+            if self.status is Status.RUNNING:   # say why it stopped (not "terminated by the caller")
+                why = "interrupted by the user" if isinstance(exc, KeyboardInterrupt) else (
+                    f"stopped by an error ({type(exc).__name__}: {exc})")
+                self.status, self.message, self.end_time = Status.FAILED, f"{why} at t={self.t:.12g} s", self.t
+                self.view.status, self.view.message = self.status, self.message
+            raise
         finally:
             self.terminate()
         return self.result()

@@ -212,6 +212,28 @@ def compose_yaml(text: str, *, display: str, loader_cls: type | None = None):
     return root
 
 
+def read_yaml_tree(path: str | os.PathLike, *, what: str, loader_cls: type | None = None,
+                   limit: int | None = None):
+    """The bounded node tree of YAML file ``path`` (None when empty).
+
+    :func:`read_text` then :func:`compose_yaml`; YAML syntax errors become
+    :class:`InputError` with ``file:line:column`` and a hint.
+    """
+    import yaml
+
+    text = read_text(path, what=what, limit=limit)
+    try:
+        return compose_yaml(text, display=str(path), loader_cls=loader_cls)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
+        context = f" {exc.context}" if exc.context else ""
+        raise InputError(f"{where}: malformed YAML: {exc.problem}{context}; fix the syntax there "
+                         "(indentation, a missing ':' or a closing bracket)") from None
+    except yaml.YAMLError as exc:
+        raise InputError(f"{path}: malformed YAML ({exc}); fix the syntax") from None
+
+
 def check_yaml_tree(root, *, display: str) -> None:
     """Bound a composed YAML tree as if every alias were expanded.
 

@@ -1,0 +1,258 @@
+"""Catalogue of hostile input files (issue 19), part 1: scenario YAML, FMU archives and
+model descriptions, special files, numeric limits.
+
+Every case builds its hostile file here, runs the CLI verb a user would run and checks
+the message names the file (and line or field), and that no "internal error" or
+traceback appears (``hostile_builders.cli``). Memory and time bounds are checked by
+counts (bytes read, nodes constructed, extractions), never by wall-clock time.
+"""
+
+from __future__ import annotations
+
+import os
+import zipfile
+
+import pytest
+import yaml
+
+from hostile_builders import bomb, cli, corrupt_member, md_scenario, md_xml, write_fmu
+from orchestrator import fmu_archive
+from orchestrator.errors import CosimError, ScenarioError
+from orchestrator.scenario import load_scenario
+
+needs_fifo = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+needs_dev_zero = pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="needs /dev/zero")
+
+
+@pytest.fixture
+def constructed(monkeypatch):
+    """Count the YAML values the constructor builds (the memory a bomb would take)."""
+    counts = {"n": 0}
+    real = yaml.constructor.BaseConstructor.construct_object
+
+    def counting(self, node, deep=False):
+        counts["n"] += 1
+        return real(self, node, deep)
+    monkeypatch.setattr(yaml.constructor.BaseConstructor, "construct_object", counting)
+    return counts
+
+
+# --------------------------------------------------------------------------- YAML
+def test_alias_bomb_in_coupling_options_fails_validate(tmp_path, capsys, constructed):
+    s = md_scenario(tmp_path, coupling="  options:\n" + bomb(9))
+    rc, out = cli(capsys, "validate", s)
+    assert rc == 1
+    assert f"{s}:" in out and "expands to more than 200000 values through aliases" in out
+    assert constructed["n"] < 1000
+
+
+def test_merge_key_bomb_stays_bounded(tmp_path, capsys, constructed):
+    lines = ["    m0: &m0 {a: 1, b: 2}"] + [f"    m{i}: &m{i} {{<<: [*m{i - 1}, *m{i - 1}], k{i}: 1}}"
+                                            for i in range(1, 40)]
+    s = md_scenario(tmp_path, coupling="  options:\n" + "\n".join(lines) + "\n")
+    rc, out = cli(capsys, "validate", s)
+    assert constructed["n"] < 100_000
+    assert rc in (0, 1)
+
+
+def test_nesting_50000_deep(tmp_path, capsys):
+    s = md_scenario(tmp_path, extra="analysis: " + "[" * 50_000 + "]" * 50_000 + "\n")
+    rc, out = cli(capsys, "validate", s)
+    assert rc == 1 and f"{s}:7:" in out and "nested more than 64 levels" in out
+
+
+def test_integer_of_400_digits(tmp_path, capsys):
+    s = md_scenario(tmp_path, top="start_time: " + "1" * 400 + "\n")
+    rc, out = cli(capsys, "validate", s)
+    assert rc == 1 and f"{s}:3:" in out and "the limit is 40 digits" in out
+
+
+def test_recursive_alias(tmp_path, capsys):
+    s = md_scenario(tmp_path, coupling="  options: &o {a: [*o]}\n")
+    rc, out = cli(capsys, "validate", s)
+    assert rc == 1 and "recursive alias" in out
+
+
+def test_scenario_not_utf8(tmp_path, capsys):
+    s = md_scenario(tmp_path)
+    s.write_bytes(s.read_bytes() + b"description: caf\xe9\n")
+    rc, out = cli(capsys, "validate", s)
+    assert rc == 1 and f"{s}:7:" in out and "not UTF-8" in out and "save it as UTF-8" in out
+
+
+@needs_dev_zero
+@pytest.mark.parametrize("verb", ["validate", "run"])
+def test_dev_zero_as_scenario(tmp_path, capsys, verb):
+    rc, out = cli(capsys, verb, "/dev/zero")
+    assert rc == 1 and "/dev/zero" in out and "character device, expected a regular file" in out
+
+
+@needs_fifo
+@pytest.mark.parametrize("verb", ["validate", "info"])
+def test_fifo_does_not_hang(tmp_path, capsys, verb):
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    rc, out = cli(capsys, verb, fifo)
+    assert rc == 1 and str(fifo) in out and "named pipe (FIFO)" in out
+
+
+def test_huge_scenario_file(tmp_path, capsys, monkeypatch):
+    from orchestrator import untrusted
+    monkeypatch.setattr(untrusted, "MAX_TEXT_BYTES", 10_000)
+    s = md_scenario(tmp_path, extra="description: '" + "x" * 20_000 + "'\n")
+    rc, out = cli(capsys, "validate", s)
+    assert rc == 1 and "larger than 10000 bytes (the limit)" in out
+
+
+# --------------------------------------------------------------------------- numeric limits
+@pytest.mark.parametrize("top, coupling, words", [
+    ("", "", None),
+    ("stop_time: 1.0e300\n", "", "macro steps (the limit is"),
+    ("", "  substeps: 1.0e9\n", "'coupling.substeps' must be between 1 and"),
+    ("start_time: 1.0e16\nstop_time: 1.00000001e16\n", "", "too small for the time"),
+])
+def test_step_count_limits(tmp_path, capsys, top, coupling, words):
+    text = md_scenario(tmp_path).read_text()
+    if top:
+        text = text.replace("stop_time: 0.01\n", top)
+    text = text.replace("  macro_step: 1.0e-3\n", "  macro_step: 1.0e-3\n" + coupling)
+    if "1.0e300" in top:
+        text = text.replace("1.0e-3", "1.0e-300")
+    s = tmp_path / "s.yaml"
+    s.write_text(text)
+    rc, out = cli(capsys, "validate", s)
+    if words is None:
+        assert rc == 0, out
+    else:
+        assert rc == 1 and f"{s}:" in out and words in out, out
+
+
+def test_fmu_substeps_limit(tmp_path, capsys):
+    s = md_scenario(tmp_path)
+    s.write_text(s.read_text().replace("{path: m.fmu}", "{path: m.fmu, substeps: 1000000000}"))
+    rc, out = cli(capsys, "validate", s)
+    assert rc == 1 and "'fmus.a.substeps' must be between 1 and" in out
+
+
+def test_output_row_limit(tmp_path, capsys):
+    s = md_scenario(tmp_path, extra="output: {interval: 1.0e-12}\n")
+    s.write_text(s.read_text().replace("1.0e-3", "1.0e-12"))
+    rc, out = cli(capsys, "validate", s)
+    assert rc == 1 and "macro steps (the limit is" in out
+
+
+# --------------------------------------------------------------------------- model description
+@pytest.mark.parametrize("variables, words", [
+    ('<ScalarVariable name="z" valueReference="4294967296" causality="output"><Real/></ScalarVariable>',
+     "valueReference 4294967296 of variable 'z' is outside 0..4294967295"),
+    ('<ScalarVariable name="z" valueReference="-1" causality="output"><Real/></ScalarVariable>',
+     "valueReference -1 of variable 'z' is outside 0..4294967295"),
+    ('<ScalarVariable name="z" valueReference="1" causality="evil"><Real/></ScalarVariable>',
+     "causality 'evil' of variable 'z' is not an FMI 2.0 causality"),
+    ('<ScalarVariable name="z" valueReference="1" variability="sometimes"><Real/></ScalarVariable>',
+     "variability 'sometimes' of variable 'z' is not an FMI 2.0 variability"),
+    ('<ScalarVariable name="z" valueReference="' + "9" * 5000 + '"><Real/></ScalarVariable>',
+     "outside 0..4294967295"),
+])
+def test_model_description_fields(tmp_path, capsys, variables, words):
+    p = write_fmu(tmp_path / "m.fmu", md_xml(variables=variables))
+    rc, out = cli(capsys, "info", p)
+    assert rc == 1 and str(p) in out and words in out and "re-export" in out, out
+
+
+@pytest.mark.parametrize("version", ["2.9-evil", "2", "2.0x", "20"])
+def test_fmi_version_exact(tmp_path, capsys, version):
+    p = write_fmu(tmp_path / "m.fmu", md_xml(version=version))
+    rc, out = cli(capsys, "info", p)
+    assert rc == 1 and f"fmiVersion {version!r}" in out and "FMI 2.0" in out
+
+
+def test_utf16_doctype_entity_bomb(tmp_path, capsys):
+    ents = '<!DOCTYPE r [<!ENTITY a "' + "a" * 100 + '">' + "".join(
+        f'<!ENTITY {c} "{("&" + p + ";") * 10}">' for p, c in zip("abcdef", "bcdefg")) + "]>\n"
+    xml = md_xml(doctype=ents, encoding="UTF-16").replace('modelName="M"', 'modelName="&g;"')
+    data = xml.encode("utf-16")
+    assert b"<!doctype" not in data.lower() and len(data) < 20_000
+    p = write_fmu(tmp_path / "m.fmu", data)
+    rc, out = cli(capsys, "info", p)
+    assert rc == 1 and str(p) in out and "contains a DOCTYPE" in out
+
+
+def test_bad_crc_in_model_description(tmp_path, capsys):
+    p = write_fmu(tmp_path / "m.fmu", compression=zipfile.ZIP_STORED)
+    corrupt_member(p, "modelDescription.xml")
+    rc, out = cli(capsys, "info", p)
+    assert rc == 1 and str(p) in out and "corrupt" in out and "download" in out
+
+
+def test_bad_crc_in_extracted_member(tmp_path):
+    p = write_fmu(tmp_path / "m.fmu", members=[("binaries/linux64/M.so", b"\x7fELF" + b"x" * 5000)],
+                  compression=zipfile.ZIP_STORED)
+    corrupt_member(p, "binaries/linux64/M.so")
+    with pytest.raises(CosimError, match="corrupt"):
+        fmu_archive.safe_extract(p, tmp_path / "x")
+
+
+def test_directory_named_model_description(tmp_path, capsys):
+    p = write_fmu(tmp_path / "m.fmu", md=False, members=[("modelDescription.xml/", b""),
+                                                           ("modelDescription.xml/a", b"x")])
+    rc, out = cli(capsys, "info", p)
+    assert rc == 1 and str(p) in out and "modelDescription.xml" in out and "not a file" in out
+
+
+@needs_dev_zero
+def test_dev_zero_as_fmu(tmp_path, capsys):
+    rc, out = cli(capsys, "info", "/dev/zero")
+    assert rc == 1 and "character device, expected a regular file" in out
+    s = md_scenario(tmp_path)
+    s.write_text(s.read_text().replace("m.fmu", "/dev/zero"))
+    rc, out = cli(capsys, "validate", s)
+    assert rc == 1 and "character device" in out
+
+
+def test_archive_ratio_over_many_small_members(tmp_path, monkeypatch):
+    """Each member below the per-member ratio check, the archive as a whole a bomb."""
+    monkeypatch.setattr(fmu_archive, "ARCHIVE_RATIO_MIN_BYTES", 2**20)
+    zeros = bytes(256 * 1024)
+    p = write_fmu(tmp_path / "m.fmu", members=[(f"resources/r{i}.bin", zeros) for i in range(40)])
+    assert p.stat().st_size < 50_000
+    with pytest.raises(CosimError, match="compression ratio .* the whole archive"):
+        fmu_archive.check_archive(p)
+    assert not (tmp_path / "x").exists()
+    with pytest.raises(CosimError):
+        fmu_archive.safe_extract(p, tmp_path / "x")
+    assert not any((tmp_path / "x").rglob("*.bin")) if (tmp_path / "x").exists() else True
+
+
+def test_run_extraction_budget(tmp_path, monkeypatch):
+    from orchestrator import extraction
+    a = write_fmu(tmp_path / "a.fmu", members=[("resources/r.bin", os.urandom(30_000))])
+    b = write_fmu(tmp_path / "b.fmu", members=[("resources/r.bin", os.urandom(30_000))])
+    pool = extraction.ExtractionPool(tmp_path / "run", budget=50_000)
+    pool.extract(a)
+    pool.extract(a)                                  # shared: no second extraction, no budget used
+    assert pool.extractions == 1
+    with pytest.raises(CosimError, match="run's extraction budget"):
+        pool.extract(b)
+
+
+def test_four_instances_share_one_extraction(tmp_path, test_fmus, monkeypatch):
+    import orchestrator
+    calls = []
+    real = fmu_archive.safe_extract
+
+    def counting(path, dest, **kw):
+        calls.append(path)
+        return real(path, dest, **kw)
+    monkeypatch.setattr(fmu_archive, "safe_extract", counting)
+    fmus = "".join(f"  g{i}: {{path: {test_fmus['Trivial']}}}\n" for i in range(4))
+    s = tmp_path / "s.yaml"
+    s.write_text(f"name: four\nstop_time: 0.003\nfmus:\n{fmus}coupling: {{macro_step: 1.0e-3}}\n")
+    res = orchestrator.run(load_scenario(s), out_dir=tmp_path / "out", progress=False)
+    assert res.success and len(calls) == 1
+
+
+def test_scenario_error_is_a_scenario_error(tmp_path):
+    s = md_scenario(tmp_path, coupling="  options:\n" + bomb(9))
+    with pytest.raises(ScenarioError):
+        load_scenario(s)
