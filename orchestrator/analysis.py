@@ -573,7 +573,13 @@ def read_results(path: str | Path) -> dict[str, np.ndarray]:
     number of fields are skipped. Raises ``ValueError`` / ``OSError`` with the
     file name on an empty or unreadable file.
     """
+    from orchestrator.untrusted import InputError, open_regular
+
     path = Path(path)
+    try:                    # a run folder may come from anyone: no FIFO or device behind the name
+        open_regular(path, what="results file").close()
+    except InputError as exc:
+        raise ValueError(str(exc)) from None
     with path.open(newline="") as fh:
         header = next(csv.reader(fh), None)
     if not header:

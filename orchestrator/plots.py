@@ -21,7 +21,6 @@ Uses matplotlib's object API with the Agg canvas (no pyplot, no display).
 
 from __future__ import annotations
 
-import json
 import logging
 import re
 import warnings
@@ -32,6 +31,7 @@ import numpy as np
 
 from orchestrator.analysis import TWO_PI, WhirlParams, analyze_run, read_results, waterfall
 from orchestrator.errors import CosimError
+from orchestrator.untrusted import InputError, load_json, load_yaml, read_text
 
 logger = logging.getLogger(__name__)
 
@@ -77,31 +77,43 @@ class _Context:
 
     # ------------------------------------------------------------------ inputs
     def _load_summary(self) -> dict:
+        """summary.json (bounded read); a run folder may come from anyone, so every part
+        the plots use is checked here (:func:`_checked_spec`, :func:`_checked_result`)."""
         p = self.run_dir / "summary.json"
-        if not p.is_file():
+        if not p.exists():
             return {}
         try:
-            return json.loads(p.read_text())
-        except (OSError, ValueError) as exc:
-            self.skipped.append(f"{p.name} (unreadable: {exc}); using results.csv only")
+            summary = load_json(p, what="summary.json")
+        except InputError as exc:
+            self.skipped.append(f"{p.name} ({exc}); using results.csv only")
             return {}
+        if not isinstance(summary, dict):
+            self.skipped.append(f"{p.name} (expected a JSON object, got {type(summary).__name__}); using "
+                                "results.csv only")
+            return {}
+        return summary
 
     def _load_spec(self) -> tuple[dict, str]:
         ana = self.summary.get("analysis")
         if isinstance(ana, Mapping) and isinstance(ana.get("spec"), Mapping):
-            return dict(ana["spec"]), "summary.json"
+            return self._checked_spec(ana["spec"], "summary.json")
         sf = self.summary.get("scenario_file")
-        if sf:
-            try:
-                import yaml
-                doc = yaml.safe_load(Path(sf).read_text())
+        if isinstance(sf, str) and sf:
+            try:          # the scenario named by summary.json: bounded reader, bounded YAML
+                from orchestrator.scenario import _YamlLoader      # the scenario's number rules
+                doc = load_yaml(read_text(sf, what="scenario file"), display=sf, loader_cls=_YamlLoader)
                 if isinstance(doc, Mapping) and isinstance(doc.get("analysis"), Mapping):
-                    return dict(doc["analysis"]), str(sf)
-            except (OSError, ValueError, ImportError) as exc:
-                logger.info("cannot read analysis section of %s: %s", sf, exc)
-            except Exception as exc:  # yaml errors
+                    return self._checked_spec(doc["analysis"], sf)
+            except InputError as exc:
+                self.skipped.append(f"the analysis section of the scenario named in summary.json ({exc})")
+            except Exception as exc:  # noqa: BLE001 - yaml syntax errors: the inferred spec is used
                 logger.info("cannot parse %s: %s", sf, exc)
         return infer_spec(self.cols), "inferred from results.csv column names"
+
+    def _checked_spec(self, spec: Mapping, src: str) -> tuple[dict, str]:
+        spec, problems = _checked_spec(spec)
+        self.skipped.extend(f"{p} in the analysis spec ({src})" for p in problems)
+        return spec, src
 
     def run(self) -> None:
         csv_path = self.run_dir / "results.csv"
@@ -132,8 +144,11 @@ class _Context:
 
     def _analysis(self) -> None:
         ana = self.summary.get("analysis")
-        if isinstance(ana, Mapping) and isinstance(ana.get("journals"), Mapping):
-            self.result = dict(ana)
+        result, problem = _checked_result(ana)
+        if problem:
+            self.skipped.append(f"the analysis in summary.json ({problem}); recomputed from results.csv")
+        if result is not None:
+            self.result = result
         elif self.spec.get("speed"):
             self.result = analyze_run(self.run_dir, self.spec)
         if "error" in self.result:
@@ -402,6 +417,73 @@ def _orbit_windows(t, omega, res) -> list[tuple[str, float, float]]:
     a, b = span(t_end, end=True)
     wins.append(("end of the run", a, b))
     return [(s, max(a, float(t[0])), min(b, t_end)) for s, a, b in wins]
+
+
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and bool(np.isfinite(x))
+
+
+def _checked_spec(spec: Mapping) -> tuple[dict, list[str]]:
+    """The analysis spec with only well-formed parts kept, and what was dropped."""
+    out: dict[str, Any] = {}
+    problems = []
+    for key in ("speed",):
+        if spec.get(key) is not None:
+            if isinstance(spec[key], str):
+                out[key] = spec[key]
+            else:
+                problems.append(f"'{key}' is not a signal name (got {type(spec[key]).__name__})")
+    if isinstance(spec.get("whirl"), Mapping):
+        out["whirl"] = dict(spec["whirl"])
+    if isinstance(spec.get("fields"), list) and all(isinstance(f, str) for f in spec["fields"]):
+        out["fields"] = list(spec["fields"])
+    journals = spec.get("journals")
+    if journals is not None and not isinstance(journals, Mapping):
+        problems.append(f"'journals' must be a mapping name -> {{x, y, eps, clearance}} (got "
+                        f"{type(journals).__name__})")
+        journals = {}
+    out["journals"] = {}
+    for name, js in (journals or {}).items():
+        if not isinstance(js, Mapping):
+            problems.append(f"journal '{name}' must be a mapping (got {type(js).__name__})")
+            continue
+        clean = {k: js[k] for k in ("x", "y", "eps") if isinstance(js.get(k), str)}
+        c = js.get("clearance")
+        if c is not None:
+            if _finite(c) and c > 0:
+                clean["clearance"] = float(c)
+            else:
+                problems.append(f"the clearance of journal '{name}' must be a positive number in m (got {c!r})")
+        out["journals"][str(name)] = clean
+    return out, problems
+
+
+def _event_ok(ev) -> bool:
+    return ev is None or (isinstance(ev, Mapping) and _finite(ev.get("time_s")) and _finite(ev.get("speed_hz")))
+
+
+def _checked_result(ana) -> tuple[dict | None, str | None]:
+    """summary.json's analysis result if every part the plots read is well-formed (else None
+    and the reason; None, None when there is none)."""
+    if not isinstance(ana, Mapping) or "journals" not in ana:
+        return None, None
+    if not isinstance(ana["journals"], Mapping):
+        return None, f"'journals' is {type(ana['journals']).__name__}, expected a mapping"
+    for name, jr in ana["journals"].items():
+        if not isinstance(jr, Mapping):
+            return None, f"journal '{name}' is {type(jr).__name__}, expected a mapping"
+        if not (_event_ok(jr.get("onset")) and _event_ok(jr.get("vanish"))):
+            return None, f"the onset/vanish of journal '{name}' lack numeric time_s and speed_hz"
+        if jr.get("clearance") is not None and not (_finite(jr["clearance"]) and jr["clearance"] > 0):
+            return None, f"the clearance of journal '{name}' is not a positive number"
+        if jr.get("time_resolution_s") is not None and not _finite(jr["time_resolution_s"]):
+            return None, f"the time_resolution_s of journal '{name}' is not a number"
+        eps = jr.get("episodes")
+        if jr.get("onset") is not None and not (
+                isinstance(eps, list) and eps and isinstance(eps[0], Mapping) and _finite(eps[0].get("onset_time_s"))
+                and (eps[0].get("vanish_time_s") is None or _finite(eps[0]["vanish_time_s"]))):
+            return None, f"the whirl episodes of journal '{name}' are malformed"
+    return dict(ana), None
 
 
 _XY = re.compile(r"^(?P<inst>[^.]+)\.x_(?P<i>\d+)$")
