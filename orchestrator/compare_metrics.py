@@ -150,7 +150,8 @@ def load_baseline(path: Path) -> dict[str, Any]:
         raise InputError(f"{path}: the baseline file named by 'compare.baseline' does not exist, so the regression "
                          "gate cannot run; create it with `rotorcosim compare FILE --update-baseline` (and commit "
                          "it), or remove 'compare.baseline'")
-    doc = load_json(path, what="baseline file")
+    doc = load_json(path, what="baseline file", fix="fix 'compare.baseline' or rewrite the file with "
+                    "`rotorcosim compare FILE --update-baseline`")
     variants = doc.get("variants") if isinstance(doc, dict) else None
     problem = None
     if not isinstance(variants, dict):

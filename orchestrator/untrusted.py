@@ -136,7 +136,8 @@ def read_text(path: str | os.PathLike, *, what: str = "file", limit: int | None 
     return decode_utf8(read_bytes(path, what=what, limit=limit), str(path), what)
 
 
-def load_json(path: str | os.PathLike, *, what: str = "JSON file", limit: int | None = None) -> Any:
+def load_json(path: str | os.PathLike, *, what: str = "JSON file", limit: int | None = None,
+              fix: str = "rewrite it (or rerun what wrote it)") -> Any:
     """The value of JSON file ``path`` read with :func:`read_text`; InputError for bad JSON
     (including nesting too deep for the parser)."""
     import json
@@ -145,11 +146,9 @@ def load_json(path: str | os.PathLike, *, what: str = "JSON file", limit: int | 
     try:
         return json.loads(text)
     except ValueError as exc:
-        raise InputError(f"{path}: the {what} is not valid JSON ({exc}); rewrite it (or rerun what wrote "
-                         "it)") from None
+        raise InputError(f"{path}: the {what} is not valid JSON ({exc}); {fix}") from None
     except RecursionError:
-        raise InputError(f"{path}: the {what} is nested too deeply to read; it was not written by "
-                         "rotorcosim: rerun what wrote it") from None
+        raise InputError(f"{path}: the {what} is nested too deeply to read; {fix}") from None
 
 
 # --------------------------------------------------------------------------- YAML
