@@ -223,3 +223,33 @@ def test_user_error_mid_run_is_not_terminated_by_the_caller(tmp_path, test_fmus,
     with pytest.raises(ScenarioError):
         m.run()
     assert "by the caller" not in m.message and "stopped by an error" in m.message
+
+
+# --------------------------------------------------------------------------- FMU code cache
+def _code_cache_setup(tmp_path, monkeypatch):
+    from bearing_fmu import journal_bearing as jb
+    res = tmp_path / "resources"
+    (res / "pkg").mkdir(parents=True)
+    (res / "pkg" / "__init__.py").write_text("VALUE = 1\n")
+    (res / "rotorcosim_build.json").write_text(json.dumps({"source_sha256": "ab" * 32}))
+    monkeypatch.setenv("ROTORCOSIM_FMU_CODE_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr("sys.path", list(__import__("sys").path))
+    return jb, res
+
+
+def test_fmu_code_cache_is_rechecked_on_every_use(tmp_path, monkeypatch):
+    jb, res = _code_cache_setup(tmp_path, monkeypatch)
+    base = jb.use_stable_code_copy(str(res), package="pkg")
+    assert base is not None and (base / "pkg" / "__init__.py").read_text() == "VALUE = 1\n"
+    (base / "pkg" / "__init__.py").write_text("import os; os.system('evil')\n")    # tampered after the marker
+    again = jb.use_stable_code_copy(str(res), package="pkg")
+    assert again == base and (base / "pkg" / "__init__.py").read_text() == "VALUE = 1\n"   # replaced
+
+
+@pytest.mark.skipif(not hasattr(os, "getuid"), reason="POSIX permissions")
+def test_fmu_code_cache_not_private_is_not_used(tmp_path, monkeypatch):
+    jb, res = _code_cache_setup(tmp_path, monkeypatch)
+    base = jb.use_stable_code_copy(str(res), package="pkg")
+    os.chmod(tmp_path / "cache", 0o777)                     # anyone could plant code there
+    assert jb.use_stable_code_copy(str(res), package="pkg") is None
+    assert base.is_dir()
