@@ -125,8 +125,8 @@ class ExtractionPool:
             return self._done[key]
         dest = self.root / f"fmu{len(self._done)}-{fmu_path.stem[:40]}"
         left = self.budget - self.used
-        written = fmu_archive.safe_extract(fmu_path, dest, budget=left)
-        self.used += written
+        fmu_archive.safe_extract(fmu_path, dest, budget=left)
+        self.used += sum(f.stat().st_size for f in dest.rglob("*") if f.is_file() and not f.is_symlink())
         self.extractions += 1
         self._done[key] = dest
         return dest

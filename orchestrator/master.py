@@ -47,8 +47,6 @@ from __future__ import annotations
 
 import logging
 import math
-import shutil
-import tempfile
 import time as _time
 import warnings
 from pathlib import Path
@@ -57,6 +55,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .errors import CouplingError, FmuCallError, LifecycleError, ScenarioError
+from .extraction import ExtractionPool
 from .fmu import RealBatch, Subsystem, SubsystemBase
 from .observers import Observer, Recorder, RunView
 from .results import CoSimResult, Status
@@ -158,7 +157,7 @@ class MasterAlgorithm:
         self.t = float(scenario.start_time)
         self.end_time = float(scenario.start_time)
         self.wall_time = 0.0
-        self._work_dir: str | None = None
+        self._work_dir: ExtractionPool | None = None
         self._phase = "new"
         self._t_wall0 = 0.0
         self._wkey = None
@@ -196,9 +195,9 @@ class MasterAlgorithm:
                     raise ScenarioError(f"no subsystem given for FMU instances {missing}")
                 self.subsystems = {n: self._given[n] for n in names}
             else:
-                self._work_dir = tempfile.mkdtemp(prefix="rotorcosim-")
+                self._work_dir = ExtractionPool()      # one extraction per FMU file, shared
                 for f in sc.fmus:
-                    self.subsystems[f.name] = Subsystem(f.name, f.path, work_dir=self._work_dir)
+                    self.subsystems[f.name] = Subsystem(f.name, f.path, extraction=self._work_dir)
             for f in sc.fmus:
                 self.subsystems[f.name].set_parameters(dict(f.parameters), out_dir=self.out_dir)
             self._plan()
@@ -758,8 +757,8 @@ class MasterAlgorithm:
                 sub.free()
             except Exception as e:   # pragma: no cover - defensive
                 log.warning("freeing '%s' failed: %s", sub.name, e)
-        if self._work_dir:
-            shutil.rmtree(self._work_dir, ignore_errors=True)
+        if self._work_dir is not None:
+            self._work_dir.close()
             self._work_dir = None
 
     # ---------------------------------------------------------------- result
