@@ -34,28 +34,10 @@ def load_scenario(path, overrides=(), **kwargs):
     package imports even while the loader is being developed.
     """
     from . import scenario as _scenario
-    _check_overrides(overrides)
     loader = getattr(_scenario, "load_scenario", None)
     if loader is None:   # pragma: no cover - only while the frontend part is missing
         raise NotImplementedError("orchestrator.scenario.load_scenario is not available in this installation")
     return loader(path, overrides=overrides, **kwargs)
-
-
-def _check_overrides(overrides) -> None:
-    """``overrides`` must be a sequence of "key.path=value" texts (not one text, which
-    would be read letter by letter)."""
-    if isinstance(overrides, (str, bytes)):
-        raise TypeError(f"load_scenario(overrides=...) takes a list of 'key.path=value' texts (got the text "
-                        f"{overrides!r}); write overrides=[{overrides!r}]")
-    try:
-        items = list(overrides)
-    except TypeError:
-        raise TypeError(f"load_scenario(overrides=...) takes a list of 'key.path=value' texts (got "
-                        f"{type(overrides).__name__}); e.g. overrides=['coupling.macro_step=5e-5']") from None
-    bad = [o for o in items if not isinstance(o, str)]
-    if bad:
-        raise TypeError(f"load_scenario(overrides=...): every override is a 'key.path=value' text (got {bad[0]!r}); "
-                        "e.g. overrides=['coupling.macro_step=5e-5']")
 
 
 def _check_scenario(scenario) -> None:

@@ -23,6 +23,7 @@ from typing import Any, Mapping, Sequence
 import yaml
 
 from orchestrator.errors import CosimError, ScenarioError
+from orchestrator.untrusted import InputError, check_yaml_tree, compose_yaml, name_problem, read_yaml_tree
 
 log = logging.getLogger(__name__)
 
@@ -128,6 +129,11 @@ COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
 OUTPUT_KEYS = ("interval", "signals")
 MAX_ORDER = 3
 MAX_DISCARD_RETRIES = 30          # smallest retried step H / 2^30 (orchestrator.master has the same limit)
+# limits that keep a run's memory and time bounded (docs/limits.md); the messages name them
+MAX_MACRO_STEPS = 10**8           # (stop_time - start_time) / macro_step
+MAX_OUTPUT_ROWS = 10**7           # (stop_time - start_time) / output.interval: rows of results.csv
+MAX_SUBSTEPS = 10**4              # coupling.substeps and fmus.<name>.substeps
+MIN_RELATIVE_STEP = 1e-10         # macro_step / max(|start_time|, |stop_time|): t0 + n*h stays resolvable
 # override navigation: (schema, key) -> schema of the child; (schema) -> default
 _CHILD_SCHEMA = {
     ("top", "fmus"): "instances", ("top", "connections"): "connections",
@@ -178,13 +184,24 @@ def _read_md_cached(path: str, mtime_ns: int, size: int):
     return read(path)
 
 
+MAX_RANKED = 2000                  # candidates compared in full for a "closest first" list
+
+
 def _ranked(name: str, candidates, limit: int = 15) -> str:
-    """``candidates`` closest to ``name`` first, as one readable string."""
+    """``candidates`` closest to ``name`` first, as one readable string.
+
+    Above MAX_RANKED candidates only those sharing the first letter (else the first
+    MAX_RANKED) are compared, so a bad name in an FMU of 200k variables stays cheap."""
+    candidates = list(candidates)
+    total = len(candidates)
+    if total > MAX_RANKED:
+        near = [c for c in candidates if c[:1].lower() == name[:1].lower()]
+        candidates = (near if near else candidates)[:MAX_RANKED]
     ranked = sorted(candidates, key=lambda c: (
         -difflib.SequenceMatcher(None, name.lower(), c.lower()).ratio(), c))
     text = ", ".join(ranked[:limit])
-    if len(ranked) > limit:
-        text += f", ... ({len(ranked) - limit} more)"
+    if total > limit:
+        text += f", ... ({total - limit} more)"
     return text or "(none)"
 
 
@@ -323,7 +340,10 @@ class _Loader:
                                  "e.g. --set coupling.macro_step=5e-5")
             return
         try:
-            vnode = yaml.compose(raw.strip(), Loader=_YamlLoader)
+            vnode = compose_yaml(raw.strip(), display=origin, loader_cls=_YamlLoader)
+        except InputError as exc:
+            self.problems.append(str(exc))
+            return
         except yaml.YAMLError as exc:
             self.problems.append(f"{origin}: the value is not valid YAML ({exc}); quote or fix it")
             return
@@ -396,24 +416,10 @@ class _Loader:
 
     # -- the pass ----------------------------------------------------------
     def load(self) -> Scenario | None:
-        try:
-            text = self.path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise ScenarioError(f"{self.display}: cannot read the scenario file ({exc.strerror or exc}); "
-                                "check the path") from None
-        except UnicodeDecodeError as exc:
-            raise ScenarioError(f"{self.display}: the scenario file is not UTF-8 text ({exc.reason} at "
-                                f"byte {exc.start}); save it as UTF-8") from None
-        try:
-            root = yaml.compose(text, Loader=_YamlLoader)
-        except yaml.MarkedYAMLError as exc:
-            mark = exc.problem_mark or exc.context_mark
-            where = f"{self.display}:{mark.line + 1}:{mark.column + 1}" if mark else self.display
-            context = f" {exc.context}" if exc.context else ""
-            raise ScenarioError(f"{where}: malformed YAML: {exc.problem}{context}; fix the syntax there "
-                                "(indentation, a missing ':' or a closing bracket)") from None
-        except yaml.YAMLError as exc:
-            raise ScenarioError(f"{self.display}: malformed YAML ({exc}); fix the syntax") from None
+        try:                 # bounded: regular file, size, UTF-8, YAML depth and alias expansion
+            root = read_yaml_tree(self.path, what="scenario file", loader_cls=_YamlLoader)
+        except InputError as exc:
+            raise ScenarioError(str(exc)) from None
         if root is None:
             raise ScenarioError(f"{self.display}:1: expected a scenario (a mapping with at least "
                                 "'name', 'stop_time' and 'fmus'), got an empty file; see docs/scenario-format.md")
@@ -423,6 +429,10 @@ class _Loader:
             mark = exc.problem_mark or exc.context_mark
             raise ScenarioError(f"{self.display}:{mark.line + 1 if mark else 1}: {exc.problem}; '<<' merges "
                                 "mappings only (write '<<: *anchor' or '<<: [*a, *b]')") from None
+        try:
+            check_yaml_tree(root, display=self.display)      # the merged tree, bounded again
+        except InputError as exc:
+            raise ScenarioError(str(exc)) from None
         for text in self.overrides:
             self.apply_override(root, text)
         top = self.mapping(root, "top level", TOP_KEYS, ("name", "stop_time", "fmus"),
@@ -434,9 +444,9 @@ class _Loader:
         kw: dict[str, Any] = {"source": self.path.resolve()}
         if "name" in top:
             name = self.string(get("name"), "name", "give the scenario a name such as 'two-mass-oscillator'")
-            if name is not None and (re.search(r"[/\\\x00-\x1f]", name) or name.startswith(".")):
-                self.err(get("name"), f"'name' is used as a folder name (runs/<name>) and must not contain "
-                                      f"'/', '\\' or control characters nor start with '.' (got {name!r}); rename it")
+            if name is not None and name_problem(name) is not None:     # the one check of names that become paths
+                self.err(get("name"), f"'name' is used as a folder name (runs/<name>), but {name_problem(name)}; "
+                                      "rename it with letters, digits, '-', '_' and '.'")
                 name = None
             kw["name"] = name
         if "version" in top:
@@ -468,6 +478,7 @@ class _Loader:
         names = [f["name"] for f in fmus]
         coupling = self.load_coupling(get("coupling"), names, start, stop)
         interval, signals = self.load_output(get("output"), stop, start)
+        self.check_rows(get("output"), interval, coupling, start, stop)
         connections = self.load_connections(get("connections"))
         for key in ("analysis", "compare"):
             if key in top:
@@ -524,8 +535,8 @@ class _Loader:
                     spec["path"] = (self.path.parent / Path(p).expanduser()).resolve()
                     spec["path_node"] = entry["path"][1]
             if "substeps" in entry:
-                spec["substeps"] = self.integer(entry["substeps"][1], f"fmus.{name}.substeps", 1, None,
-                                                "use a whole number of sub-steps >= 1")
+                spec["substeps"] = self.integer(entry["substeps"][1], f"fmus.{name}.substeps", 1, MAX_SUBSTEPS,
+                                                "use a whole number of sub-steps per macro step")
             if "parameters" in entry:
                 pmap = self.mapping(entry["parameters"][1], f"fmus.{name}.parameters",
                                     fix="write 'parameters: {name: value, ...}'")
@@ -583,8 +594,12 @@ class _Loader:
                 self.err(section["macro_step"][1], f"'coupling.macro_step' must not exceed stop_time - start_time "
                                                    f"({stop - start!r}) (got {h!r}); use a smaller step")
                 h = None
+            if h is not None and start is not None and stop is not None:
+                h = self.check_step_count(section["macro_step"][1], h, start, stop)
             ok &= h is not None
             c["macro_step"] = h
+        elif start is not None and stop is not None:        # the default step must fit too
+            ok &= self.check_step_count(node, CouplingSpec.macro_step, start, stop) is not None
         for key in ("extrapolation_order", "interpolation_order"):
             if key in section:
                 v = self.integer(section[key][1], f"coupling.{key}", 0, MAX_ORDER,
@@ -592,8 +607,8 @@ class _Loader:
                 ok &= v is not None
                 c[key] = v
         if "substeps" in section:
-            v = self.integer(section["substeps"][1], "coupling.substeps", 1, None,
-                             "use a whole number of sub-steps >= 1")
+            v = self.integer(section["substeps"][1], "coupling.substeps", 1, MAX_SUBSTEPS,
+                             "use a whole number of sub-steps per macro step (a larger one: a smaller macro_step)")
             ok &= v is not None
             c["substeps"] = v
         if "discard_retries" in section:
@@ -615,6 +630,30 @@ class _Loader:
                 c["options"] = self.value(section["options"][1])
         return c if ok else None
 
+    def check_step_count(self, node, h: float, start: float, stop: float) -> float | None:
+        """``h`` if the run's macro steps stay within MAX_MACRO_STEPS and the time grid
+        resolves them (MIN_RELATIVE_STEP), else None (problem reported)."""
+        scale = max(abs(start), abs(stop))
+        if h < MIN_RELATIVE_STEP * scale:
+            self.err(node, f"'coupling.macro_step' {h!r} is too small for the time {scale:g} s: t = start_time + n * "
+                           f"macro_step cannot resolve it (the limit is macro_step >= {MIN_RELATIVE_STEP:g} * "
+                           "max(|start_time|, |stop_time|)); use a larger step or shift the times towards 0")
+            return None
+        n = (stop - start) / h
+        if n > MAX_MACRO_STEPS:
+            self.err(node, f"(stop_time - start_time) / macro_step = {n:.3g} macro steps (the limit is "
+                           f"{MAX_MACRO_STEPS:.0e}); use a larger macro_step or a shorter run")
+            return None
+        return h
+
+    def check_rows(self, node, interval, coupling, start, stop) -> None:
+        """results.csv (and the in-memory result) get at most MAX_OUTPUT_ROWS rows."""
+        every = interval or (coupling or {}).get("macro_step")
+        if every and start is not None and stop is not None and (stop - start) / every > MAX_OUTPUT_ROWS:
+            self.err(node, f"the run writes (stop_time - start_time) / output.interval = {(stop - start) / every:.3g} "
+                           f"rows of results (the limit is {MAX_OUTPUT_ROWS:.0e}); set a larger 'output.interval' "
+                           "(rows are written every interval, by default every macro step)")
+
     def load_output(self, node, stop, start):
         if node is None:
             return None, None
@@ -628,6 +667,7 @@ class _Loader:
             if interval is not None and stop is not None and start is not None and interval > stop - start:
                 self.err(section["interval"][1], f"'output.interval' must not exceed stop_time - start_time "
                                                  f"({stop - start!r}) (got {interval!r}); use a smaller interval")
+
         if "signals" in section:
             signals = self.strings(section["signals"][1], "output.signals",
                                    "list signals as 'instance.variable'")
@@ -720,18 +760,22 @@ class _Loader:
     def check_parameters(self, f: dict) -> dict:
         name, out = f["name"], {}
         variables = self.mds.get(name)
+        settable_names = None                           # once per FMU (not per parameter: 200k variables)
         for pname, (value, node) in f["parameters"].items():
             if variables is None:
                 out[pname] = value
                 continue
-            settable = [v.name for v in variables.values()
-                        if v.causality in ("parameter", "input") and v.variability != "constant"]
+            if settable_names is None:
+                settable_names = [v.name for v in variables.values()
+                                  if v.causality in ("parameter", "input") and v.variability != "constant"]
+                settable_set = set(settable_names)
+            settable = settable_names
             var = variables.get(pname)
             if var is None:
                 self.err(node, f"'{name}' has no parameter '{pname}'; parameters of '{name}' (closest first): "
                                f"{_ranked(pname, settable)}")
                 continue
-            if pname not in settable:
+            if pname not in settable_set:
                 self.err(node, f"'{name}.{pname}' is {_a(var.variability)} {var.causality}, not a parameter; only "
                                f"parameters and inputs can be given values: {_ranked(pname, settable)}")
                 continue
@@ -874,6 +918,23 @@ def _convert(value, fmi_type: str):
     return value
 
 
+def check_overrides(overrides) -> None:
+    """``overrides`` must be a sequence of "key.path=value" texts (not one text, which
+    would be read letter by letter)."""
+    if isinstance(overrides, (str, bytes)):
+        raise TypeError(f"load_scenario(overrides=...) takes a list of 'key.path=value' texts (got the text "
+                        f"{overrides!r}); write overrides=[{overrides!r}]")
+    try:
+        items = list(overrides)
+    except TypeError:
+        raise TypeError(f"load_scenario(overrides=...) takes a list of 'key.path=value' texts (got "
+                        f"{type(overrides).__name__}); e.g. overrides=['coupling.macro_step=5e-5']") from None
+    bad = [o for o in items if not isinstance(o, str)]
+    if bad:
+        raise TypeError(f"load_scenario(overrides=...): every override is a 'key.path=value' text (got {bad[0]!r}); "
+                        "e.g. overrides=['coupling.macro_step=5e-5']")
+
+
 def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus: bool = True) -> Scenario:
     """Load and validate a scenario file (format version 1).
 
@@ -893,6 +954,7 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
     ScenarioError
         listing every problem found, each as ``file:line: what is wrong (got X); fix``.
     """
+    check_overrides(overrides)
     loader = _Loader(Path(path), overrides, build_fmus)
     scenario = loader.load()
     if loader.problems or scenario is None:

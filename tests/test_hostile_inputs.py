@@ -105,19 +105,21 @@ def test_huge_scenario_file(tmp_path, capsys, monkeypatch):
 
 
 # --------------------------------------------------------------------------- numeric limits
-@pytest.mark.parametrize("top, coupling, words", [
-    ("", "", None),
-    ("stop_time: 1.0e300\n", "", "macro steps (the limit is"),
-    ("", "  substeps: 1.0e9\n", "'coupling.substeps' must be between 1 and"),
-    ("start_time: 1.0e16\nstop_time: 1.00000001e16\n", "", "too small for the time"),
+@pytest.mark.parametrize("top, coupling, step, words", [
+    ("", "", "1.0e-3", None),
+    ("stop_time: 1.0e300\n", "", "1.0e-300", "too small for the time 1e+300 s"),
+    ("stop_time: 1.0e5\n", "", "1.0e-4", "1e+09 macro steps (the limit is 1e+08)"),
+    ("stop_time: 1.0e5\n", "", None, "1e+09 macro steps (the limit is 1e+08)"),     # the default step
+    ("", "  substeps: 1.0e9\n", "1.0e-3", "'coupling.substeps' must be between 1 and 10000"),
+    ("start_time: 1.0e16\nstop_time: 1.00000001e16\n", "", "1.0", "too small for the time"),
+    ("stop_time: 1.0e3\n", "", "1.0e-5", "rows of results (the limit is 1e+07)"),
 ])
-def test_step_count_limits(tmp_path, capsys, top, coupling, words):
+def test_step_count_limits(tmp_path, capsys, top, coupling, step, words):
     text = md_scenario(tmp_path).read_text()
     if top:
         text = text.replace("stop_time: 0.01\n", top)
-    text = text.replace("  macro_step: 1.0e-3\n", "  macro_step: 1.0e-3\n" + coupling)
-    if "1.0e300" in top:
-        text = text.replace("1.0e-3", "1.0e-300")
+    text = text.replace("  macro_step: 1.0e-3\n", (f"  macro_step: {step}\n" if step else "  scheme: jacobi\n")
+                        + coupling)
     s = tmp_path / "s.yaml"
     s.write_text(text)
     rc, out = cli(capsys, "validate", s)
@@ -135,10 +137,10 @@ def test_fmu_substeps_limit(tmp_path, capsys):
 
 
 def test_output_row_limit(tmp_path, capsys):
-    s = md_scenario(tmp_path, extra="output: {interval: 1.0e-12}\n")
-    s.write_text(s.read_text().replace("1.0e-3", "1.0e-12"))
+    s = md_scenario(tmp_path, extra="output: {interval: 1.0e-10}\n")
+    s.write_text(s.read_text().replace("1.0e-3", "1.0e-10"))
     rc, out = cli(capsys, "validate", s)
-    assert rc == 1 and "macro steps (the limit is" in out
+    assert rc == 1 and "1e+08 rows of results (the limit is 1e+07)" in out
 
 
 # --------------------------------------------------------------------------- model description
@@ -256,3 +258,31 @@ def test_scenario_error_is_a_scenario_error(tmp_path):
     s = md_scenario(tmp_path, coupling="  options:\n" + bomb(9))
     with pytest.raises(ScenarioError):
         load_scenario(s)
+
+
+def test_parameter_checks_linear_in_fmu_variables(tmp_path, monkeypatch):
+    """Setting P parameters of an FMU with V variables visits O(V) variables, not O(P*V)
+    (200k variables used to take > 90 s)."""
+    from orchestrator import scenario as scenario_mod
+    n_vars, n_params = 5000, 500
+    extra = "".join(f'<ScalarVariable name="v{i}" valueReference="{i + 3}" causality="parameter" '
+                    f'variability="fixed"><Real start="1"/></ScalarVariable>' for i in range(n_vars))
+    from hostile_builders import VARS
+    write_fmu(tmp_path / "m.fmu", md_xml(variables=VARS + extra))
+    params = ", ".join(f"v{i}: 2.0" for i in range(n_params)) + ", nope: 1.0"
+    (tmp_path / "s.yaml").write_text(f"name: big\nstop_time: 0.01\nfmus:\n  a: {{path: m.fmu, parameters: "
+                                     f"{{{params}}}}}\ncoupling: {{macro_step: 1.0e-3}}\n")
+    visits = {"n": 0}
+
+    class Counting(dict):
+        def values(self):
+            for v in super().values():
+                visits["n"] += 1
+                yield v
+    real = scenario_mod.read_model_description
+    monkeypatch.setattr(scenario_mod, "read_model_description",
+                        lambda p: type("MD", (), {"variables": Counting(real(p).variables),
+                                                  "can_be_instantiated_only_once_per_process": False})())
+    with pytest.raises(ScenarioError, match="'a' has no parameter 'nope'"):
+        load_scenario(tmp_path / "s.yaml", build_fmus=False)
+    assert visits["n"] <= 3 * (n_vars + 3), visits
