@@ -918,6 +918,34 @@ def _convert(value, fmi_type: str):
     return value
 
 
+def limit_problems(sc: Scenario) -> list[str]:
+    """The numeric limits of the loader applied to a Scenario built in code (e.g. a compare
+    variant, the base with changes): [] when it stays within them."""
+    start, stop, h = sc.start_time, sc.stop_time, sc.coupling.macro_step
+    nums = {"start_time": start, "stop_time": stop, "coupling.macro_step": h}
+    bad = [f"'{k}' must be a finite number (got {v!r})" for k, v in nums.items()
+           if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)]
+    if bad:
+        return bad
+    if stop <= start or h <= 0:
+        return [f"needs stop_time > start_time and macro_step > 0 (got {start!r}, {stop!r}, {h!r})"]
+    scale = max(abs(start), abs(stop))
+    if h < MIN_RELATIVE_STEP * scale:
+        return [f"macro_step {h!r} is too small for the time {scale:g} s (the limit is macro_step >= "
+                f"{MIN_RELATIVE_STEP:g} * max(|start_time|, |stop_time|))"]
+    out = []
+    if (stop - start) / h > MAX_MACRO_STEPS:
+        out.append(f"(stop_time - start_time) / macro_step = {(stop - start) / h:.3g} macro steps (the limit is "
+                   f"{MAX_MACRO_STEPS:.0e})")
+    every = sc.output.interval or h
+    if not (isinstance(every, (int, float)) and every > 0) or (stop - start) / every > MAX_OUTPUT_ROWS:
+        out.append(f"output every {every!r} s gives too many rows (the limit is {MAX_OUTPUT_ROWS:.0e})")
+    for m in [sc.coupling.substeps] + [f.substeps for f in sc.fmus if f.substeps is not None]:
+        if isinstance(m, bool) or not isinstance(m, int) or not 1 <= m <= MAX_SUBSTEPS:
+            out.append(f"substeps must be an integer between 1 and {MAX_SUBSTEPS} (got {m!r})")
+    return out
+
+
 def check_overrides(overrides) -> None:
     """``overrides`` must be a sequence of "key.path=value" texts (not one text, which
     would be read letter by letter)."""

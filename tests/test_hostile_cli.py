@@ -253,3 +253,30 @@ def test_fmu_code_cache_not_private_is_not_used(tmp_path, monkeypatch):
     os.chmod(tmp_path / "cache", 0o777)                     # anyone could plant code there
     assert jb.use_stable_code_copy(str(res), package="pkg") is None
     assert base.is_dir()
+
+
+@pytest.mark.parametrize("extra, words", [
+    ("  derived: [1]\n", "'compare.derived' must be a mapping"),
+    ("  derived: {d: {key: a.b, scale: x}}\n", "scale of 'd' must be a positive number"),
+    ("  set: {coupling.macro_step: x}\n", "gives 'coupling.macro_step' the value 'x'"),
+    ("  set: {stop_time: 1.0e300}\n", "too small for the time 1e+300 s"),
+    ("  output_interval: x\n", "'compare.output_interval' must be a positive number"),
+    ("  workers: 1000000000\n", "between 1 and 64"),
+    ("  name: [1]\n", "'compare.name' must be a text"),
+    ("  reference: {macro_step: 1.0e-5, check: [1]}\n", "'check' must be true or false"),
+])
+def test_compare_spec_values(tmp_path, capsys, test_fmus, extra, words):
+    """Values of the wrong type or size in a comparison file: a message, not an internal error."""
+    two_mass_dir(tmp_path, test_fmus)
+    p = compare_file(tmp_path, "  variants:\n    - {macro_step: 1.0e-3, sequence: [left, right]}\n" + extra)
+    if "reference:" in extra:
+        p.write_text(p.read_text().replace("  reference: {macro_step: 1.0e-4}\n", ""))
+    rc, out = run_compare(capsys, p, tmp_path)
+    assert rc == 2 and str(p) in out and words in out, out
+
+
+def test_compare_variant_sequence_must_be_names(tmp_path, capsys, test_fmus):
+    two_mass_dir(tmp_path, test_fmus)
+    p = compare_file(tmp_path, "  variants:\n    - {macro_step: 1.0e-3, sequence: 5}\n")
+    rc, out = run_compare(capsys, p, tmp_path)
+    assert rc == 2 and "'compare.variants[0].sequence' must be a list of names (got 5)" in out
