@@ -531,7 +531,10 @@ class _Loader:
                     "node": knode, "path": None, "parameters": {}, "substeps": None}
             if "path" in entry:
                 p = self.string(entry["path"][1], f"fmus.{name}.path", "give the FMU file, relative to this file")
-                if p is not None:
+                if p is not None and (any(ord(ch) < 32 for ch in p) or len(p) > 4096):
+                    self.err(entry["path"][1], f"'fmus.{name}.path' must be a file path without control characters "
+                                               f"and at most 4096 characters (got {p[:60]!r}); fix the path")
+                elif p is not None:
                     spec["path"] = (self.path.parent / Path(p).expanduser()).resolve()
                     spec["path_node"] = entry["path"][1]
             if "substeps" in entry:
@@ -736,7 +739,12 @@ class _Loader:
         if path is None:
             return
         node = f["path_node"]
-        if not path.exists():
+        try:
+            exists = path.exists()
+        except (OSError, ValueError) as exc:           # e.g. a name too long for the file system
+            self.err(node, f"FMU path of '{name}' cannot be used: {path}: {exc}; fix 'fmus.{name}.path'")
+            return
+        if not exists:
             self.err(node, f"FMU file of '{name}' not found: {path} (paths are relative to the scenario's "
                            f"folder {self.path.parent.resolve()}); fix 'fmus.{name}.path', or build our FMUs "
                            "with `rotorcosim build-fmus`")

@@ -226,8 +226,11 @@ def read_yaml_tree(path: str | os.PathLike, *, what: str, loader_cls: type | Non
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
-        context = f" {exc.context}" if exc.context else ""
-        raise InputError(f"{where}: malformed YAML: {exc.problem}{context}; fix the syntax there "
+        context = ""
+        if exc.context:
+            at = f" (line {exc.context_mark.line + 1})" if exc.context_mark is not None else ""
+            context = f"{exc.context}{at}, "
+        raise InputError(f"{where}: malformed YAML: {context}{exc.problem}; fix the syntax there "
                          "(indentation, a missing ':' or a closing bracket)") from None
     except yaml.YAMLError as exc:
         raise InputError(f"{path}: malformed YAML ({exc}); fix the syntax") from None

@@ -289,3 +289,21 @@ def test_parameter_checks_linear_in_fmu_variables(tmp_path, monkeypatch):
     with pytest.raises(ScenarioError, match="'a' has no parameter 'nope'"):
         load_scenario(tmp_path / "s.yaml", build_fmus=False)
     assert visits["n"] <= 3 * (n_vars + 3), visits
+
+
+@pytest.mark.parametrize("path, words", [
+    ('"a\\0b.fmu"', "without control characters"),
+    ("a" * 5000 + ".fmu", "at most 4096 characters"),
+    ("a" * 300 + ".fmu", "cannot be used"),              # longer than a file name may be
+])
+def test_fmu_path_values(tmp_path, capsys, path, words):
+    s = md_scenario(tmp_path)
+    s.write_text(s.read_text().replace("{path: m.fmu}", f"{{path: {path}}}"))
+    rc, out = cli(capsys, "validate", s)
+    assert rc == 1 and f"{s}:4:" in out and words in out and "fmus.a.path" in out, out
+
+
+def test_duplicate_anchor_message_reads_in_order(tmp_path, capsys):
+    s = md_scenario(tmp_path, extra="x: &a 1\ny: &a 2\n")
+    rc, out = cli(capsys, "validate", s)
+    assert rc == 1 and "found duplicate anchor 'a'; first occurrence (line 7), second occurrence" in out
