@@ -224,6 +224,18 @@ def check_archive(path: Path | str) -> list[zipfile.ZipInfo]:
 def _read_member(zf: zipfile.ZipFile, path: Path, info: zipfile.ZipInfo, limit: int) -> bytes:
     chunks = []
     n = 0
+    for b in _chunks(zf, info, path):
+        n += len(b)
+        if n > limit:
+            raise _fail(path, f"member {info.filename!r} is larger than {limit} bytes when decompressed "
+                        "(its header says less)", "do not use this FMU")
+        chunks.append(b)
+    return b"".join(chunks)
+
+
+def _chunks(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path):
+    """The decompressed bytes of member ``info`` in chunks; a CRC or stream failure is an
+    FmuError saying the member is corrupt."""
     with zf.open(info) as f:
         while True:
             try:
@@ -231,13 +243,8 @@ def _read_member(zf: zipfile.ZipFile, path: Path, info: zipfile.ZipInfo, limit: 
             except (zipfile.BadZipFile, zlib.error, EOFError, OSError) as e:
                 raise _corrupt(path, info.filename, e) from None
             if not b:
-                break
-            n += len(b)
-            if n > limit:
-                raise _fail(path, f"member {info.filename!r} is larger than {limit} bytes when decompressed "
-                            "(its header says less)", "do not use this FMU")
-            chunks.append(b)
-    return b"".join(chunks)
+                return
+            yield b
 
 
 def safe_extract(path: Path | str, dest: Path | str, *, budget: int | None = None) -> Path:
@@ -281,19 +288,14 @@ def _copy_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, target: Path, path:
     return the bytes written. A member that fails (CRC, size) leaves no file behind."""
     n = 0
     try:
-        with zf.open(info) as src, open(target, "wb") as out:
-            while True:
-                try:
-                    b = src.read(_CHUNK)
-                except (zipfile.BadZipFile, zlib.error, EOFError, OSError) as e:
-                    raise _corrupt(path, info.filename, e) from None
-                if not b:
-                    return n
+        with open(target, "wb") as out:
+            for b in _chunks(zf, info, path):
                 n += len(b)
                 if n > MAX_MEMBER_BYTES or n > left:
                     raise _fail(path, f"member {info.filename!r} decompresses beyond the size limits "
                                 f"({MAX_MEMBER_BYTES} per member, {limit} total)", "do not use this FMU")
                 out.write(b)
+        return n
     except FmuError:
         target.unlink(missing_ok=True)
         raise

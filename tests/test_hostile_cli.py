@@ -16,6 +16,7 @@ import pytest
 import orchestrator
 from hostile_builders import bomb, cli, md_scenario, two_mass_dir
 from orchestrator.compare import main_compare
+from test_cli import _with_func
 
 needs_dev_zero = pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="needs /dev/zero")
 
@@ -180,17 +181,6 @@ def test_warnings_print_as_one_line(tmp_path, capsys, monkeypatch):
         rc = cli_mod.main(["validate", "x.yaml"])
     err = capsys.readouterr().err
     assert rc == 0 and err.strip() == "warning: output.interval 0.3 is not a multiple of the macro step"
-
-
-def _with_func(parser, func):
-    real = parser.parse_args
-
-    def parse(argv=None):
-        ns = real(argv)
-        ns.func = func
-        return ns
-    parser.parse_args = parse
-    return parser
 
 
 def test_run_with_a_path_is_refused_before_creating_out(tmp_path):
