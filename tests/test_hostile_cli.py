@@ -196,7 +196,7 @@ def test_overrides_as_one_text_is_refused(tmp_path):
 
 
 def test_user_error_mid_run_is_not_terminated_by_the_caller(tmp_path, test_fmus, monkeypatch):
-    from orchestrator import master as master_mod
+    from orchestrator.coupling import execution as master_mod
     from orchestrator.errors import ScenarioError
     two_mass_dir(tmp_path, test_fmus)
     sc = orchestrator.load_scenario(tmp_path / "two_mass.yaml")

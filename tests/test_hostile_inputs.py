@@ -16,7 +16,7 @@ import pytest
 import yaml
 
 from hostile_builders import bomb, cli, corrupt_member, md_scenario, md_xml, write_fmu
-from orchestrator import fmu_archive
+from orchestrator.fmi import archive as fmu_archive
 from orchestrator.errors import CosimError, ScenarioError
 from orchestrator.scenario import load_scenario
 
@@ -227,7 +227,7 @@ def test_archive_ratio_over_many_small_members(tmp_path, monkeypatch):
 
 
 def test_run_extraction_budget(tmp_path, monkeypatch):
-    from orchestrator import extraction
+    from orchestrator.fmi import extraction
     a = write_fmu(tmp_path / "a.fmu", members=[("resources/r.bin", os.urandom(30_000))])
     b = write_fmu(tmp_path / "b.fmu", members=[("resources/r.bin", os.urandom(30_000))])
     pool = extraction.ExtractionPool(tmp_path / "run", budget=50_000)
@@ -263,7 +263,7 @@ def test_scenario_error_is_a_scenario_error(tmp_path):
 def test_parameter_checks_linear_in_fmu_variables(tmp_path, monkeypatch):
     """Setting P parameters of an FMU with V variables visits O(V) variables, not O(P*V)
     (200k variables used to take > 90 s)."""
-    from orchestrator import scenario as scenario_mod
+    from orchestrator.scenario import checks as scenario_mod
     n_vars, n_params = 5000, 500
     extra = "".join(f'<ScalarVariable name="v{i}" valueReference="{i + 3}" causality="parameter" '
                     f'variability="fixed"><Real start="1"/></ScalarVariable>' for i in range(n_vars))
@@ -282,8 +282,8 @@ def test_parameter_checks_linear_in_fmu_variables(tmp_path, monkeypatch):
             if name == "causality":
                 visits["n"] += 1
             return getattr(self._var, name)
-    real = scenario_mod.read_model_description
-    monkeypatch.setattr(scenario_mod, "read_model_description", lambda p: type("MD", (), {
+    real = scenario_mod.cached_model_description
+    monkeypatch.setattr(scenario_mod, "cached_model_description", lambda p: type("MD", (), {
         "variables": {k: CountingVar(v) for k, v in real(p).variables.items()},
         "can_be_instantiated_only_once_per_process": False})())
     with pytest.raises(ScenarioError, match="'a' has no parameter 'nope'"):

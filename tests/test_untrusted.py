@@ -1,5 +1,5 @@
 """Unit tests of orchestrator.untrusted (bounded reading of files from others) and
-orchestrator.extraction (run folders, shared extraction, stale cleanup)."""
+orchestrator.fmi.extraction (run folders, shared extraction, stale cleanup)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ import time
 import pytest
 import yaml
 
-from orchestrator import extraction, untrusted
+from orchestrator import untrusted
+from orchestrator.fmi import extraction
 from orchestrator.untrusted import InputError
 
 
@@ -132,7 +133,7 @@ def test_long_integer_refused():
 
 
 def test_resolvers_of_the_callers_loader_apply():
-    from orchestrator.scenario import _YamlLoader
+    from orchestrator.scenario.nodes import YamlLoader as _YamlLoader
     value = untrusted.load_yaml("h: 1e-4\nm: &m {a: 1}\nn: {<<: *m, b: 2}\n", display="<s>", loader_cls=_YamlLoader)
     assert value == {"h": 1e-4, "m": {"a": 1}, "n": {"a": 1, "b": 2}}
     assert isinstance(untrusted.compose_yaml("a: 1", display="<s>"), yaml.MappingNode)

@@ -5,7 +5,7 @@ that FMU loads from the same extraction (FMI 2.0 lets one loaded library hold
 several instances unless the FMU declares ``canBeInstantiatedOnlyOncePerProcess``,
 which the scenario loader already restricts to one instance). All extractions
 of a run together stay within :data:`MAX_RUN_EXTRACT_BYTES`, on top of the
-per-archive limits of :mod:`orchestrator.fmu_archive`.
+per-archive limits of :mod:`orchestrator.fmi.archive`.
 
 Run folders are ``$TMPDIR/rotorcosim-*`` with an owner record (process id,
 its start time, host). A run removes its folder when it ends; a crashed or
@@ -113,7 +113,7 @@ class ExtractionPool:
 
     def extract(self, fmu_path: str | os.PathLike) -> Path:
         """The folder holding ``fmu_path`` extracted (extracting it on first use)."""
-        from orchestrator import fmu_archive
+        from orchestrator.fmi import archive as fmu_archive
 
         fmu_path = Path(fmu_path)
         try:

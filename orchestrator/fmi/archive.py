@@ -15,7 +15,7 @@ checks the archive and parses ``modelDescription.xml`` safely:
   :data:`MAX_ARCHIVE_RATIO` (zip bombs of many small members); sizes are
   enforced while extracting too, so a lying header does not help, and a
   caller may pass a smaller budget (a run's total, see
-  :mod:`orchestrator.extraction`); a member whose CRC fails (a corrupted
+  :mod:`orchestrator.fmi.extraction`); a member whose CRC fails (a corrupted
   download) is reported as such;
 * ``modelDescription.xml``: a file member of at most :data:`MAX_XML_BYTES`,
   parsed by :func:`orchestrator.untrusted.parse_xml` (DOCTYPE and entities
@@ -32,6 +32,7 @@ The limits are module constants read at call time (tests monkeypatch them).
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import stat
@@ -41,8 +42,9 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any, Mapping
-from .errors import FmuError
-from .untrusted import InputError, open_regular, parse_xml
+
+from orchestrator.errors import FmuError
+from orchestrator.untrusted import InputError, open_regular, parse_xml
 
 MAX_MEMBER_BYTES = 512 * 2**20        # one member, uncompressed
 MAX_TOTAL_BYTES = 2 * 2**30           # all members, uncompressed
@@ -176,7 +178,7 @@ def check_archive(path: Path | str) -> list[zipfile.ZipInfo]:
         infos = zf.infolist()
     if len(infos) > MAX_MEMBERS:
         raise _fail(path, f"has {len(infos)} members (limit {MAX_MEMBERS})",
-                    "this is not a plausible FMU; raise orchestrator.fmu_archive.MAX_MEMBERS if you trust it")
+                    "this is not a plausible FMU; raise orchestrator.fmi.archive.MAX_MEMBERS if you trust it")
     seen = set()
     total = 0
     for info in infos:
@@ -194,7 +196,7 @@ def check_archive(path: Path | str) -> list[zipfile.ZipInfo]:
                         "FMUs must contain regular files only; ask the author to rebuild it without links")
         if info.file_size > MAX_MEMBER_BYTES:
             raise _fail(path, f"member {name!r} is {info.file_size} bytes uncompressed (limit {MAX_MEMBER_BYTES})",
-                        "raise orchestrator.fmu_archive.MAX_MEMBER_BYTES if you trust this FMU")
+                        "raise orchestrator.fmi.archive.MAX_MEMBER_BYTES if you trust this FMU")
         if (info.file_size > RATIO_CHECK_MIN_BYTES
                 and info.file_size > MAX_COMPRESSION_RATIO * max(info.compress_size, 1)):
             ratio = info.file_size / max(info.compress_size, 1)
@@ -203,14 +205,14 @@ def check_archive(path: Path | str) -> list[zipfile.ZipInfo]:
         total += info.file_size
         if total > MAX_TOTAL_BYTES:
             raise _fail(path, f"members add up to more than {MAX_TOTAL_BYTES} bytes uncompressed",
-                        "raise orchestrator.fmu_archive.MAX_TOTAL_BYTES if you trust this FMU")
+                        "raise orchestrator.fmi.archive.MAX_TOTAL_BYTES if you trust this FMU")
     if total > ARCHIVE_RATIO_MIN_BYTES:
         packed = max(sum(i.compress_size for i in infos), 1)
         if total > MAX_ARCHIVE_RATIO * packed:
             raise _fail(path, f"has compression ratio {total / packed:.0f} over the whole archive ({total} bytes "
                         f"from {packed}; limit {MAX_ARCHIVE_RATIO:.0f} above {ARCHIVE_RATIO_MIN_BYTES} bytes): this "
                         "looks like a zip bomb", "do not use this FMU (or raise "
-                        "orchestrator.fmu_archive.MAX_ARCHIVE_RATIO if you trust it)")
+                        "orchestrator.fmi.archive.MAX_ARCHIVE_RATIO if you trust it)")
     md = [i for i in infos if i.filename.rstrip("/") == "modelDescription.xml"]
     if not md:
         raise _fail(path, "has no modelDescription.xml at the top level of the archive",
@@ -261,7 +263,7 @@ def safe_extract(path: Path | str, dest: Path | str, *, budget: int | None = Non
     if declared > limit:
         raise _fail(path, f"members add up to {declared} bytes uncompressed, more than the run's extraction "
                     f"budget ({limit} bytes left)", "use fewer or smaller FMUs in one run (or raise "
-                    "orchestrator.extraction.MAX_RUN_EXTRACT_BYTES)")
+                    "orchestrator.fmi.extraction.MAX_RUN_EXTRACT_BYTES)")
     dest.mkdir(parents=True, exist_ok=True)
     root = dest.resolve()
     total = 0
@@ -341,7 +343,7 @@ def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelD
     path = Path(path)
     if len(xml) > MAX_XML_BYTES:
         raise _fail(path, f"modelDescription.xml is {len(xml)} bytes (limit {MAX_XML_BYTES})",
-                    "raise orchestrator.fmu_archive.MAX_XML_BYTES if you trust this FMU")
+                    "raise orchestrator.fmi.archive.MAX_XML_BYTES if you trust this FMU")
     try:                      # defusedxml: DOCTYPE/entities refused after decoding (UTF-16 too)
         root = parse_xml(xml, display=str(path), what="modelDescription.xml")
     except InputError as e:
@@ -447,3 +449,19 @@ def binary_path(extracted: Path, md: ModelDescription) -> Path:
                     f"{lib.name}; platforms in the FMU: {have or 'none'})",
                     f"export the FMU with a {platform_dir()} binary ({sys.platform})")
     return lib
+
+
+def cached_model_description(path: Path | str) -> ModelDescription:
+    """:func:`read_model_description`, cached per file path, size and modification time
+    (the scenario checks and the master read the same FMUs)."""
+    path = Path(path)
+    try:
+        st = path.stat()
+    except OSError:
+        return read_model_description(path)          # raises FmuError naming the missing file
+    return _read_cached(str(path), st.st_mtime_ns, st.st_size)
+
+
+@functools.lru_cache(maxsize=64)
+def _read_cached(path: str, mtime_ns: int, size: int) -> ModelDescription:
+    return read_model_description(path)
