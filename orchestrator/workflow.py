@@ -73,6 +73,20 @@ def _check_scenario(scenario) -> None:
                     "run(load_scenario('file.yaml'), out_dir=...)")
 
 
+def _read_back(res: CoSimResult, master, path: Path) -> CoSimResult:
+    """The result with ``t``/``outputs`` read from the streamed results file (the run kept no rows in
+    memory, so memory stays flat in the number of rows)."""
+    import warnings
+
+    from orchestrator.results.writer import read_back
+    if not path.is_file() or not hasattr(master, "columns"):
+        return res
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)        # a file with a header only: no rows
+        t, outputs = read_back(path, master.columns, master.kinds)
+    return replace(res, t=t, outputs=outputs)
+
+
 def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, observers=()) -> CoSimResult:
     """Run ``scenario`` and write ``out_dir/results.csv`` and ``out_dir/summary.json``.
 
@@ -102,15 +116,17 @@ def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, 
         from orchestrator.reference.monolithic import run_monolithic     # imported when needed (scipy)
         res = run_monolithic(scenario, out_dir=out_dir, progress=progress)
     else:
-        obs = [CsvWriter(out_dir / "results.csv"), Progress(progress), *observers]
-        master = MasterAlgorithm(scenario, out_dir=out_dir, observers=obs)
+        fmt = getattr(scenario.output, "format", "csv")
+        results_file = out_dir / ("results.parquet" if fmt == "parquet" else "results.csv")
+        obs = [CsvWriter(results_file, format=fmt), Progress(progress), *observers]
+        master = MasterAlgorithm(scenario, out_dir=out_dir, observers=obs, record_in_memory=False)
         try:
             with interrupt_between_steps(master):
-                res = master.run()
+                res = _read_back(master.run(), master, results_file)
         except KeyboardInterrupt:
             # interrupted by the user: record where the run stopped, then re-raise
             if master.status is not Status.NOT_STARTED:
-                res = master.result()
+                res = _read_back(master.result(), master, results_file)
                 msg = res.message if (res.message or "").startswith("interrupted by the user") else (
                     f"interrupted by the user at t={res.end_time:.12g} s; " + (res.message or ""))
                 write_summary(out_dir / "summary.json",
