@@ -307,3 +307,18 @@ def test_duplicate_anchor_message_reads_in_order(tmp_path, capsys):
     s = md_scenario(tmp_path, extra="x: &a 1\ny: &a 2\n")
     rc, out = cli(capsys, "validate", s)
     assert rc == 1 and "found duplicate anchor 'a'; first occurrence (line 7), second occurrence" in out
+
+
+def test_ssp_utf16_doctype_and_special_file(tmp_path, capsys):
+    """The SSP reader (scenario from an .ssd/.ssp) follows the same rules as the FMU reader."""
+    ssd = tmp_path / "SystemStructure.ssd"
+    xml = ('<?xml version="1.0" encoding="UTF-16"?>\n<!DOCTYPE r [<!ENTITY a "aaaa">]>\n'
+           '<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
+           'name="&a;" version="1.0"/>\n')
+    ssd.write_bytes(xml.encode("utf-16"))
+    rc, out = cli(capsys, "validate", ssd)
+    assert rc == 1 and "contains a DOCTYPE" in out
+    bomb_ssp = tmp_path / "b.ssp"
+    write_fmu(bomb_ssp, md=False, members=[("SystemStructure.ssd", b"<x/>"), ("resources/../../evil", b"x")])
+    rc, out = cli(capsys, "validate", bomb_ssp)
+    assert rc == 1 and "'..'" in out and not (tmp_path.parent / "evil").exists()

@@ -173,7 +173,7 @@ def _check_name(path: Path, name: str) -> PurePosixPath:
     return PurePosixPath(name)
 
 
-def check_archive(path: Path | str) -> list[zipfile.ZipInfo]:
+def check_archive(path: Path | str, *, required: str = "modelDescription.xml") -> list[zipfile.ZipInfo]:
     """Check every member header of the FMU at ``path``; return the member list.
 
     Raises :class:`FmuError` for unsafe names, links, too many or too large
@@ -219,13 +219,14 @@ def check_archive(path: Path | str) -> list[zipfile.ZipInfo]:
                         f"from {packed}; limit {MAX_ARCHIVE_RATIO:.0f} above {ARCHIVE_RATIO_MIN_BYTES} bytes): this "
                         "looks like a zip bomb", "do not use this FMU (or raise "
                         "orchestrator.fmi.archive.MAX_ARCHIVE_RATIO if you trust it)")
-    md = [i for i in infos if i.filename.rstrip("/") == "modelDescription.xml"]
+    md = [i for i in infos if i.filename.rstrip("/") == required]
     if not md:
-        raise _fail(path, "has no modelDescription.xml at the top level of the archive",
-                    "this is not an FMU; export it again as an FMI 2.0 co-simulation FMU")
+        raise _fail(path, f"has no {required} at the top level of the archive",
+                    "this is not an FMU; export it again as an FMI 2.0 co-simulation FMU" if required ==
+                    "modelDescription.xml" else "export it again")
     if md[0].is_dir():
-        raise _fail(path, "has a folder named modelDescription.xml/, not a file",
-                    "this is not a valid FMU; export it again as an FMI 2.0 co-simulation FMU")
+        raise _fail(path, f"has a folder named {required}/, not a file",
+                    "this is not a valid archive; export it again")
     return infos
 
 
@@ -255,7 +256,8 @@ def _chunks(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path):
             yield b
 
 
-def safe_extract(path: Path | str, dest: Path | str, *, budget: int | None = None) -> Path:
+def safe_extract(path: Path | str, dest: Path | str, *, budget: int | None = None,
+                 required: str = "modelDescription.xml") -> Path:
     """Extract the FMU at ``path`` into directory ``dest`` after :func:`check_archive`.
 
     Sizes are re-checked while decompressing; ``budget`` (bytes) lowers the
@@ -263,7 +265,7 @@ def safe_extract(path: Path | str, dest: Path | str, *, budget: int | None = Non
     """
     path = Path(path)
     dest = Path(dest)
-    infos = check_archive(path)
+    infos = check_archive(path, required=required)
     limit = MAX_TOTAL_BYTES if budget is None else min(budget, MAX_TOTAL_BYTES)
     declared = sum(i.file_size for i in infos)
     if declared > limit:
