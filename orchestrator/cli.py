@@ -409,15 +409,16 @@ def _describe(exc: BaseException) -> str:
 
 
 def _clean_warnings(debug: bool):
-    """Print warnings as one line, ``warning: message`` (with ``--debug``: also where from);
-    returns the previous ``warnings.showwarning``."""
-    def show(message, category, filename, lineno, file=None, line=None):
+    """Format warnings as one line, ``warning: message`` (with ``--debug``: also where from);
+    returns the previous ``warnings.formatwarning``. (Only the format is replaced, so
+    recording warnings, as ``pytest.warns`` does, still works.)"""
+    def one_line(message, category, filename, lineno, line=None):
         text = " ".join(str(message).split())
         where = f" ({filename}:{lineno}, {category.__name__})" if debug else ""
-        print(f"warning: {text}{where}", file=file or sys.stderr)
+        return f"warning: {text}{where}\n"
 
-    previous = warnings.showwarning
-    warnings.showwarning = show
+    previous = warnings.formatwarning
+    warnings.formatwarning = one_line
     return previous
 
 
@@ -441,4 +442,4 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(_describe(exc), file=sys.stderr)
         return 1
     finally:
-        warnings.showwarning = previous
+        warnings.formatwarning = previous
