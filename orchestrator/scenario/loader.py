@@ -89,9 +89,11 @@ def from_ssp(path: Path) -> Path:
     overlay: dict = {}
     ssp = path
     if path.suffix.lower() in (".yaml", ".yml") and path.is_file():
-        try:
-            doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        try:              # bounded like every scenario read (size, UTF-8, depth, aliases)
+            from orchestrator.scenario.nodes import YamlLoader
+            from orchestrator.untrusted import InputError, load_yaml, read_text
+            doc = load_yaml(read_text(path, what="scenario file"), display=str(path), loader_cls=YamlLoader)
+        except (InputError, yaml.YAMLError):
             return path                                  # the loader reports it with line numbers
         if not isinstance(doc, dict) or "ssp" not in doc:
             return path
