@@ -17,6 +17,7 @@ import importlib
 import logging
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -365,12 +366,14 @@ VERBS = (_add_run, _add_validate, _add_info, _add_build_fmus, _add_plot, _add_co
 
 # --------------------------------------------------------------------------- entry point
 def build_parser() -> argparse.ArgumentParser:
+    # --debug before the verb and after it: two destinations (a sub-parser's defaults would
+    # overwrite the value given before the verb), joined in main()
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+    common.add_argument("--debug", action="store_true", dest="debug_verb",
                         help="show debug logging and full tracebacks")
-    parser = argparse.ArgumentParser(prog=PROG, parents=[common], description=(
+    parser = argparse.ArgumentParser(prog=PROG, description=(
         "Co-simulation of FMI 2.0 co-simulation FMUs (rotors in journal bearings and any other FMUs)."))
-    parser.set_defaults(debug=False)
+    parser.add_argument("--debug", action="store_true", help="show debug logging and full tracebacks")
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
     orig = sub.add_parser
@@ -405,9 +408,25 @@ def _describe(exc: BaseException) -> str:
             f"(this is a bug in rotorcosim: rerun with --debug for the traceback and report it)")
 
 
+def _clean_warnings(debug: bool):
+    """Format warnings as one line, ``warning: message`` (with ``--debug``: also where from);
+    returns the previous ``warnings.formatwarning``. (Only the format is replaced, so
+    recording warnings, as ``pytest.warns`` does, still works.)"""
+    def one_line(message, category, filename, lineno, line=None):
+        text = " ".join(str(message).split())
+        where = f" ({filename}:{lineno}, {category.__name__})" if debug else ""
+        return f"warning: {text}{where}\n"
+
+    previous = warnings.formatwarning
+    warnings.formatwarning = one_line
+    return previous
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
     args = build_parser().parse_args(argv)
+    args.debug = bool(args.debug or getattr(args, "debug_verb", False))
+    previous = _clean_warnings(args.debug)
     logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
     if not args.debug:
@@ -422,3 +441,5 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print(_describe(exc), file=sys.stderr)
         return 1
+    finally:
+        warnings.formatwarning = previous

@@ -234,7 +234,7 @@ output:
         (5, "'left' has no parameter 'm'; parameters of 'left' (closest first): m1"),
         (5, "parameter 'left.x1_0' is Real (got True, a boolean)"),
         (5, "'left.x1' is a continuous output, not a parameter"),
-        (6, "'fmus.right.substeps' must be >= 1 (got 0)"),
+        (6, "'fmus.right.substeps' must be between 1 and 10000 (got 0)"),
         (9, "'g.k' is a parameter, but the 'to' side of a connection must be an input; inputs of 'g': u"),
         (10, "names the instance 'foo', which is not in 'fmus'"),
         (11, "'left.F' is an input, but the 'from' side of a connection must be an output"),
@@ -270,7 +270,7 @@ output:
     ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\ncoupling: {macro_step: 2}\n",
      "'coupling.macro_step' must not exceed stop_time - start_time"),
     ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\ncoupling: {substeps: 0}\n",
-     "'coupling.substeps' must be >= 1 (got 0)"),
+     "'coupling.substeps' must be between 1 and 10000 (got 0)"),
     ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\ncoupling: {extrapolation_order: 1.5}\n",
      "'coupling.extrapolation_order' must be an integer (got 1.5"),
     ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\nconnections: {from: g.y, to: g.u}\n",
@@ -403,7 +403,7 @@ def test_scenario_error_is_a_cosim_error():
 
 
 def test_unreadable_scenario_file(tmp_path):
-    with pytest.raises(ScenarioError, match=r"nope\.yaml: cannot read the scenario file"):
+    with pytest.raises(ScenarioError, match=r"nope\.yaml: scenario file not found"):
         load_scenario(tmp_path / "nope.yaml")
     (tmp_path / "bin.yaml").write_bytes(b"\xff\xfe\x00")
     with pytest.raises(ScenarioError, match="not UTF-8"):

@@ -26,8 +26,6 @@ from __future__ import annotations
 
 import logging
 import math
-import shutil
-import tempfile
 import time as _time
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -42,6 +40,7 @@ from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
     RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController, controller_from_spec)
 from orchestrator.errors import CouplingError, FmuCallError, LifecycleError, ScenarioError
+from orchestrator.fmi.extraction import ExtractionPool
 from orchestrator.fmi.subsystem import Subsystem, SubsystemBase
 from orchestrator.results.result import CoSimResult, Status
 from orchestrator.results.writer import TimeGrid
@@ -100,7 +99,7 @@ class MasterAlgorithm:
         self.t = float(scenario.start_time)
         self.end_time = float(scenario.start_time)
         self.wall_time = 0.0
-        self._work_dir: str | None = None
+        self._work_dir: ExtractionPool | None = None
         self._phase = "new"
         self._t_wall0 = 0.0
 
@@ -124,9 +123,9 @@ class MasterAlgorithm:
                     raise ScenarioError(f"no subsystem given for FMU instances {missing}")
                 self.subsystems = {n: self._given[n] for n in names}
             else:
-                self._work_dir = tempfile.mkdtemp(prefix="rotorcosim-")
+                self._work_dir = ExtractionPool()      # one extraction per FMU file, shared
                 for f in sc.fmus:
-                    self.subsystems[f.name] = Subsystem(f.name, f.path, work_dir=self._work_dir)
+                    self.subsystems[f.name] = Subsystem(f.name, f.path, extraction=self._work_dir)
             for f in sc.fmus:
                 self.subsystems[f.name].set_parameters(dict(f.parameters), out_dir=self.out_dir)
             self._plan()
@@ -364,8 +363,8 @@ class MasterAlgorithm:
                 sub.free()
             except Exception as e:   # pragma: no cover - defensive
                 log.warning("freeing '%s' failed: %s", sub.name, e)
-        if self._work_dir:
-            shutil.rmtree(self._work_dir, ignore_errors=True)
+        if self._work_dir is not None:
+            self._work_dir.close()
             self._work_dir = None
 
     # ---------------------------------------------------------------- result
@@ -392,6 +391,13 @@ class MasterAlgorithm:
                 if self.interrupt_requested:
                     raise KeyboardInterrupt
                 self.step()
+        except BaseException as exc:
+            if self.status is Status.RUNNING:   # say why it stopped (not "terminated by the caller")
+                why = "interrupted by the user" if isinstance(exc, KeyboardInterrupt) else (
+                    f"stopped by an error ({type(exc).__name__}: {exc})")
+                self.status, self.message, self.end_time = Status.FAILED, f"{why} at t={self.t:.12g} s", self.t
+                self.view.status, self.view.message = self.status, self.message
+            raise
         finally:
             self.terminate()
         return self.result()

@@ -59,6 +59,7 @@ class Unit:
         self.ext_names: list[str] = []      # inputs extrapolated (producer not yet stepped)
         self.int_names: list[str] = []      # inputs interpolated (producer stepped before)
         self.out_names: list[str] = []
+        self.out_pos: dict[str, int] = {}   # name -> index in out_names (setup linear in the variables)
         self.links: list[Link] = []
         self.inb: RealBatch | None = None
         self.outb: RealBatch | None = None
@@ -69,6 +70,11 @@ class Unit:
         self.nI = 0
         self.delivery = None                # an InputDelivery, chosen at setup
         self.disc = False                   # has non-Real inputs or outputs (orchestrator.coupling.discrete)
+
+    def add_output(self, name: str) -> None:
+        if name not in self.out_pos:
+            self.out_pos[name] = len(self.out_names)
+            self.out_names.append(name)
 
 
 @dataclass
@@ -185,13 +191,11 @@ def _wire(units, conns, scheme, order, columns, kinds) -> History:
         else:
             u.ext_names.append(c.dst_variable)
     for c in conns:
-        u = units[c.src_instance]
-        if c.src_variable not in u.out_names:
-            u.out_names.append(c.src_variable)
+        units[c.src_instance].add_output(c.src_variable)
     for col, kind in zip(columns, kinds):
         inst, var = col.split(".", 1)
-        if kind == "Real" and var not in units[inst].out_names:
-            units[inst].out_names.append(var)
+        if kind == "Real":
+            units[inst].add_output(var)
     history = History(MAX_ORDER + 1)
     sizes = []
     for u in units.values():
@@ -206,17 +210,16 @@ def _wire(units, conns, scheme, order, columns, kinds) -> History:
         if u.sub.can_interpolate_inputs and (u.nE + u.nI):
             u.derb = u.sub.derivative_batch(u.ext_names + u.int_names, MAX_ORDER)
         u.delivery = choose_delivery(u)
+    block_pos = {(u.name, grp): {n: i for i, n in enumerate(names)}
+                 for u in units.values() for grp, names in (("E", u.ext_names), ("I", u.int_names))}
     for prod in units.values():
         groups: dict[tuple[str, str], list] = {}
         for c in conns:
             if c.src_instance != prod.name:
                 continue
-            cu = units[c.dst_instance]
-            if c.dst_variable in cu.ext_names:
-                key, col = (cu.name, "E"), cu.ext_names.index(c.dst_variable)
-            else:
-                key, col = (cu.name, "I"), cu.int_names.index(c.dst_variable)
-            groups.setdefault(key, []).append((prod.out_names.index(c.src_variable), col, c.gain, c.offset,
+            grp = "E" if c.dst_variable in block_pos[(c.dst_instance, "E")] else "I"
+            key, col = (c.dst_instance, grp), block_pos[(c.dst_instance, grp)][c.dst_variable]
+            groups.setdefault(key, []).append((prod.out_pos[c.src_variable], col, c.gain, c.offset,
                                                f"{c.src} -> {c.dst}"))
         for (cname, grp), entries in groups.items():
             block = units[cname].HE if grp == "E" else units[cname].HI
@@ -245,7 +248,7 @@ def make_plan(scenario, subsystems, scheme) -> Plan:
     rec_typed = [(col_index[c], discrete.value_reader(*c.split(".", 1))) for c, k in zip(columns, kinds) if k != "Real"]
     rec = []
     for u in ordered:
-        pos = [u.out_names.index(c.split(".", 1)[1]) for c in real_cols if c.split(".", 1)[0] == u.name]
+        pos = [u.out_pos[c.split(".", 1)[1]] for c in real_cols if c.split(".", 1)[0] == u.name]
         cols = [col_index[c] for c in real_cols if c.split(".", 1)[0] == u.name]
         if pos:
             rec.append((u.outb.values, np.asarray(pos, dtype=np.intp), np.asarray(cols, dtype=np.intp)))

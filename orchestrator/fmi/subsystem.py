@@ -245,9 +245,13 @@ class Subsystem(SubsystemBase):
     fmu_path : the ``.fmu`` file; checked with :mod:`orchestrator.fmi.archive`.
     work_dir : directory to extract into (``work_dir/name``); the caller
         removes it after :meth:`free`.
+    extraction : instead of ``work_dir``, an
+        :class:`orchestrator.fmi.extraction.ExtractionPool`: the run's one extraction of
+        this FMU file, shared with the other instances of the same file.
     """
 
-    def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str):
+    def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str | None = None,
+                 extraction=None):
         super().__init__(name)
         self.fmu_path = Path(fmu_path)
         self.md: ModelDescription = read_model_description(self.fmu_path)
@@ -257,7 +261,12 @@ class Subsystem(SubsystemBase):
         self._log_messages: collections.deque[str] = collections.deque(maxlen=8)
         self._state = "new"      # new -> instantiated -> initializing -> stepping -> terminated -> freed; "error"
         self._slave = None
-        self.unzip_dir = safe_extract(self.fmu_path, Path(work_dir) / name)
+        if extraction is not None:
+            self.unzip_dir = extraction.extract(self.fmu_path)
+        elif work_dir is not None:
+            self.unzip_dir = safe_extract(self.fmu_path, Path(work_dir) / name)
+        else:
+            raise LifecycleError(f"Subsystem('{name}'): give work_dir= or extraction= (where to extract the FMU)")
         binary_path(self.unzip_dir, self.md)   # clear error when no binary for this platform
 
         from fmpy.fmi2 import FMU2Slave

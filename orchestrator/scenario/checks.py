@@ -46,11 +46,16 @@ class FmuChecks(Completion):
         if path is None:
             return
         node = f["path_node"]
-        if not path.exists() and f.get("ours"):
+        try:
+            exists = path.exists()
+        except (OSError, ValueError) as exc:           # e.g. a name too long for the file system
+            self.err(node, f"FMU path of '{name}' cannot be used: {path}: {exc}; fix 'fmus.{name}.path'")
+            return
+        if not exists and f.get("ours"):
             self.err(node, f"our FMU {f['ours']} of '{name}' is not built yet ({path}); run without --no-build, "
                            "or build it with `rotorcosim build-fmus`")
             return
-        if not path.exists():
+        if not exists:
             self.err(node, f"FMU file of '{name}' not found: {path} (paths are relative to the scenario's "
                            f"folder {self.path.parent.resolve()}); fix 'fmus.{name}.path', or build our FMUs "
                            "with `rotorcosim build-fmus`")
@@ -77,11 +82,13 @@ class FmuChecks(Completion):
     def check_parameters(self, f: dict) -> dict:
         name, out = f["name"], {}
         variables = self.mds.get(name)
+        settable = None                                # once per FMU (not per parameter: 200k variables)
         for pname, (value, node) in f["parameters"].items():
             if variables is None:
                 out[pname] = value
                 continue
-            settable = [v.name for v in variables.values() if settable_problem(v) is None]
+            if settable is None:
+                settable = [v.name for v in variables.values() if settable_problem(v) is None]
             var = variables.get(pname)
             if var is None:
                 self.err(node, f"'{name}' has no parameter '{pname}'; parameters of '{name}' (closest first): "

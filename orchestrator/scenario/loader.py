@@ -14,6 +14,7 @@ import yaml
 
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario.checks import FmuChecks
+from orchestrator.scenario.limits import check_overrides
 from orchestrator.scenario.model import Scenario
 from orchestrator.scenario.sections import Draft, SectionReader
 
@@ -59,6 +60,7 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
     ScenarioError
         listing every problem found, each as ``file:line: what is wrong (got X); fix``.
     """
+    check_overrides(overrides)
     path = from_ssp(Path(path))
     loader = ScenarioLoader(Path(path), overrides)
     draft = loader.read_sections()
@@ -87,9 +89,11 @@ def from_ssp(path: Path) -> Path:
     overlay: dict = {}
     ssp = path
     if path.suffix.lower() in (".yaml", ".yml") and path.is_file():
-        try:
-            doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        try:              # bounded like every scenario read (size, UTF-8, depth, aliases)
+            from orchestrator.scenario.nodes import YamlLoader
+            from orchestrator.untrusted import InputError, load_yaml, read_text
+            doc = load_yaml(read_text(path, what="scenario file"), display=str(path), loader_cls=YamlLoader)
+        except (InputError, yaml.YAMLError):
             return path                                  # the loader reports it with line numbers
         if not isinstance(doc, dict) or "ssp" not in doc:
             return path

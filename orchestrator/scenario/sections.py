@@ -21,7 +21,9 @@ from orchestrator.scenario.model import (
     SCENARIO_VERSION,
     SCHEMES, TOP_KEYS, ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario)
 from orchestrator.scenario.nodes import NodeReader, YamlLoader, did_you_mean, flatten_merges
+from orchestrator.scenario.limits import MAX_MACRO_STEPS, MAX_OUTPUT_ROWS, MAX_SUBSTEPS, MIN_RELATIVE_STEP
 from orchestrator.scenario.overrides import apply_override
+from orchestrator.untrusted import InputError, check_yaml_tree, name_problem, read_yaml_tree
 
 log = logging.getLogger("orchestrator.scenario")
 
@@ -86,24 +88,10 @@ class SectionReader(NodeReader):
     # -- the pass ----------------------------------------------------------
     def read_sections(self) -> Draft | None:
         """Read the file, apply the overrides and parse every section (no FMU is opened)."""
-        try:
-            text = self.path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise ScenarioError(f"{self.display}: cannot read the scenario file ({exc.strerror or exc}); "
-                                "check the path") from None
-        except UnicodeDecodeError as exc:
-            raise ScenarioError(f"{self.display}: the scenario file is not UTF-8 text ({exc.reason} at "
-                                f"byte {exc.start}); save it as UTF-8") from None
-        try:
-            root = yaml.compose(text, Loader=YamlLoader)
-        except yaml.MarkedYAMLError as exc:
-            mark = exc.problem_mark or exc.context_mark
-            where = f"{self.display}:{mark.line + 1}:{mark.column + 1}" if mark else self.display
-            context = f" {exc.context}" if exc.context else ""
-            raise ScenarioError(f"{where}: malformed YAML: {exc.problem}{context}; fix the syntax there "
-                                "(indentation, a missing ':' or a closing bracket)") from None
-        except yaml.YAMLError as exc:
-            raise ScenarioError(f"{self.display}: malformed YAML ({exc}); fix the syntax") from None
+        try:                 # bounded: regular file, size, UTF-8, YAML depth and alias expansion
+            root = read_yaml_tree(self.path, what="scenario file", loader_cls=YamlLoader)
+        except InputError as exc:
+            raise ScenarioError(str(exc)) from None
         if root is None:
             raise ScenarioError(f"{self.display}:1: expected a scenario (a mapping with at least "
                                 "'name', 'stop_time' and 'fmus'), got an empty file; see docs/scenario-format.md")
@@ -113,6 +101,10 @@ class SectionReader(NodeReader):
             mark = exc.problem_mark or exc.context_mark
             raise ScenarioError(f"{self.display}:{mark.line + 1 if mark else 1}: {exc.problem}; '<<' merges "
                                 "mappings only (write '<<: *anchor' or '<<: [*a, *b]')") from None
+        try:
+            check_yaml_tree(root, display=self.display)      # the merged tree, bounded again
+        except InputError as exc:
+            raise ScenarioError(str(exc)) from None
         for text in self.overrides:
             apply_override(self, root, text)
         top = self.mapping(root, "top level", TOP_KEYS, ("name", "fmus"),
@@ -124,9 +116,9 @@ class SectionReader(NodeReader):
         kw: dict[str, Any] = {"source": self.path.resolve()}
         if "name" in top:
             name = self.string(get("name"), "name", "give the scenario a name such as 'two-mass-oscillator'")
-            if name is not None and (re.search(r"[/\\\x00-\x1f]", name) or name.startswith(".")):
-                self.err(get("name"), f"'name' is used as a folder name (runs/<name>) and must not contain "
-                                      f"'/', '\\' or control characters nor start with '.' (got {name!r}); rename it")
+            if name is not None and name_problem(name) is not None:     # the one check of names that become paths
+                self.err(get("name"), f"'name' is used as a folder name (runs/<name>), but {name_problem(name)}; "
+                                      "rename it with letters, digits, '-', '_' and '.'")
                 name = None
             kw["name"] = name
         if "version" in top:
@@ -159,6 +151,7 @@ class SectionReader(NodeReader):
         given_stop = None if stop is FROM_FMUS else stop
         coupling = self.load_coupling(get("coupling"), names, start, given_stop)
         interval, signals = self.load_output(get("output"), given_stop, start)
+        self.check_rows(get("output"), interval, coupling, start, given_stop)
         connections = self.load_connections(get("connections"))
         for key in ("analysis", "compare"):
             if key in top:
@@ -200,7 +193,10 @@ class SectionReader(NodeReader):
                     "node": knode, "path": None, "parameters": {}, "substeps": None}
             if "path" in entry:
                 p = self.string(entry["path"][1], f"fmus.{name}.path", "give the FMU file, relative to this file")
-                if p is not None:
+                if p is not None and (any(ord(ch) < 32 for ch in p) or len(p) > 4096):
+                    self.err(entry["path"][1], f"'fmus.{name}.path' must be a file path without control characters "
+                                               f"and at most 4096 characters (got {p[:60]!r}); fix the path")
+                elif p is not None:
                     spec["path"] = (self.path.parent / Path(p).expanduser()).resolve()
                     spec["path_node"] = entry["path"][1]
             elif "fmu" in entry:
@@ -215,8 +211,8 @@ class SectionReader(NodeReader):
                     spec["path_node"] = entry["fmu"][1]
                     spec["ours"] = key
             if "substeps" in entry:
-                spec["substeps"] = self.integer(entry["substeps"][1], f"fmus.{name}.substeps", 1, None,
-                                                "use a whole number of sub-steps >= 1")
+                spec["substeps"] = self.integer(entry["substeps"][1], f"fmus.{name}.substeps", 1, MAX_SUBSTEPS,
+                                                "use a whole number of sub-steps per macro step")
             if "parameters" in entry:
                 pmap = self.mapping(entry["parameters"][1], f"fmus.{name}.parameters",
                                     fix="write 'parameters: {name: value, ...}'")
@@ -274,8 +270,12 @@ class SectionReader(NodeReader):
                 self.err(section["macro_step"][1], f"'coupling.macro_step' must not exceed stop_time - start_time "
                                                    f"({stop - start!r}) (got {h!r}); use a smaller step")
                 h = None
+            if h is not None and start is not None and stop is not None:
+                h = self.check_step_count(section["macro_step"][1], h, start, stop)
             ok &= h is not None
             c["macro_step"] = h
+        elif start is not None and stop is not None:        # the default step must fit too
+            ok &= self.check_step_count(node, CouplingSpec.macro_step, start, stop) is not None
         for key in ("extrapolation_order", "interpolation_order"):
             if key in section:
                 v = self.integer(section[key][1], f"coupling.{key}", 0, MAX_ORDER,
@@ -283,8 +283,8 @@ class SectionReader(NodeReader):
                 ok &= v is not None
                 c[key] = v
         if "substeps" in section:
-            v = self.integer(section["substeps"][1], "coupling.substeps", 1, None,
-                             "use a whole number of sub-steps >= 1")
+            v = self.integer(section["substeps"][1], "coupling.substeps", 1, MAX_SUBSTEPS,
+                             "use a whole number of sub-steps per macro step (a larger one: a smaller macro_step)")
             ok &= v is not None
             c["substeps"] = v
         if "discard_retries" in section:
@@ -305,6 +305,30 @@ class SectionReader(NodeReader):
             else:
                 c["options"] = self.value(section["options"][1])
         return c if ok else None
+
+    def check_step_count(self, node, h: float, start: float, stop: float) -> float | None:
+        """``h`` if the run's macro steps stay within MAX_MACRO_STEPS and the time grid
+        resolves them (MIN_RELATIVE_STEP), else None (problem reported)."""
+        scale = max(abs(start), abs(stop))
+        if h < MIN_RELATIVE_STEP * scale:
+            self.err(node, f"'coupling.macro_step' {h!r} is too small for the time {scale:g} s: t = start_time + n * "
+                           f"macro_step cannot resolve it (the limit is macro_step >= {MIN_RELATIVE_STEP:g} * "
+                           "max(|start_time|, |stop_time|)); use a larger step or shift the times towards 0")
+            return None
+        n = (stop - start) / h
+        if n > MAX_MACRO_STEPS:
+            self.err(node, f"(stop_time - start_time) / macro_step = {n:.3g} macro steps (the limit is "
+                           f"{MAX_MACRO_STEPS:.0e}); use a larger macro_step or a shorter run")
+            return None
+        return h
+
+    def check_rows(self, node, interval, coupling, start, stop) -> None:
+        """results.csv (and the in-memory result) get at most MAX_OUTPUT_ROWS rows."""
+        every = interval or (coupling or {}).get("macro_step")
+        if every and start is not None and stop is not None and (stop - start) / every > MAX_OUTPUT_ROWS:
+            self.err(node, f"the run writes (stop_time - start_time) / output.interval = {(stop - start) / every:.3g} "
+                           f"rows of results (the limit is {MAX_OUTPUT_ROWS:.0e}); set a larger 'output.interval' "
+                           "(rows are written every interval, by default every macro step)")
 
     def load_output(self, node, stop, start):
         if node is None:

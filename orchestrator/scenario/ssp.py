@@ -21,8 +21,10 @@ parameter values (Enumeration values as ``ssv:Integer``: libcosim cannot read
 algorithm does: Jacobi with zero-order hold; our extrapolation and sub-step
 settings have no SSP equivalent and are not exported (a warning says so).
 
-XML from an SSP is untrusted: it is parsed with the standard library's
-ElementTree after refusing DOCTYPE/ENTITY declarations (as the FMU reader does).
+An SSP is untrusted: the archive is checked and extracted by the FMU archive rules
+(:func:`orchestrator.fmi.archive.safe_extract`: names, links, sizes, ratios, CRC), its XML
+files are read by the bounded reader and parsed by :func:`orchestrator.untrusted.parse_xml`
+(DOCTYPE and entities refused after decoding, as for model descriptions).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from typing import Any
 from xml.etree import ElementTree as ET
 
 from orchestrator.errors import ScenarioError
+from orchestrator.untrusted import InputError, parse_xml, read_bytes
 
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
@@ -47,12 +50,19 @@ MAX_XML_BYTES = 16 * 2**20
 def _parse(data: bytes, where: str) -> ET.Element:
     if len(data) > MAX_XML_BYTES:
         raise ScenarioError(f"{where}: {len(data)} bytes of XML (limit {MAX_XML_BYTES}); not a plausible SSP file")
-    if b"<!doctype" in data[:4096].lower() or b"<!entity" in data.lower():
-        raise ScenarioError(f"{where}: contains a DOCTYPE/ENTITY declaration, which SSP does not use; remove it")
+    try:                  # defusedxml: DOCTYPE/entities refused after decoding (UTF-16 too)
+        return parse_xml(data, display=where, what="SSP file")
+    except InputError as e:
+        raise ScenarioError(str(e)) from None
+
+
+def _read(path: Path) -> bytes:
+    """The bytes of an SSP's XML file: a regular file of at most MAX_XML_BYTES."""
     try:
-        return ET.fromstring(data)
-    except ET.ParseError as e:
-        raise ScenarioError(f"{where}: not well-formed XML ({e}); re-export the SSP") from None
+        return read_bytes(path, what="SSP file", limit=MAX_XML_BYTES,
+                          limit_name="orchestrator.scenario.ssp.MAX_XML_BYTES")
+    except InputError as e:
+        raise ScenarioError(str(e)) from None
 
 
 def _safe_member(name: str, where: str) -> PurePosixPath:
@@ -69,19 +79,12 @@ class _Source:
     def __init__(self, path: Path, work: Path):
         self.path = Path(path)
         if self.path.suffix.lower() == ".ssp":
-            try:
-                zf = zipfile.ZipFile(self.path)
-            except (OSError, zipfile.BadZipFile) as e:
-                raise ScenarioError(f"{self.path}: not a readable SSP archive ({e}); give an .ssp (zip) or .ssd file")
-            with zf:
-                names = zf.namelist()
-                if "SystemStructure.ssd" not in names:
-                    raise ScenarioError(f"{self.path}: no SystemStructure.ssd at the top of the archive; "
-                                        "re-export the SSP")
-                work.mkdir(parents=True, exist_ok=True)
-                for n in names:
-                    _safe_member(n, str(self.path))
-                zf.extractall(work)
+            from orchestrator.errors import FmuError
+            from orchestrator.fmi.archive import safe_extract
+            try:          # the FMU archive rules: regular file, names, links, sizes, ratios, CRC
+                safe_extract(self.path, work, required="SystemStructure.ssd")
+            except FmuError as e:
+                raise ScenarioError(f"SSP archive: {e}") from None
             self.root = work
             self.ssd = work / "SystemStructure.ssd"
         else:
@@ -125,7 +128,7 @@ def _parameters(comp: ET.Element, src: _Source, problems: list[str]) -> dict[str
                                 f"{b.get('source')!r} (a reference into the SSD) is not supported; use an .ssv file "
                                 "or inline ParameterValues")
                 continue
-            sets.append(_parse(src.file(b.get("source"), "parameter values").read_bytes(), b.get("source")))
+            sets.append(_parse(_read(src.file(b.get("source"), "parameter values")), b.get("source")))
         sets += b.findall("ssd:ParameterValues/ssv:ParameterSet", NS)
         if b.find("ssd:ParameterMapping", NS) is not None:
             problems.append(f"{src.ssd}: component {comp.get('name')!r}: parameter mappings (.ssm) are not "
@@ -150,7 +153,7 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
     Raises :class:`ScenarioError` listing what cannot be read or is unsupported.
     """
     src = _Source(Path(path), Path(work))
-    root = _parse(src.ssd.read_bytes(), str(src.ssd))
+    root = _parse(_read(src.ssd), str(src.ssd))
     if root.tag != f"{{{NS['ssd']}}}SystemStructureDescription":
         raise ScenarioError(f"{src.ssd}: root element is {root.tag}, expected ssd:SystemStructureDescription")
     system = root.find("ssd:System", NS)
