@@ -1,11 +1,16 @@
-"""Build the native (C) test FMU ``LinearBearing`` with gcc.
+"""Build the native (C) test FMUs ``LinearBearing`` and ``MisbehavingBearing`` with gcc.
 
-``build_c_fmu(dest_dir) -> Path`` compiles ``LinearBearing/linear_bearing.c``
+``build_c_fmu(dest_dir, name="LinearBearing") -> Path`` compiles ``LinearBearing/linear_bearing.c``
 against the FMI 2.0 headers shipped with fmpy (``fmpy/c-code``) into
 ``binaries/linux64/LinearBearing.so`` (``gcc -shared -fPIC -O2``) and zips it with
 ``modelDescription.xml`` (and the C source under ``sources/``) into
 ``dest_dir/LinearBearing.fmu``. Nothing is committed in binary form: tests build
 the FMU into a temporary folder. Linux x86_64 only (the platform rotorcosim runs on).
+
+``MisbehavingBearing`` is the same source compiled with ``-DMISBEHAVING`` and its own
+``MisbehavingBearing/modelDescription.xml``: a LinearBearing that aborts, segfaults,
+``_exit``s, hangs, outputs NaN or returns fmi2Error at a chosen step (parameters
+``fault``, ``fault_step``), for the crash tests of FMUs in worker processes.
 
 Run as a script to build into a folder: ``python tests/fmus_c/build_c_fmu.py OUT_DIR``.
 """
@@ -23,6 +28,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 MODEL = "LinearBearing"
 SRC_DIR = HERE / MODEL
+# model name -> (folder with modelDescription.xml, extra gcc flags); all built from SRC_DIR's C source
+MODELS = {MODEL: (SRC_DIR, ()), "MisbehavingBearing": (HERE / "MisbehavingBearing", ("-DMISBEHAVING",))}
 
 
 def fmi2_headers() -> Path:
@@ -42,8 +49,9 @@ def gcc() -> str | None:
 
 def build_c_fmu(dest_dir: str | Path, name: str = MODEL) -> Path:
     """Compile and zip the C FMU ``name`` into ``dest_dir``; return the .fmu path."""
-    if name != MODEL:
-        raise ValueError(f"unknown C FMU {name!r}; known: [{MODEL!r}]")
+    if name not in MODELS:
+        raise ValueError(f"unknown C FMU {name!r}; known: {sorted(MODELS)}")
+    md_dir, flags = MODELS[name]
     cc = gcc()
     if cc is None:
         raise RuntimeError("gcc not found on PATH; install gcc to build the native test FMU")
@@ -55,14 +63,14 @@ def build_c_fmu(dest_dir: str | Path, name: str = MODEL) -> Path:
     with tempfile.TemporaryDirectory(prefix=f"{name}-build-") as tmp:
         so = Path(tmp) / f"{name}.so"
         cmd = [cc, "-shared", "-fPIC", "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror",
-               "-fvisibility=default", "-I", str(fmi2_headers()), "-o", str(so), *map(str, sources), "-lm"]
+               "-fvisibility=default", *flags, "-I", str(fmi2_headers()), "-o", str(so), *map(str, sources), "-lm"]
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0:
             raise RuntimeError(f"gcc failed ({proc.returncode}):\n{' '.join(cmd)}\n{proc.stderr}")
         fmu = dest_dir / f"{name}.fmu"
         tmp_fmu = fmu.with_suffix(".fmu.part")
         with zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as zf:
-            zf.write(SRC_DIR / "modelDescription.xml", "modelDescription.xml")
+            zf.write(md_dir / "modelDescription.xml", "modelDescription.xml")
             zf.write(so, f"binaries/linux64/{name}.so")
             for src in sources:
                 zf.write(src, f"sources/{src.name}")
@@ -72,4 +80,5 @@ def build_c_fmu(dest_dir: str | Path, name: str = MODEL) -> Path:
 
 if __name__ == "__main__":
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(".")
-    print(build_c_fmu(out))
+    for model in sys.argv[2:] or [MODEL]:
+        print(build_c_fmu(out, model))
