@@ -1,0 +1,576 @@
+"""FMUs in worker processes: :class:`WorkerSubsystem`, the proxy, and :func:`_serve`, the worker.
+
+``fmus.<name>.isolation: process`` runs an FMU in a process of its own, so that a crash
+in its binary (abort, segfault, ``_exit``) or a hang cannot take the master down, and
+so that independent FMUs can step at the same time on several cores.
+
+The worker loads the FMU with the ordinary in-process adapter
+(:class:`orchestrator.fmu.Subsystem`, fmpy underneath) and serves its calls. The proxy
+implements the same :class:`~orchestrator.fmu.SubsystemBase` interface, so the master
+cannot tell the two apart. The channel:
+
+* control: a Unix socket pair wrapped in :class:`multiprocessing.connection.Connection`,
+  carrying lists of small command tuples (pickled by multiprocessing); one list per
+  round trip;
+* values: one shared memory arena per worker (a memfd mapped by both processes).
+  Every :class:`~orchestrator.fmu.RealBatch` gets a slot in it when first used; the
+  worker's batch points its ctypes value buffer at that slot, so fmi2SetReal/GetReal in
+  the worker read and write shared memory directly. ``set_real`` copies ``batch.values``
+  into the slot (the caller may reuse its buffer at once, as in-process), ``get_real``
+  copies the slot back;
+* the arena's first 16 bytes are the worker's *call register*: the FMI function it is
+  executing (a code, 0 when idle) and the simulation time of that call. After a crash
+  the proxy reads it to name the function that crashed.
+
+Round trips: ``set_real`` and ``set_real_input_derivatives`` are queued and travel with
+the next call that needs an answer (``do_step``, ``get_real``, state calls ...), so a
+``set/doStep/get`` cycle costs two round trips. Every FMI call still runs in the
+worker in the order the master made it; a failure of a queued set is reported as that
+function (fmi2SetReal), not the one that carried it.
+
+Crashes: the proxy waits for a reply with ``Connection.poll(call_timeout)`` (seconds,
+None = forever); the worker holds the only other end of the socket, so its death wakes
+the wait too (end of file).
+A dead worker becomes :class:`~orchestrator.errors.FmuCrashError` naming the instance,
+FMU file, FMI function, simulation time and cause (the signal name for a negative exit
+code, e.g. SIGSEGV; the exit code otherwise); a timeout kills the worker (SIGKILL) and
+raises the same error with ``status='timeout'``. A KeyboardInterrupt while waiting
+(the second Ctrl-C) kills the worker too. After that the proxy is dead: ``terminate``
+does nothing and ``free`` only releases the arena.
+
+Workers ignore SIGINT and SIGTERM (the master stops them in order: a Ctrl-C that the
+terminal sends to the whole process group must not kill them in the middle of a step);
+they exit when the socket closes, and on Linux they are killed when the master dies
+(``PR_SET_PDEATHSIG``). A worker is a fresh interpreter (``python -m
+orchestrator.fmi.worker``, :mod:`subprocess`), not a multiprocessing child: forking the
+master would copy its threads and in-process FMUs, and multiprocessing's spawn and
+forkserver methods re-run the user's ``__main__`` script in every child, which a script
+without an ``if __name__ == "__main__":`` guard does not survive. Start-up costs about
+0.3 s of CPU per worker (importing numpy and fmpy).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import logging
+import mmap
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import weakref
+from multiprocessing import connection as mp_connection
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..errors import CosimError, CouplingError, FmuCallError, FmuCrashError, FmuError, LifecycleError, ScenarioError
+from ..fmu import RealBatch, SubsystemBase
+from ..fmu_archive import ModelDescription, Variable, read_model_description
+
+log = logging.getLogger(__name__)
+
+ARENA_BYTES = 1 << 20            # value buffers of one worker: 131 056 doubles after the call register
+_REGISTER = 16                    # call register: int64 function code, float64 simulation time
+# command -> FMI function (for the call register and error messages)
+FUNCTIONS = ("idle", "fmi2Instantiate", "fmi2Set* (parameters)", "fmi2SetupExperiment",
+             "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2SetReal", "fmi2GetReal",
+             "fmi2SetRealInputDerivatives", "fmi2DoStep", "fmi2GetFMUstate", "fmi2SetFMUstate",
+             "fmi2FreeFMUstate", "fmi2Terminate", "fmi2FreeInstance", "register")
+_CODE = {"params": 2, "setup": 3, "enter": 4, "exit": 5, "set": 6, "get": 7, "der": 8, "step": 9,
+         "gs": 10, "ss": 11, "fs": 12, "term": 13, "free": 14, "reg": 15}
+_ERRORS = {c.__name__: c for c in (ScenarioError, FmuError, LifecycleError, CouplingError)}
+
+
+def signal_name(exit_code: int | None) -> str | None:
+    """'SIGSEGV' for exit code -11 (a process killed by a signal), else None."""
+    if exit_code is None or exit_code >= 0:
+        return None
+    try:
+        return signal.Signals(-exit_code).name
+    except ValueError:
+        return f"signal {-exit_code}"
+
+
+def _arena() -> tuple[int, mmap.mmap]:
+    """A shared memory block for the value buffers: (file descriptor, mapping).
+
+    A memfd on Linux (no name, nothing to clean up, gone when both processes close it),
+    else an unlinked temporary file. The worker inherits the descriptor and maps it too.
+    """
+    if hasattr(os, "memfd_create"):
+        fd = os.memfd_create("rotorcosim-fmu-values", 0)     # not close-on-exec: the worker inherits it
+    else:                                                   # pragma: no cover - non-Linux
+        fd, path = tempfile.mkstemp(prefix="rotorcosim-fmu-values-")
+        os.unlink(path)
+    try:
+        os.ftruncate(fd, ARENA_BYTES)
+        return fd, mmap.mmap(fd, ARENA_BYTES)
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def _worker_env() -> dict:
+    """The worker's environment: ours, with this package importable (also from a source checkout)."""
+    env = dict(os.environ)
+    root = str(Path(__file__).resolve().parents[2])
+    env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    return env
+
+
+class _Slot:
+    """A RealBatch's place in the arena (proxy side)."""
+
+    __slots__ = ("bid", "view", "set_cmd", "get_cmd", "der_cmd")
+
+    def __init__(self, bid: int, view: np.ndarray):
+        self.bid, self.view = bid, view
+        self.set_cmd, self.get_cmd, self.der_cmd = ("set", bid), ("get", bid), ("der", bid)
+
+
+class WorkerSubsystem(SubsystemBase):
+    """An FMI 2.0 co-simulation FMU instance served by a worker process.
+
+    Same interface and call order as :class:`orchestrator.fmu.Subsystem` (see its module
+    docstring); ``call_timeout`` [s] bounds every round trip to the worker, instantiation
+    included (None: wait as long as it takes). Raises what the in-process adapter raises
+    (ScenarioError, FmuError, FmuCallError, rebuilt from the worker's answer) and
+    :class:`~orchestrator.errors.FmuCrashError` when the worker dies or times out.
+    """
+
+    def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str, call_timeout: float | None = None):
+        super().__init__(name)
+        self.fmu_path = Path(fmu_path)
+        self.md: ModelDescription = read_model_description(self.fmu_path)
+        self.can_interpolate_inputs = self.md.can_interpolate_inputs
+        self.can_get_set_state = self.md.can_get_and_set_fmu_state
+        self.max_output_derivative_order = self.md.max_output_derivative_order
+        self.call_timeout = call_timeout
+        self.time: float | None = None           # simulation time of the last call (for crash reports)
+        self.crash: FmuCrashError | None = None  # set once the worker is dead
+        self._queue: list[tuple] = []
+        self._pending: set[int] = set()          # batch ids with a queued set (flush before reusing a slot)
+        self._slots: dict[int, tuple[RealBatch, _Slot]] = {}
+        self._used = _REGISTER
+        self._next_state = 0
+        self._freed = False
+        self._arena_fd, self._arena = _arena()
+        self._register = np.ndarray((2,), dtype=np.float64, buffer=self._arena)
+        self._code = np.ndarray((1,), dtype=np.int64, buffer=self._arena)
+        mine, theirs = socket.socketpair()
+        try:
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", __name__, str(theirs.fileno()), str(self._arena_fd), name,
+                 str(self.fmu_path), str(work_dir)],
+                pass_fds=(theirs.fileno(), self._arena_fd), env=_worker_env(), stdin=subprocess.DEVNULL)
+        except BaseException:
+            mine.close()
+            theirs.close()
+            self._release()
+            raise
+        theirs.close()
+        self._conn = mp_connection.Connection(mine.detach())
+        # at interpreter exit, kill a worker nobody freed (it ignores SIGTERM)
+        self._finalizer = weakref.finalize(self, _kill_process, self._proc)
+        try:
+            self._round_trip([("init",)], "fmi2Instantiate")
+        except BaseException:
+            self._shutdown()
+            raise
+        self.calls["instantiate"] += 1
+
+    # -- the channel -----------------------------------------------------------
+    def _round_trip(self, msg: list, function: str) -> Any:
+        """Send ``msg`` (queued commands are sent first), wait for the reply, raise what it reports."""
+        if self.crash is not None:
+            raise self.crash
+        if self._queue:
+            msg = self._queue + msg
+            self._queue = []
+            self._pending.clear()
+        try:
+            self._conn.send(msg)
+            reply = self._wait(function)
+        except (BrokenPipeError, EOFError, ConnectionResetError, OSError):
+            raise self._died(function) from None
+        if reply[0] == "ok":
+            self._relog(reply[2])
+            return reply[1]
+        _, index, kind, payload, logs = reply
+        self._relog(logs)
+        raise self._rebuild(kind, payload, msg[index])
+
+    def _wait(self, function: str):
+        # the worker holds the only other end of the socket: its death makes the socket
+        # readable (EOF), so one wait covers answer, crash and timeout
+        try:
+            if self._conn.poll(self.call_timeout):
+                return self._conn.recv()         # EOFError if the worker died
+        except (EOFError, OSError):
+            raise
+        except BaseException:                    # KeyboardInterrupt (second Ctrl-C) etc.: the reply never comes
+            self._kill()
+            self.crash = self._crash_error(function, "interrupted while waiting for the worker (killed)")
+            raise
+        self._kill()
+        self.crash = self._crash_error(function, f"timeout after {self.call_timeout:g} s",
+                                       timeout=self.call_timeout,
+                                       detail=f"no answer within coupling.call_timeout = {self.call_timeout:g} s; "
+                                              "the worker process was killed (SIGKILL). The FMU hangs or is much "
+                                              "slower than expected; raise coupling.call_timeout if it is only slow")
+        raise self.crash
+
+    def _died(self, function: str) -> FmuCrashError:
+        try:
+            code = self._proc.wait(5.0)
+        except subprocess.TimeoutExpired:
+            code = None
+        sig = signal_name(code)
+        if sig:
+            cause, detail = sig, f"its worker process was killed by signal {sig} (exit code {code})"
+        elif code is None:
+            self._kill()
+            cause, detail = "lost connection", "the connection to its worker process broke (worker killed)"
+        else:
+            cause, detail = f"exit code {code}", f"its worker process exited with code {code}"
+        self.crash = self._crash_error(function, cause, signal=sig, exit_code=code, detail=detail + (
+            "; the FMU's binary failed: check its log above, its inputs at this time and its parameters"))
+        return self.crash
+
+    def _crash_error(self, function: str, cause: str, **kw) -> FmuCrashError:
+        code = int(self._code[0])
+        if 0 < code < len(FUNCTIONS) and code != _CODE["reg"]:
+            function = FUNCTIONS[code]                  # what the worker was executing when it stopped
+            t = float(self._register[1])
+        else:
+            t = self.time
+        if function == "fmi2Instantiate":
+            t = None
+        return FmuCrashError(self.name, function, fmu=str(self.fmu_path), time=t, cause=cause, **kw)
+
+    def _kill(self) -> None:
+        _kill_process(self._proc)
+
+    @staticmethod
+    def _relog(records) -> None:
+        for name, level, text in records:
+            logging.getLogger(name).log(level, "%s", text)
+
+    def _rebuild(self, kind: str, payload, cmd: tuple) -> CosimError:
+        function = FUNCTIONS[_CODE.get(cmd[0], 0)] if cmd[0] != "init" else "fmi2Instantiate"
+        if kind == "FmuCallError":
+            return FmuCallError(*payload)
+        if kind == "ScenarioError":
+            return ScenarioError(payload)
+        if kind in _ERRORS:
+            return _ERRORS[kind](payload)
+        return FmuCallError(self.name, function, "exception", f"{kind} in the worker: {payload}")
+
+    def _slot(self, batch: RealBatch) -> _Slot:
+        entry = self._slots.get(id(batch))
+        if entry is not None:
+            return entry[1]
+        nbytes = 8 * max(batch.n, 1)
+        if self._used + nbytes > ARENA_BYTES:
+            raise FmuError(f"FMU instance '{self.name}': the value buffers exceed the worker's shared memory "
+                           f"({ARENA_BYTES} bytes); record fewer signals or run it with isolation: none")
+        view = np.ndarray((batch.n,), dtype=np.float64, buffer=self._arena, offset=self._used)
+        slot = _Slot(len(self._slots), view)
+        orders = None if batch.orders is None else [int(o) for o in batch.orders]
+        self._queue.append(("reg", slot.bid, self._used, [int(v) for v in batch.vrs], orders))
+        self._used += nbytes
+        self._slots[id(batch)] = (batch, slot)     # the batch is kept alive: id() stays unique
+        return slot
+
+    # -- description ------------------------------------------------------------
+    def variable(self, name: str) -> Variable:
+        try:
+            return self.md.variables[name]
+        except KeyError:
+            raise ScenarioError(f"FMU instance '{self.name}' ({self.fmu_path.name}) has no variable '{name}'; "
+                                f"valid names: {', '.join(self.md.variables)}") from None
+
+    # -- life cycle ---------------------------------------------------------------
+    def set_parameters(self, values: Mapping[str, Any], *, out_dir: Path | str | None = None) -> None:
+        self._round_trip([("params", dict(values), None if out_dir is None else str(out_dir))],
+                         "fmi2Set* (parameters)")
+
+    def setup_experiment(self, start_time: float, stop_time: float | None) -> None:
+        self.time = float(start_time)
+        self.calls["setupExperiment"] += 1
+        self._round_trip([("setup", float(start_time), stop_time)], "fmi2SetupExperiment")
+
+    def enter_initialization_mode(self) -> None:
+        self.calls["enterInitializationMode"] += 1
+        self._round_trip([("enter",)], "fmi2EnterInitializationMode")
+
+    def exit_initialization_mode(self) -> None:
+        self.calls["exitInitializationMode"] += 1
+        self._round_trip([("exit",)], "fmi2ExitInitializationMode")
+
+    # -- hot path -----------------------------------------------------------------
+    def set_real(self, batch: RealBatch) -> None:
+        slot = self._slot(batch)
+        if slot.bid in self._pending:
+            self._round_trip([], "fmi2SetReal")      # the slot still holds an unsent value: send it first
+        np.copyto(slot.view, batch.values)
+        self._queue.append(slot.set_cmd)
+        self._pending.add(slot.bid)
+        self.calls["set"] += 1
+
+    def get_real(self, batch: RealBatch) -> np.ndarray:
+        slot = self._slot(batch)
+        self.calls["get"] += 1
+        self._round_trip([slot.get_cmd], "fmi2GetReal")
+        np.copyto(batch.values, slot.view)
+        return batch.values
+
+    def set_real_input_derivatives(self, batch: RealBatch) -> None:
+        if not self.can_interpolate_inputs:
+            super().set_real_input_derivatives(batch)
+        slot = self._slot(batch)
+        if slot.bid in self._pending:
+            self._round_trip([], "fmi2SetRealInputDerivatives")
+        np.copyto(slot.view, batch.values)
+        self._queue.append(slot.der_cmd)
+        self._pending.add(slot.bid)
+        self.calls["setRealInputDerivatives"] += 1
+
+    def do_step(self, t: float, h: float) -> None:
+        self.time = t
+        self.calls["doStep"] += 1
+        self._round_trip([("step", t, h, self.no_set_prior_state)], "fmi2DoStep")
+        self.time = t + h
+
+    # -- state ------------------------------------------------------------------
+    def get_state(self) -> int:
+        if not self.can_get_set_state:
+            super().get_state()
+        sid = self._next_state
+        self._next_state += 1
+        self.calls["getFMUstate"] += 1
+        self._round_trip([("gs", sid)], "fmi2GetFMUstate")
+        return sid
+
+    def set_state(self, state: int) -> None:
+        if not self.can_get_set_state:
+            super().set_state(state)
+        self.calls["setFMUstate"] += 1
+        self._round_trip([("ss", state)], "fmi2SetFMUstate")
+
+    def free_state(self, state: int) -> None:
+        if self.crash is not None:
+            return                                    # the state died with the worker
+        self.calls["freeFMUstate"] += 1
+        self._round_trip([("fs", state)], "fmi2FreeFMUstate")
+
+    # -- end --------------------------------------------------------------------
+    def terminate(self) -> None:
+        """fmi2Terminate in the worker (nothing if the worker is dead)."""
+        if self.crash is None and not self._freed:
+            self.calls["terminate"] += 1
+            self._round_trip([("term",)], "fmi2Terminate")
+
+    def free(self) -> None:
+        """fmi2FreeInstance, stop the worker, release the arena; idempotent, never raises."""
+        if self._freed:
+            return
+        self._freed = True
+        try:
+            if self.crash is None and self._proc.poll() is None:
+                calls = self._round_trip([("free",)], "fmi2FreeInstance")
+                if calls:                             # the worker's own count: exactly what reached the FMU
+                    self.calls.clear()
+                    self.calls.update(calls)
+                self._proc.wait(5.0)
+        except CosimError as e:
+            log.warning("%s", e)
+        except Exception as e:   # pragma: no cover - defensive
+            log.warning("%s: stopping the worker failed: %s", self.name, e)
+        finally:
+            self._shutdown()
+
+    def _shutdown(self) -> None:
+        self._freed = True
+        self._kill()
+        self._conn.close()
+        self._release()
+        self._finalizer.detach()
+
+    def _release(self) -> None:
+        self._slots.clear()
+        self._register = self._code = None
+        try:
+            self._arena.close()
+        except BufferError as e:   # pragma: no cover - defensive
+            log.warning("%s: releasing the shared memory failed: %s", self.name, e)
+        os.close(self._arena_fd)
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid
+
+    def __repr__(self) -> str:
+        state = "dead" if self.crash else ("freed" if self._freed else "alive")
+        return f"WorkerSubsystem({self.name!r}, {self.fmu_path.name!r}, pid={self.pid}, {state})"
+
+
+def _kill_process(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.kill()
+    try:
+        proc.wait(5.0)
+    except subprocess.TimeoutExpired:   # pragma: no cover - a process SIGKILL cannot stop
+        log.warning("worker process %d did not exit after SIGKILL", proc.pid)
+
+
+# ============================================================================ worker side
+class _Collect(logging.Handler):
+    """Log records of the worker at WARNING and above, sent to the master with each reply."""
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.records: list = []
+
+    def emit(self, record):
+        self.records.append((record.name, record.levelno, record.getMessage()))
+
+    def take(self) -> list:
+        out, self.records = self.records, []
+        return out
+
+
+def _encode(e: BaseException) -> tuple[str, Any]:
+    """(kind, payload) of an exception, for :meth:`WorkerSubsystem._rebuild` in the master."""
+    if isinstance(e, FmuCallError):
+        head = f"FMU instance '{e.instance}': {e.function} returned {e.status}"
+        text = str(e)
+        detail = text[len(head) + 2:] if text.startswith(head + ": ") else ""
+        return "FmuCallError", (e.instance, e.function, e.status, detail)
+    if isinstance(e, ScenarioError):
+        return "ScenarioError", e.problems
+    return type(e).__name__, str(e)
+
+
+def _worker_setup() -> _Collect:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)   # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):   # pragma: no cover
+            pass
+    handler = _Collect()
+    root = logging.getLogger()
+    root.addHandler(handler)
+    root.setLevel(logging.WARNING)
+    return handler
+
+
+def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str) -> None:
+    """Worker main: load the FMU, then execute command lists until 'free' or the socket closes."""
+    from ..fmu import Subsystem
+
+    logs = _worker_setup()
+    conn = mp_connection.Connection(conn_fd)
+    arena = mmap.mmap(arena_fd, ARENA_BYTES)
+    os.close(arena_fd)
+    reg = np.ndarray((2,), dtype=np.float64, buffer=arena)
+    code = np.ndarray((1,), dtype=np.int64, buffer=arena)
+    sub = None
+    batches: dict[int, RealBatch] = {}
+    states: dict[int, Any] = {}
+    try:
+        msg = conn.recv()                         # [("init",)]
+        code[0] = 1
+        try:
+            sub = Subsystem(name, fmu_path, work_dir=work_dir)
+        except Exception as e:
+            conn.send(("err", 0, *_encode(e), logs.take()))
+            return
+        code[0] = 0
+        conn.send(("ok", None, logs.take()))
+        while True:
+            try:
+                msg = conn.recv()
+            except (EOFError, OSError):
+                return
+            result, done = None, False
+            for i, cmd in enumerate(msg):
+                op = cmd[0]
+                code[0] = _CODE[op]
+                try:
+                    result, done = _execute(sub, op, cmd, batches, states, arena, reg)
+                except Exception as e:
+                    conn.send(("err", i, *_encode(e), logs.take()))
+                    break
+            else:
+                code[0] = 0
+                conn.send(("ok", result, logs.take()))
+            code[0] = 0
+            if done:
+                sub = None
+                return
+    finally:
+        if sub is not None:
+            sub.free()
+        batches.clear()
+        del reg, code
+        arena.close()
+        conn.close()
+
+
+def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) -> tuple[Any, bool]:
+    """One command in the worker; returns (result, worker done)."""
+    if op == "set":
+        sub.set_real(batches[cmd[1]])
+    elif op == "step":
+        reg[1] = cmd[1]
+        sub.no_set_prior_state = cmd[3]
+        sub.do_step(cmd[1], cmd[2])
+        reg[1] = cmd[1] + cmd[2]
+    elif op == "get":
+        sub.get_real(batches[cmd[1]])
+    elif op == "der":
+        sub.set_real_input_derivatives(batches[cmd[1]])
+    elif op == "reg":
+        _, bid, offset, vrs, orders = cmd
+        b = RealBatch([str(v) for v in vrs], vrs, orders)
+        b.c_values = (ctypes.c_double * max(b.n, 1)).from_buffer(arena, offset)
+        b.values = np.ctypeslib.as_array(b.c_values)[: b.n]
+        batches[bid] = b
+    elif op == "gs":
+        states[cmd[1]] = sub.get_state()
+    elif op == "ss":
+        sub.set_state(states[cmd[1]])
+    elif op == "fs":
+        sub.free_state(states.pop(cmd[1]))
+    elif op == "params":
+        sub.set_parameters(cmd[1], out_dir=cmd[2])
+    elif op == "setup":
+        reg[1] = cmd[1]
+        sub.setup_experiment(cmd[1], cmd[2])
+    elif op == "enter":
+        sub.enter_initialization_mode()
+    elif op == "exit":
+        sub.exit_initialization_mode()
+    elif op == "term":
+        sub.terminate()
+    elif op == "free":
+        for s in list(states.values()):
+            sub.free_state(s)
+        states.clear()
+        batches.clear()
+        sub.free()
+        return dict(sub.calls), True
+    return None, False
+
+
+__all__ = ["WorkerSubsystem", "FmuCrashError", "signal_name", "FUNCTIONS", "ARENA_BYTES"]
+
+if __name__ == "__main__":       # started by WorkerSubsystem: python -m orchestrator.fmi.worker ...
+    _serve(int(sys.argv[1]), int(sys.argv[2]), *sys.argv[3:6])
