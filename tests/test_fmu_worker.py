@@ -149,8 +149,9 @@ def test_ctrl_c_while_an_fmu_hangs_kills_its_worker(fmus, tmp_path):
         w.enter_initialization_mode()
         w.exit_initialization_mode()
         signal.setitimer(signal.ITIMER_REAL, 0.5)
+        w.do_step(0.0, H)                   # queued
         with pytest.raises(KeyboardInterrupt):
-            w.do_step(0.0, H)
+            w.flush()                       # sent: the FMU hangs in it
         assert not _alive(w.pid)
         assert w.crash is not None and "interrupted" in w.crash.cause
     finally:

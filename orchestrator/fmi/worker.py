@@ -22,11 +22,13 @@ cannot tell the two apart. The channel:
   executing (a code, 0 when idle) and the simulation time of that call. After a crash
   the proxy reads it to name the function that crashed.
 
-Round trips: ``set_real`` and ``set_real_input_derivatives`` are queued and travel with
-the next call that needs an answer (``do_step``, ``get_real``, state calls ...), so a
-``set/doStep/get`` cycle costs two round trips. Every FMI call still runs in the
-worker in the order the master made it; a failure of a queued set is reported as that
-function (fmi2SetReal), not the one that carried it.
+Round trips: ``set_real``, ``set_real_input_derivatives`` and ``do_step`` are queued
+and travel with the next call that needs an answer (``get_real``, state calls,
+``terminate`` ...), so a ``set/doStep/get`` cycle costs one round trip. Every FMI call
+still runs in the worker in the order the master made it, and a failure is reported as
+the function that failed (fmi2DoStep, fmi2SetReal), by the call that carried it. Each
+queued set copies the values into the next of ``SLOTS`` buffers of its batch, so several
+sets of one batch can wait in the queue (sub-steps).
 
 Crashes: the proxy waits for a reply with ``Connection.poll(call_timeout)`` (seconds,
 None = forever); the worker holds the only other end of the socket, so its death wakes
@@ -122,14 +124,26 @@ def _worker_env() -> dict:
     return env
 
 
+FREE_TIMEOUT = 30.0       # s: longest wait for fmi2FreeInstance (and what is queued before it) in free()
+STARTUP_TIMEOUT = 300.0   # s: the worker's interpreter must be up by then (imports only, no FMU code)
+SLOTS = 8      # value slots per batch: sets queued before a round trip use successive slots
+
+
 class _Slot:
-    """A RealBatch's place in the arena (proxy side)."""
+    """A RealBatch's place in the arena (proxy side): SLOTS buffers, used in turn by queued sets.
 
-    __slots__ = ("bid", "view", "set_cmd", "get_cmd", "der_cmd")
+    Worker-side batch ids are ``bid * SLOTS + k``. ``pending`` counts the sets queued since
+    the last round trip; when all slots hold unsent values the queue is sent first.
+    """
 
-    def __init__(self, bid: int, view: np.ndarray):
-        self.bid, self.view = bid, view
-        self.set_cmd, self.get_cmd, self.der_cmd = ("set", bid), ("get", bid), ("der", bid)
+    __slots__ = ("bid", "views", "k", "pending", "set_cmds", "der_cmds", "get_cmd")
+
+    def __init__(self, bid: int, views: list):
+        self.bid, self.views, self.k, self.pending = bid, views, 0, 0
+        ids = [bid * SLOTS + k for k in range(SLOTS)]
+        self.set_cmds = [("set", i) for i in ids]
+        self.der_cmds = [("der", i) for i in ids]
+        self.get_cmd = ("get", ids[0])
 
 
 class WorkerSubsystem(SubsystemBase):
@@ -153,7 +167,7 @@ class WorkerSubsystem(SubsystemBase):
         self.time: float | None = None           # simulation time of the last call (for crash reports)
         self.crash: FmuCrashError | None = None  # set once the worker is dead
         self._queue: list[tuple] = []
-        self._pending: set[int] = set()          # batch ids with a queued set (flush before reusing a slot)
+        self._pending: list[_Slot] = []          # slots with queued sets (reset when the queue is sent)
         self._slots: dict[int, tuple[RealBatch, _Slot]] = {}
         self._used = _REGISTER
         self._next_state = 0
@@ -177,11 +191,24 @@ class WorkerSubsystem(SubsystemBase):
         # at interpreter exit, kill a worker nobody freed (it ignores SIGTERM)
         self._finalizer = weakref.finalize(self, _kill_process, self._proc)
         try:
+            self._started()
             self._round_trip([("init",)], "fmi2Instantiate")
         except BaseException:
             self._shutdown()
             raise
         self.calls["instantiate"] += 1
+
+    def _started(self) -> None:
+        """Wait for the worker's interpreter to come up (not bounded by call_timeout: that is Python
+        starting and importing numpy and fmpy, which a loaded machine makes slow, not the FMU)."""
+        timeout, self.call_timeout = self.call_timeout, STARTUP_TIMEOUT
+        try:
+            if self._wait("starting the worker process") != ("hello",):    # pragma: no cover - defensive
+                raise FmuError(f"FMU instance '{self.name}': the worker process answered nonsense at start-up")
+        except (EOFError, OSError):
+            raise self._died("starting the worker process") from None
+        finally:
+            self.call_timeout = timeout
 
     # -- the channel -----------------------------------------------------------
     def _round_trip(self, msg: list, function: str) -> Any:
@@ -191,6 +218,8 @@ class WorkerSubsystem(SubsystemBase):
         if self._queue:
             msg = self._queue + msg
             self._queue = []
+            for slot in self._pending:
+                slot.pending = 0
             self._pending.clear()
         try:
             self._conn.send(msg)
@@ -217,11 +246,13 @@ class WorkerSubsystem(SubsystemBase):
             self.crash = self._crash_error(function, "interrupted while waiting for the worker (killed)")
             raise
         self._kill()
+        limit = f"coupling.call_timeout = {self.call_timeout:g} s" if function != "starting the worker process" \
+            else f"{self.call_timeout:g} s (start-up)"
         self.crash = self._crash_error(function, f"timeout after {self.call_timeout:g} s",
                                        timeout=self.call_timeout,
-                                       detail=f"no answer within coupling.call_timeout = {self.call_timeout:g} s; "
-                                              "the worker process was killed (SIGKILL). The FMU hangs or is much "
-                                              "slower than expected; raise coupling.call_timeout if it is only slow")
+                                       detail=f"no answer within {limit}; the worker process was killed (SIGKILL). "
+                                              "The FMU hangs or is much slower than expected; raise "
+                                              "coupling.call_timeout if it is only slow")
         raise self.crash
 
     def _died(self, function: str) -> FmuCrashError:
@@ -275,14 +306,15 @@ class WorkerSubsystem(SubsystemBase):
         if entry is not None:
             return entry[1]
         nbytes = 8 * max(batch.n, 1)
-        if self._used + nbytes > ARENA_BYTES:
+        if self._used + SLOTS * nbytes > ARENA_BYTES:
             raise FmuError(f"FMU instance '{self.name}': the value buffers exceed the worker's shared memory "
                            f"({ARENA_BYTES} bytes); record fewer signals or run it with isolation: none")
-        view = np.ndarray((batch.n,), dtype=np.float64, buffer=self._arena, offset=self._used)
-        slot = _Slot(len(self._slots), view)
+        views = [np.ndarray((batch.n,), dtype=np.float64, buffer=self._arena, offset=self._used + k * nbytes)
+                 for k in range(SLOTS)]
+        slot = _Slot(len(self._slots), views)
         orders = None if batch.orders is None else [int(o) for o in batch.orders]
-        self._queue.append(("reg", slot.bid, self._used, [int(v) for v in batch.vrs], orders))
-        self._used += nbytes
+        self._queue.append(("reg", slot.bid, self._used, nbytes, [int(v) for v in batch.vrs], orders))
+        self._used += SLOTS * nbytes
         self._slots[id(batch)] = (batch, slot)     # the batch is kept alive: id() stays unique
         return slot
 
@@ -313,38 +345,54 @@ class WorkerSubsystem(SubsystemBase):
         self._round_trip([("exit",)], "fmi2ExitInitializationMode")
 
     # -- hot path -----------------------------------------------------------------
-    def set_real(self, batch: RealBatch) -> None:
+    def _stage(self, batch: RealBatch, cmds: list, function: str) -> None:
+        """Copy ``batch.values`` into the batch's next free slot and queue ``cmds[slot]``."""
+        if self.crash is not None:
+            raise self.crash
         slot = self._slot(batch)
-        if slot.bid in self._pending:
-            self._round_trip([], "fmi2SetReal")      # the slot still holds an unsent value: send it first
-        np.copyto(slot.view, batch.values)
-        self._queue.append(slot.set_cmd)
-        self._pending.add(slot.bid)
+        if slot.pending == SLOTS:
+            self._round_trip([], function)           # every slot holds an unsent value: send them first
+        k = slot.k
+        np.copyto(slot.views[k], batch.values)
+        self._queue.append(cmds[k] if cmds is not None else slot.set_cmds[k])
+        slot.k = (k + 1) % SLOTS
+        if not slot.pending:
+            self._pending.append(slot)
+        slot.pending += 1
+
+    def set_real(self, batch: RealBatch) -> None:
+        """Queued: the values are copied now and reach the FMU with the next round trip."""
+        self._stage(batch, None, "fmi2SetReal")
         self.calls["set"] += 1
 
     def get_real(self, batch: RealBatch) -> np.ndarray:
         slot = self._slot(batch)
         self.calls["get"] += 1
         self._round_trip([slot.get_cmd], "fmi2GetReal")
-        np.copyto(batch.values, slot.view)
+        np.copyto(batch.values, slot.views[0])
         return batch.values
 
     def set_real_input_derivatives(self, batch: RealBatch) -> None:
         if not self.can_interpolate_inputs:
             super().set_real_input_derivatives(batch)
         slot = self._slot(batch)
-        if slot.bid in self._pending:
-            self._round_trip([], "fmi2SetRealInputDerivatives")
-        np.copyto(slot.view, batch.values)
-        self._queue.append(slot.der_cmd)
-        self._pending.add(slot.bid)
+        self._stage(batch, slot.der_cmds, "fmi2SetRealInputDerivatives")
         self.calls["setRealInputDerivatives"] += 1
 
     def do_step(self, t: float, h: float) -> None:
-        self.time = t
+        """Queued like a set: the step runs when the next call that needs an answer (get_real,
+        state calls, terminate ...) sends the queue, and a failure of the step is raised by
+        that call, as an FmuCallError naming fmi2DoStep. :meth:`flush` sends and waits now."""
+        if self.crash is not None:
+            raise self.crash
         self.calls["doStep"] += 1
-        self._round_trip([("step", t, h, self.no_set_prior_state)], "fmi2DoStep")
+        self._queue.append(("step", t, h, self.no_set_prior_state))
         self.time = t + h
+
+    def flush(self) -> None:
+        """Send the queued calls and wait until the worker has executed them."""
+        if self._queue:
+            self._round_trip([], "fmi2DoStep" if self._queue[-1][0] == "step" else "fmi2SetReal")
 
     # -- state ------------------------------------------------------------------
     def get_state(self) -> int:
@@ -382,6 +430,9 @@ class WorkerSubsystem(SubsystemBase):
         self._freed = True
         try:
             if self.crash is None and self._proc.poll() is None:
+                # bounded: free() runs on every exit path and must not hang on an FMU that does
+                if self.call_timeout is None or self.call_timeout > FREE_TIMEOUT:
+                    self.call_timeout = FREE_TIMEOUT
                 calls = self._round_trip([("free",)], "fmi2FreeInstance")
                 if calls:                             # the worker's own count: exactly what reached the FMU
                     self.calls.clear()
@@ -475,8 +526,11 @@ def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str)
     """Worker main: load the FMU, then execute command lists until 'free' or the socket closes."""
     from ..fmu import Subsystem
 
+    import fmpy.fmi2  # noqa: F401  (imported before "hello": the start-up is not the FMU's time)
+
     logs = _worker_setup()
     conn = mp_connection.Connection(conn_fd)
+    conn.send(("hello",))
     arena = mmap.mmap(arena_fd, ARENA_BYTES)
     os.close(arena_fd)
     reg = np.ndarray((2,), dtype=np.float64, buffer=arena)
@@ -538,11 +592,12 @@ def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) 
     elif op == "der":
         sub.set_real_input_derivatives(batches[cmd[1]])
     elif op == "reg":
-        _, bid, offset, vrs, orders = cmd
-        b = RealBatch([str(v) for v in vrs], vrs, orders)
-        b.c_values = (ctypes.c_double * max(b.n, 1)).from_buffer(arena, offset)
-        b.values = np.ctypeslib.as_array(b.c_values)[: b.n]
-        batches[bid] = b
+        _, bid, offset, nbytes, vrs, orders = cmd
+        for k in range(SLOTS):
+            b = RealBatch([str(v) for v in vrs], vrs, orders)
+            b.c_values = (ctypes.c_double * max(b.n, 1)).from_buffer(arena, offset + k * nbytes)
+            b.values = np.ctypeslib.as_array(b.c_values)[: b.n]
+            batches[bid * SLOTS + k] = b
     elif op == "gs":
         states[cmd[1]] = sub.get_state()
     elif op == "ss":
