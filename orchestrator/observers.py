@@ -193,11 +193,9 @@ def _jsonable(x: Any) -> Any:
 
 
 def write_summary(path: Path | str, summary: dict) -> None:
-    """Write ``summary.json`` atomically (temp file + rename)."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(_jsonable(summary), indent=2) + "\n")
-    tmp.replace(path)
+    """Write ``summary.json`` atomically (temp file + rename), never through a symbolic link."""
+    from .coupling.lifecycle import write_text_no_follow
+    write_text_no_follow(path, json.dumps(_jsonable(summary), indent=2) + "\n")
 
 
 def versions() -> dict[str, str]:
