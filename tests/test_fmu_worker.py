@@ -202,3 +202,47 @@ def test_bad_parameters_raise_the_same_scenario_error(fmus, tmp_path):
 def test_signal_names():
     assert signal_name(-11) == "SIGSEGV" and signal_name(-6) == "SIGABRT" and signal_name(-9) == "SIGKILL"
     assert signal_name(3) is None and signal_name(0) is None and signal_name(None) is None
+
+
+def test_request_and_receive_let_workers_step_at_the_same_time(fmus, tmp_path):
+    """request_real sends the queued set/doStep/get without waiting; receive_real collects.
+    Two workers driven that way give exactly the values of one driven call by call."""
+    subs = [WorkerSubsystem(n, fmus / "MisbehavingBearing.fmu", work_dir=tmp_path) for n in ("a", "b")]
+    ref = Subsystem("r", fmus / "MisbehavingBearing.fmu", work_dir=tmp_path / "ref")
+    try:
+        batches = []
+        for s, fault in zip([*subs, ref], (6, 0, 0)):
+            s.set_parameters({"fault": fault, "fault_step": 19})
+            s.setup_experiment(0.0, None)
+            s.enter_initialization_mode()
+            s.exit_initialization_mode()
+            batches.append((s.real_batch(["x", "vx"]), s.real_batch(["Fx"])))
+        got, expected = [], []
+        for i in range(6):
+            for s, (inb, _) in zip([*subs, ref], batches):
+                for j in range(3):                      # three sub-steps: three values of one batch queued
+                    inb.values[:] = [1e-6 * (i + j), 1e-3 * j]
+                    s.set_real(inb)
+                    s.do_step(i * H + j * H / 3, H / 3)
+            for s, (_, outb) in zip(subs, batches):
+                s.request_real(outb)                    # both workers compute now
+            got.append([s.receive_real(outb)[0] for s, (_, outb) in zip(subs, batches)])
+            expected.append(ref.get_real(batches[2][1])[0])
+        assert np.array(got)[:, 0].tobytes() == np.array(expected).tobytes()
+        assert np.array(got)[:, 1].tobytes() == np.array(expected).tobytes()
+        # a failure of a queued doStep comes with the receive, naming fmi2DoStep (a's 19th step)
+        a, (inb, outb) = subs[0], batches[0]
+        a.set_real(inb)
+        a.do_step(1.0, H)
+        a.request_real(outb)
+        with pytest.raises(FmuCallError) as info:
+            a.receive_real(outb)
+        assert (info.value.function, info.value.status) == ("fmi2DoStep", "error")
+        # a call between request and receive waits for the reply first
+        b, (inb, outb) = subs[1], batches[1]
+        b.request_real(outb)
+        b.set_real(inb)
+        assert b.get_real(outb)[0] == pytest.approx(-1e6 * 1e-6 * 7 - 200 * 2e-3)
+    finally:
+        for s in [*subs, ref]:
+            s.free()

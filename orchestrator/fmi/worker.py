@@ -167,7 +167,8 @@ class WorkerSubsystem(SubsystemBase):
         self.time: float | None = None           # simulation time of the last call (for crash reports)
         self.crash: FmuCrashError | None = None  # set once the worker is dead
         self._queue: list[tuple] = []
-        self._pending: list[_Slot] = []          # slots with queued sets (reset when the queue is sent)
+        self._pending: list[_Slot] = []          # slots holding values the worker has not read yet
+        self._outstanding: tuple | None = None   # (message, function) sent, reply not yet read
         self._slots: dict[int, tuple[RealBatch, _Slot]] = {}
         self._used = _REGISTER
         self._next_state = 0
@@ -213,19 +214,36 @@ class WorkerSubsystem(SubsystemBase):
     # -- the channel -----------------------------------------------------------
     def _round_trip(self, msg: list, function: str) -> Any:
         """Send ``msg`` (queued commands are sent first), wait for the reply, raise what it reports."""
+        if self._outstanding is not None:
+            self._receive()
+        self._send(msg, function)
+        return self._receive()
+
+    def _send(self, msg: list, function: str) -> None:
         if self.crash is not None:
             raise self.crash
         if self._queue:
             msg = self._queue + msg
             self._queue = []
-            for slot in self._pending:
-                slot.pending = 0
-            self._pending.clear()
+        self._outstanding = (msg, function)
         try:
             self._conn.send(msg)
-            reply = self._wait(function)
-        except (BrokenPipeError, EOFError, ConnectionResetError, OSError):
+        except (BrokenPipeError, ConnectionResetError, OSError):
+            self._outstanding = None
             raise self._died(function) from None
+
+    def _receive(self) -> Any:
+        """Wait for the reply to the message sent last; raise what it reports."""
+        msg, function = self._outstanding
+        try:
+            reply = self._wait(function)
+        except (EOFError, ConnectionResetError, OSError):
+            raise self._died(function) from None
+        finally:
+            self._outstanding = None
+            for slot in self._pending:           # the worker has read every value sent (or is dead)
+                slot.pending = 0
+            self._pending.clear()
         if reply[0] == "ok":
             self._relog(reply[2])
             return reply[1]
@@ -347,6 +365,8 @@ class WorkerSubsystem(SubsystemBase):
     # -- hot path -----------------------------------------------------------------
     def _stage(self, batch: RealBatch, cmds: list, function: str) -> None:
         """Copy ``batch.values`` into the batch's next free slot and queue ``cmds[slot]``."""
+        if self._outstanding is not None:
+            self._receive()
         if self.crash is not None:
             raise self.crash
         slot = self._slot(batch)
@@ -383,11 +403,29 @@ class WorkerSubsystem(SubsystemBase):
         """Queued like a set: the step runs when the next call that needs an answer (get_real,
         state calls, terminate ...) sends the queue, and a failure of the step is raised by
         that call, as an FmuCallError naming fmi2DoStep. :meth:`flush` sends and waits now."""
+        if self._outstanding is not None:
+            self._receive()
         if self.crash is not None:
             raise self.crash
         self.calls["doStep"] += 1
         self._queue.append(("step", t, h, self.no_set_prior_state))
         self.time = t + h
+
+    def request_real(self, batch: RealBatch) -> None:
+        """Send the queued calls and a get of ``batch`` without waiting (the worker starts now);
+        :meth:`receive_real` waits for the values. Any other call in between waits first."""
+        slot = self._slot(batch)
+        self.calls["get"] += 1
+        if self._outstanding is not None:
+            self._receive()
+        self._send([slot.get_cmd], "fmi2GetReal")
+
+    def receive_real(self, batch: RealBatch) -> np.ndarray:
+        """The values asked for by :meth:`request_real` (raises what the calls sent with it raised)."""
+        if self._outstanding is not None:
+            self._receive()
+        np.copyto(batch.values, self._slot(batch).views[0])
+        return batch.values
 
     def flush(self) -> None:
         """Send the queued calls and wait until the worker has executed them."""
@@ -429,6 +467,11 @@ class WorkerSubsystem(SubsystemBase):
             return
         self._freed = True
         try:
+            if self._outstanding is not None and self.crash is None:
+                try:
+                    self._receive()                  # a reply nobody read: its failure no longer matters
+                except CosimError as e:
+                    log.debug("%s", e)
             if self.crash is None and self._proc.poll() is None:
                 # bounded: free() runs on every exit path and must not hang on an FMU that does
                 if self.call_timeout is None or self.call_timeout > FREE_TIMEOUT:
