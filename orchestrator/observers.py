@@ -101,8 +101,9 @@ class CsvWriter(Observer):
         self._last_flush = 0.0
 
     def on_initialized(self, view):
+        from .coupling.lifecycle import open_no_follow
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._f = open(self.path, "w", newline="")
+        self._f = open_no_follow(self.path, "w", newline="")      # never through a symbolic link
         self._f.write("time," + ",".join(view.columns) + "\n")
         self._write(view)
         self._f.flush()

@@ -212,7 +212,8 @@ class RunFolder:
                         self.stop_signal = signum
                     self.fail(self.stop_message(None) + " before the co-simulation started")
                 else:
-                    self.fail(f"setup failed: {exc}", error=type(exc).__name__)
+                    extra = {"failure": exc.report()} if callable(getattr(exc, "report", None)) else {}
+                    self.fail(f"setup failed: {exc}", error=type(exc).__name__, **extra)
         finally:
             if self._term_handler is not None:
                 signal.signal(signal.SIGTERM, self._term_handler)
