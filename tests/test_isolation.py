@@ -285,3 +285,37 @@ def test_isolated_and_parallel_runs_are_byte_identical(jeffcott_dir, tmp_path, s
         assert calls == ref_calls, label
     t = np.loadtxt(tmp_path / "in-process" / "results.csv", delimiter=",", skiprows=1)[:, 0]
     assert t[-1] == pytest.approx(0.26)
+
+
+def test_an_fmu_instantiable_once_per_process_serves_isolated_instances(fmu_dir, tmp_path):
+    """canBeInstantiatedOnlyOncePerProcess limits the master's process, not the workers'."""
+    import zipfile
+
+    from orchestrator import load_scenario, run
+    from orchestrator.errors import ScenarioError
+
+    once = tmp_path / "Once.fmu"
+    with zipfile.ZipFile(fmu_dir / "LinearBearing.fmu") as src, zipfile.ZipFile(once, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'canBeInstantiatedOnlyOncePerProcess="false"',
+                                    b'canBeInstantiatedOnlyOncePerProcess="true"')
+                assert b'canBeInstantiatedOnlyOncePerProcess="true"' in data
+            dst.writestr(item, data)
+
+    def scenario(a: str, b: str, default: str = "none") -> Path:
+        path = tmp_path / f"once_{a}_{b}_{default}.yaml"
+        path.write_text("\n".join([
+            "name: once", "stop_time: 0.005", "fmus:",
+            f"  a: {{path: Once.fmu{a}}}", f"  b: {{path: Once.fmu{b}}}",
+            "connections:", "  - {from: a.Fx, to: b.x, gain: 1.0e-9}", "  - {from: b.Fx, to: a.x, gain: 1.0e-9}",
+            f"coupling: {{scheme: jacobi, macro_step: 1.0e-3, isolation: {default}}}", ""]))
+        return path
+
+    with pytest.raises(ScenarioError, match="all use it in the master's process; use it for one instance only, "
+                                            "or give the others 'isolation: process'"):
+        load_scenario(scenario("", ""))
+    for sc in (scenario("", ", isolation: process"), scenario("", "", "process")):
+        res = run(load_scenario(sc), out_dir=tmp_path / sc.stem, progress=False)
+        assert res.success and len(res.t) == 6, res.message
