@@ -188,7 +188,7 @@ def test_a_second_run_into_a_busy_folder_is_refused(fmu_dir, tmp_path):
         with pytest.raises(LifecycleError) as info:
             run(load_scenario(_scenario(fmu_dir, fault=None, isolation="none", name="second")), out_dir=out,
                 progress=False)
-        assert f"is in use by another run: scenario 'first'" in str(info.value)
+        assert "is in use by another run: scenario 'first'" in str(info.value)
         assert f"pid {first.pid}" in str(info.value)
         assert _summary(out)["scenario"] == "first"
     finally:
