@@ -23,7 +23,8 @@ import numpy as np
 
 from ..errors import FmuCallError, ScenarioError
 from ..fmu import RealBatch
-from .worker import ARENA_BYTES, CODES, SLOTS
+from .channel import ARENA_BYTES, CODES
+from .worker import SLOTS
 
 class _Collect(logging.Handler):
     """Log records of the worker at WARNING and above, sent to the master with each reply."""
