@@ -232,10 +232,10 @@ class MasterAlgorithm:
         for st in make_stages([u.name for u in self.units], links, self.scheme.uses_new_value):
             members = [by_name[n] for n in st.names]
             workers = [u for u in members if isinstance(u.sub, WorkerSubsystem)]
-            concurrent = self._parallel and bool(workers) and len(members) > 1
-            # workers first: they compute while the in-process members step
-            members = workers + [u for u in members if u not in workers] if concurrent else members
-            self._stages.append((st, members, concurrent))
+            # concurrently: workers first, they compute while the in-process members step; otherwise
+            # (and in the start-up steps of a linked stage) in the stepping order, which matters there
+            together = workers + [u for u in members if u not in workers] if workers and len(members) > 1 else None
+            self._stages.append((st, members, together if self._parallel else None))
 
     def _plan(self) -> None:
         sc = self.scenario
@@ -642,12 +642,12 @@ class MasterAlgorithm:
         else:
             cache = self._wcache = {}
             self._wkey = (hist.count, startup_q, *d)
-        for st, members, concurrent in self._stages:
-            if concurrent and st.concurrent(startup=startup_q is not None):
-                for u in members:
+        for st, members, together in self._stages:
+            if together is not None and st.concurrent(startup=startup_q is not None):
+                for u in together:
                     self._deliver(u, self._weights(cache, u, t, h, startup_q), t, h)
                     u.sub.request_real(u.outb)      # a worker starts computing now
-                self._collect(members, t_next)
+                self._collect(together, t_next)
                 continue
             for u in members:
                 self._deliver(u, self._weights(cache, u, t, h, startup_q), t, h)

@@ -231,7 +231,7 @@ def test_sigterm_stops_like_ctrl_c(fmu_dir, tmp_path):
         assert list(tmp.iterdir()) == []
 
 
-def _jeffcott_yaml(fmu_dir: Path, scheme: str, isolation: dict, parallel: bool) -> Path:
+def _jeffcott_yaml(fmu_dir: Path, scheme: str, isolation: dict, parallel: bool, k: int = 1) -> Path:
     conns = []
     for i in (1, 2):
         conns += [f"  - {{from: rotor.{v}_{i}, to: bearing{i}.{v}}}" for v in ("x", "y", "vx", "vy")]
@@ -244,9 +244,10 @@ def _jeffcott_yaml(fmu_dir: Path, scheme: str, isolation: dict, parallel: bool) 
         f"  bearing1: {{path: LinearBearing.fmu{iso['bearing1']}}}",
         f"  bearing2: {{path: LinearBearing.fmu{iso['bearing2']}}}",
         "connections:", *conns,
-        f"coupling: {{scheme: {scheme}, macro_step: 2.0e-5, extrapolation_order: 1, parallel: {str(parallel).lower()}}}",
+        f"coupling: {{scheme: {scheme}, macro_step: 2.0e-5, extrapolation_order: {k}, "
+        f"parallel: {str(parallel).lower()}}}",
         "output: {interval: 1.0e-4}", ""])
-    path = fmu_dir / f"jeffcott_{scheme}_{'_'.join(f'{k}{v}' for k, v in isolation.items())}_{parallel}.yaml"
+    path = fmu_dir / f"jeffcott_{scheme}_{'_'.join(f'{n}{v}' for n, v in isolation.items())}_{parallel}_k{k}.yaml"
     path.write_text(text)
     return path
 
@@ -262,8 +263,9 @@ def jeffcott_dir(fmu_dir) -> Path:
     return fmu_dir
 
 
-@pytest.mark.parametrize("scheme", ["gauss-seidel", "jacobi"])
-def test_isolated_and_parallel_runs_are_byte_identical(jeffcott_dir, tmp_path, scheme):
+@pytest.mark.parametrize("scheme, k", [("gauss-seidel", 1), ("jacobi", 1), ("jacobi", 2)])
+def test_isolated_and_parallel_runs_are_byte_identical(jeffcott_dir, tmp_path, scheme, k):
+    """k = 2: the start-up iteration, in which Jacobi's linked stage must step sequentially."""
     from orchestrator import load_scenario, run
 
     variants = {"in-process": ({}, False),
@@ -275,7 +277,7 @@ def test_isolated_and_parallel_runs_are_byte_identical(jeffcott_dir, tmp_path, s
     got = {}
     for label, (iso, par) in variants.items():
         out = tmp_path / label.replace(" ", "_").replace(",", "")
-        res = run(load_scenario(_jeffcott_yaml(jeffcott_dir, scheme, iso, par)), out_dir=out, progress=False)
+        res = run(load_scenario(_jeffcott_yaml(jeffcott_dir, scheme, iso, par, k)), out_dir=out, progress=False)
         assert res.success, (label, res.message)
         got[label] = ((out / "results.csv").read_bytes(), res.stats["fmu_calls"])
     ref_csv, ref_calls = got["in-process"]
