@@ -43,7 +43,13 @@ def build_fmu(dest: Path) -> Path:
     return mod.build_c_fmu(dest, "LinearBearing")
 
 
-def time_adapter(cls, fmu: Path, n: int, work_dir: Path) -> float:
+def cpu_ns(pid: int | str = "self") -> int:
+    """CPU time a process (its main thread) has run, in ns (/proc/PID/schedstat): unlike wall time,
+    not inflated by waiting for a CPU on a loaded machine."""
+    return int(Path(f"/proc/{pid}/schedstat").read_text().split()[0])
+
+
+def time_adapter(cls, fmu: Path, n: int, work_dir: Path, cpu: list | None = None) -> float:
     subs = [cls(name, fmu, work_dir=work_dir) for name in ("a", "b")]
     try:
         batches = []
@@ -56,6 +62,8 @@ def time_adapter(cls, fmu: Path, n: int, work_dir: Path) -> float:
         a, b = subs
         ia.values[:] = [1e-6, 0.0, 0.0, 0.0]
         ib.values[:] = [-1e-6, 0.0, 0.0, 0.0]
+        pids = ["self"] + [s.pid for s in subs if hasattr(s, "pid")]
+        c0 = [cpu_ns(p) for p in pids]
         t0 = time.perf_counter()
         for i in range(n):
             t = i * H
@@ -66,6 +74,9 @@ def time_adapter(cls, fmu: Path, n: int, work_dir: Path) -> float:
             ib.values[0] = a.get_real(oa)[0] * 1e-12
             ia.values[0] = b.get_real(ob)[0] * 1e-12
         dt = time.perf_counter() - t0
+        if cpu is not None:     # CPU per cycle: master, workers (sum)
+            c1 = [cpu_ns(p) for p in pids]
+            cpu.append(((c1[0] - c0[0]) / n / 2e9, sum(b - a for a, b in zip(c0[1:], c1[1:])) / n / 2e9))
         for s in subs:
             s.terminate()
     finally:
@@ -115,13 +126,15 @@ def main(argv=None) -> int:
 
     runs: dict[str, list] = {"in-process (Subsystem)": [], "worker process (WorkerSubsystem)": [],
                              "libcosim (libcosimpy)": []}
+    cpu: dict[str, list] = {"in-process (Subsystem)": [], "worker process (WorkerSubsystem)": []}
     with tempfile.TemporaryDirectory(prefix="bench-worker-") as d:
         fmu = build_fmu(Path(d))
         load0 = os.getloadavg()
         for r in range(args.repeats):
-            runs["in-process (Subsystem)"].append(time_adapter(Subsystem, fmu, args.steps, Path(d) / f"i{r}"))
+            runs["in-process (Subsystem)"].append(time_adapter(Subsystem, fmu, args.steps, Path(d) / f"i{r}",
+                                                               cpu["in-process (Subsystem)"]))
             runs["worker process (WorkerSubsystem)"].append(
-                time_adapter(WorkerSubsystem, fmu, args.steps, Path(d) / f"w{r}"))
+                time_adapter(WorkerSubsystem, fmu, args.steps, Path(d) / f"w{r}", cpu["worker process (WorkerSubsystem)"]))
             runs["libcosim (libcosimpy)"].append(libcosim_subprocess(fmu, args.steps))
         load1 = os.getloadavg()
     med = {k: (statistics.median([x for x in v if isinstance(x, float)]) if any(isinstance(x, float) for x in v)
@@ -139,6 +152,12 @@ def main(argv=None) -> int:
         lo = min(x for x in runs[k] if isinstance(x, float))
         print(f"| {k} | {v * 1e6:.1f} | {lo * 1e6:.1f} | {v / base:.2f}x | "
               f"{(f'{v / lib:.2f}x' if lib else '')} |")
+    print("\nCPU time per cycle (/proc/PID/schedstat, median; load-robust, unlike the wall times above):")
+    for k, v in cpu.items():
+        m = statistics.median(x[0] for x in v)
+        w = statistics.median(x[1] for x in v)
+        print(f"  {k}: master {m * 1e6:.1f} us" + (f" + worker {w * 1e6:.1f} us = {(m + w) * 1e6:.1f} us"
+                                                     if "worker" in k else ""))
     return 0
 
 
