@@ -2,6 +2,7 @@
 
     nice -n 19 .venv/bin/python benchmarks/bench_runup_workers.py [--scenario oil_bath] [--stop 0.30]
         [--repeat 2] [--out /tmp/bench_runup_workers]
+    nice -n 19 .venv/bin/python benchmarks/bench_runup_workers.py --split [--stop 0.27]   # CPU per FMU and step
 
 Variants of scenarios/jeffcott_runup_<scenario>.yaml (Gauss-Seidel [rotor, bearing1,
 bearing2], two 40 x 40 mass-conserving films, 0.1 ms macro steps), run from 0.25 s to
@@ -63,14 +64,62 @@ def one_run(scenario: Path, stop: float, sets: list[str], out: Path) -> dict:
             "load": (load0[0], os.getloadavg()[0]), "csv": (out / "results.csv").read_bytes()}
 
 
+def split(scenario: Path, stop: float, out: Path) -> None:
+    """CPU time per macro step of each FMU and of the master, in process (``time.thread_time``
+    around each FMU's calls; load-robust). Predicts the idle-machine wall time of the parallel
+    run: master + rotor + the slower bearing, against master + rotor + both bearings."""
+    from orchestrator import load_scenario
+    from orchestrator.master import MasterAlgorithm
+
+    sc = load_scenario(scenario, [f"stop_time={stop}"])
+    m = MasterAlgorithm(sc, out_dir=out)
+    m.setup()
+    m.initialize()
+    spent = {u.name: 0.0 for u in m.units}
+    for u in m.units:
+        sub = u.sub
+        for meth in ("set_real", "do_step", "get_real"):
+            f = getattr(sub, meth)
+
+            def timed(*a, _f=f, _n=u.name):
+                c = time.thread_time()
+                try:
+                    return _f(*a)
+                finally:
+                    spent[_n] += time.thread_time() - c
+            setattr(sub, meth, timed)
+    for _ in range(20):                      # past the first steps (numba compiled at the first doStep)
+        m.step()
+    spent = dict.fromkeys(spent, 0.0)
+    c0, n0 = time.thread_time(), m.n
+    while m.status.name == "RUNNING":
+        m.step()
+    total = time.thread_time() - c0
+    n = m.n - n0
+    m.terminate()
+    per = {k: v / n * 1e3 for k, v in spent.items()}
+    master = total / n * 1e3 - sum(per.values())
+    print(f"CPU ms per macro step over {n} steps (in process, thread_time): "
+          + ", ".join(f"{k} {v:.3f}" for k, v in per.items()) + f", master {master:.3f}, total {total / n * 1e3:.3f}")
+    bearings = [v for k, v in per.items() if k.startswith("bearing")]
+    serial = total / n * 1e3
+    ideal = serial - sum(bearings) + max(bearings)
+    print(f"ideal wall per macro step with the two bearings in parallel on 2 idle cores (no channel cost): "
+          f"{ideal:.3f} ms = {ideal / serial:.2f}x of {serial:.3f} ms")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenario", default="oil_bath")
     ap.add_argument("--stop", type=float, default=0.30)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--out", type=Path, default=Path("/tmp/bench_runup_workers"))
+    ap.add_argument("--split", action="store_true", help="only the CPU split per FMU and macro step, in process")
     args = ap.parse_args(argv)
     scenario = REPO / "scenarios" / f"jeffcott_runup_{args.scenario}.yaml"
+    if args.split:
+        split(scenario, args.stop, args.out / "split")
+        return 0
     runs: dict[str, list[dict]] = {k: [] for k in VARIANTS}
     print(f"{scenario.name}, 0.25 -> {args.stop} s; uptime: {os.popen('uptime').read().strip()}", flush=True)
     for i in range(args.repeat):
