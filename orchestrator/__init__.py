@@ -12,8 +12,11 @@ For step-by-step control use :class:`orchestrator.master.MasterAlgorithm`.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import signal
+import sys
+import threading
 import time as _time
 from pathlib import Path
 
@@ -56,12 +59,42 @@ def _summary(scenario, res: CoSimResult, out_dir: Path) -> dict:
         "retry_substeps": stats.get("retry_substeps", 0),
         "wall_time_s": stats.get("wall_time_s"),
         "fmu_calls": stats.get("fmu_calls", {}),
-        "isolation": stats.get("isolation", {}),
-        "failure": stats.get("failure"),
         "coupling": coupling,
         "output": {"columns": list(res.outputs), "rows": int(len(res.t))},
         "versions": versions(),
     }
+
+
+@contextlib.contextmanager
+def _interrupt_between_steps(master):
+    """Defer Ctrl-C (SIGINT) to the end of the current macro step.
+
+    A KeyboardInterrupt raised while an FMU's Python code runs (PythonFMU slaves run in
+    this process) escapes through the FMU as fmi2Fatal, which the master would report as
+    a numerical failure of that FMU ("try a smaller macro step"), and PythonFMU 0.7.0 then
+    leaves the slave's objects one reference short (docs/dev/requests.md). So the first
+    Ctrl-C only sets ``master.interrupt_requested``; ``master.run`` raises KeyboardInterrupt
+    before the next macro step, from master code, after which ``run`` writes summary.json
+    ("interrupted by the user at t=...") and the FMUs are terminated and freed normally.
+    A second Ctrl-C interrupts at once. Only in the main thread (elsewhere Python does
+    not deliver signals and nothing changes).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        if master.interrupt_requested:
+            raise KeyboardInterrupt
+        master.interrupt_requested = True
+        print("\ninterrupt: stopping after this macro step (Ctrl-C again to stop at once)",
+              file=sys.stderr, flush=True)
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, observers=()) -> CoSimResult:
@@ -84,76 +117,55 @@ def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, 
     ``analysis:`` section, :func:`orchestrator.analysis.analyze_run` is called
     afterwards and its dict stored under ``"analysis"`` in summary.json.
     """
-    from .coupling.lifecycle import RunFolder
+    from .observers import CsvWriter, Progress, write_summary
 
     out_dir = Path(out_dir)
-    with RunFolder(out_dir, scenario) as folder:       # lock, earlier files aside, summary "running"
-        res = _execute(scenario, out_dir, folder, progress, observers)
-        if scenario.analysis:
-            res = _analyse(scenario, res, out_dir, folder)
-    return res
+    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        from . import build as _build
+    except ImportError:
+        _build = None
+    if _build is not None and hasattr(_build, "ensure_fmus"):
+        _build.ensure_fmus(scenario)
 
-
-def _execute(scenario, out_dir: Path, folder, progress, observers) -> CoSimResult:
-    """Build our FMUs, run the master (or the monolithic reference), write the final summary."""
-    from dataclasses import replace
-
-    from .coupling.lifecycle import RunStopped
-    from .observers import CsvWriter, Progress
-
-    from . import build as _build
-    _build.ensure_fmus(scenario)
     if scenario.coupling.scheme == "monolithic":
         from .monolithic import run_monolithic
         res = run_monolithic(scenario, out_dir=out_dir, progress=progress)
+    else:
+        from .master import MasterAlgorithm
+        obs = [CsvWriter(out_dir / "results.csv"), Progress(progress), *observers]
+        master = MasterAlgorithm(scenario, out_dir=out_dir, observers=obs)
+        try:
+            with _interrupt_between_steps(master):
+                res = master.run()
+        except KeyboardInterrupt:
+            # interrupted by the user: record where the run stopped, then re-raise
+            if master.status is not Status.NOT_STARTED:
+                res = master.result()
+                msg = f"interrupted by the user at t={res.end_time:.12g} s; " + (res.message or "")
+                from dataclasses import replace
+                write_summary(out_dir / "summary.json",
+                              _summary(scenario, replace(res, status=Status.FAILED, message=msg), out_dir))
+            raise
+        write_summary(out_dir / "summary.json", _summary(scenario, res, out_dir))
+
+    if scenario.analysis:
         import json
-        folder.finish(json.loads((out_dir / "summary.json").read_text()))   # its own summary, times added
-        return res
-    from .master import MasterAlgorithm
-    obs = [CsvWriter(out_dir / "results.csv"), Progress(progress), *observers]
-    master = MasterAlgorithm(scenario, out_dir=out_dir, observers=obs)
-    try:
-        with folder.stop_signals(master):
-            res = master.run()
-    except BaseException as exc:
-        if master.status is Status.NOT_STARTED:
-            raise                               # setup failed: RunFolder writes the failed summary
-        # stopped by a signal (or failed unexpectedly) while stepping: keep where it stopped, then re-raise
-        res = master.result()
-        if isinstance(exc, KeyboardInterrupt):
-            msg = folder.stop_message(res.end_time)
-            exc = RunStopped(folder.stop_signal or getattr(exc, "signum", None) or signal.SIGINT)
-        else:
-            msg = f"the run stopped at t={res.end_time:.12g} s: {type(exc).__name__}: {exc}"
-        folder.finish(_summary(scenario, replace(res, status=Status.FAILED,
-                                                 message=msg + ("; " + res.message if res.message else "")),
-                               out_dir))
-        if isinstance(exc, RunStopped):
-            raise exc from None
-        raise
-    folder.finish(_summary(scenario, res, out_dir))
+        t0 = _time.perf_counter()
+        try:
+            from .analysis import analyze_run
+            analysis = analyze_run(out_dir, scenario.analysis)
+        except Exception as e:   # never lose a run to a failing analysis
+            log.warning("analysis of %s failed: %s", out_dir, e)
+            analysis = {"error": f"analysis failed: {type(e).__name__}: {e}"}
+        path = out_dir / "summary.json"
+        try:
+            summary = json.loads(path.read_text())
+        except (OSError, ValueError):
+            summary = _summary(scenario, res, out_dir)
+        summary["analysis"] = analysis
+        summary["analysis_wall_time_s"] = _time.perf_counter() - t0
+        write_summary(path, summary)
+        from dataclasses import replace
+        res = replace(res, analysis=analysis)
     return res
-
-
-def _analyse(scenario, res: CoSimResult, out_dir: Path, folder) -> CoSimResult:
-    """The run-up analysis, stored in summary.json; a failing analysis never loses the run."""
-    import json
-    from dataclasses import replace
-
-    t0 = _time.perf_counter()
-    try:
-        from .analysis import analyze_run
-        analysis = analyze_run(out_dir, scenario.analysis)
-    except Exception as e:   # never lose a run to a failing analysis
-        log.warning("analysis of %s failed: %s", out_dir, e)
-        analysis = {"error": f"analysis failed: {type(e).__name__}: {e}"}
-    try:
-        summary = json.loads((out_dir / "summary.json").read_text())
-    except (OSError, ValueError):
-        summary = _summary(scenario, res, out_dir)
-    summary["analysis"] = analysis
-    summary["analysis_wall_time_s"] = _time.perf_counter() - t0
-    folder.finish(summary)
-    return replace(res, analysis=analysis)
-
-

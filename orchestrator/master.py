@@ -56,9 +56,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .coupling.stages import stages as make_stages
-from .errors import CouplingError, FmuCallError, FmuCrashError, LifecycleError, ScenarioError
-from .fmi.worker import WorkerSubsystem
+from .errors import CouplingError, FmuCallError, LifecycleError, ScenarioError
 from .fmu import RealBatch, Subsystem, SubsystemBase
 from .observers import Observer, Recorder, RunView
 from .results import CoSimResult, Status
@@ -173,10 +171,6 @@ class MasterAlgorithm:
         self.discard_retries = n_retry
         # noSetFMUStatePriorToCurrentPoint for every doStep: False while the master may restore a state
         self._no_prior = not n_retry
-        self.isolation: dict[str, str] = {}      # instance -> "process" | "none" (FMUs the master loaded)
-        self._parallel = bool(getattr(c, "parallel", True))
-        self._stages: list = []
-        self.failure: dict | None = None         # what failed (summary.json "failure"), see _fail_fmu
         self.retried_steps = 0          # macro steps redone after a discard
         self.retry_substeps = 0         # extra doStep rounds (sub-intervals attempted) in those retries
         self.rejected_steps = 0         # (sub-)step attempts discarded and rolled back
@@ -204,7 +198,7 @@ class MasterAlgorithm:
             else:
                 self._work_dir = tempfile.mkdtemp(prefix="rotorcosim-")
                 for f in sc.fmus:
-                    self.subsystems[f.name] = self._load(f)
+                    self.subsystems[f.name] = Subsystem(f.name, f.path, work_dir=self._work_dir)
             for f in sc.fmus:
                 self.subsystems[f.name].set_parameters(dict(f.parameters), out_dir=self.out_dir)
             self._plan()
@@ -212,30 +206,6 @@ class MasterAlgorithm:
             self._release()
             self._phase = "terminated"      # nothing left to terminate; observers never started
             raise
-
-    def _load(self, f) -> SubsystemBase:
-        """The adapter of FMU instance ``f``: in this process, or in a worker (``isolation: process``)."""
-        c = self.scenario.coupling
-        mode = getattr(f, "isolation", None) or getattr(c, "isolation", "none")
-        self.isolation[f.name] = mode
-        if mode == "process":
-            return WorkerSubsystem(f.name, f.path, work_dir=self._work_dir, call_timeout=getattr(c, "call_timeout",
-                                                                                                  None))
-        return Subsystem(f.name, f.path, work_dir=self._work_dir)
-
-    def _plan_stages(self) -> None:
-        """Stages of the stepping order (orchestrator.coupling.stages); stepped concurrently when
-        ``coupling.parallel`` and at least one member of a stage runs in a worker process."""
-        links = [(c.src_instance, c.dst_instance) for c in self.scenario.connections]
-        by_name = {u.name: u for u in self.units}
-        self._stages = []
-        for st in make_stages([u.name for u in self.units], links, self.scheme.uses_new_value):
-            members = [by_name[n] for n in st.names]
-            workers = [u for u in members if isinstance(u.sub, WorkerSubsystem)]
-            # concurrently: workers first, they compute while the in-process members step; otherwise
-            # (and in the start-up steps of a linked stage) in the stepping order, which matters there
-            together = workers + [u for u in members if u not in workers] if workers and len(members) > 1 else None
-            self._stages.append((st, members, together if self._parallel else None))
 
     def _plan(self) -> None:
         sc = self.scenario
@@ -363,7 +333,6 @@ class MasterAlgorithm:
                     "built with state support")
             for u in self.units:
                 u.sub.no_set_prior_state = False    # we may restore the state saved before each macro step
-        self._plan_stages()
         self.view = RunView(columns, self.grid.time(0), self.grid.time(self.grid.n_steps), self.grid.n_steps)
 
     def _columns(self, units) -> list[str]:
@@ -413,8 +382,6 @@ class MasterAlgorithm:
                 u.sub.exit_initialization_mode()
             self._exchange_initial()
         except (FmuCallError, CouplingError) as e:
-            if isinstance(e, FmuCrashError):
-                self.failure = e.report()
             self._fail(f"initialization failed: {e}; check the FMU's parameters and start values", t0)
             self._phase = "running"
             self.view.is_output = False        # observers start (results.csv gets its header), no row
@@ -478,7 +445,7 @@ class MasterAlgorithm:
                        "coupling.discard_retries) or use a smaller coupling.macro_step", t)
             return self.status
         except FmuCallError as e:
-            self._fail_fmu(e, t, t_next)
+            self._fail(self._fmu_message(e, t, t_next), t)
             return self.status
         except CouplingError as e:
             self._fail(str(e), t)
@@ -642,87 +609,59 @@ class MasterAlgorithm:
         else:
             cache = self._wcache = {}
             self._wkey = (hist.count, startup_q, *d)
-        for st, members, together in self._stages:
-            if together is not None and st.concurrent(startup=startup_q is not None):
-                for u in together:
-                    self._deliver(u, self._weights(cache, u, t, h, startup_q), t, h)
-                    u.sub.request_real(u.outb)      # a worker starts computing now
-                self._collect(together, t_next)
-                continue
-            for u in members:
-                self._deliver(u, self._weights(cache, u, t, h, startup_q), t, h)
-                u.sub.get_real(u.outb)
-                self._propagate(u, t_next)
-        if commit:
-            hist.commit()
-
-    def _weights(self, cache: dict, u: _Unit, t: float, h: float, startup_q: int | None):
-        w = cache.get(u.substeps)
-        if w is None:
-            w = cache[u.substeps] = self.predictor.weights(self.history, t, h, u.substeps, q=startup_q,
-                                                           all_interp=startup_q is not None)
-        return w
-
-    def _collect(self, members: list, t_next: float) -> None:
-        """The outputs of a concurrently stepped stage, in order; every member's reply is read
-        before the first failure is raised (a worker must not be left with an unread reply)."""
-        first = None
-        for u in members:
-            try:
-                u.sub.receive_real(u.outb)
-                if first is None:
-                    self._propagate(u, t_next)
-            except (FmuCallError, CouplingError) as e:
-                first = first or e
-        if first is not None:
-            raise first
-
-    def _deliver(self, u: _Unit, w, t: float, h: float) -> None:
-        """Unit ``u``'s inputs over [t, t + h] and its doStep calls (everything before reading its outputs)."""
-        sub = u.sub
-        m = u.substeps
-        nE, nI = u.nE, u.nI
-        vals = u.inb.values
-        hs = h / m
-        if u.derb is None:
-            if nE or nI:
+        predictor = self.predictor
+        for u in self.units:
+            sub = u.sub
+            m = u.substeps
+            w = cache.get(m)
+            if w is None:
+                w = cache[m] = predictor.weights(hist, t, h, m, q=startup_q, all_interp=startup_q is not None)
+            nE, nI = u.nE, u.nI
+            vals = u.inb.values
+            hs = h / m
+            if u.derb is None:
+                if nE or nI:
+                    HE = u.HE[w.e0:w.e1]
+                    HI = u.HI[0:w.q + 1]
+                    for i in range(m):
+                        if nE:
+                            np.dot(w.extrap[i], HE, out=vals[:nE])
+                        if nI:
+                            np.dot(w.interp[i], HI, out=vals[nE:])
+                        sub.set_real(u.inb)
+                        sub.do_step(t + i * hs, hs)
+                    if not ((w.end_same_e or not nE) and (w.end_same_i or not nI)):
+                        if nE:
+                            np.dot(w.extrap_end, HE, out=vals[:nE])
+                        if nI:
+                            np.dot(w.interp_end, HI, out=vals[nE:])
+                        sub.set_real(u.inb)
+                else:
+                    for i in range(m):
+                        sub.do_step(t + i * hs, hs)
+            else:
                 HE = u.HE[w.e0:w.e1]
                 HI = u.HI[0:w.q + 1]
+                der = u.derb.values.reshape(MAX_ORDER, nE + nI)
                 for i in range(m):
                     if nE:
-                        np.dot(w.extrap[i], HE, out=vals[:nE])
+                        np.dot(w.extrap_start[i], HE, out=vals[:nE])
+                        der[:, :nE] = w.extrap_der[i] @ HE
                     if nI:
-                        np.dot(w.interp[i], HI, out=vals[nE:])
+                        np.dot(w.interp_start[i], HI, out=vals[nE:])
+                        der[:, nE:] = w.interp_der[i] @ HI
                     sub.set_real(u.inb)
+                    sub.set_real_input_derivatives(u.derb)
                     sub.do_step(t + i * hs, hs)
-                if not ((w.end_same_e or not nE) and (w.end_same_i or not nI)):
-                    if nE:
-                        np.dot(w.extrap_end, HE, out=vals[:nE])
-                    if nI:
-                        np.dot(w.interp_end, HI, out=vals[nE:])
-                    sub.set_real(u.inb)
-            else:
-                for i in range(m):
-                    sub.do_step(t + i * hs, hs)
-            return
-        HE = u.HE[w.e0:w.e1]
-        HI = u.HI[0:w.q + 1]
-        der = u.derb.values.reshape(MAX_ORDER, nE + nI)
-        for i in range(m):
-            if nE:
-                np.dot(w.extrap_start[i], HE, out=vals[:nE])
-                der[:, :nE] = w.extrap_der[i] @ HE
-            if nI:
-                np.dot(w.interp_start[i], HI, out=vals[nE:])
-                der[:, nE:] = w.interp_der[i] @ HI
-            sub.set_real(u.inb)
-            sub.set_real_input_derivatives(u.derb)
-            sub.do_step(t + i * hs, hs)
-        if nE:
-            np.dot(w.extrap_end, HE, out=vals[:nE])
-        if nI:
-            np.dot(w.interp_end, HI, out=vals[nE:])
-        sub.set_real(u.inb)
+                if nE:
+                    np.dot(w.extrap_end, HE, out=vals[:nE])
+                if nI:
+                    np.dot(w.interp_end, HI, out=vals[nE:])
+                sub.set_real(u.inb)
+            sub.get_real(u.outb)
+            self._propagate(u, t_next)
+        if commit:
+            hist.commit()
 
     def _propagate(self, u: _Unit, t: float) -> None:
         out = u.outb.values
@@ -764,17 +703,6 @@ class MasterAlgorithm:
                 "gives, if any; a numerically unstable coupling shows up the same way, so also try a smaller "
                 f"coupling.macro_step (now {self.scenario.coupling.macro_step:g}) or more substeps for "
                 f"'{e.instance}', and check the FMU's log above")
-
-    def _fail_fmu(self, e: FmuCallError, t: float, t_next: float) -> None:
-        if isinstance(e, FmuCrashError):
-            self.failure = e.report()
-            self._fail(f"{e}. The run stopped in the macro step from t={t:.12g} s to t={t_next:.12g} s; rows up "
-                       f"to t={t:.12g} s are kept and the other FMUs were terminated", t)
-            return
-        sub = self.subsystems.get(e.instance)
-        self.failure = {"instance": e.instance, "fmu": str(getattr(sub, "fmu_path", "")) or None,
-                        "function": e.function, "time": t, "cause": e.status}
-        self._fail(self._fmu_message(e, t, t_next), t)
 
     def _fail(self, message: str, t: float) -> None:
         self.status = Status.FAILED
@@ -841,8 +769,7 @@ class MasterAlgorithm:
         step rounds (sub-intervals attempted) of those retries (all 0 without discard_retries)."""
         return {"macro_steps": self.n, "rejected_steps": self.rejected_steps, "retried_steps": self.retried_steps,
                 "retry_substeps": self.retry_substeps, "wall_time_s": self.wall_time,
-                "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()},
-                "isolation": dict(self.isolation), "failure": self.failure}
+                "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()}}
 
     def result(self) -> CoSimResult:
         t, outputs = self.recorder.arrays()

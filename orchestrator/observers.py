@@ -101,9 +101,8 @@ class CsvWriter(Observer):
         self._last_flush = 0.0
 
     def on_initialized(self, view):
-        from .coupling.lifecycle import open_no_follow
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._f = open_no_follow(self.path, "w", newline="")      # never through a symbolic link
+        self._f = open(self.path, "w", newline="")
         self._f.write("time," + ",".join(view.columns) + "\n")
         self._write(view)
         self._f.flush()
@@ -194,9 +193,11 @@ def _jsonable(x: Any) -> Any:
 
 
 def write_summary(path: Path | str, summary: dict) -> None:
-    """Write ``summary.json`` atomically (temp file + rename), never through a symbolic link."""
-    from .coupling.lifecycle import write_text_no_follow
-    write_text_no_follow(path, json.dumps(_jsonable(summary), indent=2) + "\n")
+    """Write ``summary.json`` atomically (temp file + rename)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(_jsonable(summary), indent=2) + "\n")
+    tmp.replace(path)
 
 
 def versions() -> dict[str, str]:

@@ -39,7 +39,6 @@ class FmuSpec:
     parameters: Mapping[str, Any] = field(default_factory=dict)   # name -> value (float/int/bool/str)
     substeps: int | None = None              # per-FMU override of coupling.substeps
     line: int | None = None                  # line of the entry in the YAML file
-    isolation: str | None = None             # "process" | "none"; None -> coupling.isolation
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -80,9 +79,6 @@ class CouplingSpec:
     interpolation_order: int = 0             # 0..3
     substeps: int = 1                        # >= 1
     discard_retries: int = 0                 # 0..30: halvings of a macro step an FMU discards (0: stop)
-    isolation: str = "none"                  # default of fmus.<name>.isolation: "process" | "none"
-    parallel: bool = True                    # step the FMUs of a stage concurrently (workers only)
-    call_timeout: float | None = None        # [s] longest wait for an isolated FMU's answer; None: no limit
     options: Mapping[str, Any] = field(default_factory=dict)  # scheme-specific extras (e.g. monolithic rtol)
 
 
@@ -125,12 +121,10 @@ class Scenario:
 
 TOP_KEYS = ("name", "version", "description", "start_time", "stop_time", "fmus",
             "connections", "coupling", "output", "analysis", "compare")
-FMU_KEYS = ("path", "parameters", "substeps", "isolation")
-ISOLATION = ("none", "process")
+FMU_KEYS = ("path", "parameters", "substeps")
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
-                 "interpolation_order", "substeps", "discard_retries", "isolation", "parallel", "call_timeout",
-                 "options")
+                 "interpolation_order", "substeps", "discard_retries", "options")
 OUTPUT_KEYS = ("interval", "signals")
 MAX_ORDER = 3
 MAX_DISCARD_RETRIES = 30          # smallest retried step H / 2^30 (orchestrator.master has the same limit)
@@ -473,7 +467,6 @@ class _Loader:
         self.fmu_specs = fmus
         names = [f["name"] for f in fmus]
         coupling = self.load_coupling(get("coupling"), names, start, stop)
-        self.default_isolation = (coupling or {}).get("isolation") or "none"
         interval, signals = self.load_output(get("output"), stop, start)
         connections = self.load_connections(get("connections"))
         for key in ("analysis", "compare"):
@@ -498,7 +491,7 @@ class _Loader:
             return None
         return Scenario(
             fmus=tuple(FmuSpec(name=f["name"], path=f["path"], parameters=params[f["name"]],
-                               substeps=f["substeps"], line=f["line"], isolation=f["isolation"]) for f in fmus),
+                               substeps=f["substeps"], line=f["line"]) for f in fmus),
             connections=tuple(ConnectionSpec(src=c["from"], dst=c["to"], gain=c["gain"], offset=c["offset"],
                                              line=c["line"]) for c in connections),
             coupling=CouplingSpec(**coupling),
@@ -524,7 +517,7 @@ class _Loader:
             if entry is None:
                 continue
             spec = {"name": name, "line": knode.start_mark.line + 1 if knode.start_mark else None,
-                    "node": knode, "path": None, "parameters": {}, "substeps": None, "isolation": None}
+                    "node": knode, "path": None, "parameters": {}, "substeps": None}
             if "path" in entry:
                 p = self.string(entry["path"][1], f"fmus.{name}.path", "give the FMU file, relative to this file")
                 if p is not None:
@@ -533,8 +526,6 @@ class _Loader:
             if "substeps" in entry:
                 spec["substeps"] = self.integer(entry["substeps"][1], f"fmus.{name}.substeps", 1, None,
                                                 "use a whole number of sub-steps >= 1")
-            if "isolation" in entry:
-                spec["isolation"] = self.isolation(entry["isolation"][1], f"fmus.{name}.isolation")
             if "parameters" in entry:
                 pmap = self.mapping(entry["parameters"][1], f"fmus.{name}.parameters",
                                     fix="write 'parameters: {name: value, ...}'")
@@ -615,7 +606,6 @@ class _Loader:
                 log.warning("%s: coupling.discard_retries = %d is ignored by the monolithic scheme (one "
                             "integrator with its own step-size control, no macro steps to retry)",
                             self.loc(section["discard_retries"][1]), v)
-        ok &= self.load_worker_keys(section, c)
         if "options" in section:
             if not isinstance(section["options"][1], yaml.MappingNode):
                 self.err(section["options"][1], f"'coupling.options' must be a mapping (got "
@@ -624,37 +614,6 @@ class _Loader:
             else:
                 c["options"] = self.value(section["options"][1])
         return c if ok else None
-
-    def isolation(self, node, what: str) -> str | None:
-        v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
-        if v not in ISOLATION:
-            self.err(node, f"'{what}' must be one of {list(ISOLATION)} (got {self.got(node)}); use 'process' to "
-                           "run the FMU in a worker process of its own (docs/coupling.md), 'none' to load it into "
-                           "the master")
-            return None
-        return v
-
-    def load_worker_keys(self, section: dict, c: dict) -> bool:
-        """coupling.isolation, coupling.parallel, coupling.call_timeout (FMUs in worker processes)."""
-        ok = True
-        if "isolation" in section:
-            v = self.isolation(section["isolation"][1], "coupling.isolation")
-            ok &= v is not None
-            c["isolation"] = v
-        if "parallel" in section:
-            node = section["parallel"][1]
-            v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
-            if not isinstance(v, bool):
-                self.err(node, f"'coupling.parallel' must be true or false (got {self.got(node)}); true steps the "
-                               "isolated FMUs of a stage at the same time")
-                ok = False
-            c["parallel"] = v
-        if "call_timeout" in section:
-            v = self.number(section["call_timeout"][1], "coupling.call_timeout", positive=True,
-                            fix="give the longest time in seconds an isolated FMU may take for one call, e.g. 60")
-            ok &= v is not None
-            c["call_timeout"] = v
-        return ok
 
     def load_output(self, node, stop, start):
         if node is None:
@@ -753,13 +712,10 @@ class _Loader:
             return
         self.mds[name] = dict(md.variables)
         if md.can_be_instantiated_only_once_per_process:
-            # one instance in the master's process; instances in worker processes have a process each
-            iso = getattr(self, "default_isolation", "none")
-            users = [g["name"] for g in self.fmu_specs if g["path"] == path and (g["isolation"] or iso) == "none"]
-            if len(users) > 1 and name in users[1:]:
+            users = [g["name"] for g in self.fmu_specs if g["path"] == path]
+            if len(users) > 1 and users[0] != name:
                 self.err(node, f"FMU {path.name} declares canBeInstantiatedOnlyOncePerProcess, but instances "
-                               f"{', '.join(users)} all use it in the master's process; use it for one instance "
-                               "only, or give the others 'isolation: process' (a worker process each)")
+                               f"{', '.join(users)} all use it; use it for one instance only")
 
     def check_parameters(self, f: dict) -> dict:
         name, out = f["name"], {}
