@@ -69,7 +69,7 @@ def split(scenario: Path, stop: float, out: Path) -> None:
     around each FMU's calls; load-robust). Predicts the idle-machine wall time of the parallel
     run: master + rotor + the slower bearing, against master + rotor + both bearings."""
     from orchestrator import load_scenario
-    from orchestrator.master import MasterAlgorithm
+    from orchestrator.coupling.execution import MasterAlgorithm
 
     sc = load_scenario(scenario, [f"stop_time={stop}"])
     m = MasterAlgorithm(sc, out_dir=out)

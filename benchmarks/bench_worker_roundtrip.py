@@ -7,7 +7,7 @@ step 1 ms, ``--steps`` macro steps after initialization; per macro step each FMU
 set (its 4 inputs), one doStep and one get (Fx, Fy). The figure is time per cycle = time
 per macro step / 2. Variants:
 
-* ``in-process``: orchestrator.fmu.Subsystem (fmpy's ctypes functions, the master's adapter);
+* ``in-process``: orchestrator.fmi.subsystem.Subsystem (fmpy's ctypes functions, the master's adapter);
 * ``worker``: orchestrator.fmi.worker.WorkerSubsystem, the same calls served by a worker
   process (set queued, doStep and get one round trip each);
 * ``libcosim``: libcosimpy's fixed-step algorithm with the same two FMUs and connections,
@@ -122,7 +122,7 @@ def main(argv=None) -> int:
         print(json.dumps({"per_cycle": time_libcosim(Path(args.libcosim_child), args.steps)}))
         return 0
     from orchestrator.fmi.worker import WorkerSubsystem
-    from orchestrator.fmu import Subsystem
+    from orchestrator.fmi.subsystem import Subsystem
 
     runs: dict[str, list] = {"in-process (Subsystem)": [], "worker process (WorkerSubsystem)": [],
                              "libcosim (libcosimpy)": []}

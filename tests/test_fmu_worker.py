@@ -20,7 +20,7 @@ import pytest
 
 from orchestrator.errors import FmuCallError, FmuCrashError, ScenarioError
 from orchestrator.fmi.worker import WorkerSubsystem, signal_name
-from orchestrator.fmu import Subsystem
+from orchestrator.fmi.subsystem import Subsystem
 
 pytestmark = [pytest.mark.integration,
               pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")]

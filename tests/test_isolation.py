@@ -254,10 +254,7 @@ def _jeffcott_yaml(fmu_dir: Path, scheme: str, isolation: dict, parallel: bool, 
 
 @pytest.fixture(scope="module")
 def jeffcott_dir(fmu_dir) -> Path:
-    try:
-        from orchestrator.fmi.build import build_fmus
-    except ImportError:          # layout before the restructure (issue 12)
-        from orchestrator.build import build_fmus
+    from orchestrator.fmi.build import build_fmus
 
     build_fmus(fmu_dir, names=["JeffcottRotor"])
     return fmu_dir

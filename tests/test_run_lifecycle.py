@@ -16,8 +16,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from orchestrator.coupling.lifecycle import (LOCK_NAME, RunFolder, RunStopped, open_no_follow,
-                                             write_text_no_follow)
+from orchestrator.coupling.lifecycle import LOCK_NAME, RunFolder, RunStopped
+from orchestrator.results.safe_write import open_no_follow, write_text_no_follow
 from orchestrator.errors import LifecycleError
 
 

@@ -1,7 +1,7 @@
 """orchestrator.coupling.stages: which subsystems may step at the same time."""
 
 from orchestrator.coupling.stages import Stage, stages
-from orchestrator.schemes import GaussSeidel, Jacobi
+from orchestrator.coupling.schemes import GaussSeidel, Jacobi
 
 RUNUP = [("rotor", "bearing1"), ("rotor", "bearing2"), ("bearing1", "rotor"), ("bearing2", "rotor")]
 

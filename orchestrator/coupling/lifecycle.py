@@ -21,8 +21,10 @@ Rules:
   leaves a summary that says ``running``, never another run's ``finished``.
 * **summary.json** is written at the start (``status: running``, the scenario, its file,
   ``started_at`` in UTC, the pid) and rewritten at the end; written atomically (temporary
-  file + rename) and never through a symbolic link (:func:`write_text_no_follow`).
-* **results.csv** is opened with :func:`open_no_follow`: never written through a link.
+  file + rename) and never through a symbolic link
+  (:func:`orchestrator.results.safe_write.write_text_no_follow`).
+* **results.csv** is opened with :func:`orchestrator.results.safe_write.open_no_follow`:
+  never written through a link.
 * **Signals**: inside :meth:`RunFolder.stop_signals` the first SIGINT (Ctrl-C) or SIGTERM
   asks the master to stop after the current macro step (``master.interrupt_requested``);
   the run then keeps its rows and the summary says "interrupted by the user at t=..." or
@@ -35,7 +37,6 @@ from __future__ import annotations
 
 import contextlib
 import datetime
-import errno
 import fcntl
 import json
 import os
@@ -45,7 +46,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from ..errors import LifecycleError
+from orchestrator.errors import LifecycleError
 
 RUN_FILES = ("results.csv", "summary.json")
 LOCK_NAME = ".rotorcosim.lock"
@@ -69,34 +70,6 @@ def _now() -> str:
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
 
-def open_no_follow(path: Path | str, mode: str = "w", *, newline: str | None = ""):
-    """``open(path, mode)`` for writing, refusing a symbolic link at ``path`` (O_NOFOLLOW)."""
-    path = Path(path)
-    flags = os.O_WRONLY | os.O_CREAT | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0)
-    flags |= os.O_APPEND if "a" in mode else os.O_TRUNC
-    try:
-        fd = os.open(path, flags, 0o644)
-    except OSError as e:
-        if e.errno == errno.ELOOP:
-            raise LifecycleError(f"{path} is a symbolic link; rotorcosim does not write results through a link "
-                                 f"(it would overwrite {os.path.realpath(path)}); remove the link or choose "
-                                 "another output folder") from None
-        raise
-    return os.fdopen(fd, mode, newline=newline)
-
-
-def write_text_no_follow(path: Path | str, text: str) -> None:
-    """Write ``path`` atomically (temporary file + rename) without following links at either name."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    with contextlib.suppress(FileNotFoundError):
-        tmp.unlink()                          # removes a planted link itself, not its target
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0), 0o644)
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)                     # rename replaces a link at ``path``, never its target
-
-
 class RunFolder:
     """One run's hold on its output folder (see the module docstring for the rules)."""
 
@@ -109,7 +82,7 @@ class RunFolder:
         self._lock_fd: int | None = None
         self._term_handler = None
         if write_summary is None:
-            from ..observers import write_summary
+            from orchestrator.results.summary import write_summary
         self._write_summary = write_summary
 
     # -- entering ---------------------------------------------------------------

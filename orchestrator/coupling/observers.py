@@ -22,6 +22,8 @@ from typing import Sequence
 
 import numpy as np
 
+from orchestrator.results.safe_write import open_no_follow
+
 
 class RunView:
     """Read-only state of the run as observers see it (filled in by the master)."""
@@ -102,7 +104,7 @@ class CsvWriter(Observer):
 
     def on_initialized(self, view):
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._f = open(self.path, "w", newline="")
+        self._f = open_no_follow(self.path, "w", newline="")      # never through a symbolic link
         self._f.write("time," + ",".join(view.columns) + "\n")
         self._write(view)
         self._f.flush()

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import CosimError, CouplingError, FmuCallError, FmuCrashError, FmuError, LifecycleError, ScenarioError
+from orchestrator.errors import CosimError, CouplingError, FmuCallError, FmuCrashError, FmuError, LifecycleError, ScenarioError
 
 log = logging.getLogger(__name__)
 

@@ -5,15 +5,15 @@ in its binary (abort, segfault, ``_exit``) or a hang cannot take the master down
 so that independent FMUs can step at the same time on several cores.
 
 The worker loads the FMU with the ordinary in-process adapter
-(:class:`orchestrator.fmu.Subsystem`, fmpy underneath) and serves its calls. The proxy
-implements the same :class:`~orchestrator.fmu.SubsystemBase` interface, so the master
+(:class:`orchestrator.fmi.subsystem.Subsystem`, fmpy underneath) and serves its calls. The proxy
+implements the same :class:`~orchestrator.fmi.subsystem.SubsystemBase` interface, so the master
 cannot tell the two apart. The channel:
 
 * control: a Unix socket pair wrapped in :class:`multiprocessing.connection.Connection`,
   carrying lists of small command tuples (pickled by multiprocessing); one list per
   round trip;
 * values: one shared memory arena per worker (a memfd mapped by both processes).
-  Every :class:`~orchestrator.fmu.RealBatch` gets a slot in it when first used; the
+  Every :class:`~orchestrator.fmi.subsystem.RealBatch` gets a slot in it when first used; the
   worker's batch points its ctypes value buffer at that slot, so fmi2SetReal/GetReal in
   the worker read and write shared memory directly. ``set_real`` copies ``batch.values``
   into the slot (the caller may reuse its buffer at once, as in-process), ``get_real``
@@ -59,9 +59,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import CosimError, FmuCrashError, FmuError, ScenarioError
-from ..fmu import RealBatch, SubsystemBase
-from ..fmu_archive import ModelDescription, Variable, read_model_description
+from orchestrator.errors import CosimError, FmuCrashError, FmuError, ScenarioError
+from orchestrator.fmi.subsystem import RealBatch, SubsystemBase
+from orchestrator.fmi.archive import ModelDescription, Variable, read_model_description
 from .channel import ARENA_BYTES, FREE_TIMEOUT, FUNCTIONS, REGISTER_BYTES, WorkerChannel, signal_name
 
 log = logging.getLogger(__name__)
@@ -89,7 +89,7 @@ class _Slot:
 class WorkerSubsystem(SubsystemBase):
     """An FMI 2.0 co-simulation FMU instance served by a worker process.
 
-    Same interface and call order as :class:`orchestrator.fmu.Subsystem` (see its module
+    Same interface and call order as :class:`orchestrator.fmi.subsystem.Subsystem` (see its module
     docstring); ``call_timeout`` [s] bounds every round trip to the worker, instantiation
     included (None: wait as long as it takes). Raises what the in-process adapter raises
     (ScenarioError, FmuError, FmuCallError, rebuilt from the worker's answer) and

@@ -2,7 +2,7 @@
 
 Started by :class:`~orchestrator.fmi.worker.WorkerSubsystem` with the socket and the
 shared-memory descriptors it inherits; loads the FMU with the in-process adapter
-(:class:`orchestrator.fmu.Subsystem`) and executes the command lists it receives until
+(:class:`orchestrator.fmi.subsystem.Subsystem`) and executes the command lists it receives until
 ``free`` or the end of the socket. Replies: ``("ok", result, log records)`` or
 ``("err", index of the failed command, kind, payload, log records)``; the call register
 at the start of the shared memory holds the FMI function being executed and its time.
@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import FmuCallError, ScenarioError
-from ..fmu import RealBatch
+from orchestrator.errors import FmuCallError, ScenarioError
+from orchestrator.fmi.subsystem import RealBatch
 from .channel import ARENA_BYTES, CODES
 from .worker import SLOTS
 
@@ -70,7 +70,7 @@ def _worker_setup() -> _Collect:
 
 def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str) -> None:
     """Worker main: load the FMU, then execute command lists until 'free' or the socket closes."""
-    from ..fmu import Subsystem
+    from orchestrator.fmi.subsystem import Subsystem
 
     import fmpy.fmi2  # noqa: F401  (imported before "hello": the start-up is not the FMU's time)
 

@@ -16,7 +16,7 @@ import yaml
 
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario.model import (
-    CONNECTION_KEYS, COUPLING_KEYS, FMU_KEYS, MAX_DISCARD_RETRIES, MAX_ORDER, OUTPUT_KEYS, SCENARIO_VERSION,
+    CONNECTION_KEYS, COUPLING_KEYS, FMU_KEYS, ISOLATION, MAX_DISCARD_RETRIES, MAX_ORDER, OUTPUT_KEYS, SCENARIO_VERSION,
     SCHEMES, TOP_KEYS, ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario)
 from orchestrator.scenario.nodes import NodeReader, YamlLoader, did_you_mean, flatten_merges
 from orchestrator.scenario.overrides import apply_override
@@ -54,7 +54,7 @@ class Draft:
             params = {f["name"]: {k: v for k, (v, _) in f["parameters"].items()} for f in fmus}
         return Scenario(
             fmus=tuple(FmuSpec(name=f["name"], path=f["path"], parameters=params[f["name"]],
-                               substeps=f["substeps"], line=f["line"]) for f in fmus),
+                               substeps=f["substeps"], line=f["line"], isolation=f["isolation"]) for f in fmus),
             connections=tuple(ConnectionSpec(src=c["from"], dst=c["to"], gain=c["gain"], offset=c["offset"],
                                              line=c["line"]) for c in self.connections),
             coupling=CouplingSpec(**self.coupling),
@@ -145,6 +145,7 @@ class SectionReader(NodeReader):
         self.fmu_specs = fmus
         names = [f["name"] for f in fmus]
         coupling = self.load_coupling(get("coupling"), names, start, stop)
+        self.default_isolation = (coupling or {}).get("isolation") or "none"
         interval, signals = self.load_output(get("output"), stop, start)
         connections = self.load_connections(get("connections"))
         for key in ("analysis", "compare"):
@@ -177,7 +178,7 @@ class SectionReader(NodeReader):
             if entry is None:
                 continue
             spec = {"name": name, "line": knode.start_mark.line + 1 if knode.start_mark else None,
-                    "node": knode, "path": None, "parameters": {}, "substeps": None}
+                    "node": knode, "path": None, "parameters": {}, "substeps": None, "isolation": None}
             if "path" in entry:
                 p = self.string(entry["path"][1], f"fmus.{name}.path", "give the FMU file, relative to this file")
                 if p is not None:
@@ -186,6 +187,8 @@ class SectionReader(NodeReader):
             if "substeps" in entry:
                 spec["substeps"] = self.integer(entry["substeps"][1], f"fmus.{name}.substeps", 1, None,
                                                 "use a whole number of sub-steps >= 1")
+            if "isolation" in entry:
+                spec["isolation"] = self.isolation(entry["isolation"][1], f"fmus.{name}.isolation")
             if "parameters" in entry:
                 pmap = self.mapping(entry["parameters"][1], f"fmus.{name}.parameters",
                                     fix="write 'parameters: {name: value, ...}'")
@@ -266,6 +269,7 @@ class SectionReader(NodeReader):
                 log.warning("%s: coupling.discard_retries = %d is ignored by the monolithic scheme (one "
                             "integrator with its own step-size control, no macro steps to retry)",
                             self.loc(section["discard_retries"][1]), v)
+        ok &= self.load_worker_keys(section, c)
         if "options" in section:
             if not isinstance(section["options"][1], yaml.MappingNode):
                 self.err(section["options"][1], f"'coupling.options' must be a mapping (got "
@@ -274,6 +278,37 @@ class SectionReader(NodeReader):
             else:
                 c["options"] = self.value(section["options"][1])
         return c if ok else None
+
+    def isolation(self, node, what: str) -> str | None:
+        v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
+        if v not in ISOLATION:
+            self.err(node, f"'{what}' must be one of {list(ISOLATION)} (got {self.got(node)}); use 'process' to "
+                           "run the FMU in a worker process of its own (docs/coupling.md), 'none' to load it into "
+                           "the master")
+            return None
+        return v
+
+    def load_worker_keys(self, section: dict, c: dict) -> bool:
+        """coupling.isolation, coupling.parallel, coupling.call_timeout (FMUs in worker processes)."""
+        ok = True
+        if "isolation" in section:
+            v = self.isolation(section["isolation"][1], "coupling.isolation")
+            ok &= v is not None
+            c["isolation"] = v
+        if "parallel" in section:
+            node = section["parallel"][1]
+            v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
+            if not isinstance(v, bool):
+                self.err(node, f"'coupling.parallel' must be true or false (got {self.got(node)}); true steps the "
+                               "isolated FMUs of a stage at the same time")
+                ok = False
+            c["parallel"] = v
+        if "call_timeout" in section:
+            v = self.number(section["call_timeout"][1], "coupling.call_timeout", positive=True,
+                            fix="give the longest time in seconds an isolated FMU may take for one call, e.g. 60")
+            ok &= v is not None
+            c["call_timeout"] = v
+        return ok
 
     def load_output(self, node, stop, start):
         if node is None:
