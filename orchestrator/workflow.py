@@ -27,6 +27,20 @@ def _summary(scenario, res: CoSimResult) -> dict:
     return make_summary(scenario, res, stats=cosim_stats(res.stats))
 
 
+def _read_back(res: CoSimResult, master, path: Path) -> CoSimResult:
+    """The result with ``t``/``outputs`` read from the streamed results file (the run kept no rows in
+    memory, so memory stays flat in the number of rows)."""
+    import warnings
+
+    from orchestrator.results.writer import read_back
+    if not path.is_file() or not hasattr(master, "columns"):
+        return res
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)        # a file with a header only: no rows
+        t, outputs = read_back(path, master.columns, master.kinds)
+    return replace(res, t=t, outputs=outputs)
+
+
 def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, observers=()) -> CoSimResult:
     """Run ``scenario`` and write ``out_dir/results.csv`` and ``out_dir/summary.json``.
 
@@ -63,16 +77,18 @@ def _execute(scenario, out_dir: Path, folder: RunFolder, progress, observers) ->
         res = run_monolithic(scenario, out_dir=out_dir, progress=progress)
         folder.finish(RunDirectory(out_dir).summary())     # its own summary, with the folder's times
         return res
-    obs = [CsvWriter(out_dir / "results.csv"), Progress(progress), *observers]
-    master = MasterAlgorithm(scenario, out_dir=out_dir, observers=obs)
+    fmt = getattr(scenario.output, "format", "csv")
+    results_file = out_dir / ("results.parquet" if fmt == "parquet" else "results.csv")
+    obs = [CsvWriter(results_file, format=fmt), Progress(progress), *observers]
+    master = MasterAlgorithm(scenario, out_dir=out_dir, observers=obs, record_in_memory=False)
     try:
         with folder.stop_signals(master):
-            res = master.run()
+            res = _read_back(master.run(), master, results_file)
     except BaseException as exc:
         if master.status is Status.NOT_STARTED:
             raise                               # setup failed: RunFolder writes the failed summary
         # stopped by a signal (or failed unexpectedly) while stepping: keep where it stopped, then re-raise
-        res = master.result()
+        res = _read_back(master.result(), master, results_file)
         if isinstance(exc, KeyboardInterrupt):
             msg = folder.stop_message(res.end_time)
             stop = RunStopped(folder.stop_signal or getattr(exc, "signum", None) or signal.SIGINT)

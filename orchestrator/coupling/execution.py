@@ -25,6 +25,7 @@ and the observers (:mod:`.observers`). docs/dev/architecture.md gives the call o
 from __future__ import annotations
 
 import logging
+import math
 import shutil
 import tempfile
 import time as _time
@@ -39,12 +40,14 @@ from orchestrator.coupling.plan import make_plan
 from orchestrator.coupling.schemes import CouplingScheme, scheme_from_spec
 from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
-    RETRY_LOG_LINES, RetriesExhausted, StepSizeController, controller_from_spec)
+    RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController, controller_from_spec)
 from orchestrator.coupling.stages import stages as make_stages
 from orchestrator.errors import CouplingError, FmuCallError, FmuCrashError, LifecycleError, ScenarioError
 from orchestrator.fmi.subsystem import Subsystem, SubsystemBase
 from orchestrator.fmi.worker import WorkerSubsystem
 from orchestrator.results.result import CoSimResult, Status
+from orchestrator.results.writer import TimeGrid
+from orchestrator.scenario.completion import fixed_step_problem
 from orchestrator.scenario.model import MAX_DISCARD_RETRIES
 
 log = logging.getLogger(__name__)
@@ -64,11 +67,14 @@ class MasterAlgorithm:
         scenario's FMUs (tests use plain-Python fakes); the master still frees them.
     scheme, step_size, predictor : policy objects; default from ``scenario.coupling``
         (``step_size``: a :class:`~orchestrator.coupling.step_control.StepSizeController`).
+    record_in_memory : keep the output rows for :meth:`result` (False: the caller streams them to
+        a file and reads them back, so memory stays flat in the number of rows).
     """
 
     def __init__(self, scenario, *, out_dir: Path | str | None = None, observers: Sequence[Observer] = (),
                  subsystems: Mapping[str, SubsystemBase] | None = None, scheme: CouplingScheme | None = None,
-                 step_size: StepSizeController | None = None, predictor: LagrangePredictor | None = None):
+                 step_size: StepSizeController | None = None, predictor: LagrangePredictor | None = None,
+                 record_in_memory: bool = True):
         self.scenario = scenario
         c = scenario.coupling
         self.out_dir = Path(out_dir) if out_dir is not None else None
@@ -83,7 +89,7 @@ class MasterAlgorithm:
         self.grid.on_rejected = self._rejected
         self.predictor = predictor or LagrangePredictor(extrapolation_order=c.extrapolation_order,
                                                         interpolation_order=c.interpolation_order)
-        self.recorder = Recorder()
+        self.recorder = Recorder(keep=record_in_memory)
         self.observers = [self.recorder, *observers]
         self._given = dict(subsystems) if subsystems is not None else None
         self.subsystems: dict[str, SubsystemBase] = {}
@@ -163,6 +169,7 @@ class MasterAlgorithm:
         self.plan = plan
         self.order, self.units, self.history = plan.order, plan.units, plan.history
         self.columns, self._rec, self.stride = plan.columns, plan.rec, plan.stride
+        self.kinds, self._rec_typed, self.discrete = plan.kinds, plan.rec_typed, plan.discrete
         k = self.predictor.k
         can_state = all(u.sub.can_get_set_state for u in self.units)
         startup = k >= 2 and can_state
@@ -170,6 +177,12 @@ class MasterAlgorithm:
             log.info("extrapolation_order %d: not every FMU can save its state (canGetAndSetFMUstate), so the "
                      "first %d macro steps use lower-order extrapolation; this adds an O(H^2) start-up error "
                      "(see docs/coupling.md)", k, k - 1)
+        fixed = [u.name for u in self.units if getattr(getattr(u.sub, "md", None), "can_handle_variable_step", True)
+                 is False]
+        if isinstance(self.grid, ConstantStep):
+            why = fixed_step_problem(self.grid.t0, self.grid.t_stop, self.grid.h, fixed, self.discard_retries)
+            if why:
+                raise ScenarioError(f"{self._where()}{why}")
         if self.grid.needs_states:
             stateless = [u.name for u in self.units if not u.sub.can_get_set_state]
             if stateless:
@@ -184,7 +197,9 @@ class MasterAlgorithm:
         self.stepper = MacroStep(plan, self.predictor, macro_step=self.scenario.coupling.macro_step,
                                  startup_iterations=startup, no_prior=not self.grid.needs_states,
                                  stages=self._stages())
-        self.view = RunView(self.columns, self.grid.time(0), self.grid.time(self.grid.n_steps), self.grid.n_steps)
+        g = self.grid
+        tgrid = TimeGrid(g.t0, g.h, t_stop=g.t_stop, n_stop=g.n_steps) if isinstance(g, ConstantStep) else None
+        self.view = RunView(self.columns, g.time(0), g.time(g.n_steps), g.n_steps, kinds=self.kinds, grid=tgrid)
 
     # ------------------------------------------------------------ initialize
     def initialize(self) -> None:
@@ -226,6 +241,10 @@ class MasterAlgorithm:
         for it in range(INIT_EXCHANGE_ITERATIONS):
             changed = False
             before = [b.copy() for b in self.history.blocks]
+            if self.discrete.active:
+                d_before = self.discrete.snapshot()
+                self.discrete.exchange_all()
+                changed = any(not np.array_equal(a, b) for a, b in zip(d_before, self.discrete.snapshot()))
             for u in self.units:
                 u.sub.get_real(u.outb)
                 self.stepper.propagate(u, self.grid.time(0))
@@ -265,6 +284,8 @@ class MasterAlgorithm:
                        "coupling.discard_retries) or use a smaller coupling.macro_step", t)
             return self.status
         except FmuCallError as e:
+            if self.stepper.fmu_ended(e):
+                return self._stopped_by_fmu(e.instance, t)
             self._fail_fmu(e, t, t_next)
             return self.status
         except CouplingError as e:
@@ -291,6 +312,18 @@ class MasterAlgorithm:
         view.rejected = None
 
     # ---------------------------------------------------------------- helpers
+    def _stopped_by_fmu(self, instance: str, t: float) -> Status:
+        """Finish cleanly at ``t`` (the last communication point every FMU completed): rows kept, no retry."""
+        self.status = Status.STOPPED_BY_FMU
+        self.message = (f"FMU instance '{instance}' ended the simulation at t={t:.12g} s (fmi2DoStep returned "
+                        f"fmi2Discard and fmi2GetBooleanStatus(fmi2Terminated) is true) after {self.n} macro steps; "
+                        f"rows up to t={t:.12g} s are kept")
+        self.end_time = t
+        self.view.status = self.status
+        self.view.message = self.message
+        log.info("%s", self.message)
+        return self.status
+
     def _fmu_message(self, e: FmuCallError, t: float, t_next: float) -> str:
         what = {"discard": "could not complete the step (fmi2Discard)",
                 "error": "reported an error (fmi2Error)",
@@ -332,6 +365,11 @@ class MasterAlgorithm:
             row = view.row
             for values, pos, cols in self._rec:
                 row[cols] = values[pos]
+            if self._rec_typed:
+                typed = view.typed
+                for i, read in self._rec_typed:
+                    v = typed[i] = read()
+                    row[i] = math.nan if isinstance(v, str) else float(v)
 
     # ------------------------------------------------------------- terminate
     def terminate(self) -> None:

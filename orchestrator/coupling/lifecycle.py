@@ -48,7 +48,7 @@ from typing import Any
 
 from orchestrator.errors import LifecycleError
 
-RUN_FILES = ("results.csv", "summary.json")
+RUN_FILES = ("results.csv", "results.parquet", "summary.json")
 LOCK_NAME = ".rotorcosim.lock"
 PREVIOUS = "previous"
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from orchestrator.coupling.delivery import choose_delivery
+from orchestrator.coupling.discrete import DiscreteSignals
 from orchestrator.coupling.signals import History
 from orchestrator.errors import ScenarioError
 from orchestrator.fmi.subsystem import RealBatch, SubsystemBase
@@ -67,6 +68,7 @@ class Unit:
         self.nE = 0
         self.nI = 0
         self.delivery = None                # an InputDelivery, chosen at setup
+        self.disc = False                   # has non-Real inputs or outputs (orchestrator.coupling.discrete)
 
 
 @dataclass
@@ -79,6 +81,9 @@ class Plan:
     columns: list[str]
     rec: list                 # (output values, positions, row columns) per unit with recorded signals
     stride: int               # output every ``stride`` macro steps
+    kinds: list[str]          # FMI type of each column
+    discrete: DiscreteSignals  # the non-Real connections and recorded signals
+    rec_typed: list           # (row column, reader) per non-Real recorded signal
 
 
 def _where(scenario) -> str:
@@ -97,11 +102,13 @@ def _units(scenario, subsystems) -> dict[str, Unit]:
     return units
 
 
-def _connections(scenario, units) -> list:
-    """The scenario's connections, checked against the subsystems' variables."""
+def _connections(scenario, units) -> tuple[list, list]:
+    """The scenario's connections, checked against the subsystems' variables: ``(Real connections,
+    non-Real connections as (src_instance, src_variable, dst_instance, dst_variable))``."""
     problems = []
     seen_dst = {}
     conns = []
+    discrete = []
     for c in scenario.connections:
         si, di = c.src_instance, c.dst_instance
         for inst, what in ((si, c.src), (di, c.dst)):
@@ -116,9 +123,9 @@ def _connections(scenario, units) -> list:
         except ScenarioError as e:
             problems.append(f"connection {c.src} -> {c.dst}: {e.problems[0]}")
             continue
-        if vs.type != "Real" or vd.type != "Real":
-            problems.append(f"connection {c.src} -> {c.dst}: types {vs.type} -> {vd.type}; the master couples "
-                            "Real variables only")
+        if vs.type != vd.type:
+            problems.append(f"connection {c.src} -> {c.dst}: type mismatch, '{c.src}' is {vs.type} but "
+                            f"'{c.dst}' is {vd.type}; connect variables of the same type")
             continue
         if vd.causality != "input":
             problems.append(f"connection {c.src} -> {c.dst}: '{c.dst}' has causality '{vd.causality}', "
@@ -129,21 +136,27 @@ def _connections(scenario, units) -> list:
                             "connect each input once")
             continue
         seen_dst[c.dst] = c.src
+        if vs.type != "Real":
+            if c.gain != 1.0 or c.offset != 0.0:
+                problems.append(f"connection {c.src} -> {c.dst}: gain/offset apply to Real connections only "
+                                f"(this one is {vs.type}); remove them")
+            discrete.append((si, c.src_variable, di, c.dst_variable))
+            continue
         conns.append(c)
     if problems:
         raise ScenarioError(problems)
-    return conns
+    return conns, discrete
 
 
 def output_columns(scenario, units) -> list[str]:
-    """The recorded signals (``output.signals``, or every Real output of every subsystem)."""
+    """The recorded signals (``output.signals``, or every output of every subsystem, of any type)."""
     sig = scenario.output.signals
     if sig is None:
         cols = []
         for u in units.values():
             md = getattr(u.sub, "md", None)
             if md is not None:
-                cols += [f"{u.name}.{v.name}" for v in md.outputs() if v.type == "Real"]
+                cols += [f"{u.name}.{v.name}" for v in md.outputs()]
             else:
                 cols += [f"{u.name}.{n}" for n in getattr(u.sub, "output_names", ())]
         return cols
@@ -155,9 +168,7 @@ def output_columns(scenario, units) -> list[str]:
             continue
         inst, var = s.split(".", 1)
         try:
-            v = units[inst].sub.variable(var)
-            if v.type != "Real":
-                problems.append(f"output signal '{s}' is of type {v.type}; record Real variables only")
+            units[inst].sub.variable(var)
         except ScenarioError as e:
             problems.append(f"output signal '{s}': {e.problems[0]}")
     if problems:
@@ -165,7 +176,7 @@ def output_columns(scenario, units) -> list[str]:
     return list(dict.fromkeys(sig))
 
 
-def _wire(units, conns, scheme, order, columns) -> History:
+def _wire(units, conns, scheme, order, columns, kinds) -> History:
     """Input blocks, output lists, history views, batches and links of every unit."""
     for c in conns:
         u = units[c.dst_instance]
@@ -177,9 +188,9 @@ def _wire(units, conns, scheme, order, columns) -> History:
         u = units[c.src_instance]
         if c.src_variable not in u.out_names:
             u.out_names.append(c.src_variable)
-    for col in columns:
+    for col, kind in zip(columns, kinds):
         inst, var = col.split(".", 1)
-        if var not in units[inst].out_names:
+        if kind == "Real" and var not in units[inst].out_names:
             units[inst].out_names.append(var)
     history = History(MAX_ORDER + 1)
     sizes = []
@@ -218,15 +229,24 @@ def make_plan(scenario, subsystems, scheme) -> Plan:
     """The plan of ``scenario`` over ``subsystems`` (``{name: SubsystemBase}``) for ``scheme``."""
     order = scheme.stepping_order(list(subsystems))
     units = _units(scenario, subsystems)
-    conns = _connections(scenario, units)
+    conns, discrete_conns = _connections(scenario, units)
     columns = output_columns(scenario, units)
-    history = _wire(units, conns, scheme, order, columns)
+    kinds = [units[c.split(".", 1)[0]].sub.variable(c.split(".", 1)[1]).type for c in columns]
+    history = _wire(units, conns, scheme, order, columns, kinds)
+    discrete = DiscreteSignals({n: u.sub for n, u in units.items()}, discrete_conns,
+                               [c for c, k in zip(columns, kinds) if k != "Real"],
+                               lambda a, b: scheme.uses_new_value(a, b, order))
+    for u in units.values():
+        port = discrete.ports[u.name]
+        u.disc = bool(port.inb or port.outb)
     ordered = [units[n] for n in order]
     col_index = {c: i for i, c in enumerate(columns)}
+    real_cols = [c for c, k in zip(columns, kinds) if k == "Real"]
+    rec_typed = [(col_index[c], discrete.value_reader(*c.split(".", 1))) for c, k in zip(columns, kinds) if k != "Real"]
     rec = []
     for u in ordered:
-        pos = [u.out_names.index(c.split(".", 1)[1]) for c in columns if c.split(".", 1)[0] == u.name]
-        cols = [col_index[c] for c in columns if c.split(".", 1)[0] == u.name]
+        pos = [u.out_names.index(c.split(".", 1)[1]) for c in real_cols if c.split(".", 1)[0] == u.name]
+        cols = [col_index[c] for c in real_cols if c.split(".", 1)[0] == u.name]
         if pos:
             rec.append((u.outb.values, np.asarray(pos, dtype=np.intp), np.asarray(cols, dtype=np.intp)))
     H = scenario.coupling.macro_step
@@ -235,4 +255,5 @@ def make_plan(scenario, subsystems, scheme) -> Plan:
     if not math.isclose(stride * H, interval, rel_tol=1e-9):
         warnings.warn(f"output.interval {interval} is not a multiple of coupling.macro_step {H}; "
                       f"writing every {stride} macro steps ({stride * H} s)", stacklevel=3)
-    return Plan(order=order, units=ordered, history=history, columns=columns, rec=rec, stride=stride)
+    return Plan(order=order, units=ordered, history=history, columns=columns, rec=rec, stride=stride,
+                kinds=kinds, discrete=discrete, rec_typed=rec_typed)

@@ -56,7 +56,13 @@ class Variable:
     variability: str               # "constant" | "fixed" | "tunable" | "discrete" | "continuous"
     start: Any = None              # parsed to float/int/bool/str when given
     description: str = ""
-    unit: str = ""
+    unit: str = ""                 # the variable's unit, else its declared type's
+    initial: str = ""              # "exact" | "approx" | "calculated" | "" (FMI 2.0 default applies)
+    declared_type: str = ""
+    min: Any = None                # the variable's min/max, else its declared type's (int/float)
+    max: Any = None
+    nominal: float | None = None
+    items: tuple = ()              # Enumeration: ((name, value, description), ...) of the declared type
 
 
 @dataclass(frozen=True)
@@ -250,6 +256,37 @@ def _start(type_: str, s: str | None):
     return s
 
 
+def _number(type_: str, s: str | None):
+    """A min/max/nominal attribute as int (Integer, Enumeration) or float (Real); None if absent or unreadable."""
+    if s is None or type_ not in ("Real", "Integer", "Enumeration"):
+        return None
+    try:
+        return float(s) if type_ == "Real" else int(s)
+    except ValueError:
+        return None
+
+
+def _type_definitions(root) -> dict[str, tuple[dict, tuple]]:
+    """``{SimpleType name: (attributes of its type element, enumeration items)}`` (FMI 2.0 sec. 2.2.3)."""
+    out = {}
+    td = root.find("TypeDefinitions")
+    for st in (td if td is not None else []):
+        if st.tag != "SimpleType" or not st.get("name"):
+            continue
+        el = next((c for c in st if c.tag in ("Real", "Integer", "Boolean", "String", "Enumeration")), None)
+        if el is None:
+            continue
+        items = []
+        if el.tag == "Enumeration":
+            for it in el:
+                if it.tag == "Item" and it.get("name") is not None:
+                    v = _number("Integer", it.get("value"))
+                    if v is not None:
+                        items.append((it.get("name"), v, it.get("description", "") or ""))
+        out[st.get("name")] = (dict(el.attrib), tuple(items))
+    return out
+
+
 def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelDescription:
     """Parse the bytes of an FMI 2.0 ``modelDescription.xml`` (see module doc for the rules)."""
     path = Path(path)
@@ -279,6 +316,7 @@ def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelD
     if not ident or any(c in ident for c in "/\\\x00") or ident in (".", ".."):
         raise _fail(path, f"has an invalid modelIdentifier {ident!r}", "re-export the FMU")
 
+    types = _type_definitions(root)
     variables: dict[str, Variable] = {}
     mv = root.find("ModelVariables")
     for sv in (mv if mv is not None else []):
@@ -303,10 +341,15 @@ def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelD
         variability = sv.get("variability", "continuous")
         if name in variables:
             raise _fail(path, f"variable {name!r} is declared twice", "re-export the FMU")
+        declared = type_el.get("declaredType", "") or ""
+        attrs = {**types.get(declared, ({}, ()))[0], **type_el.attrib}
         variables[name] = Variable(
             name=name, value_reference=vr_int, type=type_el.tag, causality=causality,
             variability=variability, start=_start(type_el.tag, type_el.get("start")),
-            description=sv.get("description", "") or "", unit=type_el.get("unit", "") or "")
+            description=sv.get("description", "") or "", unit=attrs.get("unit", "") or "",
+            initial=sv.get("initial", "") or "", declared_type=declared,
+            min=_number(type_el.tag, attrs.get("min")), max=_number(type_el.tag, attrs.get("max")),
+            nominal=_number("Real", attrs.get("nominal")), items=types.get(declared, ({}, ()))[1])
 
     de = root.find("DefaultExperiment")
     default_experiment = {}

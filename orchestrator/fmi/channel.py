@@ -35,9 +35,10 @@ REGISTER_BYTES = 16                    # call register: int64 function code, flo
 FUNCTIONS = ("idle", "fmi2Instantiate", "fmi2Set* (parameters)", "fmi2SetupExperiment",
              "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2SetReal", "fmi2GetReal",
              "fmi2SetRealInputDerivatives", "fmi2DoStep", "fmi2GetFMUstate", "fmi2SetFMUstate",
-             "fmi2FreeFMUstate", "fmi2Terminate", "fmi2FreeInstance", "register")
+             "fmi2FreeFMUstate", "fmi2Terminate", "fmi2FreeInstance", "register",
+             "fmi2SetInteger/Boolean/String", "fmi2GetInteger/Boolean/String", "fmi2GetBooleanStatus")
 CODES = {"params": 2, "setup": 3, "enter": 4, "exit": 5, "set": 6, "get": 7, "der": 8, "step": 9,
-         "gs": 10, "ss": 11, "fs": 12, "term": 13, "free": 14, "reg": 15}
+         "gs": 10, "ss": 11, "fs": 12, "term": 13, "free": 14, "reg": 15, "setv": 16, "getv": 17, "ended": 18}
 _ERRORS = {c.__name__: c for c in (ScenarioError, FmuError, LifecycleError, CouplingError)}
 
 

@@ -239,6 +239,29 @@ class WorkerSubsystem(SubsystemBase):
         self._queue.append(("step", t, h, self.no_set_prior_state))
         self._chan.time = t + h
 
+    # non-Real signals (Integer, Boolean, String): values travel pickled in the message (rare, small)
+    def set_values(self, batch) -> None:
+        if batch.n:
+            if self._chan.outstanding is not None:
+                self._receive()
+            values = batch.strings() if batch.family == "String" else batch.values.tolist()
+            self._queue.append(("setv", batch.family, list(batch.names), [int(v) for v in batch.c_vrs[:batch.n]],
+                                values))
+
+    def get_values(self, batch) -> None:
+        if batch.n:
+            values = self._round_trip([("getv", batch.family, list(batch.names),
+                                        [int(v) for v in batch.c_vrs[:batch.n]])], f"fmi2Get{batch.family}")
+            if batch.family == "String":
+                batch.set_strings(values)
+            else:
+                batch.values[:] = values
+
+    def terminated_by_fmu(self) -> bool:
+        if self._chan.crash is not None:
+            return False
+        return bool(self._round_trip([("ended",)], "fmi2GetBooleanStatus"))
+
     def request_real(self, batch: RealBatch) -> None:
         """Send the queued calls and a get of ``batch`` without waiting (the worker starts now);
         :meth:`receive_real` waits for the values. Any other call in between waits first."""

@@ -137,6 +137,21 @@ def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) 
         sub.get_real(batches[cmd[1]])
     elif op == "der":
         sub.set_real_input_derivatives(batches[cmd[1]])
+    elif op == "setv":
+        from orchestrator.fmi.values import TypedBatch
+        b = TypedBatch(cmd[1], cmd[2], cmd[3])
+        if cmd[1] == "String":
+            b.set_strings(cmd[4])
+        else:
+            b.values[:] = cmd[4]
+        sub.set_values(b)
+    elif op == "getv":
+        from orchestrator.fmi.values import TypedBatch
+        b = TypedBatch(cmd[1], cmd[2], cmd[3])
+        sub.get_values(b)
+        return (b.strings() if cmd[1] == "String" else b.values.tolist()), False
+    elif op == "ended":
+        return sub.terminated_by_fmu(), False
     elif op == "reg":
         _, bid, offset, nbytes, vrs, orders = cmd
         for k in range(SLOTS):

@@ -13,7 +13,7 @@ from pathlib import Path
 from orchestrator.errors import LifecycleError
 
 
-def open_no_follow(path: Path | str, mode: str = "w", *, newline: str | None = ""):
+def open_no_follow(path: Path | str, mode: str = "w", *, newline: str | None = "", encoding: str | None = None):
     """``open(path, mode)`` for writing, refusing a symbolic link at ``path`` (O_NOFOLLOW)."""
     path = Path(path)
     flags = os.O_WRONLY | os.O_CREAT | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0)
@@ -26,7 +26,7 @@ def open_no_follow(path: Path | str, mode: str = "w", *, newline: str | None = "
                                  f"(it would overwrite {os.path.realpath(path)}); remove the link or choose "
                                  "another output folder") from None
         raise
-    return os.fdopen(fd, mode, newline=newline)
+    return os.fdopen(fd, mode, newline=newline, encoding=encoding)
 
 
 def write_text_no_follow(path: Path | str, text: str) -> None:

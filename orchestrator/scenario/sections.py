@@ -6,6 +6,7 @@ nothing raised for a bad value); checks against the FMUs are :mod:`.checks`.
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import re
 from dataclasses import dataclass
@@ -16,7 +17,8 @@ import yaml
 
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario.model import (
-    CONNECTION_KEYS, COUPLING_KEYS, FMU_KEYS, ISOLATION, MAX_DISCARD_RETRIES, MAX_ORDER, OUTPUT_KEYS, SCENARIO_VERSION,
+    CONNECTION_KEYS, COUPLING_KEYS, FMU_KEYS, ISOLATION, MAX_DISCARD_RETRIES, MAX_ORDER, OUTPUT_FORMATS, OUTPUT_KEYS,
+    SCENARIO_VERSION,
     SCHEMES, TOP_KEYS, ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario)
 from orchestrator.scenario.nodes import NodeReader, YamlLoader, did_you_mean, flatten_merges
 from orchestrator.scenario.overrides import apply_override
@@ -24,6 +26,13 @@ from orchestrator.scenario.overrides import apply_override
 log = logging.getLogger("orchestrator.scenario")
 
 INSTANCE_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
+FROM_FMUS = object()        # stop_time not written: taken from the FMUs' DefaultExperiment (checks.apply_defaults)
+
+
+def our_fmus() -> list[str]:
+    """The names of our FMUs (``fmu: NAME``)."""
+    from orchestrator.fmi.build import RECIPES
+    return list(RECIPES)
 
 
 @dataclass
@@ -41,10 +50,11 @@ class Draft:
     interval: float | None
     signals: list | None
     analysis_node: Any = None
+    output_format: str = "csv"
 
     @property
     def complete(self) -> bool:
-        return None not in self.kw.values() and self.coupling is not None
+        return None not in self.kw.values() and self.coupling is not None      # FROM_FMUS counts as given
 
     def scenario(self, params: dict | None = None) -> Scenario:
         """The :class:`Scenario` of these sections; ``params``: checked parameters per instance
@@ -58,7 +68,8 @@ class Draft:
             connections=tuple(ConnectionSpec(src=c["from"], dst=c["to"], gain=c["gain"], offset=c["offset"],
                                              line=c["line"]) for c in self.connections),
             coupling=CouplingSpec(**self.coupling),
-            output=OutputSpec(interval=self.interval, signals=self.signals and tuple(s for s, _ in self.signals)),
+            output=OutputSpec(interval=self.interval, signals=self.signals and tuple(s for s, _ in self.signals),
+                              format=self.output_format),
             **self.kw)
 
 
@@ -70,6 +81,7 @@ class SectionReader(NodeReader):
         self.overrides = list(overrides)
         self.instances: list[str] = []         # every instance name written under 'fmus'
         self.fmu_specs: list[dict] = []        # parsed 'fmus' entries
+        self.output_format = "csv"
 
     # -- the pass ----------------------------------------------------------
     def read_sections(self) -> Draft | None:
@@ -103,8 +115,8 @@ class SectionReader(NodeReader):
                                 "mappings only (write '<<: *anchor' or '<<: [*a, *b]')") from None
         for text in self.overrides:
             apply_override(self, root, text)
-        top = self.mapping(root, "top level", TOP_KEYS, ("name", "stop_time", "fmus"),
-                           fix="a scenario is a mapping with at least 'name', 'stop_time' and 'fmus'")
+        top = self.mapping(root, "top level", TOP_KEYS, ("name", "fmus"),
+                           fix="a scenario is a mapping with at least 'name' and 'fmus'")
         if top is None:
             return None
         get = lambda key: top[key][1] if key in top else None      # noqa: E731
@@ -133,7 +145,7 @@ class SectionReader(NodeReader):
                 kw["description"] = d
         start = self.number(get("start_time"), "start_time") if "start_time" in top else 0.0
         kw["start_time"] = start
-        stop = None
+        stop = FROM_FMUS if "stop_time" not in top else None      # the FMUs' DefaultExperiment (checks.py)
         if "stop_time" in top:
             stop = self.number(get("stop_time"), "stop_time", fix="write the end time in seconds, e.g. 0.5")
             if stop is not None and start is not None and stop <= start:
@@ -144,9 +156,10 @@ class SectionReader(NodeReader):
         fmus = self.load_fmus(get("fmus")) if "fmus" in top else []
         self.fmu_specs = fmus
         names = [f["name"] for f in fmus]
-        coupling = self.load_coupling(get("coupling"), names, start, stop)
+        given_stop = None if stop is FROM_FMUS else stop
+        coupling = self.load_coupling(get("coupling"), names, start, given_stop)
         self.default_isolation = (coupling or {}).get("isolation") or "none"
-        interval, signals = self.load_output(get("output"), stop, start)
+        interval, signals = self.load_output(get("output"), given_stop, start)
         connections = self.load_connections(get("connections"))
         for key in ("analysis", "compare"):
             if key in top:
@@ -156,8 +169,11 @@ class SectionReader(NodeReader):
                 else:
                     kw[key] = self.value(get(key))
 
+        self.top_keys = set(top)
+        self.root_node = root
         return Draft(kw=kw, fmus=fmus, connections=connections, coupling=coupling, interval=interval,
-                     signals=signals, analysis_node=get("analysis") if "analysis" in top else None)
+                     signals=signals, analysis_node=get("analysis") if "analysis" in top else None,
+                     output_format=self.output_format)
 
     # -- sections ----------------------------------------------------------
     def load_fmus(self, node) -> list[dict]:
@@ -173,10 +189,14 @@ class SectionReader(NodeReader):
                 self.err(knode, f"instance name must start with a letter or '_' and contain only letters, digits, "
                                 f"'_' and '-' (got {name!r}); rename it (signals are written 'instance.variable')")
                 continue
-            entry = self.mapping(vnode, f"fmus.{name}", FMU_KEYS, ("path",),
-                                 fix=f"write '{name}: {{path: X.fmu}}'")
+            entry = self.mapping(vnode, f"fmus.{name}", FMU_KEYS, (),
+                                 fix=f"write '{name}: {{path: X.fmu}}' or '{name}: {{fmu: JournalBearing}}'")
             if entry is None:
                 continue
+            if ("path" in entry) == ("fmu" in entry):
+                self.err(vnode, f"'fmus.{name}' needs exactly one of 'path' (an FMU file) and 'fmu' (one of ours by "
+                                f"name: {', '.join(our_fmus())}) (got {'both' if 'path' in entry else 'neither'}); "
+                                f"write '{name}: {{path: X.fmu}}' or '{name}: {{fmu: JournalBearing}}'")
             spec = {"name": name, "line": knode.start_mark.line + 1 if knode.start_mark else None,
                     "node": knode, "path": None, "parameters": {}, "substeps": None, "isolation": None}
             if "path" in entry:
@@ -184,6 +204,17 @@ class SectionReader(NodeReader):
                 if p is not None:
                     spec["path"] = (self.path.parent / Path(p).expanduser()).resolve()
                     spec["path_node"] = entry["path"][1]
+            elif "fmu" in entry:
+                key = self.string(entry["fmu"][1], f"fmus.{name}.fmu", f"name one of ours: {', '.join(our_fmus())}")
+                if key is not None and key not in our_fmus():
+                    self.err(entry["fmu"][1], f"'fmus.{name}.fmu' names our FMUs by name, one of "
+                                              f"{', '.join(our_fmus())} (got {key!r}); "
+                                              f"{did_you_mean(key, our_fmus())}for another FMU write 'path: X.fmu'")
+                elif key is not None:
+                    from orchestrator.fmi.build import fmu_location
+                    spec["path"] = fmu_location(key)
+                    spec["path_node"] = entry["fmu"][1]
+                    spec["ours"] = key
             if "substeps" in entry:
                 spec["substeps"] = self.integer(entry["substeps"][1], f"fmus.{name}.substeps", 1, None,
                                                 "use a whole number of sub-steps >= 1")
@@ -317,6 +348,17 @@ class SectionReader(NodeReader):
         if section is None:
             return None, None
         interval = signals = None
+        if "format" in section:
+            fnode = section["format"][1]
+            fmt = self.string(fnode, "output.format", "write 'csv' or 'parquet'")
+            if fmt is not None and fmt not in OUTPUT_FORMATS:
+                self.err(fnode, f"'output.format' must be one of {list(OUTPUT_FORMATS)} (got {fmt!r}); write 'csv' "
+                                "or 'parquet'")
+            elif fmt == "parquet" and importlib.util.find_spec("pyarrow") is None:
+                self.err(fnode, "'output.format: parquet' needs pyarrow, which is not installed; "
+                                "`pip install pyarrow` (or 'rotorcosim[parquet]') or write 'output.format: csv'")
+            elif fmt is not None:
+                self.output_format = fmt
         if "interval" in section:
             interval = self.number(section["interval"][1], "output.interval", positive=True,
                                    fix="give the output interval in seconds, e.g. 1.0e-3")
@@ -343,6 +385,11 @@ class SectionReader(NodeReader):
         out = []
         for i, item in enumerate(node.value):
             where = f"connections[{i}]"
+            if isinstance(item, yaml.ScalarNode) and isinstance(self.value(item), str) and "->" in item.value:
+                c = self.arrow_connection(item, where)     # the one-line form "a.y -> b.u"
+                if c is not None:
+                    out.append(c)
+                continue
             entry = self.mapping(item, where, CONNECTION_KEYS, ("from", "to"),
                                  fix="write '- {from: instance.output, to: instance.input}'")
             if entry is None:
@@ -363,3 +410,13 @@ class SectionReader(NodeReader):
                     c[key + "_node"] = entry[key][1]
             out.append(c)
         return out
+
+    def arrow_connection(self, item, where: str) -> dict | None:
+        """``"drv.f[0] -> osc.f[0]"``: a connection without gain/offset written as one string."""
+        parts = [p.strip() for p in str(self.value(item)).split("->")]
+        if len(parts) != 2 or not all("." in p and " " not in p for p in parts):
+            self.err(item, f"'{where}' {item.value!r} is not 'instance.output -> instance.input'; write one "
+                           "arrow between two 'instance.variable' names (or a mapping {from: ..., to: ...})")
+            return None
+        return {"line": item.start_mark.line + 1 if item.start_mark else None, "node": item, "gain": 1.0,
+                "offset": 0.0, "from": parts[0], "from_node": item, "to": parts[1], "to_node": item}
