@@ -23,7 +23,6 @@ from typing import Sequence
 import numpy as np
 
 
-
 class RunView:
     """Read-only state of the run as observers see it (filled in by the master)."""
 
