@@ -433,9 +433,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         logging.getLogger("orchestrator.fmi.build").setLevel(logging.INFO)   # say when FMUs are being built
     try:
         return int(args.func(args) or 0)
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:           # Ctrl-C (130) or SIGTERM (143): RunStopped.exit_code
+        code = getattr(exc, "exit_code", 130)
+        print("interrupted" if code == 130 else f"terminated by signal {exc}", file=sys.stderr)
+        return code
     except Exception as exc:                      # every failure becomes one message (traceback: --debug)
         if args.debug:
             raise

@@ -57,3 +57,31 @@ class CouplingError(CosimError):
 
 class LifecycleError(CosimError):
     """A master or subsystem method was called out of order."""
+
+
+class FmuCrashError(FmuCallError):
+    """An FMU's worker process died or did not answer in time (``coupling.call_timeout``).
+
+    Raised by :class:`orchestrator.fmi.worker.WorkerSubsystem` in place of the reply to an
+    FMI call. Attributes besides ``instance`` / ``function``: ``status`` (``'crashed'`` or
+    ``'timeout'``), ``fmu`` (the .fmu file), ``time`` (simulation time of the call [s]),
+    ``cause`` (short: ``'SIGSEGV'``, ``'exit code 3'``, ``'timeout after 2 s'``),
+    ``signal`` (signal name or None), ``exit_code`` (int or None), ``timeout`` (s or None).
+    :meth:`report` is the dict written to summary.json.
+    """
+
+    def __init__(self, instance: str, function: str, *, fmu: str, time: float | None, cause: str,
+                 signal: str | None = None, exit_code: int | None = None, timeout: float | None = None,
+                 detail: str = ""):
+        self.instance, self.function = instance, function
+        self.status = "timeout" if timeout is not None else "crashed"
+        self.fmu, self.time, self.cause = fmu, time, cause
+        self.signal, self.exit_code, self.timeout = signal, exit_code, timeout
+        at = f" at t={time:.12g} s" if time is not None else ""
+        what = "did not answer" if timeout is not None else "crashed"
+        CosimError.__init__(self, f"FMU instance '{instance}' ({fmu}) {what} in {function}{at}: {detail or cause}")
+
+    def report(self) -> dict:
+        return {"instance": self.instance, "fmu": self.fmu, "function": self.function, "time": self.time,
+                "cause": self.cause, "signal": self.signal, "exit_code": self.exit_code,
+                "timeout_s": self.timeout}

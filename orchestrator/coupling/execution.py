@@ -39,9 +39,11 @@ from orchestrator.coupling.schemes import CouplingScheme, scheme_from_spec
 from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
     RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController, controller_from_spec)
-from orchestrator.errors import CouplingError, FmuCallError, LifecycleError, ScenarioError
+from orchestrator.coupling.stages import stages as make_stages
+from orchestrator.errors import CouplingError, FmuCallError, FmuCrashError, LifecycleError, ScenarioError
 from orchestrator.fmi.extraction import ExtractionPool
 from orchestrator.fmi.subsystem import Subsystem, SubsystemBase
+from orchestrator.fmi.worker import WorkerSubsystem
 from orchestrator.results.result import CoSimResult, Status
 from orchestrator.results.writer import TimeGrid
 from orchestrator.scenario.completion import fixed_step_problem
@@ -100,6 +102,8 @@ class MasterAlgorithm:
         self.end_time = float(scenario.start_time)
         self.wall_time = 0.0
         self._work_dir: ExtractionPool | None = None
+        self.isolation: dict[str, str] = {}      # instance -> "process" | "none" (FMUs the master loaded)
+        self.failure: dict | None = None         # what failed (summary.json "failure"), see _fail_fmu
         self._phase = "new"
         self._t_wall0 = 0.0
 
@@ -125,7 +129,7 @@ class MasterAlgorithm:
             else:
                 self._work_dir = ExtractionPool()      # one extraction per FMU file, shared
                 for f in sc.fmus:
-                    self.subsystems[f.name] = Subsystem(f.name, f.path, extraction=self._work_dir)
+                    self.subsystems[f.name] = self._load(f)
             for f in sc.fmus:
                 self.subsystems[f.name].set_parameters(dict(f.parameters), out_dir=self.out_dir)
             self._plan()
@@ -133,6 +137,32 @@ class MasterAlgorithm:
             self._release()
             self._phase = "terminated"      # nothing left to terminate; observers never started
             raise
+
+    def _load(self, f) -> SubsystemBase:
+        """The adapter of FMU instance ``f``: in this process, or in a worker (``isolation: process``)."""
+        c = self.scenario.coupling
+        mode = getattr(f, "isolation", None) or getattr(c, "isolation", "none")
+        self.isolation[f.name] = mode
+        if mode == "process":
+            # the worker extracts its own copy under this run's extraction folder (removed with it)
+            return WorkerSubsystem(f.name, f.path, work_dir=self._work_dir.root / "workers",
+                                   call_timeout=getattr(c, "call_timeout", None))
+        return Subsystem(f.name, f.path, extraction=self._work_dir)
+
+    def _stages(self) -> list:
+        """(stage, members in stepping order, members to step concurrently or None) per stage of the
+        connection graph (orchestrator.coupling.stages); concurrently when ``coupling.parallel`` and a
+        member runs in a worker process, workers first (they compute while in-process members step)."""
+        links = [(c.src_instance, c.dst_instance) for c in self.scenario.connections]
+        by_name = {u.name: u for u in self.units}
+        parallel = bool(getattr(self.scenario.coupling, "parallel", True))
+        out = []
+        for st in make_stages([u.name for u in self.units], links, self.scheme.uses_new_value):
+            members = [by_name[n] for n in st.names]
+            workers = [u for u in members if isinstance(u.sub, WorkerSubsystem)]
+            together = workers + [u for u in members if u not in workers] if workers and len(members) > 1 else None
+            out.append((st, members, together if parallel else None))
+        return out
 
     def _plan(self) -> None:
         plan = make_plan(self.scenario, self.subsystems, self.scheme)
@@ -165,7 +195,8 @@ class MasterAlgorithm:
                 u.sub.no_set_prior_state = False    # we may restore the state saved before each macro step
         # noSetFMUStatePriorToCurrentPoint for every doStep: False while the master may restore a state
         self.stepper = MacroStep(plan, self.predictor, macro_step=self.scenario.coupling.macro_step,
-                                 startup_iterations=startup, no_prior=not self.grid.needs_states)
+                                 startup_iterations=startup, no_prior=not self.grid.needs_states,
+                                 stages=self._stages())
         g = self.grid
         tgrid = TimeGrid(g.t0, g.h, t_stop=g.t_stop, n_stop=g.n_steps) if isinstance(g, ConstantStep) else None
         self.view = RunView(self.columns, g.time(0), g.time(g.n_steps), g.n_steps, kinds=self.kinds, grid=tgrid)
@@ -189,6 +220,8 @@ class MasterAlgorithm:
                 u.sub.exit_initialization_mode()
             self._exchange_initial()
         except (FmuCallError, CouplingError) as e:
+            if isinstance(e, FmuCrashError):
+                self.failure = e.report()
             self._fail(f"initialization failed: {e}; check the FMU's parameters and start values", t0)
             self._phase = "running"
             self.view.is_output = False        # observers start (results.csv gets its header), no row
@@ -253,7 +286,7 @@ class MasterAlgorithm:
         except FmuCallError as e:
             if self.stepper.fmu_ended(e):
                 return self._stopped_by_fmu(e.instance, t)
-            self._fail(self._fmu_message(e, t, t_next), t)
+            self._fail_fmu(e, t, t_next)
             return self.status
         except CouplingError as e:
             self._fail(str(e), t)
@@ -301,6 +334,17 @@ class MasterAlgorithm:
                 "gives, if any; a numerically unstable coupling shows up the same way, so also try a smaller "
                 f"coupling.macro_step (now {self.scenario.coupling.macro_step:g}) or more substeps for "
                 f"'{e.instance}', and check the FMU's log above")
+
+    def _fail_fmu(self, e: FmuCallError, t: float, t_next: float) -> None:
+        if isinstance(e, FmuCrashError):
+            self.failure = e.report()
+            self._fail(f"{e}. The run stopped in the macro step from t={t:.12g} s to t={t_next:.12g} s; rows up "
+                       f"to t={t:.12g} s are kept and the other FMUs were terminated", t)
+            return
+        sub = self.subsystems.get(e.instance)
+        self.failure = {"instance": e.instance, "fmu": str(getattr(sub, "fmu_path", "")) or None,
+                        "function": e.function, "time": t, "cause": e.status}
+        self._fail(self._fmu_message(e, t, t_next), t)
 
     def _fail(self, message: str, t: float) -> None:
         self.status = Status.FAILED
@@ -373,7 +417,8 @@ class MasterAlgorithm:
         ``retried_steps``: macro steps redone in smaller steps; ``retry_substeps``: the extra
         step rounds (sub-intervals attempted) of those retries (all 0 without discard_retries)."""
         return {"macro_steps": self.n, **self.grid.statistics(), "wall_time_s": self.wall_time,
-                "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()}}
+                "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()},
+                "isolation": dict(self.isolation), "failure": self.failure}
 
     def result(self) -> CoSimResult:
         t, outputs = self.recorder.arrays()

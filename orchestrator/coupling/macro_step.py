@@ -45,7 +45,7 @@ class MacroStep:
     """
 
     def __init__(self, plan: Plan, predictor: LagrangePredictor, *, macro_step: float,
-                 startup_iterations: bool, no_prior: bool):
+                 startup_iterations: bool, no_prior: bool, stages: list | None = None):
         self.plan = plan
         self.units = plan.units
         self.history = plan.history
@@ -54,6 +54,8 @@ class MacroStep:
         self.macro_step = macro_step
         self.startup_iterations = startup_iterations
         self.no_prior = no_prior
+        # (stage, members, members to step concurrently or None); default: one unit per stage
+        self.stages = stages if stages is not None else [(None, [u], None) for u in self.units]
 
     # ------------------------------------------------------------ checkpoints
     def save(self) -> Checkpoint:
@@ -158,19 +160,45 @@ class MacroStep:
         hist.times[0] = t_next
         predictor = self.predictor
         discrete = self.discrete
-        for u in self.units:
-            w = predictor.step_weights(hist, t, h, u.substeps, q=startup_q)
-            if u.disc:
-                discrete.set_inputs(u.name)          # non-Real inputs: held over the whole step
-            u.delivery.advance(u, w, t, h)
-            u.sub.get_real(u.outb)
-            self.propagate(u, t_next)
-            if u.disc:
-                discrete.read(u.name)
+        for st, members, together in self.stages:
+            if together is not None and st.concurrent(startup=startup_q is not None):
+                for u in together:           # every member's inputs and doSteps sent: workers compute now
+                    w = predictor.step_weights(hist, t, h, u.substeps, q=startup_q)
+                    if u.disc:
+                        discrete.set_inputs(u.name)
+                    u.delivery.advance(u, w, t, h)
+                    u.sub.request_real(u.outb)
+                self.collect(together, t_next)
+                continue
+            for u in members:
+                w = predictor.step_weights(hist, t, h, u.substeps, q=startup_q)
+                if u.disc:
+                    discrete.set_inputs(u.name)          # non-Real inputs: held over the whole step
+                u.delivery.advance(u, w, t, h)
+                u.sub.get_real(u.outb)
+                self.propagate(u, t_next)
+                if u.disc:
+                    discrete.read(u.name)
         if commit:
             hist.commit()
             if discrete.active:
                 discrete.commit()
+
+    def collect(self, members: list, t_next: float) -> None:
+        """The outputs of a concurrently stepped stage, in order; every member's reply is read
+        before the first failure is raised (a worker must not be left with an unread reply)."""
+        first = None
+        for u in members:
+            try:
+                u.sub.receive_real(u.outb)
+                if first is None:
+                    self.propagate(u, t_next)
+                    if u.disc:
+                        self.discrete.read(u.name)
+            except (FmuCallError, CouplingError) as e:
+                first = first or e
+        if first is not None:
+            raise first
 
     def propagate(self, u: Unit, t: float) -> None:
         """Unit ``u``'s outputs (in ``u.outb``) through gain/offset into the consumers' new level."""

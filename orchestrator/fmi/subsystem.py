@@ -213,6 +213,14 @@ class SubsystemBase(ABC):
         raise LifecycleError(f"subsystem '{self.name}' cannot interpolate inputs; the master must not call "
                              "set_real_input_derivatives on it")
 
+    # split get for concurrent stepping (coupling.parallel): request_real starts everything
+    # queued and the get, receive_real returns the values. In process the request does the get.
+    def request_real(self, batch: RealBatch) -> None:
+        self.get_real(batch)
+
+    def receive_real(self, batch: RealBatch) -> np.ndarray:
+        return batch.values
+
     @abstractmethod
     def do_step(self, t: float, h: float) -> None:
         """Advance from ``t`` to ``t + h``."""

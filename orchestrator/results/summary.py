@@ -45,15 +45,15 @@ def cosim_stats(stats: Mapping[str, Any]) -> dict:
             "retried_steps": stats.get("retried_steps", 0),
             "retry_substeps": stats.get("retry_substeps", 0),
             "wall_time_s": stats.get("wall_time_s"),
-            "fmu_calls": stats.get("fmu_calls", {})}
+            "fmu_calls": stats.get("fmu_calls", {}),
+            "isolation": stats.get("isolation", {}),
+            "failure": stats.get("failure")}
 
 
 def write_summary(path: Path | str, summary: Mapping[str, Any]) -> None:
-    """Write ``summary.json`` atomically (temp file + rename)."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(plain(summary, "string"), indent=2) + "\n")
-    tmp.replace(path)
+    """Write ``summary.json`` atomically (temp file + rename), never through a symbolic link."""
+    from orchestrator.results.safe_write import write_text_no_follow
+    write_text_no_follow(path, json.dumps(plain(summary, "string"), indent=2) + "\n")
 
 
 def versions() -> dict[str, str]:

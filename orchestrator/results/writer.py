@@ -118,7 +118,8 @@ class ResultsWriter:
     def open(self) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if self.format == "csv":
-            self._f = open(self.path, "w", newline="", encoding="utf-8")
+            from orchestrator.results.safe_write import open_no_follow
+            self._f = open_no_follow(self.path, "w", newline="", encoding="utf-8")   # never through a link
             self._csv = csv.writer(self._f, lineterminator="\n")
             self._csv.writerow(("time", *self.columns))
             self._f.flush()

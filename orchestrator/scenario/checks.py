@@ -74,10 +74,13 @@ class FmuChecks(Completion):
         if not md.can_handle_variable_step:
             self.fixed_step.append(name)
         if md.can_be_instantiated_only_once_per_process:
-            users = [g["name"] for g in self.fmu_specs if g["path"] == path]
-            if len(users) > 1 and users[0] != name:
+            # one instance in the master's process; instances in worker processes have a process each
+            iso = getattr(self, "default_isolation", "none")
+            users = [g["name"] for g in self.fmu_specs if g["path"] == path and (g["isolation"] or iso) == "none"]
+            if len(users) > 1 and name in users[1:]:
                 self.err(node, f"FMU {path.name} declares canBeInstantiatedOnlyOncePerProcess, but instances "
-                               f"{', '.join(users)} all use it; use it for one instance only")
+                               f"{', '.join(users)} all use it in the master's process; use it for one instance "
+                               "only, or give the others 'isolation: process' (a worker process each)")
 
     def check_parameters(self, f: dict) -> dict:
         name, out = f["name"], {}

@@ -18,10 +18,12 @@ MAX_DISCARD_RETRIES = 30          # coupling.discard_retries: smallest retried s
 # the keys of each section, and the schema --set overrides navigate by
 TOP_KEYS = ("name", "version", "description", "start_time", "stop_time", "fmus",
             "connections", "coupling", "output", "analysis", "compare")
-FMU_KEYS = ("path", "fmu", "parameters", "substeps")
+FMU_KEYS = ("path", "fmu", "parameters", "substeps", "isolation")
+ISOLATION = ("none", "process")   # fmus.<name>.isolation, coupling.isolation
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
-                 "interpolation_order", "substeps", "discard_retries", "options")
+                 "interpolation_order", "substeps", "discard_retries", "isolation", "parallel", "call_timeout",
+                 "options")
 OUTPUT_KEYS = ("interval", "signals", "format")
 OUTPUT_FORMATS = ("csv", "parquet")
 # override navigation: (schema, key) -> schema of the child; (schema) -> default
@@ -46,6 +48,7 @@ class FmuSpec:
     parameters: Mapping[str, Any] = field(default_factory=dict)   # name -> value (float/int/bool/str)
     substeps: int | None = None              # per-FMU override of coupling.substeps
     line: int | None = None                  # line of the entry in the YAML file
+    isolation: str | None = None             # "process" | "none"; None -> coupling.isolation
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -86,6 +89,9 @@ class CouplingSpec:
     interpolation_order: int = 0             # 0..3
     substeps: int = 1                        # >= 1
     discard_retries: int = 0                 # 0..30: halvings of a macro step an FMU discards (0: stop)
+    isolation: str = "none"                  # default of fmus.<name>.isolation: "process" | "none"
+    parallel: bool = True                    # step the FMUs of a stage concurrently (workers only)
+    call_timeout: float | None = None        # [s] longest wait for an isolated FMU's answer; None: no limit
     options: Mapping[str, Any] = field(default_factory=dict)  # scheme-specific extras (e.g. monolithic rtol)
 
 

@@ -17,7 +17,7 @@ import yaml
 
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario.model import (
-    CONNECTION_KEYS, COUPLING_KEYS, FMU_KEYS, MAX_DISCARD_RETRIES, MAX_ORDER, OUTPUT_FORMATS, OUTPUT_KEYS,
+    CONNECTION_KEYS, COUPLING_KEYS, FMU_KEYS, ISOLATION, MAX_DISCARD_RETRIES, MAX_ORDER, OUTPUT_FORMATS, OUTPUT_KEYS,
     SCENARIO_VERSION,
     SCHEMES, TOP_KEYS, ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario)
 from orchestrator.scenario.nodes import NodeReader, YamlLoader, did_you_mean, flatten_merges
@@ -66,7 +66,7 @@ class Draft:
             params = {f["name"]: {k: v for k, (v, _) in f["parameters"].items()} for f in fmus}
         return Scenario(
             fmus=tuple(FmuSpec(name=f["name"], path=f["path"], parameters=params[f["name"]],
-                               substeps=f["substeps"], line=f["line"]) for f in fmus),
+                               substeps=f["substeps"], line=f["line"], isolation=f["isolation"]) for f in fmus),
             connections=tuple(ConnectionSpec(src=c["from"], dst=c["to"], gain=c["gain"], offset=c["offset"],
                                              line=c["line"]) for c in self.connections),
             coupling=CouplingSpec(**self.coupling),
@@ -150,6 +150,7 @@ class SectionReader(NodeReader):
         names = [f["name"] for f in fmus]
         given_stop = None if stop is FROM_FMUS else stop
         coupling = self.load_coupling(get("coupling"), names, start, given_stop)
+        self.default_isolation = (coupling or {}).get("isolation") or "none"
         interval, signals = self.load_output(get("output"), given_stop, start)
         self.check_rows(get("output"), interval, coupling, start, given_stop)
         connections = self.load_connections(get("connections"))
@@ -190,7 +191,7 @@ class SectionReader(NodeReader):
                                 f"name: {', '.join(our_fmus())}) (got {'both' if 'path' in entry else 'neither'}); "
                                 f"write '{name}: {{path: X.fmu}}' or '{name}: {{fmu: JournalBearing}}'")
             spec = {"name": name, "line": knode.start_mark.line + 1 if knode.start_mark else None,
-                    "node": knode, "path": None, "parameters": {}, "substeps": None}
+                    "node": knode, "path": None, "parameters": {}, "substeps": None, "isolation": None}
             if "path" in entry:
                 p = self.string(entry["path"][1], f"fmus.{name}.path", "give the FMU file, relative to this file")
                 if p is not None and (any(ord(ch) < 32 for ch in p) or len(p) > 4096):
@@ -213,6 +214,8 @@ class SectionReader(NodeReader):
             if "substeps" in entry:
                 spec["substeps"] = self.integer(entry["substeps"][1], f"fmus.{name}.substeps", 1, MAX_SUBSTEPS,
                                                 "use a whole number of sub-steps per macro step")
+            if "isolation" in entry:
+                spec["isolation"] = self.isolation(entry["isolation"][1], f"fmus.{name}.isolation")
             if "parameters" in entry:
                 pmap = self.mapping(entry["parameters"][1], f"fmus.{name}.parameters",
                                     fix="write 'parameters: {name: value, ...}'")
@@ -297,6 +300,7 @@ class SectionReader(NodeReader):
                 log.warning("%s: coupling.discard_retries = %d is ignored by the monolithic scheme (one "
                             "integrator with its own step-size control, no macro steps to retry)",
                             self.loc(section["discard_retries"][1]), v)
+        ok &= self.load_worker_keys(section, c)
         if "options" in section:
             if not isinstance(section["options"][1], yaml.MappingNode):
                 self.err(section["options"][1], f"'coupling.options' must be a mapping (got "
@@ -329,6 +333,37 @@ class SectionReader(NodeReader):
             self.err(node, f"the run writes (stop_time - start_time) / output.interval = {(stop - start) / every:.3g} "
                            f"rows of results (the limit is {MAX_OUTPUT_ROWS:.0e}); set a larger 'output.interval' "
                            "(rows are written every interval, by default every macro step)")
+
+    def isolation(self, node, what: str) -> str | None:
+        v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
+        if v not in ISOLATION:
+            self.err(node, f"'{what}' must be one of {list(ISOLATION)} (got {self.got(node)}); use 'process' to "
+                           "run the FMU in a worker process of its own (docs/coupling.md), 'none' to load it into "
+                           "the master")
+            return None
+        return v
+
+    def load_worker_keys(self, section: dict, c: dict) -> bool:
+        """coupling.isolation, coupling.parallel, coupling.call_timeout (FMUs in worker processes)."""
+        ok = True
+        if "isolation" in section:
+            v = self.isolation(section["isolation"][1], "coupling.isolation")
+            ok &= v is not None
+            c["isolation"] = v
+        if "parallel" in section:
+            node = section["parallel"][1]
+            v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
+            if not isinstance(v, bool):
+                self.err(node, f"'coupling.parallel' must be true or false (got {self.got(node)}); true steps the "
+                               "isolated FMUs of a stage at the same time")
+                ok = False
+            c["parallel"] = v
+        if "call_timeout" in section:
+            v = self.number(section["call_timeout"][1], "coupling.call_timeout", positive=True,
+                            fix="give the longest time in seconds an isolated FMU may take for one call, e.g. 60")
+            ok &= v is not None
+            c["call_timeout"] = v
+        return ok
 
     def load_output(self, node, stop, start):
         if node is None:

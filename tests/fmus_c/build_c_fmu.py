@@ -1,4 +1,4 @@
-"""Build the native (C) test FMUs ``LinearBearing`` and ``AllTypes`` with gcc.
+"""Build the native (C) test FMUs ``LinearBearing``, ``AllTypes`` and ``MisbehavingBearing`` with gcc.
 
 ``build_c_fmu(dest_dir, name) -> Path`` compiles ``<name>/*.c`` (e.g. ``LinearBearing/linear_bearing.c``)
 against the FMI 2.0 headers shipped with fmpy (``fmpy/c-code``) into
@@ -8,6 +8,11 @@ against the FMI 2.0 headers shipped with fmpy (``fmpy/c-code``) into
 the FMU into a temporary folder. Linux x86_64 only (the platform rotorcosim runs on).
 
 Run as a script to build into a folder: ``python tests/fmus_c/build_c_fmu.py OUT_DIR [NAME]``.
+
+``MisbehavingBearing`` is LinearBearing's source compiled with ``-DMISBEHAVING`` and its own
+``MisbehavingBearing/modelDescription.xml``: a LinearBearing that aborts, segfaults,
+``_exit``s, hangs, outputs NaN or returns fmi2Error at a chosen step (parameters
+``fault``, ``fault_step``), for the crash tests of FMUs in worker processes.
 
 ``build_c_fmu(dest, "AllTypes", fixed_step=True)`` builds ``AllTypesFixed.fmu``: the same
 model compiled with ``-DFIXED_STEP`` (it refuses a step size other than its first one) and
@@ -26,7 +31,9 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 MODEL = "LinearBearing"
-MODELS = ("LinearBearing", "AllTypes")
+MODELS = ("LinearBearing", "AllTypes", "MisbehavingBearing")
+# MisbehavingBearing: LinearBearing's C source compiled with -DMISBEHAVING, its own modelDescription.xml
+SOURCES = {"MisbehavingBearing": "LinearBearing"}
 SRC_DIR = HERE / MODEL
 
 
@@ -63,8 +70,9 @@ def build_c_fmu(dest_dir: str | Path, name: str = MODEL, *, fixed_step: bool = F
         raise RuntimeError(f"build_c_fmu builds linux64 binaries only (this is {sys.platform}/{platform.machine()})")
     dest_dir = Path(dest_dir)
     dest_dir.mkdir(parents=True, exist_ok=True)
-    sources = sorted(src_dir.glob("*.c"))
+    sources = sorted((HERE / SOURCES.get(name, name)).glob("*.c"))
     flags = ["-Wno-unused-parameter"] if name == "AllTypes" else []
+    flags += ["-DMISBEHAVING"] if name == "MisbehavingBearing" else []
     flags += ["-DFIXED_STEP"] if fixed_step else []
     with tempfile.TemporaryDirectory(prefix=f"{name}-build-") as tmp:
         so = Path(tmp) / f"{name}.so"

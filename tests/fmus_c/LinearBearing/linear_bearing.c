@@ -13,17 +13,38 @@
  *
  * Built by tests/fmus_c/build_c_fmu.py (gcc -shared -fPIC -O2) against the
  * FMI 2.0 headers shipped with fmpy.
+ *
+ * Compiled with -DMISBEHAVING this source is the test FMU "MisbehavingBearing"
+ * (tests/fmus_c/MisbehavingBearing/modelDescription.xml): the same bearing plus
+ * two Integer parameters, fault (vr 9) and fault_step (vr 10, default 5). At the
+ * fault_step-th call of fmi2DoStep of an instance (counted per instance, not
+ * rolled back by fmi2SetFMUstate) it misbehaves on purpose:
+ *   fault 0 nothing, 1 abort(), 2 a segmentation fault (write through NULL),
+ *   3 _exit(3), 4 hang (sleeps forever, ignores nothing but SIGKILL in effect),
+ *   5 NaN in Fx from then on (returns fmi2OK), 6 returns fmi2Error.
+ * It tests what a co-simulation master does when an FMU crashes or hangs.
  */
 
+#ifdef MISBEHAVING
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdlib.h>
+#include <time.h>
+#include <unistd.h>
+#endif
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "fmi2Functions.h"
 
+#ifdef MISBEHAVING
+#define MODEL_GUID "{5b0d7a52-0c1e-4d55-9f0e-6c7a43b1d002}"
+enum { VR_K, VR_C, VR_X, VR_Y, VR_VX, VR_VY, VR_OMEGA, VR_FX, VR_FY, N_VARS, VR_FAULT = N_VARS, VR_FAULT_STEP };
+#else
 #define MODEL_GUID "{8c4e810f-3df3-4a00-8276-176fa3c9f001}"
-
 enum { VR_K, VR_C, VR_X, VR_Y, VR_VX, VR_VY, VR_OMEGA, VR_FX, VR_FY, N_VARS };
+#endif
 
 typedef enum {
     ST_INSTANTIATED = 1,
@@ -44,6 +65,9 @@ typedef struct {
     char *instanceName;
     fmi2CallbackFunctions cb;   /* copy: the importer's struct may go away */
     fmi2Boolean loggingOn;
+#ifdef MISBEHAVING
+    int fault, fault_step, steps, nan;   /* steps: fmi2DoStep calls so far (not part of the FMU state) */
+#endif
 } Instance;
 
 static const double START[N_VARS] = {1.0e6, 200.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
@@ -93,6 +117,25 @@ static void compute_outputs(Data *d)
     d->v[VR_FX] = -d->v[VR_K] * d->v[VR_X] - d->v[VR_C] * d->v[VR_VX];
     d->v[VR_FY] = -d->v[VR_K] * d->v[VR_Y] - d->v[VR_C] * d->v[VR_VY];
 }
+
+#ifdef MISBEHAVING
+/* the fault of fmi2DoStep number inst->steps; returns fmi2Error for fault 6, else fmi2OK */
+static fmi2Status misbehave(Instance *inst)
+{
+    struct timespec second = {1, 0};
+    volatile int *nowhere = NULL;
+    if (inst->steps != inst->fault_step) return fmi2OK;
+    switch (inst->fault) {
+    case 1: abort();
+    case 2: *nowhere = 1; return fmi2OK;            /* SIGSEGV */
+    case 3: _exit(3);
+    case 4: for (;;) nanosleep(&second, NULL);      /* hang */
+    case 5: inst->nan = 1; return fmi2OK;
+    case 6: return fail(inst, "fmi2DoStep", "fault 6: fmi2Error on purpose (MisbehavingBearing test FMU)");
+    default: return fmi2OK;
+    }
+}
+#endif
 
 #define ALL_STATES (ST_INSTANTIATED | ST_INITIALIZATION | ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR)
 #define RUNNING (ST_INITIALIZATION | ST_STEP_COMPLETE)
@@ -152,6 +195,12 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     compute_outputs(&inst->d);
     inst->d.time = 0.0;
     inst->d.state = ST_INSTANTIATED;
+#ifdef MISBEHAVING
+    inst->fault = 0;
+    inst->fault_step = 5;
+    inst->steps = 0;
+    inst->nan = 0;
+#endif
     logf_(inst, fmi2OK, "logEvents", "fmi2Instantiate: k = %g N/m, c = %g N s/m", inst->d.v[VR_K],
           inst->d.v[VR_C]);
     return inst;
@@ -223,6 +272,9 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         return fmi2Error;
     if (nvr > 0 && (!vr || !value)) return fail(inst, "fmi2GetReal", "NULL argument");
     compute_outputs(&inst->d);
+#ifdef MISBEHAVING
+    if (inst->nan) inst->d.v[VR_FX] = NAN;
+#endif
     for (i = 0; i < nvr; i++) {
         if (vr[i] >= N_VARS) {
             logf_(inst, fmi2Error, "logStatusError", "fmi2GetReal: unknown value reference %u", vr[i]);
@@ -274,8 +326,41 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         return fmi2Error;                                                                    \
     }
 
+#ifdef MISBEHAVING
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
+{
+    Instance *inst = (Instance *)c;
+    size_t i;
+    if (bad(c, "fmi2GetInteger", ALL_STATES)) return fmi2Error;
+    for (i = 0; i < nvr; i++) {
+        if (vr[i] != VR_FAULT && vr[i] != VR_FAULT_STEP) {
+            logf_(inst, fmi2Error, "logStatusError", "fmi2GetInteger: unknown value reference %u", vr[i]);
+            return fmi2Error;
+        }
+        value[i] = vr[i] == VR_FAULT ? inst->fault : inst->fault_step;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
+{
+    Instance *inst = (Instance *)c;
+    size_t i;
+    if (bad(c, "fmi2SetInteger", ST_INSTANTIATED | ST_INITIALIZATION)) return fmi2Error;
+    for (i = 0; i < nvr; i++) {
+        if (vr[i] == VR_FAULT) inst->fault = value[i];
+        else if (vr[i] == VR_FAULT_STEP) inst->fault_step = value[i];
+        else {
+            logf_(inst, fmi2Error, "logStatusError", "fmi2SetInteger: unknown value reference %u", vr[i]);
+            return fmi2Error;
+        }
+    }
+    return fmi2OK;
+}
+#else
 NO_VARS(fmi2GetInteger, fmi2Integer, )
 NO_VARS(fmi2SetInteger, fmi2Integer, const)
+#endif
 NO_VARS(fmi2GetBoolean, fmi2Boolean, )
 NO_VARS(fmi2SetBoolean, fmi2Boolean, const)
 NO_VARS(fmi2GetString, fmi2String, )
@@ -392,7 +477,12 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     }
     inst->d.time = currentCommunicationPoint + communicationStepSize;
     compute_outputs(&inst->d);
+#ifdef MISBEHAVING
+    inst->steps++;
+    return misbehave(inst);
+#else
     return fmi2OK;
+#endif
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c)

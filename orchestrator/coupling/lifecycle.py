@@ -1,0 +1,234 @@
+"""The life cycle of a run folder: one run at a time, no stale files, a summary on every exit path.
+
+Call order (``orchestrator.run`` does this)::
+
+    with RunFolder(out_dir, scenario) as folder:   # lock; earlier run's files -> previous/; summary "running"
+        ... build FMUs, set up the master ...        # an exception here: summary "failed", "setup failed: ..."
+        with folder.stop_signals(master):          # SIGINT / SIGTERM stop after the current macro step
+            result = master.run()
+        folder.finish(summary)                     # the final summary.json (started_at/finished_at added)
+    # leaving the block unlocks the folder; an exception before finish() writes a failed summary
+
+Rules:
+
+* **Lock**: ``out_dir/.rotorcosim.lock`` is held with ``flock`` for the whole run (the
+  kernel drops it when the process dies, however it dies). A second run into the folder is
+  refused with a :class:`~orchestrator.errors.LifecycleError` that names the first
+  (scenario, pid, start time). The lock file stays; it holds the current holder.
+* **Earlier runs**: ``results.csv`` and ``summary.json`` left by an earlier run are moved
+  into ``out_dir/previous/`` (replacing what was there) before anything is written, so a
+  run that fails early never sits beside another run's results, and a run killed hard
+  leaves a summary that says ``running``, never another run's ``finished``.
+* **summary.json** is written at the start (``status: running``, the scenario, its file,
+  ``started_at`` in UTC, the pid) and rewritten at the end; written atomically (temporary
+  file + rename) and never through a symbolic link
+  (:func:`orchestrator.results.safe_write.write_text_no_follow`).
+* **results.csv** is opened with :func:`orchestrator.results.safe_write.open_no_follow`:
+  never written through a link.
+* **Signals**: inside :meth:`RunFolder.stop_signals` the first SIGINT (Ctrl-C) or SIGTERM
+  asks the master to stop after the current macro step (``master.interrupt_requested``);
+  the run then keeps its rows and the summary says "interrupted by the user at t=..." or
+  "terminated by signal SIGTERM at t=...". A second signal stops at once. The exception
+  that leaves :func:`orchestrator.run` is :class:`RunStopped` (a KeyboardInterrupt) with
+  ``exit_code`` 130 (SIGINT) or 143 (SIGTERM).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import fcntl
+import json
+import os
+import signal
+import sys
+import threading
+from pathlib import Path
+from typing import Any
+
+from orchestrator.errors import LifecycleError
+
+RUN_FILES = ("results.csv", "results.parquet", "summary.json")
+LOCK_NAME = ".rotorcosim.lock"
+PREVIOUS = "previous"
+
+
+class RunStopped(KeyboardInterrupt):
+    """The run was stopped by a signal; ``exit_code`` is 128 + the signal number."""
+
+    def __init__(self, signum: int = signal.SIGINT):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+        self.exit_code = 128 + int(signum)
+
+
+def _raise_stopped(signum, frame):
+    raise RunStopped(signum)
+
+
+def _now() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+class RunFolder:
+    """One run's hold on its output folder (see the module docstring for the rules)."""
+
+    def __init__(self, out_dir: Path | str, scenario, *, write_summary=None):
+        self.out_dir = Path(out_dir)
+        self.scenario = scenario
+        self.started_at: str | None = None
+        self.finished = False
+        self.stop_signal: int | None = None      # the signal that asked the run to stop
+        self._lock_fd: int | None = None
+        self._term_handler = None
+        if write_summary is None:
+            from orchestrator.results.summary import write_summary
+        self._write_summary = write_summary
+
+    # -- entering ---------------------------------------------------------------
+    def __enter__(self) -> "RunFolder":
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self._lock()
+        try:
+            self.started_at = _now()
+            self._move_aside()
+            self._write(self._head("running", "the run is in progress (or was killed hard: no final summary)"))
+        except BaseException:
+            self._unlock()
+            raise
+        if threading.current_thread() is threading.main_thread():
+            # until stop_signals takes over (and after it), SIGTERM stops the run at once, like a
+            # first Ctrl-C outside the stepping loop; __exit__ then writes the failed summary
+            self._term_handler = signal.signal(signal.SIGTERM, _raise_stopped)
+        return self
+
+    def _holder(self) -> dict:
+        sc = self.scenario
+        return {"scenario": getattr(sc, "name", None),
+                "scenario_file": str(sc.source) if getattr(sc, "source", None) else None,
+                "pid": os.getpid(), "started_at": self.started_at or _now()}
+
+    def _lock(self) -> None:
+        path = self.out_dir / LOCK_NAME
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0), 0o644)
+        except OSError as e:
+            raise LifecycleError(f"cannot create the lock file {path} ({e.strerror}); check the output folder "
+                                 "(it must be writable, and the lock file no symbolic link)") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            try:
+                holder = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
+            except ValueError:
+                holder = {}
+            os.close(fd)
+            who = (f"scenario '{holder.get('scenario')}' ({holder.get('scenario_file')}), pid {holder.get('pid')}, "
+                   f"started {holder.get('started_at')} UTC") if holder else "another run (details unreadable)"
+            raise LifecycleError(f"output folder {self.out_dir} is in use by another run: {who}; wait until it "
+                                 "ends or stop it, or choose another output folder (--out)") from None
+        self._lock_fd = fd
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, json.dumps(self._holder()).encode(), 0)
+
+    def _move_aside(self) -> None:
+        present = [n for n in RUN_FILES if os.path.lexists(self.out_dir / n)]
+        if not present:
+            return
+        prev = self.out_dir / PREVIOUS
+        if prev.is_symlink() or (prev.exists() and not prev.is_dir()):
+            raise LifecycleError(f"{prev} is not a folder; rotorcosim moves an earlier run's files there before a "
+                                 "new run. Remove or rename it")
+        prev.mkdir(exist_ok=True)
+        for n in RUN_FILES:
+            with contextlib.suppress(FileNotFoundError):
+                (prev / n).unlink()
+        for n in present:
+            os.replace(self.out_dir / n, prev / n)     # moves a link itself, never its target
+
+    # -- summaries --------------------------------------------------------------
+    def _head(self, status: str, message: str) -> dict:
+        h = self._holder()
+        return {"scenario": h["scenario"], "scenario_file": h["scenario_file"], "status": status, "message": message,
+                "started_at": self.started_at, "pid": h["pid"]}
+
+    def _write(self, summary: dict) -> None:
+        self._write_summary(self.out_dir / "summary.json", summary)
+
+    def finish(self, summary: dict) -> None:
+        """Write the final summary.json (``started_at``, ``finished_at`` added)."""
+        full = dict(summary)
+        full.setdefault("started_at", self.started_at)
+        full["finished_at"] = _now()
+        self._write(full)
+        self.finished = True
+
+    def fail(self, message: str, **extra: Any) -> None:
+        """Write a failed summary.json (used when the run ends before it has a result)."""
+        s = self._head("failed", message)
+        s.update(extra)
+        self.finish(s)
+
+    def stop_message(self, t: float | None) -> str:
+        at = f" at t={t:.12g} s" if t is not None else ""
+        if self.stop_signal in (None, signal.SIGINT):
+            return f"interrupted by the user{at}"
+        return f"terminated by signal {signal.Signals(self.stop_signal).name}{at}"
+
+    # -- leaving ----------------------------------------------------------------
+    def __exit__(self, exc_type, exc, tb) -> None:
+        try:
+            if exc is not None and not self.finished:
+                if isinstance(exc, KeyboardInterrupt):
+                    signum = getattr(exc, "signum", None)
+                    if signum is not None:
+                        self.stop_signal = signum
+                    self.fail(self.stop_message(None) + " before the co-simulation started")
+                else:
+                    extra = {"failure": exc.report()} if callable(getattr(exc, "report", None)) else {}
+                    self.fail(f"setup failed: {exc}", error=type(exc).__name__, **extra)
+        finally:
+            if self._term_handler is not None:
+                signal.signal(signal.SIGTERM, self._term_handler)
+                self._term_handler = None
+            self._unlock()
+
+    def _unlock(self) -> None:
+        if self._lock_fd is not None:
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._lock_fd, 0)
+                fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+            os.close(self._lock_fd)
+            self._lock_fd = None
+
+    # -- signals ------------------------------------------------------------------
+    @contextlib.contextmanager
+    def stop_signals(self, master):
+        """SIGINT and SIGTERM stop ``master`` after its current macro step; a second one at once.
+
+        The first signal only sets ``master.interrupt_requested`` (``master.run`` then raises
+        KeyboardInterrupt before the next macro step, from master code, never inside an FMU:
+        a KeyboardInterrupt inside a PythonFMU slave becomes fmi2Fatal and leaks the slave's
+        objects, docs/dev/requests.md). Only in the main thread (elsewhere Python delivers no
+        signals and nothing changes).
+        """
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+
+        def handler(signum, frame):
+            if master.interrupt_requested:
+                raise RunStopped(signum)
+            self.stop_signal = signum
+            master.interrupt_requested = True
+            what = "interrupt" if signum == signal.SIGINT else signal.Signals(signum).name
+            again = "Ctrl-C" if signum == signal.SIGINT else "the signal"
+            print(f"\n{what}: stopping after this macro step ({again} again to stop at once)",
+                  file=sys.stderr, flush=True)
+
+        previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield
+        finally:
+            for s, h in previous.items():
+                signal.signal(s, h)

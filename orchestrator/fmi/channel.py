@@ -1,0 +1,280 @@
+"""The channel between the master and one FMU worker process (see :mod:`orchestrator.fmi.worker`).
+
+:class:`WorkerChannel` starts the worker (``python -m orchestrator.fmi.worker_main``),
+owns the socket, the shared memory (``arena``) and the process, sends command lists and
+waits for their replies, and turns a dead or silent worker into
+:class:`~orchestrator.errors.FmuCrashError`. One message may be outstanding at a time:
+:meth:`send` then :meth:`receive` (or :meth:`round_trip` for both).
+"""
+
+from __future__ import annotations
+
+import logging
+import mmap
+import os
+import select
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import weakref
+from multiprocessing import connection as mp_connection
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from orchestrator.errors import CosimError, CouplingError, FmuCallError, FmuCrashError, FmuError, LifecycleError, ScenarioError
+
+log = logging.getLogger(__name__)
+
+ARENA_BYTES = 1 << 20            # value buffers of one worker: 131 056 doubles after the call register
+REGISTER_BYTES = 16                    # call register: int64 function code, float64 simulation time
+# command -> FMI function (for the call register and error messages)
+FUNCTIONS = ("idle", "fmi2Instantiate", "fmi2Set* (parameters)", "fmi2SetupExperiment",
+             "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2SetReal", "fmi2GetReal",
+             "fmi2SetRealInputDerivatives", "fmi2DoStep", "fmi2GetFMUstate", "fmi2SetFMUstate",
+             "fmi2FreeFMUstate", "fmi2Terminate", "fmi2FreeInstance", "register",
+             "fmi2SetInteger/Boolean/String", "fmi2GetInteger/Boolean/String", "fmi2GetBooleanStatus")
+CODES = {"params": 2, "setup": 3, "enter": 4, "exit": 5, "set": 6, "get": 7, "der": 8, "step": 9,
+         "gs": 10, "ss": 11, "fs": 12, "term": 13, "free": 14, "reg": 15, "setv": 16, "getv": 17, "ended": 18}
+_ERRORS = {c.__name__: c for c in (ScenarioError, FmuError, LifecycleError, CouplingError)}
+
+
+def signal_name(exit_code: int | None) -> str | None:
+    """'SIGSEGV' for exit code -11 (a process killed by a signal), else None."""
+    if exit_code is None or exit_code >= 0:
+        return None
+    try:
+        return signal.Signals(-exit_code).name
+    except ValueError:
+        return f"signal {-exit_code}"
+
+
+def _arena() -> tuple[int, mmap.mmap]:
+    """A shared memory block for the value buffers: (file descriptor, mapping).
+
+    A memfd on Linux (no name, nothing to clean up, gone when both processes close it),
+    else an unlinked temporary file. The worker inherits the descriptor and maps it too.
+    """
+    if hasattr(os, "memfd_create"):
+        fd = os.memfd_create("rotorcosim-fmu-values", 0)     # not close-on-exec: the worker inherits it
+    else:                                                   # pragma: no cover - non-Linux
+        fd, path = tempfile.mkstemp(prefix="rotorcosim-fmu-values-")
+        os.unlink(path)
+    try:
+        os.ftruncate(fd, ARENA_BYTES)
+        return fd, mmap.mmap(fd, ARENA_BYTES)
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def _worker_env() -> dict:
+    """The worker's environment: ours, with this package importable (also from a source checkout)."""
+    env = dict(os.environ)
+    root = str(Path(__file__).resolve().parents[2])
+    env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    return env
+
+
+FREE_TIMEOUT = 30.0       # s: longest wait for fmi2FreeInstance (and what is queued before it) in free()
+STARTUP_TIMEOUT = 300.0   # s: the worker's interpreter must be up by then (imports only, no FMU code)
+
+
+
+class WorkerChannel:
+    """Socket, shared memory and process of one worker serving FMU instance ``name``.
+
+    ``time`` is set by the owner (the simulation time of its last call) for crash reports
+    of calls the call register does not cover; ``crash`` is the FmuCrashError once the
+    worker is dead (every later call raises it).
+    """
+
+    def __init__(self, name: str, fmu_path: Path, work_dir: Path | str, call_timeout: float | None):
+        self.name, self.fmu_path, self.call_timeout = name, fmu_path, call_timeout
+        self.time: float | None = None
+        self.crash: FmuCrashError | None = None
+        self.outstanding: tuple | None = None    # (message, function) sent, reply not yet read
+        self._closed = False
+        self._arena_fd, self.arena = _arena()
+        self._register = np.ndarray((2,), dtype=np.float64, buffer=self.arena)
+        self._code = np.ndarray((1,), dtype=np.int64, buffer=self.arena)
+        mine, theirs = socket.socketpair()
+        try:
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", "orchestrator.fmi.worker_main", str(theirs.fileno()), str(self._arena_fd),
+                 name, str(fmu_path), str(work_dir)],
+                pass_fds=(theirs.fileno(), self._arena_fd), env=_worker_env(), stdin=subprocess.DEVNULL)
+        except BaseException:
+            mine.close()
+            theirs.close()
+            self._release()
+            raise
+        theirs.close()
+        self._conn = mp_connection.Connection(mine.detach())
+        self._poller = select.poll()
+        self._poller.register(self._conn.fileno(), select.POLLIN)
+        # at interpreter exit, kill a worker nobody closed (it ignores SIGTERM)
+        self._finalizer = weakref.finalize(self, _kill_process, self._proc)
+        try:
+            self._started()
+        except BaseException:
+            self.close()
+            raise
+
+    @property
+    def pid(self) -> int:
+        return self._proc.pid
+
+    def alive(self) -> bool:
+        return self.crash is None and self._proc.poll() is None
+
+    def round_trip(self, msg: list, function: str) -> Any:
+        """Send ``msg``, wait for the reply, raise what it reports (a reply outstanding is read first)."""
+        if self.outstanding is not None:
+            self.receive()
+        self.send(msg, function)
+        return self.receive()
+
+    def send(self, msg: list, function: str) -> None:
+        if self.crash is not None:
+            raise self.crash
+        self.outstanding = (msg, function)
+        try:
+            self._conn.send(msg)
+        except (BrokenPipeError, ConnectionResetError, OSError):
+            self.outstanding = None
+            raise self._died(function) from None
+
+    def receive(self) -> Any:
+        """Wait for the reply to the message sent last; raise what it reports."""
+        msg, function = self.outstanding
+        try:
+            reply = self._wait(function)
+        except (EOFError, ConnectionResetError, OSError):
+            raise self._died(function) from None
+        finally:
+            self.outstanding = None
+        if reply[0] == "ok":
+            self._relog(reply[2])
+            return reply[1]
+        _, index, kind, payload, logs = reply
+        self._relog(logs)
+        raise self._rebuild(kind, payload, msg[index])
+
+    def _started(self) -> None:
+        """Wait for the worker's interpreter to come up (not bounded by call_timeout: that is Python
+        starting and importing numpy and fmpy, which a loaded machine makes slow, not the FMU)."""
+        timeout, self.call_timeout = self.call_timeout, STARTUP_TIMEOUT
+        try:
+            if self._wait("starting the worker process") != ("hello",):    # pragma: no cover - defensive
+                raise FmuError(f"FMU instance '{self.name}': the worker process answered nonsense at start-up")
+        except (EOFError, OSError):
+            raise self._died("starting the worker process") from None
+        finally:
+            self.call_timeout = timeout
+
+    def _wait(self, function: str):
+        # the worker holds the only other end of the socket: its death makes the socket
+        # readable (EOF), so one wait covers answer, crash and timeout
+        try:
+            # Connection.poll builds a selector per call (~10 us); one poll object and a plain
+            # blocking recv when there is no timeout cost next to nothing
+            if self.call_timeout is None or self._poller.poll(self.call_timeout * 1000.0):
+                return self._conn.recv()         # EOFError if the worker died
+        except (EOFError, OSError):
+            raise
+        except BaseException:                    # KeyboardInterrupt (second Ctrl-C) etc.: the reply never comes
+            self._kill()
+            self.crash = self._crash_error(function, "interrupted while waiting for the worker (killed)")
+            raise
+        self._kill()
+        limit = f"coupling.call_timeout = {self.call_timeout:g} s" if function != "starting the worker process" \
+            else f"{self.call_timeout:g} s (start-up)"
+        self.crash = self._crash_error(function, f"timeout after {self.call_timeout:g} s",
+                                       timeout=self.call_timeout,
+                                       detail=f"no answer within {limit}; the worker process was killed (SIGKILL). "
+                                              "The FMU hangs or is much slower than expected; raise "
+                                              "coupling.call_timeout if it is only slow")
+        raise self.crash
+
+    def _died(self, function: str) -> FmuCrashError:
+        try:
+            code = self._proc.wait(5.0)
+        except subprocess.TimeoutExpired:
+            code = None
+        sig = signal_name(code)
+        if sig:
+            cause, detail = sig, f"its worker process was killed by signal {sig} (exit code {code})"
+        elif code is None:
+            self._kill()
+            cause, detail = "lost connection", "the connection to its worker process broke (worker killed)"
+        else:
+            cause, detail = f"exit code {code}", f"its worker process exited with code {code}"
+        self.crash = self._crash_error(function, cause, signal=sig, exit_code=code, detail=detail + (
+            "; the FMU's binary failed: check its log above, its inputs at this time and its parameters"))
+        return self.crash
+
+    def _crash_error(self, function: str, cause: str, **kw) -> FmuCrashError:
+        code = int(self._code[0])
+        if 0 < code < len(FUNCTIONS) and code != CODES["reg"]:
+            function = FUNCTIONS[code]                  # what the worker was executing when it stopped
+            t = float(self._register[1])
+        else:
+            t = self.time
+        if function == "fmi2Instantiate":
+            t = None
+        return FmuCrashError(self.name, function, fmu=str(self.fmu_path), time=t, cause=cause, **kw)
+
+    def _kill(self) -> None:
+        _kill_process(self._proc)
+
+    @staticmethod
+    def _relog(records) -> None:
+        for name, level, text in records:
+            logging.getLogger(name).log(level, "%s", text)
+
+    def _rebuild(self, kind: str, payload, cmd: tuple) -> CosimError:
+        function = FUNCTIONS[CODES.get(cmd[0], 0)] if cmd[0] != "init" else "fmi2Instantiate"
+        if kind == "FmuCallError":
+            return FmuCallError(*payload)
+        if kind == "ScenarioError":
+            return ScenarioError(payload)
+        if kind in _ERRORS:
+            return _ERRORS[kind](payload)
+        return FmuCallError(self.name, function, "exception", f"{kind} in the worker: {payload}")
+
+    def close(self) -> None:
+        """Kill the worker if it still runs, close the socket, release the shared memory."""
+        if self._closed:
+            return
+        self._closed = True
+        self._kill()
+        self._conn.close()
+        self._release()
+        self._finalizer.detach()
+
+    def wait_exit(self, timeout: float) -> None:
+        try:
+            self._proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            pass
+
+    def _release(self) -> None:
+        self._register = self._code = None
+        try:
+            self.arena.close()
+        except BufferError as e:   # pragma: no cover - defensive
+            log.warning("%s: releasing the shared memory failed: %s", self.name, e)
+        os.close(self._arena_fd)
+
+
+def _kill_process(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.kill()
+    try:
+        proc.wait(5.0)
+    except subprocess.TimeoutExpired:   # pragma: no cover - a process SIGKILL cannot stop
+        log.warning("worker process %d did not exit after SIGKILL", proc.pid)

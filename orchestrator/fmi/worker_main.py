@@ -1,0 +1,190 @@
+"""The worker side of :mod:`orchestrator.fmi.worker`: ``python -m orchestrator.fmi.worker_main``.
+
+Started by :class:`~orchestrator.fmi.worker.WorkerSubsystem` with the socket and the
+shared-memory descriptors it inherits; loads the FMU with the in-process adapter
+(:class:`orchestrator.fmi.subsystem.Subsystem`) and executes the command lists it receives until
+``free`` or the end of the socket. Replies: ``("ok", result, log records)`` or
+``("err", index of the failed command, kind, payload, log records)``; the call register
+at the start of the shared memory holds the FMI function being executed and its time.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import logging
+import mmap
+import os
+import signal
+import sys
+from multiprocessing import connection as mp_connection
+from typing import Any
+
+import numpy as np
+
+from orchestrator.errors import FmuCallError, ScenarioError
+from orchestrator.fmi.subsystem import RealBatch
+from .channel import ARENA_BYTES, CODES
+from .worker import SLOTS
+
+class _Collect(logging.Handler):
+    """Log records of the worker at WARNING and above, sent to the master with each reply."""
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.records: list = []
+
+    def emit(self, record):
+        self.records.append((record.name, record.levelno, record.getMessage()))
+
+    def take(self) -> list:
+        out, self.records = self.records, []
+        return out
+
+
+def _encode(e: BaseException) -> tuple[str, Any]:
+    """(kind, payload) of an exception, for :meth:`WorkerSubsystem._rebuild` in the master."""
+    if isinstance(e, FmuCallError):
+        head = f"FMU instance '{e.instance}': {e.function} returned {e.status}"
+        text = str(e)
+        detail = text[len(head) + 2:] if text.startswith(head + ": ") else ""
+        return "FmuCallError", (e.instance, e.function, e.status, detail)
+    if isinstance(e, ScenarioError):
+        return "ScenarioError", e.problems
+    return type(e).__name__, str(e)
+
+
+def _worker_setup() -> _Collect:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)   # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):   # pragma: no cover
+            pass
+    handler = _Collect()
+    root = logging.getLogger()
+    root.addHandler(handler)
+    root.setLevel(logging.WARNING)
+    return handler
+
+
+def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str) -> None:
+    """Worker main: load the FMU, then execute command lists until 'free' or the socket closes."""
+    from orchestrator.fmi.subsystem import Subsystem
+
+    import fmpy.fmi2  # noqa: F401  (imported before "hello": the start-up is not the FMU's time)
+
+    logs = _worker_setup()
+    conn = mp_connection.Connection(conn_fd)
+    conn.send(("hello",))
+    arena = mmap.mmap(arena_fd, ARENA_BYTES)
+    os.close(arena_fd)
+    reg = np.ndarray((2,), dtype=np.float64, buffer=arena)
+    code = np.ndarray((1,), dtype=np.int64, buffer=arena)
+    sub = None
+    batches: dict[int, RealBatch] = {}
+    states: dict[int, Any] = {}
+    try:
+        msg = conn.recv()                         # [("init",)]
+        code[0] = 1
+        try:
+            sub = Subsystem(name, fmu_path, work_dir=work_dir)
+        except Exception as e:
+            conn.send(("err", 0, *_encode(e), logs.take()))
+            return
+        code[0] = 0
+        conn.send(("ok", None, logs.take()))
+        while True:
+            try:
+                msg = conn.recv()
+            except (EOFError, OSError):
+                return
+            result, done = None, False
+            for i, cmd in enumerate(msg):
+                op = cmd[0]
+                code[0] = CODES[op]
+                try:
+                    result, done = _execute(sub, op, cmd, batches, states, arena, reg)
+                except Exception as e:
+                    conn.send(("err", i, *_encode(e), logs.take()))
+                    break
+            else:
+                code[0] = 0
+                conn.send(("ok", result, logs.take()))
+            code[0] = 0
+            if done:
+                sub = None
+                return
+    finally:
+        if sub is not None:
+            sub.free()
+        batches.clear()
+        del reg, code
+        arena.close()
+        conn.close()
+
+
+def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) -> tuple[Any, bool]:
+    """One command in the worker; returns (result, worker done)."""
+    if op == "set":
+        sub.set_real(batches[cmd[1]])
+    elif op == "step":
+        reg[1] = cmd[1]
+        sub.no_set_prior_state = cmd[3]
+        sub.do_step(cmd[1], cmd[2])
+        reg[1] = cmd[1] + cmd[2]
+    elif op == "get":
+        sub.get_real(batches[cmd[1]])
+    elif op == "der":
+        sub.set_real_input_derivatives(batches[cmd[1]])
+    elif op == "setv":
+        from orchestrator.fmi.values import TypedBatch
+        b = TypedBatch(cmd[1], cmd[2], cmd[3])
+        if cmd[1] == "String":
+            b.set_strings(cmd[4])
+        else:
+            b.values[:] = cmd[4]
+        sub.set_values(b)
+    elif op == "getv":
+        from orchestrator.fmi.values import TypedBatch
+        b = TypedBatch(cmd[1], cmd[2], cmd[3])
+        sub.get_values(b)
+        return (b.strings() if cmd[1] == "String" else b.values.tolist()), False
+    elif op == "ended":
+        return sub.terminated_by_fmu(), False
+    elif op == "reg":
+        _, bid, offset, nbytes, vrs, orders = cmd
+        for k in range(SLOTS):
+            b = RealBatch([str(v) for v in vrs], vrs, orders)
+            b.c_values = (ctypes.c_double * max(b.n, 1)).from_buffer(arena, offset + k * nbytes)
+            b.values = np.ctypeslib.as_array(b.c_values)[: b.n]
+            batches[bid * SLOTS + k] = b
+    elif op == "gs":
+        states[cmd[1]] = sub.get_state()
+    elif op == "ss":
+        sub.set_state(states[cmd[1]])
+    elif op == "fs":
+        sub.free_state(states.pop(cmd[1]))
+    elif op == "params":
+        sub.set_parameters(cmd[1], out_dir=cmd[2])
+    elif op == "setup":
+        reg[1] = cmd[1]
+        sub.setup_experiment(cmd[1], cmd[2])
+    elif op == "enter":
+        sub.enter_initialization_mode()
+    elif op == "exit":
+        sub.exit_initialization_mode()
+    elif op == "term":
+        sub.terminate()
+    elif op == "free":
+        for s in list(states.values()):
+            sub.free_state(s)
+        states.clear()
+        batches.clear()
+        sub.free()
+        return dict(sub.calls), True
+    return None, False
+
+
+if __name__ == "__main__":       # started by WorkerSubsystem
+    _serve(int(sys.argv[1]), int(sys.argv[2]), *sys.argv[3:6])

@@ -1,0 +1,248 @@
+"""FMUs in worker processes at the adapter level (orchestrator.fmi.worker.WorkerSubsystem).
+
+The native test FMUs (tests/fmus_c, built with gcc at test time): LinearBearing, and
+MisbehavingBearing, the same bearing that aborts, segfaults, calls _exit(3), hangs, outputs
+NaN or returns fmi2Error at its 5th fmi2DoStep. The worker must give the same values and call
+counts as the in-process adapter, and turn every death of the worker into an FmuCrashError
+that names the instance, the FMU file, the FMI function, the simulation time and the cause.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import shutil
+import signal
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orchestrator.errors import FmuCallError, FmuCrashError, ScenarioError
+from orchestrator.fmi.worker import WorkerSubsystem, signal_name
+from orchestrator.fmi.subsystem import Subsystem
+
+pytestmark = [pytest.mark.integration,
+              pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")]
+
+HERE = Path(__file__).resolve().parent
+H = 1.0e-3
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory) -> Path:
+    spec = importlib.util.spec_from_file_location("build_c_fmu", HERE / "fmus_c" / "build_c_fmu.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    d = tmp_path_factory.mktemp("worker_fmus")
+    mod.build_c_fmu(d, "LinearBearing")
+    mod.build_c_fmu(d, "MisbehavingBearing")
+    return d
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:      # a zombie is dead too
+        return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
+    except OSError:
+        return False
+
+
+def _drive(sub, n: int, params=None) -> np.ndarray:
+    """Parameters, initialization, n set/doStep/get cycles, a state round trip; returns the outputs."""
+    sub.set_parameters({"k": 2.0e6, "c": 300.0, **(params or {})})
+    sub.setup_experiment(0.0, 1.0)
+    sub.enter_initialization_mode()
+    inb, outb = sub.real_batch(["x", "y", "vx", "vy"]), sub.real_batch(["Fx", "Fy"])
+    inb.values[:] = [1e-6, 0.0, 0.0, 0.0]
+    sub.set_real(inb)
+    out = [sub.get_real(outb).copy()]
+    sub.exit_initialization_mode()
+    for i in range(n):
+        inb.values[:] = [1e-5 * np.sin(i), -2e-5, 0.01 * i, 0.02]
+        sub.set_real(inb)
+        inb.values[:] = np.nan              # the adapter took the values at set_real
+        sub.do_step(i * H, H)
+        out.append(sub.get_real(outb).copy())
+    if sub.can_get_set_state:
+        s = sub.get_state()
+        inb.values[:] = [5e-5, 0, 0, 0]
+        sub.set_real(inb)
+        moved = sub.get_real(outb).copy()
+        sub.set_state(s)
+        sub.free_state(s)
+        out += [moved, sub.get_real(outb).copy()]
+    sub.terminate()
+    return np.array(out)
+
+
+def test_worker_gives_the_in_process_values_and_call_counts(fmus, tmp_path):
+    ref = Subsystem("b", fmus / "LinearBearing.fmu", work_dir=tmp_path / "a")
+    try:
+        expected = _drive(ref, 20)
+    finally:
+        ref.free()
+    w = WorkerSubsystem("b", fmus / "LinearBearing.fmu", work_dir=tmp_path / "b")
+    try:
+        got = _drive(w, 20)
+    finally:
+        w.free()
+    assert got.tobytes() == expected.tobytes()
+    assert dict(w.statistics()) == dict(ref.statistics())
+    assert got[-2][0] == pytest.approx(-2.0e6 * 5e-5)          # the state round trip really moved and came back
+    assert got[-1].tobytes() == got[-3].tobytes()
+    assert not _alive(w.pid)
+
+
+@pytest.mark.parametrize("fault, cause, sig, code", [(1, "SIGABRT", "SIGABRT", -6), (2, "SIGSEGV", "SIGSEGV", -11),
+                                                     (3, "exit code 3", None, 3)])
+def test_a_dying_worker_is_reported_with_function_time_and_cause(fmus, tmp_path, fault, cause, sig, code):
+    w = WorkerSubsystem("bearing1", fmus / "MisbehavingBearing.fmu", work_dir=tmp_path)
+    try:
+        with pytest.raises(FmuCrashError) as info:
+            _drive(w, 10, {"fault": fault})
+        e = info.value
+        assert (e.instance, e.function, e.status, e.cause, e.signal, e.exit_code) == (
+            "bearing1", "fmi2DoStep", "crashed", cause, sig, code)
+        assert e.time == pytest.approx(4 * H)                  # the 5th doStep starts at t = 4 ms
+        assert e.fmu == str(fmus / "MisbehavingBearing.fmu")
+        msg = str(e)
+        assert "bearing1" in msg and "MisbehavingBearing.fmu" in msg and "fmi2DoStep" in msg and "t=0.004 s" in msg
+        assert (sig or "exited with code 3") in msg
+        assert e.report()["cause"] == cause
+        assert not _alive(w.pid)
+        w.terminate()                                          # a dead worker: nothing to do, no error
+        with pytest.raises(FmuCrashError):                     # and every further call says why
+            w.do_step(1.0, H)
+    finally:
+        w.free()
+    w.free()                                                   # idempotent
+
+
+def test_a_hanging_fmu_is_killed_after_call_timeout(fmus, tmp_path):
+    w = WorkerSubsystem("bearing1", fmus / "MisbehavingBearing.fmu", work_dir=tmp_path, call_timeout=0.5)
+    try:
+        with pytest.raises(FmuCrashError) as info:
+            _drive(w, 10, {"fault": 4})
+        e = info.value
+        assert (e.status, e.function, e.timeout, e.signal) == ("timeout", "fmi2DoStep", 0.5, None)
+        assert e.time == pytest.approx(4 * H)
+        assert "coupling.call_timeout = 0.5 s" in str(e) and "did not answer" in str(e)
+        assert not _alive(w.pid)
+    finally:
+        w.free()
+
+
+def test_ctrl_c_while_an_fmu_hangs_kills_its_worker(fmus, tmp_path):
+    """No call_timeout: an interrupt (here SIGALRM raising KeyboardInterrupt) ends the wait."""
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGALRM, interrupt)
+    w = WorkerSubsystem("bearing1", fmus / "MisbehavingBearing.fmu", work_dir=tmp_path)
+    try:
+        w.set_parameters({"fault": 4, "fault_step": 1})
+        w.setup_experiment(0.0, 1.0)
+        w.enter_initialization_mode()
+        w.exit_initialization_mode()
+        signal.setitimer(signal.ITIMER_REAL, 0.5)
+        w.do_step(0.0, H)                   # queued
+        with pytest.raises(KeyboardInterrupt):
+            w.flush()                       # sent: the FMU hangs in it
+        assert not _alive(w.pid)
+        assert w.crash is not None and "interrupted" in w.crash.cause
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+        w.free()
+
+
+def test_nan_output_and_fmi2error_come_through_as_in_process(fmus, tmp_path):
+    w = WorkerSubsystem("b", fmus / "MisbehavingBearing.fmu", work_dir=tmp_path / "nan")
+    try:
+        out = _drive(w, 6, {"fault": 5})
+    finally:
+        w.free()
+    assert np.isfinite(out[:5]).all() and np.isnan(out[5:, 0]).all() and np.isfinite(out[:, 1]).all()
+
+    errors = []
+    for cls, d in ((Subsystem, "e1"), (WorkerSubsystem, "e2")):
+        sub = cls("b", fmus / "MisbehavingBearing.fmu", work_dir=tmp_path / d)
+        try:
+            with pytest.raises(FmuCallError) as info:
+                _drive(sub, 10, {"fault": 6})
+            errors.append(info.value)
+        finally:
+            sub.free()
+    local, remote = errors
+    assert type(remote) is FmuCallError
+    assert (remote.instance, remote.function, remote.status) == (local.instance, local.function, local.status) == (
+        "b", "fmi2DoStep", "error")
+    assert str(remote) == str(local) and "fault 6: fmi2Error on purpose" in str(remote)
+
+
+def test_bad_parameters_raise_the_same_scenario_error(fmus, tmp_path):
+    messages = []
+    for cls, d in ((Subsystem, "a"), (WorkerSubsystem, "b")):
+        sub = cls("b", fmus / "LinearBearing.fmu", work_dir=tmp_path / d)
+        try:
+            with pytest.raises(ScenarioError) as info:
+                sub.set_parameters({"k": "stiff"})
+            messages.append(info.value.problems)
+            with pytest.raises(ScenarioError):
+                sub.variable("nope")
+        finally:
+            sub.free()
+    assert messages[0] == messages[1] and "parameter 'b.k' is of type Real" in messages[0][0]
+
+
+def test_signal_names():
+    assert signal_name(-11) == "SIGSEGV" and signal_name(-6) == "SIGABRT" and signal_name(-9) == "SIGKILL"
+    assert signal_name(3) is None and signal_name(0) is None and signal_name(None) is None
+
+
+def test_request_and_receive_let_workers_step_at_the_same_time(fmus, tmp_path):
+    """request_real sends the queued set/doStep/get without waiting; receive_real collects.
+    Two workers driven that way give exactly the values of one driven call by call."""
+    subs = [WorkerSubsystem(n, fmus / "MisbehavingBearing.fmu", work_dir=tmp_path) for n in ("a", "b")]
+    ref = Subsystem("r", fmus / "MisbehavingBearing.fmu", work_dir=tmp_path / "ref")
+    try:
+        batches = []
+        for s, fault in zip([*subs, ref], (6, 0, 0)):
+            s.set_parameters({"fault": fault, "fault_step": 19})
+            s.setup_experiment(0.0, None)
+            s.enter_initialization_mode()
+            s.exit_initialization_mode()
+            batches.append((s.real_batch(["x", "vx"]), s.real_batch(["Fx"])))
+        got, expected = [], []
+        for i in range(6):
+            for s, (inb, _) in zip([*subs, ref], batches):
+                for j in range(3):                      # three sub-steps: three values of one batch queued
+                    inb.values[:] = [1e-6 * (i + j), 1e-3 * j]
+                    s.set_real(inb)
+                    s.do_step(i * H + j * H / 3, H / 3)
+            for s, (_, outb) in zip(subs, batches):
+                s.request_real(outb)                    # both workers compute now
+            got.append([s.receive_real(outb)[0] for s, (_, outb) in zip(subs, batches)])
+            expected.append(ref.get_real(batches[2][1])[0])
+        assert np.array(got)[:, 0].tobytes() == np.array(expected).tobytes()
+        assert np.array(got)[:, 1].tobytes() == np.array(expected).tobytes()
+        # a failure of a queued doStep comes with the receive, naming fmi2DoStep (a's 19th step)
+        a, (inb, outb) = subs[0], batches[0]
+        a.set_real(inb)
+        a.do_step(1.0, H)
+        a.request_real(outb)
+        with pytest.raises(FmuCallError) as info:
+            a.receive_real(outb)
+        assert (info.value.function, info.value.status) == ("fmi2DoStep", "error")
+        # a call between request and receive waits for the reply first
+        b, (inb, outb) = subs[1], batches[1]
+        b.request_real(outb)
+        b.set_real(inb)
+        assert b.get_real(outb)[0] == pytest.approx(-1e6 * 1e-6 * 7 - 200 * 2e-3)
+    finally:
+        for s in [*subs, ref]:
+            s.free()

@@ -1,0 +1,129 @@
+"""The run folder's life cycle (orchestrator.coupling.lifecycle.RunFolder), without FMUs.
+
+Lock (also against a second process), earlier files moved aside, summary.json at start and
+on failure, no writing through symbolic links, SIGTERM like Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from orchestrator.coupling.lifecycle import LOCK_NAME, RunFolder, RunStopped
+from orchestrator.results.safe_write import open_no_follow, write_text_no_follow
+from orchestrator.errors import LifecycleError
+
+
+def _sc(name="a"):
+    return SimpleNamespace(name=name, source=Path(f"/scen/{name}.yaml"))
+
+
+def _summary(d: Path) -> dict:
+    return json.loads((d / "summary.json").read_text())
+
+
+def test_summary_running_at_start_and_final_at_finish(tmp_path):
+    with RunFolder(tmp_path, _sc()) as f:
+        s = _summary(tmp_path)
+        assert (s["status"], s["scenario"], s["scenario_file"], s["pid"]) == ("running", "a", "/scen/a.yaml",
+                                                                             os.getpid())
+        assert s["started_at"].endswith("+00:00")
+        f.finish({"scenario": "a", "status": "finished", "message": "done"})
+    s = _summary(tmp_path)
+    assert s["status"] == "finished" and s["started_at"] and s["finished_at"] >= s["started_at"]
+
+
+def test_an_earlier_run_is_moved_aside(tmp_path):
+    (tmp_path / "results.csv").write_text("time,x\n0,1\n")
+    (tmp_path / "summary.json").write_text(json.dumps({"scenario": "old", "status": "finished"}))
+    (tmp_path / "notes.txt").write_text("mine")
+    with RunFolder(tmp_path, _sc("new")):
+        assert not (tmp_path / "results.csv").exists()
+        assert _summary(tmp_path)["status"] == "running"
+        assert json.loads((tmp_path / "previous" / "summary.json").read_text())["scenario"] == "old"
+        assert (tmp_path / "previous" / "results.csv").read_text() == "time,x\n0,1\n"
+    assert (tmp_path / "notes.txt").read_text() == "mine"         # only the run's own files move
+    # the run never called finish(): leaving the block without an exception is a bug of the caller,
+    # but an exception inside writes a failed summary (next test)
+
+
+def test_a_failure_inside_writes_a_failed_summary_and_unlocks(tmp_path):
+    with pytest.raises(ValueError):
+        with RunFolder(tmp_path, _sc()):
+            raise ValueError("bearing1: no such FMU file")
+    s = _summary(tmp_path)
+    assert s["status"] == "failed" and s["message"] == "setup failed: bearing1: no such FMU file"
+    assert s["error"] == "ValueError" and s["finished_at"]
+    with RunFolder(tmp_path, _sc()) as f:                       # the lock was released
+        f.finish({"status": "finished"})
+
+
+def test_a_second_run_into_a_locked_folder_is_refused(tmp_path):
+    with RunFolder(tmp_path, _sc("first")) as f:
+        with pytest.raises(LifecycleError) as info:
+            RunFolder(tmp_path, _sc("second")).__enter__()
+        msg = str(info.value)
+        assert f"output folder {tmp_path} is in use by another run: scenario 'first'" in msg
+        assert f"pid {os.getpid()}" in msg and "--out" in msg
+        # another process is refused too (flock is per open file, across processes)
+        code = ("import sys; from types import SimpleNamespace as N; from orchestrator.coupling.lifecycle import "
+                "RunFolder\ntry:\n    RunFolder(sys.argv[1], N(name='p', source=None)).__enter__()\n"
+                "except Exception as e:\n    print(e); sys.exit(3)")
+        r = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 3 and "in use by another run: scenario 'first'" in r.stdout, r
+        assert _summary(tmp_path)["scenario"] == "first"        # the refused run wrote nothing
+        f.finish({"status": "finished"})
+    assert (tmp_path / LOCK_NAME).read_text() == ""
+
+
+def test_results_are_never_written_through_a_symlink(tmp_path):
+    target = tmp_path / "precious.csv"
+    target.write_text("keep me")
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "results.csv").symlink_to(target)
+    with RunFolder(out, _sc()) as f:
+        assert (out / "previous" / "results.csv").is_symlink()   # the link moved aside, not followed
+        (out / "results.csv").symlink_to(target)                  # planted during the run
+        with pytest.raises(LifecycleError, match="is a symbolic link; rotorcosim does not write results"):
+            open_no_follow(out / "results.csv")
+        (out / "summary.json.tmp").symlink_to(target)
+        f.finish({"status": "finished"})
+    assert target.read_text() == "keep me"
+    assert _summary(out)["status"] == "finished" and not (out / "summary.json").is_symlink()
+    (out / "summary.json").unlink()
+    (out / "summary.json").symlink_to(target)
+    write_text_no_follow(out / "summary.json", "{}")               # replaces the link, not the target
+    assert target.read_text() == "keep me" and (out / "summary.json").read_text() == "{}"
+
+
+def test_sigterm_stops_like_ctrl_c(tmp_path):
+    master = SimpleNamespace(interrupt_requested=False)
+    with RunFolder(tmp_path, _sc()) as f:
+        with f.stop_signals(master):
+            os.kill(os.getpid(), signal.SIGTERM)                  # first: stop after this macro step
+            assert master.interrupt_requested and f.stop_signal == signal.SIGTERM
+            assert f.stop_message(0.25) == "terminated by signal SIGTERM at t=0.25 s"
+            with pytest.raises(RunStopped) as info:
+                os.kill(os.getpid(), signal.SIGTERM)              # second: at once
+            assert info.value.exit_code == 143
+        f.finish({"status": "failed"})
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL or callable(signal.getsignal(signal.SIGTERM))
+
+
+def test_sigterm_during_setup_writes_a_failed_summary(tmp_path):
+    previous = signal.getsignal(signal.SIGTERM)
+    with pytest.raises(RunStopped):
+        with RunFolder(tmp_path, _sc()):
+            os.kill(os.getpid(), signal.SIGTERM)
+    s = _summary(tmp_path)
+    assert s["status"] == "failed" and s["message"] == ("terminated by signal SIGTERM before the co-simulation "
+                                                        "started")
+    assert signal.getsignal(signal.SIGTERM) is previous
