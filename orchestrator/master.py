@@ -60,12 +60,15 @@ from .errors import CouplingError, FmuCallError, LifecycleError, ScenarioError
 from .fmu import RealBatch, Subsystem, SubsystemBase
 from .observers import Observer, Recorder, RunView
 from .results import CoSimResult, Status
-from .schemes import ConstantStep, CouplingScheme, StepSizeController, scheme_from_spec
+from .coupling.acceleration import IQNILS, solve_fixed_point
+from .coupling.iterative import IterationSpec, IterativeStep
+from .coupling.loops import loop_through
+from .schemes import ConstantStep, CouplingScheme, GaussSeidel, StepSizeController, scheme_from_spec
 from .signals import MAX_ORDER, History, LagrangePredictor
 
 log = logging.getLogger(__name__)
 
-INIT_EXCHANGE_ITERATIONS = 10     # fixed-point passes to settle feed-through chains at t0
+INIT_LOOP_ITERATIONS = 50         # IQN-ILS iterations for an algebraic loop in the initial exchange
 MAX_DISCARD_RETRIES = 30          # coupling.discard_retries: smallest step H / 2^30
 RETRY_LOG_LINES = 20              # INFO lines about retried macro steps before only counting them
 
@@ -141,7 +144,10 @@ class MasterAlgorithm:
         self.scenario = scenario
         c = scenario.coupling
         self.out_dir = Path(out_dir) if out_dir is not None else None
-        self.scheme = scheme or scheme_from_spec(c.scheme, c.sequence)
+        self.iterative = c.scheme == "iterative"
+        # iterative coupling: Gauss-Seidel passes repeated until the signals agree (coupling/iterative.py)
+        self.scheme = scheme or (GaussSeidel(c.sequence) if self.iterative else scheme_from_spec(c.scheme, c.sequence))
+        self.iteration = getattr(c, "iteration", None) or IterationSpec()
         self.grid = step_size or ConstantStep(scenario.start_time, scenario.stop_time, c.macro_step)
         self.predictor = predictor or LagrangePredictor(extrapolation_order=c.extrapolation_order,
                                                         interpolation_order=c.interpolation_order)
@@ -271,9 +277,11 @@ class MasterAlgorithm:
             if var not in units[inst].out_names:
                 units[inst].out_names.append(var)
         sizes = []
+        self.signal_names = []          # the history store's columns ("consumer.input"), for messages
         for u in units.values():
             u.nE, u.nI = len(u.ext_names), len(u.int_names)
             sizes += [u.nE, u.nI]
+            self.signal_names += [f"{u.name}.{n}" for n in u.ext_names + u.int_names]
         views = iter(self.history.allocate(sizes))
         for u in units.values():
             u.inb = u.sub.real_batch(u.ext_names + u.int_names)
@@ -323,6 +331,10 @@ class MasterAlgorithm:
             log.info("extrapolation_order %d: not every FMU can save its state (canGetAndSetFMUstate), so the "
                      "first %d macro steps use lower-order extrapolation; this adds an O(H^2) start-up error "
                      "(see docs/coupling.md)", k, k - 1)
+        if self.iterative:
+            self._check_states("coupling.scheme = iterative", "repeats every macro step from the saved states",
+                               "use scheme gauss-seidel or jacobi")
+            self._iterate = IterativeStep(self, self.iteration, self.signal_names)
         if self.discard_retries:
             stateless = [u.name for u in self.units if not u.sub.can_get_set_state]
             if stateless:
@@ -334,6 +346,18 @@ class MasterAlgorithm:
             for u in self.units:
                 u.sub.no_set_prior_state = False    # we may restore the state saved before each macro step
         self.view = RunView(columns, self.grid.time(0), self.grid.time(self.grid.n_steps), self.grid.n_steps)
+
+    def _check_states(self, what: str, why: str, fix: str) -> None:
+        """Every FMU must save and restore its state for ``what``; the master will restore."""
+        stateless = [u.name for u in self.units if not u.sub.can_get_set_state]
+        if stateless:
+            raise ScenarioError(
+                f"{self._where()}{what} {why}, so every FMU must save and restore its state "
+                f"(canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} cannot (got "
+                f"canGetAndSetFMUstate false); {fix}, or use an FMU built with state support")
+        for u in self.units:
+            u.sub.no_set_prior_state = False
+        self._no_prior = False
 
     def _columns(self, units) -> list[str]:
         sig = self.scenario.output.signals
@@ -398,24 +422,57 @@ class MasterAlgorithm:
             o.on_initialized(self.view)
 
     def _exchange_initial(self) -> None:
-        for it in range(INIT_EXCHANGE_ITERATIONS):
-            changed = False
-            before = [b.copy() for b in self.history.blocks]
+        """Outputs -> inputs at t0 until they agree (direct feedthrough).
+
+        Plain passes first: a chain of feedthrough FMUs settles exactly in as many
+        passes as it is long. If the signals still change after ``len(units) + 1``
+        passes there is an algebraic loop: it is solved as the fixed point ``x = G(x)``
+        of one exchange (IQN-ILS, coupling/acceleration.py) to the iteration tolerance;
+        no convergence raises CouplingError naming the loop (coupling/loops.py).
+        """
+        store = self.history.store
+        t0 = self.grid.time(0)
+
+        def exchange(x=None):
+            if x is not None:
+                store[0] = x
+                self._push_inputs()
             for u in self.units:
                 u.sub.get_real(u.outb)
-                self._propagate(u, self.grid.time(0))
-            for u in self.units:
-                if u.nE + u.nI:
-                    u.inb.values[:u.nE] = u.HE[0]
-                    u.inb.values[u.nE:] = u.HI[0]
-                    u.sub.set_real(u.inb)
-            for b, b0 in zip(self.history.blocks, before):
-                if not np.array_equal(b[0], b0[0]):
-                    changed = True
-            if not changed and it > 0:
+                self._propagate(u, t0)
+            return store[0].copy()
+
+        x = exchange()
+        for _ in range(len(self.units) + 1):
+            g = exchange(x)
+            if np.array_equal(g, x):
                 return
-        log.info("initial exchange did not reach a fixed point in %d passes (algebraic loop?)",
-                 INIT_EXCHANGE_ITERATIONS)
+            x = g
+        spec = self.iteration
+        res = solve_fixed_point(exchange, x, acceleration=IQNILS(), tol=spec.tol, scale=np.abs(x),
+                                max_iterations=max(spec.max_iterations, INIT_LOOP_ITERATIONS))
+        if res.converged:
+            store[0] = res.x
+            self._push_inputs()
+            log.info("initial exchange: algebraic loop solved in %d iterations (IQN-ILS, residual %.3g of the "
+                     "signals' scale)", res.iterations, res.residual)
+            return
+        name = self.signal_names[res.worst] if self.signal_names else "?"
+        loop = loop_through(self.scenario.connections, name.split(".", 1)[0])
+        raise CouplingError(
+            f"the initial exchange at t={t0:g} s has an algebraic loop that does not converge: after "
+            f"{len(self.units) + 1 + res.iterations} passes (IQN-ILS) the input {name} still changes by "
+            f"{res.residual:.3g} of its scale (tol {spec.tol:g}); the loop is "
+            f"{', '.join(loop) if loop else 'not a cycle of connections (an FMU output that keeps changing)'}. "
+            "The loop's equations have no (or no reachable) solution: check the gains, offsets and the FMUs' "
+            "feedthrough in it, or break it with a state (e.g. a first-order lag)")
+
+    def _push_inputs(self) -> None:
+        for u in self.units:
+            if u.nE + u.nI:
+                u.inb.values[:u.nE] = u.HE[0]
+                u.inb.values[u.nE:] = u.HI[0]
+                u.sub.set_real(u.inb)
 
     # ------------------------------------------------------------------ step
     def step(self) -> Status:
@@ -431,6 +488,8 @@ class MasterAlgorithm:
         try:
             if self.discard_retries:
                 self._retry_step(t, t_next)
+            elif self.iterative:
+                self._iterate(t, t_next)
             elif self._startup_iterations and self.history.count < self.predictor.k:
                 self._startup_step(t, t_next)
             else:
@@ -501,7 +560,9 @@ class MasterAlgorithm:
 
     def _advance(self, t: float, t_next: float) -> None:
         """One ordinary step [t, t_next] (start-up iteration while the history is short)."""
-        if self._startup_iterations and self.history.count < self.predictor.k:
+        if self.iterative:
+            self._iterate(t, t_next)
+        elif self._startup_iterations and self.history.count < self.predictor.k:
             self._startup_step(t, t_next)
         else:
             self._step_impl(t, t_next)
@@ -515,6 +576,10 @@ class MasterAlgorithm:
             self._free_states(states)
             raise
         return states
+
+    def _restore_states(self, states) -> None:
+        for u, s in zip(self.units, states, strict=True):
+            u.sub.set_state(s)
 
     def _free_states(self, states) -> None:
         for u, s in zip(self.units, states, strict=False):     # states may be partial
@@ -767,9 +832,12 @@ class MasterAlgorithm:
         """``rejected_steps``: (sub-)step attempts discarded by an FMU and rolled back;
         ``retried_steps``: macro steps redone in smaller steps; ``retry_substeps``: the extra
         step rounds (sub-intervals attempted) of those retries (all 0 without discard_retries)."""
-        return {"macro_steps": self.n, "rejected_steps": self.rejected_steps, "retried_steps": self.retried_steps,
-                "retry_substeps": self.retry_substeps, "wall_time_s": self.wall_time,
-                "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()}}
+        st = {"macro_steps": self.n, "rejected_steps": self.rejected_steps, "retried_steps": self.retried_steps,
+              "retry_substeps": self.retry_substeps, "wall_time_s": self.wall_time,
+              "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()}}
+        if self.iterative and hasattr(self, "_iterate"):
+            st["iterations"] = self._iterate.stats.as_dict()
+        return st
 
     def result(self) -> CoSimResult:
         t, outputs = self.recorder.arrays()

@@ -22,12 +22,14 @@ from typing import Any, Mapping, Sequence
 
 import yaml
 
+from orchestrator.coupling.iterative import IterationSpec
+from orchestrator.coupling.sections import StepControlSpec, load_iteration, load_step_control
 from orchestrator.errors import CosimError, ScenarioError
 
 log = logging.getLogger(__name__)
 
 SCENARIO_VERSION = 1
-SCHEMES = ("gauss-seidel", "jacobi", "monolithic")
+SCHEMES = ("gauss-seidel", "jacobi", "iterative", "monolithic")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -79,6 +81,8 @@ class CouplingSpec:
     interpolation_order: int = 0             # 0..3
     substeps: int = 1                        # >= 1
     discard_retries: int = 0                 # 0..30: halvings of a macro step an FMU discards (0: stop)
+    iteration: IterationSpec = field(default_factory=IterationSpec)         # scheme: iterative
+    step_control: StepControlSpec = field(default_factory=StepControlSpec)  # constant or error-controlled
     options: Mapping[str, Any] = field(default_factory=dict)  # scheme-specific extras (e.g. monolithic rtol)
 
 
@@ -124,7 +128,7 @@ TOP_KEYS = ("name", "version", "description", "start_time", "stop_time", "fmus",
 FMU_KEYS = ("path", "parameters", "substeps")
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
-                 "interpolation_order", "substeps", "discard_retries", "options")
+                 "interpolation_order", "substeps", "discard_retries", "options", "iteration", "step_control")
 OUTPUT_KEYS = ("interval", "signals")
 MAX_ORDER = 3
 MAX_DISCARD_RETRIES = 30          # smallest retried step H / 2^30 (orchestrator.master has the same limit)
@@ -133,6 +137,7 @@ _CHILD_SCHEMA = {
     ("top", "fmus"): "instances", ("top", "connections"): "connections",
     ("top", "coupling"): "coupling", ("top", "output"): "output", ("top", "analysis"): "free",
     ("top", "compare"): "free", ("fmu", "parameters"): "params", ("coupling", "options"): "free",
+    ("coupling", "iteration"): "free", ("coupling", "step_control"): "free",
     "instances": "fmu", "connections": "connection", "free": "free",
 }
 _SECTION_KEYS = {"top": TOP_KEYS, "fmu": FMU_KEYS, "connection": CONNECTION_KEYS,
@@ -606,6 +611,11 @@ class _Loader:
                 log.warning("%s: coupling.discard_retries = %d is ignored by the monolithic scheme (one "
                             "integrator with its own step-size control, no macro steps to retry)",
                             self.loc(section["discard_retries"][1]), v)
+        for key, load in (("iteration", load_iteration), ("step_control", load_step_control)):
+            if key in section:
+                v = load(self, section[key][1])
+                ok &= v is not None
+                c[key] = v
         if "options" in section:
             if not isinstance(section["options"][1], yaml.MappingNode):
                 self.err(section["options"][1], f"'coupling.options' must be a mapping (got "

@@ -146,19 +146,18 @@ class IQNILS(Acceleration):
         self._V, self._W, self._prev = [], [], None
 
     def update(self, x, g):
-        s = self.scale
-        r = (g - x) / s
-        gs = g / s
+        r = g - x
         if self._prev is not None:
             r_old, g_old = self._prev
             self._V.insert(0, r - r_old)
-            self._W.insert(0, gs - g_old)
-        self._prev = (r, gs)
+            self._W.insert(0, g - g_old)
+        self._prev = (r, np.array(g, dtype=float))
         V, W = self._columns(len(r))
         if V is None:
             return x + self.initial_relaxation * (g - x)
-        alpha = self._least_squares(V, -r)
-        return (gs + W @ alpha) * s
+        s = self.scale[:, None]
+        alpha = self._least_squares(V / s, -r / self.scale)
+        return g + W @ alpha
 
     def finish(self):
         if self.reuse > 0 and self._V:
@@ -167,7 +166,9 @@ class IQNILS(Acceleration):
         self._V, self._W, self._prev = [], [], None
 
     def _columns(self, n: int):
-        """V, W of this problem (newest first) and of the reused ones, filtered (QR2)."""
+        """V, W of this problem (newest first) and of the reused ones, filtered (QR2) on the
+        scaled columns; returned unscaled (columns are stored in the signals' units, so
+        reused ones stay valid when the scale changes)."""
         vs = list(self._V)
         ws = list(self._W)
         for Vo, Wo in self._old:
@@ -176,7 +177,8 @@ class IQNILS(Acceleration):
         if not vs:
             return None, None
         keep_v, keep_w, basis = [], [], []
-        for v, w in zip(vs, ws):
+        for v_phys, w in zip(vs, ws):
+            v = v_phys / self.scale
             nv = math.sqrt(float(v @ v))
             if nv == 0.0 or len(basis) >= n:
                 continue
@@ -189,7 +191,7 @@ class IQNILS(Acceleration):
             if nq < self.filter_eps * nv:       # QR2 filter: (nearly) dependent column
                 continue
             basis.append(q / nq)
-            keep_v.append(v)
+            keep_v.append(v_phys)
             keep_w.append(w)
         if not keep_v:
             return None, None
@@ -241,23 +243,34 @@ def scaled_residual(x: np.ndarray, g: np.ndarray, scale: np.ndarray) -> tuple[fl
 
 def solve_fixed_point(G: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, *, acceleration: Acceleration,
                       tol: float, scale: np.ndarray, max_iterations: int) -> FixedPointResult:
-    """Iterate ``x = G(x)`` from ``x0`` until ``max |G(x) - x| / scale <= tol``.
+    """Iterate ``x = G(x)`` from ``x0`` until ``max_i |G(x)_i - x_i| / scale_i <= tol``.
 
-    At most ``max_iterations`` evaluations of ``G``. A non-finite residual stops
-    the iteration at once (not converged).
+    ``scale_i`` is the largest of the given ``scale[i]`` and every ``|x_i|``,
+    ``|G(x)_i|`` seen so far (a signal's scale is the largest magnitude it has
+    had), so a signal converging to 0 is judged against its own size, not
+    against 0. The acceleration works on the scale after the first evaluation
+    (entries still 0 there count as 1). At most ``max_iterations`` evaluations of
+    ``G``; a non-finite residual stops the iteration at once (not converged).
     """
     x = np.array(x0, dtype=float)
-    acceleration.start(scale)
+    sc = np.maximum(np.abs(np.asarray(scale, dtype=float)), np.abs(x))
     res, worst, g = math.inf, 0, x
+    started = False
     try:
         for k in range(1, max_iterations + 1):
             g = np.array(G(x), dtype=float)
-            res, worst = scaled_residual(x, g, scale)
+            with np.errstate(invalid="ignore"):
+                sc = np.fmax(sc, np.abs(g))
+            res, worst = scaled_residual(x, g, np.where(sc > 0.0, sc, 1.0))
             if res <= tol:
                 return FixedPointResult(g, k, True, res, worst)
             if not math.isfinite(res) or k == max_iterations:
                 return FixedPointResult(g, k, False, res, worst)
+            if not started:
+                acceleration.start(np.where(sc > 0.0, sc, 1.0))
+                started = True
             x = acceleration.update(x, g)
     finally:
-        acceleration.finish()
+        if started:
+            acceleration.finish()
     return FixedPointResult(g, max_iterations, False, res, worst)    # max_iterations < 1

@@ -1,0 +1,99 @@
+"""Scenario sections of the coupling beyond explicit: ``coupling.iteration`` and ``coupling.step_control``.
+
+Read by the scenario loader (``load_iteration`` / ``load_step_control`` take the
+loader, whose ``mapping``/``number``/``integer``/``value``/``err`` report problems
+with file and line). Format (docs/scenario-format.md)::
+
+    coupling:
+      scheme: iterative
+      iteration: {max_iterations: 20, tol: 1.0e-8, acceleration: iqn-ils}   # none | aitken | iqn-ils
+      step_control: {type: error, rtol: 1.0e-4, atol: 1.0e-8, min_step: 1.0e-6, max_step: 1.0e-2}
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import yaml
+
+from .acceleration import ACCELERATIONS
+from .iterative import DEFAULT_ACCELERATION, DEFAULT_MAX_ITERATIONS, DEFAULT_TOL, IterationSpec
+
+ITERATION_KEYS = ("max_iterations", "tol", "acceleration")
+STEP_CONTROL_KEYS = ("type", "rtol", "atol", "min_step", "max_step")
+STEP_CONTROL_TYPES = ("constant", "error")
+MAX_ITERATIONS_LIMIT = 1000
+
+
+@dataclass(frozen=True, kw_only=True)
+class StepControlSpec:
+    """``coupling.step_control``: ``type: constant`` (the default, macro_step throughout) or
+    ``type: error`` (error-controlled macro step, orchestrator/coupling/error_control.py;
+    ``coupling.macro_step`` is the first step). ``min_step``/``max_step`` None: macro_step / 1000
+    and the output interval."""
+
+    type: str = "constant"
+    rtol: float = 1.0e-4
+    atol: float = 1.0e-8
+    min_step: float | None = None
+    max_step: float | None = None
+
+
+def load_iteration(ld, node) -> IterationSpec | None:
+    section = ld.mapping(node, "coupling.iteration", ITERATION_KEYS,
+                         fix="write e.g. 'iteration: {max_iterations: 20, tol: 1.0e-8, acceleration: iqn-ils}'")
+    if section is None:
+        return None
+    kw = {"max_iterations": DEFAULT_MAX_ITERATIONS, "tol": DEFAULT_TOL, "acceleration": DEFAULT_ACCELERATION}
+    ok = True
+    if "max_iterations" in section:
+        v = ld.integer(section["max_iterations"][1], "coupling.iteration.max_iterations", 1, MAX_ITERATIONS_LIMIT,
+                       "give the most passes per macro step, e.g. 20")
+        ok &= v is not None
+        kw["max_iterations"] = v
+    if "tol" in section:
+        v = ld.number(section["tol"][1], "coupling.iteration.tol", positive=True,
+                      fix="give the tolerance relative to each signal's scale, e.g. 1.0e-8")
+        ok &= v is not None
+        kw["tol"] = v
+    if "acceleration" in section:
+        n = section["acceleration"][1]
+        v = ld.value(n) if isinstance(n, yaml.ScalarNode) else None
+        if v not in ACCELERATIONS:
+            ld.err(n, f"'coupling.iteration.acceleration' must be one of {list(ACCELERATIONS)} (got {ld.got(n)}); "
+                      "iqn-ils converges on stiff couplings, none and aitken may not")
+            ok = False
+        kw["acceleration"] = v
+    return IterationSpec(**kw) if ok else None
+
+
+def load_step_control(ld, node) -> StepControlSpec | None:
+    section = ld.mapping(node, "coupling.step_control", STEP_CONTROL_KEYS,
+                         fix="write e.g. 'step_control: {type: error, rtol: 1.0e-4, atol: 1.0e-8}'")
+    if section is None:
+        return None
+    kw: dict = {}
+    ok = True
+    if "type" not in section:
+        ld.err(node, f"'coupling.step_control' is missing the required key 'type'; add 'type: error' (or one of "
+                     f"{list(STEP_CONTROL_TYPES)})")
+        ok = False
+    else:
+        n = section["type"][1]
+        v = ld.value(n) if isinstance(n, yaml.ScalarNode) else None
+        if v not in STEP_CONTROL_TYPES:
+            ld.err(n, f"'coupling.step_control.type' must be one of {list(STEP_CONTROL_TYPES)} (got {ld.got(n)}); "
+                      "use error for an error-controlled macro step")
+            ok = False
+        kw["type"] = v
+    for key, fix in (("rtol", "e.g. 1.0e-4"), ("atol", "in the signals' units, e.g. 1.0e-8"),
+                     ("min_step", "in seconds, e.g. 1.0e-7"), ("max_step", "in seconds, e.g. 1.0e-3")):
+        if key in section:
+            v = ld.number(section[key][1], f"coupling.step_control.{key}", positive=True, fix=f"give a number {fix}")
+            ok &= v is not None
+            kw[key] = v
+    if ok and kw.get("min_step") is not None and kw.get("max_step") is not None and kw["min_step"] > kw["max_step"]:
+        ld.err(section["min_step"][1], f"'coupling.step_control.min_step' ({kw['min_step']!r}) must not exceed "
+                                       f"max_step ({kw['max_step']!r}); swap or change them")
+        ok = False
+    return StepControlSpec(**kw) if ok else None
