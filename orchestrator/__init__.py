@@ -59,6 +59,7 @@ def _summary(scenario, res: CoSimResult, out_dir: Path) -> dict:
         "retry_substeps": stats.get("retry_substeps", 0),
         "wall_time_s": stats.get("wall_time_s"),
         "fmu_calls": stats.get("fmu_calls", {}),
+        **{k: stats[k] for k in ("iterations", "step_control") if k in stats},
         "coupling": coupling,
         "output": {"columns": list(res.outputs), "rows": int(len(res.t))},
         "versions": versions(),

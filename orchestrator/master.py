@@ -62,7 +62,9 @@ from .observers import Observer, Recorder, RunView
 from .results import CoSimResult, Status
 from .coupling.acceleration import IQNILS, solve_fixed_point
 from .coupling.iterative import IterationSpec, IterativeStep
+from .coupling.adaptive import ErrorControlledStep, OutputGrid
 from .coupling.loops import loop_through
+from .coupling.sections import StepControlSpec
 from .schemes import ConstantStep, CouplingScheme, GaussSeidel, StepSizeController, scheme_from_spec
 from .signals import MAX_ORDER, History, LagrangePredictor
 
@@ -79,6 +81,14 @@ class _RetriesExhausted(Exception):
     def __init__(self, error: FmuCallError, t_a: float, t_b: float):
         super().__init__(str(error))
         self.error, self.t_a, self.t_b = error, t_a, t_b
+
+
+def _variable_step(sub) -> bool:
+    """canHandleVariableCommunicationStepSize of a subsystem (fakes without a model description: True)."""
+    md = getattr(sub, "md", None)
+    if md is not None and hasattr(md, "can_handle_variable_step"):
+        return bool(md.can_handle_variable_step)
+    return bool(getattr(sub, "can_handle_variable_step", True))
 
 
 class _Link:
@@ -148,6 +158,8 @@ class MasterAlgorithm:
         # iterative coupling: Gauss-Seidel passes repeated until the signals agree (coupling/iterative.py)
         self.scheme = scheme or (GaussSeidel(c.sequence) if self.iterative else scheme_from_spec(c.scheme, c.sequence))
         self.iteration = getattr(c, "iteration", None) or IterationSpec()
+        self.step_control = getattr(c, "step_control", None) or StepControlSpec()
+        self.adaptive: ErrorControlledStep | None = None       # set up in _plan for step_control type error
         self.grid = step_size or ConstantStep(scenario.start_time, scenario.stop_time, c.macro_step)
         self.predictor = predictor or LagrangePredictor(extrapolation_order=c.extrapolation_order,
                                                         interpolation_order=c.interpolation_order)
@@ -320,7 +332,7 @@ class MasterAlgorithm:
         H = self.scenario.coupling.macro_step
         interval = self.scenario.output.interval or H
         stride = max(1, int(round(interval / H)))
-        if not math.isclose(stride * H, interval, rel_tol=1e-9):
+        if self.step_control.type != "error" and not math.isclose(stride * H, interval, rel_tol=1e-9):
             warnings.warn(f"output.interval {interval} is not a multiple of coupling.macro_step {H}; "
                           f"writing every {stride} macro steps ({stride * H} s)", stacklevel=3)
         self.stride = stride
@@ -345,7 +357,33 @@ class MasterAlgorithm:
                     "built with state support")
             for u in self.units:
                 u.sub.no_set_prior_state = False    # we may restore the state saved before each macro step
+        if self.step_control.type == "error":
+            self._setup_adaptive(interval)
         self.view = RunView(columns, self.grid.time(0), self.grid.time(self.grid.n_steps), self.grid.n_steps)
+
+    def _setup_adaptive(self, interval: float) -> None:
+        """The error-controlled macro step (coupling/adaptive.py): refuse FMUs with a fixed step,
+        adapt forward only when some FMU cannot restore a state."""
+        fixed = [u.name for u in self.units if not _variable_step(u.sub)]
+        if fixed:
+            raise ScenarioError(
+                f"{self._where()}coupling.step_control type error varies the macro step, but "
+                f"{', '.join(map(repr, fixed))} cannot take varying steps (canHandleVariableCommunicationStepSize "
+                "false); use step_control type constant")
+        can_reject = all(u.sub.can_get_set_state for u in self.units)
+        if can_reject:
+            for u in self.units:
+                u.sub.no_set_prior_state = False
+            self._no_prior = False
+        else:
+            log.warning("coupling.step_control type error: %s cannot restore a saved state, so no macro step "
+                        "is rejected: the step adapts forward only",
+                        ", ".join(repr(u.name) for u in self.units if not u.sub.can_get_set_state))
+        sc = self.scenario
+        atol = np.full(len(self.signal_names), self.step_control.atol)
+        self.adaptive = ErrorControlledStep(self, self.step_control, h0=sc.coupling.macro_step,
+                                            grid=OutputGrid(sc.start_time, sc.stop_time, interval),
+                                            can_reject=can_reject, atol=atol)
 
     def _check_states(self, what: str, why: str, fix: str) -> None:
         """Every FMU must save and restore its state for ``what``; the master will restore."""
@@ -482,18 +520,18 @@ class MasterAlgorithm:
                                  + ("call setup() and initialize() first" if self.status is Status.NOT_STARTED
                                     else "the run is over; read result()"))
         n = self.n
-        grid = self.grid
-        t = grid.time(n)
-        t_next = grid.time(n + 1)
+        on_output = False
+        if self.adaptive is not None:
+            t = self.t
+            t_next = min(t + self.adaptive.h, self.scenario.stop_time)      # for messages if the step fails
+        else:
+            t = self.grid.time(n)
+            t_next = self.grid.time(n + 1)
         try:
-            if self.discard_retries:
-                self._retry_step(t, t_next)
-            elif self.iterative:
-                self._iterate(t, t_next)
-            elif self._startup_iterations and self.history.count < self.predictor.k:
-                self._startup_step(t, t_next)
+            if self.adaptive is not None:
+                t_next, on_output = self.adaptive.step(t)
             else:
-                self._step_impl(t, t_next)
+                self._one_step(t, t_next)
         except _RetriesExhausted as x:
             n_h = self.discard_retries
             self._fail(self._fmu_message(x.error, t, t_next)
@@ -512,14 +550,37 @@ class MasterAlgorithm:
         self.n = n + 1
         self.t = t_next
         self.end_time = t_next
-        last = self.n >= self.grid.n_steps
-        self._record(t_next, self.n, last or self.n % self.stride == 0)
+        if self.adaptive is not None:
+            last = t_next >= self.scenario.stop_time
+            self._record(t_next, self.n, last or on_output)
+        else:
+            last = self.n >= self.grid.n_steps
+            self._record(t_next, self.n, last or self.n % self.stride == 0)
         if last:
             self.status = Status.FINISHED
             self.message = f"finished at t={t_next:g} s after {self.n} macro steps"
         for o in self.observers:
             o.on_step_complete(self.view)
         return self.status
+
+    def _one_step(self, t: float, t_next: float) -> None:
+        """The macro step [t, t_next] by the configured scheme (retries, iteration, start-up)."""
+        if self.discard_retries:
+            self._retry_step(t, t_next)
+        elif self.iterative:
+            self._iterate(t, t_next)
+        elif self._startup_iterations and self.history.count < self.predictor.k:
+            self._startup_step(t, t_next)
+        else:
+            self._step_impl(t, t_next)
+
+    def _rejected(self, t: float, t_end: float, err: float) -> None:
+        """An error-controlled attempt [t, t_end] was rejected and rolled back: tell the observers."""
+        view = self.view
+        view.t = t
+        view.is_output = False
+        for o in self.observers:
+            o.on_step_rejected(view)
 
     def _startup_step(self, t: float, t_next: float) -> None:
         """A start-up step while the history is shorter than the extrapolation order.
@@ -837,6 +898,8 @@ class MasterAlgorithm:
               "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()}}
         if self.iterative and hasattr(self, "_iterate"):
             st["iterations"] = self._iterate.stats.as_dict()
+        if self.adaptive is not None:
+            st["step_control"] = self.adaptive.statistics()
         return st
 
     def result(self) -> CoSimResult:

@@ -23,7 +23,7 @@ from typing import Any, Mapping, Sequence
 import yaml
 
 from orchestrator.coupling.iterative import IterationSpec
-from orchestrator.coupling.sections import StepControlSpec, load_iteration, load_step_control
+from orchestrator.coupling.sections import StepControlSpec, check_capabilities, load_iteration, load_step_control
 from orchestrator.errors import CosimError, ScenarioError
 
 log = logging.getLogger(__name__)
@@ -214,6 +214,7 @@ class _Loader:
         self.origins: dict[int, str] = {}     # id(node) -> "--set k=v" for override nodes
         self.ctor = _YamlLoader("")
         self.mds: dict[str, dict] = {}         # instance -> {variable name: fmpy variable} (readable FMUs)
+        self.fmu_caps: dict = {}               # instance -> model description (capability flags)
         self.instances: list[str] = []         # every instance name written under 'fmus'
         self.fmu_specs: list[dict] = []        # parsed 'fmus' entries
 
@@ -228,6 +229,9 @@ class _Loader:
 
     def err(self, node, text: str) -> None:
         self.problems.append(f"{self.loc(node)}: {text}")
+
+    def warn(self, node, text: str) -> None:
+        log.warning("%s: %s", self.loc(node), text)
 
     def value(self, node):
         try:
@@ -489,6 +493,8 @@ class _Loader:
             self.read_fmu(f)
         params = {f["name"]: self.check_parameters(f) for f in fmus}
         self.check_connections(connections)
+        if len(self.fmu_caps) == len(fmus):
+            check_capabilities(self, get("coupling"), coupling, self.fmu_caps)
         self.check_signals(signals, "output.signals")
         if "analysis" in top and isinstance(kw.get("analysis"), dict):
             self.check_analysis(get("analysis"), signals)
@@ -721,6 +727,7 @@ class _Loader:
                            "is an FMI 2.0 co-simulation FMU (`rotorcosim info FILE` shows what it contains)")
             return
         self.mds[name] = dict(md.variables)
+        self.fmu_caps[name] = md
         if md.can_be_instantiated_only_once_per_process:
             users = [g["name"] for g in self.fmu_specs if g["path"] == path]
             if len(users) > 1 and users[0] != name:

@@ -76,3 +76,27 @@ def test_next_stop_lands_on_the_output_grid():
     assert next_stop(0.09, 0.03, grid) == (pytest.approx(0.1), True)
     t, on = next_stop(0.07, 0.029999, grid)                    # would stop 1e-6 short: stretched
     assert on and t == pytest.approx(0.1)
+
+
+def test_a_jump_that_no_step_resolves_is_accepted():
+    """err independent of h (a discontinuous signal): one rejection, then the smaller retry whose
+    error did not shrink is accepted as a jump instead of shrinking to min_step."""
+    c = PIController(order=2, min_step=1e-9, max_step=1.0)
+    d = c.decide(1e-3, 50.0)
+    assert not d.accept
+    assert c.decide(d.h_next * 0.5, 0.5).accept           # closing in: a step short of the jump passes
+    d2 = c.decide(d.h_next * 0.5, 45.0)                   # the next one across it fails as badly
+    assert d2.accept and d2.jump and c.jumps == 1 and c.forced == 0
+    # an error that does shrink with the step is an ordinary rejection sequence
+    c = PIController(order=2, min_step=1e-9, max_step=1.0)
+    d = c.decide(1e-3, 50.0)
+    d2 = c.decide(d.h_next, 50.0 * (d.h_next / 1e-3) ** 2)
+    assert not d2.jump
+    c = PIController(order=2, min_step=1e-9, max_step=1.0)    # mild rejections never look like jumps
+    d = c.decide(1e-3, 1.7)
+    assert not c.decide(d.h_next, 1.05).jump
+    c = PIController(order=2, min_step=1e-9, max_step=1.0)    # nor a stiffness limit (err ~ 1 at any h)
+    d = c.decide(1e-3, 1.4)
+    for _ in range(6):
+        d = c.decide(d.h_next * 0.8, 1.3)
+        assert not d.jump

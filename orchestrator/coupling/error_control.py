@@ -34,7 +34,12 @@ explicit Runge-Kutta methods", ACM TOMS 17 (1991) 533-554). A step with
 ``H * max(fac_min, safety * err^(-1/p))``; right after a rejection the step may not
 grow (Hairer & Wanner I, sec. II.4). ``min_step`` and ``max_step`` bound every
 proposal; a step at ``min_step`` is accepted whatever its error (counted as
-``forced_steps``), so a run never stalls.
+``forced_steps``), so a run never stalls. A jump in a coupling signal (a
+stiffness that switches, an event) gives an error that does not shrink with the
+step: when an attempt at <= 0.3 of a step rejected at most 3 accepted steps
+before (the controller closing in on the jump) still has >= 0.5 of its error,
+both above 10, it is accepted as a jump (``jumps``; the master then restarts the
+extrapolation from the new value, as ODE codes restart after a discontinuity).
 
 Without state save/restore the controller cannot reject: it only adapts the
 *next* step (``can_reject=False``).
@@ -53,6 +58,10 @@ FAC_MAX = 5.0
 ALPHA = 0.7        # PI gains (Hairer & Wanner II, IV.2, eq. (2.43c)), divided by the order p
 BETA = 0.4
 ERR_FLOOR = 1e-10  # err below this is taken as this (a step with no visible error grows by fac_max)
+JUMP_STEP_RATIO = 0.3    # a rejected attempt at <= 0.3 of a recently rejected step whose error is
+JUMP_ERROR_RATIO = 0.5   # still >= 0.5 of that one's is a jump in a signal: accepted
+JUMP_MEMORY = 3          # "recently": at most this many accepted steps ago
+JUMP_MIN_ERROR = 10.0    # and both errors above this (a step near a stability limit fails by ~1)
 
 
 def scaled_error_norm(predicted: np.ndarray, actual: np.ndarray, previous: np.ndarray, *,
@@ -79,6 +88,7 @@ class Decision:
     accept: bool
     h_next: float
     forced: bool = False       # accepted at min_step although err > 1
+    jump: bool = False         # accepted as a jump in a signal (the error did not shrink with the step)
 
 
 class PIController:
@@ -107,6 +117,9 @@ class PIController:
         self.after_reject = False
         self.rejected = 0
         self.forced = 0
+        self.jumps = 0
+        self._last_reject = None   # (h, err) of the last rejected attempt
+        self._since_reject = 0     # accepted steps since then
 
     def _clip(self, h: float) -> float:
         return min(self.max_step, max(self.min_step, h))
@@ -117,10 +130,22 @@ class PIController:
         if not math.isfinite(err):
             err = 1e6
         if err > 1.0 and self.can_reject and h > self.min_step * (1 + 1e-12):
+            last = self._last_reject
+            if (last is not None and self._since_reject <= JUMP_MEMORY and h <= JUMP_STEP_RATIO * last[0]
+                    and err >= JUMP_ERROR_RATIO * last[1] and min(err, last[1]) > JUMP_MIN_ERROR):
+                # the step shrank but the error did not: a jump in a signal, which no step resolves
+                self._last_reject = None
+                self.jumps += 1
+                self.after_reject = False
+                return Decision(True, h, jump=True)
             fac = max(self.fac_min, self.safety * err ** (-1.0 / p))
             self.after_reject = True
             self.rejected += 1
+            if last is None or self._since_reject > JUMP_MEMORY:
+                self._last_reject = (h, err)     # the first rejection of a cluster is the reference
+            self._since_reject = 0
             return Decision(False, self._clip(h * min(fac, 1.0)))
+        self._since_reject += 1
         forced = err > 1.0 and self.can_reject
         if forced:
             self.forced += 1

@@ -97,3 +97,32 @@ def load_step_control(ld, node) -> StepControlSpec | None:
                                        f"max_step ({kw['max_step']!r}); swap or change them")
         ok = False
     return StepControlSpec(**kw) if ok else None
+
+
+def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
+    """The FMU capability flags the chosen coupling needs (``mds``: instance -> model description).
+
+    ``scheme: iterative`` needs canGetAndSetFMUstate in every FMU (an error);
+    ``step_control: error`` needs canHandleVariableCommunicationStepSize (an error) and,
+    to reject steps, canGetAndSetFMUstate (without it the step adapts forward only: a warning,
+    which ``rotorcosim validate`` prints).
+    """
+    if coupling is None:
+        return
+    stateless = [n for n, md in mds.items() if not md.can_get_and_set_fmu_state]
+    if coupling.get("scheme") == "iterative" and stateless:
+        ld.err(node, f"'coupling.scheme: iterative' repeats every macro step from saved FMU states, but "
+                     f"{', '.join(map(repr, stateless))} cannot save them (canGetAndSetFMUstate is false); use "
+                     "gauss-seidel or jacobi, or FMUs built with state support")
+    sc = coupling.get("step_control")
+    if sc is None or sc.type != "error":
+        return
+    fixed = [n for n, md in mds.items() if not md.can_handle_variable_step]
+    if fixed:
+        ld.err(node, f"'coupling.step_control: {{type: error}}' varies the macro step, but "
+                     f"{', '.join(map(repr, fixed))} cannot take varying steps "
+                     "(canHandleVariableCommunicationStepSize is false); use type: constant")
+    elif stateless:
+        ld.warn(node, f"'coupling.step_control: {{type: error}}': {', '.join(map(repr, stateless))} cannot save "
+                      "and restore its state (canGetAndSetFMUstate is false), so no step can be rejected and "
+                      "redone: the macro step only adapts forward (the next step follows the error of the last)")
