@@ -3,7 +3,7 @@
 A thin PythonFMU wrapper (the builder needs a class that derives *directly*
 from ``Fmi2Slave``, and the FMU's C loader finds it with the regular expression
 ``^class (\\w+)\\(\\s*Fmi2Slave\\s*\\)\\s*:``) around
-:class:`bearing_fmu.model.JournalBearing`. All physics lives in the model; this
+:class:`bearing_fmu.model.BearingModel`. All physics lives in the model; this
 module only maps FMI variables to it. Variables, units and capabilities are
 documented in ``docs/fmus.md``.
 
@@ -28,7 +28,7 @@ scalars, so a restore is exact. States serialize with ``pickle``.
 
 Where the code comes from
 -------------------------
-``orchestrator/build.py`` bundles the ``bearing_fmu`` package sources into the
+``orchestrator/fmi/build.py`` bundles the ``bearing_fmu`` package sources into the
 FMU's ``resources/`` folder, which the PythonFMU loader puts first on
 ``sys.path``; the FMU needs numpy, scipy and numba in the importing Python, not
 an installed rotorcosim. (If a process has already imported ``bearing_fmu``,
@@ -37,21 +37,24 @@ Python reuses that module.)
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import json
 import math
 import os
-import pickle
 import shutil
 import sys
 from pathlib import Path
 from typing import Any
-from xml.etree.ElementTree import Element, SubElement
+from xml.etree.ElementTree import Element
 
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, String
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from pythonfmu.variables import Boolean
+
+from fmu_common.slave import (
+    RealU, check_shipped_layout, check_step_start, exit_initialization_mode, finish_model_description,
+    get_slave_state, guard_callbacks, input_setter, output_getter, param_setter, set_slave_state,
+    scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
 
 # ----------------------------------------------------------------------------
 # Variable tables: name -> (default, unit, description)
@@ -126,101 +129,6 @@ UNITS = {
 }
 
 
-class _RealU(Real):
-    """PythonFMU ``Real`` with an FMI ``unit`` attribute."""
-
-    def __init__(self, name: str, unit: str | None = None, **kwargs: Any):
-        super().__init__(name, **kwargs)
-        self.unit = unit
-
-    def to_xml(self) -> Element:
-        node = super().to_xml()
-        if self.unit:
-            node.find("Real").set("unit", self.unit)
-        return node
-
-
-def _finish_model_description(root: Element, units: set[str]) -> Element:
-    """Complete PythonFMU's ``modelDescription.xml`` tree.
-
-    * ``<UnitDefinitions>`` right after ``<CoSimulation>`` (schema order), so the
-      ``unit`` attributes of the variables refer to defined units;
-    * ``<Outputs>``: ``dependencies=""``: outputs change only in ``fmi2DoStep``
-      (setting an input does not change an output: no direct feedthrough);
-    * ``<InitialUnknowns>``: every output (initial="calculated"), with the default
-      (unknown) dependencies: in initialization mode outputs are computed from
-      the parameters and inputs.
-    """
-    if units:
-        defs = Element("UnitDefinitions")
-        for name in sorted(units):
-            u = SubElement(defs, "Unit", attrib={"name": name})
-            SubElement(u, "BaseUnit", attrib=UNITS[name])
-        children = list(root)
-        idx = next(i for i, c in enumerate(children) if c.tag == "CoSimulation") + 1
-        root.insert(idx, defs)
-    structure = root.find("ModelStructure")
-    outputs = structure.find("Outputs")
-    if outputs is not None:
-        indices = []
-        for unknown in outputs.findall("Unknown"):
-            unknown.set("dependencies", "")
-            indices.append(unknown.get("index"))
-        initial = SubElement(structure, "InitialUnknowns")
-        for index in indices:
-            SubElement(initial, "Unknown", attrib={"index": index})
-    return root
-
-
-def shipped_parameters(resources: str | None) -> list[tuple[str, Any, type]] | None:
-    """Parameters declared in the FMU's own ``modelDescription.xml`` (name, start, type), in order.
-
-    At run time the variable list must be the one the importer read, even if the
-    Python model found at run time has other parameter fields (e.g. a process that
-    imported a newer ``bearing_fmu`` before loading an older FMU): value references
-    are positions in this list. ``None`` when there is no shipped description
-    (the builder is writing it).
-    """
-    if not resources:
-        return None
-    path = Path(resources).parent / "modelDescription.xml"
-    if not path.is_file():
-        return None
-    from xml.etree import ElementTree
-    kinds = {"Real": float, "Integer": int, "Boolean": bool, "String": str}
-    out = []
-    for sv in ElementTree.parse(path).getroot().iter("ScalarVariable"):
-        if sv.get("causality") != "parameter":
-            continue
-        for tag, kind in kinds.items():
-            node = sv.find(tag)
-            if node is not None:
-                start = node.get("start", "")
-                value = (start.lower() == "true") if kind is bool else kind(start) if start != "" or kind is str \
-                    else kind()
-                out.append((sv.get("name"), value, kind))
-                break
-    return out
-
-
-def check_shipped_layout(slave) -> None:
-    """Raise if the registered variables differ from the shipped modelDescription.xml."""
-    if not slave.resources:
-        return
-    path = Path(slave.resources).parent / "modelDescription.xml"
-    if not path.is_file():
-        return
-    from xml.etree import ElementTree
-    shipped = [(int(sv.get("valueReference")), sv.get("name"))
-               for sv in ElementTree.parse(path).getroot().iter("ScalarVariable")]
-    have = [(vr, v.name) for vr, v in slave.vars.items()]
-    if shipped != have:
-        diff = sorted(set(shipped) ^ set(have))[:6]
-        raise RuntimeError(f"{type(slave).__name__}: the variables of this slave differ from its "
-                           f"modelDescription.xml (first differences {diff}); rebuild the FMU "
-                           "(`rotorcosim build-fmus --force`)")
-
-
 def use_stable_code_copy(resources: str | None, package: str = "bearing_fmu") -> Path | None:
     """Import ``package`` from a content-addressed copy instead of the extracted FMU.
 
@@ -269,52 +177,7 @@ def use_stable_code_copy(resources: str | None, package: str = "bearing_fmu") ->
         return None
 
 
-# ----------------------------------------------------------------------------
-# PythonFMU 0.7.0 reference-count bug: when a Python exception escapes an FMI
-# callback, its C++ handle_py_exception() calls cleanPyObject(), which
-# Py_XDECREFs the slave class, the slave instance and its log queue WITHOUT
-# clearing the pointers; fmi2FreeInstance later decrefs them again. The objects
-# end up with one reference too few and Python's cyclic GC later crashes on them
-# (seen as segfaults in unrelated tests). Until PythonFMU fixes it (pinned to
-# 0.7.0 in pyproject.toml), every callback that lets an exception escape first
-# adds the one reference that the extra decref will take away, so the FMU still
-# reports the error (fmi2Fatal) and nothing is corrupted.
-# ----------------------------------------------------------------------------
-def _compensate_pythonfmu_decref(slave) -> None:
-    import ctypes
-    for obj in (type(slave), slave, getattr(slave, "log_queue", None)):
-        if obj is not None:
-            ctypes.pythonapi.Py_IncRef(ctypes.py_object(obj))
-
-
-def fmi_callback(fn):
-    """Wrap a method PythonFMU calls from C++ (see _compensate_pythonfmu_decref)."""
-    import functools
-
-    @functools.wraps(fn)
-    def wrapper(self, *args, **kwargs):
-        try:
-            return fn(self, *args, **kwargs)
-        except BaseException:
-            _compensate_pythonfmu_decref(self)
-            raise
-    return wrapper
-
-
-CALLBACKS = ("setup_experiment", "enter_initialization_mode", "exit_initialization_mode", "do_step",
-             "terminate", "get_integer", "get_real", "get_boolean", "get_string", "set_integer",
-             "set_real", "set_boolean", "set_string", "_get_fmu_state", "_set_fmu_state")
-
-
-def guard_callbacks(cls):
-    """Class decorator: wrap every PythonFMU callback of ``cls`` with :func:`fmi_callback`."""
-    for name in CALLBACKS:
-        setattr(cls, name, fmi_callback(getattr(cls, name)))
-    return cls
-
-
-class InitializationStateError(RuntimeError):
-    """An FMI call came in the wrong life-cycle phase."""
+_STATE_ATTRS = {"fields_file": "fields_file"}     # saved with the FMU state besides the common part
 
 
 @guard_callbacks
@@ -398,19 +261,19 @@ class JournalBearing(Fmi2Slave):
             units.add(unit)
         for name, (unit, desc) in OUTPUTS.items():
             self._values[name] = 0.0
-            self.register_variable(_RealU(
+            self.register_variable(RealU(
                 name, unit=unit, description=desc, causality=Fmi2Causality.output,
                 variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
                 getter=self._output_getter(name)))
             units.add(unit)
         for name, (unit, desc) in LINEARIZATION_OUTPUTS.items():
             self._values[name] = 0.0
-            self.register_variable(_RealU(
+            self.register_variable(RealU(
                 name, unit=unit, description=desc, causality=Fmi2Causality.output,
                 variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
                 getter=self._output_getter(name)))
             units.add(unit)
-        self.register_variable(_RealU(
+        self.register_variable(RealU(
             "t_film", unit="s", description="film (model) time [s]",
             causality=Fmi2Causality.local, variability=Fmi2Variability.continuous,
             initial=Fmi2Initial.calculated, getter=lambda: self._time))
@@ -423,39 +286,20 @@ class JournalBearing(Fmi2Slave):
     def _register_real(self, name: str, unit: str | None, desc: str, **kw: Any) -> None:
         setter = (self._param_setter(name, float) if kw.get("causality") == Fmi2Causality.parameter
                   else self._input_setter(name))
-        self.register_variable(_RealU(name, unit=unit, description=desc,
+        self.register_variable(RealU(name, unit=unit, description=desc,
                                       getter=self._getter(name), setter=setter, **kw))
 
-    def _getter(self, name: str):
-        return lambda: self._values[name]
-
-    def _output_getter(self, name: str):
-        def get():
-            if not self._initialized:  # outputs asked in initialization mode
-                self._ensure_model()
-            return self._values[name]
-        return get
-
-    def _param_setter(self, name: str, kind: type):
-        def set_(value):
-            value = kind(value)
-            if self._initialized and value != self._values[name]:
-                raise InitializationStateError(
-                    f"parameter '{name}' is fixed after initialization (tried {value!r}, "
-                    f"has {self._values[name]!r}); set it before fmi2ExitInitializationMode")
-            self._values[name] = value
-        return set_
-
-    def _input_setter(self, name: str):
-        def set_(value):
-            self._values[name] = float(value)
-        return set_
+    # variable accessors (fmu_common.slave): read and write self._values
+    _getter = value_getter
+    _output_getter = output_getter
+    _param_setter = param_setter
+    _input_setter = input_setter
 
     def _set_fields_file(self, value: str) -> None:
         self.fields_file = str(value)
 
     def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006 (PythonFMU's signature)
-        return _finish_model_description(super().to_xml(model_options), self._units)
+        return finish_model_description(super().to_xml(model_options), self._units, UNITS)
 
     def _extra_model_parameters(self) -> list[tuple[str, Any, type]]:
         """Fields of ``BearingParams`` beyond the issue-5 ones, with their defaults.
@@ -480,16 +324,9 @@ class JournalBearing(Fmi2Slave):
             if name in INPUTS or name in OUTPUTS or name in ("fields_file", "init", "t_film"):
                 raise NameError(f"BearingParams.{f.name} collides with the FMU variable {name!r}; "
                                 "add it to journal_bearing.RENAMED")
-            if f.default is not dataclasses.MISSING:
-                default = f.default
-            elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
-                default = f.default_factory()  # type: ignore[misc]
-            else:
-                continue
-            for kind in (bool, int, float, str):
-                if isinstance(default, kind):
-                    extra.append((name, kind(default), kind))
-                    break
+            found = scalar_default(f)
+            if found is not None:
+                extra.append((name, found[1], found[0]))
         return extra
 
     # -- model ----------------------------------------------------------------
@@ -507,7 +344,7 @@ class JournalBearing(Fmi2Slave):
         if self._model is not None and key == self._init_key:
             return
         from bearing_fmu.model import BearingParams
-        from bearing_fmu.model import JournalBearing as Model
+        from bearing_fmu.model import BearingModel as Model
         model = Model(BearingParams(**self._params()))
         if self._values["init"] not in ("flooded", "stationary"):
             raise ValueError(f"parameter 'init' must be 'flooded' or 'stationary' (got {self._values['init']!r})")
@@ -537,22 +374,11 @@ class JournalBearing(Fmi2Slave):
             self._values["_lin_age"] = age + 1
 
     # -- FMI life cycle --------------------------------------------------------
-    def setup_experiment(self, start_time: float, stop_time=None, tolerance=None):
-        self._time = float(start_time)
-        self._start_time = float(start_time)
-
-    def exit_initialization_mode(self):
-        self._ensure_model()
-        self._time = self._start_time
-        self._initialized = True
+    setup_experiment = setup_experiment
+    exit_initialization_mode = exit_initialization_mode
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        if not self._initialized:
-            raise InitializationStateError("do_step before exit_initialization_mode")
-        if abs(current_time - self._time) > 1e-9 * max(1.0, abs(current_time)) + 1e-6 * step_size:
-            raise InitializationStateError(
-                f"do_step at t={current_time!r} but the FMU is at t={self._time!r}; "
-                "restore a saved FMU state to step from an earlier time")
+        check_step_start(self, current_time, step_size)
         if step_size <= 0.0:
             raise ValueError(f"step_size must be > 0 (got {step_size!r})")
         saved = self._model.get_state()     # fresh copies of every array (no deepcopy needed)
@@ -579,37 +405,13 @@ class JournalBearing(Fmi2Slave):
 
     # -- FMU state --------------------------------------------------------------
     def _get_fmu_state(self) -> dict[str, Any]:
-        return {
-            "values": dict(self._values),
-            "fields_file": self.fields_file,
-            "time": self._time,
-            "initialized": self._initialized,
-            "init_key": self._init_key,
-            "model": None if self._model is None else copy.deepcopy(self._model.get_state()),
-        }
+        return get_slave_state(self, _STATE_ATTRS)
 
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
-        if state["model"] is not None and self._model is None:
-            # state taken from another instance of the same FMU: rebuild the model first
-            self._values.update(state["values"])
-            self._ensure_model()
-        self._values = dict(state["values"])
-        self.fields_file = state["fields_file"]
-        self._time = state["time"]
-        self._initialized = state["initialized"]
-        self._init_key = state["init_key"]
-        if state["model"] is None:
-            self._model = None
-        else:
-            self._model.set_state(copy.deepcopy(state["model"]))
+        set_slave_state(self, state, _STATE_ATTRS)
 
-    @staticmethod
-    def _fmu_state_to_bytes(state: dict[str, Any]) -> bytes:
-        return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
-
-    @staticmethod
-    def _fmu_state_from_bytes(state: bytes) -> dict[str, Any]:
-        return pickle.loads(state)
+    _fmu_state_to_bytes = staticmethod(state_to_bytes)
+    _fmu_state_from_bytes = staticmethod(state_from_bytes)
 
 
 def _is_numerical_failure(exc: Exception) -> bool:

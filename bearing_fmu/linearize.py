@@ -253,7 +253,7 @@ def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3, horizon=None):
 
 
 def linearization(b, *, method="quasi-static", rel_step=1e-5, t_ref=1e-3, horizon=None):
-    """(K, C) 2x2 [N/m], [N s/m] of :class:`bearing_fmu.model.JournalBearing` ``b`` at
+    """(K, C) 2x2 [N/m], [N s/m] of :class:`bearing_fmu.model.BearingModel` ``b`` at
     its current state (after ``initialize``/``step``); the state is not changed.
 
     ``method="quasi-static"`` (default, what the FMU outputs): the half-Sommerfeld

@@ -15,7 +15,7 @@ Conventions
   ``h = c - x cos(phi) - y sin(phi)``; ``eps = sqrt(x^2 + y^2) / c`` must stay
   below 1 (with ``contact = 1``: below ``1 - contact_h_limit sigma_rough / c``, the
   film then using the expected gap of the roughness, bearing_fmu/contact.py).
-* Outputs (``JournalBearing.outputs``): ``Fx, Fy`` film force ON the journal
+* Outputs (``BearingModel.outputs``): ``Fx, Fy`` film force ON the journal
   [N] (``F = -int (p - p0) (cos phi, sin phi) dA``: a journal displaced down
   (-y) gets +Fy); ``eps`` [-]; ``attitude`` [rad] angle from the load line
   (direction of -F) to the eccentricity vector, counter-clockwise positive (> 0
@@ -45,7 +45,7 @@ from .grid import make_grid
 from .hs import HalfSommerfeld
 from .solver import StepFailed, TransientFilm
 
-__all__ = ["BearingParams", "JournalBearing", "StepFailed", "solve_stationary"]
+__all__ = ["BearingParams", "BearingModel", "StepFailed", "solve_stationary"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -207,7 +207,7 @@ class BearingParams:
         return BearingParams(**vals)
 
 
-class JournalBearing:
+class BearingModel:
     """One journal bearing film; call order: ``initialize`` then ``step`` ...
 
     ``step(dt, x, y, vx, vy, omega)`` advances the film from ``t`` to ``t + dt``
@@ -220,7 +220,7 @@ class JournalBearing:
 
     def __init__(self, params: BearingParams):
         if not isinstance(params, BearingParams):
-            raise TypeError(f"JournalBearing(params): expected BearingParams, got "
+            raise TypeError(f"BearingModel(params): expected BearingParams, got "
                             f"{type(params).__name__}")
         p = self.params = params
         # full grid (fields, half-Sommerfeld) and the grid the transient solver
@@ -250,14 +250,14 @@ class JournalBearing:
     def _kinematics(self, x, y, vx, vy, omega):
         vals = (x, y, vx, vy, omega)
         if not all(math.isfinite(float(v)) for v in vals):
-            raise ValueError(f"JournalBearing: non-finite input (x, y, vx, vy, omega) = {vals}")
+            raise ValueError(f"BearingModel: non-finite input (x, y, vx, vy, omega) = {vals}")
         eps = math.hypot(x, y) / self.c
         if self.params.contact:
             depth = -self.params.contact_h_limit
             lim = 1.0 + depth * self.params.sigma_rough / self.c
             if eps >= lim:
                 raise StepFailed(
-                    f"JournalBearing: journal pressed {depth:g} sigma_rough into the shell's "
+                    f"BearingModel: journal pressed {depth:g} sigma_rough into the shell's "
                     f"asperity layer (nominal gap below contact_h_limit = "
                     f"{self.params.contact_h_limit:g} sigma_rough): eps = {eps:.4f} >= {lim:.4f} "
                     f"(x = {x:g} m, y = {y:g} m, clearance c = {self.c:g} m, sigma_rough = "
@@ -269,11 +269,11 @@ class JournalBearing:
             where = (f"eps = {eps:.4f} (x = {x:g} m, y = {y:g} m, clearance c = {self.c:g} m)")
             if eps < 1.05:
                 raise StepFailed(
-                    f"JournalBearing: journal touches the shell: {where} >= 1; the rotor left "
+                    f"BearingModel: journal touches the shell: {where} >= 1; the rotor left "
                     "the clearance: reduce the macro step or check the loads, or set contact = 1 "
                     "(asperity contact) if the journal really reaches the shell")
             raise StepFailed(
-                f"JournalBearing: journal far outside the clearance: {where}; the coupled "
+                f"BearingModel: journal far outside the clearance: {where}; the coupled "
                 "simulation went unstable before this step (a blow-up, not a contact): reduce "
                 "the macro step or use interface-Jacobian coupling (linearize: 1), and check "
                 "the loads")
@@ -359,7 +359,7 @@ class JournalBearing:
 
     def _check_init(self, what):
         if not self._initialized:
-            raise RuntimeError(f"JournalBearing.{what}: call initialize(x, y, vx, vy, "
+            raise RuntimeError(f"BearingModel.{what}: call initialize(x, y, vx, vy, "
                                "omega) first")
 
     # ----------------------------------------------------------- API
@@ -392,7 +392,7 @@ class JournalBearing:
         """Advance the film by dt [s] with the kinematics held constant."""
         self._check_init("step")
         if not (dt > 0 and math.isfinite(dt)):
-            raise ValueError(f"JournalBearing.step: dt must be a positive finite time [s] (got {dt!r})")
+            raise ValueError(f"BearingModel.step: dt must be a positive finite time [s] (got {dt!r})")
         kin = self._kinematics(x, y, vx, vy, omega)
         if self.film is None:
             self._p_hs, self._pf_hs = self._hs_fields(kin)
@@ -518,7 +518,7 @@ class JournalBearing:
         return None, max_iter
 
 
-def solve_stationary(params: BearingParams, x, y, omega, vx=0.0, vy=0.0) -> JournalBearing:
+def solve_stationary(params: BearingParams, x, y, omega, vx=0.0, vy=0.0) -> BearingModel:
     """Stationary film at fixed kinematics; returns the initialised bearing.
 
     Mass-conserving model: Newton on the steady equations (paper section 3.1,
@@ -527,6 +527,6 @@ def solve_stationary(params: BearingParams, x, y, omega, vx=0.0, vy=0.0) -> Jour
     quasi-static solution. Read ``.outputs`` and ``.fields()`` of the result;
     it can also be stepped further.
     """
-    b = JournalBearing(params)
+    b = BearingModel(params)
     b.initialize(x, y, vx, vy, omega, init="stationary")
     return b

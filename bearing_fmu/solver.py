@@ -110,7 +110,7 @@ class SpluLU:
 class TransientFilm:
     """Integrator of the mass-conserving film on a fixed grid.
 
-    ``ctx`` is a :class:`bearing_fmu.model.JournalBearing`-like object with the
+    ``ctx`` is a :class:`bearing_fmu.model.BearingModel`-like object with the
     grid, constants and law (see ``model.py``); the integrator only owns the
     numerical state. Diagnostics switches (attributes, default True):
     ``predictor`` (extrapolate u as Newton start), ``line_search``

@@ -27,7 +27,7 @@ import tracemalloc
 
 import numpy as np
 
-from bearing_fmu.model import BearingParams, JournalBearing
+from bearing_fmu.model import BearingParams, BearingModel
 
 
 def orbit(c, w, t):
@@ -39,7 +39,7 @@ def run_case(n_phi, n_z, n_steps, *, peer=False, warmup=20, dt=1e-5):
     p = BearingParams(n_phi=n_phi, n_z=n_z, groove_width=math.radians(15),
                       groove_angle=math.pi / 2,
                       linear_solver="splu" if peer else "band")
-    b = JournalBearing(p)
+    b = BearingModel(p)
     w = 2 * math.pi * 800
     b.initialize(*orbit(p.c, w, 0.0), init="stationary")
     if peer:
@@ -80,7 +80,7 @@ def run_case(n_phi, n_z, n_steps, *, peer=False, warmup=20, dt=1e-5):
 
 def run_hs(n=500):
     p = BearingParams(cavitation=0, groove_width=math.radians(15), groove_angle=math.pi / 2)
-    b = JournalBearing(p)
+    b = BearingModel(p)
     w = 2 * math.pi * 800
     b.initialize(*orbit(p.c, w, 0.0))
     t_solve, t_step = [], []

@@ -77,7 +77,7 @@ def time_fmpy(fmu: Path, n: int) -> float:
 
 
 def time_master(fmu: Path, n: int, scheme: str, k: int) -> float:
-    from orchestrator.master import MasterAlgorithm
+    from orchestrator.coupling.execution import MasterAlgorithm
     from orchestrator.scenario import ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario
     T = n * H
     sc = Scenario(name="overhead", stop_time=T,

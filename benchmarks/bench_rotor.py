@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from rotor_fmu.jeffcott import JeffcottRotor
+from rotor_fmu.jeffcott import JeffcottModel
 from rotor_fmu.linear_rotor import KERNEL
 from rotor_fmu.turbocharger import TurbochargerParams, TurbochargerRotor
 
@@ -44,7 +44,7 @@ def main():
         a @ x
     print(f"machine speed probe: 18x18 mat-vec {(time.perf_counter() - t0) / 20000 * 1e6:.2f} us "
           "(compare between runs: it scales with the machine load)")
-    rows = [("jeffcott", JeffcottRotor())]
+    rows = [("jeffcott", JeffcottModel())]
     for nm in (2, 4, 6):
         rows.append((f"turbocharger CB n_modes={nm}", TurbochargerRotor(TurbochargerParams(n_modes=nm))))
     print(f"{'model':32s} {'n_dof':>5s} {'n_sub':>5s} {'us/step (best of 5)':>20s}")

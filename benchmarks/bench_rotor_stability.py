@@ -5,7 +5,7 @@ Run:  cd /work/main && nice -n 10 .venv/bin/python benchmarks/bench_rotor_stabil
 
 import numpy as np
 
-from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
+from rotor_fmu.jeffcott import JeffcottParams, JeffcottModel
 from rotor_fmu.stability import (bearing_radius_for_threshold, lund_threshold_speed,
                                  short_bearing_coefficient_fn, static_bearing_loads,
                                  threshold_speed)
@@ -18,14 +18,14 @@ def main():
     hz = lambda w: w / (2 * np.pi)
     for label, kw, ks in (("near-rigid", dict(k_shaft=1e11), None), ("Jeffcott 4000 N/mm", {}, 2e6)):
         p = JeffcottParams(d_external=0.0, d_internal=0.0, m_journal=1e-3, **kw)
-        r = JeffcottRotor(p)
+        r = JeffcottModel(p)
         wt, nu = threshold_speed(r, short_bearing_coefficient_fn(r, **brg))
         wl = lund_threshold_speed((p.m_disc + 2 * p.m_journal) / 2, k_shaft=ks, **brg)
         print(f"{label:22s} eigen {hz(wt):9.3f} Hz  Lund {hz(wl):9.3f} Hz  whirl ratio {nu / wt:.3f}")
-    r = JeffcottRotor()
+    r = JeffcottModel()
     wt, nu = threshold_speed(r, short_bearing_coefficient_fn(r, **brg))
     print(f"{'paper Jeffcott R=20mm':22s} eigen {hz(wt):9.3f} Hz  whirl ratio {nu / wt:.3f}")
-    Rt = bearing_radius_for_threshold(JeffcottRotor, 256.0, R_lo=0.003, R_hi=0.01)
+    Rt = bearing_radius_for_threshold(JeffcottModel, 256.0, R_lo=0.003, R_hi=0.01)
     print(f"paper Jeffcott: R for a 256 Hz onset = {Rt * 1e3:.3f} mm")
     t = TurbochargerRotor()
     print("turbocharger static bearing loads [N]:", static_bearing_loads(t).round(3).tolist())

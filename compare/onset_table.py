@@ -4,7 +4,7 @@
 half-Sommerfeld run-up; its Radau reference was too slow for the whole ramp on the shared
 machine (docs/compare.md, "Whole run-up"), so the reference is a separate BDF2 monolithic
 run, and this script measures every finished variant against it with the same functions
-as `compare` (orchestrator.compare_metrics), over the signals, scales and derived keys of
+as `compare` (orchestrator.compare.metrics), over the signals, scales and derived keys of
 the comparison file:
 
     python compare/onset_table.py compare/jeffcott_runup_onset.yaml REF_DIR RUNS_DIR [RUN_DIR ...]
@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 from orchestrator.compare import load_compare
-from orchestrator.compare_metrics import derived_error, read_run, signal_errors
+from orchestrator.compare.metrics import derived_error, read_run, signal_errors
 
 
 def main(argv: list[str]) -> int:

@@ -7,10 +7,10 @@ i.e. 256 Hz):
 
 1. at each speed, the static equilibrium of a journal under its share of the
    weight, (m_disc / 2 + m_journal) g, on the HS film of
-   :class:`bearing_fmu.model.JournalBearing` (40 x 40, Newton on x, y);
+   :class:`bearing_fmu.model.BearingModel` (40 x 40, Newton on x, y);
 2. the eight linear film coefficients by central differences of the HS force
    (K = -dF/dq, D = -dF/dv);
-3. the Jeffcott rotor's M, C, K (:meth:`rotor_fmu.jeffcott.JeffcottRotor.system_matrices`)
+3. the Jeffcott rotor's M, C, K (:meth:`rotor_fmu.jeffcott.JeffcottModel.system_matrices`)
    plus the film coefficients at both journals; the largest real part of the
    eigenvalues of the first-order system decides stability;
 4. the threshold speed by bisection on that sign, and R by bisection on the
@@ -31,8 +31,8 @@ PSI, ETA0, P0 = 2.8e-3, 0.012, 1.0e5
 
 
 def hs_bearing(R: float, n: int):
-    from bearing_fmu.model import BearingParams, JournalBearing
-    b = JournalBearing(BearingParams(R=R, B=1.6 * R, psi=PSI, eta0=ETA0, p0=P0, p_feed=P0,
+    from bearing_fmu.model import BearingParams, BearingModel
+    b = BearingModel(BearingParams(R=R, B=1.6 * R, psi=PSI, eta0=ETA0, p0=P0, p_feed=P0,
                                      n_phi=n, n_z=n, cavitation=0, axial_bc=0))
     b.initialize(0.0, -0.5 * PSI * R, 0.0, 0.0, 1.0)
     return b
@@ -105,8 +105,8 @@ ROTOR = {"m_disc": 5.0, "m_journal": 0.5}    # as in scenarios/jeffcott_runup_*.
 
 def threshold_hz(R: float, n: int = 40, f_lo: float = 20.0, f_hi: float = 800.0, df: float = 20.0):
     """Lowest speed [Hz] at which the HS Jeffcott rotor is linearly unstable (None if stable up to f_hi)."""
-    from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
-    rotor = JeffcottRotor(JeffcottParams(**ROTOR))
+    from rotor_fmu.jeffcott import JeffcottParams, JeffcottModel
+    rotor = JeffcottModel(JeffcottParams(**ROTOR))
     b = hs_bearing(R, n)
     state: dict = {}
     prev = f_lo

@@ -7,7 +7,7 @@ stations carrying their own static load):
 1. the static bearing loads of the rotor file under gravity
    (:func:`rotor_fmu.stability.static_bearing_loads`, stations held at 0);
 2. at each speed, the static equilibrium of each journal under its load on the HS
-   film of :class:`bearing_fmu.model.JournalBearing` (R = 4.9 mm, B = 1.6 R,
+   film of :class:`bearing_fmu.model.BearingModel` (R = 4.9 mm, B = 1.6 R,
    psi = 2.8e-3, eta0 = 12 mPa s, 40 x 40; Newton on x, y);
 3. the eight film coefficients of each journal by central differences
    (K = -dF/dq, D = -dF/dv);

@@ -130,11 +130,7 @@ def _analysis_lines(analysis) -> list[str]:
 
 
 def _run_function() -> Callable:
-    import orchestrator
-
-    run = getattr(orchestrator, "run", None)
-    if run is None:
-        run = _feature("orchestrator.master", "run", "run")
+    from orchestrator.workflow import run
     return run
 
 
@@ -176,7 +172,7 @@ _CAUSALITY_ORDER = ("parameter", "calculatedParameter", "input", "output", "loca
 
 
 def _cmd_info(args) -> int:
-    from orchestrator.scenario import read_model_description
+    from orchestrator.fmi.archive import cached_model_description as read_model_description
 
     md = read_model_description(args.fmu)
     yes = lambda b: "yes" if b else "no"      # noqa: E731
@@ -219,12 +215,10 @@ def _add_build_fmus(sub) -> None:
 
 
 def _cmd_build_fmus(args) -> int:
-    build_fmus = _feature("orchestrator.build", "build_fmus", "build-fmus")
-    out_dir = args.out
-    if out_dir is None:
-        from orchestrator import build
-        out_dir = getattr(build, "FMU_DIR", "fmus")
-    logging.getLogger("orchestrator.build").setLevel(logging.INFO)
+    build_fmus = _feature("orchestrator.fmi.build", "build_fmus", "build-fmus")
+    from orchestrator.fmi import build
+    out_dir = args.out if args.out is not None else build.FMU_DIR
+    logging.getLogger("orchestrator.fmi.build").setLevel(logging.INFO)
     for path in build_fmus(out_dir=out_dir, force=args.force):
         print(path)
     return 0
@@ -241,7 +235,7 @@ def _cmd_plot(args) -> int:
     if not run_dir.is_dir():
         raise CosimError(f"{run_dir}: no such run folder; give the --out folder of a run (it holds "
                          "results.csv and summary.json)")
-    plot_run = _feature("orchestrator.plots", "plot_run", "plot")
+    plot_run = _feature("orchestrator.results.plots", "plot_run", "plot")
     for path in plot_run(run_dir):
         print(path)
     return 0
@@ -316,7 +310,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
     if not args.debug:
-        logging.getLogger("orchestrator.build").setLevel(logging.INFO)   # say when FMUs are being built
+        logging.getLogger("orchestrator.fmi.build").setLevel(logging.INFO)   # say when FMUs are being built
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:

@@ -1,7 +1,7 @@
 """Exception hierarchy of rotorcosim.
 
 Bad input and misuse raise one of these; numerical failure during a run is a
-status of the result (see :mod:`orchestrator.master`), not an exception.
+status of the result (see :mod:`orchestrator.coupling.execution`), not an exception.
 
 Every message names the thing, what was expected, what came, and the fix,
 in the form ``file:line: what is wrong (got X); how to fix``.

@@ -38,7 +38,7 @@ from .linear_rotor import LinearRotor
 
 @dataclass(frozen=True, kw_only=True)
 class JeffcottParams:
-    """Parameters of :class:`JeffcottRotor` (SI units); defaults are the paper's values."""
+    """Parameters of :class:`JeffcottModel` (SI units); defaults are the paper's values."""
 
     m_disc: float = 6.0                # disc mass [kg] (paper: rotor mass 6 kg)
     m_journal: float = 0.1             # mass of each journal [kg] (our choice, see module doc)
@@ -74,7 +74,7 @@ class JeffcottParams:
             raise ValueError("; ".join(problems))
 
 
-class JeffcottRotor(LinearRotor):
+class JeffcottModel(LinearRotor):
     """Jeffcott rotor with two journals; API in docs/dev/contracts.md.
 
     Extra outputs: ``x_disc, y_disc, vx_disc, vy_disc`` [m, m/s].

@@ -1,6 +1,6 @@
 """JeffcottRotor: FMI 2.0 co-simulation slave of the Jeffcott rotor (paper section 3.2).
 
-A thin PythonFMU wrapper around :class:`rotor_fmu.jeffcott.JeffcottRotor`. The
+A thin PythonFMU wrapper around :class:`rotor_fmu.jeffcott.JeffcottModel`. The
 rotor-slave machinery (variable registration, life cycle, full FMU state) is
 written here as plain functions that ``turbocharger_rotor.py`` reuses: the FMU's
 C loader finds the slave class with the regular expression
@@ -28,14 +28,17 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import pickle
-from pathlib import Path
-from typing import Any, Callable
-from xml.etree.ElementTree import Element, SubElement
+from typing import Any
+from xml.etree.ElementTree import Element
 
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, String
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from pythonfmu.variables import Boolean
+
+from fmu_common.slave import (
+    RealU, check_shipped_layout, check_step_start, exit_initialization_mode, finish_model_description,
+    get_slave_state, guard_callbacks, input_setter, output_getter, param_setter, set_slave_state,
+    scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
 
 N_BEARINGS = 2
 
@@ -81,151 +84,16 @@ OUTPUT_DOCS: dict[str, tuple[str, str]] = {
 }
 
 
-class _RealU(Real):
-    """PythonFMU ``Real`` with an FMI ``unit`` attribute."""
-
-    def __init__(self, name: str, unit: str | None = None, **kwargs: Any):
-        super().__init__(name, **kwargs)
-        self.unit = unit
-
-    def to_xml(self) -> Element:
-        node = super().to_xml()
-        if self.unit:
-            node.find("Real").set("unit", self.unit)
-        return node
-
-
-def finish_model_description(root: Element, units: set[str]) -> Element:
-    """Unit definitions, ``dependencies=""`` on outputs (no direct feedthrough) and
-    ``<InitialUnknowns>`` (see ``bearing_fmu/journal_bearing.py`` for the reasons)."""
-    if units:
-        defs = Element("UnitDefinitions")
-        for name in sorted(units):
-            u = SubElement(defs, "Unit", attrib={"name": name})
-            SubElement(u, "BaseUnit", attrib=UNITS[name])
-        children = list(root)
-        idx = next(i for i, c in enumerate(children) if c.tag == "CoSimulation") + 1
-        root.insert(idx, defs)
-    structure = root.find("ModelStructure")
-    outputs = structure.find("Outputs")
-    if outputs is not None:
-        indices = []
-        for unknown in outputs.findall("Unknown"):
-            unknown.set("dependencies", "")
-            indices.append(unknown.get("index"))
-        initial = SubElement(structure, "InitialUnknowns")
-        for index in indices:
-            SubElement(initial, "Unknown", attrib={"index": index})
-    return root
-
-
 def scalar_fields(params_cls) -> list[tuple[str, Any, type]]:
     """(name, default, type) of the dataclass fields with a bool/int/float/str default."""
     out = []
     for f in dataclasses.fields(params_cls):
         if f.name.startswith("_"):
             continue
-        if f.default is not dataclasses.MISSING:
-            default = f.default
-        elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
-            default = f.default_factory()  # type: ignore[misc]
-        else:
-            continue
-        for kind in (bool, int, float, str):
-            if isinstance(default, kind):
-                out.append((f.name, kind(default), kind))
-                break
+        found = scalar_default(f)
+        if found is not None:
+            out.append((f.name, found[1], found[0]))
     return out
-
-
-def shipped_parameters(resources):
-    """Parameters declared in the FMU's modelDescription.xml: see ``bearing_fmu/journal_bearing.py``."""
-    if not resources:
-        return None
-    path = Path(resources).parent / "modelDescription.xml"
-    if not path.is_file():
-        return None
-    from xml.etree import ElementTree
-    kinds = {"Real": float, "Integer": int, "Boolean": bool, "String": str}
-    out = []
-    for sv in ElementTree.parse(path).getroot().iter("ScalarVariable"):
-        if sv.get("causality") != "parameter":
-            continue
-        for tag, kind in kinds.items():
-            node = sv.find(tag)
-            if node is not None:
-                start = node.get("start", "")
-                value = (start.lower() == "true") if kind is bool else kind(start) if start != "" or kind is str \
-                    else kind()
-                out.append((sv.get("name"), value, kind))
-                break
-    return out
-
-
-def check_shipped_layout(slave) -> None:
-    """Raise if the registered variables differ from the shipped modelDescription.xml."""
-    if not slave.resources:
-        return
-    path = Path(slave.resources).parent / "modelDescription.xml"
-    if not path.is_file():
-        return
-    from xml.etree import ElementTree
-    shipped = [(int(sv.get("valueReference")), sv.get("name"))
-               for sv in ElementTree.parse(path).getroot().iter("ScalarVariable")]
-    have = [(vr, v.name) for vr, v in slave.vars.items()]
-    if shipped != have:
-        diff = sorted(set(shipped) ^ set(have))[:6]
-        raise RuntimeError(f"{type(slave).__name__}: the variables of this slave differ from its "
-                           f"modelDescription.xml (first differences {diff}); rebuild the FMU "
-                           "(`rotorcosim build-fmus --force`)")
-
-
-# ----------------------------------------------------------------------------
-# PythonFMU 0.7.0 reference-count bug: when a Python exception escapes an FMI
-# callback, its C++ handle_py_exception() calls cleanPyObject(), which
-# Py_XDECREFs the slave class, the slave instance and its log queue WITHOUT
-# clearing the pointers; fmi2FreeInstance later decrefs them again. The objects
-# end up with one reference too few and Python's cyclic GC later crashes on them
-# (seen as segfaults in unrelated tests). Until PythonFMU fixes it (pinned to
-# 0.7.0 in pyproject.toml), every callback that lets an exception escape first
-# adds the one reference that the extra decref will take away, so the FMU still
-# reports the error (fmi2Fatal) and nothing is corrupted.
-# ----------------------------------------------------------------------------
-def _compensate_pythonfmu_decref(slave) -> None:
-    import ctypes
-    for obj in (type(slave), slave, getattr(slave, "log_queue", None)):
-        if obj is not None:
-            ctypes.pythonapi.Py_IncRef(ctypes.py_object(obj))
-
-
-def fmi_callback(fn):
-    """Wrap a method PythonFMU calls from C++ (see _compensate_pythonfmu_decref)."""
-    import functools
-
-    @functools.wraps(fn)
-    def wrapper(self, *args, **kwargs):
-        try:
-            return fn(self, *args, **kwargs)
-        except BaseException:
-            _compensate_pythonfmu_decref(self)
-            raise
-    return wrapper
-
-
-CALLBACKS = ("setup_experiment", "enter_initialization_mode", "exit_initialization_mode", "do_step",
-             "terminate", "get_integer", "get_real", "get_boolean", "get_string", "set_integer",
-             "set_real", "set_boolean", "set_string", "_get_fmu_state", "_set_fmu_state")
-
-
-def guard_callbacks(cls):
-    """Class decorator: wrap every PythonFMU callback of ``cls`` with :func:`fmi_callback`."""
-    for name in CALLBACKS:
-        setattr(cls, name, fmi_callback(getattr(cls, name)))
-    return cls
-
-
-class InitializationStateError(RuntimeError):
-    """An FMI call came in the wrong life-cycle phase."""
 
 
 # ----------------------------------------------------------------------------
@@ -255,7 +123,7 @@ def rotor_init(self, **kwargs: Any) -> None:
         self._param_names.append(name)
         getter, setter = _getter(self, name), _param_setter(self, name, kind)
         if kind is float:
-            self.register_variable(_RealU(name, unit=unit, description=desc, getter=getter,
+            self.register_variable(RealU(name, unit=unit, description=desc, getter=getter,
                                           setter=setter, **par))
             if unit:
                 units.add(unit)
@@ -269,7 +137,7 @@ def rotor_init(self, **kwargs: Any) -> None:
         for comp in ("x", "y"):
             name = f"F{comp}_{i}"
             self._values[name] = 0.0
-            self.register_variable(_RealU(
+            self.register_variable(RealU(
                 name, unit="N", description=f"film force on journal {i}, {comp} [N]",
                 causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
                 getter=_getter(self, name), setter=_input_setter(self, name)))
@@ -279,7 +147,7 @@ def rotor_init(self, **kwargs: Any) -> None:
             for comp in ("xx", "xy", "yx", "yy"):
                 name = f"{kind}{comp}_{i}"
                 self._values[name] = 0.0
-                self.register_variable(_RealU(
+                self.register_variable(RealU(
                     name, unit=unit, description=(
                         f"film {what} {comp} of bearing {i} [{unit}] for interface-Jacobian "
                         "coupling (default 0: plain force coupling)"),
@@ -299,7 +167,7 @@ def rotor_init(self, **kwargs: Any) -> None:
         else:
             desc = desc.format(i=name.rsplit("_", 1)[-1])
         self._values[name] = 0.0
-        self.register_variable(_RealU(
+        self.register_variable(RealU(
             name, unit=unit, description=desc, causality=Fmi2Causality.output,
             variability=Fmi2Variability.continuous, initial=Fmi2Initial.calculated,
             getter=_output_getter(self, name)))
@@ -309,37 +177,11 @@ def rotor_init(self, **kwargs: Any) -> None:
     check_shipped_layout(self)
 
 
-def _getter(self, name: str) -> Callable[[], Any]:
-    return lambda: self._values[name]
-
-
-def _output_getter(self, name: str) -> Callable[[], Any]:
-    def get():
-        if not self._initialized:
-            self._ensure_model()
-        return self._values[name]
-    return get
-
-
-def _param_setter(self, name: str, kind: type):
-    def set_(value):
-        value = kind(value)
-        if self._initialized and value != self._values[name]:
-            raise InitializationStateError(
-                f"parameter '{name}' is fixed after initialization (tried {value!r}, "
-                f"has {self._values[name]!r}); set it before fmi2ExitInitializationMode")
-        self._values[name] = value
-    return set_
-
-
-def _input_setter(self, name: str):
-    def set_(value):
-        self._values[name] = float(value)
-    return set_
+_getter, _output_getter, _param_setter, _input_setter = value_getter, output_getter, param_setter, input_setter
 
 
 def rotor_to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006
-    return finish_model_description(Fmi2Slave.to_xml(self, model_options), self._units)
+    return finish_model_description(Fmi2Slave.to_xml(self, model_options), self._units, UNITS)
 
 
 def rotor_output_names(self) -> list[str]:
@@ -388,24 +230,11 @@ def rotor_coefficients(self):
     return v[0], v[1]
 
 
-def rotor_setup_experiment(self, start_time: float, stop_time=None, tolerance=None):
-    self._start_time = float(start_time)
-    self._time = float(start_time)
-
-
-def rotor_exit_initialization_mode(self):
-    self._ensure_model()
-    self._time = self._start_time
-    self._initialized = True
+rotor_setup_experiment, rotor_exit_initialization_mode = setup_experiment, exit_initialization_mode
 
 
 def rotor_do_step(self, current_time: float, step_size: float) -> bool:
-    if not self._initialized:
-        raise InitializationStateError("do_step before exit_initialization_mode")
-    if abs(current_time - self._time) > 1e-9 * max(1.0, abs(current_time)) + 1e-6 * step_size:
-        raise InitializationStateError(
-            f"do_step at t={current_time!r} but the FMU is at t={self._time!r}; "
-            "restore a saved FMU state to step from an earlier time")
+    check_step_start(self, current_time, step_size)
     saved = copy.deepcopy(self._model.get_state())
     try:
         self._model.step(step_size, self._forces(), *rotor_coefficients(self))
@@ -418,35 +247,17 @@ def rotor_do_step(self, current_time: float, step_size: float) -> bool:
     return True
 
 
+_STATE_ATTRS = {"start_time": "_start_time"}     # saved with the FMU state besides the common part
+
+
 def rotor_get_fmu_state(self) -> dict[str, Any]:
-    return {"values": dict(self._values), "time": self._time, "start_time": self._start_time,
-            "initialized": self._initialized, "init_key": self._init_key,
-            "model": None if self._model is None else copy.deepcopy(self._model.get_state())}
+    return get_slave_state(self, _STATE_ATTRS)
 
 
 def rotor_set_fmu_state(self, state: dict[str, Any]) -> None:
-    if state["model"] is not None and self._model is None:
-        self._values.update(state["values"])
-        self._start_time = state["start_time"]
-        self._ensure_model()
-    self._values = dict(state["values"])
-    self._time = state["time"]
-    self._start_time = state["start_time"]
-    self._initialized = state["initialized"]
-    self._init_key = state["init_key"]
-    if state["model"] is None:
-        self._model = None
-    else:
-        self._model.set_state(copy.deepcopy(state["model"]))
+    set_slave_state(self, state, _STATE_ATTRS)
+    if state["model"] is not None:
         self._copy_outputs()
-
-
-def state_to_bytes(state: dict[str, Any]) -> bytes:
-    return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
-
-
-def state_from_bytes(state: bytes) -> dict[str, Any]:
-    return pickle.loads(state)
 
 
 # ----------------------------------------------------------------------------
@@ -456,7 +267,7 @@ def _jeffcott_fields():
 
 
 def _jeffcott_model(params: dict[str, Any], t0: float):
-    from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor as Model
+    from rotor_fmu.jeffcott import JeffcottModel as Model, JeffcottParams
     return Model(JeffcottParams(**params, t0=t0))
 
 

@@ -11,6 +11,11 @@ from pathlib import Path
 
 import pytest
 
+from orchestrator.reference.models import load_model_file
+
+# the monolithic reference's adapters of the two-mass test FMUs (not in production code)
+load_model_file(Path(__file__).parent / "fmus_src" / "_reference_models.py")
+
 FMU_SRC = Path(__file__).parent / "fmus_src"
 
 # Build options per source file (FMI CoSimulation capability flags).

@@ -18,9 +18,9 @@ import warnings
 import numpy as np
 import pytest
 
-from orchestrator.analysis import (WhirlParams, analyze_journal, analyze_run, dominant_ratio,
-                                   growth_rate, growth_threshold, order_spectra, read_results,
-                                   revolutions, waterfall)
+from orchestrator.results.run_directory import read_results
+from orchestrator.results.whirl import (WhirlParams, analyze_journal, analyze_run, dominant_ratio,
+                                        growth_rate, growth_threshold, order_spectra, revolutions, waterfall)
 
 C = 1.0e-5            # clearance [m]
 P = WhirlParams()     # defaults under test

@@ -9,7 +9,7 @@ from scipy.integrate import quad
 
 from bearing_fmu.contact import F52, H_CUTOFF, contact_coefficients, contact_force, normal_force
 from bearing_fmu.linearize import linearization
-from bearing_fmu.model import BearingParams, JournalBearing
+from bearing_fmu.model import BearingParams, BearingModel
 
 R, B, PSI = 4.9e-3, 7.84e-3, 2.8e-3
 C = PSI * R
@@ -104,7 +104,7 @@ def test_bearing_adds_contact_to_film_force_and_coefficients(cav):
     from bearing_fmu.linearize import _force, hs_linearization
     x, y, w = 0.25 * C, -0.93 * C, 2 * math.pi * 70
     kw = dict(cavitation=cav, groove_width=0.26, axial_bc=1)
-    b0, b1 = JournalBearing(small(contact=0, **kw)), JournalBearing(small(contact=1, **kw))
+    b0, b1 = BearingModel(small(contact=0, **kw)), BearingModel(small(contact=1, **kw))
     for b in (b0, b1):
         b.initialize(x, y, 0.0, 0.0, w)
     fx, fy, fn, tq = contact_force(x, y, 0.0, 0.0, w, **KW)
@@ -141,7 +141,7 @@ def test_contact_parameters_are_checked():
 # -- film solver: BDF restart when a macro step fails (bearing_fmu/solver.py) ---------
 
 def _mc_bearing():
-    b = JournalBearing(small(cavitation=1, axial_bc=1, groove_width=0.26))
+    b = BearingModel(small(cavitation=1, axial_bc=1, groove_width=0.26))
     b.initialize(0.2 * C, -0.6 * C, 0.0, 0.0, 2 * math.pi * 70, init="stationary")
     for _ in range(3):
         b.step(1e-4, 0.2 * C, -0.6 * C, 1e-3, -1e-3, 2 * math.pi * 70)
@@ -215,7 +215,7 @@ def test_film_with_contact_runs_into_the_asperity_layer(cav):
     from bearing_fmu.solver import StepFailed
     w = 2 * math.pi * 70
     e = C + 0.3 * KW["sigma"]
-    b = JournalBearing(small(contact=1, cavitation=cav, groove_width=0.26, axial_bc=1))
+    b = BearingModel(small(contact=1, cavitation=cav, groove_width=0.26, axial_bc=1))
     b.initialize(0.0, -e, 0.0, 0.0, w)
     for _ in range(3):
         b.step(1e-5, 0.0, -e, 0.0, 1e-4, w)
@@ -225,17 +225,17 @@ def test_film_with_contact_runs_into_the_asperity_layer(cav):
     assert np.all(np.isfinite([o["Fx"], o["Fy"], o["p_max"]]))
     with pytest.raises(StepFailed, match="asperity layer.*discard_retries.*contact_KE"):
         b.step(1e-5, 0.0, -(C + 1.01 * KW["sigma"]), 0.0, 0.0, w)
-    b2 = JournalBearing(small(contact=1, contact_h_limit=-3.0, cavitation=cav, groove_width=0.26, axial_bc=1))
+    b2 = BearingModel(small(contact=1, contact_h_limit=-3.0, cavitation=cav, groove_width=0.26, axial_bc=1))
     b2.initialize(0.0, -(C + 2.0 * KW["sigma"]), 0.0, 0.0, w)
     assert b2.outputs["F_contact"] > b.outputs["F_contact"]
-    b0 = JournalBearing(small(contact=0, cavitation=cav, groove_width=0.26, axial_bc=1))
+    b0 = BearingModel(small(contact=0, cavitation=cav, groove_width=0.26, axial_bc=1))
     with pytest.raises(StepFailed, match="contact = 1"):
         b0.initialize(0.0, -e, 0.0, 0.0, w)
 
 
 def test_outside_the_clearance_messages_tell_contact_from_blow_up():
     from bearing_fmu.solver import StepFailed
-    b = JournalBearing(small(cavitation=0))
+    b = BearingModel(small(cavitation=0))
     b.initialize(0.0, -0.5 * C, 0.0, 0.0, 500.0)
     with pytest.raises(StepFailed, match="touches the shell.*contact = 1"):
         b.step(1e-5, 0.0, -1.01 * C, 0.0, 0.0, 500.0)

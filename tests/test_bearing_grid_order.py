@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from bearing_fmu.linearize import linearization
-from bearing_fmu.model import BearingParams, JournalBearing
+from bearing_fmu.model import BearingParams, BearingModel
 
 R = 4.9e-3
 C = 2.8e-3 * R
@@ -33,7 +33,7 @@ GRIDS = (40, 80, 160)
 
 
 def bearing(n):
-    b = JournalBearing(BearingParams(R=R, B=1.6 * R, psi=2.8e-3, eta0=0.012, p0=1e5, p_feed=1e5,
+    b = BearingModel(BearingParams(R=R, B=1.6 * R, psi=2.8e-3, eta0=0.012, p0=1e5, p_feed=1e5,
                                      n_phi=n, n_z=n, cavitation=0, axial_bc=0))
     b.initialize(X, Y, 0.0, 0.0, OMEGA)
     return b

@@ -11,7 +11,7 @@ import warnings
 import numpy as np
 import pytest
 
-from bearing_fmu.model import BearingParams, JournalBearing, StepFailed, solve_stationary
+from bearing_fmu.model import BearingParams, BearingModel, StepFailed, solve_stationary
 from bearing_fmu.grid import make_grid
 from bearing_fmu.film import stencil_matvec, stencil_to_band
 
@@ -83,7 +83,7 @@ def check_stencil_jacobian(p, omega):
     """At a random state mixing cavity and film cells: the band storage the LU uses holds
     every coupling of the exact stencil Jacobian (none outside the band), and the Jacobian
     equals central finite differences of the residual to 1e-7. Returns the film."""
-    b = JournalBearing(p)
+    b = BearingModel(p)
     b.initialize(0.1 * p.c, -0.5 * p.c, 0.01, 0.02, omega)
     f, g, kin = b.film, b.grid, b._kin
     rng = np.random.default_rng(0)
@@ -132,7 +132,7 @@ def test_half_sommerfeld_short_bearing_limit():
     length effect at B/D = 1/8 and the 80 x 20 grid (measured: 0.99 W_oc)."""
     R, eps = 0.02, 0.4
     p = BearingParams(R=R, B=2 * R / 8, cavitation=0, n_phi=80, n_z=20)
-    b = JournalBearing(p)
+    b = BearingModel(p)
     b.initialize(0.0, -eps * p.c, 0.0, 0.0, W100)
     o = b.outputs
     W = math.hypot(o["Fx"], o["Fy"])
@@ -176,7 +176,7 @@ def test_band_and_splu_agree(krylov):
     out = []
     for ls in ("band", "splu"):
         p = small(linear_solver=ls, krylov_refactor=krylov, **GROOVE)
-        b = JournalBearing(p)
+        b = BearingModel(p)
         b.initialize(0.0, -0.5 * p.c, 0.0, 0.0, W100)
         for _ in range(5):
             b.step(2e-5, 0.0, -0.5 * p.c, 0.0, 0.0, W100)
@@ -194,7 +194,7 @@ def orbit(c, w, t):
 def test_get_set_state_is_exact(krylov):
     p = small(krylov_refactor=krylov, **GROOVE)
     w = 2 * math.pi * 200
-    b = JournalBearing(p)
+    b = BearingModel(p)
     b.initialize(*orbit(p.c, w, 0.0))
     dt = 2e-5
     for k in range(5):
@@ -212,7 +212,7 @@ def test_get_set_state_is_exact(krylov):
         assert b.outputs == ref[k - 5]          # bit for bit
     assert b.t == t_ref
     # restoring into a fresh instance also works
-    b2 = JournalBearing(p)
+    b2 = BearingModel(p)
     b2.initialize(0.0, 0.0, 0.0, 0.0, 0.0)
     b2.set_state(s)
     b2.step(dt, *orbit(p.c, w, 6 * dt))
@@ -221,7 +221,7 @@ def test_get_set_state_is_exact(krylov):
 
 def test_step_contract_errors_and_time():
     p = small(**GROOVE)
-    b = JournalBearing(p)
+    b = BearingModel(p)
     with pytest.raises(RuntimeError, match="initialize"):
         b.step(1e-5, 0, 0, 0, 0, W100)
     b.initialize(0.0, -0.3 * p.c, 0.0, 0.0, W100)
@@ -238,14 +238,14 @@ def test_step_contract_errors_and_time():
 
 def test_half_sommerfeld_step_is_quasi_static():
     p = small(cavitation=0, **GROOVE)
-    b = JournalBearing(p)
+    b = BearingModel(p)
     b.initialize(0.0, -0.4 * p.c, 0.0, 0.0, W100)
     b.step(1e-3, 0.0, -0.5 * p.c, 0.0, 0.0, W100)
-    ref = JournalBearing(p)
+    ref = BearingModel(p)
     ref.initialize(0.0, -0.5 * p.c, 0.0, 0.0, W100)
     assert b.outputs == ref.outputs
     # squeeze: a journal moving down (vy < 0) gets an extra upward force
-    sq = JournalBearing(p)
+    sq = BearingModel(p)
     sq.initialize(0.0, -0.5 * p.c, 0.0, -0.01, W100)
     assert sq.outputs["Fy"] > ref.outputs["Fy"]
 
@@ -268,7 +268,7 @@ def test_half_width_grid_equals_full_grid():
     p = small(axial_bc=1, **GROOVE)
     res = []
     for half in (True, False):
-        b = JournalBearing(p)
+        b = BearingModel(p)
         if not half:
             b.sym, b.grid = False, b.grid_full
             b.film = TransientFilm(b, linear_solver=p.linear_solver)
@@ -292,7 +292,7 @@ def test_transient_volume_balance(bc, tt):
     shared by both cells either way."""
     p = small(axial_bc=bc, theta_transport=tt, **GROOVE)
     w = 2 * math.pi * 400
-    b = JournalBearing(p)
+    b = BearingModel(p)
     b.initialize(*orbit(p.c, w, 0.0), init="stationary")
     f, g = b.film, b.grid
     dt = 2e-5

@@ -46,7 +46,7 @@ def params(*, B, n_phi, n_z, cavitation=0, axial_bc=0, groove_width=0.0,
 
 
 def hs_force(p, x, y, vx, vy, omega=OMEGA):
-    b = model.JournalBearing(p)
+    b = model.BearingModel(p)
     b.initialize(x, y, vx, vy, omega)
     return np.array([b.outputs["Fx"], b.outputs["Fy"]]), b
 
@@ -317,7 +317,7 @@ def test_transient_run_reaches_the_stationary_solution():
     p = params(B=PAPER_B, n_phi=40, n_z=40, cavitation=1, axial_bc=1,
                groove_width=math.radians(15.0), groove_angle=0.0)
     st = steady(p, -0.7 * C, 0.0)
-    b = model.JournalBearing(p)
+    b = model.BearingModel(p)
     b.initialize(-0.7 * C, 0.0, 0.0, 0.0, OMEGA)
     for _ in range(20):
         b.step(2 * 2 * math.pi / OMEGA, -0.7 * C, 0.0, 0.0, 0.0, OMEGA)

@@ -112,7 +112,7 @@ def _have_run() -> bool:
     if getattr(orchestrator, "run", None) is not None:
         return True
     try:
-        import orchestrator.master as m
+        import orchestrator.coupling.execution as m
     except ModuleNotFoundError:
         return False
     return hasattr(m, "run")
@@ -197,7 +197,7 @@ def test_missing_dependency_is_named(monkeypatch):
         raise ModuleNotFoundError("No module named 'matplotlib.pyplot'", name="matplotlib.pyplot")
     monkeypatch.setattr(importlib, "import_module", fake_import)
     with pytest.raises(cli._Unavailable, match=r"needs the Python package 'matplotlib'.*pip install matplotlib"):
-        cli._feature("orchestrator.plots", "plot_run", "plot")
+        cli._feature("orchestrator.results.plots", "plot_run", "plot")
 
 
 def test_verbs_call_the_owners_functions(monkeypatch, tmp_path, capsys):
@@ -210,9 +210,9 @@ def test_verbs_call_the_owners_functions(monkeypatch, tmp_path, capsys):
         return fn
     monkeypatch.setattr(cli, "_feature", feature)
     assert main(["build-fmus", "--force", "--out", str(tmp_path)]) == 0
-    assert calls[-1] == ("orchestrator.build", "build_fmus", (), {"out_dir": str(tmp_path), "force": True})
+    assert calls[-1] == ("orchestrator.fmi.build", "build_fmus", (), {"out_dir": str(tmp_path), "force": True})
     assert main(["plot", str(tmp_path)]) == 0
-    assert calls[-1][:3] == ("orchestrator.plots", "plot_run", (tmp_path,))
+    assert calls[-1][:3] == ("orchestrator.results.plots", "plot_run", (tmp_path,))
     assert str(tmp_path / "a.png") in capsys.readouterr().out
     assert main(["compare", "c.yaml", "--update-baseline"]) == 3         # compare's exit code passes through
     assert calls[-1] == ("orchestrator.compare", "main_compare", ("c.yaml",),

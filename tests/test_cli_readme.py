@@ -56,7 +56,12 @@ def test_pyproject_entry_points_and_extras():
     assert any(d.startswith("pytest") for d in project["optional-dependencies"]["test"])
     deps = {re.split(r"[<>=!~ \[]", d)[0].lower() for d in project["dependencies"]}
     assert {"numpy", "scipy", "fmpy", "pythonfmu", "pyyaml"} <= deps
-    assert set(meta["tool"]["setuptools"]["packages"]) == {"orchestrator", "bearing_fmu", "rotor_fmu"}
+    packages = set(meta["tool"]["setuptools"]["packages"])
+    assert {p.split(".")[0] for p in packages} == {"orchestrator", "bearing_fmu", "rotor_fmu", "fmu_common"}
+    # every package folder of the orchestrator is shipped (the wheel would miss an unlisted one)
+    on_disk = {".".join(d.relative_to(REPO).parts) for d in (REPO / "orchestrator").rglob("*")
+               if d.is_dir() and (d / "__init__.py").is_file()}
+    assert on_disk <= packages, on_disk - packages
 
 
 def test_readme_links_exist_or_are_owned():

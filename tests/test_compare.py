@@ -18,7 +18,7 @@ import pytest
 
 from orchestrator.compare import (CompareSpecError, apply_changes, expand_variants, main_compare,
                                   parse_compare, run_comparison)
-from orchestrator.compare_metrics import check_report, fit_order, signal_errors
+from orchestrator.compare.metrics import check_report, fit_order, signal_errors
 from orchestrator.scenario import (ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario)
 
 K = 0.1
@@ -348,7 +348,7 @@ def test_reference_check_covers_derived_tolerances(tmp_path):
     rep = run_comparison(spec, tmp_path / "b", runner=fake_runner, workers=1)
     assert not [f for f in check_report(rep, spec, None) if f.startswith("reference:")]
     # the report gives the change and the derived values themselves
-    from orchestrator.compare_metrics import write_report
+    from orchestrator.compare.report import write_report
     write_report(rep, spec, tmp_path / "b", [])
     md = (tmp_path / "b" / "report.md").read_text()
     assert f"onset {change:.3g}" in md and ", on onset 0.1" in md

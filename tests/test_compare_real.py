@@ -20,9 +20,9 @@ import pytest
 from scipy.linalg import expm
 
 from orchestrator.compare import load_compare, parse_compare, run_comparison
-from orchestrator.compare_metrics import signal_errors
+from orchestrator.compare.metrics import signal_errors
 from orchestrator.errors import ScenarioError
-from orchestrator.monolithic import run_monolithic
+from orchestrator.reference.monolithic import run_monolithic
 from orchestrator.scenario import ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario
 
 pytestmark = pytest.mark.integration

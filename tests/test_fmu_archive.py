@@ -7,9 +7,9 @@ import zipfile
 
 import pytest
 
-from orchestrator import fmu_archive
+from orchestrator.fmi import archive as fmu_archive
 from orchestrator.errors import FmuError
-from orchestrator.fmu_archive import read_model_description, safe_extract
+from orchestrator.fmi.archive import read_model_description, safe_extract
 
 MD = b"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="2.0" modelName="M" guid="{123}">

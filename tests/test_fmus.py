@@ -1,7 +1,7 @@
 """Integration tests of our own FMUs (JournalBearing, JeffcottRotor, TurbochargerRotor).
 
 The FMUs are built once per session (``built_fmus``) with
-:func:`orchestrator.build.build_fmus` into a temporary folder and loaded with
+:func:`orchestrator.fmi.build.build_fmus` into a temporary folder and loaded with
 FMPy. Every instance is freed explicitly (PythonFMU instances left to the
 garbage collector have aborted processes at exit).
 """
@@ -25,7 +25,7 @@ PSI, R_TEST = 2.8e-3, 0.02
 
 def _available(name: str) -> bool:
     """Whether the model that FMU ``name`` wraps is in this checkout (it is bundled from here)."""
-    from orchestrator.build import REPO
+    from orchestrator.fmi.build import REPO
     module = {"JournalBearing": "bearing_fmu/model.py", "JeffcottRotor": "rotor_fmu/jeffcott.py",
               "TurbochargerRotor": "rotor_fmu/turbocharger.py"}[name]
     return (REPO / module).is_file()
@@ -33,7 +33,7 @@ def _available(name: str) -> bool:
 
 @pytest.fixture(scope="session")
 def built_fmus(tmp_path_factory) -> dict[str, Path]:
-    from orchestrator.build import build_fmus
+    from orchestrator.fmi.build import build_fmus
     out = tmp_path_factory.mktemp("fmus")
     names = [n for n in NAMES if _available(n)]
     return {p.stem: p for p in build_fmus(out, force=True, names=names)}
@@ -101,7 +101,7 @@ def test_fmu_carries_its_code_and_build_record(built_fmus, name):
 def test_stamp_and_staleness(tmp_path):
     """On a frozen copy of the sources (the repository may be edited while tests run)."""
     import shutil
-    from orchestrator.build import REPO, FmuRecipe, build_one, is_stale, source_hash
+    from orchestrator.fmi.build import REPO, FmuRecipe, build_one, is_stale, source_hash
     src = tmp_path / "src" / "rotor_fmu"
     shutil.copytree(REPO / "rotor_fmu", src, ignore=shutil.ignore_patterns("__pycache__"))
     recipe = FmuRecipe("JeffcottRotor", src / "jeffcott_rotor.py", (src,))

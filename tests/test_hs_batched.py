@@ -11,7 +11,7 @@ import pytest
 
 from bearing_fmu.linearize import (hs_force, hs_forces_many, hs_linearization,
                                    hs_linearization_scalar, linearization)
-from bearing_fmu.model import BearingParams, JournalBearing
+from bearing_fmu.model import BearingParams, BearingModel
 
 R, PSI = 4.9e-3, 2.8e-3
 C = R * PSI
@@ -31,7 +31,7 @@ KINS = [(0.36 * C, -0.15 * C, 0.0, 0.0, 2 * math.pi * 100),
 def bearing(**kw):
     base = dict(R=R, B=1.6 * R, psi=PSI, eta0=0.012, p0=1e5, p_feed=1e5)
     base.update(kw)
-    return JournalBearing(BearingParams(**base))
+    return BearingModel(BearingParams(**base))
 
 
 @pytest.mark.parametrize("case", sorted(CASES))

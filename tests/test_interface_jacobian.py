@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
+from rotor_fmu.jeffcott import JeffcottParams, JeffcottModel
 
 K_LIN = 1.0e7      # N/m
 D_LIN = 5.0e4      # N s/m
@@ -49,7 +49,7 @@ class CubicBearing(LinearBearing):
 def _rotor():
     # disc released from the undeflected position (no initial sag): it swings at ~130 Hz
     # with ~15 um amplitude and drives the journals on the film
-    r = JeffcottRotor(JeffcottParams(initial_sag=False, journal_x0=2e-6))
+    r = JeffcottModel(JeffcottParams(initial_sag=False, journal_x0=2e-6))
     r.initialize()
     return r
 
@@ -315,7 +315,7 @@ def _jeffcott_on_ramp(t0=1.0):
     """Jeffcott rotor at 400 Hz on the paper ramp (alpha = 2 pi 400 rad/s^2), a 100x
     unbalance (1e-4 kg m) and a 1 mm/s velocity seed at journal 1; exact mid-step speed in
     the trapezoidal kernel too (omega_quantum 0), so both schemes freeze the same matrices."""
-    r = JeffcottRotor(JeffcottParams(unbalance=1e-4, initial_sag=False, journal_x0=2e-6))
+    r = JeffcottModel(JeffcottParams(unbalance=1e-4, initial_sag=False, journal_x0=2e-6))
     r.omega_quantum = 0.0
     r.initialize()
     s = r.state_vector()
@@ -464,8 +464,8 @@ def test_below_the_switch_the_trapezoidal_path_is_bit_identical(monkeypatch):
         calls.append(nsub)
         return orig(self, dt, F, nsub)
 
-    orig = JeffcottRotor._step_lstable
-    monkeypatch.setattr(JeffcottRotor, "_step_lstable", spy)
+    orig = JeffcottModel._step_lstable
+    monkeypatch.setattr(JeffcottModel, "_step_lstable", spy)
     H = 1e-4
     # need = H ||M^-1 C_aug|| / 2 ~ 5e-4 x c [N s/m] on the 0.1 kg journal
     for c in (D_LIN, 3.0e6, 3.9e6):

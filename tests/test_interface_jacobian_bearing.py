@@ -10,7 +10,7 @@ import pytest
 
 from bearing_fmu import reference as ref
 from bearing_fmu.linearize import hs_force, linearization
-from bearing_fmu.model import BearingParams, JournalBearing
+from bearing_fmu.model import BearingParams, BearingModel
 
 R, PSI, ETA, P0 = 0.02, 2.8e-3, 0.012, 1e5
 C_CL = PSI * R
@@ -37,7 +37,7 @@ def test_hs_coefficients_tend_to_short_bearing(xy):
     eK, eC = [], []
     for bd in (0.25, 0.125, 0.0625):
         B = bd * 2 * R
-        b = JournalBearing(params(B=B, n_phi=360, n_z=40))
+        b = BearingModel(params(B=B, n_phi=360, n_z=40))
         b.initialize(x, y, 0.0, 0.0, OMEGA)
         K, C = linearization(b)
         Kr, Cr = ref.short_bearing_coefficients(x, y, OMEGA, R=R, B=B, c=C_CL, eta=ETA)
@@ -52,7 +52,7 @@ def test_hs_coefficients_tend_to_short_bearing(xy):
 def test_hs_coefficients_predict_a_finite_perturbation_and_leave_state_alone():
     """F(z0 + dz) - F(z0) ~ -[K C] dz to second order in dz (dz = 1e-3 c, 1e-3 c omega),
     checked per direction; linearization() does not change state/outputs."""
-    b = JournalBearing(params())
+    b = BearingModel(params())
     z0 = np.array([0.3 * C_CL, -0.5 * C_CL, 0.02 * C_CL * OMEGA, -0.01 * C_CL * OMEGA])
     b.initialize(*z0, OMEGA)
     out0, s0 = dict(b.outputs), b.get_state()
@@ -79,7 +79,7 @@ def test_mc_coefficients_equal_the_finite_difference_of_one_film_step():
     coefficients (Newton-Jacobian sensitivity, film history held) equal central finite
     differences of that step's end force w.r.t. the held kinematics."""
     w = 2 * math.pi * 200
-    b = JournalBearing(params(cavitation=1))
+    b = BearingModel(params(cavitation=1))
     z = np.array([0.2 * C_CL, -0.5 * C_CL, 0.01 * C_CL * w, 0.02 * C_CL * w])
     b.initialize(*z, w)
     for _ in range(10):
@@ -116,7 +116,7 @@ def test_mc_default_coefficients_are_the_quasi_static_ones_at_the_kinematics():
     film's current kinematics (bearing_fmu.linearize.linearization docstring)."""
     from bearing_fmu.linearize import hs_linearization
     w = 2 * math.pi * 200
-    b = JournalBearing(params(cavitation=1))
+    b = BearingModel(params(cavitation=1))
     z = np.array([0.2 * C_CL, -0.5 * C_CL, 0.01 * C_CL * w, 0.02 * C_CL * w])
     b.initialize(*z, w)
     b.step(2e-5, *z, w)

@@ -149,7 +149,7 @@ def interop_fmus(tmp_path_factory) -> dict[str, Path]:
     import importlib.util
     if importlib.util.find_spec("bearing_fmu.model") is None:
         pytest.skip("bearing_fmu.model not available yet")
-    from orchestrator.build import build_fmus
+    from orchestrator.fmi.build import build_fmus
     out = tmp_path_factory.mktemp("interop_fmus")
     return {p.stem: p for p in build_fmus(out, force=True, names=["JournalBearing", "JeffcottRotor"])}
 

@@ -15,12 +15,12 @@ import pytest
 from scipy.linalg import expm
 
 from orchestrator.errors import LifecycleError, ScenarioError
-from orchestrator.fmu import SubsystemBase
-from orchestrator.fmu_archive import Variable
-from orchestrator.master import MasterAlgorithm
+from orchestrator.fmi.subsystem import SubsystemBase
+from orchestrator.fmi.archive import Variable
+from orchestrator.coupling.execution import MasterAlgorithm
 from orchestrator.results import Status
 from orchestrator.scenario import ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario
-from orchestrator.signals import MAX_ORDER
+from orchestrator.coupling.signals import MAX_ORDER
 
 
 class LinearFake(SubsystemBase):
@@ -357,7 +357,7 @@ def orders_table_exact_polynomial() -> str:
 
 
 def test_csv_is_streamed_during_the_run(tmp_path):
-    from orchestrator.observers import CsvWriter
+    from orchestrator.coupling.observers import CsvWriter
     csv = CsvWriter(tmp_path / "results.csv", flush_interval=0.0)
     m = MasterAlgorithm(two_mass_scenario("jacobi", 0.01, 1, T=0.1), subsystems=two_mass_fakes(), observers=[csv])
     m.setup()
@@ -374,7 +374,7 @@ def test_csv_is_streamed_during_the_run(tmp_path):
 
 def test_forced_progress_bar_goes_to_the_given_stream():
     import io
-    from orchestrator.observers import Progress
+    from orchestrator.coupling.observers import Progress
     stream = io.StringIO()
     res = MasterAlgorithm(two_mass_scenario("jacobi", 1e-3, 0, T=0.2), subsystems=two_mass_fakes(),
                           observers=[Progress(True, delay=0.0, stream=stream)]).run()

@@ -177,7 +177,7 @@ def test_bad_parameter_type_and_unknown_names(test_fmus, tmp_path):
 
 
 def test_state_save_restore_round_trip(test_fmus, tmp_path):
-    from orchestrator.fmu import Subsystem
+    from orchestrator.fmi.subsystem import Subsystem
     s = Subsystem("i", test_fmus["Integrator"], work_dir=tmp_path)
     try:
         s.setup_experiment(0.0, 1.0)
@@ -201,7 +201,7 @@ def test_state_save_restore_round_trip(test_fmus, tmp_path):
 
 def test_fmu_exception_surfaces_as_fmu_call_error(test_fmus, tmp_path):
     from orchestrator.errors import FmuCallError
-    from orchestrator.fmu import Subsystem
+    from orchestrator.fmi.subsystem import Subsystem
     s = Subsystem("bad", test_fmus["Faulty"], work_dir=tmp_path)
     try:
         s.set_parameters({"mode": 1, "t_fail": 0.0})
@@ -229,8 +229,8 @@ def test_monolithic_dispatch_and_analysis_hook(test_fmus, tmp_path, monkeypatch)
     def broken_analysis(out_dir, spec):
         raise RuntimeError("boom")
 
-    monkeypatch.setitem(sys.modules, "orchestrator.monolithic", types.SimpleNamespace(run_monolithic=fake_monolithic))
-    monkeypatch.setitem(sys.modules, "orchestrator.analysis", types.SimpleNamespace(analyze_run=broken_analysis))
+    monkeypatch.setitem(sys.modules, "orchestrator.reference.monolithic", types.SimpleNamespace(run_monolithic=fake_monolithic))
+    monkeypatch.setitem(sys.modules, "orchestrator.results.whirl", types.SimpleNamespace(analyze_run=broken_analysis))
     sc = two_mass(test_fmus, "jacobi", 0.01, 0, T=0.05)
     sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, scheme="monolithic"),
                              analysis={"speed": "left.x1"})
@@ -265,7 +265,7 @@ if __name__ == "__main__":
 
 
 def test_keyboard_interrupt_still_writes_summary(test_fmus, tmp_path):
-    from orchestrator.observers import Observer
+    from orchestrator.coupling.observers import Observer
 
     class Interrupt(Observer):
         def on_step_complete(self, view):

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from orchestrator.coupling.iterative import IterationSpec
+from orchestrator.scenario.model import IterationSpec
 from orchestrator.errors import ScenarioError
-from orchestrator.master import MasterAlgorithm
+from orchestrator.coupling.execution import MasterAlgorithm
 from orchestrator.results import Status
 from orchestrator.scenario import ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario
 from test_master import LinearFake

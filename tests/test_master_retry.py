@@ -22,7 +22,7 @@ import pytest
 
 from orchestrator import run
 from orchestrator.errors import ScenarioError
-from orchestrator.master import MasterAlgorithm
+from orchestrator.coupling.execution import MasterAlgorithm
 from orchestrator.results import Status
 from orchestrator.scenario import (ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario, load_scenario)
 
@@ -100,7 +100,7 @@ def test_every_step_split_equals_the_small_step_run(limited_fmu, test_fmus, tmp_
     """h_max = H/4 everywhere: every macro step needs 2 halvings. With first='right' the
     discarding FMU is stepped second, so the other FMU (already stepped) must be restored too."""
     H, h = 4e-3, 1e-3
-    caplog.set_level(logging.INFO, logger="orchestrator.master")
+    caplog.set_level(logging.INFO, logger="orchestrator.coupling")
     res = run(two_mass(limited_fmu, test_fmus, H=H, retries=3, h_max=h, scheme=scheme, first=first),
               out_dir=tmp_path / "r", progress=False)
     assert res.success, res.message
@@ -242,3 +242,50 @@ def test_loader_default_value_and_override(sdir, caplog):
         sc = load_scenario(p, ["coupling.scheme=monolithic"], build_fmus=False)
     assert sc.coupling.discard_retries == 3
     assert any("discard_retries = 3 is ignored by the monolithic scheme" in r.getMessage() for r in caplog.records)
+
+
+# ---------------------------------------------------------------- step-size controller seam
+def test_rejected_attempts_reach_the_observers(limited_fmu, test_fmus, tmp_path):
+    """Every rolled-back attempt is told to the observers (on_step_rejected), with its interval."""
+    from orchestrator.coupling.observers import Observer
+
+    class Rejections(Observer):
+        def __init__(self):
+            self.seen = []
+
+        def on_step_rejected(self, view):
+            self.seen.append(view.rejected)
+
+    H, h = 4e-3, 1e-3
+    obs = Rejections()
+    res = run(two_mass(limited_fmu, test_fmus, H=H, retries=3, h_max=h, T=0.02), out_dir=tmp_path,
+              progress=False, observers=[obs])
+    assert res.success, res.message
+    assert len(obs.seen) == res.stats["rejected_steps"] == 5 * 3
+    t_a, t_b, reason = obs.seen[0]
+    assert (t_a, t_b) == (pytest.approx(0.0), pytest.approx(H)) and "discard" in reason
+    assert obs.seen[1][:2] == (pytest.approx(0.0), pytest.approx(H / 2))     # then the first half
+
+
+def test_a_custom_controller_drives_the_steps(test_fmus, tmp_path):
+    """The master asks the controller for the grid and lets it take every step (the protocol of
+    orchestrator.coupling.step_control): a controller counting its calls sees every macro step."""
+    from orchestrator.coupling.execution import MasterAlgorithm
+    from orchestrator.coupling.step_control import ConstantStep
+
+    class Counting(ConstantStep):
+        calls = 0
+
+        def take_step(self, stepper, t, t_next):
+            Counting.calls += 1
+            stepper.step(t, t_next)
+
+    sc = Scenario(name="chain", stop_time=0.1,
+                  fmus=(FmuSpec(name="src", path=test_fmus["Faulty"], parameters={"t_fail": 1.0, "mode": 0}),
+                        FmuSpec(name="gain", path=test_fmus["Gain"], parameters={"k": 2.0})),
+                  connections=(ConnectionSpec(src="src.y", dst="gain.u"),),
+                  coupling=CouplingSpec(macro_step=0.01))
+    m = MasterAlgorithm(sc, out_dir=tmp_path, step_size=Counting(0.0, 0.1, 0.01))
+    res = m.run()
+    assert res.success and Counting.calls == 10 == res.stats["macro_steps"]
+    assert res.stats["rejected_steps"] == 0

@@ -1,7 +1,7 @@
 """The monolithic BDF2 reference with the mass-conserving film (issue 6, acceptance 3).
 
 ``coupling.scheme: monolithic`` integrates the rotor and the mass-conserving films as one
-BDF2 integrator (orchestrator/monolithic.py). These tests check, on short runs of the CI
+BDF2 integrator (orchestrator/reference/monolithic.py). These tests check, on short runs of the CI
 case ``compare/ci_jeffcott_mc.yaml`` (free to air, groove, film from its steady state) on a
 coarse grid:
 
@@ -23,7 +23,7 @@ import pytest
 from orchestrator import run
 from orchestrator.compare import load_compare
 from orchestrator.errors import ScenarioError
-from orchestrator.monolithic import run_monolithic
+from orchestrator.reference.monolithic import run_monolithic
 
 pytestmark = pytest.mark.integration
 

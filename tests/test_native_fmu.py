@@ -4,7 +4,7 @@ The FMU is compiled with gcc at test time (tests/fmus_c/build_c_fmu.py) into a
 temporary folder; nothing binary is committed. It replaces the two JournalBearing
 FMUs of a Jeffcott scenario by linear spring-dampers (Fx = -k x - c vx, ...), so the
 co-simulation must converge to the rotor model with linear supports
-(``JeffcottRotor.add_linear_supports``) integrated directly in Python.
+(``JeffcottModel.add_linear_supports``) integrated directly in Python.
 
 Coupling: Gauss-Seidel [rotor, bearing1, bearing2], extrapolation order 0: the rotor
 steps with the support forces of T(n) held, the (algebraic) bearings then read the
@@ -43,7 +43,7 @@ def _builder():
 @pytest.fixture(scope="module")
 def fmu_dir(tmp_path_factory) -> Path:
     """A folder with LinearBearing.fmu (built with gcc) and JeffcottRotor.fmu."""
-    from orchestrator.build import build_fmus
+    from orchestrator.fmi.build import build_fmus
 
     d = tmp_path_factory.mktemp("native_fmu")
     _builder().build_c_fmu(d)
@@ -92,9 +92,9 @@ def _reference(t: np.ndarray) -> dict[str, np.ndarray]:
     """The rotor model on linear supports, integrated directly (DOP853, rtol 1e-10)."""
     from scipy.integrate import solve_ivp
 
-    from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
+    from rotor_fmu.jeffcott import JeffcottParams, JeffcottModel
 
-    r = JeffcottRotor(JeffcottParams(unbalance=UNBALANCE, t0=T0))
+    r = JeffcottModel(JeffcottParams(unbalance=UNBALANCE, t0=T0))
     r.add_linear_supports(K, C)
     r.initialize()
     F0 = np.zeros((2, 2))

@@ -9,9 +9,9 @@ import warnings
 import numpy as np
 import pytest
 
-from orchestrator.analysis import analyze_run
+from orchestrator.results.whirl import analyze_run
 from orchestrator.errors import CosimError
-from orchestrator.plots import infer_spec, plot_run
+from orchestrator.results.plots import infer_spec, plot_run
 from test_analysis import C, SPEC, whirl_vanishing, write_run
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -139,7 +139,7 @@ if __name__ == "__main__":
     import tempfile
     from pathlib import Path
 
-    import orchestrator.plots as plots
+    import orchestrator.results.plots as plots
 
     dest = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/img")
     dest.mkdir(parents=True, exist_ok=True)
@@ -154,3 +154,17 @@ if __name__ == "__main__":
         for f in plot_run(d):
             shutil.copy(f, dest / f"synthetic_{f.name}")
             print(dest / f"synthetic_{f.name}")
+
+
+def test_in_memory_result_gives_the_same_figures(run_dir, tmp_path):
+    """plot_result draws from a CoSimResult (here the run folder read back), no folder needed."""
+    from orchestrator import CoSimResult
+    from orchestrator.results.plots import plot_result
+    res = CoSimResult.load(run_dir)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        files = plot_result(res, tmp_path / "mem", name="synthetic_run_up")
+    assert sorted(f.name for f in files) == ["eccentricity.png", "orbit_bearing1.png", "waterfall_bearing1.png"]
+    for f in files:
+        assert f.parent == tmp_path / "mem"
+        check_png(f)

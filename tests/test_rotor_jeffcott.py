@@ -10,7 +10,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from rotor_fmu.drive import RampProfile, TableProfile
-from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
+from rotor_fmu.jeffcott import JeffcottParams, JeffcottModel
 
 KB = 2.0e7      # linear support stiffness per journal [N/m] (test value)
 
@@ -31,7 +31,7 @@ def closed_form_response(p, kb, cb, Om):
 
 def test_natural_frequencies_on_supports_closed_form():
     p = JeffcottParams(d_external=0.0, d_internal=0.0)
-    r = JeffcottRotor(p)
+    r = JeffcottModel(p)
     r.add_linear_supports(KB)
     M, C, K = r.system_matrices(0.0)
     w_model = np.sort(np.sqrt(np.linalg.eigvals(np.linalg.solve(M, K)).real))
@@ -44,7 +44,7 @@ def test_natural_frequencies_on_supports_closed_form():
     w_ref = np.sort(np.sqrt(np.concatenate([w2, w2, [w_anti**2, w_anti**2]])))
     np.testing.assert_allclose(w_model, w_ref, rtol=1e-10)
     # rigid supports limit: classical Jeffcott sqrt(k/m) within the journal-mass effect
-    r2 = JeffcottRotor(p)
+    r2 = JeffcottModel(p)
     r2.add_linear_supports(1e13)
     M, C, K = r2.system_matrices(0.0)
     w1 = np.sort(np.sqrt(np.linalg.eigvals(np.linalg.solve(M, K)).real))[0]
@@ -55,7 +55,7 @@ def test_unbalance_response_frequency_domain_over_speed():
     """Harmonic balance of the assembled matrices (incl. rotating damping) vs closed form."""
     p = JeffcottParams()
     cb = 300.0
-    r = JeffcottRotor(p)
+    r = JeffcottModel(p)
     r.add_linear_supports(KB, cb)
     for f in np.linspace(20.0, 400.0, 39):
         Om = 2 * np.pi * f
@@ -77,7 +77,7 @@ def test_unbalance_response_time_domain_amplitude_phase(f_hz):
     cb = 200.0    # some support damping so that the start transient of the journal modes decays
     yj_static = -(6.0 + 2 * 0.1) * 9.81 / (2 * KB)
     p = JeffcottParams(f_max=f_hz, t_ramp=0.0, journal_y0=yj_static)
-    r = JeffcottRotor(p)
+    r = JeffcottModel(p)
     r.add_linear_supports(KB, cb)
     r.initialize()
     dt = 5e-5
@@ -115,7 +115,7 @@ def test_unbalance_response_time_domain_amplitude_phase(f_hz):
 def test_unbalance_force_includes_tangential_term():
     """f_unb = -m e d^2/dt^2 (cos phi, sin phi): check against a finite difference."""
     p = JeffcottParams(f_max=800.0, t_ramp=2.0)
-    r = JeffcottRotor(p)
+    r = JeffcottModel(p)
     t, h = 0.37, 1e-5
     pos = lambda t: np.array([np.cos(r.drive.angle(t)), np.sin(r.drive.angle(t))])
     acc = (pos(t + h) - 2 * pos(t) + pos(t - h)) / h**2
@@ -130,7 +130,7 @@ def test_energy_conserved_undamped_unforced():
     """Undamped, unforced, constant speed: the trapezoidal rule conserves v'Mv/2 + q'Kq/2."""
     p = JeffcottParams(d_external=0.0, d_internal=0.0, g=0.0, unbalance=0.0,
                        f_max=300.0, t_ramp=0.0, initial_sag=False)
-    r = JeffcottRotor(p)
+    r = JeffcottModel(p)
     r.add_linear_supports(KB)
     r.initialize()
     s = r.get_state()
@@ -150,7 +150,7 @@ def test_step_matches_first_order_rhs_second_order():
     t_a, t_end = 0.3, 0.305
     errs = []
     for dt in (1e-5, 5e-6):
-        r = JeffcottRotor(p)
+        r = JeffcottModel(p)
         r.add_linear_supports(2e6, 200.0)     # journal mode 6.3e3 rad/s: asymptotic regime
         r.initialize()
         st = r.get_state(); st["t"] = t_a; r.set_state(st)   # start inside the ramp
@@ -176,7 +176,7 @@ def test_run_up_passes_critical_with_expected_peak():
     f0, f1, t1 = 50.0, 130.0, 1.0
     kb, mj = 5e6, 0.5
     p = JeffcottParams(speed_table={"t": [0.0, t1], "f": [f0, f1]}, g=0.0, m_journal=mj)
-    r = JeffcottRotor(p)
+    r = JeffcottModel(p)
     r.add_linear_supports(kb, 0.0)
     r.initialize()
     dt = 1e-4
@@ -215,7 +215,7 @@ def test_run_up_passes_critical_with_expected_peak():
 
 
 def test_state_round_trip_exact():
-    r = JeffcottRotor()
+    r = JeffcottModel()
     r.initialize()
     F = np.array([[3.0, 30.0], [2.0, 31.0]])
     for _ in range(50):
@@ -233,7 +233,7 @@ def test_state_round_trip_exact():
 
 
 def test_api_shapes_and_errors():
-    r = JeffcottRotor()
+    r = JeffcottModel()
     assert r.n_bearings == 2
     with pytest.raises(RuntimeError, match="initialize"):
         r.step(1e-5, np.zeros((2, 2)))
@@ -247,7 +247,7 @@ def test_api_shapes_and_errors():
     with pytest.raises(ValueError, match="finite"):
         r.step(1e-5, np.array([[np.nan, 0], [0, 0]]))
     with pytest.raises(ValueError, match="m_disc"):
-        JeffcottRotor(JeffcottParams(m_disc=-1.0))
+        JeffcottModel(JeffcottParams(m_disc=-1.0))
     kin = r.journal_kinematics(0.0, r.state_vector())
     assert kin.shape == (2, 4)
     assert r.rhs(0.0, r.state_vector(), np.zeros((2, 2))).shape == (12,)
@@ -260,5 +260,5 @@ def test_speed_table_profile_angle_exact():
         assert tp.angle(t) == pytest.approx(rp.angle(t), rel=1e-13)
         assert tp.omega(t) == pytest.approx(rp.omega(t), rel=1e-13)
     assert rp.angle(2.0) == pytest.approx(np.pi * 100.0 * 1.0 + 2 * np.pi * 100.0 * 1.0)
-    r = JeffcottRotor(JeffcottParams(speed_table={"t": [0.0, 1.0], "f": [0.0, 100.0]}))
+    r = JeffcottModel(JeffcottParams(speed_table={"t": [0.0, 1.0], "f": [0.0, 100.0]}))
     assert r.drive.omega(0.5) == pytest.approx(2 * np.pi * 50.0)

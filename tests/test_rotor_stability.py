@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
+from rotor_fmu.jeffcott import JeffcottParams, JeffcottModel
 from rotor_fmu.stability import (
     lund_threshold_speed,
     max_real_eigenvalue,
@@ -82,7 +82,7 @@ def test_coefficients_match_finite_differences(W, f):
 def test_eigenvalue_threshold_rigid_rotor_equals_lund():
     """Near-rigid rotor (very stiff shaft, tiny journals): eigenvalue threshold = Lund."""
     p = JeffcottParams(d_external=0.0, d_internal=0.0, k_shaft=1e11, m_journal=1e-3)
-    r = JeffcottRotor(p)
+    r = JeffcottModel(p)
     wt, nu = threshold_speed(r, short_bearing_coefficient_fn(r, **BRG))
     m = (p.m_disc + 2 * p.m_journal) / 2
     wl = lund_threshold_speed(m, **BRG)
@@ -98,7 +98,7 @@ def test_eigenvalue_threshold_flexible_jeffcott_equals_lund_flexible():
     m nu^2 = K_eq k_s / (K_eq + k_s) with k_s = k_shaft / 2 per bearing; and it is
     lower than the rigid-rotor threshold."""
     p = JeffcottParams(d_external=0.0, d_internal=0.0, m_journal=1e-3)
-    r = JeffcottRotor(p)
+    r = JeffcottModel(p)
     wt, nu = threshold_speed(r, short_bearing_coefficient_fn(r, **BRG))
     m = (p.m_disc + 2 * p.m_journal) / 2
     wl = lund_threshold_speed(m, k_shaft=p.k_shaft / 2, **BRG)
@@ -110,8 +110,8 @@ def test_eigenvalue_threshold_flexible_jeffcott_equals_lund_flexible():
 
 def test_external_damping_raises_threshold():
     fn = lambda r: short_bearing_coefficient_fn(r, **BRG)
-    r0 = JeffcottRotor(JeffcottParams(d_external=0.0))
-    r1 = JeffcottRotor(JeffcottParams(d_external=500.0))
+    r0 = JeffcottModel(JeffcottParams(d_external=0.0))
+    r1 = JeffcottModel(JeffcottParams(d_external=500.0))
     assert threshold_speed(r1, fn(r1))[0] > threshold_speed(r0, fn(r0))[0]
 
 

@@ -403,8 +403,8 @@ def test_fmu_instantiable_once_cannot_serve_two_instances(sdir):
 
 
 def test_own_fmus_are_built_before_they_are_read(sdir, test_fmus, monkeypatch):
-    """load_scenario hands the draft scenario to orchestrator.build.ensure_fmus first."""
-    from orchestrator import build
+    """load_scenario hands the draft scenario to orchestrator.fmi.build.ensure_fmus first."""
+    from orchestrator.fmi import build
     calls = []
 
     def fake_ensure(scenario):
@@ -425,7 +425,7 @@ def test_own_fmus_are_built_before_they_are_read(sdir, test_fmus, monkeypatch):
 
 
 def test_build_failure_is_a_scenario_problem(sdir, monkeypatch):
-    from orchestrator import build
+    from orchestrator.fmi import build
 
     def failing(scenario):
         raise RuntimeError("pythonfmu exploded")

@@ -2,7 +2,7 @@
 loader) and states the paper's case; short slices of the cheap ones run.
 
 Loading builds our FMUs into the repository's fmus/ folder when they are missing or
-stale (orchestrator.build.ensure_fmus), as `rotorcosim run` does on a fresh clone.
+stale (orchestrator.fmi.build.ensure_fmus), as `rotorcosim run` does on a fresh clone.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from orchestrator.signals import History, LagrangePredictor, lagrange_derivative_weights, lagrange_weights
+from orchestrator.coupling.signals import History, LagrangePredictor, lagrange_derivative_weights, lagrange_weights
 
 
 def poly(c, t):
@@ -120,3 +120,26 @@ def test_history_snapshot_restore_and_nonuniform_times():
 def test_orders_are_validated():
     with pytest.raises(ValueError, match="0..3"):
         LagrangePredictor(extrapolation_order=4, interpolation_order=0)
+
+
+def test_step_weights_reuse_the_previous_step_until_the_steps_change():
+    """The master's hot path: same weights object while order and step sizes are unchanged."""
+    from orchestrator.coupling.signals import History, LagrangePredictor
+    h = History(4)
+    h.allocate([1])
+    h.start(0.0)
+    p = LagrangePredictor(extrapolation_order=2, interpolation_order=1)
+    for i in range(1, 4):
+        h.times[0] = i * 0.1
+        h.commit()
+    h.times[0] = 0.4
+    a = p.step_weights(h, 0.3, 0.1, 2)
+    assert a is p.step_weights(h, 0.3, 0.1, 2) and a is p.weights(h, 0.3, 0.1, 2)
+    h.commit()
+    h.times[0] = 0.5
+    assert p.step_weights(h, 0.4, 0.1, 2) is a              # constant steps: nothing recomputed
+    h.commit()
+    h.times[0] = 0.55                                       # a shorter last step: new weights
+    b = p.step_weights(h, 0.5, 0.05, 2)
+    assert b is not a and b.extrap.shape == a.extrap.shape
+    assert p.step_weights(h, 0.5, 0.05, 2, q=1) is not b    # the start-up iteration keys apart

@@ -14,7 +14,7 @@ import pytest
 from bearing_fmu.film import face_theta, limiter
 from bearing_fmu.grid import make_grid
 from bearing_fmu.linearize import linearization
-from bearing_fmu.model import BearingParams, JournalBearing, solve_stationary
+from bearing_fmu.model import BearingParams, BearingModel, solve_stationary
 from test_bearing_solver import check_stencil_jacobian
 
 GROOVE = dict(groove_width=math.radians(15), groove_angle=math.pi / 2)
@@ -69,7 +69,7 @@ BASELINE = {
 
 def _run_baseline(kw):
     p = BearingParams(**kw)
-    b = JournalBearing(p)
+    b = BearingModel(p)
     c = p.c
     w = 2 * math.pi * 150
     b.initialize(0.1 * c, -0.4 * c, 0.0, 0.0, w)
@@ -183,7 +183,7 @@ def test_theta_stays_in_unit_interval_cavity_transport():
     for tt in (0, 1):
         p = BearingParams(n_phi=40, n_z=8, axial_bc=1, cav_width=3e4, theta_transport=tt,
                           **GROOVE)
-        b = JournalBearing(p)
+        b = BearingModel(p)
         w = 2 * math.pi * 200
         c = p.c
 
@@ -231,7 +231,7 @@ def test_linear_solvers_agree(krylov):
     for ls in ("band", "splu"):
         p = BearingParams(n_phi=24, n_z=8, theta_transport=1, linear_solver=ls,
                           krylov_refactor=krylov, **GROOVE)
-        b = JournalBearing(p)
+        b = BearingModel(p)
         b.initialize(0.0, -0.5 * p.c, 0.0, 0.0, W100)
         for k in range(5):
             b.step(2e-5, *orbit(p.c, W100, (k + 1) * 2e-5))

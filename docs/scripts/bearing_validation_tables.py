@@ -37,7 +37,7 @@ def params(*, B, n_phi, n_z, cavitation=0, axial_bc=0, groove_width=0.0,
 
 
 def hs_force(p, x, y, vx, vy):
-    b = model.JournalBearing(p)
+    b = model.BearingModel(p)
     b.initialize(x, y, vx, vy, OMEGA)
     return np.array([b.outputs["Fx"], b.outputs["Fy"]])
 

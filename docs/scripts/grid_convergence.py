@@ -39,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))          # docs/ (p
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))          # repo root
 
 from bearing_fmu.linearize import hs_linearization  # noqa: E402
-from bearing_fmu.model import BearingParams, JournalBearing  # noqa: E402
+from bearing_fmu.model import BearingParams, BearingModel  # noqa: E402
 
 R = 4.9e-3
 BASE = dict(R=R, B=1.6 * R, psi=2.8e-3, eta0=0.012, p0=1.0e5, p_feed=1.0e5)
@@ -70,7 +70,7 @@ def hs_equilibrium(n=40):
 
 def mc_quantities(case, n, q, omega, rel=1e-3):
     """Force and quasi-steady coefficients of the steady mass-conserving film."""
-    b = JournalBearing(params(case, n))
+    b = BearingModel(params(case, n))
     b.initialize(q[0], q[1], 0.0, 0.0, omega, init="stationary")
     u0 = b.film.u.copy()
     F0 = np.array([b.outputs["Fx"], b.outputs["Fy"]])
@@ -94,7 +94,7 @@ def mc_quantities(case, n, q, omega, rel=1e-3):
 
 
 def hs_quantities(n, q, omega):
-    b = JournalBearing(params("hs", n))
+    b = BearingModel(params("hs", n))
     b.initialize(q[0], q[1], 0.0, 0.0, omega)
     K, C = hs_linearization(b, q[0], q[1], 0.0, 0.0, omega)
     F0 = np.array([b.outputs["Fx"], b.outputs["Fy"]])

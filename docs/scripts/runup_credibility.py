@@ -1,7 +1,7 @@
 """Tabulate run-up credibility numbers from finished run directories (docs/runups.md section 3).
 
 For journal 1 of each DIR: onset speed (summary.json analysis, as the run wrote it), the
-instability threshold estimate of the current ``orchestrator.analysis`` (growth rate of
+instability threshold estimate of the current ``orchestrator.results.whirl`` (growth rate of
 the sub-synchronous amplitude crosses zero; re-analysed from results.csv), its
 ``threshold_snr``, and the growth rate sigma [1/s] and amplitude a / c of the
 sub-synchronous motion (order band 0.25-0.75) at a few speeds.
@@ -20,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from orchestrator.analysis import (WhirlParams, analyze_run, growth_rate, order_spectra,  # noqa: E402
+from orchestrator.results.whirl import (WhirlParams, analyze_run, growth_rate, order_spectra,  # noqa: E402
                                    read_results)
 
 

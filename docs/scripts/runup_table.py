@@ -19,7 +19,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from orchestrator.analysis import WhirlParams, order_spectra, read_results  # noqa: E402
+from orchestrator.results.whirl import WhirlParams, order_spectra, read_results  # noqa: E402
 
 
 def row(d: Path, journal: str = "bearing1") -> str:

@@ -55,7 +55,8 @@ from typing import Callable
 
 import numpy as np
 
-ACCELERATIONS = ("none", "aitken", "iqn-ils")
+from orchestrator.scenario.model import ACCELERATIONS
+
 INITIAL_RELAXATION = 0.5     # first update of Aitken and IQN-ILS (no secant information yet)
 
 

@@ -33,31 +33,14 @@ The statistics count passes per macro step (``iterations``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import CouplingError
-from ..signals import lagrange_weights
-from .acceleration import ACCELERATIONS, make_acceleration, solve_fixed_point
-
-DEFAULT_MAX_ITERATIONS = 20
-DEFAULT_TOL = 1.0e-8
-DEFAULT_ACCELERATION = "iqn-ils"
-
-
-@dataclass(frozen=True, kw_only=True)
-class IterationSpec:
-    """``coupling.iteration`` section (used by ``scheme: iterative``)."""
-
-    max_iterations: int = DEFAULT_MAX_ITERATIONS     # passes per macro step, >= 1
-    tol: float = DEFAULT_TOL                          # relative to each signal's scale
-    acceleration: str = DEFAULT_ACCELERATION          # one of ACCELERATIONS
-
-    def __post_init__(self):
-        if self.acceleration not in ACCELERATIONS:
-            raise ValueError(f"coupling.iteration.acceleration must be one of {list(ACCELERATIONS)} "
-                             f"(got {self.acceleration!r})")
+from orchestrator.coupling.acceleration import make_acceleration, solve_fixed_point
+from orchestrator.coupling.macro_step import MacroStep
+from orchestrator.coupling.signals import lagrange_weights
+from orchestrator.errors import CouplingError
+from orchestrator.scenario.model import IterationSpec
 
 
 class IterationStats:
@@ -81,19 +64,13 @@ class IterationStats:
                 "histogram": {str(k): v for k, v in sorted(self.histogram.items())}}
 
 
-class IterativeStep:
-    """The iterative macro step for a master (module docstring).
+class IterativeMacroStep(MacroStep):
+    """A :class:`MacroStep` whose ``step`` iterates to convergence (module docstring); every
+    step-size controller (constant, discard halving, error-controlled) uses it unchanged.
+    ``signal_names`` names the history store's columns for messages."""
 
-    The master provides ``history`` (a :class:`orchestrator.signals.History`
-    allocated as one store), ``units``, ``predictor``, ``_save_states()``,
-    ``_restore_states(states)``, ``_free_states(states)`` and
-    ``_step_impl(t, t_next, commit=False, startup_q=q)``, which with ``startup_q``
-    interpolates every input through row 0 of the history; ``signal_names`` names
-    the store's columns for messages.
-    """
-
-    def __init__(self, master, spec: IterationSpec, signal_names: list[str]):
-        self.master = master
+    def __init__(self, plan, predictor, *, spec: IterationSpec, signal_names: list[str], **kw):
+        super().__init__(plan, predictor, **kw)
         self.spec = spec
         self.names = signal_names
         self.acceleration = make_acceleration(spec.acceleration)
@@ -102,35 +79,31 @@ class IterativeStep:
 
     def prediction(self, t: float, h: float) -> np.ndarray:
         """Order-k extrapolation of every signal to T(n+1) from the history."""
-        hist = self.master.history
-        store = hist.store
-        p = min(self.master.predictor.k, hist.count - 1)
+        hist = self.history
+        p = min(self.predictor.k, hist.count - 1)
         past = (hist.times[1:p + 2] - t) / h
-        w = lagrange_weights(past, [1.0])[0]
-        return w @ store[1:p + 2]
+        return lagrange_weights(past, [1.0])[0] @ hist.store[1:p + 2]
 
-    def __call__(self, t: float, t_next: float) -> None:
-        m = self.master
-        hist = m.history
+    def step(self, t: float, t_next: float) -> None:
+        hist = self.history
         store = hist.store
-        h = t_next - t
-        q = min(m.predictor.q, hist.count)
+        q = min(self.predictor.q, hist.count)
         self.scale = np.maximum(self.scale, np.abs(store[1]))
-        states = m._save_states()
+        for u in self.units:
+            u.sub.no_set_prior_state = False
+        cp = self.save()
+        first = [True]
+
+        def one_pass(x):
+            if not first[0]:
+                self.restore(cp)
+            first[0] = False
+            store[0] = x
+            self.advance(t, t_next, commit=False, startup_q=q)
+            return store[0].copy()
+
         try:
-            snap = hist.snapshot()
-            first = [True]
-
-            def passes(x):
-                if not first[0]:
-                    m._restore_states(states)
-                    hist.restore(snap)
-                first[0] = False
-                store[0] = x
-                m._step_impl(t, t_next, commit=False, startup_q=q)
-                return store[0].copy()
-
-            res = solve_fixed_point(passes, self.prediction(t, h), acceleration=self.acceleration,
+            res = solve_fixed_point(one_pass, self.prediction(t, t_next - t), acceleration=self.acceleration,
                                     tol=self.spec.tol, scale=self.scale, max_iterations=self.spec.max_iterations)
             self.stats.add(res.iterations)
             if not res.converged:
@@ -138,7 +111,7 @@ class IterativeStep:
             store[0] = res.x
             hist.commit()
         finally:
-            m._free_states(states)
+            self.release(cp)
 
     def _message(self, res, t: float, t_next: float) -> str:
         name = self.names[res.worst] if self.names else "?"

@@ -28,7 +28,7 @@ from typing import Sequence
 
 import numpy as np
 
-MAX_ORDER = 3
+from orchestrator.scenario.model import MAX_ORDER
 
 
 def lagrange_weights(nodes: Sequence[float], x: Sequence[float]) -> np.ndarray:
@@ -150,7 +150,7 @@ class StepWeights:
 
 
 class LagrangePredictor:
-    """Computes (and caches) :class:`StepWeights` for the master.
+    """Computes (and caches: the one weight cache of the master) :class:`StepWeights`.
 
     Parameters
     ----------
@@ -164,6 +164,28 @@ class LagrangePredictor:
         self.k = extrapolation_order
         self.q = interpolation_order
         self._cache: dict = {}
+        self._step_key = None          # (count, q, d0..d3) of the step whose weights _step_weights holds
+        self._step_weights: dict = {}  # substeps -> StepWeights of that step
+
+    def step_weights(self, history: History, t_n: float, h: float, substeps: int, *,
+                     q: int | None = None) -> StepWeights:
+        """:meth:`weights` for the master's hot path: while the available order and the sizes of
+        the history's last steps are unchanged (constant steps), the weights of the previous
+        macro step are returned without building a cache key (``q`` given: the start-up
+        iteration, all inputs interpolated)."""
+        ts = history.times.tolist()
+        d = (ts[0] - ts[1], ts[1] - ts[2], ts[2] - ts[3], ts[3] - ts[4])
+        lk = self._step_key
+        if (lk is not None and lk[0] == history.count and lk[1] == q
+                and abs(d[0] - lk[2]) + abs(d[1] - lk[3]) + abs(d[2] - lk[4]) + abs(d[3] - lk[5]) <= 1e-9 * h):
+            cache = self._step_weights
+        else:
+            cache = self._step_weights = {}
+            self._step_key = (history.count, q, *d)
+        w = cache.get(substeps)
+        if w is None:
+            w = cache[substeps] = self.weights(history, t_n, h, substeps, q=q, all_interp=q is not None)
+        return w
 
     def weights(self, history: History, t_n: float, h: float, substeps: int, *, q: int | None = None,
                 all_interp: bool = False) -> StepWeights:

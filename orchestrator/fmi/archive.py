@@ -23,6 +23,7 @@ The limits are module constants read at call time (tests monkeypatch them).
 
 from __future__ import annotations
 
+import functools
 import os
 import stat
 import sys
@@ -32,7 +33,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any, Mapping
 from xml.etree import ElementTree
 
-from .errors import FmuError
+from orchestrator.errors import FmuError
 
 MAX_MEMBER_BYTES = 512 * 2**20        # one member, uncompressed
 MAX_TOTAL_BYTES = 2 * 2**30           # all members, uncompressed
@@ -137,7 +138,7 @@ def check_archive(path: Path | str) -> list[zipfile.ZipInfo]:
         infos = zf.infolist()
     if len(infos) > MAX_MEMBERS:
         raise _fail(path, f"has {len(infos)} members (limit {MAX_MEMBERS})",
-                    "this is not a plausible FMU; raise orchestrator.fmu_archive.MAX_MEMBERS if you trust it")
+                    "this is not a plausible FMU; raise orchestrator.fmi.archive.MAX_MEMBERS if you trust it")
     seen = set()
     total = 0
     for info in infos:
@@ -155,7 +156,7 @@ def check_archive(path: Path | str) -> list[zipfile.ZipInfo]:
                         "FMUs must contain regular files only; ask the author to rebuild it without links")
         if info.file_size > MAX_MEMBER_BYTES:
             raise _fail(path, f"member {name!r} is {info.file_size} bytes uncompressed (limit {MAX_MEMBER_BYTES})",
-                        "raise orchestrator.fmu_archive.MAX_MEMBER_BYTES if you trust this FMU")
+                        "raise orchestrator.fmi.archive.MAX_MEMBER_BYTES if you trust this FMU")
         if (info.file_size > RATIO_CHECK_MIN_BYTES
                 and info.file_size > MAX_COMPRESSION_RATIO * max(info.compress_size, 1)):
             ratio = info.file_size / max(info.compress_size, 1)
@@ -164,7 +165,7 @@ def check_archive(path: Path | str) -> list[zipfile.ZipInfo]:
         total += info.file_size
         if total > MAX_TOTAL_BYTES:
             raise _fail(path, f"members add up to more than {MAX_TOTAL_BYTES} bytes uncompressed",
-                        "raise orchestrator.fmu_archive.MAX_TOTAL_BYTES if you trust this FMU")
+                        "raise orchestrator.fmi.archive.MAX_TOTAL_BYTES if you trust this FMU")
     if "modelDescription.xml" not in seen:
         raise _fail(path, "has no modelDescription.xml at the top level of the archive",
                     "this is not an FMU; export it again as an FMI 2.0 co-simulation FMU")
@@ -254,7 +255,7 @@ def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelD
     path = Path(path)
     if len(xml) > MAX_XML_BYTES:
         raise _fail(path, f"modelDescription.xml is {len(xml)} bytes (limit {MAX_XML_BYTES})",
-                    "raise orchestrator.fmu_archive.MAX_XML_BYTES if you trust this FMU")
+                    "raise orchestrator.fmi.archive.MAX_XML_BYTES if you trust this FMU")
     head = xml[:4096].lower()
     if b"<!doctype" in xml.lower() or b"<!entity" in head:
         raise _fail(path, "modelDescription.xml contains a DOCTYPE/ENTITY declaration, which FMI does not use "
@@ -362,3 +363,19 @@ def binary_path(extracted: Path, md: ModelDescription) -> Path:
                     f"{lib.name}; platforms in the FMU: {have or 'none'})",
                     f"export the FMU with a {platform_dir()} binary ({sys.platform})")
     return lib
+
+
+def cached_model_description(path: Path | str) -> ModelDescription:
+    """:func:`read_model_description`, cached per file path, size and modification time
+    (the scenario checks and the master read the same FMUs)."""
+    path = Path(path)
+    try:
+        st = path.stat()
+    except OSError:
+        return read_model_description(path)          # raises FmuError naming the missing file
+    return _read_cached(str(path), st.st_mtime_ns, st.st_size)
+
+
+@functools.lru_cache(maxsize=64)
+def _read_cached(path: str, mtime_ns: int, size: int) -> ModelDescription:
+    return read_model_description(path)

@@ -49,6 +49,22 @@ class CoSimResult:
     def success(self) -> bool:
         return self.status is Status.FINISHED
 
+    @classmethod
+    def load(cls, out_dir: str | Path) -> "CoSimResult":
+        """The result of a finished (or failed) run read back from its folder (results.csv and
+        summary.json, through :class:`orchestrator.results.run_directory.RunDirectory`)."""
+        from orchestrator.results.run_directory import RunDirectory
+        run = RunDirectory(out_dir)
+        summary = run.summary() if run.has_summary() else {}
+        cols = run.columns() if run.has_results() else {"time": np.zeros(0)}
+        t = cols.pop("time", np.zeros(0))
+        status = Status[str(summary.get("status", "failed")).upper()] if str(
+            summary.get("status", "")).upper() in Status.__members__ else Status.FAILED
+        stats = {k: summary[k] for k in ("macro_steps", "rejected_steps", "retried_steps", "retry_substeps",
+                                         "wall_time_s", "fmu_calls") if k in summary}
+        return cls(status=status, message=str(summary.get("message", "")), t=t, outputs=cols, stats=stats,
+                   out_dir=run.path, end_time=summary.get("end_time"), analysis=summary.get("analysis"))
+
     def __repr__(self) -> str:
         return (f"CoSimResult(status={self.status.short}, end_time={self.end_time}, rows={len(self.t)}, "
                 f"signals={len(self.outputs)}, message={self.message!r})")

@@ -6,6 +6,9 @@ and raises one :class:`CompareSpecError` listing every problem with ``file:line`
 ``expand_variants`` turns a variant group into variants (lists in coupling keys are a
 cartesian product); ``apply_changes`` makes a variant's scenario from the base. The
 format is documented in ``docs/compare.md``.
+
+Length: the validation of every key of the compare format (docs/compare.md) in one place,
+so that all problems of a file are collected in one pass; above ~400 lines for that reason.
 """
 
 from __future__ import annotations
@@ -21,10 +24,10 @@ from typing import Any, Callable, Mapping
 
 import yaml
 
-from orchestrator.compare_metrics import METRICS
+from orchestrator.compare.metrics import METRICS
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario import Scenario
-from orchestrator.scenario import _YamlLoader as _ScenarioYamlLoader   # same YAML number rules
+from orchestrator.scenario.nodes import YamlLoader as ScenarioYamlLoader   # same YAML number rules
 
 log = logging.getLogger(__name__)
 
@@ -78,7 +81,7 @@ class ReferenceSpec:
         mass-conserving film needs; Radau ignores it.)"""
         ch = dict(self.changes)
         if self.monolithic:
-            from orchestrator.monolithic import DEFAULT_ATOL, DEFAULT_RTOL, DEFAULT_STEP
+            from orchestrator.reference.monolithic import DEFAULT_ATOL, DEFAULT_RTOL, DEFAULT_STEP
             opts = dict(base.coupling.options)
             rtol = ch.get("coupling.options.rtol", opts.get("rtol", DEFAULT_RTOL))
             atol = ch.get("coupling.options.atol", opts.get("atol", DEFAULT_ATOL))
@@ -112,6 +115,7 @@ class CompareSpec:
     output_interval: float | None = None
     window: tuple[float, float] | None = None    # metrics over t_from <= t <= t_to only
     source: Path | None = None
+    reference_models: tuple[Path, ...] = ()      # files registering monolithic adapters (build_fmus.from)
 
     def scenario(self, changes: Mapping[str, Any]) -> Scenario:
         """The base scenario with the common output grid and ``changes`` applied."""
@@ -136,7 +140,7 @@ class CompareSpec:
         return out
 
 
-class _LineLoader(_ScenarioYamlLoader):
+class _LineLoader(ScenarioYamlLoader):
     """The scenario loader's YAML flavour (``1e-4`` is a float), recording the line of every
     mapping key (``mapping.lines[key]``)."""
 
@@ -177,12 +181,18 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
         raise CompareSpecError(f"{path}: expected a mapping with a 'compare:' section "
                                "(see docs/compare.md)")
     sec = doc["compare"]
+    reference_models: tuple[Path, ...] = ()
     if "build_fmus" in sec:     # e.g. the orchestrator's test FMUs, before the loader reads them
         b = sec["build_fmus"]
         if not isinstance(b, dict) or set(b) != {"from", "to"}:
             raise CompareSpecError(f"{path}{_line(sec, 'build_fmus')}: 'compare.build_fmus' must be "
                                    "{from: DIR_OF_PYTHONFMU_SOURCES, to: FMU_DIR} (relative to this file)")
         build_pythonfmu_sources(path.parent / str(b["from"]), path.parent / str(b["to"]))
+        models = (path.parent / str(b["from"]) / REFERENCE_MODELS).resolve()
+        if models.is_file():
+            from orchestrator.reference.models import load_model_file
+            load_model_file(models)
+            reference_models = (models,)
     if "fmus" in doc:
         if "scenario" in sec:
             raise CompareSpecError(f"{path}{_line(sec, 'scenario')}: 'compare.scenario' must not be "
@@ -193,7 +203,11 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
             raise CompareSpecError(f"{path}{_line(doc, 'compare')}: 'compare.scenario' is required "
                                    "(path of the base scenario, relative to this file)")
         base = load_scenario((path.parent / str(sec["scenario"])).resolve())
-    return parse_compare(sec, base, source=path)
+    spec = parse_compare(sec, base, source=path)
+    return dataclasses.replace(spec, reference_models=reference_models) if reference_models else spec
+
+
+REFERENCE_MODELS = "_reference_models.py"   # in compare.build_fmus.from: register(register_model)
 
 
 def build_pythonfmu_sources(src_dir: Path, dest: Path) -> list[Path]:

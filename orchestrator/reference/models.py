@@ -1,4 +1,4 @@
-"""First-order model adapters of the monolithic reference (:mod:`orchestrator.monolithic`).
+"""First-order model adapters of the monolithic reference (:mod:`orchestrator.reference.monolithic`).
 
 An adapter wraps one FMU instance's *plain-Python* model (never the FMU) as
 
@@ -8,12 +8,13 @@ An adapter wraps one FMU instance's *plain-Python* model (never the FMU) as
 * ``feedthrough``: True when outputs depend on inputs.
 
 Adapters with ``implicit = True`` (the mass-conserving bearing) have an internal discrete
-state advanced by the BDF2 integrator of :mod:`orchestrator.monolithic`: ``start(u, step,
+state advanced by the BDF2 integrator of :mod:`orchestrator.reference.monolithic`: ``start(u, step,
 tol)``, ``trial(h, u)`` (one film step from the committed state), ``commit(h, u)``;
 bearing adapters give ``fd_steps(u)`` (difference steps of their inputs) for the
 integrator's Newton matrix.
 
-``MODELS`` maps the FMU's ``modelName`` to a factory
+``MODELS`` maps the FMU's ``modelName`` to a factory (ours here; others, such as the
+tests' two-mass oscillator, are added with :func:`register_model`)
 ``(instance, model_description, parameters, *, start_time) -> adapter``; parameters are the
 FMU's start values overridden by the scenario's ``parameters``. A parameter the
 Python model does not know raises, so the reference never silently differs from
@@ -29,7 +30,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-__all__ = ["ModelAdapter", "MODELS"]
+__all__ = ["ModelAdapter", "MODELS", "register_model", "load_model_file"]
 
 
 class ModelAdapter:
@@ -82,51 +83,6 @@ def _dataclass_kwargs(cls, params: Mapping[str, Any], ignore=()) -> dict[str, An
     return {k: v for k, v in params.items() if k in names}
 
 
-# --------------------------------------------------------------------------- two-mass oscillator
-
-class LeftMassAdapter(ModelAdapter):
-    """tests/fmus_src/left_mass.py: ``m1 x1'' = -k1 x1 + F``."""
-
-    input_names = ("F",)
-    output_names = ("x1", "v1")
-    n_states = 2
-
-    def initial_state(self):
-        return np.array([self.params["x1_0"], self.params["v1_0"]], dtype=float)
-
-    def rhs(self, t, s, u):
-        p = self.params
-        return np.array([s[1], (-p["k1"] * s[0] + u["F"]) / p["m1"]])
-
-    def outputs(self, t, s, u, *, full=True):
-        return {"x1": float(s[0]), "v1": float(s[1])}
-
-
-class RightMassAdapter(ModelAdapter):
-    """tests/fmus_src/right_mass.py: ``m2 x2'' = -k2 x2 - d2 v2 - F``, ``F = kc (x2-x1) + dc (v2-v1)``
-    (``kc`` becomes ``kc_after`` from ``t_switch`` on)."""
-
-    input_names = ("x1", "v1")
-    output_names = ("F", "x2", "v2")
-    feedthrough = True
-    n_states = 2
-
-    def initial_state(self):
-        return np.array([self.params["x2_0"], self.params["v2_0"]], dtype=float)
-
-    def _force(self, t, s, u):
-        p = self.params
-        kc = p.get("kc_after", p["kc"]) if t >= p.get("t_switch", math.inf) else p["kc"]
-        return kc * (s[0] - u["x1"]) + p["dc"] * (s[1] - u["v1"])
-
-    def rhs(self, t, s, u):
-        p = self.params
-        return np.array([s[1], (-p["k2"] * s[0] - p["d2"] * s[1] - self._force(t, s, u)) / p["m2"]])
-
-    def outputs(self, t, s, u, *, full=True):
-        return {"F": float(self._force(t, s, u)), "x2": float(s[0]), "v2": float(s[1])}
-
-
 # --------------------------------------------------------------------------- rotor and bearing
 
 # FMU parameters without a BearingParams field: the fields file (not written by the reference)
@@ -137,7 +93,7 @@ _BEARING_FMU_ONLY = ("fields_file", "init", "linearize")
 
 
 class JournalBearingAdapter(ModelAdapter):
-    """bearing_fmu.model.JournalBearing, half-Sommerfeld only (quasi-static, no state)."""
+    """bearing_fmu.model.BearingModel, half-Sommerfeld only (quasi-static, no state)."""
 
     input_names = ("x", "y", "vx", "vy", "omega")
     feedthrough = True
@@ -145,14 +101,14 @@ class JournalBearingAdapter(ModelAdapter):
     def __init__(self, instance, md, params, *, start_time=0.0):
         super().__init__(instance, md, params, start_time=start_time)
         from bearing_fmu import journal_bearing as slave
-        from bearing_fmu.model import BearingParams, JournalBearing
+        from bearing_fmu.model import BearingParams, BearingModel
         renamed = getattr(slave, "RENAMED", {})          # FMU name -> BearingParams field
         params = {renamed.get(k, k): v for k, v in self.params.items()}
         kw = _dataclass_kwargs(BearingParams, params, ignore=_BEARING_FMU_ONLY)
         if int(kw.get("cavitation", 1)) != 0:
             raise ValueError("JournalBearingAdapter is the half-Sommerfeld adapter; the "
                              "mass-conserving film (cavitation = 1) is MassConservingBearingAdapter")
-        self.model = JournalBearing(BearingParams(**kw))
+        self.model = BearingModel(BearingParams(**kw))
         u = self.input_defaults
         self.model.initialize(u["x"], u["y"], u["vx"], u["vy"], u["omega"])
         self.output_names = tuple(n for n, v in md.variables.items() if v.causality == "output")
@@ -209,21 +165,21 @@ def _fd_steps(c: float, u: Mapping[str, float]) -> dict[str, float]:
 
 
 class MassConservingBearingAdapter(ModelAdapter):
-    """bearing_fmu.model.JournalBearing with ``cavitation = 1`` (mass-conserving film).
+    """bearing_fmu.model.BearingModel with ``cavitation = 1`` (mass-conserving film).
 
     The film has its own state (the universal variable u per cell: pressure in the full
     film, fluid fraction theta in the cavity), advanced by the *reference's* BDF steps:
     the adapter is ``implicit`` and is only usable by the BDF2 integrator of
-    :mod:`orchestrator.monolithic` (not by ``solve_ivp``). Per integrator step of size h:
+    :mod:`orchestrator.reference.monolithic` (not by ``solve_ivp``). Per integrator step of size h:
 
     * ``trial(h, u)``: restore the film state at t_n, take ONE film step of size h with
       the journal kinematics ``u`` (the end-of-step kinematics x, y, vx, vy, omega at
-      t_{n+1}) through the public ``JournalBearing.step``, return the outputs at t_{n+1};
+      t_{n+1}) through the public ``BearingModel.step``, return the outputs at t_{n+1};
       memoized per (h, u) within the step;
     * ``commit(h, u)``: keep the film state of the converged ``u`` as the new t_n state.
 
     The film is built with its own error control disabled (``theta_atol = 1e30``),
-    ``h_init = h_max = h`` and ``h_min = h / 1000``, so that ``JournalBearing.step(h)`` is
+    ``h_init = h_max = h`` and ``h_min = h / 1000``, so that ``BearingModel.step(h)`` is
     exactly one BDF step (BDF1 for the first, variable-coefficient BDF2 after it: the
     same formula and step sequence as the reference's rotor step), never a sub-stepped
     one; the film Newton is exact (``krylov_refactor = 0``) with ``newton_atol =
@@ -257,11 +213,11 @@ class MassConservingBearingAdapter(ModelAdapter):
     def start(self, u: Mapping[str, float], *, step: float, tol: float) -> None:
         """Build the film for reference steps of size ``step`` and Newton tolerance ``tol``
         and initialise it at the inputs ``u`` (t0), as the FMU does at exit_initialization_mode."""
-        from bearing_fmu.model import BearingParams, JournalBearing
+        from bearing_fmu.model import BearingParams, BearingModel
         kw = dict(self._kw, theta_atol=1e30, h_init=float(step), h_max=float(step),
                   h_min=1e-3 * float(step), krylov_refactor=0, newton_atol=float(tol),
                   newton_rtol=float(tol), newton_max_iter=max(int(self._kw.get("newton_max_iter", 30)), 50))
-        self.model = JournalBearing(BearingParams(**kw))
+        self.model = BearingModel(BearingParams(**kw))
         plain = [n for n in self.output_names if n not in self.coeff_names]
         self.model.initialize(*(float(u[n]) for n in self.input_names), init=self.init)
         missing = [n for n in plain if n not in self.model.outputs]
@@ -324,7 +280,7 @@ class MassConservingBearingAdapter(ModelAdapter):
 
 
 class JeffcottRotorAdapter(ModelAdapter):
-    """rotor_fmu.jeffcott.JeffcottRotor in its first-order form.
+    """rotor_fmu.jeffcott.JeffcottModel in its first-order form.
 
     Only the film forces ``Fx_i, Fy_i`` enter ``rhs``. The film-coefficient inputs of
     interface-Jacobian coupling (``kxx_i`` ... ``cyy_i``) are a device of the
@@ -335,12 +291,12 @@ class JeffcottRotorAdapter(ModelAdapter):
     output_names = ()
 
     def __init__(self, instance, md, params, *, start_time=0.0):
-        from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
+        from rotor_fmu.jeffcott import JeffcottParams, JeffcottModel
         self.input_names = tuple(n for n, v in md.variables.items() if v.causality == "input")
         super().__init__(instance, md, params, start_time=start_time)
         kw = _dataclass_kwargs(JeffcottParams, self.params)
         kw["t0"] = start_time            # the FMU takes t0 from the experiment start time
-        self.model = JeffcottRotor(JeffcottParams(**kw))
+        self.model = JeffcottModel(JeffcottParams(**kw))
         self.model.initialize()
         self.n_b = int(self.model.n_bearings)
         self.output_names = tuple(n for n, v in md.variables.items() if v.causality == "output")
@@ -367,7 +323,7 @@ class JeffcottRotorAdapter(ModelAdapter):
 
 
 def journal_bearing_adapter(instance, md, params, *, start_time=0.0) -> ModelAdapter:
-    """``JournalBearing``: half-Sommerfeld (cavitation = 0) or mass-conserving (1) adapter."""
+    """``JournalBearing`` FMU: half-Sommerfeld (cavitation = 0) or mass-conserving (1) adapter."""
     p = _parameters(md, params)
     cav = int(p.get("cavitation", 1))
     cls = MassConservingBearingAdapter if cav == 1 else JournalBearingAdapter
@@ -375,8 +331,32 @@ def journal_bearing_adapter(instance, md, params, *, start_time=0.0) -> ModelAda
 
 
 MODELS: dict[str, Callable[..., ModelAdapter]] = {
-    "LeftMass": LeftMassAdapter,
-    "RightMass": RightMassAdapter,
     "JournalBearing": journal_bearing_adapter,
     "JeffcottRotor": JeffcottRotorAdapter,
 }
+
+
+def register_model(model_name: str, factory: Callable[..., ModelAdapter]) -> None:
+    """Make ``factory`` the adapter of FMUs whose ``modelName`` is ``model_name`` (e.g. the
+    two-mass oscillator of the tests, registered by ``tests/fmus_src/_reference_models.py``)."""
+    if not callable(factory):
+        raise TypeError(f"register_model({model_name!r}, ...): the factory must be callable "
+                        f"(got {type(factory).__name__})")
+    MODELS[model_name] = factory
+
+
+def load_model_file(path) -> None:
+    """Import the Python file ``path`` and call its ``register(register_model)``: adapters that
+    live beside their FMU sources (compare files name them through ``compare.build_fmus``)."""
+    import importlib.util
+    from pathlib import Path
+    path = Path(path).resolve()
+    spec = importlib.util.spec_from_file_location(f"rotorcosim_reference_models_{abs(hash(str(path)))}", path)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"{path}: cannot import the reference model file")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    register = getattr(module, "register", None)
+    if not callable(register):
+        raise ImportError(f"{path}: a reference model file must define register(register_model)")
+    register(register_model)

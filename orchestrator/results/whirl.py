@@ -48,11 +48,14 @@ the clearance", with a time uncertainty of about half a window
 
 Public functions work on numpy arrays; :func:`analyze_run` reads a run
 directory and never raises (it returns ``{"error": ...}``).
+
+Length: one pipeline (order resampling, spectra, episode detection, growth-rate threshold,
+per-journal result) whose steps share WhirlParams and are tested as a whole (tests/test_analysis.py);
+splitting it would scatter one algorithm over files, so it stays above ~400 lines.
 """
 
 from __future__ import annotations
 
-import csv
 import logging
 import math
 import warnings
@@ -61,6 +64,9 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+
+from orchestrator.results.jsonsafe import plain
+from orchestrator.results.run_directory import RunDirectory
 
 logger = logging.getLogger(__name__)
 
@@ -566,35 +572,6 @@ def _analyze_journal(t, x, y, omega, clearance, *, eps, params) -> dict:
 
 # ----------------------------------------------------------------------------- files
 
-def read_results(path: str | Path) -> dict[str, np.ndarray]:
-    """Read ``results.csv`` into ``{column: array}`` (the header names the columns).
-
-    Tolerates a truncated last line (runs stream the file): rows with the wrong
-    number of fields are skipped. Raises ``ValueError`` / ``OSError`` with the
-    file name on an empty or unreadable file.
-    """
-    path = Path(path)
-    with path.open(newline="") as fh:
-        header = next(csv.reader(fh), None)
-    if not header:
-        raise ValueError(f"{path}: empty file, expected a header 'time,<instance>.<variable>,...'")
-    header = [h.strip() for h in header]
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-        except ValueError:
-            data = np.genfromtxt(path, delimiter=",", skip_header=1, invalid_raise=False)
-            data = np.atleast_2d(data) if data.size else np.empty((0, len(header)))
-    for w in caught:   # skipped malformed rows (a truncated last line of a streamed file)
-        logger.info("%s: %s", path, str(w.message).strip().replace("\n", " "))
-    if data.size == 0:
-        data = np.empty((0, len(header)))
-    if data.shape[1] != len(header):
-        raise ValueError(f"{path}: {data.shape[1]} columns of data, header names {len(header)}")
-    return {h: data[:, j] for j, h in enumerate(header)}
-
-
 def _signal(cols: Mapping[str, np.ndarray], name: Any, what: str, csv_path: Path) -> np.ndarray:
     if not isinstance(name, str) or name not in cols:
         near = sorted(c for c in cols if isinstance(name, str) and c.split(".")[-1] == name.split(".")[-1])
@@ -626,14 +603,15 @@ def analyze_run(out_dir: str | Path, spec: Mapping[str, Any]) -> dict:
 def _analyze_run(out_dir: Path, spec: Mapping[str, Any]) -> dict:
     if not isinstance(spec, Mapping):
         return {"error": f"analysis spec must be a mapping (got {type(spec).__name__})"}
-    csv_path = out_dir / "results.csv"
+    run = RunDirectory(out_dir)
+    csv_path = run.results_csv
     if not csv_path.is_file():
         return {"error": f"{csv_path}: not found; the run wrote no results"}
     try:
         params = WhirlParams.from_mapping(spec.get("whirl"))
     except (ValueError, TypeError) as exc:
         return {"error": str(exc)}
-    cols = read_results(csv_path)
+    cols = run.columns()
     t = cols.get("time")
     if t is None:
         return {"error": f"{csv_path.name}: no 'time' column (header: {sorted(cols)[:8]})"}
@@ -646,7 +624,7 @@ def _analyze_run(out_dir: Path, spec: Mapping[str, Any]) -> dict:
     out: dict[str, Any] = {
         "method": "order-domain short-time spectra; see docs/analysis.md",
         "parameters": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(params).items()},
-        "spec": _plain(spec),
+        "spec": plain(spec, "null"),
         "speed_max_hz": (float(np.max(omega[np.isfinite(omega)])) / TWO_PI
                          if np.isfinite(omega).any() else None),
         "journals": {},
@@ -660,7 +638,7 @@ def _analyze_run(out_dir: Path, spec: Mapping[str, Any]) -> dict:
             out["journals"][str(name)] = _analyze_one(name, js, cols, t, omega, params, csv_path)
         except (KeyError, ValueError, TypeError) as exc:
             out["journals"][str(name)] = {"error": exc.args[0] if exc.args else repr(exc)}
-    return _plain(out)      # strict JSON for summary.json: NaN/inf -> None
+    return plain(out, "null")      # strict JSON for summary.json: NaN/inf -> None
 
 
 def _analyze_one(name, js, cols, t, omega, params, csv_path) -> dict:
@@ -689,18 +667,3 @@ def _analyze_one(name, js, cols, t, omega, params, csv_path) -> dict:
     if note:
         r["warnings"].insert(0, note)
     return r
-
-
-def _plain(obj):
-    """Copy of a (nested) mapping with JSON-friendly types (non-finite floats -> None)."""
-    if isinstance(obj, Mapping):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else None
-    if isinstance(obj, (np.integer, np.bool_)):
-        return obj.item()
-    if isinstance(obj, (str, int, bool)) or obj is None:
-        return obj
-    return str(obj)

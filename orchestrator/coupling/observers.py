@@ -1,10 +1,11 @@
-"""Observers: read-only watchers of a run (recording, CSV, progress, summary).
+"""Observers: read-only watchers of a run (recording, CSV, progress).
 
-Call order (by :class:`orchestrator.master.MasterAlgorithm`)::
+Call order (by :class:`orchestrator.coupling.execution.MasterAlgorithm`)::
 
     on_initialized(view)            after initialization, outputs at start_time valid
     on_step_complete(view)          after every accepted macro step
-    on_step_rejected(view)          (reserved for step-size control; not emitted yet)
+    on_step_rejected(view)          after a step attempt was rejected and rolled back (the step-size
+                                    controller retries it); view.rejected = (t_a, t_b, reason)
     on_terminated(view)             once, after finish or failure (also after a failed step)
 
 ``view`` is a :class:`RunView` (time, step index, the recorded row, status,
@@ -14,12 +15,10 @@ only: ``view.is_output`` tells whether the current point is one.
 
 from __future__ import annotations
 
-import json
-import math
 import sys
 import time as _time
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -28,7 +27,7 @@ class RunView:
     """Read-only state of the run as observers see it (filled in by the master)."""
 
     __slots__ = ("t", "n", "row", "columns", "is_output", "status", "message", "t_start", "t_stop",
-                 "n_steps", "end_time")
+                 "n_steps", "end_time", "rejected")
 
     def __init__(self, columns: Sequence[str], t_start: float, t_stop: float, n_steps: int):
         self.columns = tuple(columns)
@@ -42,6 +41,7 @@ class RunView:
         self.t_stop = t_stop
         self.n_steps = n_steps
         self.end_time = t_start
+        self.rejected = None        # (t_a, t_b, reason) during on_step_rejected
 
 
 class Observer:
@@ -171,47 +171,3 @@ class Progress(Observer):
             self._bar.update(view.n - self._last_n)
             self._bar.close()
             self._bar = None
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict) or hasattr(x, "items"):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, Path):
-        return str(x)
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if math.isfinite(v) else str(v)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if x is None or isinstance(x, (str, int, bool)):
-        return x
-    return str(x)
-
-
-def write_summary(path: Path | str, summary: dict) -> None:
-    """Write ``summary.json`` atomically (temp file + rename)."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(_jsonable(summary), indent=2) + "\n")
-    tmp.replace(path)
-
-
-def versions() -> dict[str, str]:
-    """Versions of the software a run depends on (for summary.json)."""
-    import platform
-    out = {"python": platform.python_version()}
-    for mod, key in (("numpy", "numpy"), ("scipy", "scipy"), ("fmpy", "fmpy"), ("pythonfmu", "pythonfmu")):
-        try:
-            out[key] = __import__(mod).__version__
-        except Exception:
-            out[key] = "unavailable"
-    try:
-        from importlib.metadata import version
-        out["rotorcosim"] = version("rotorcosim")
-    except Exception:
-        out["rotorcosim"] = "unknown"
-    return out

@@ -1,6 +1,6 @@
 """Scenario sections of the coupling beyond explicit: ``coupling.iteration`` and ``coupling.step_control``.
 
-Read by the scenario loader (``load_iteration`` / ``load_step_control`` take the
+Read by the section reader (scenario/sections.py) (``load_iteration`` / ``load_step_control`` take the
 loader, whose ``mapping``/``number``/``integer``/``value``/``err`` report problems
 with file and line). Format (docs/scenario-format.md)::
 
@@ -12,31 +12,16 @@ with file and line). Format (docs/scenario-format.md)::
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import logging
 
 import yaml
 
-from .acceleration import ACCELERATIONS
-from .iterative import DEFAULT_ACCELERATION, DEFAULT_MAX_ITERATIONS, DEFAULT_TOL, IterationSpec
+from orchestrator.scenario.model import ACCELERATIONS, STEP_CONTROL_TYPES, IterationSpec, StepControlSpec
 
 ITERATION_KEYS = ("max_iterations", "tol", "acceleration")
 STEP_CONTROL_KEYS = ("type", "rtol", "atol", "min_step", "max_step")
-STEP_CONTROL_TYPES = ("constant", "error")
 MAX_ITERATIONS_LIMIT = 1000
-
-
-@dataclass(frozen=True, kw_only=True)
-class StepControlSpec:
-    """``coupling.step_control``: ``type: constant`` (the default, macro_step throughout) or
-    ``type: error`` (error-controlled macro step, orchestrator/coupling/error_control.py;
-    ``coupling.macro_step`` is the first step). ``min_step``/``max_step`` None: macro_step / 1000
-    and the output interval."""
-
-    type: str = "constant"
-    rtol: float = 1.0e-4
-    atol: float = 1.0e-8
-    min_step: float | None = None
-    max_step: float | None = None
+log = logging.getLogger(__name__)
 
 
 def load_iteration(ld, node) -> IterationSpec | None:
@@ -44,7 +29,7 @@ def load_iteration(ld, node) -> IterationSpec | None:
                          fix="write e.g. 'iteration: {max_iterations: 20, tol: 1.0e-8, acceleration: iqn-ils}'")
     if section is None:
         return None
-    kw = {"max_iterations": DEFAULT_MAX_ITERATIONS, "tol": DEFAULT_TOL, "acceleration": DEFAULT_ACCELERATION}
+    kw: dict = {}
     ok = True
     if "max_iterations" in section:
         v = ld.integer(section["max_iterations"][1], "coupling.iteration.max_iterations", 1, MAX_ITERATIONS_LIMIT,
@@ -123,6 +108,6 @@ def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
                      f"{', '.join(map(repr, fixed))} cannot take varying steps "
                      "(canHandleVariableCommunicationStepSize is false); use type: constant")
     elif stateless:
-        ld.warn(node, f"'coupling.step_control: {{type: error}}': {', '.join(map(repr, stateless))} cannot save "
+        log.warning("%s: %s", ld.loc(node), f"'coupling.step_control: {{type: error}}': {', '.join(map(repr, stateless))} cannot save "
                       "and restore its state (canGetAndSetFMUstate is false), so no step can be rejected and "
                       "redone: the macro step only adapts forward (the next step follows the error of the last)")

@@ -2,7 +2,7 @@
 
 A comparison runs one base scenario in several *variants* (coupling scheme x
 extrapolation/interpolation order x macro step, cartesian products allowed),
-runs a *reference* (the monolithic integrator of :mod:`orchestrator.monolithic`
+runs a *reference* (the monolithic integrator of :mod:`orchestrator.reference.monolithic`
 or a fine scenario variant), measures the error of every variant against the
 reference, fits the observed order of convergence of every scheme/order family,
 checks per-variant tolerances and a stored baseline, and writes ``report.md``,
@@ -33,13 +33,15 @@ from typing import Any, Callable
 
 import numpy as np
 
-from orchestrator.compare_metrics import (
-    METRICS, RunData, check_report, derived_error, derived_values, fit_order, read_run, signal_errors,
-    write_baseline, write_report)
-from orchestrator.compare_spec import (  # noqa: F401 - re-exported: the public API of compare
-    CompareSpec, CompareSpecError, ReferenceSpec, VariantSpec, apply_changes, build_pythonfmu_sources,
-    expand_variants, load_compare, parse_compare)
+from orchestrator.compare.metrics import (
+    METRICS, RunData, check_report, derived_error, derived_values, fit_order, load_baseline, read_run,
+    signal_errors, write_baseline)
+from orchestrator.compare.report import write_report
+from orchestrator.compare.spec import (
+    CompareSpec, CompareSpecError, ReferenceSpec, VariantSpec, apply_changes, expand_variants, load_compare,
+    parse_compare)
 from orchestrator.errors import ScenarioError
+from orchestrator.reference.models import load_model_file
 from orchestrator.scenario import Scenario
 
 log = logging.getLogger(__name__)
@@ -57,10 +59,15 @@ def default_runner(scenario: Scenario, out_dir: Path) -> None:
     run(scenario, out_dir=out_dir, progress=False)
 
 
-def _run_job(runner, scenario: Scenario, out_dir: str) -> dict[str, Any]:
-    """Worker: run one scenario, never raise (a crash is a failed variant, with its message)."""
+def _run_job(runner, scenario: Scenario, out_dir: str, models: tuple = ()) -> dict[str, Any]:
+    """Worker: run one scenario, never raise (a crash is a failed variant, with its message).
+
+    ``models``: files registering monolithic-reference adapters (``spec.reference_models``),
+    loaded first (a worker process starts without them)."""
     t0 = time.perf_counter()
     try:
+        for path in models:
+            load_model_file(path)
         runner(scenario, Path(out_dir))
         error = None
     except Exception as exc:   # noqa: BLE001 - reported per variant, compare continues
@@ -68,7 +75,7 @@ def _run_job(runner, scenario: Scenario, out_dir: str) -> dict[str, Any]:
     return {"error": error, "wall_time_s": time.perf_counter() - t0}
 
 
-def _run_isolated(runner, scenario: Scenario, out_dir: str) -> dict[str, Any]:
+def _run_isolated(runner, scenario: Scenario, out_dir: str, models: tuple = ()) -> dict[str, Any]:
     """Run one job in a fresh Python process (``python -m orchestrator.compare JOB``).
 
     Every run gets its own process: FMUs that load Python packages in-process (ours
@@ -79,7 +86,7 @@ def _run_isolated(runner, scenario: Scenario, out_dir: str) -> dict[str, Any]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     job = out / "compare_job.pickle"
-    job.write_bytes(pickle.dumps((runner, scenario, str(out))))
+    job.write_bytes(pickle.dumps((runner, scenario, str(out), tuple(models))))
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "orchestrator.compare", str(job)], env=env)
@@ -93,18 +100,18 @@ def _run_isolated(runner, scenario: Scenario, out_dir: str) -> dict[str, Any]:
             "wall_time_s": time.perf_counter() - t0}
 
 
-def _worker_main(job_file: str) -> int:
+def worker_main(job_file: str) -> int:
     import json
     import pickle
-    runner, scenario, out_dir = pickle.loads(Path(job_file).read_bytes())
-    result = _run_job(runner, scenario, out_dir)
+    runner, scenario, out_dir, models = pickle.loads(Path(job_file).read_bytes())
+    result = _run_job(runner, scenario, out_dir, models)
     (Path(out_dir) / "compare_job.json").write_text(json.dumps(result))
     return 0
 
 
 @dataclass
 class CompareReport:
-    """Everything measured; written by :func:`orchestrator.compare_metrics.write_report`."""
+    """Everything measured; written by :func:`orchestrator.compare.report.write_report`."""
 
     name: str
     reference: dict[str, Any]
@@ -130,10 +137,11 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
     if workers <= 1:
         for label, sc in jobs:
             log.info("compare: running %s", label)
-            results[label] = _run_job(runner, sc, str(runs / label))
+            results[label] = _run_job(runner, sc, str(runs / label), spec.reference_models)
     else:   # threads that each wait for one fresh process per run
         with concurrent.futures.ThreadPoolExecutor(max_workers=min(workers, 2)) as pool:
-            futs = {pool.submit(_run_isolated, runner, sc, str(runs / label)): label for label, sc in jobs}
+            futs = {pool.submit(_run_isolated, runner, sc, str(runs / label), spec.reference_models): label
+                    for label, sc in jobs}
             for fut in concurrent.futures.as_completed(futs):
                 results[futs[fut]] = fut.result()
                 log.info("compare: finished %s", futs[fut])
@@ -254,7 +262,6 @@ def main_compare(path: str | os.PathLike, out_dir: str | os.PathLike | None = No
     With ``update_baseline`` the baseline file is rewritten from this run and
     regressions are not checked (tolerances still are).
     """
-    from orchestrator.compare_metrics import load_baseline
 
     try:
         spec = load_compare(path)
@@ -287,17 +294,3 @@ def main_compare(path: str | os.PathLike, out_dir: str | os.PathLike | None = No
     if not failures:
         print("compare: all checks passed")
     return 1 if failures else 0
-
-
-if __name__ == "__main__":   # worker of run_comparison (one run per process)
-    rc = _worker_main(sys.argv[1])
-    # Leave without the interpreter's teardown: the run is complete and its files (results,
-    # summary, compare_job.json) are closed; the teardown only frees the FMUs' Python
-    # objects, and PythonFMU-built FMUs abort there intermittently ("corrupted
-    # double-linked list", signal 6: 4 of 7 runs of compare/ci_jeffcott_mc.yaml), which
-    # would turn a finished run into a "worker process died". A crash DURING a run still
-    # fails that run (no compare_job.json).
-    sys.stdout.flush()
-    sys.stderr.flush()
-    logging.shutdown()
-    os._exit(rc)

@@ -24,6 +24,9 @@ and read ``batch.values``.
 Every FMI call goes through :meth:`Subsystem._call`, which counts it and turns
 every status worse than fmi2Warning, and every exception, into
 :class:`orchestrator.errors.FmuCallError` carrying the FMU's last log messages.
+
+Length: every FMI call of the project lives here (the one place that calls FMI), with its
+status handling; above ~400 lines for that reason.
 """
 
 from __future__ import annotations
@@ -37,8 +40,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .errors import FmuCallError, FmuError, LifecycleError, ScenarioError
-from .fmu_archive import ModelDescription, Variable, binary_path, read_model_description, safe_extract
+from orchestrator.errors import FmuCallError, FmuError, LifecycleError, ScenarioError
+from orchestrator.fmi.archive import ModelDescription, Variable, binary_path, read_model_description, safe_extract
 
 log = logging.getLogger(__name__)
 
@@ -217,7 +220,7 @@ class Subsystem(SubsystemBase):
     Parameters
     ----------
     name : instance name in the scenario (also the FMI instance name).
-    fmu_path : the ``.fmu`` file; checked with :mod:`orchestrator.fmu_archive`.
+    fmu_path : the ``.fmu`` file; checked with :mod:`orchestrator.fmi.archive`.
     work_dir : directory to extract into (``work_dir/name``); the caller
         removes it after :meth:`free`.
     """

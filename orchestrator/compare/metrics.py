@@ -12,7 +12,7 @@ else the peak ``max_k |r_k|`` of the reference):
 
 The error of a variant is the worst over its signals. A derived quantity (a
 number from ``summary.json``, e.g. the whirl-onset speed of
-``orchestrator.analysis``) has the error ``|d_v - d_r| / S`` with ``S`` given or
+``orchestrator.results.whirl``) has the error ``|d_v - d_r| / S`` with ``S`` given or
 ``|d_r|``; when the key is null in both runs (e.g. no whirl onset in either)
 the error is 0, when it is missing or null in only one it is infinite. A variant
 that ends before the reference or produces non-finite values has infinite error.
@@ -20,7 +20,6 @@ that ends before the reference or produces non-finite values has infinite error.
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import platform
@@ -30,6 +29,8 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+
+from orchestrator.results.run_directory import RunDirectory
 
 METRICS = ("max", "rms", "end")
 BASELINE_VERSION = 1
@@ -55,16 +56,15 @@ def read_run(run_dir: Path, job: Mapping[str, Any]) -> RunData:
     wall = job.get("wall_time_s", math.nan)
     if job.get("error"):
         return RunData(ok=False, message=job["error"], wall_time_s=wall)
+    run = RunDirectory(run_dir)
     try:
-        summary = json.loads((run_dir / "summary.json").read_text())
+        summary = run.summary()
     except (OSError, ValueError) as exc:
         return RunData(ok=False, message=f"no readable summary.json in {run_dir}: {exc}", wall_time_s=wall)
     try:
-        with open(run_dir / "results.csv", newline="") as f:
-            rows = list(csv.reader(f))
-        header, body = rows[0], [r for r in rows[1:] if len(r) == len(rows[0])]
-        data = np.array([[float(x) for x in r] for r in body], dtype=float).reshape(-1, len(header))
-    except (OSError, ValueError, IndexError) as exc:
+        cols = run.columns()
+        t = cols.pop("time")
+    except (OSError, ValueError, KeyError) as exc:
         return RunData(ok=False, message=f"no readable results.csv in {run_dir}: {exc}",
                        summary=summary, wall_time_s=wall)
     calls = summary.get("fmu_calls") or {}
@@ -72,7 +72,7 @@ def read_run(run_dir: Path, job: Mapping[str, Any]) -> RunData:
                   for n in per.values() if isinstance(n, (int, float)))
     status = summary.get("status", "failed")
     return RunData(ok=status == "finished", message=str(summary.get("message", "")),
-                   t=data[:, 0], outputs={h: data[:, i] for i, h in enumerate(header) if i},
+                   t=t, outputs=cols,
                    summary=summary, wall_time_s=float(summary.get("wall_time_s", wall)),
                    macro_steps=summary.get("macro_steps"), fmu_calls=n_calls if calls else None)
 
@@ -217,121 +217,3 @@ def write_baseline(report, spec, path: Path) -> None:
 
 
 # --------------------------------------------------------------------------- report
-
-def _fmt(x, spec="{:.3g}") -> str:
-    if x is None:
-        return "-"
-    if isinstance(x, float) and math.isnan(x):
-        return "n/a"
-    if isinstance(x, float) and math.isinf(x):
-        return "inf"
-    return spec.format(x)
-
-
-def _clean(obj):
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    return obj
-
-
-def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]:
-    """Write report.md, report.json and error_vs_cost.png into ``out_dir``."""
-    out_dir = Path(out_dir)
-    cols = list(spec.metrics) + list(spec.derived)
-    lines = [f"# Comparison `{spec.name}`", ""]
-    if spec.source:
-        lines += [f"File: `{spec.source}`; base scenario `{spec.base.name}`, "
-                  f"t = {spec.base.start_time:g} .. {spec.base.stop_time:g} s, output interval "
-                  f"{_fmt(spec.output_interval, '{:g}')} s.", ""]
-    ref = report.reference
-    if ref.get("window"):
-        lines += [f"Errors are measured over t = {ref['window'][0]:g} .. {ref['window'][1]:g} s only "
-                  "(`compare.window`).", ""]
-    values = ", ".join(f"{d} = {_fmt(x, '{:.6g}')}" for d, x in (ref.get("derived") or {}).items())
-    lines += [f"Reference: `{ref['changes']}` ({_fmt(ref['wall_time_s'], '{:.2f}')} s wall"
-              + (f"; {values}" if values else "") + "). "
-              "Errors are relative to the scale of each signal (peak of the reference unless "
-              "given), worst over the signals: " + ", ".join(
-                  f"`{s}` (scale {_fmt(v, '{:.3g}')})" for s, v in ref["scales"].items()) + ".", ""]
-    if "check" in ref:
-        c = ref["check"]
-        dtol = c.get("derived_tolerances") or {}
-        chk_values = ", ".join(f"{d} = {_fmt(x, '{:.6g}')}" for d, x in (c.get("derived") or {}).items())
-        lines += [f"Reference convergence check (`{c['changes']}`): change " + ", ".join(
-            f"{m} {_fmt(c['errors'].get(m))}" for m in list(spec.metrics) + list(spec.derived)) +
-            f"; smallest tolerance in use {_fmt(c['smallest_tolerance'])}" +
-            "".join(f", on {d} {t:g}" for d, t in dtol.items()) +
-            (f" (check run: {chk_values})" if chk_values else "") + ".", ""]
-    head = (["variant", "scheme", "ext", "int", "h [s]"] + [f"{c} err" for c in cols] +
-            ["wall [s]", "macro steps", "FMU calls", "stable", "tolerance", "check"])
-    lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    failed_names = {f.split("'")[1] for f in failures if f.startswith("variant '")}
-    for v in report.variants:
-        tol = ", ".join(f"{k} {t:g}" for k, t in v["tolerance"].items()) or "-"
-        row = ([v["name"], v["scheme"], str(v["extrapolation_order"]), str(v["interpolation_order"]),
-                f"{v['macro_step']:g}"] + [_fmt(v["errors"].get(c)) for c in cols] +
-               [_fmt(v["wall_time_s"], "{:.2f}"), _fmt(v["macro_steps"], "{}"),
-                _fmt(v["fmu_calls"], "{}"), "yes" if v["stable"] else "NO", tol,
-                "FAIL" if v["name"] in failed_names else "ok"])
-        lines.append("| " + " | ".join(row) + " |")
-    if spec.derived:   # the derived numbers themselves (the table above has their errors)
-        lines += ["", "Derived values (`" + "`, `".join(d["key"] for d in spec.derived.values()) + "`):",
-                  "", "| run | " + " | ".join(spec.derived) + " |", "|---|" + "---|" * len(spec.derived)]
-        rows = [("reference", ref.get("derived") or {})]
-        if "check" in ref:
-            rows.append(("reference-check", ref["check"].get("derived") or {}))
-        rows += [(v["name"], v.get("derived") or {}) for v in report.variants]
-        for name, vals in rows:
-            lines.append(f"| {name} | " + " | ".join(_fmt(vals.get(d), "{:.6g}") for d in spec.derived) + " |")
-    if report.orders:
-        lines += ["", f"Observed order of convergence of the `{spec.order_metric}` error over the "
-                  "macro step (least-squares slope over the stable points; slope of the two "
-                  "finest steps):", "", "| family | order (fit) | order (finest pair) | points | expected |",
-                  "|---|---|---|---|---|"]
-        for o in report.orders:
-            lines.append(f"| {o['family']} | {_fmt(o['order'], '{:.2f}')} | "
-                         f"{_fmt(o['order_finest'], '{:.2f}')} | {o['points']} | "
-                         f"{_fmt(o['expected'], '{:g}')} |")
-    lines += ["", "## Result", ""]
-    lines += [f"- FAIL {f}" for f in failures] or ["All checks passed."]
-    lines += ["", f"Total wall time {report.wall_time_s:.1f} s."]
-    paths = [out_dir / "report.md", out_dir / "report.json"]
-    paths[0].write_text("\n".join(lines) + "\n")
-    doc = {"name": report.name, "reference": report.reference, "variants": report.variants,
-           "orders": report.orders, "failures": failures, "wall_time_s": report.wall_time_s,
-           "passed": not failures}
-    paths[1].write_text(json.dumps(_clean(doc), indent=1) + "\n")
-    png = _plot(report, spec, out_dir / "error_vs_cost.png")
-    return paths + ([png] if png else [])
-
-
-def _plot(report, spec, path: Path) -> Path | None:
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return None
-    m = spec.order_metric
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
-    for fam in dict.fromkeys(v["family"] for v in report.variants):
-        pts = sorted((v["wall_time_s"], v["macro_steps"] or math.nan, v["errors"].get(m, math.inf))
-                     for v in report.variants if v["family"] == fam and v["stable"])
-        if not pts:
-            continue
-        w, n, e = zip(*pts)
-        axes[0].loglog(w, e, "o-", label=fam)
-        axes[1].loglog(n, e, "o-", label=fam)
-    for ax, xl in zip(axes, ("wall time [s]", "macro steps")):
-        ax.set_xlabel(xl)
-        ax.set_ylabel(f"{m} error (relative)")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f"{spec.name}: error vs cost (stable variants)")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path

@@ -1,4 +1,4 @@
-"""Coupling schemes and step-size controllers: policies the master asks once, at setup.
+"""Coupling schemes: policies the master asks once, at setup.
 
 A :class:`CouplingScheme` decides (1) the order in which subsystems are
 stepped within a macro step and (2) for each connection, whether the consumer
@@ -13,11 +13,10 @@ exactly once; :meth:`uses_new_value` must be consistent with that order
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from typing import Sequence
 
-from .errors import ScenarioError
+from orchestrator.errors import ScenarioError
 
 
 class CouplingScheme(ABC):
@@ -85,35 +84,7 @@ def scheme_from_spec(scheme: str, sequence: Sequence[str] = ()) -> CouplingSchem
     """The scheme object for ``coupling.scheme`` (strings become classes once, here)."""
     if scheme == "jacobi":
         return Jacobi()
-    if scheme == "gauss-seidel":
+    if scheme in ("gauss-seidel", "iterative"):     # iterative: Gauss-Seidel passes repeated (iterative.py)
         return GaussSeidel(sequence)
-    raise ScenarioError(f"coupling.scheme must be one of ['gauss-seidel', 'jacobi'] for the master "
-                        f"(got {scheme!r}); 'monolithic' is run by orchestrator.monolithic")
-
-
-class StepSizeController(ABC):
-    """Gives the macro-step grid. ``time(n)`` is T(n) computed from the index
-    (never accumulated); ``n_steps`` is the number of steps to reach stop_time."""
-
-    @abstractmethod
-    def time(self, n: int) -> float: ...
-
-    n_steps: int
-
-
-class ConstantStep(StepSizeController):
-    """T(n) = t0 + n*H; the last step is shortened to end exactly at stop_time
-    (a remainder below 1e-9*H is absorbed, not stepped)."""
-
-    def __init__(self, t0: float, t_stop: float, h: float):
-        if not (h > 0 and math.isfinite(h)):
-            raise ScenarioError(f"coupling.macro_step must be a positive number (got {h!r})")
-        if not t_stop > t0:
-            raise ScenarioError(f"stop_time ({t_stop}) must be greater than start_time ({t0})")
-        self.t0, self.t_stop, self.h = float(t0), float(t_stop), float(h)
-        self.n_steps = max(1, math.ceil((self.t_stop - self.t0) / self.h - 1e-9))
-
-    def time(self, n: int) -> float:
-        if n >= self.n_steps:
-            return self.t_stop
-        return self.t0 + n * self.h
+    raise ScenarioError(f"coupling.scheme must be one of ['gauss-seidel', 'iterative', 'jacobi'] for the master "
+                        f"(got {scheme!r}); 'monolithic' is run by orchestrator.reference")

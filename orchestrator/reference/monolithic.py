@@ -11,9 +11,9 @@ and offset included) exactly as in the co-simulation, but every evaluation sees 
 so a difference to a co-simulation run is a coupling error (plus the reference's own
 time-discretisation error, which the options control and ``compare`` checks by halving).
 
-Supported models (``MODELS`` of :mod:`orchestrator.monolithic_models`):
+Supported models (``MODELS`` of :mod:`orchestrator.reference.models`):
 
-* ``JeffcottRotor``: :class:`rotor_fmu.jeffcott.JeffcottRotor` in its first-order form
+* ``JeffcottRotor``: :class:`rotor_fmu.jeffcott.JeffcottModel` in its first-order form
   (``state_vector``, ``rhs(t, s, F)``, ``journal_kinematics``);
 * ``JournalBearing`` with ``cavitation = 0`` (half-Sommerfeld, quasi-static: no state,
   outputs are a function of the journal kinematics, so the coupled ODE is exact);
@@ -82,6 +82,10 @@ else ``coupling.macro_step``) and ``summary.json`` as written by ``run``
 empty: no FMU is called; ``rhs_evaluations`` counts the coupled right-hand sides; BDF2
 adds ``newton_iterations``, ``jacobians`` and ``film_steps``, trial steps included).
 The run-up ``analysis:`` is added by ``orchestrator.run`` afterwards, as for the master.
+
+Length: the system assembly and its two integrators (solve_ivp and the BDF2 with the
+mass-conserving film's Newton matrix) share the evaluation order and are documented together
+above; above ~400 lines for that reason.
 """
 
 from __future__ import annotations
@@ -97,7 +101,7 @@ from pathlib import Path
 import numpy as np
 
 from orchestrator.errors import ScenarioError
-from orchestrator.monolithic_models import MODELS, ModelAdapter
+from orchestrator.reference.models import MODELS, ModelAdapter
 from orchestrator.scenario import Scenario
 
 log = logging.getLogger(__name__)
@@ -121,7 +125,7 @@ class MonolithicSystem:
     """
 
     def __init__(self, scenario: Scenario):
-        from orchestrator.fmu_archive import read_model_description
+        from orchestrator.fmi.archive import read_model_description
 
         problems = []
         self.adapters: dict[str, ModelAdapter] = {}
@@ -236,13 +240,14 @@ def run_monolithic(scenario: Scenario, out_dir: str | Path | None = None, progre
     """Integrate ``scenario`` monolithically; write results.csv and summary.json; return CoSimResult.
 
     Output rows stream through the master's observers (``CsvWriter``, ``Progress``,
-    ``Recorder`` of :mod:`orchestrator.observers`); ``progress`` is as for ``run``
+    ``Recorder`` of :mod:`orchestrator.coupling.observers`); ``progress`` is as for ``run``
     (None: shown on a terminal for long runs). Bad input (an unsupported model, an
     unknown option) raises :class:`ScenarioError`; an integrator failure is a
     ``failed`` status with the integrator's message.
     """
-    from orchestrator.observers import CsvWriter, Progress, Recorder, RunView, versions, write_summary
-    from orchestrator.results import CoSimResult, Status
+    from orchestrator.coupling.observers import CsvWriter, Progress, Recorder, RunView
+    from orchestrator.results.result import CoSimResult, Status
+    from orchestrator.results.summary import make_summary, write_summary
 
     t_wall = time.perf_counter()
     opts = dict(scenario.coupling.options)
@@ -316,14 +321,11 @@ def run_monolithic(scenario: Scenario, out_dir: str | Path | None = None, progre
         coupling["sequence"] = list(coupling["sequence"])
         coupling["options"] = dict(coupling["options"], method=method, rtol=rtol, atol=atol,
                                    **({"step": step} if method == "BDF2" else {"max_step": max_step}))
-        summary = {"scenario": scenario.name,
-                   "scenario_file": str(scenario.source) if scenario.source else None,
-                   "status": view.status.short, "message": message,
-                   "start_time": t0, "stop_time": t1, "end_time": view.end_time, **stats,
-                   "coupling": coupling, "versions": versions()}
-        write_summary(out_dir / "summary.json", summary)
-    return CoSimResult(status=view.status, message=message, t=t_out, outputs=outputs, stats=stats,
-                       out_dir=out_dir, end_time=view.end_time)
+    res = CoSimResult(status=view.status, message=message, t=t_out, outputs=outputs, stats=stats,
+                      out_dir=out_dir, end_time=view.end_time)
+    if out_dir is not None:
+        write_summary(out_dir / "summary.json", make_summary(scenario, res, stats=stats, coupling=coupling))
+    return res
 
 
 def _row(system: MonolithicSystem, columns: list[str], t: float, S: np.ndarray) -> np.ndarray:

@@ -35,11 +35,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from .errors import FmuError
+from orchestrator.errors import FmuError
 
 log = logging.getLogger(__name__)
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 FMU_DIR = REPO / "fmus"
 
 # Capabilities we really have (see docs/fmus.md): variable step sizes, full
@@ -69,13 +69,16 @@ class FmuRecipe:
     options: Mapping[str, bool] = field(default_factory=lambda: dict(_OPTIONS))
 
 
+# the slave plumbing shared by our slaves (fmu_common/slave.py), bundled into each FMU
+SLAVE_PLUMBING = REPO / "fmu_common"
+
 RECIPES: dict[str, FmuRecipe] = {
     "JournalBearing": FmuRecipe("JournalBearing", REPO / "bearing_fmu" / "journal_bearing.py",
-                                (REPO / "bearing_fmu",)),
+                                (REPO / "bearing_fmu", SLAVE_PLUMBING)),
     "JeffcottRotor": FmuRecipe("JeffcottRotor", REPO / "rotor_fmu" / "jeffcott_rotor.py",
-                               (REPO / "rotor_fmu",)),
+                               (REPO / "rotor_fmu", SLAVE_PLUMBING)),
     "TurbochargerRotor": FmuRecipe("TurbochargerRotor", REPO / "rotor_fmu" / "turbocharger_rotor.py",
-                                   (REPO / "rotor_fmu",)),
+                                   (REPO / "rotor_fmu", SLAVE_PLUMBING)),
 }
 
 

@@ -1,0 +1,469 @@
+"""The execution of a co-simulation: life cycle, observers and result of the master.
+
+Call order::
+
+    m = MasterAlgorithm(scenario, out_dir=..., observers=[...])
+    m.setup()          # load FMUs (checked, extracted), set parameters, precompute the plan
+    m.initialize()     # FMI 2.0 initialization and exchange of initial outputs
+    while m.status is Status.RUNNING:
+        m.step()       # one macro step; numerical failure -> Status.FAILED (no exception)
+    m.terminate()      # fmi2Terminate + fmi2FreeInstance for every FMU, observers told
+    res = m.result()
+
+:meth:`MasterAlgorithm.run` does exactly that. Bad input and misuse raise (ScenarioError,
+FmuError, LifecycleError); a failure *during* the run (an FMU returning
+Discard/Error/Fatal or raising, a NaN/inf in a coupling signal) makes the
+status FAILED with a message that names what, where and what to try.
+
+The pieces: the plan (:mod:`.plan`: units, links, sequence), one macro step
+(:mod:`.macro_step`, inputs delivered by a per-unit policy of :mod:`.delivery`), the
+step-size controller (:mod:`.step_control`: the grid, accept / reject / retry, the
+discard halving), the scheme (:mod:`.schemes`), the Lagrange history (:mod:`.signals`)
+and the observers (:mod:`.observers`). docs/dev/architecture.md gives the call order.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import tempfile
+import time as _time
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from orchestrator.coupling.macro_step import MacroStep
+from orchestrator.coupling.observers import Observer, Recorder, RunView
+from orchestrator.coupling.plan import make_plan
+from orchestrator.coupling.schemes import CouplingScheme, scheme_from_spec
+from orchestrator.coupling.acceleration import IQNILS, solve_fixed_point
+from orchestrator.coupling.iterative import IterativeMacroStep
+from orchestrator.coupling.loops import loop_through
+from orchestrator.coupling.signals import LagrangePredictor
+from orchestrator.coupling.step_control import (
+    RETRY_LOG_LINES, RetriesExhausted, StepSizeController, controller_from_spec)
+from orchestrator.errors import CouplingError, FmuCallError, LifecycleError, ScenarioError
+from orchestrator.fmi.subsystem import Subsystem, SubsystemBase
+from orchestrator.results.result import CoSimResult, Status
+from orchestrator.scenario.model import MAX_DISCARD_RETRIES
+
+log = logging.getLogger(__name__)
+
+INIT_LOOP_ITERATIONS = 50         # IQN-ILS iterations for an algebraic loop in the initial exchange
+
+
+def variable_step_ok(sub) -> bool:
+    """canHandleVariableCommunicationStepSize of a subsystem (fakes without a model description: True)."""
+    md = getattr(sub, "md", None)
+    if md is not None and hasattr(md, "can_handle_variable_step"):
+        return bool(md.can_handle_variable_step)
+    return bool(getattr(sub, "can_handle_variable_step", True))
+
+
+def plan_units_in_store_order(scenario, units) -> list:
+    """The units in the order of the history store's columns (the scenario's FMU order, plan.py)."""
+    by_name = {u.name: u for u in units}
+    return [by_name[f.name] for f in scenario.fmus]
+
+
+class MasterAlgorithm:
+    """Explicit co-simulation master (see the module docstring for the call order).
+
+    Parameters
+    ----------
+    scenario : orchestrator.scenario.Scenario
+    out_dir : run directory (for ``{out_dir}`` in String parameters); may be None.
+    observers : Observer objects (CSV writer, progress, ...); a Recorder is always added.
+    subsystems : optional ``{name: SubsystemBase}`` to use instead of loading the
+        scenario's FMUs (tests use plain-Python fakes); the master still frees them.
+    scheme, step_size, predictor : policy objects; default from ``scenario.coupling``
+        (``step_size``: a :class:`~orchestrator.coupling.step_control.StepSizeController`).
+    """
+
+    def __init__(self, scenario, *, out_dir: Path | str | None = None, observers: Sequence[Observer] = (),
+                 subsystems: Mapping[str, SubsystemBase] | None = None, scheme: CouplingScheme | None = None,
+                 step_size: StepSizeController | None = None, predictor: LagrangePredictor | None = None):
+        self.scenario = scenario
+        c = scenario.coupling
+        self.out_dir = Path(out_dir) if out_dir is not None else None
+        self.scheme = scheme or scheme_from_spec(c.scheme, c.sequence)
+        n_retry = getattr(c, "discard_retries", 0)
+        if isinstance(n_retry, bool) or not isinstance(n_retry, int) or not 0 <= n_retry <= MAX_DISCARD_RETRIES:
+            raise ScenarioError(f"{self._where()}coupling.discard_retries must be an integer between 0 and "
+                                f"{MAX_DISCARD_RETRIES} (got {n_retry!r}); use 0 (stop on fmi2Discard) or the "
+                                "number of step halvings to try, e.g. 3")
+        self.discard_retries = n_retry
+        self.grid = step_size or controller_from_spec(scenario)
+        self.grid.on_rejected = self._rejected
+        self.predictor = predictor or LagrangePredictor(extrapolation_order=c.extrapolation_order,
+                                                        interpolation_order=c.interpolation_order)
+        self.recorder = Recorder()
+        self.observers = [self.recorder, *observers]
+        self._given = dict(subsystems) if subsystems is not None else None
+        self.subsystems: dict[str, SubsystemBase] = {}
+        self.status = Status.NOT_STARTED
+        self.message = ""
+        # set (e.g. by a SIGINT handler, see orchestrator.run) to stop cleanly between macro
+        # steps: run() then raises KeyboardInterrupt from master code, never inside an FMU
+        self.interrupt_requested = False
+        self.n = 0
+        self.t = float(scenario.start_time)
+        self.end_time = float(scenario.start_time)
+        self.wall_time = 0.0
+        self._work_dir: str | None = None
+        self._phase = "new"
+        self._t_wall0 = 0.0
+
+    def _where(self) -> str:
+        src = getattr(self.scenario, "source", None)
+        return f"{src}: " if src else ""
+
+    # ------------------------------------------------------------------ setup
+    def setup(self) -> None:
+        """Load the subsystems, set parameters and precompute the stepping plan."""
+        if self._phase != "new":
+            raise LifecycleError(f"setup() called twice (phase '{self._phase}'); create a new MasterAlgorithm")
+        self._phase = "setup"
+        self._t_wall0 = _time.perf_counter()
+        sc = self.scenario
+        names = [f.name for f in sc.fmus]
+        try:
+            if self._given is not None:
+                missing = [n for n in names if n not in self._given]
+                if missing:
+                    raise ScenarioError(f"no subsystem given for FMU instances {missing}")
+                self.subsystems = {n: self._given[n] for n in names}
+            else:
+                self._work_dir = tempfile.mkdtemp(prefix="rotorcosim-")
+                for f in sc.fmus:
+                    self.subsystems[f.name] = Subsystem(f.name, f.path, work_dir=self._work_dir)
+            for f in sc.fmus:
+                self.subsystems[f.name].set_parameters(dict(f.parameters), out_dir=self.out_dir)
+            self._plan()
+        except BaseException:
+            self._release()
+            self._phase = "terminated"      # nothing left to terminate; observers never started
+            raise
+
+    def _plan(self) -> None:
+        plan = make_plan(self.scenario, self.subsystems, self.scheme)
+        self.plan = plan
+        self.order, self.units, self.history = plan.order, plan.units, plan.history
+        self.columns, self._rec, self.stride = plan.columns, plan.rec, plan.stride
+        k = self.predictor.k
+        can_state = all(u.sub.can_get_set_state for u in self.units)
+        startup = k >= 2 and can_state
+        if k >= 2 and not can_state:
+            log.info("extrapolation_order %d: not every FMU can save its state (canGetAndSetFMUstate), so the "
+                     "first %d macro steps use lower-order extrapolation; this adds an O(H^2) start-up error "
+                     "(see docs/coupling.md)", k, k - 1)
+        if self.grid.needs_states:
+            stateless = [u.name for u in self.units if not u.sub.can_get_set_state]
+            if stateless:
+                raise ScenarioError(
+                    f"{self._where()}coupling.discard_retries = {self.discard_retries} needs every FMU to save and "
+                    f"restore its state (canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} "
+                    "cannot (got canGetAndSetFMUstate false); set coupling.discard_retries: 0 or use an FMU "
+                    "built with state support")
+            for u in self.units:
+                u.sub.no_set_prior_state = False    # we may restore the state saved before each macro step
+        # noSetFMUStatePriorToCurrentPoint for every doStep: False while the master may restore a state
+        self.signal_names = [f"{u.name}.{n}" for u in plan_units_in_store_order(self.scenario, self.units)
+                             for n in u.ext_names + u.int_names]
+        kw = dict(macro_step=self.scenario.coupling.macro_step, startup_iterations=startup,
+                  no_prior=not self.grid.needs_states)
+        c = self.scenario.coupling
+        if c.scheme == "iterative":
+            self._require_states("coupling.scheme = iterative repeats every macro step from the saved states",
+                                 "use scheme gauss-seidel or jacobi")
+            kw.update(startup_iterations=False, no_prior=False)
+            self.stepper = IterativeMacroStep(plan, self.predictor, spec=c.iteration,
+                                              signal_names=self.signal_names, **kw)
+        else:
+            self.stepper = MacroStep(plan, self.predictor, **kw)
+        if getattr(self.grid, "variable", False):
+            self._setup_variable_grid()
+        self.view = RunView(self.columns, self.grid.time(0), self.grid.time(self.grid.n_steps), self.grid.n_steps)
+
+    def _require_states(self, what: str, fix: str) -> None:
+        stateless = [u.name for u in self.units if not u.sub.can_get_set_state]
+        if stateless:
+            raise ScenarioError(
+                f"{self._where()}{what}, so every FMU must save and restore its state "
+                f"(canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} cannot (got "
+                f"canGetAndSetFMUstate false); {fix}, or use an FMU built with state support")
+        for u in self.units:
+            u.sub.no_set_prior_state = False
+
+    def _setup_variable_grid(self) -> None:
+        """The error-controlled step (coupling/adaptive.py): FMUs with a fixed step are refused;
+        without state save/restore in every FMU the step adapts forward only."""
+        fixed = [u.name for u in self.units if not variable_step_ok(u.sub)]
+        if fixed:
+            raise ScenarioError(
+                f"{self._where()}coupling.step_control type error varies the macro step, but "
+                f"{', '.join(map(repr, fixed))} cannot take varying steps (canHandleVariableCommunicationStepSize "
+                "false); use step_control type constant")
+        can_reject = all(u.sub.can_get_set_state for u in self.units)
+        self.grid.can_reject = can_reject
+        if can_reject:
+            for u in self.units:
+                u.sub.no_set_prior_state = False
+            self.stepper.no_prior = False
+        else:
+            log.warning("coupling.step_control type error: %s cannot restore a saved state, so no macro step "
+                        "is rejected: the step adapts forward only",
+                        ", ".join(repr(u.name) for u in self.units if not u.sub.can_get_set_state))
+
+    # ------------------------------------------------------------ initialize
+    def initialize(self) -> None:
+        """FMI 2.0 initialization: setupExperiment, enter init mode, exchange
+        initial values (fixed point over feed-through), exit init mode, exchange again."""
+        if self._phase != "setup":
+            raise LifecycleError(f"initialize() needs setup() first and runs once (phase '{self._phase}')")
+        self._phase = "initializing"
+        sc = self.scenario
+        t0 = self.grid.time(0)
+        try:
+            for u in self.units:
+                u.sub.setup_experiment(t0, sc.stop_time)
+            for u in self.units:
+                u.sub.enter_initialization_mode()
+            self._exchange_initial()
+            for u in self.units:
+                u.sub.exit_initialization_mode()
+            self._exchange_initial()
+        except (FmuCallError, CouplingError) as e:
+            self._fail(f"initialization failed: {e}; check the FMU's parameters and start values", t0)
+            self._phase = "running"
+            self.view.is_output = False        # observers start (results.csv gets its header), no row
+            for o in self.observers:
+                o.on_initialized(self.view)
+            return
+        self.history.start(t0)
+        self.status = Status.RUNNING
+        self._phase = "running"
+        self.t = t0
+        self.end_time = t0
+        self._record(t0, 0, True)
+        for o in self.observers:
+            o.on_initialized(self.view)
+
+    def _exchange_initial(self) -> None:
+        """Outputs -> inputs at t0 until they agree (direct feedthrough).
+
+        Plain passes first: a chain of feedthrough FMUs settles exactly in as many
+        passes as it is long. If the signals still change after ``len(units) + 1``
+        passes there is an algebraic loop: it is solved as the fixed point ``x = G(x)``
+        of one exchange (IQN-ILS, coupling/acceleration.py) to ``coupling.iteration.tol``;
+        no convergence raises CouplingError naming the loop (coupling/loops.py).
+        """
+        store = self.history.store
+        t0 = self.grid.time(0)
+
+        def exchange(x=None):
+            if x is not None:
+                store[0] = x
+                self._push_inputs()
+            for u in self.units:
+                u.sub.get_real(u.outb)
+                self.stepper.propagate(u, t0)
+            return store[0].copy()
+
+        x = exchange()
+        for _ in range(len(self.units) + 1):
+            g = exchange(x)
+            if np.array_equal(g, x):
+                return
+            x = g
+        spec = self.scenario.coupling.iteration
+        res = solve_fixed_point(exchange, x, acceleration=IQNILS(), tol=spec.tol, scale=np.abs(x),
+                                max_iterations=max(spec.max_iterations, INIT_LOOP_ITERATIONS))
+        if res.converged:
+            store[0] = res.x
+            self._push_inputs()
+            log.info("initial exchange: algebraic loop solved in %d iterations (IQN-ILS, residual %.3g of the "
+                     "signals' scale)", res.iterations, res.residual)
+            return
+        name = self.signal_names[res.worst] if self.signal_names else "?"
+        loop = loop_through(self.scenario.connections, name.split(".", 1)[0])
+        raise CouplingError(
+            f"the initial exchange at t={t0:g} s has an algebraic loop that does not converge: after "
+            f"{len(self.units) + 1 + res.iterations} passes (IQN-ILS) the input {name} still changes by "
+            f"{res.residual:.3g} of its scale (tol {spec.tol:g}); the loop is "
+            f"{', '.join(loop) if loop else 'not a cycle of connections (an FMU output that keeps changing)'}. "
+            "The loop's equations have no (or no reachable) solution: check the gains, offsets and the FMUs' "
+            "feedthrough in it, or break it with a state (e.g. a first-order lag)")
+
+    def _push_inputs(self) -> None:
+        for u in self.units:
+            if u.nE + u.nI:
+                u.inb.values[:u.nE] = u.HE[0]
+                u.inb.values[u.nE:] = u.HI[0]
+                u.sub.set_real(u.inb)
+
+    # ------------------------------------------------------------------ step
+    def step(self) -> Status:
+        """Advance one macro step. Returns the status (RUNNING, FINISHED or FAILED)."""
+        if self.status is not Status.RUNNING:
+            raise LifecycleError(f"step() called with status {self.status.short}; "
+                                 + ("call setup() and initialize() first" if self.status is Status.NOT_STARTED
+                                    else "the run is over; read result()"))
+        n = self.n
+        grid = self.grid
+        variable = getattr(grid, "variable", False)
+        on_output = False
+        if variable:
+            t = self.t
+            t_next = min(t + grid.h, self.scenario.stop_time)      # for messages if the step fails
+        else:
+            t = grid.time(n)
+            t_next = grid.time(n + 1)
+        try:
+            if variable:
+                t_next, on_output = grid.take_variable_step(self.stepper, t)
+            else:
+                grid.take_step(self.stepper, t, t_next)
+        except RetriesExhausted as x:
+            n_h = self.discard_retries
+            self._fail(self._fmu_message(x.error, t, t_next)
+                       + f". The master restored every FMU's state and retried this macro step with {n_h} "
+                       f"halving{'s' if n_h != 1 else ''} of the step (coupling.discard_retries = {n_h}, smallest "
+                       f"step {(t_next - t) / 2 ** n_h:g} s); the sub-step from t={x.t_a:.12g} s to "
+                       f"t={x.t_b:.12g} s was still discarded. Allow more halvings (a larger "
+                       "coupling.discard_retries) or use a smaller coupling.macro_step", t)
+            return self.status
+        except FmuCallError as e:
+            self._fail(self._fmu_message(e, t, t_next), t)
+            return self.status
+        except CouplingError as e:
+            self._fail(str(e), t)
+            return self.status
+        self.n = n + 1
+        self.t = t_next
+        self.end_time = t_next
+        if variable:
+            last = t_next >= self.scenario.stop_time
+            self._record(t_next, self.n, last or on_output)
+        else:
+            last = self.n >= self.grid.n_steps
+            self._record(t_next, self.n, last or self.n % self.stride == 0)
+        if last:
+            self.status = Status.FINISHED
+            self.message = f"finished at t={t_next:g} s after {self.n} macro steps"
+        for o in self.observers:
+            o.on_step_complete(self.view)
+        return self.status
+
+    def _rejected(self, t_a: float, t_b: float, error: Exception) -> None:
+        """The controller rolled back the attempt [t_a, t_b]: tell the observers (row unchanged)."""
+        view = self.view
+        view.rejected = (t_a, t_b, str(error))
+        for o in self.observers:
+            o.on_step_rejected(view)
+        view.rejected = None
+
+    # ---------------------------------------------------------------- helpers
+    def _fmu_message(self, e: FmuCallError, t: float, t_next: float) -> str:
+        what = {"discard": "could not complete the step (fmi2Discard)",
+                "error": "reported an error (fmi2Error)",
+                "fatal": "reported a fatal error (fmi2Fatal; PythonFMU reports Python exceptions this way)",
+                "exception": "raised an exception"}.get(e.status, f"returned {e.status}")
+        return (f"FMU instance '{e.instance}' {what} in {e.function} during the macro step from t={t:.12g} s to "
+                f"t={t_next:.12g} s ({e}). Rows up to t={t:.12g} s are kept. Follow the fix the FMU's message "
+                "gives, if any; a numerically unstable coupling shows up the same way, so also try a smaller "
+                f"coupling.macro_step (now {self.scenario.coupling.macro_step:g}) or more substeps for "
+                f"'{e.instance}', and check the FMU's log above")
+
+    def _fail(self, message: str, t: float) -> None:
+        self.status = Status.FAILED
+        self.message = message
+        self.end_time = t
+        self.view.status = self.status
+        self.view.message = message
+        log.error("%s", message)
+
+    def _record(self, t: float, n: int, is_output: bool) -> None:
+        view = self.view
+        view.t = t
+        view.n = n
+        view.end_time = t
+        view.is_output = is_output
+        view.status = self.status
+        if is_output:
+            row = view.row
+            for values, pos, cols in self._rec:
+                row[cols] = values[pos]
+
+    # ------------------------------------------------------------- terminate
+    def terminate(self) -> None:
+        """fmi2Terminate and fmi2FreeInstance for every subsystem (always), then
+        tell the observers. Idempotent."""
+        if self._phase in ("terminated", "new"):
+            return
+        if self.status is Status.RUNNING:
+            self._fail(f"terminated early at t={self.t:.12g} s by the caller", self.t)
+        self.view.status = self.status
+        self.view.message = self.message
+        self.view.end_time = self.end_time
+        st = self.grid.statistics()
+        if st["retried_steps"]:
+            log.info("%d macro step(s) were redone in smaller steps after an fmi2Discard (%d extra step rounds, "
+                     "%d rejected attempts)%s", st["retried_steps"], st["retry_substeps"], st["rejected_steps"],
+                     f"; only the first {RETRY_LOG_LINES} were logged" if st["retried_steps"] > RETRY_LOG_LINES
+                     else "")
+        try:
+            for u in getattr(self, "units", []):
+                try:
+                    u.sub.terminate()
+                except FmuCallError as e:
+                    log.warning("%s", e)
+        finally:
+            self._release()
+            self._phase = "terminated"
+            self.wall_time = _time.perf_counter() - self._t_wall0
+            for o in self.observers:
+                o.on_terminated(self.view)
+
+    def _release(self) -> None:
+        for sub in self.subsystems.values():
+            try:
+                sub.free()
+            except Exception as e:   # pragma: no cover - defensive
+                log.warning("freeing '%s' failed: %s", sub.name, e)
+        if self._work_dir:
+            shutil.rmtree(self._work_dir, ignore_errors=True)
+            self._work_dir = None
+
+    # ---------------------------------------------------------------- result
+    def statistics(self) -> dict:
+        """``rejected_steps``: (sub-)step attempts discarded by an FMU and rolled back;
+        ``retried_steps``: macro steps redone in smaller steps; ``retry_substeps``: the extra
+        step rounds (sub-intervals attempted) of those retries (all 0 without discard_retries)."""
+        st = {"macro_steps": self.n, **self.grid.statistics(), "wall_time_s": self.wall_time,
+              "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()}}
+        stats = getattr(getattr(self, "stepper", None), "stats", None)
+        if stats is not None:
+            st["iterations"] = stats.as_dict()
+        return st
+
+    def result(self) -> CoSimResult:
+        t, outputs = self.recorder.arrays()
+        return CoSimResult(status=self.status, message=self.message, t=t, outputs=outputs,
+                           stats=self.statistics(), out_dir=self.out_dir, end_time=self.end_time)
+
+    def run(self) -> CoSimResult:
+        """setup (if needed), initialize, step until done, terminate; return the result."""
+        try:
+            if self._phase == "new":
+                self.setup()
+            if self._phase == "setup":
+                self.initialize()
+            while self.status is Status.RUNNING:
+                if self.interrupt_requested:
+                    raise KeyboardInterrupt
+                self.step()
+        finally:
+            self.terminate()
+        return self.result()

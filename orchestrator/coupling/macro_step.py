@@ -1,0 +1,183 @@
+"""The macro step T(n) -> T(n+1) over a :class:`~orchestrator.coupling.plan.Plan`.
+
+For each unit in stepping order: the step's Lagrange weights (cached in the predictor,
+:meth:`~orchestrator.coupling.signals.LagrangePredictor.step_weights`), the unit's input
+delivery (:mod:`.delivery`), the outputs read at T(n+1) and sent through gain/offset
+into the consumers' histories (:meth:`MacroStep.propagate`), NaN/inf stopped there.
+
+Seam for iterative schemes and step-size control: :meth:`MacroStep.save` takes a
+:class:`Checkpoint` (every FMU state and the history), :meth:`restore` goes back to
+it, :meth:`release` frees it, and :meth:`advance` with ``commit=False`` computes the
+new level T(n+1) without committing it, so a scheme can repeat the step from the
+checkpoint (the start-up iteration, :meth:`startup_step`, does exactly that) and
+commit once (``history.commit()``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+from orchestrator.coupling.plan import Link, Plan, Unit
+from orchestrator.coupling.signals import LagrangePredictor
+from orchestrator.errors import CouplingError, FmuCallError
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Checkpoint:
+    """Saved FMU states (one per unit, in stepping order) and a history snapshot."""
+
+    states: list
+    snap: tuple
+
+
+class MacroStep:
+    """Advances the plan's units over one macro step (see the module docstring).
+
+    ``startup_iterations``: repeat the first steps from saved states while the
+    history is shorter than the extrapolation order (every FMU can save its state);
+    ``no_prior``: value of ``noSetFMUStatePriorToCurrentPoint`` for ordinary steps.
+    """
+
+    def __init__(self, plan: Plan, predictor: LagrangePredictor, *, macro_step: float,
+                 startup_iterations: bool, no_prior: bool):
+        self.plan = plan
+        self.units = plan.units
+        self.history = plan.history
+        self.predictor = predictor
+        self.macro_step = macro_step
+        self.startup_iterations = startup_iterations
+        self.no_prior = no_prior
+
+    # ------------------------------------------------------------ checkpoints
+    def save(self) -> Checkpoint:
+        states = []
+        try:
+            for u in self.units:
+                states.append(u.sub.get_state())
+        except BaseException:
+            self._free_states(states)
+            raise
+        return Checkpoint(states, self.history.snapshot())
+
+    def snapshot(self, states: list) -> Checkpoint:
+        """A checkpoint of already saved ``states`` and the history now."""
+        return Checkpoint(states, self.history.snapshot())
+
+    def restore(self, cp: Checkpoint) -> None:
+        for u, s in zip(self.units, cp.states, strict=True):
+            u.sub.set_state(s)
+        self.history.restore(cp.snap)
+
+    def release(self, cp: Checkpoint) -> None:
+        self._free_states(cp.states)
+
+    def _free_states(self, states) -> None:
+        for u, s in zip(self.units, states, strict=False):     # states may be partial
+            try:
+                u.sub.free_state(s)
+            except FmuCallError as e:   # pragma: no cover - defensive
+                log.warning("%s", e)
+
+    def keep_end_only(self, cp: Checkpoint, t_next: float) -> None:
+        """After sub-steps committed their end points since ``cp``: rebuild the history on the
+        nominal grid, newest level ``t_next``, older levels those of ``cp``."""
+        hist = self.history
+        new_rows = [b[1].copy() for b in hist.blocks]
+        hist.restore(cp.snap)
+        hist.times[0] = t_next
+        for b, r in zip(hist.blocks, new_rows, strict=True):
+            b[0] = r
+        hist.commit()
+
+    # ------------------------------------------------------------------ steps
+    def step(self, t: float, t_next: float) -> None:
+        """One ordinary step [t, t_next] (start-up iteration while the history is short)."""
+        if self.startup_iterations and self.history.count < self.predictor.k:
+            self.startup_step(t, t_next)
+        else:
+            self.advance(t, t_next)
+
+    def startup_step(self, t: float, t_next: float) -> None:
+        """A start-up step while the history is shorter than the extrapolation order.
+
+        With only ``count`` past values the extrapolation has order count-1 < k,
+        whose error (O(H^(count+1)) in the states after the step) would cap the
+        global order below k+1. When every subsystem can save and restore its
+        state, the step is repeated ``k`` times from saved states with *all*
+        inputs interpolated through the new values of the previous pass (a
+        fixed-point iteration that gains one order per pass), so the start-up
+        error is O(H^(k+2)) and the full order k+1 is kept.
+        """
+        hist = self.history
+        states = [u.sub.get_state() for u in self.units]
+        snap = hist.snapshot()
+        for u in self.units:
+            u.sub.no_set_prior_state = False      # we will restore the saved state
+        try:
+            self.advance(t, t_next, commit=False)
+            q = min(self.predictor.k, hist.count)
+            for _ in range(self.predictor.k):
+                new_rows = [b[0].copy() for b in hist.blocks]
+                for u, s in zip(self.units, states):
+                    u.sub.set_state(s)
+                hist.restore(snap)
+                for b, r in zip(hist.blocks, new_rows):
+                    b[0] = r
+                self.advance(t, t_next, commit=False, startup_q=q)
+            hist.commit()
+        finally:
+            for u in self.units:
+                u.sub.no_set_prior_state = self.no_prior
+            for u, s in zip(self.units, states):
+                try:
+                    u.sub.free_state(s)
+                except FmuCallError as e:   # pragma: no cover - defensive
+                    log.warning("%s", e)
+
+    def advance(self, t: float, t_next: float, *, commit: bool = True, startup_q: int | None = None) -> None:
+        """Every unit over [t, t_next]; the new level T(n+1) is committed unless ``commit=False``."""
+        h = t_next - t
+        hist = self.history
+        hist.times[0] = t_next
+        predictor = self.predictor
+        for u in self.units:
+            w = predictor.step_weights(hist, t, h, u.substeps, q=startup_q)
+            u.delivery.advance(u, w, t, h)
+            u.sub.get_real(u.outb)
+            self.propagate(u, t_next)
+        if commit:
+            hist.commit()
+
+    def propagate(self, u: Unit, t: float) -> None:
+        """Unit ``u``'s outputs (in ``u.outb``) through gain/offset into the consumers' new level."""
+        out = u.outb.values
+        for lk in u.links:
+            if lk.small is not None:       # few signals: plain Python floats are faster than numpy calls
+                row = lk.row0
+                for p, c, g, o in lk.small:
+                    x = float(out[p]) * g + o
+                    if x - x != 0.0:
+                        self._nonfinite(u, lk, lk.names[lk.small.index((p, c, g, o))], x, t)
+                    row[c] = x
+                continue
+            v = lk.tmp
+            out.take(lk.pos, out=v)
+            if not lk.identity:
+                v *= lk.gain
+                v += lk.offset
+            if not math.isfinite(v.sum()):          # NaN or inf somewhere (cheap test first)
+                bad = [i for i in range(len(v)) if not math.isfinite(v[i])]
+                if bad:
+                    self._nonfinite(u, lk, lk.names[bad[0]], v[bad[0]], t)
+            lk.block[0, lk.cols] = v
+
+    def _nonfinite(self, u: Unit, lk: Link, name: str, value: float, t: float):
+        raise CouplingError(
+            f"coupling signal {name} is {float(value)} at t={t:.12g} s (output of '{u.name}'); "
+            "the coupled system is probably unstable at this macro step or the FMU failed silently. "
+            f"Try a smaller coupling.macro_step (now {self.macro_step:g}), a lower "
+            "extrapolation_order, or the gauss-seidel scheme")

@@ -1,0 +1,83 @@
+"""Plots of a run (``rotorcosim plot DIR``): PNGs in ``DIR/plots/``, one module per figure.
+
+What is drawn, when the data exist (see ``docs/analysis.md``):
+
+* ``eccentricity.png``: eccentricity of every journal over time and over rotor
+  speed, whirl onset / vanishing marked;
+* ``orbit_<journal>.png``: journal orbits (x/c, y/c) with the clearance circle in
+  three windows (before the onset, in the whirl, at the end), coloured by time;
+* ``waterfall_<journal>.png``: run-up waterfall, frequency of the forward journal
+  motion against rotor speed, colour = amplitude / clearance, 1x and 0.5x lines;
+* ``fields_<name>.png``: pressure [bar] and fluid fraction over (phi [deg], z [mm])
+  for every ``*_fields.npz`` (stationary runs), cavity (theta < 1) outlined.
+
+The signals come from ``summary.json`` (the ``analysis.spec`` written by
+:func:`orchestrator.results.whirl.analyze_run`), else the ``analysis:`` section of the
+scenario file named in ``summary.json``, else they are inferred from the column
+names (``<inst>.omega``, ``<inst>.x_<i>``/``<inst>.y_<i>``, ``<inst>.eps``).
+Whatever cannot be drawn is skipped with a ``UserWarning`` that says why.
+Uses matplotlib's object API with the Agg canvas (no pyplot, no display).
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from orchestrator.errors import CosimError
+from orchestrator.results.plots import eccentricity, fields, orbit, waterfall
+from orchestrator.results.plots.common import PlotContext, infer_spec, logger
+
+__all__ = ["plot_run", "plot_result", "draw_all", "infer_spec", "PlotContext"]
+
+
+def plot_run(run_dir: str | Path) -> list[Path]:
+    """Write the plots of a run into ``run_dir/plots/``; return the written files.
+
+    Skips (with a ``UserWarning`` naming file, signal and fix) what the run's
+    files do not support. Raises :class:`CosimError` when ``run_dir`` is not a
+    directory or nothing at all could be plotted.
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise CosimError(f"{run_dir}: not a directory; give the output directory of a run "
+                         "(the one holding results.csv and summary.json)")
+    return _finish(draw_all(PlotContext.from_run_dir(run_dir)), run_dir)
+
+
+def plot_result(res, out_dir: str | Path, *, name: str = "run", spec=None) -> list[Path]:
+    """The same figures of an in-memory :class:`~orchestrator.results.result.CoSimResult`
+    (``spec``: the analysis spec; default ``res.analysis["spec"]`` or inferred), into ``out_dir``."""
+    return _finish(draw_all(PlotContext.from_result(res, Path(out_dir), name=name, spec=spec)), Path(out_dir))
+
+
+def _finish(ctx: PlotContext, where: Path) -> list[Path]:
+    for msg in dict.fromkeys(ctx.skipped):     # each reason once, in order
+        warnings.warn(f"plot {where}: skipped {msg}", UserWarning, stacklevel=3)
+    if not ctx.written:
+        raise CosimError(f"{where}: nothing to plot: " + "; ".join(ctx.skipped))
+    return ctx.written
+
+
+def draw_all(ctx: PlotContext) -> PlotContext:
+    """Every figure the context's data support (the rest is listed in ``ctx.skipped``)."""
+    if ctx.cols.get("time", np.empty(0)).size >= 2:
+        ctx.spec, src = ctx.load_spec()
+        logger.info("plot signals from %s: %s", src, ctx.spec)
+        if not ctx.spec.get("journals"):
+            ctx.skipped.append(
+                f"journal plots: no journals in the analysis spec ({src}) and no columns named "
+                "like '<inst>.x_1', '<inst>.y_1' in results.csv; add an 'analysis:' section "
+                "(docs/analysis.md)")
+        else:
+            ctx.load_analysis()
+            eccentricity.draw(ctx)
+            for jn in ctx.spec["journals"]:
+                orbit.draw(ctx, jn)
+                waterfall.draw(ctx, jn)
+    elif "time" in ctx.cols:
+        ctx.skipped.append(f"time histories: results.csv has {ctx.cols['time'].size} row(s), need 2")
+    fields.draw(ctx)
+    return ctx

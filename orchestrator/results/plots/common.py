@@ -1,0 +1,197 @@
+"""What every figure of :mod:`orchestrator.results.plots` shares: the :class:`PlotContext`
+(the loaded signals, the analysis spec and result, where PNGs go, what was skipped) and
+drawing helpers. A context comes from a run folder (:meth:`PlotContext.from_run_dir`, read
+through :class:`~orchestrator.results.run_directory.RunDirectory`) or from an in-memory
+:class:`~orchestrator.results.result.CoSimResult` (:meth:`PlotContext.from_result`).
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from orchestrator.results.run_directory import RunDirectory
+
+logger = logging.getLogger("orchestrator.results.plots")
+
+DPI = 110
+ORBIT_REVS = 20          # revolutions shown per orbit window
+MAX_ORBIT_POINTS = 1500  # orbit points per window (decimated above)
+MAX_TRACE_POINTS = 4000  # above: min/max envelope per bin (looks the same, draws fast)
+
+
+class PlotContext:
+    """The data of one plotting call and its bookkeeping (``written``, ``skipped``).
+
+    ``cols``: ``{"time": t, "inst.var": array}``; ``spec``: the analysis spec (journals,
+    speed, whirl, fields); ``result``: the analysis result (``summary.json``'s ``analysis``);
+    ``field_files``: film field files to draw; ``out``: the folder the PNGs go to.
+    """
+
+    def __init__(self, *, name: str, out: Path, cols: Mapping[str, np.ndarray] | None = None,
+                 summary: Mapping[str, Any] | None = None, run_dir: Path | None = None):
+        self.name = name
+        self.out = Path(out)
+        self.run_dir = run_dir
+        self.cols: dict[str, np.ndarray] = dict(cols or {})
+        self.summary: dict[str, Any] = dict(summary or {})
+        self.spec: dict[str, Any] = {}
+        self.result: dict[str, Any] = {}
+        self.field_files: list[Path] = []
+        self.written: list[Path] = []
+        self.skipped: list[str] = []
+
+    @classmethod
+    def from_run_dir(cls, run_dir: Path) -> "PlotContext":
+        """The context of a finished (or failed) run folder; PNGs go to ``run_dir/plots``."""
+        run = RunDirectory(run_dir)
+        skipped = []
+        summary: dict = {}
+        if run.has_summary():
+            try:
+                summary = run.summary()
+            except (OSError, ValueError) as exc:
+                skipped.append(f"{run.summary_json.name} (unreadable: {exc}); using results.csv only")
+        ctx = cls(name=str(summary.get("scenario") or Path(run_dir).name), out=Path(run_dir) / "plots",
+                  summary=summary, run_dir=Path(run_dir))
+        ctx.skipped += skipped
+        if run.has_results():
+            try:
+                ctx.cols = run.columns()
+            except (OSError, ValueError) as exc:
+                ctx.skipped.append(f"time histories: {exc}")
+        else:
+            ctx.skipped.append(f"time histories: {run.results_csv} not found")
+        ctx.field_files = run.field_files()
+        return ctx
+
+    @classmethod
+    def from_result(cls, res, out_dir: Path, *, name: str = "run",
+                    spec: Mapping[str, Any] | None = None) -> "PlotContext":
+        """The context of an in-memory result (``res.t``, ``res.outputs``, ``res.analysis``)."""
+        summary: dict[str, Any] = {"scenario": name}
+        if res.analysis is not None:
+            summary["analysis"] = dict(res.analysis)
+        if spec is not None:
+            summary.setdefault("analysis", {})["spec"] = dict(spec)
+        return cls(name=name, out=Path(out_dir), cols={"time": np.asarray(res.t), **res.outputs},
+                   summary=summary)
+
+    def load_spec(self) -> tuple[dict, str]:
+        """The analysis spec: summary.json's, the scenario file's, or inferred from the columns."""
+        ana = self.summary.get("analysis")
+        if isinstance(ana, Mapping) and isinstance(ana.get("spec"), Mapping):
+            return dict(ana["spec"]), "summary.json"
+        sf = self.summary.get("scenario_file")
+        if sf:
+            try:
+                import yaml
+                doc = yaml.safe_load(Path(sf).read_text())
+                if isinstance(doc, Mapping) and isinstance(doc.get("analysis"), Mapping):
+                    return dict(doc["analysis"]), str(sf)
+            except (OSError, ValueError, ImportError) as exc:
+                logger.info("cannot read analysis section of %s: %s", sf, exc)
+            except Exception as exc:  # yaml errors
+                logger.info("cannot parse %s: %s", sf, exc)
+        return infer_spec(self.cols), "inferred from results.csv column names"
+
+    def load_analysis(self) -> None:
+        """The whirl markers: summary.json's analysis, else analyse the run folder now."""
+        ana = self.summary.get("analysis")
+        if isinstance(ana, Mapping) and isinstance(ana.get("journals"), Mapping):
+            self.result = dict(ana)
+        elif self.spec.get("speed") and self.run_dir is not None:
+            from orchestrator.results.whirl import analyze_run
+            self.result = analyze_run(self.run_dir, self.spec)
+        if "error" in self.result:
+            self.skipped.append(f"whirl markers: {self.result['error']}")
+
+    def signal(self, name: Any, what: str) -> np.ndarray | None:
+        if isinstance(name, str) and name in self.cols:
+            return self.cols[name]
+        self.skipped.append(f"{what}: results.csv has no column '{name}'; columns: "
+                            f"{sorted(self.cols)[:10]}; fix the analysis spec or output.signals")
+        return None
+
+    def journal(self, jn: str) -> dict:
+        """Signals of one journal: t, x, y, eps, c, omega (None when missing)."""
+        js = self.spec["journals"][jn] or {}
+        jr = (self.result.get("journals") or {}).get(jn) or {}
+        c = js.get("clearance") or jr.get("clearance")
+        return {"t": self.cols["time"],
+                "x": self.signal(js.get("x"), f"journal '{jn}' x") if js.get("x") else None,
+                "y": self.signal(js.get("y"), f"journal '{jn}' y") if js.get("y") else None,
+                "eps": self.signal(js.get("eps"), f"journal '{jn}' eps") if js.get("eps") else None,
+                "c": float(c) if c else None,
+                "omega": self.cols.get(self.spec.get("speed")) if self.spec.get("speed") else None,
+                "res": jr}
+
+    def save(self, fig, fname: str) -> None:
+        self.out.mkdir(parents=True, exist_ok=True)
+        path = self.out / fname
+        fig.savefig(path, dpi=DPI)
+        self.written.append(path)
+
+
+def trace(ax, xv, yv, color, label) -> None:
+    """Line plot; long dense signals as a min/max envelope over ``MAX_TRACE_POINTS/2`` bins."""
+    n = xv.size
+    if n <= MAX_TRACE_POINTS or not np.all(np.diff(xv) >= 0):
+        ax.plot(xv, yv, lw=0.7, color=color, label=label)
+        return
+    nb = MAX_TRACE_POINTS // 2
+    edges = np.linspace(0, n, nb + 1).astype(int)
+    yv = np.where(np.isfinite(yv), yv, np.nan)
+    lo = np.fmin.reduceat(yv, edges[:-1])
+    hi = np.fmax.reduceat(yv, edges[:-1])
+    xc = xv[(edges[:-1] + edges[1:]) // 2]
+    ax.fill_between(xc, lo, hi, color=color, lw=0.3, alpha=0.8, label=label + " (min-max envelope)")
+
+
+def edges(c: np.ndarray) -> np.ndarray:
+    """Cell edges around increasing centres ``c`` (midpoints, ends extrapolated)."""
+    c = np.asarray(c, float)
+    if c.size == 1:
+        return np.array([c[0] - 0.5, c[0] + 0.5])
+    mid = 0.5 * (c[1:] + c[:-1])
+    return np.concatenate([[2 * c[0] - mid[0]], mid, [2 * c[-1] - mid[-1]]])
+
+
+def safe_name(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name))
+
+
+XY = re.compile(r"^(?P<inst>[^.]+)\.x_(?P<i>\d+)$")
+
+
+def infer_spec(cols: Mapping[str, Any]) -> dict:
+    """Guess an analysis spec from column names (``*.omega``, ``*.x_i``/``*.y_i``, ``*.eps``).
+
+    Journal ``i`` gets the eps column of the instance whose name ends in ``i``,
+    else the i-th eps column in header order. No clearance (estimated from eps
+    by the analysis when both exist).
+    """
+    names = list(cols)
+    speed = next((n for n in names if n.endswith(".omega")), None)
+    eps_cols = [n for n in names if n.endswith(".eps")]
+    journals = {}
+    for k, n in enumerate(sorted((n for n in names if XY.match(n)), key=lambda s: int(XY.match(s)["i"]))):
+        m = XY.match(n)
+        yname = f"{m['inst']}.y_{m['i']}"
+        if yname not in cols:
+            continue
+        e = next((c for c in eps_cols if re.search(rf"{m['i']}\.eps$", c)), None)
+        if e is None and k < len(eps_cols):
+            e = eps_cols[k]
+        js = {"x": n, "y": yname}
+        if e:
+            js["eps"] = e
+        journals[f"journal{m['i']}"] = js
+    spec: dict[str, Any] = {"journals": journals}
+    if speed:
+        spec["speed"] = speed
+    return spec

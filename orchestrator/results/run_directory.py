@@ -1,0 +1,87 @@
+"""The one reader of a run folder: results.csv, summary.json and the field files.
+
+:class:`RunDirectory` reads what a run wrote (``rotorcosim run``, the monolithic
+reference, a compare variant); analysis, plots and compare read runs through it only.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+RESULTS = "results.csv"
+SUMMARY = "summary.json"
+
+log = logging.getLogger(__name__)
+
+
+def read_results(path: str | Path) -> dict[str, np.ndarray]:
+    """Read ``results.csv`` into ``{column: array}`` (the header names the columns).
+
+    Tolerates a truncated last line (runs stream the file): rows with the wrong
+    number of fields are skipped. Raises ``ValueError`` / ``OSError`` with the
+    file name on an empty or unreadable file.
+    """
+    path = Path(path)
+    with path.open(newline="") as fh:
+        header = next(csv.reader(fh), None)
+    if not header:
+        raise ValueError(f"{path}: empty file, expected a header 'time,<instance>.<variable>,...'")
+    header = [h.strip() for h in header]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        except ValueError:
+            data = np.genfromtxt(path, delimiter=",", skip_header=1, invalid_raise=False)
+            data = np.atleast_2d(data) if data.size else np.empty((0, len(header)))
+    for w in caught:   # skipped malformed rows (a truncated last line of a streamed file)
+        log.info("%s: %s", path, str(w.message).strip().replace("\n", " "))
+    if data.size == 0:
+        data = np.empty((0, len(header)))
+    if data.shape[1] != len(header):
+        raise ValueError(f"{path}: {data.shape[1]} columns of data, header names {len(header)}")
+    return {h: data[:, j] for j, h in enumerate(header)}
+
+
+class RunDirectory:
+    """A run folder. ``columns()``: results.csv as ``{column: array}`` (``time`` first);
+    ``summary()``: summary.json as a dict; ``field_files()``: the film field files."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+
+    @property
+    def results_csv(self) -> Path:
+        return self.path / RESULTS
+
+    @property
+    def summary_json(self) -> Path:
+        return self.path / SUMMARY
+
+    def has_results(self) -> bool:
+        return self.results_csv.is_file()
+
+    def has_summary(self) -> bool:
+        return self.summary_json.is_file()
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """results.csv (raises OSError / ValueError naming the file)."""
+        return read_results(self.results_csv)
+
+    def summary(self) -> dict[str, Any]:
+        """summary.json (raises OSError / ValueError)."""
+        return json.loads(self.summary_json.read_text())
+
+    def field_files(self) -> list[Path]:
+        """The film field files a bearing FMU wrote into the folder (``<instance>_fields.npz``)."""
+        return sorted(self.path.glob("*_fields.npz"))
+
+    def field_file(self, instance: str) -> Path:
+        return self.path / f"{instance}_fields.npz"

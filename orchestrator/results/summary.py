@@ -1,0 +1,74 @@
+"""summary.json: the one writer for co-simulation and monolithic runs alike.
+
+Keys, in order: ``scenario``, ``scenario_file``, ``status``, ``message``, ``start_time``,
+``stop_time``, ``end_time``, the run's statistics (``macro_steps``, ...; see
+docs/scenario-format.md), ``coupling``, ``output`` (columns, rows), ``versions``; a run
+with an ``analysis:`` section adds ``analysis`` and ``analysis_wall_time_s``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, is_dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+from orchestrator.results.jsonsafe import plain
+
+SUMMARY = "summary.json"
+
+
+def make_summary(scenario, res, *, stats: Mapping[str, Any], coupling: Mapping[str, Any] | None = None) -> dict:
+    """The summary of the run ``res`` (a :class:`~orchestrator.results.result.CoSimResult`) of
+    ``scenario``; ``coupling`` defaults to the scenario's coupling section."""
+    if coupling is None:
+        coupling = asdict(scenario.coupling) if is_dataclass(scenario.coupling) else dict(scenario.coupling)
+    return {
+        "scenario": scenario.name,
+        "scenario_file": str(scenario.source) if scenario.source else None,
+        "status": res.status.short,
+        "message": res.message,
+        "start_time": scenario.start_time,
+        "stop_time": scenario.stop_time,
+        "end_time": res.end_time,
+        **stats,
+        "coupling": coupling,
+        "output": {"columns": list(res.outputs), "rows": int(len(res.t))},
+        "versions": versions(),
+    }
+
+
+def cosim_stats(stats: Mapping[str, Any]) -> dict:
+    """The statistics block of a co-simulation run's summary (missing counters are 0)."""
+    return {"macro_steps": stats.get("macro_steps"),
+            "rejected_steps": stats.get("rejected_steps", 0),
+            "retried_steps": stats.get("retried_steps", 0),
+            "retry_substeps": stats.get("retry_substeps", 0),
+            "wall_time_s": stats.get("wall_time_s"),
+            "fmu_calls": stats.get("fmu_calls", {}),
+            **{k: stats[k] for k in ("iterations", "step_control") if k in stats}}
+
+
+def write_summary(path: Path | str, summary: Mapping[str, Any]) -> None:
+    """Write ``summary.json`` atomically (temp file + rename)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(plain(summary, "string"), indent=2) + "\n")
+    tmp.replace(path)
+
+
+def versions() -> dict[str, str]:
+    """Versions of the software a run depends on (for summary.json)."""
+    import platform
+    out = {"python": platform.python_version()}
+    for mod, key in (("numpy", "numpy"), ("scipy", "scipy"), ("fmpy", "fmpy"), ("pythonfmu", "pythonfmu")):
+        try:
+            out[key] = __import__(mod).__version__
+        except Exception:
+            out[key] = "unavailable"
+    try:
+        from importlib.metadata import version
+        out["rotorcosim"] = version("rotorcosim")
+    except Exception:
+        out["rotorcosim"] = "unknown"
+    return out

@@ -1,0 +1,190 @@
+"""Checks of a parsed scenario against its FMUs' model descriptions.
+
+:class:`FmuChecks` is mixed into the loader (it reports through ``self.err``): every
+parameter, connection end, output signal and analysis signal must name a variable
+of the right causality and type in a readable FMU.
+"""
+
+from __future__ import annotations
+
+from orchestrator.errors import CosimError
+from orchestrator.fmi.archive import cached_model_description
+from orchestrator.scenario.coupling_sections import check_capabilities
+from orchestrator.scenario.nodes import FLOAT_RE, article, did_you_mean, ranked
+
+
+class FmuChecks:
+    """Checks against the FMUs (a mixin of :class:`orchestrator.scenario.loader.ScenarioLoader`)."""
+
+    mds: dict
+
+    def check_draft(self, draft) -> dict | None:
+        """Read every FMU of ``draft`` and check it; the checked parameters per instance."""
+        self.mds = {}
+        self.fmu_caps = {}
+        for f in draft.fmus:
+            self.read_fmu(f)
+        params = {f["name"]: self.check_parameters(f) for f in draft.fmus}
+        self.check_connections(draft.connections)
+        if len(self.fmu_caps) == len(draft.fmus):
+            check_capabilities(self, draft.coupling_node, draft.coupling, self.fmu_caps)
+        self.check_signals(draft.signals, "output.signals")
+        if draft.analysis_node is not None and isinstance(draft.kw.get("analysis"), dict):
+            self.check_analysis(draft.analysis_node, draft.signals)
+        return params
+
+    def read_fmu(self, f: dict) -> None:
+        name, path = f["name"], f["path"]
+        if path is None:
+            return
+        node = f["path_node"]
+        if not path.exists():
+            self.err(node, f"FMU file of '{name}' not found: {path} (paths are relative to the scenario's "
+                           f"folder {self.path.parent.resolve()}); fix 'fmus.{name}.path', or build our FMUs "
+                           "with `rotorcosim build-fmus`")
+            return
+        try:
+            md = cached_model_description(path)
+        except CosimError as exc:                      # unreadable, unsafe, not FMI 2.0 CS
+            self.err(node, f"FMU of '{name}' cannot be used: {exc}")
+            return
+        except Exception as exc:                        # an unexpected failure is still a problem of the file
+            self.err(node, f"FMU of '{name}' cannot be read: {path}: {type(exc).__name__}: {exc}; check that it "
+                           "is an FMI 2.0 co-simulation FMU (`rotorcosim info FILE` shows what it contains)")
+            return
+        self.mds[name] = dict(md.variables)
+        self.fmu_caps[name] = md
+        if md.can_be_instantiated_only_once_per_process:
+            users = [g["name"] for g in self.fmu_specs if g["path"] == path]
+            if len(users) > 1 and users[0] != name:
+                self.err(node, f"FMU {path.name} declares canBeInstantiatedOnlyOncePerProcess, but instances "
+                               f"{', '.join(users)} all use it; use it for one instance only")
+
+    def check_parameters(self, f: dict) -> dict:
+        name, out = f["name"], {}
+        variables = self.mds.get(name)
+        for pname, (value, node) in f["parameters"].items():
+            if variables is None:
+                out[pname] = value
+                continue
+            settable = [v.name for v in variables.values()
+                        if v.causality in ("parameter", "input") and v.variability != "constant"]
+            var = variables.get(pname)
+            if var is None:
+                self.err(node, f"'{name}' has no parameter '{pname}'; parameters of '{name}' (closest first): "
+                               f"{ranked(pname, settable)}")
+                continue
+            if pname not in settable:
+                self.err(node, f"'{name}.{pname}' is {article(var.variability)} {var.causality}, not a parameter; only "
+                               f"parameters and inputs can be given values: {ranked(pname, settable)}")
+                continue
+            conv = convert(value, var.type)
+            if conv is None:
+                example = {"Real": "1.5", "Integer": "3", "Enumeration": "1", "Boolean": "true",
+                           "String": '"text"'}.get(var.type, "a value")
+                self.err(node, f"parameter '{name}.{pname}' is {var.type} (got {self.got(node)}); write a "
+                               f"{var.type} value such as {example}")
+                continue
+            out[pname] = conv
+        return out
+
+    def check_connections(self, connections: list[dict]) -> None:
+        fed: dict[str, int | None] = {}
+        for c in connections:
+            ends = {}
+            for side, want in (("from", "output"), ("to", "input")):
+                if c.get(side) is None:
+                    continue
+                var = self.variable(c[side], c[side + "_node"], f"'{side}' of a connection", want)
+                if var is not None and var.causality != want:
+                    names = [v.name for v in self.mds[c[side].split(".", 1)[0]].values() if v.causality == want]
+                    self.err(c[side + "_node"], f"'{c[side]}' is {article(var.causality)}, but the '{side}' side of a "
+                                                f"connection must be an {want}; {want}s of "
+                                                f"'{c[side].split('.', 1)[0]}': {ranked(var.name, names)}")
+                    var = None
+                ends[side] = var
+            if c.get("to") is not None:
+                if c["to"] in fed:
+                    self.err(c["to_node"], f"input '{c['to']}' is connected twice (also on line {fed[c['to']]}); "
+                                           "an input takes exactly one source: remove one of the connections")
+                fed.setdefault(c["to"], c["line"])
+            src, dst = ends.get("from"), ends.get("to")
+            if src is None or dst is None:
+                continue
+            if src.type != dst.type:
+                self.err(c["node"], f"type mismatch: '{c['from']}' is {src.type} but '{c['to']}' is {dst.type}; "
+                                    "connect variables of the same type (Real to Real)")
+            elif src.type != "Real":
+                self.err(c["node"], f"'{c['from']}' -> '{c['to']}' couples {src.type} variables, but the master "
+                                    "couples (and extrapolates) Real signals only; connect Real variables")
+
+    def variable(self, signal: str, node, what: str, want: str | None = None):
+        """The model variable named by ``instance.variable`` or None (problem reported)."""
+        inst, _, var = signal.partition(".")
+        names = [f for f in self.instances]
+        if inst not in names:
+            self.err(node, f"{what} names the instance '{inst}', which is not in 'fmus' (got {signal!r}); "
+                           f"{did_you_mean(inst, names)}instances: {', '.join(names)}")
+            return None
+        variables = self.mds.get(inst)
+        if variables is None:
+            return None                                  # FMU unreadable: reported already
+        if var not in variables:
+            pool = [v.name for v in variables.values() if want is None or v.causality == want] \
+                or list(variables)
+            kind = f"{want}s" if want else "variables"
+            self.err(node, f"{what}: '{inst}' has no variable '{var}'; {kind} of '{inst}' (closest first): "
+                           f"{ranked(var, pool)}")
+            return None
+        return variables[var]
+
+    def check_signals(self, signals, what: str) -> None:
+        for s, node in signals or ():
+            if "." not in s:
+                self.err(node, f"'{what}' entries must be 'instance.variable' (got {s!r}); add the instance name")
+                continue
+            var = self.variable(s, node, f"'{what}' entry {s!r}")
+            if var is not None and var.type != "Real":
+                self.err(node, f"'{what}' entry {s!r} is {article(var.type)} variable; results.csv records Real "
+                               "variables only: remove it")
+
+    def check_analysis(self, node, signals) -> None:
+        recorded = None if signals is None else {s for s, _ in signals}
+        section = self.mapping(node, "analysis") or {}
+        found = []
+        if "speed" in section:
+            found.append(("analysis.speed", section["speed"][1]))
+        if "journals" in section:
+            journals = self.mapping(section["journals"][1], "analysis.journals") or {}
+            for jname, (_, jnode) in journals.items():
+                entry = self.mapping(jnode, f"analysis.journals.{jname}") or {}
+                for key in ("x", "y", "eps"):
+                    if key in entry:
+                        found.append((f"analysis.journals.{jname}.{key}", entry[key][1]))
+        for what, vnode in found:
+            s = self.string(vnode, what, "name a signal as 'instance.variable'")
+            if s is None:
+                continue
+            if "." not in s:
+                self.err(vnode, f"'{what}' must be 'instance.variable' (got {s!r}); add the instance name")
+            elif self.variable(s, vnode, f"'{what}'") is not None and recorded is not None and s not in recorded:
+                self.err(vnode, f"'{what}' is {s!r}, which is not recorded (not in output.signals); add it to "
+                                "output.signals")
+
+
+
+def convert(value, fmi_type: str):
+    """``value`` as the Python type of an FMI variable type, or None if it does not fit."""
+    if fmi_type == "Real":
+        if isinstance(value, str) and FLOAT_RE.match(value.strip()):
+            return float(value.replace("_", ""))
+        return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+    if fmi_type in ("Integer", "Enumeration"):
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        return value if isinstance(value, int) and not isinstance(value, bool) else None
+    if fmi_type == "Boolean":
+        return value if isinstance(value, bool) else None
+    if fmi_type == "String":
+        return value if isinstance(value, str) else None
+    return value

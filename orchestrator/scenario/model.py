@@ -1,0 +1,153 @@
+"""Scenario format (version 1): the frozen dataclasses and the format's limits.
+
+The dataclasses are the contract between the loader, the master, the CLI,
+``compare`` and ``plot``: extend them, never rename fields.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+SCENARIO_VERSION = 1
+SCHEMES = ("gauss-seidel", "jacobi", "iterative", "monolithic")
+ACCELERATIONS = ("none", "aitken", "iqn-ils")       # coupling.iteration.acceleration
+STEP_CONTROL_TYPES = ("constant", "error")          # coupling.step_control.type
+MAX_ORDER = 3                     # highest extrapolation/interpolation order of the coupling signals
+MAX_DISCARD_RETRIES = 30          # coupling.discard_retries: smallest retried step H / 2^30
+
+# the keys of each section, and the schema --set overrides navigate by
+TOP_KEYS = ("name", "version", "description", "start_time", "stop_time", "fmus",
+            "connections", "coupling", "output", "analysis", "compare")
+FMU_KEYS = ("path", "parameters", "substeps")
+CONNECTION_KEYS = ("from", "to", "gain", "offset")
+COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
+                 "interpolation_order", "substeps", "discard_retries", "options", "iteration", "step_control")
+OUTPUT_KEYS = ("interval", "signals")
+# override navigation: (schema, key) -> schema of the child; (schema) -> default
+CHILD_SCHEMA = {
+    ("top", "fmus"): "instances", ("top", "connections"): "connections",
+    ("top", "coupling"): "coupling", ("top", "output"): "output", ("top", "analysis"): "free",
+    ("top", "compare"): "free", ("fmu", "parameters"): "params", ("coupling", "options"): "free",
+    ("coupling", "iteration"): "free", ("coupling", "step_control"): "free",
+    "instances": "fmu", "connections": "connection", "free": "free",
+}
+SECTION_KEYS = {"top": TOP_KEYS, "fmu": FMU_KEYS, "connection": CONNECTION_KEYS,
+                 "coupling": COUPLING_KEYS, "output": OUTPUT_KEYS}
+
+_MAP, _SEQ, _STR = "tag:yaml.org,2002:map", "tag:yaml.org,2002:seq", "tag:yaml.org,2002:str"
+
+
+@dataclass(frozen=True, kw_only=True)
+class FmuSpec:
+    """One FMU instance of the scenario (``fmus:`` entry)."""
+
+    name: str                                # instance name, e.g. "bearing1"
+    path: Path                               # absolute, resolved relative to the YAML file
+    parameters: Mapping[str, Any] = field(default_factory=dict)   # name -> value (float/int/bool/str)
+    substeps: int | None = None              # per-FMU override of coupling.substeps
+    line: int | None = None                  # line of the entry in the YAML file
+
+
+@dataclass(frozen=True, kw_only=True)
+class ConnectionSpec:
+    """``connections:`` entry: value(to) = gain * value(from) + offset."""
+
+    src: str                                 # "instance.variable"
+    dst: str                                 # "instance.variable"
+    gain: float = 1.0
+    offset: float = 0.0
+    line: int | None = None
+
+    @property
+    def src_instance(self) -> str:
+        return self.src.split(".", 1)[0]
+
+    @property
+    def src_variable(self) -> str:
+        return self.src.split(".", 1)[1]
+
+    @property
+    def dst_instance(self) -> str:
+        return self.dst.split(".", 1)[0]
+
+    @property
+    def dst_variable(self) -> str:
+        return self.dst.split(".", 1)[1]
+
+
+@dataclass(frozen=True, kw_only=True)
+class IterationSpec:
+    """``coupling.iteration`` section (used by ``scheme: iterative``, orchestrator/coupling/iterative.py)."""
+
+    max_iterations: int = 20                 # passes per macro step, >= 1
+    tol: float = 1.0e-8                      # relative to each signal's scale
+    acceleration: str = "iqn-ils"            # one of ACCELERATIONS
+
+    def __post_init__(self):
+        if self.acceleration not in ACCELERATIONS:
+            raise ValueError(f"coupling.iteration.acceleration must be one of {list(ACCELERATIONS)} "
+                             f"(got {self.acceleration!r})")
+
+
+@dataclass(frozen=True, kw_only=True)
+class StepControlSpec:
+    """``coupling.step_control``: ``type: constant`` (the default, macro_step throughout) or
+    ``type: error`` (error-controlled macro step, orchestrator/coupling/adaptive.py; ``macro_step``
+    is the first step). ``min_step``/``max_step`` None: macro_step / 1000 and the output interval."""
+
+    type: str = "constant"                   # one of STEP_CONTROL_TYPES
+    rtol: float = 1.0e-4
+    atol: float = 1.0e-8                     # in the signals' units
+    min_step: float | None = None            # [s]
+    max_step: float | None = None            # [s]
+
+
+@dataclass(frozen=True, kw_only=True)
+class CouplingSpec:
+    """``coupling:`` section."""
+
+    scheme: str = "gauss-seidel"             # one of SCHEMES
+    sequence: tuple[str, ...] = ()           # Gauss-Seidel order; () -> order of `fmus`
+    macro_step: float = 1e-4                 # [s]
+    extrapolation_order: int = 0             # 0..3
+    interpolation_order: int = 0             # 0..3
+    substeps: int = 1                        # >= 1
+    discard_retries: int = 0                 # 0..30: halvings of a macro step an FMU discards (0: stop)
+    options: Mapping[str, Any] = field(default_factory=dict)  # scheme-specific extras (e.g. monolithic rtol)
+    iteration: IterationSpec = field(default_factory=IterationSpec)         # scheme: iterative
+    step_control: StepControlSpec = field(default_factory=StepControlSpec)  # constant or error-controlled
+
+
+@dataclass(frozen=True, kw_only=True)
+class OutputSpec:
+    """``output:`` section."""
+
+    interval: float | None = None            # [s]; None -> macro_step
+    signals: tuple[str, ...] | None = None   # None -> every connected or FMU output
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scenario:
+    """A validated scenario."""
+
+    name: str
+    stop_time: float
+    fmus: tuple[FmuSpec, ...]
+    connections: tuple[ConnectionSpec, ...] = ()
+    coupling: CouplingSpec = field(default_factory=CouplingSpec)
+    output: OutputSpec = field(default_factory=OutputSpec)
+    start_time: float = 0.0
+    version: int = SCENARIO_VERSION
+    description: str = ""
+    source: Path | None = None               # the YAML file, if loaded from one
+    analysis: Mapping[str, Any] | None = None  # optional run-up analysis section (see docs/scenario-format.md)
+    compare: Mapping[str, Any] | None = None   # optional compare section (see docs/compare.md)
+
+    def fmu(self, name: str) -> FmuSpec:
+        for f in self.fmus:
+            if f.name == name:
+                return f
+        raise KeyError(name)
+
