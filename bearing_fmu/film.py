@@ -44,7 +44,9 @@ Finite volumes (cell (j, i), area dphi*dz, fluxes through its four faces):
   the couplings i +- 2 (stencil columns 5, 6). Full film: theta = 1, the
   Couette flux is unchanged.
 * Axial edges: oil bath (eq. 5) p = p0 at zbar = 0, 1 through a half-cell
-  two-point flux; free to air (eq. 6) outward flux g(p) (:func:`.cavitation.penalty`).
+  two-point flux; free to air (eq. 6) outward flux g(p_edge) at the edge itself, the edge
+  pressure from the flux continuity through the same half cell
+  (:func:`.cavitation.penalty_edge`; second order, the Dirichlet flux for b -> infinity).
 * Groove cells: Dirichlet ``u = u_feed`` (p = p_feed).
 
 Half-Sommerfeld force quadrature (:func:`hs_force_pressure`): the force of the
@@ -63,8 +65,9 @@ from __future__ import annotations
 import math
 
 import numba as nb
+import numpy as np
 
-from .cavitation import law_eval, penalty
+from .cavitation import law_eval, penalty_edge
 
 
 @nb.njit(cache=True)
@@ -88,17 +91,25 @@ def _axial_faces(res, diag, g, i, j, n_phi, n_z, Hi, a_z, dz, dphi, p, dp, p0, b
         elif bath:
             res += dphi * 2.0 * condz * (p[g] - p0)
             diag += dphi * 2.0 * condz * dp[g]
-        else:
-            gv, dgv = penalty(p[g] - p0, pa, pb, s_pen, a_z)
+        else:                          # eq. 6 at the edge, through the half cell
+            gv, dgv = penalty_edge(p[g] - p0, 2.0 * condz, pa, pb, s_pen, a_z)
             res += dphi * gv
             diag += dphi * dgv * dp[g]
     return res, diag
 
 
 @nb.njit(cache=True)
+def _weights(wrel, frel, n_phi):
+    """(column widths, east-face distances) relative to dphi: ``wrel``, ``frel`` or ones."""
+    if wrel is None:
+        return np.ones(n_phi), np.ones(n_phi)
+    return wrel, frel
+
+
+@nb.njit(cache=True)
 def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
              dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
-             r, want_jac, jst, p, dp, th, dth, sym):
+             r, want_jac, jst, p, dp, th, dth, sym, wrel=None, frel=None):
     """Residual r(u) (flat cell order) and, if ``want_jac``, the Jacobian.
 
     The time derivative of theta is ``th_dot0 * theta(u) + th_dot1`` (BDF
@@ -107,9 +118,14 @@ def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z
     r[g] with respect to u at [centre, east (i+1), west (i-1), north (j+1),
     south (j-1)]. Couplings into groove cells are zero (their increments are
     zero), as are couplings across the axial edges.
+
+    ``wrel``, ``frel`` (n_phi,), optional: the groove of its true width
+    (:func:`.grid.groove_weights`): column widths and east-face centre distances
+    relative to dphi (1 everywhere when omitted: whole-cell groove columns).
     """
     n_phi = H.size
     n_z = u.size // n_phi
+    wr, fr = _weights(wrel, frel, n_phi)
     law_eval(u, p_cav, K, delta, p, dp, th, dth)
     if want_jac:
         jst[:, :] = 0.0
@@ -124,21 +140,24 @@ def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z
                     jst[g, 0] = 1.0
                 continue
             Hi = H[i]
+            Ai = A * wr[i]
             # time and squeeze terms (eq. 4 left/right)
-            res = A * (2.0 * Hi * (th_dot0 * th[g] + th_dot1[g]) + 2.0 * Hdot[i] * th[g])
-            diag = A * (2.0 * Hi * th_dot0 + 2.0 * Hdot[i]) * dth[g]
+            res = Ai * (2.0 * Hi * (th_dot0 * th[g] + th_dot1[g]) + 2.0 * Hdot[i] * th[g])
+            diag = Ai * (2.0 * Hi * th_dot0 + 2.0 * Hdot[i]) * dth[g]
             # east face (i + 1/2) and west face (i - 1/2)
             for side in range(2):
                 if side == 0:
                     i2 = i + 1 if i + 1 < n_phi else 0
                     Hf = He[i]
                     sgn = 1.0
+                    fi = i
                 else:
                     i2 = i - 1 if i > 0 else n_phi - 1
                     Hf = He[i2]
                     sgn = -1.0
+                    fi = i2
                 g2 = j * n_phi + i2
-                cond = a_phi * Hf * Hf * Hf / dphi
+                cond = a_phi * Hf * Hf * Hf / (dphi * fr[fi])
                 # outward flux through this face: Couette (upwinded theta) + Poiseuille
                 own_up = up_e if side == 0 else not up_e
                 th_up = th[g] if own_up else th[g2]
@@ -153,8 +172,8 @@ def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z
                 if want_jac and not groove[i2]:
                     jst[g, 1 + side] = off
             # north / south faces (H uniform in z)
-            res, diag = _axial_faces(res, diag, g, i, j, n_phi, n_z, Hi, a_z, dz, dphi, p, dp, p0,
-                                     bath, sym, pa, pb, s_pen, want_jac, jst)
+            res, diag = _axial_faces(res, diag, g, i, j, n_phi, n_z, Hi, a_z, dz, dphi * wr[i], p,
+                                     dp, p0, bath, sym, pa, pb, s_pen, want_jac, jst)
             r[g] = res
             if want_jac:
                 jst[g, 0] = diag
@@ -230,12 +249,13 @@ def _col(k, g, n_phi):
 @nb.njit(cache=True)
 def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
                    dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
-                   r, want_jac, jst, p, dp, th, dth, sym):
+                   r, want_jac, jst, p, dp, th, dth, sym, wrel=None, frel=None):
     """:func:`assemble` with the limited second-order Couette transport of theta
     (``theta_transport = 1``, module doc). Same arguments; ``jst`` is (N, 7): the
     5-point columns of :func:`assemble` plus [east-east (i+2), west-west (i-2)]."""
     n_phi = H.size
     n_z = u.size // n_phi
+    wr, fr = _weights(wrel, frel, n_phi)
     law_eval(u, p_cav, K, delta, p, dp, th, dth)
     if want_jac:
         jst[:, :] = 0.0
@@ -251,8 +271,9 @@ def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_ph
                     jst[g, 0] = 1.0
                 continue
             Hi = H[i]
-            res = A * (2.0 * Hi * (th_dot0 * th[g] + th_dot1[g]) + 2.0 * Hdot[i] * th[g])
-            diag = A * (2.0 * Hi * th_dot0 + 2.0 * Hdot[i]) * dth[g]
+            Ai = A * wr[i]
+            res = Ai * (2.0 * Hi * (th_dot0 * th[g] + th_dot1[g]) + 2.0 * Hdot[i] * th[g])
+            diag = Ai * (2.0 * Hi * th_dot0 + 2.0 * Hdot[i]) * dth[g]
             for side in range(2):
                 if side == 0:
                     i2 = i + 1 if i + 1 < n_phi else 0
@@ -265,7 +286,7 @@ def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_ph
                     sgn = -1.0
                     fi = i2
                 g2 = row + i2
-                cond = a_phi * Hf * Hf * Hf / dphi
+                cond = a_phi * Hf * Hf * Hf / (dphi * fr[fi])
                 thf, k1, k2, k3, d1, d2, d3 = face_theta(th, groove, fi, row, n_phi, up_e)
                 flux = sgn * omega * Hf * thf - cond * (p[g2] - p[g])
                 res += dz * flux
@@ -282,8 +303,8 @@ def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_ph
                             else:
                                 jst[g, col] += cf * dd * dth[kk]
             # north / south faces (H uniform in z)
-            res, diag = _axial_faces(res, diag, g, i, j, n_phi, n_z, Hi, a_z, dz, dphi, p, dp, p0,
-                                     bath, sym, pa, pb, s_pen, want_jac, jst)
+            res, diag = _axial_faces(res, diag, g, i, j, n_phi, n_z, Hi, a_z, dz, dphi * wr[i], p,
+                                     dp, p0, bath, sym, pa, pb, s_pen, want_jac, jst)
             r[g] = res
             if want_jac:
                 jst[g, 0] = diag
@@ -352,7 +373,7 @@ def stencil_matvec(jst, n_phi, x, y):
 
 @nb.njit(cache=True)
 def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
-              pa, pb, s_pen, R, B, c, eta0, sym, order=0):
+              pa, pb, s_pen, R, B, c, eta0, sym, order=0, wrel=None, frel=None):
     """Film force on the journal, torque on the journal, feed and side flows.
 
     Returns (Fx, Fy, torque, q_feed, q_side):
@@ -370,9 +391,12 @@ def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
 
     ``sym``: the fields are the lower half of a film symmetric about the
     mid-plane; every integral is doubled and only the zbar = 0 edge is an edge.
+    ``wrel``, ``frel``: the true-width groove weights of :func:`assemble` (the force and
+    side flow weight each column by its width, the face fluxes use the face distances).
     """
     n_phi = H.size
     n_z = p.size // n_phi
+    wr, fr = _weights(wrel, frel, n_phi)
     Fx = 0.0
     Fy = 0.0
     T = 0.0
@@ -384,28 +408,29 @@ def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
         sn = math.sin(phi[i])
         i2 = i + 1 if i + 1 < n_phi else 0
         Hf = He[i]
-        cond = a_phi * Hf * Hf * Hf / dphi
+        cond = a_phi * Hf * Hf * Hf / (dphi * fr[i])
         condz = a_z * H[i] ** 3 / dz
+        wi = wr[i]
         for j in range(n_z):
             g = j * n_phi + i
             g2 = j * n_phi + i2
-            Fx -= (p[g] - p0) * cs
-            Fy -= (p[g] - p0) * sn
+            Fx -= (p[g] - p0) * cs * wi
+            Fy -= (p[g] - p0) * sn * wi
             if order == 0:
                 th_up = th[g] if up_e else th[g2]
             else:
                 th_up = face_theta(th, groove, i, j * n_phi, n_phi, up_e)[0]
-            T += th_up * eta0 * omega * R / (c * Hf) + 0.5 * c * Hf * (p[g2] - p[g]) / (R * dphi)
+            T += th_up * eta0 * omega * R / (c * Hf) + 0.5 * c * Hf * (p[g2] - p[g]) / (R * dphi * fr[i])
             if groove[i] != groove[i2]:
                 flux = omega * Hf * th_up - cond * (p[g2] - p[g])
                 qf += flux if groove[i] else -flux
             n_edge = (j == 0) + (j == n_z - 1 and not sym)
             if not groove[i] and n_edge > 0:
                 if bath:
-                    qs += n_edge * 2.0 * condz * (p[g] - p0)
+                    qs += n_edge * 2.0 * condz * (p[g] - p0) * wi
                 else:
-                    gv, dgv = penalty(p[g] - p0, pa, pb, s_pen, a_z)
-                    qs += n_edge * gv
+                    gv, dgv = penalty_edge(p[g] - p0, 2.0 * condz, pa, pb, s_pen, a_z)
+                    qs += n_edge * gv * wi
     area = R * dphi * B * dz
     scale = 0.5 * R * c * B
     if sym:

@@ -62,6 +62,10 @@ class Grid:
     order: np.ndarray        # (N,) flat cell at each position (inverse of pos)
     bw: int                  # half bandwidth (kl = ku = bw)
     ordering: str            # name of the chosen ordering
+    phi_f: np.ndarray = None  # (n_phi,) angle of east face i for the film gap He: phi_e, or
+    #                           the groove edge at a face next to the groove (groove_weights)
+    wrel: np.ndarray = None   # (n_phi,) column width / dphi (groove_weights)
+    frel: np.ndarray = None   # (n_phi,) centre distance across east face i / dphi
 
     @property
     def n(self) -> int:
@@ -71,7 +75,8 @@ class Grid:
         """Return H at centres, H at east faces and dH/dt at centres."""
         cs, sn = np.cos(self.phi), np.sin(self.phi)
         H = 1.0 - (x * cs + y * sn) / c
-        He = 1.0 - (x * np.cos(self.phi_e) + y * np.sin(self.phi_e)) / c
+        phi_f = self.phi_e if self.phi_f is None else self.phi_f
+        He = 1.0 - (x * np.cos(phi_f) + y * np.sin(phi_f)) / c
         Hdot = -(vx * cs + vy * sn) / c
         return H, He, Hdot
 
@@ -87,6 +92,45 @@ def groove_columns(n_phi: int, width: float, angle: float) -> np.ndarray:
     if not mask.any():
         mask[np.argmin(d)] = True
     return mask
+
+
+def groove_weights(n_phi: int, width: float, angle: float, groove: np.ndarray):
+    """The groove of its true angular width on the cell grid (issue 16): returns
+    (phi_f, wrel, frel) for :func:`.film.assemble` and :func:`.film.integrals`.
+
+    The groove columns (:func:`groove_columns`, centres inside the groove) stay Dirichlet;
+    the film next to the groove ends AT the groove edges ``angle -+ width / 2``: the film
+    cell west of the groove spans from its west face to the west groove edge, so its width
+    is ``dphi / 2 + d`` with ``d`` the distance of its centre from the edge, and the flux
+    between it and the groove is taken over that distance ``d`` with the gap at the edge
+    (a Shortley-Weller boundary cell; mirrored east). The groove columns share the true
+    width ``width`` between them, so the column widths add up to 2 pi and the strip held at
+    p_feed is exactly ``width`` wide on any grid. ``wrel`` = width / dphi, ``frel`` = centre
+    distance across east face i / dphi (both 1 away from the groove), ``phi_f`` = angle of
+    east face i (the groove edge at the two faces next to the groove, phi_e elsewhere).
+    Without a groove: ones and phi_e."""
+    dphi = 2 * np.pi / n_phi
+    phi = dphi * np.arange(n_phi)
+    phi_f = phi + 0.5 * dphi
+    wrel = np.ones(n_phi)
+    frel = np.ones(n_phi)
+    if width <= 0.0 or not groove.any() or groove.all():
+        return phi_f, wrel, frel
+    n_g = int(groove.sum())
+    wrel[groove] = width / (n_g * dphi)
+    for i in range(n_phi):
+        e, w = (i + 1) % n_phi, (i - 1) % n_phi
+        if not groove[i] and groove[e]:          # film cell west of the groove: east face i
+            edge = angle - 0.5 * width
+            d = max((edge - phi[i]) % (2 * np.pi), 1e-3 * dphi)
+            phi_f[i], frel[i] = phi[i] + d, d / dphi
+            wrel[i] = 0.5 + d / dphi
+        if not groove[i] and groove[w]:          # film cell east of the groove: face w
+            edge = angle + 0.5 * width
+            d = max((phi[i] - edge) % (2 * np.pi), 1e-3 * dphi)
+            phi_f[w], frel[w] = phi[i] - d, d / dphi
+            wrel[i] = (0.5 + d / dphi) if wrel[i] == 1.0 else wrel[i] + d / dphi - 0.5
+    return phi_f, wrel, frel
 
 
 def _edges(n_phi, n_z, groove, wide=False):
@@ -135,7 +179,7 @@ def best_ordering(n_phi: int, n_z: int, groove: np.ndarray, wide: bool = False):
 
 
 def make_grid(n_phi: int, n_z: int, groove_width: float, groove_angle: float,
-              half: bool = False, wide: bool = False) -> Grid:
+              half: bool = False, wide: bool = False, true_groove: bool = False) -> Grid:
     """Build the grid and its band ordering.
 
     ``half=True`` (n_z even): only the cells of the lower half of the width,
@@ -144,6 +188,9 @@ def make_grid(n_phi: int, n_z: int, groove_width: float, groove_angle: float,
     ``wide=True``: the band ordering covers the i +- 2 couplings of the second-order
     theta transport (``theta_transport = 1``; without a groove the phi-fastest
     ordering keeps bandwidth n_phi, with a groove the z-fastest one doubles to 2 n_z).
+    ``true_groove=True``: the groove of its true width (:func:`groove_weights`; the
+    mass-conserving film); False: whole groove columns, uniform weights (``wrel``,
+    ``frel`` None, the half-Sommerfeld solver's grid).
     """
     if half and n_z % 2:
         raise ValueError(f"make_grid: half=True needs an even n_z (got {n_z})")
@@ -153,6 +200,10 @@ def make_grid(n_phi: int, n_z: int, groove_width: float, groove_angle: float,
     phi = dphi * np.arange(n_phi)
     groove = groove_columns(n_phi, groove_width, groove_angle)
     pos, order, bw, name = best_ordering(n_phi, rows, groove, wide)
+    phi_f = wrel = frel = None
+    if true_groove and groove_width > 0.0:
+        phi_f, wrel, frel = groove_weights(n_phi, groove_width, groove_angle, groove)
     return Grid(n_phi=n_phi, n_z=rows, dphi=dphi, dz=dz, phi=phi,
                 phi_e=phi + 0.5 * dphi, zbar=(np.arange(rows) + 0.5) * dz,
-                groove=groove, pos=pos, order=order, bw=bw, ordering=name)
+                groove=groove, pos=pos, order=order, bw=bw, ordering=name,
+                phi_f=phi_f, wrel=wrel, frel=frel)

@@ -65,7 +65,7 @@ def cyclic_tridiag_many(a, b, c, d, x):
             x[k, i] = y[i] - fact * zz[i]
 
 
-@nb.njit(cache=False)   # no on-disk cache (numba's cache races between processes)
+@nb.njit(cache=True)
 def _solve_many_kernel(ce, cw, H3, rhs, lam, ck, coef, groove, feed_hat, x):
     """:func:`cyclic_tridiag_many` over the m n_z systems of :meth:`HalfSommerfeld.solve_many`,
     building each system's coefficients on the fly from the per-kinematics vectors

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import math
 import os
 import shutil
@@ -55,6 +56,8 @@ from fmu_common.slave import (
     RealU, check_shipped_layout, check_step_start, exit_initialization_mode, finish_model_description,
     get_slave_state, guard_callbacks, input_setter, output_getter, param_setter, set_slave_state,
     scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
+
+log = logging.getLogger(__name__)
 
 # ----------------------------------------------------------------------------
 # Variable tables: name -> (default, unit, description)
@@ -129,6 +132,43 @@ UNITS = {
 }
 
 
+def _tree_digest(folder: Path) -> str:
+    """sha256 over the relative names and contents of the files under ``folder``
+    (``__pycache__`` excluded: numba and Python write there)."""
+    import hashlib
+    h = hashlib.sha256()
+    for f in sorted(p for p in folder.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        h.update(f.relative_to(folder).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def _private(path: Path) -> bool:
+    """``path`` exists, is no symlink, belongs to this user and nobody else may write to it."""
+    import stat
+    try:
+        st = path.lstat()
+    except OSError:
+        return False
+    if stat.S_ISLNK(st.st_mode) or (hasattr(os, "getuid") and st.st_uid != os.getuid()):
+        return False
+    return not st.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
+
+
+def _cache_copy_ok(root: Path, base: Path, src: Path, package: str) -> bool:
+    """Re-check a cached code copy on every use: the cache folders are private to this
+    user (no one else could have planted code or numba cache files), and the copy has
+    the same files as the FMU's bundled package."""
+    for cache in [d for d in (base / package).rglob("__pycache__") if d.is_dir()]:
+        if not _private(cache):                      # e.g. made under umask 002: its content is
+            shutil.rmtree(cache, ignore_errors=True)  # not trusted, numba compiles once more
+    dirs = [root, base] + [d for d in (base / package).rglob("*") if d.is_dir()] + [base / package]
+    if not all(_private(d) for d in dirs):
+        log.warning("the FMU code cache %s is not private to this user (owner or permissions); importing the "
+                    "bundled code from the extracted FMU instead", base)
+        return False
+    return _tree_digest(base / package) == _tree_digest(src)
+
+
 def use_stable_code_copy(resources: str | None, package: str = "bearing_fmu") -> Path | None:
     """Import ``package`` from a content-addressed copy instead of the extracted FMU.
 
@@ -156,16 +196,23 @@ def use_stable_code_copy(resources: str | None, package: str = "bearing_fmu") ->
         root = Path(setting) if setting else (
             Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rotorcosim" / "fmu-code")
         base = root / f"{package}-{digest}"
+        if (base / ".complete").is_file() and not _cache_copy_ok(root, base, src, package):
+            shutil.rmtree(base, ignore_errors=True)      # tampered or foreign: rebuilt below
+            if base.exists():
+                return None
         if not (base / ".complete").is_file():
+            root.mkdir(mode=0o700, parents=True, exist_ok=True)
             tmp = root / f".{package}-{digest}.{os.getpid()}.tmp"
             shutil.rmtree(tmp, ignore_errors=True)
             shutil.copytree(src, tmp / package, ignore=shutil.ignore_patterns("__pycache__"))
+            for d in [tmp, *(p for p in tmp.rglob("*") if p.is_dir())]:
+                os.chmod(d, 0o700)                     # private: re-checked on every use
             (tmp / ".complete").write_text(digest + "\n")
             try:
                 os.replace(tmp, base)          # atomic; fails if another process won the race
             except OSError:
                 shutil.rmtree(tmp, ignore_errors=True)
-            if not (base / ".complete").is_file():
+            if not (base / ".complete").is_file() or not _cache_copy_ok(root, base, src, package):
                 return None
             # keep the 5 newest copies of this package (one per source version)
             old = sorted(root.glob(f"{package}-*"), key=lambda d: d.stat().st_mtime, reverse=True)[5:]

@@ -52,8 +52,8 @@ from .film import assemble, assemble_muscl, hs_force_pressure, integrals, stenci
 __all__ = ["linearization", "hs_force", "film_force_at"]
 
 
-def _kin(b, x, y, vx, vy, omega):
-    H, He, Hdot = b.gap(x, y, vx, vy)
+def _kin(b, x, y, vx, vy, omega, grid=None):
+    H, He, Hdot = b.gap(x, y, vx, vy, grid)
     return (H, He, Hdot, float(omega))
 
 
@@ -68,14 +68,14 @@ def _force(b, p, th, kin, film=True):
         np.ascontiguousarray(p).ravel(), np.ascontiguousarray(th).ravel(), H, He, g.groove,
         g.phi, omega, b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, prm.penalty_a,
         prm.penalty_b, prm.penalty_smoothing, prm.R, prm.B, b.c, prm.eta0, sym,
-        prm.theta_transport if film else 0)
+        prm.theta_transport if film else 0, g.wrel, g.frel)
     return np.array([Fx, Fy])
 
 
 def hs_force(b, x, y, vx, vy, omega) -> np.ndarray:
     """Quasi-static half-Sommerfeld film force [N] (2,) of bearing ``b`` at the given
     kinematics; side-effect free (any ``cavitation`` setting)."""
-    kin = _kin(b, x, y, vx, vy, omega)
+    kin = _kin(b, x, y, vx, vy, omega, b.grid_full)
     p = b._hs_pressure(kin)
     return _force(b, p, np.ones_like(p), kin, film=False)
 
@@ -91,7 +91,7 @@ def _central(f, z0, steps):
     return D
 
 
-@nb.njit(cache=False)   # no on-disk cache (numba's cache races between processes); compiles in ~1 s
+@nb.njit(cache=True)
 def _hs_forces_many(P, phi, p0, area, F):
     """Half-Sommerfeld forces F (m, 2) of m unclipped gauge pressure fields P (m, n_z, n_phi):
     the cell pressures of the force quadrature (:func:`.film.hs_force_pressure`, exactly
@@ -222,7 +222,7 @@ def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3, horizon=None):
         asm(u, th_dot0, th_dot1, H, He, Hdot, g.groove, b.u_feed, om,
             b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, b.law.p_cav, b.law.K,
             b.law.delta, prm.penalty_a, prm.penalty_b, prm.penalty_smoothing,
-            r, want_jac, jst, *bufs, b.sym)
+            r, want_jac, jst, *bufs, b.sym, g.wrel, g.frel)
         return r.copy()
 
     kin0 = _kin(b, x, y, vx, vy, omega)

@@ -149,7 +149,7 @@ class TransientFilm:
                        c.a_phi, c.a_z, g.dphi, g.dz, c.bath, c.p0, c.law.p_cav, c.law.K,
                        c.law.delta, c.params.penalty_a, c.params.penalty_b, c.params.penalty_smoothing,
                        self.r, want_jac, self.jst,
-                       self.wp, self.wdp, self.wth, self.wdth, c.sym)
+                       self.wp, self.wdp, self.wth, self.wdth, c.sym, g.wrel, g.frel)
         return self.r
 
     def _factor(self, u, th_dot0, kin, jst_ready=False):

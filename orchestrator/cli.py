@@ -17,6 +17,7 @@ import importlib
 import logging
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -54,7 +55,8 @@ def _add_run(sub) -> None:
     p = sub.add_parser("run", help="run a scenario", description=(
         "Run a scenario. Writes DIR/results.csv and DIR/summary.json; our own FMUs are built first when "
         "missing or stale."))
-    p.add_argument("file", metavar="FILE", help="scenario YAML file")
+    p.add_argument("file", metavar="FILE", help="scenario YAML file, or the name of a shipped scenario "
+                                                "(`rotorcosim scenarios` lists them), e.g. quickstart")
     p.add_argument("--out", metavar="DIR", help="output folder (default: runs/<scenario name> under the "
                                                 "current folder)")
     _add_set(p)
@@ -66,12 +68,16 @@ def _add_run(sub) -> None:
 
 def _cmd_run(args) -> int:
     from orchestrator.scenario import load_scenario
+    from orchestrator.shipped import resolve
 
+    args.file = str(resolve(args.file))
     scenario = load_scenario(args.file, args.set, build_fmus=True)
     out_dir = Path(args.out) if args.out else Path("runs") / scenario.name
     run = _run_function()
     print(f"running {scenario.name} ({args.file}): {scenario.start_time:g} s -> {scenario.stop_time:g} s, "
           f"{scenario.coupling.scheme}, macro step {scenario.coupling.macro_step:g} s", flush=True)
+    for key, text in getattr(scenario, "defaults", {}).items():
+        print(f"{key} = {text}")
     t0 = time.perf_counter()
     result = run(scenario, out_dir=out_dir, progress=args.progress)
     wall = time.perf_counter() - t0
@@ -138,7 +144,7 @@ def _add_validate(sub) -> None:
     p = sub.add_parser("validate", help="check a scenario and its FMUs without running", description=(
         "Check a scenario and its FMUs without running; prints every problem, exit status 1 if any. "
         "Our own FMUs (in the repository's fmus/) are built first when missing or stale, as `run` does."))
-    p.add_argument("file", metavar="FILE", help="scenario YAML file")
+    p.add_argument("file", metavar="FILE", help="scenario YAML file, or the name of a shipped scenario")
     _add_set(p)
     p.add_argument("--no-build", action="store_true", help="do not build missing or stale FMUs; report them")
     p.set_defaults(func=_cmd_validate)
@@ -146,7 +152,9 @@ def _add_validate(sub) -> None:
 
 def _cmd_validate(args) -> int:
     from orchestrator.scenario import load_scenario
+    from orchestrator.shipped import resolve
 
+    args.file = str(resolve(args.file))
     try:
         scenario = load_scenario(args.file, args.set, build_fmus=not args.no_build)
     except ScenarioError as exc:
@@ -155,6 +163,17 @@ def _cmd_validate(args) -> int:
         n = len(exc.problems)
         print(f"{args.file}: {n} problem{'s' if n != 1 else ''} found", file=sys.stderr)
         return 1
+    from orchestrator.preflight import preflight
+    problems, notes = preflight(scenario)
+    for line in (*problems, *notes):
+        print(line)
+    if problems:
+        n = len(problems)
+        print(f"{args.file}: {n} problem{'s' if n != 1 else ''} found (the checks `run` makes before its "
+              "first step)", file=sys.stderr)
+        return 1
+    for key, text in getattr(scenario, "defaults", {}).items():
+        print(f"{key} = {text}")
     n_fmus, n_conn = len(scenario.fmus), len(scenario.connections)
     print(f"{args.file}: valid ({n_fmus} FMU instance{'s' if n_fmus != 1 else ''}, "
           f"{n_conn} connection{'s' if n_conn != 1 else ''}, "
@@ -196,30 +215,58 @@ def _cmd_info(args) -> int:
         print("default experiment: " + ", ".join(f"{k}={v:g}" for k, v in md.default_experiment.items()))
     rank = {c: i for i, c in enumerate(_CAUSALITY_ORDER)}
     variables = sorted(md.variables.values(), key=lambda v: rank.get(v.causality, len(rank)))
-    rows = [("name", "causality", "variability", "type", "start", "unit", "description")]
-    rows += [(v.name, v.causality, v.variability, v.type, "" if v.start is None else repr(v.start)
-              if isinstance(v.start, str) else f"{v.start}", v.unit or "", v.description or "")
-             for v in variables]
+    by_ref: dict = {}
+    for v in md.variables.values():               # aliases: same type family and value reference
+        by_ref.setdefault((_family(v.type), v.value_reference), []).append(v.name)
+    rows = [("name", "causality", "variability", "type", "start", "unit", "vr", "declaredType", "range", "nominal",
+             "description")]
+    for v in variables:
+        start = "" if v.start is None else repr(v.start) if isinstance(v.start, str) else f"{v.start}"
+        aliases = [n for n in by_ref[(_family(v.type), v.value_reference)] if n != v.name]
+        desc = (v.description or "") + (f" [alias of {', '.join(aliases)}]" if aliases else "")
+        rows.append((v.name, v.causality, v.variability, v.type, start, v.unit or "", str(v.value_reference),
+                     v.declared_type, _range_text(v), "" if v.nominal is None else f"{v.nominal:g}", desc))
     print(f"variables ({len(variables)}):")
-    widths = [max(len(r[i]) for r in rows) for i in range(6)]
+    n = len(rows[0]) - 1
+    widths = [max(len(r[i]) for r in rows) for i in range(n)]
     for r in rows:
-        print("  " + "  ".join(c.ljust(w) for c, w in zip(r[:6], widths, strict=True)) + "  " + r[6])
+        print("  " + "  ".join(c.ljust(w) for c, w in zip(r[:n], widths, strict=True)) + "  " + r[n])
     return 0
+
+
+def _family(fmi_type: str) -> str:
+    return "Integer" if fmi_type == "Enumeration" else fmi_type
+
+
+def _range_text(v) -> str:
+    """min/max, or the enumeration items, as declared (empty when nothing is declared)."""
+    if v.type == "Enumeration" and v.items:
+        return "{" + ", ".join(f"{name}={value}" for name, value, _ in v.items) + "}"
+    if v.min is None and v.max is None:
+        return ""
+    return f"[{'' if v.min is None else v.min}, {'' if v.max is None else v.max}]"
 
 
 def _add_build_fmus(sub) -> None:
     p = sub.add_parser("build-fmus", help="build rotorcosim's own FMUs (bearing, rotors)")
     p.add_argument("--force", action="store_true", help="rebuild even when up to date")
-    p.add_argument("--out", metavar="DIR", help="destination folder (default: the repository's fmus/)")
+    p.add_argument("--out", metavar="DIR", help="destination folder, e.g. to hand the FMUs to other tools "
+                                                "(default: the repository's fmus/ in a source checkout, else the "
+                                                "per-user cache that 'fmu: NAME' in a scenario uses)")
     p.set_defaults(func=_cmd_build_fmus)
 
 
 def _cmd_build_fmus(args) -> int:
     build_fmus = _feature("orchestrator.fmi.build", "build_fmus", "build-fmus")
     from orchestrator.fmi import build
-    out_dir = args.out if args.out is not None else build.FMU_DIR
     logging.getLogger("orchestrator.fmi.build").setLevel(logging.INFO)
-    for path in build_fmus(out_dir=out_dir, force=args.force):
+    if args.out is None and not build.in_checkout():
+        # an installed package: into the per-user cache where `fmu: NAME` finds them (never site-packages)
+        for name in build.RECIPES:
+            target = build.fmu_location(name)
+            print(build_fmus(out_dir=target.parent, force=args.force, names=[name])[0])
+        return 0
+    for path in build_fmus(out_dir=args.out if args.out is not None else build.FMU_DIR, force=args.force):
         print(path)
     return 0
 
@@ -227,6 +274,9 @@ def _cmd_build_fmus(args) -> int:
 def _add_plot(sub) -> None:
     p = sub.add_parser("plot", help="draw the figures of a finished run")
     p.add_argument("dir", metavar="DIR", help="output folder of a run (holds results.csv, summary.json)")
+    p.add_argument("--signals", nargs="+", metavar="SIGNAL",
+                   help="recorded signals to draw over time (names or '*' patterns, e.g. 'osc.x[*]' 'drv.*'); "
+                        "default: every signal of a run without journals")
     p.set_defaults(func=_cmd_plot)
 
 
@@ -236,7 +286,7 @@ def _cmd_plot(args) -> int:
         raise CosimError(f"{run_dir}: no such run folder; give the --out folder of a run (it holds "
                          "results.csv and summary.json)")
     plot_run = _feature("orchestrator.results.plots", "plot_run", "plot")
-    for path in plot_run(run_dir):
+    for path in plot_run(run_dir, signals=args.signals):
         print(path)
     return 0
 
@@ -259,17 +309,71 @@ def _add_set(p) -> None:
                    help="override a scenario value, e.g. --set coupling.macro_step=5e-5 (repeatable)")
 
 
-VERBS = (_add_run, _add_validate, _add_info, _add_build_fmus, _add_plot, _add_compare)
+def _add_scenarios(sub) -> None:
+    p = sub.add_parser("scenarios", help="list the scenarios shipped with rotorcosim (run one by name)")
+    p.set_defaults(func=_cmd_scenarios)
+
+
+def _cmd_scenarios(args) -> int:
+    from orchestrator.shipped import describe, scenario_dir, shipped
+
+    files = shipped()
+    width = max((len(n) for n in files), default=0)
+    for name, path in files.items():
+        print(f"{name.ljust(width)}  {describe(path)}")
+    print(f"({len(files)} scenarios in {scenario_dir()}; `{PROG} run NAME` runs one, `{PROG} init DIR` copies "
+          "them for editing)")
+    return 0
+
+
+def _add_init(sub) -> None:
+    p = sub.add_parser("init", help="copy the shipped scenarios into a folder for editing")
+    p.add_argument("dir", metavar="DIR", help="folder to create (or fill)")
+    p.add_argument("--force", action="store_true", help="overwrite scenario files that exist already")
+    p.set_defaults(func=_cmd_init)
+
+
+def _cmd_init(args) -> int:
+    from orchestrator.shipped import init
+
+    files = init(args.dir, force=args.force)
+    print(f"{args.dir}: {len(files)} scenarios copied; edit one and run it with `{PROG} run {args.dir}/"
+          f"{files[0].name if files else 'X.yaml'}`")
+    return 0
+
+
+def _add_export_ssp(sub) -> None:
+    p = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive (runs in libcosim)")
+    p.add_argument("file", metavar="SCENARIO", help="scenario YAML file (or a shipped scenario's name)")
+    p.add_argument("out", metavar="OUT.ssp", help="archive to write")
+    _add_set(p)
+    p.set_defaults(func=_cmd_export_ssp)
+
+
+def _cmd_export_ssp(args) -> int:
+    from orchestrator.scenario import load_scenario
+    from orchestrator.shipped import resolve
+    from orchestrator.scenario.ssp import export_ssp
+
+    scenario = load_scenario(str(resolve(args.file)), args.set, build_fmus=True)
+    print(export_ssp(scenario, args.out))
+    return 0
+
+
+VERBS = (_add_run, _add_validate, _add_info, _add_build_fmus, _add_plot, _add_compare, _add_scenarios, _add_init,
+         _add_export_ssp)
 
 
 # --------------------------------------------------------------------------- entry point
 def build_parser() -> argparse.ArgumentParser:
+    # --debug before the verb and after it: two destinations (a sub-parser's defaults would
+    # overwrite the value given before the verb), joined in main()
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+    common.add_argument("--debug", action="store_true", dest="debug_verb",
                         help="show debug logging and full tracebacks")
-    parser = argparse.ArgumentParser(prog=PROG, parents=[common], description=(
+    parser = argparse.ArgumentParser(prog=PROG, description=(
         "Co-simulation of FMI 2.0 co-simulation FMUs (rotors in journal bearings and any other FMUs)."))
-    parser.set_defaults(debug=False)
+    parser.add_argument("--debug", action="store_true", help="show debug logging and full tracebacks")
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
     orig = sub.add_parser
@@ -304,9 +408,25 @@ def _describe(exc: BaseException) -> str:
             f"(this is a bug in rotorcosim: rerun with --debug for the traceback and report it)")
 
 
+def _clean_warnings(debug: bool):
+    """Format warnings as one line, ``warning: message`` (with ``--debug``: also where from);
+    returns the previous ``warnings.formatwarning``. (Only the format is replaced, so
+    recording warnings, as ``pytest.warns`` does, still works.)"""
+    def one_line(message, category, filename, lineno, line=None):
+        text = " ".join(str(message).split())
+        where = f" ({filename}:{lineno}, {category.__name__})" if debug else ""
+        return f"warning: {text}{where}\n"
+
+    previous = warnings.formatwarning
+    warnings.formatwarning = one_line
+    return previous
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
     args = build_parser().parse_args(argv)
+    args.debug = bool(args.debug or getattr(args, "debug_verb", False))
+    previous = _clean_warnings(args.debug)
     logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
     if not args.debug:
@@ -321,3 +441,5 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print(_describe(exc), file=sys.stderr)
         return 1
+    finally:
+        warnings.formatwarning = previous

@@ -60,6 +60,33 @@ def interrupt_between_steps(master):
         signal.signal(signal.SIGINT, previous)
 
 
+def _check_scenario(scenario) -> None:
+    """``run()`` takes a loaded Scenario; a file name or anything else is refused before the
+    output folder is created."""
+    from orchestrator.scenario.model import Scenario
+    if isinstance(scenario, Scenario):
+        return
+    if isinstance(scenario, (str, Path)):
+        raise TypeError(f"run() takes a loaded scenario, not the file name {str(scenario)!r}; write "
+                        f"run(load_scenario({str(scenario)!r}), out_dir=...)")
+    raise TypeError(f"run() takes a Scenario from load_scenario() (got {type(scenario).__name__}); write "
+                    "run(load_scenario('file.yaml'), out_dir=...)")
+
+
+def _read_back(res: CoSimResult, master, path: Path) -> CoSimResult:
+    """The result with ``t``/``outputs`` read from the streamed results file (the run kept no rows in
+    memory, so memory stays flat in the number of rows)."""
+    import warnings
+
+    from orchestrator.results.writer import read_back
+    if not path.is_file() or not hasattr(master, "columns"):
+        return res
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)        # a file with a header only: no rows
+        t, outputs = read_back(path, master.columns, master.kinds)
+    return replace(res, t=t, outputs=outputs)
+
+
 def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, observers=()) -> CoSimResult:
     """Run ``scenario`` and write ``out_dir/results.csv`` and ``out_dir/summary.json``.
 
@@ -80,6 +107,7 @@ def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, 
     ``analysis:`` section, :func:`orchestrator.results.whirl.analyze_run` is called
     afterwards and its dict stored under ``"analysis"`` in summary.json.
     """
+    _check_scenario(scenario)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     build.ensure_fmus(scenario)
@@ -88,16 +116,19 @@ def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, 
         from orchestrator.reference.monolithic import run_monolithic     # imported when needed (scipy)
         res = run_monolithic(scenario, out_dir=out_dir, progress=progress)
     else:
-        obs = [CsvWriter(out_dir / "results.csv"), Progress(progress), *observers]
-        master = MasterAlgorithm(scenario, out_dir=out_dir, observers=obs)
+        fmt = getattr(scenario.output, "format", "csv")
+        results_file = out_dir / ("results.parquet" if fmt == "parquet" else "results.csv")
+        obs = [CsvWriter(results_file, format=fmt), Progress(progress), *observers]
+        master = MasterAlgorithm(scenario, out_dir=out_dir, observers=obs, record_in_memory=False)
         try:
             with interrupt_between_steps(master):
-                res = master.run()
+                res = _read_back(master.run(), master, results_file)
         except KeyboardInterrupt:
             # interrupted by the user: record where the run stopped, then re-raise
             if master.status is not Status.NOT_STARTED:
-                res = master.result()
-                msg = f"interrupted by the user at t={res.end_time:.12g} s; " + (res.message or "")
+                res = _read_back(master.result(), master, results_file)
+                msg = res.message if (res.message or "").startswith("interrupted by the user") else (
+                    f"interrupted by the user at t={res.end_time:.12g} s; " + (res.message or ""))
                 write_summary(out_dir / "summary.json",
                               _summary(scenario, replace(res, status=Status.FAILED, message=msg)))
             raise

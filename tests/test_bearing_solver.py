@@ -264,13 +264,15 @@ def test_free_to_air_cavity_edges_do_not_leak():
 def test_half_width_grid_equals_full_grid():
     """For even n_z only the lower half of the width is solved (mid-plane
     symmetry, grid.py): the same bearing solved on the full width agrees."""
+    from bearing_fmu.grid import make_grid
     from bearing_fmu.solver import TransientFilm
     p = small(axial_bc=1, **GROOVE)
     res = []
     for half in (True, False):
         b = BearingModel(p)
-        if not half:
-            b.sym, b.grid = False, b.grid_full
+        if not half:    # the film's grid on the full width (the groove at its true width)
+            b.sym = False
+            b.grid = make_grid(p.n_phi, p.n_z, p.groove_width, p.groove_angle, true_groove=True)
             b.film = TransientFilm(b, linear_solver=p.linear_solver)
         assert b.film.n == p.n_phi * p.n_z // (2 if half else 1)
         b.initialize(0.0, -0.5 * p.c, 0.0, 0.0, W100, init="stationary")

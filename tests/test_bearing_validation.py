@@ -226,8 +226,8 @@ def test_paper_stationary_case_default_parameters():
 
 @pytest.mark.xfail(strict=True, reason=(
     "with the default cav_width = 1 kPa the oil bath without a groove is fed only by "
-    "a 1 kPa suction at the edges and drains: p_max 0.985 MPa vs 4.388 MPa free to "
-    "air (-77.5 %), |F| 190 N vs 1906 N; see docs/bearing-validation.md and the "
+    "a 1 kPa suction at the edges and drains: p_max 0.985 MPa vs 4.472 MPa free to "
+    "air (-78 %), |F| 190 N vs 1988 N (free to air since issue 16 edge fix); see docs/bearing-validation.md and the "
     "wide-step test below"))
 def test_paper_pmax_bath_vs_air_default_parameters():
     """Paper: p_max of the oil bath (eq. 5, no groove) and free-to-air (eq. 6, 15 deg
@@ -237,16 +237,34 @@ def test_paper_pmax_bath_vs_air_default_parameters():
     assert abs(pa - pb) / pa < 0.01
 
 
-def test_paper_pmax_bath_vs_air_wide_theta_step():
-    """The paper's 0.6 % is reproduced when theta(p) spans most of p0 (cav_width =
-    0.9 p0), so that the cavity suction can draw enough oil in from the bath:
-    measured -0.13 % (bath - air)/air. Same 1 % acceptance as above; the bath refills the axial
-    edges (theta ~ 1 there, figure 5b: accepted theta >= 0.95)."""
+def _paper_pmax_wide_step():
     bath = paper_case(0, cav_width=0.9 * P0)
     air = paper_case(1, cav_width=0.9 * P0)
+    return bath, air
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "since the free-to-air edge is second order (issue 16, cavitation.penalty_edge) the "
+    "free-to-air p_max is 2.0 % above the oil bath's (4.462 vs 4.372 MPa at 40 x 40, 4.444 vs "
+    "4.355 at 80 x 80: a grid-converged model difference), not the paper's 0.6 %; the -0.13 % "
+    "measured before was a cancellation with the old edge's first-order error (-2 % in p_max "
+    "at n_z = 40). docs/bearing-validation.md, paper section 3.1"))
+def test_paper_pmax_bath_vs_air_wide_theta_step():
+    """The paper's 0.6 % (bath vs free to air) with theta(p) spanning most of p0 (cav_width =
+    0.9 p0), so that the cavity suction can draw oil in from the bath; 1 % acceptance."""
+    bath, air = _paper_pmax_wide_step()
     pb, pa = bath.outputs["p_max"], air.outputs["p_max"]
     assert abs(pa - pb) / pa < 0.01
+
+
+def test_paper_wide_theta_step_bath_refills_the_edges():
+    """Figure 5b: the oil bath refills the axial edges (theta ~ 1 there, accepted >= 0.95),
+    and the free-to-air p_max is within 2.5 % of the bath's (measured +2.0 %, converged in
+    the grid; the paper: 0.6 %, see the xfail above)."""
+    bath, air = _paper_pmax_wide_step()
     assert bath.fields()["theta"][[0, -1]].min() >= 0.95
+    pb, pa = bath.outputs["p_max"], air.outputs["p_max"]
+    assert 0.0 < (pa - pb) / pa < 0.025
 
 
 def test_smoothing_width_barely_moves_the_free_to_air_film():

@@ -94,7 +94,7 @@ def test_run_bad_override_subprocess(sdir):
 def test_run_missing_file(tmp_path, capsys):
     assert main(["run", str(tmp_path / "nope.yaml")]) == 1
     err = capsys.readouterr().err
-    assert "nope.yaml: cannot read the scenario file" in err and "Traceback" not in err
+    assert "nope.yaml: scenario file not found" in err and "Traceback" not in err
 
 
 def test_usage_error_exits_2(capsys):

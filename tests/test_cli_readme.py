@@ -57,7 +57,11 @@ def test_pyproject_entry_points_and_extras():
     deps = {re.split(r"[<>=!~ \[]", d)[0].lower() for d in project["dependencies"]}
     assert {"numpy", "scipy", "fmpy", "pythonfmu", "pyyaml"} <= deps
     packages = set(meta["tool"]["setuptools"]["packages"])
-    assert {p.split(".")[0] for p in packages} == {"orchestrator", "bearing_fmu", "rotor_fmu", "fmu_common"}
+    assert {p.split(".")[0] for p in packages} == {"orchestrator", "bearing_fmu", "rotor_fmu", "fmu_common",
+                                                   "rotorcosim_scenarios"}
+    # the shipped scenarios are the package rotorcosim_scenarios (issue 13: `rotorcosim run quickstart`)
+    assert meta["tool"]["setuptools"]["package-dir"]["rotorcosim_scenarios"] == "scenarios"
+    assert "*.yaml" in meta["tool"]["setuptools"]["package-data"]["rotorcosim_scenarios"]
     # every package folder of the orchestrator is shipped (the wheel would miss an unlisted one)
     on_disk = {".".join(d.relative_to(REPO).parts) for d in (REPO / "orchestrator").rglob("*")
                if d.is_dir() and (d / "__init__.py").is_file()}

@@ -198,7 +198,8 @@ coupling: {{scheme: jacobi, macro_step: 0.1}}
 output: {{interval: 0.2}}
 """)
 
-    def write(extra: str, tol: str = "{rms: 0.05, max: 0.1}") -> Path:
+    def write(extra: str, tol: str = "{rms: 0.05, max: 0.1}", baseline: bool = False) -> Path:
+        # a named baseline must exist (a missing one fails the comparison), so only when asked
         p = tmp_path / "cmp.yaml"
         p.write_text(f"""
 compare:
@@ -206,7 +207,7 @@ compare:
   signals: [left.x1, left.v1]
   reference: {{scheme: monolithic}}
   tolerance: {tol}
-  baseline: baselines/cmp.json
+  {"baseline: baselines/cmp.json" if baseline else ""}
   variants:
     - {{scheme: [jacobi, gauss-seidel], extrapolation_order: [0, 1], macro_step: [0.2, 0.1, 0.05]}}
 {extra}""")
@@ -252,7 +253,7 @@ def test_expected_order_is_checked(compare_files, tmp_path, capsys):
 
 
 def test_baseline_update_and_regression(compare_files, tmp_path, capsys):
-    path = compare_files("")
+    path = compare_files("", baseline=True)
     out = tmp_path / "out"
     rc = main_compare(path, out_dir=out, update_baseline=True, runner=fake_runner, workers=1)
     assert rc == 0

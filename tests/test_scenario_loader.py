@@ -234,7 +234,7 @@ output:
         (5, "'left' has no parameter 'm'; parameters of 'left' (closest first): m1"),
         (5, "parameter 'left.x1_0' is Real (got True, a boolean)"),
         (5, "'left.x1' is a continuous output, not a parameter"),
-        (6, "'fmus.right.substeps' must be >= 1 (got 0)"),
+        (6, "'fmus.right.substeps' must be between 1 and 10000 (got 0)"),
         (9, "'g.k' is a parameter, but the 'to' side of a connection must be an input; inputs of 'g': u"),
         (10, "names the instance 'foo', which is not in 'fmus'"),
         (11, "'left.F' is an input, but the 'from' side of a connection must be an output"),
@@ -270,7 +270,7 @@ output:
     ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\ncoupling: {macro_step: 2}\n",
      "'coupling.macro_step' must not exceed stop_time - start_time"),
     ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\ncoupling: {substeps: 0}\n",
-     "'coupling.substeps' must be >= 1 (got 0)"),
+     "'coupling.substeps' must be between 1 and 10000 (got 0)"),
     ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\ncoupling: {extrapolation_order: 1.5}\n",
      "'coupling.extrapolation_order' must be an integer (got 1.5"),
     ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\nconnections: {from: g.y, to: g.u}\n",
@@ -316,7 +316,7 @@ def test_parameter_problems_list_valid_parameters(sdir):
     assert "parameter 'p.out_file' is String (got 3, an integer)" in text
 
 
-def test_only_real_signals_are_coupled_and_recorded(sdir):
+def test_signals_of_every_type_are_coupled_and_recorded(sdir):
     write_md_only_fmu(sdir / "fmus" / "Mixed2.fmu")
     p = write(sdir, "name: x\nstop_time: 1\nfmus:\n  a: {path: fmus/Mixed.fmu}\n  b: {path: fmus/Mixed2.fmu}\n"
                     "connections:\n  - {from: a.y, to: b.u}\n  - {from: b.y, to: a.u, gain: 2}\n")
@@ -325,11 +325,32 @@ def test_only_real_signals_are_coupled_and_recorded(sdir):
     write_md_only_fmu(sdir / "fmus" / "Mixed3.fmu", md)
     p = write(sdir, "name: x\nstop_time: 1\nfmus:\n  a: {path: fmus/Mixed.fmu}\n  c: {path: fmus/Mixed3.fmu}\n"
                     "connections:\n  - {from: a.count, to: c.enable}\noutput: {signals: [a.y, a.count]}\n")
+    sc = load_scenario(p)                                   # Integer -> Integer, Integer recorded: fine
+    assert sc.output.signals == ("a.y", "a.count")
+    # Integer -> Boolean: a type mismatch naming both ends; gain on a non-Real connection: refused
+    p = write(sdir, "name: x\nstop_time: 1\nfmus:\n  a: {path: fmus/Mixed.fmu}\n  b: {path: fmus/Mixed2.fmu}\n"
+                    "  c: {path: fmus/Mixed3.fmu}\n"
+                    "connections:\n  - {from: a.count, to: b.enable}\n  - {from: a.count, to: c.enable, gain: 2}\n")
     problems = problems_of(p)
     assert len(problems) == 2, problems
-    assert problems[0].startswith(f"{p}:7: 'a.count' -> 'c.enable' couples Integer variables, but the master "
-                                  "couples (and extrapolates) Real signals only")
-    assert problems[1].startswith(f"{p}:8: 'output.signals' entry 'a.count' is an Integer variable")
+    assert problems[0].startswith(f"{p}:8: type mismatch: 'a.count' is Integer but 'b.enable' is Boolean")
+    assert problems[1].startswith(f"{p}:9: 'gain' of the connection 'a.count' -> 'c.enable': gain and offset "
+                                  "apply to Real connections only (this one is Integer")
+
+
+def test_start_values_of_states_and_range_checks(sdir):
+    md = MIXED_MD.replace('<Real start="0"/></ScalarVariable>\n  </ModelVariables>',
+                          '<Real start="0" min="-1" max="1"/></ScalarVariable>\n  </ModelVariables>')
+    write_md_only_fmu(sdir / "fmus" / "Ranged.fmu", md)
+    ok = write(sdir, "name: x\nstop_time: 1\nfmus:\n  a: {path: fmus/Ranged.fmu, parameters: {y: 0.5, count: 3}}\n")
+    assert dict(load_scenario(ok).fmu("a").parameters) == {"y": 0.5, "count": 3}   # initial="exact" outputs
+    bad = write(sdir, "name: x\nstop_time: 1\nfmus:\n  a: {path: fmus/Ranged.fmu, parameters: "
+                      "{y: 2.0, count: 3000000000, u: .nan}}\n")
+    problems = problems_of(bad)
+    assert len(problems) == 3, problems
+    assert any("'a.y' = 2.0 is outside its declared range [-1.0, 1.0]" in q for q in problems)
+    assert any("'a.count' is Integer, a 32-bit integer" in q and "3000000000" in q for q in problems)
+    assert any("'a.u' is Real and must be finite (got nan)" in q for q in problems)
 
 
 # ------------------------------------------------------------------ --set overrides
@@ -382,7 +403,7 @@ def test_scenario_error_is_a_cosim_error():
 
 
 def test_unreadable_scenario_file(tmp_path):
-    with pytest.raises(ScenarioError, match=r"nope\.yaml: cannot read the scenario file"):
+    with pytest.raises(ScenarioError, match=r"nope\.yaml: scenario file not found"):
         load_scenario(tmp_path / "nope.yaml")
     (tmp_path / "bin.yaml").write_bytes(b"\xff\xfe\x00")
     with pytest.raises(ScenarioError, match="not UTF-8"):

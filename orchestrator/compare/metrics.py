@@ -140,12 +140,33 @@ def fit_order(h, e) -> tuple[float, float, int]:
 
 # --------------------------------------------------------------------------- checks
 
-def load_baseline(path: Path) -> dict[str, Any] | None:
-    """The stored baseline, or None when the file does not exist yet."""
+def load_baseline(path: Path) -> dict[str, Any]:
+    """The stored baseline, checked (:class:`orchestrator.untrusted.InputError` if missing or
+    not a baseline: a missing file must not silently switch the regression gate off)."""
+    from orchestrator.untrusted import InputError, load_json
+
     path = Path(path)
     if not path.exists():
-        return None
-    return json.loads(path.read_text())
+        raise InputError(f"{path}: the baseline file named by 'compare.baseline' does not exist, so the regression "
+                         "gate cannot run; create it with `rotorcosim compare FILE --update-baseline` (and commit "
+                         "it), or remove 'compare.baseline'")
+    doc = load_json(path, what="baseline file", fix="fix 'compare.baseline' or rewrite the file with "
+                    "`rotorcosim compare FILE --update-baseline`")
+    variants = doc.get("variants") if isinstance(doc, dict) else None
+    problem = None
+    if not isinstance(variants, dict):
+        problem = "has no 'variants' mapping"
+    else:
+        for name, v in variants.items():
+            errors = v.get("errors", {}) if isinstance(v, dict) else None
+            if not isinstance(errors, dict) or not all(
+                    x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in errors.values()):
+                problem = f"has a malformed entry for variant {name!r} (expected {{stable: bool, errors: {{metric: number}}}})"
+                break
+    if problem:
+        raise InputError(f"{path}: the baseline file {problem}; it was not written by `rotorcosim compare "
+                         "--update-baseline`: fix 'compare.baseline' or rewrite the file with --update-baseline")
+    return doc
 
 
 def check_report(report, spec, baseline: Mapping[str, Any] | None) -> list[str]:

@@ -40,7 +40,7 @@ from orchestrator.compare.report import write_report
 from orchestrator.compare.spec import (
     CompareSpec, CompareSpecError, ReferenceSpec, VariantSpec, apply_changes, expand_variants, load_compare,
     parse_compare)
-from orchestrator.errors import ScenarioError
+from orchestrator.errors import CosimError, ScenarioError
 from orchestrator.reference.models import load_model_file
 from orchestrator.scenario import Scenario
 
@@ -262,10 +262,19 @@ def main_compare(path: str | os.PathLike, out_dir: str | os.PathLike | None = No
     With ``update_baseline`` the baseline file is rewritten from this run and
     regressions are not checked (tolerances still are).
     """
-
     try:
         spec = load_compare(path)
     except ScenarioError as exc:
+        print(f"rotorcosim compare: {exc}", file=sys.stderr)
+        return 2
+    baseline = None
+    try:         # before the runs: a missing or broken baseline must not switch the gate off
+        if spec.baseline is not None and not update_baseline:
+            baseline = load_baseline(spec.baseline)
+        if update_baseline and spec.baseline is None:
+            raise CosimError(f"{spec.source}: --update-baseline given but the file has no 'compare.baseline' path; "
+                             "add 'baseline: baselines/NAME.json' to its compare: section")
+    except CosimError as exc:
         print(f"rotorcosim compare: {exc}", file=sys.stderr)
         return 2
     out = Path(out_dir) if out_dir is not None else Path("out") / "compare" / spec.name
@@ -275,16 +284,9 @@ def main_compare(path: str | os.PathLike, out_dir: str | os.PathLike | None = No
     except RuntimeError as exc:
         print(f"rotorcosim compare: {exc}", file=sys.stderr)
         return 2
-    baseline = None
-    if spec.baseline is not None and not update_baseline:
-        baseline = load_baseline(spec.baseline)
     failures = check_report(report, spec, baseline)
     write_report(report, spec, out, failures)
     if update_baseline:
-        if spec.baseline is None:
-            print("rotorcosim compare: --update-baseline given but the file has no "
-                  "'compare.baseline' path", file=sys.stderr)
-            return 2
         write_baseline(report, spec, spec.baseline)
         print(f"baseline written: {spec.baseline}")
     print(f"report: {out / 'report.md'}  ({len(report.variants)} variants, "

@@ -26,8 +26,11 @@ import yaml
 
 from orchestrator.compare.metrics import METRICS
 from orchestrator.errors import ScenarioError
-from orchestrator.scenario import Scenario
+from orchestrator.scenario import SCHEMES, Scenario
+from orchestrator.scenario.limits import MAX_SUBSTEPS, limit_problems
 from orchestrator.scenario.nodes import YamlLoader as ScenarioYamlLoader   # same YAML number rules
+from orchestrator.untrusted import (InputError, check_name, construct_yaml, format_template, name_problem,
+                                   read_yaml_tree)
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +39,8 @@ __all__ = ["CompareSpecError", "CompareSpec", "VariantSpec", "ReferenceSpec", "l
 
 COUPLING_KEYS = ("scheme", "extrapolation_order", "interpolation_order", "macro_step", "substeps",
                  "sequence")
+MAX_VARIANTS = 500             # variants of one comparison (each is a run)
+MAX_WORKERS = 64               # parallel runs of one comparison
 _ABBR = {"gauss-seidel": "gs", "jacobi": "jac", "iterative": "it", "monolithic": "mono"}
 _VARIANT_KEYS = set(COUPLING_KEYS) | {"name", "family", "set", "tolerance", "expect_order"}
 _TOP_KEYS = {"name", "scenario", "set", "output_interval", "workers", "reference", "signals",
@@ -174,9 +179,14 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
 
     path = Path(path).resolve()
     try:
-        doc = yaml.load(path.read_text(), Loader=_LineLoader)
-    except (OSError, yaml.YAMLError) as exc:
-        raise CompareSpecError(f"{path}: cannot read comparison file: {exc}") from None
+        root = read_yaml_tree(path, what="comparison file", loader_cls=_LineLoader)
+        doc = None if root is None else construct_yaml(root, display=str(path), loader_cls=_LineLoader)
+    except InputError as exc:
+        raise CompareSpecError(str(exc)) from None
+    except yaml.YAMLError as exc:                   # e.g. an unknown !!tag or an unhashable key
+        problem = getattr(exc, "problem", None) or exc
+        raise CompareSpecError(f"{path}: cannot read the comparison file ({problem}); write plain numbers, "
+                               "texts, lists and mappings") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("compare"), dict):
         raise CompareSpecError(f"{path}: expected a mapping with a 'compare:' section "
                                "(see docs/compare.md)")
@@ -202,7 +212,10 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
         if "scenario" not in sec:
             raise CompareSpecError(f"{path}{_line(doc, 'compare')}: 'compare.scenario' is required "
                                    "(path of the base scenario, relative to this file)")
-        base = load_scenario((path.parent / str(sec["scenario"])).resolve())
+        if not isinstance(sec["scenario"], str) or not sec["scenario"].strip():
+            raise CompareSpecError(f"{path}{_line(sec, 'scenario')}: 'compare.scenario' must be the path of the "
+                                   f"base scenario, relative to this file (got {sec['scenario']!r})")
+        base = load_scenario((path.parent / sec["scenario"]).resolve())
     spec = parse_compare(sec, base, source=path)
     return dataclasses.replace(spec, reference_models=reference_models) if reference_models else spec
 
@@ -249,7 +262,11 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     for k in sec:
         if k not in _TOP_KEYS:
             bad(k, f"is not a known key; valid keys: {sorted(_TOP_KEYS)}")
+    if sec.get("name") is not None and not isinstance(sec["name"], str):
+        bad("name", f"must be a text (got {sec['name']!r})")
     name = str(sec.get("name") or (source.stem if source else base.name))
+    if name_problem(name) is not None:              # the default report folder is out/compare/<name>
+        bad("name", f"becomes a folder name, but {name_problem(name)}; use letters, digits, '-', '_' and '.'")
 
     common = _changes(sec.get("set") or {}, "set", bad)
     try:
@@ -264,7 +281,14 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
 
     signals = _signals(sec.get("signals"), bad)
     derived = {}
-    for dname, d in (sec.get("derived") or {}).items():
+    derived_sec = sec.get("derived") or {}
+    if not isinstance(derived_sec, dict):
+        bad("derived", f"must be a mapping name -> {{key, scale}} (got {type(derived_sec).__name__})")
+        derived_sec = {}
+    for dname, d in derived_sec.items():
+        if isinstance(d, dict) and d.get("scale") is not None and not _positive(d["scale"]):
+            bad("derived", f"scale of '{dname}' must be a positive number (got {d['scale']!r})")
+            continue
         if not isinstance(d, dict) or "key" not in d:
             bad("derived", f"entry '{dname}' must be a mapping with 'key' (a dotted path into "
                 "summary.json, e.g. analysis.bearing1.onset_speed_hz)")
@@ -281,6 +305,9 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     for i, g in enumerate(groups):
         variants.extend(expand_variants(g, base, default_tol, known, where=f"variants[{i}]",
                                         bad=lambda k, msg, m=g, i=i: bad(f"variants[{i}].{k}", msg, m)))
+    if len(variants) > MAX_VARIANTS:
+        bad("variants", f"make {len(variants)} variants (the limit is {MAX_VARIANTS}, each is a run); use fewer")
+        variants = variants[:MAX_VARIANTS]
     seen = set()
     for v in variants:
         if v.name in seen:
@@ -292,8 +319,10 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     if not isinstance(ref, dict):
         bad("reference", "must be a mapping, e.g. {scheme: monolithic} or {macro_step: 1e-5}")
         ref = {"scheme": "monolithic"}
-    ref_changes = {f"coupling.{k}": v for k, v in ref.items() if k in COUPLING_KEYS}
+    ref_changes = _changes({f"coupling.{k}": v for k, v in ref.items() if k in COUPLING_KEYS}, "reference", bad)
     ref_changes.update(_changes(ref.get("set") or {}, "reference.set", bad))
+    if not isinstance(ref.get("check", True), bool):
+        bad("reference", f"'check' must be true or false (got {ref['check']!r})")
     for k in ref:
         if k not in set(COUPLING_KEYS) | {"set", "check"}:
             bad("reference", f"has unknown key '{k}'; valid: {sorted(set(COUPLING_KEYS) | {'set', 'check'})}")
@@ -314,10 +343,14 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
             val = default
         nums[key] = float(val)
     workers = sec.get("workers")
-    if workers is not None and (not isinstance(workers, int) or workers < 1):
-        bad("workers", f"must be a positive integer (got {workers!r})")
+    if workers is not None and (not isinstance(workers, int) or isinstance(workers, bool)
+                                or not 1 <= workers <= MAX_WORKERS):
+        bad("workers", f"must be an integer between 1 and {MAX_WORKERS} (got {workers!r})")
         workers = None
     interval = sec.get("output_interval")
+    if interval is not None and not _positive(interval):
+        bad("output_interval", f"must be a positive number [s] (got {interval!r})")
+        interval = None
     steps = [_macro(v, base) for v in variants]
     if interval is None and variants:   # the scenario's interval if it suits every variant
         interval = base.output.interval
@@ -349,6 +382,15 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
             if s not in base.output.signals:
                 bad("signals", f"lists '{s}', which the base scenario does not output; add it to "
                     f"'output.signals' (has {list(base.output.signals)})")
+    if not problems:        # every run of the comparison within the loader's numeric limits
+        for label, ch in [("reference", ref_changes)] + [(f"variant '{v.name}'", v.changes) for v in variants]:
+            try:
+                found = limit_problems(apply_changes(base, dict(ch, **(
+                    {"output.interval": interval} if interval is not None else {}))))
+            except (KeyError, ValueError, TypeError) as exc:
+                found = [f"cannot be applied ({exc})"]
+            for p in found[:1]:
+                bad("variants" if label != "reference" else "reference", f"makes the {label} run invalid: {p}")
     if problems:
         raise CompareSpecError(problems)
     return CompareSpec(name=name, base=base, variants=tuple(variants), reference=reference,
@@ -368,11 +410,42 @@ def _macro(v: VariantSpec, base: Scenario) -> float:
     return float(v.changes.get("coupling.macro_step", base.coupling.macro_step))
 
 
+def _positive(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+
+
+def _change_problem(key: str, v) -> str | None:
+    """Why value ``v`` cannot be given to the dotted key ``key`` (None: it can)."""
+    num = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    integer = isinstance(v, int) and not isinstance(v, bool)
+    if key in ("stop_time", "start_time") and not num:
+        return "a finite number [s]"
+    if key in ("coupling.macro_step", "output.interval") and not (num and v > 0):
+        return "a positive number [s]"
+    if key in ("coupling.extrapolation_order", "coupling.interpolation_order") and not (integer and 0 <= v <= 3):
+        return "an integer 0..3"
+    if key == "coupling.substeps" and not (integer and 1 <= v <= MAX_SUBSTEPS):
+        return f"an integer 1..{MAX_SUBSTEPS}"
+    if key == "coupling.scheme" and v not in SCHEMES:
+        return f"one of {list(SCHEMES)}"
+    if key in ("coupling.sequence", "output.signals") and not (
+            isinstance(v, list) and all(isinstance(x, str) for x in v)):
+        return "a list of names"
+    return None
+
+
 def _changes(m, key, bad) -> dict[str, Any]:
     if not isinstance(m, dict):
         bad(key, f"must be a mapping of dotted keys to values, e.g. {{stop_time: 0.1}} (got {m!r})")
         return {}
-    return {str(k): v for k, v in m.items()}
+    out = {}
+    for k, v in m.items():
+        want = _change_problem(str(k), v)
+        if want is not None:
+            bad(key, f"gives '{k}' the value {v!r}; it must be {want}")
+            continue
+        out[str(k)] = v
+    return out
 
 
 def _signals(sig, bad) -> dict[str, float | None]:
@@ -430,6 +503,10 @@ def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mappi
                 vals = [vals]
             if not vals:
                 bad(k, "is an empty list")
+            wrong = [v for v in vals if _change_problem(f"coupling.{k}", v) is not None]
+            if wrong:
+                bad(k, f"must be {_change_problem(f'coupling.{k}', wrong[0])} (got {wrong[0]!r})")
+                vals = []
             axes.append((k, vals))
     tol = dict(default_tol)
     tol.update(_tolerance(group.get("tolerance") or {}, known, "tolerance", bad))
@@ -438,8 +515,13 @@ def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mappi
     if expect is not None and not isinstance(expect, (int, float)):
         bad("expect_order", f"must be a number (got {expect!r})")
         expect = None
+    count = math.prod(len(vals) for _, vals in axes)
+    if count > MAX_VARIANTS:
+        bad("", f"expands to {count} variants (the product of its lists; the limit is {MAX_VARIANTS}); split it "
+            "into smaller groups or shorten the lists")
     out = []
-    for combo in itertools.product(*[vals for _, vals in axes]):
+    combos = itertools.product(*[vals for _, vals in axes]) if count <= MAX_VARIANTS else ()
+    for combo in combos:
         values = dict(zip([k for k, _ in axes], combo))
         coupling = {k: values.get(k, getattr(base.coupling, k)) for k in COUPLING_KEYS}
         for k in ("extrapolation_order", "interpolation_order", "substeps"):
@@ -453,13 +535,15 @@ def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mappi
         if coupling["substeps"] != 1:
             default_name += "-s{substeps}"
         default_name += "-h{macro_step:g}"
-        try:
-            name = str(group.get("name", default_name)).format(**fields_)
-            fam_tmpl = group.get("family") or str(group.get("name", default_name)).replace(
+        try:     # names become folders (runs/<name>): plain fields only, then the one name check
+            template = group.get("name", default_name)
+            name = check_name(format_template(template, fields_, what="the name template"),
+                              what=f"the variant name made from {template!r}")
+            fam_tmpl = group.get("family") or str(template).replace(
                 "-h{macro_step:g}", "").replace("{macro_step:g}", "").replace("{macro_step}", "")
-            family = str(fam_tmpl).format(**fields_)
-        except (KeyError, ValueError, IndexError) as exc:
-            bad("name", f"template cannot be formatted ({exc}); fields: {sorted(fields_)}")
+            family = format_template(fam_tmpl, fields_, what="the family template")
+        except InputError as exc:
+            bad("name", f"is not usable: {exc}")
             continue
         changes = {f"coupling.{k}": v for k, v in values.items()}
         changes.update(extra)

@@ -25,8 +25,7 @@ and the observers (:mod:`.observers`). docs/dev/architecture.md gives the call o
 from __future__ import annotations
 
 import logging
-import shutil
-import tempfile
+import math
 import time as _time
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -42,10 +41,13 @@ from orchestrator.coupling.iterative import IterativeMacroStep
 from orchestrator.coupling.loops import loop_through
 from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
-    RETRY_LOG_LINES, RetriesExhausted, StepSizeController, controller_from_spec)
+    RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController, controller_from_spec)
 from orchestrator.errors import CouplingError, FmuCallError, LifecycleError, ScenarioError
+from orchestrator.fmi.extraction import ExtractionPool
 from orchestrator.fmi.subsystem import Subsystem, SubsystemBase
 from orchestrator.results.result import CoSimResult, Status
+from orchestrator.results.writer import TimeGrid
+from orchestrator.scenario.completion import fixed_step_problem
 from orchestrator.scenario.model import MAX_DISCARD_RETRIES
 
 log = logging.getLogger(__name__)
@@ -79,11 +81,14 @@ class MasterAlgorithm:
         scenario's FMUs (tests use plain-Python fakes); the master still frees them.
     scheme, step_size, predictor : policy objects; default from ``scenario.coupling``
         (``step_size``: a :class:`~orchestrator.coupling.step_control.StepSizeController`).
+    record_in_memory : keep the output rows for :meth:`result` (False: the caller streams them to
+        a file and reads them back, so memory stays flat in the number of rows).
     """
 
     def __init__(self, scenario, *, out_dir: Path | str | None = None, observers: Sequence[Observer] = (),
                  subsystems: Mapping[str, SubsystemBase] | None = None, scheme: CouplingScheme | None = None,
-                 step_size: StepSizeController | None = None, predictor: LagrangePredictor | None = None):
+                 step_size: StepSizeController | None = None, predictor: LagrangePredictor | None = None,
+                 record_in_memory: bool = True):
         self.scenario = scenario
         c = scenario.coupling
         self.out_dir = Path(out_dir) if out_dir is not None else None
@@ -98,7 +103,7 @@ class MasterAlgorithm:
         self.grid.on_rejected = self._rejected
         self.predictor = predictor or LagrangePredictor(extrapolation_order=c.extrapolation_order,
                                                         interpolation_order=c.interpolation_order)
-        self.recorder = Recorder()
+        self.recorder = Recorder(keep=record_in_memory)
         self.observers = [self.recorder, *observers]
         self._given = dict(subsystems) if subsystems is not None else None
         self.subsystems: dict[str, SubsystemBase] = {}
@@ -111,7 +116,7 @@ class MasterAlgorithm:
         self.t = float(scenario.start_time)
         self.end_time = float(scenario.start_time)
         self.wall_time = 0.0
-        self._work_dir: str | None = None
+        self._work_dir: ExtractionPool | None = None
         self._phase = "new"
         self._t_wall0 = 0.0
 
@@ -135,9 +140,9 @@ class MasterAlgorithm:
                     raise ScenarioError(f"no subsystem given for FMU instances {missing}")
                 self.subsystems = {n: self._given[n] for n in names}
             else:
-                self._work_dir = tempfile.mkdtemp(prefix="rotorcosim-")
+                self._work_dir = ExtractionPool()      # one extraction per FMU file, shared
                 for f in sc.fmus:
-                    self.subsystems[f.name] = Subsystem(f.name, f.path, work_dir=self._work_dir)
+                    self.subsystems[f.name] = Subsystem(f.name, f.path, extraction=self._work_dir)
             for f in sc.fmus:
                 self.subsystems[f.name].set_parameters(dict(f.parameters), out_dir=self.out_dir)
             self._plan()
@@ -151,6 +156,7 @@ class MasterAlgorithm:
         self.plan = plan
         self.order, self.units, self.history = plan.order, plan.units, plan.history
         self.columns, self._rec, self.stride = plan.columns, plan.rec, plan.stride
+        self.kinds, self._rec_typed, self.discrete = plan.kinds, plan.rec_typed, plan.discrete
         k = self.predictor.k
         can_state = all(u.sub.can_get_set_state for u in self.units)
         startup = k >= 2 and can_state
@@ -158,6 +164,12 @@ class MasterAlgorithm:
             log.info("extrapolation_order %d: not every FMU can save its state (canGetAndSetFMUstate), so the "
                      "first %d macro steps use lower-order extrapolation; this adds an O(H^2) start-up error "
                      "(see docs/coupling.md)", k, k - 1)
+        fixed = [u.name for u in self.units if getattr(getattr(u.sub, "md", None), "can_handle_variable_step", True)
+                 is False]
+        if isinstance(self.grid, ConstantStep):
+            why = fixed_step_problem(self.grid.t0, self.grid.t_stop, self.grid.h, fixed, self.discard_retries)
+            if why:
+                raise ScenarioError(f"{self._where()}{why}")
         if self.grid.needs_states:
             stateless = [u.name for u in self.units if not u.sub.can_get_set_state]
             if stateless:
@@ -184,7 +196,9 @@ class MasterAlgorithm:
             self.stepper = MacroStep(plan, self.predictor, **kw)
         if getattr(self.grid, "variable", False):
             self._setup_variable_grid()
-        self.view = RunView(self.columns, self.grid.time(0), self.grid.time(self.grid.n_steps), self.grid.n_steps)
+        g = self.grid
+        tgrid = TimeGrid(g.t0, g.h, t_stop=g.t_stop, n_stop=g.n_steps) if isinstance(g, ConstantStep) else None
+        self.view = RunView(self.columns, g.time(0), g.time(g.n_steps), g.n_steps, kinds=self.kinds, grid=tgrid)
 
     def _require_states(self, what: str, fix: str) -> None:
         stateless = [u.name for u in self.units if not u.sub.can_get_set_state]
@@ -266,6 +280,8 @@ class MasterAlgorithm:
             if x is not None:
                 store[0] = x
                 self._push_inputs()
+            if self.discrete.active:
+                self.discrete.exchange_all()
             for u in self.units:
                 u.sub.get_real(u.outb)
                 self.stepper.propagate(u, t0)
@@ -273,8 +289,10 @@ class MasterAlgorithm:
 
         x = exchange()
         for _ in range(len(self.units) + 1):
+            d_before = self.discrete.snapshot() if self.discrete.active else ()
             g = exchange(x)
-            if np.array_equal(g, x):
+            d_after = self.discrete.snapshot() if self.discrete.active else ()
+            if np.array_equal(g, x) and all(np.array_equal(a, b) for a, b in zip(d_before, d_after)):
                 return
             x = g
         spec = self.scenario.coupling.iteration
@@ -335,6 +353,8 @@ class MasterAlgorithm:
                        "coupling.discard_retries) or use a smaller coupling.macro_step", t)
             return self.status
         except FmuCallError as e:
+            if self.stepper.fmu_ended(e):
+                return self._stopped_by_fmu(e.instance, t)
             self._fail(self._fmu_message(e, t, t_next), t)
             return self.status
         except CouplingError as e:
@@ -365,6 +385,18 @@ class MasterAlgorithm:
         view.rejected = None
 
     # ---------------------------------------------------------------- helpers
+    def _stopped_by_fmu(self, instance: str, t: float) -> Status:
+        """Finish cleanly at ``t`` (the last communication point every FMU completed): rows kept, no retry."""
+        self.status = Status.STOPPED_BY_FMU
+        self.message = (f"FMU instance '{instance}' ended the simulation at t={t:.12g} s (fmi2DoStep returned "
+                        f"fmi2Discard and fmi2GetBooleanStatus(fmi2Terminated) is true) after {self.n} macro steps; "
+                        f"rows up to t={t:.12g} s are kept")
+        self.end_time = t
+        self.view.status = self.status
+        self.view.message = self.message
+        log.info("%s", self.message)
+        return self.status
+
     def _fmu_message(self, e: FmuCallError, t: float, t_next: float) -> str:
         what = {"discard": "could not complete the step (fmi2Discard)",
                 "error": "reported an error (fmi2Error)",
@@ -395,6 +427,11 @@ class MasterAlgorithm:
             row = view.row
             for values, pos, cols in self._rec:
                 row[cols] = values[pos]
+            if self._rec_typed:
+                typed = view.typed
+                for i, read in self._rec_typed:
+                    v = typed[i] = read()
+                    row[i] = math.nan if isinstance(v, str) else float(v)
 
     # ------------------------------------------------------------- terminate
     def terminate(self) -> None:
@@ -432,8 +469,8 @@ class MasterAlgorithm:
                 sub.free()
             except Exception as e:   # pragma: no cover - defensive
                 log.warning("freeing '%s' failed: %s", sub.name, e)
-        if self._work_dir:
-            shutil.rmtree(self._work_dir, ignore_errors=True)
+        if self._work_dir is not None:
+            self._work_dir.close()
             self._work_dir = None
 
     # ---------------------------------------------------------------- result
@@ -464,6 +501,13 @@ class MasterAlgorithm:
                 if self.interrupt_requested:
                     raise KeyboardInterrupt
                 self.step()
+        except BaseException as exc:
+            if self.status is Status.RUNNING:   # say why it stopped (not "terminated by the caller")
+                why = "interrupted by the user" if isinstance(exc, KeyboardInterrupt) else (
+                    f"stopped by an error ({type(exc).__name__}: {exc})")
+                self.status, self.message, self.end_time = Status.FAILED, f"{why} at t={self.t:.12g} s", self.t
+                self.view.status, self.view.message = self.status, self.message
+            raise
         finally:
             self.terminate()
         return self.result()

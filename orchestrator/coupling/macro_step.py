@@ -28,10 +28,12 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class Checkpoint:
-    """Saved FMU states (one per unit, in stepping order) and a history snapshot."""
+    """Saved FMU states (one per unit, in stepping order), a history snapshot and the held
+    non-Real signals (:meth:`orchestrator.coupling.discrete.DiscreteSignals.snapshot`)."""
 
     states: list
     snap: tuple
+    disc: list
 
 
 class MacroStep:
@@ -47,6 +49,7 @@ class MacroStep:
         self.plan = plan
         self.units = plan.units
         self.history = plan.history
+        self.discrete = plan.discrete
         self.predictor = predictor
         self.macro_step = macro_step
         self.startup_iterations = startup_iterations
@@ -61,16 +64,17 @@ class MacroStep:
         except BaseException:
             self._free_states(states)
             raise
-        return Checkpoint(states, self.history.snapshot())
+        return Checkpoint(states, self.history.snapshot(), self.discrete.snapshot())
 
     def snapshot(self, states: list) -> Checkpoint:
         """A checkpoint of already saved ``states`` and the history now."""
-        return Checkpoint(states, self.history.snapshot())
+        return Checkpoint(states, self.history.snapshot(), self.discrete.snapshot())
 
     def restore(self, cp: Checkpoint) -> None:
         for u, s in zip(self.units, cp.states, strict=True):
             u.sub.set_state(s)
         self.history.restore(cp.snap)
+        self.discrete.restore(cp.disc)
 
     def release(self, cp: Checkpoint) -> None:
         self._free_states(cp.states)
@@ -92,6 +96,12 @@ class MacroStep:
         for b, r in zip(hist.blocks, new_rows, strict=True):
             b[0] = r
         hist.commit()
+
+    def fmu_ended(self, e: FmuCallError) -> bool:
+        """Did the FMU that discarded a step end the simulation (fmi2Terminated, FMI 2.0 sec. 4.2.3)?"""
+        if e.status != "discard" or e.function != "fmi2DoStep":
+            return False
+        return any(u.name == e.instance and u.sub.terminated_by_fmu() for u in self.units)
 
     # ------------------------------------------------------------------ steps
     def step(self, t: float, t_next: float) -> None:
@@ -115,6 +125,7 @@ class MacroStep:
         hist = self.history
         states = [u.sub.get_state() for u in self.units]
         snap = hist.snapshot()
+        dsnap = self.discrete.snapshot()
         for u in self.units:
             u.sub.no_set_prior_state = False      # we will restore the saved state
         try:
@@ -125,10 +136,12 @@ class MacroStep:
                 for u, s in zip(self.units, states):
                     u.sub.set_state(s)
                 hist.restore(snap)
+                self.discrete.restore(dsnap)
                 for b, r in zip(hist.blocks, new_rows):
                     b[0] = r
                 self.advance(t, t_next, commit=False, startup_q=q)
             hist.commit()
+            self.discrete.commit()
         finally:
             for u in self.units:
                 u.sub.no_set_prior_state = self.no_prior
@@ -144,13 +157,20 @@ class MacroStep:
         hist = self.history
         hist.times[0] = t_next
         predictor = self.predictor
+        discrete = self.discrete
         for u in self.units:
             w = predictor.step_weights(hist, t, h, u.substeps, q=startup_q)
+            if u.disc:
+                discrete.set_inputs(u.name)          # non-Real inputs: held over the whole step
             u.delivery.advance(u, w, t, h)
             u.sub.get_real(u.outb)
             self.propagate(u, t_next)
+            if u.disc:
+                discrete.read(u.name)
         if commit:
             hist.commit()
+            if discrete.active:
+                discrete.commit()
 
     def propagate(self, u: Unit, t: float) -> None:
         """Unit ``u``'s outputs (in ``u.outb``) through gain/offset into the consumers' new level."""

@@ -27,10 +27,16 @@ class RunView:
     """Read-only state of the run as observers see it (filled in by the master)."""
 
     __slots__ = ("t", "n", "row", "columns", "is_output", "status", "message", "t_start", "t_stop",
-                 "n_steps", "end_time", "rejected")
+                 "n_steps", "end_time", "rejected", "kinds", "typed", "grid")
 
-    def __init__(self, columns: Sequence[str], t_start: float, t_stop: float, n_steps: int):
+    def __init__(self, columns: Sequence[str], t_start: float, t_stop: float, n_steps: int, *,
+                 kinds: Sequence[str] | None = None, grid=None):
         self.columns = tuple(columns)
+        # FMI type per column; ``row`` holds every column as float (String: NaN), ``typed`` the
+        # values of the non-Real columns as int/bool/str (None for Real columns)
+        self.kinds = tuple(kinds) if kinds is not None else ("Real",) * len(self.columns)
+        self.typed: list = [None] * len(self.columns)
+        self.grid = grid                  # a results.writer.TimeGrid: time of row n from the index, or None
         self.t = t_start
         self.n = 0
         self.row = np.zeros(len(columns))
@@ -61,69 +67,99 @@ class Observer:
 
 
 class Recorder(Observer):
-    """Keeps the output rows in memory for :class:`CoSimResult` (``t``, ``outputs``)."""
+    """Keeps the output rows in memory for :class:`CoSimResult` (``t``, ``outputs``).
 
-    def __init__(self, expected_rows: int = 0):
-        self._rows: list[np.ndarray] = []
-        self._t: list[float] = []
+    Rows go into float64 blocks of ``CHUNK`` rows (8 bytes per value, no object
+    per row). ``keep=False`` keeps nothing (a run that streams results.csv reads
+    its result back from the file, so memory stays flat in the number of rows).
+    String columns are kept as lists of str when kept.
+    """
+
+    CHUNK = 4096
+
+    def __init__(self, expected_rows: int = 0, *, keep: bool = True):
+        self.keep = keep
+        self._blocks: list[np.ndarray] = []
+        self._n = 0
+        self._t: list[np.ndarray] = []
+        self._text: dict[int, list[str]] = {}
         self.columns: tuple[str, ...] = ()
 
     def _take(self, view: RunView) -> None:
-        if view.is_output:
-            self._t.append(view.t)
-            self._rows.append(view.row.copy())
+        if not (view.is_output and self.keep):
+            return
+        i = self._n % self.CHUNK
+        if i == 0:
+            self._blocks.append(np.empty((self.CHUNK, len(self.columns))))
+            self._t.append(np.empty(self.CHUNK))
+        self._blocks[-1][i] = view.row
+        self._t[-1][i] = view.grid.time(view.n) if view.grid is not None else view.t
+        for j in self._text:
+            self._text[j].append(view.typed[j])
+        self._n += 1
 
     def on_initialized(self, view):
         self.columns = view.columns
+        self._text = {j: [] for j, k in enumerate(view.kinds) if k == "String"}
         self._take(view)
 
     def on_step_complete(self, view):
         self._take(view)
 
     def arrays(self) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        t = np.asarray(self._t, dtype=float)
-        data = np.vstack(self._rows) if self._rows else np.zeros((0, len(self.columns)))
-        return t, {c: data[:, i].copy() for i, c in enumerate(self.columns)}
+        n = self._n
+        t = np.concatenate(self._t)[:n] if self._t else np.zeros(0)
+        data = np.concatenate(self._blocks)[:n] if self._blocks else np.zeros((0, len(self.columns)))
+        out = {c: data[:, i].copy() for i, c in enumerate(self.columns)}
+        for j, vals in self._text.items():
+            out[self.columns[j]] = np.asarray(vals, dtype=object)
+        return t, out
 
 
 class CsvWriter(Observer):
-    """Streams ``results.csv``: header ``time,<inst>.<var>,...``, one row per output time.
+    """Streams ``results.csv`` (or ``results.parquet``) through :class:`orchestrator.results.writer.ResultsWriter`.
 
-    Rows are written as they come and the file is flushed at least every
-    ``flush_interval`` seconds of wall time and at termination, so a run that
-    stops early (or is watched with ``tail -f``) keeps every row written.
+    Header ``time,<inst>.<var>,...`` written by the csv module; one row per
+    output time, the time from the step index (``view.grid``) when the master
+    gives one. The file is flushed at least every ``flush_interval`` seconds of
+    wall time and at termination, so a run that stops early (or is watched
+    with ``tail -f``) keeps every row written.
     """
 
-    def __init__(self, path: Path | str, *, flush_interval: float = 0.5):
+    def __init__(self, path: Path | str, *, flush_interval: float = 1.0, format: str = "csv"):
         self.path = Path(path)
         self.flush_interval = flush_interval
-        self._f = None
-        self._last_flush = 0.0
+        self.format = format
+        self._w = None
+        self._typed: list[int] = []
 
     def on_initialized(self, view):
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._f = open(self.path, "w", newline="")
-        self._f.write("time," + ",".join(view.columns) + "\n")
+        from orchestrator.results.writer import ResultsWriter
+        self._w = ResultsWriter(self.path, view.columns, view.kinds, format=self.format,
+                                flush_interval=self.flush_interval)
+        self._w.open()
+        self._typed = [j for j, k in enumerate(view.kinds) if k != "Real"]
         self._write(view)
-        self._f.flush()
-        self._last_flush = _time.monotonic()
+        self._w.flush()
 
     def _write(self, view):
-        if view.is_output and self._f is not None:
-            self._f.write(repr(float(view.t)) + "," + ",".join(map(repr, view.row.tolist())) + "\n")
-            now = _time.monotonic()
-            if now - self._last_flush > self.flush_interval:
-                self._f.flush()
-                self._last_flush = now
+        if view.is_output and self._w is not None:
+            t = view.grid.time(view.n) if view.grid is not None else view.t
+            if self._typed:
+                values = view.row.tolist()
+                for j in self._typed:
+                    values[j] = view.typed[j]
+                self._w.write(t, values)
+            else:
+                self._w.write(t, view.row)
 
     def on_step_complete(self, view):
         self._write(view)
 
     def on_terminated(self, view):
-        if self._f is not None:
-            self._f.flush()
-            self._f.close()
-            self._f = None
+        if self._w is not None:
+            self._w.close()
+            self._w = None
 
 
 class Progress(Observer):

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from orchestrator.coupling.delivery import choose_delivery
+from orchestrator.coupling.discrete import DiscreteSignals
 from orchestrator.coupling.signals import History
 from orchestrator.errors import ScenarioError
 from orchestrator.fmi.subsystem import RealBatch, SubsystemBase
@@ -58,6 +59,7 @@ class Unit:
         self.ext_names: list[str] = []      # inputs extrapolated (producer not yet stepped)
         self.int_names: list[str] = []      # inputs interpolated (producer stepped before)
         self.out_names: list[str] = []
+        self.out_pos: dict[str, int] = {}   # name -> index in out_names (setup linear in the variables)
         self.links: list[Link] = []
         self.inb: RealBatch | None = None
         self.outb: RealBatch | None = None
@@ -67,6 +69,12 @@ class Unit:
         self.nE = 0
         self.nI = 0
         self.delivery = None                # an InputDelivery, chosen at setup
+        self.disc = False                   # has non-Real inputs or outputs (orchestrator.coupling.discrete)
+
+    def add_output(self, name: str) -> None:
+        if name not in self.out_pos:
+            self.out_pos[name] = len(self.out_names)
+            self.out_names.append(name)
 
 
 @dataclass
@@ -79,6 +87,9 @@ class Plan:
     columns: list[str]
     rec: list                 # (output values, positions, row columns) per unit with recorded signals
     stride: int               # output every ``stride`` macro steps
+    kinds: list[str]          # FMI type of each column
+    discrete: DiscreteSignals  # the non-Real connections and recorded signals
+    rec_typed: list           # (row column, reader) per non-Real recorded signal
 
 
 def _where(scenario) -> str:
@@ -97,11 +108,13 @@ def _units(scenario, subsystems) -> dict[str, Unit]:
     return units
 
 
-def _connections(scenario, units) -> list:
-    """The scenario's connections, checked against the subsystems' variables."""
+def _connections(scenario, units) -> tuple[list, list]:
+    """The scenario's connections, checked against the subsystems' variables: ``(Real connections,
+    non-Real connections as (src_instance, src_variable, dst_instance, dst_variable))``."""
     problems = []
     seen_dst = {}
     conns = []
+    discrete = []
     for c in scenario.connections:
         si, di = c.src_instance, c.dst_instance
         for inst, what in ((si, c.src), (di, c.dst)):
@@ -116,9 +129,9 @@ def _connections(scenario, units) -> list:
         except ScenarioError as e:
             problems.append(f"connection {c.src} -> {c.dst}: {e.problems[0]}")
             continue
-        if vs.type != "Real" or vd.type != "Real":
-            problems.append(f"connection {c.src} -> {c.dst}: types {vs.type} -> {vd.type}; the master couples "
-                            "Real variables only")
+        if vs.type != vd.type:
+            problems.append(f"connection {c.src} -> {c.dst}: type mismatch, '{c.src}' is {vs.type} but "
+                            f"'{c.dst}' is {vd.type}; connect variables of the same type")
             continue
         if vd.causality != "input":
             problems.append(f"connection {c.src} -> {c.dst}: '{c.dst}' has causality '{vd.causality}', "
@@ -129,21 +142,27 @@ def _connections(scenario, units) -> list:
                             "connect each input once")
             continue
         seen_dst[c.dst] = c.src
+        if vs.type != "Real":
+            if c.gain != 1.0 or c.offset != 0.0:
+                problems.append(f"connection {c.src} -> {c.dst}: gain/offset apply to Real connections only "
+                                f"(this one is {vs.type}); remove them")
+            discrete.append((si, c.src_variable, di, c.dst_variable))
+            continue
         conns.append(c)
     if problems:
         raise ScenarioError(problems)
-    return conns
+    return conns, discrete
 
 
 def output_columns(scenario, units) -> list[str]:
-    """The recorded signals (``output.signals``, or every Real output of every subsystem)."""
+    """The recorded signals (``output.signals``, or every output of every subsystem, of any type)."""
     sig = scenario.output.signals
     if sig is None:
         cols = []
         for u in units.values():
             md = getattr(u.sub, "md", None)
             if md is not None:
-                cols += [f"{u.name}.{v.name}" for v in md.outputs() if v.type == "Real"]
+                cols += [f"{u.name}.{v.name}" for v in md.outputs()]
             else:
                 cols += [f"{u.name}.{n}" for n in getattr(u.sub, "output_names", ())]
         return cols
@@ -155,9 +174,7 @@ def output_columns(scenario, units) -> list[str]:
             continue
         inst, var = s.split(".", 1)
         try:
-            v = units[inst].sub.variable(var)
-            if v.type != "Real":
-                problems.append(f"output signal '{s}' is of type {v.type}; record Real variables only")
+            units[inst].sub.variable(var)
         except ScenarioError as e:
             problems.append(f"output signal '{s}': {e.problems[0]}")
     if problems:
@@ -165,7 +182,7 @@ def output_columns(scenario, units) -> list[str]:
     return list(dict.fromkeys(sig))
 
 
-def _wire(units, conns, scheme, order, columns) -> History:
+def _wire(units, conns, scheme, order, columns, kinds) -> History:
     """Input blocks, output lists, history views, batches and links of every unit."""
     for c in conns:
         u = units[c.dst_instance]
@@ -174,13 +191,11 @@ def _wire(units, conns, scheme, order, columns) -> History:
         else:
             u.ext_names.append(c.dst_variable)
     for c in conns:
-        u = units[c.src_instance]
-        if c.src_variable not in u.out_names:
-            u.out_names.append(c.src_variable)
-    for col in columns:
+        units[c.src_instance].add_output(c.src_variable)
+    for col, kind in zip(columns, kinds):
         inst, var = col.split(".", 1)
-        if var not in units[inst].out_names:
-            units[inst].out_names.append(var)
+        if kind == "Real":
+            units[inst].add_output(var)
     history = History(MAX_ORDER + 1)
     sizes = []
     for u in units.values():
@@ -195,17 +210,16 @@ def _wire(units, conns, scheme, order, columns) -> History:
         if u.sub.can_interpolate_inputs and (u.nE + u.nI):
             u.derb = u.sub.derivative_batch(u.ext_names + u.int_names, MAX_ORDER)
         u.delivery = choose_delivery(u)
+    block_pos = {(u.name, grp): {n: i for i, n in enumerate(names)}
+                 for u in units.values() for grp, names in (("E", u.ext_names), ("I", u.int_names))}
     for prod in units.values():
         groups: dict[tuple[str, str], list] = {}
         for c in conns:
             if c.src_instance != prod.name:
                 continue
-            cu = units[c.dst_instance]
-            if c.dst_variable in cu.ext_names:
-                key, col = (cu.name, "E"), cu.ext_names.index(c.dst_variable)
-            else:
-                key, col = (cu.name, "I"), cu.int_names.index(c.dst_variable)
-            groups.setdefault(key, []).append((prod.out_names.index(c.src_variable), col, c.gain, c.offset,
+            grp = "E" if c.dst_variable in block_pos[(c.dst_instance, "E")] else "I"
+            key, col = (c.dst_instance, grp), block_pos[(c.dst_instance, grp)][c.dst_variable]
+            groups.setdefault(key, []).append((prod.out_pos[c.src_variable], col, c.gain, c.offset,
                                                f"{c.src} -> {c.dst}"))
         for (cname, grp), entries in groups.items():
             block = units[cname].HE if grp == "E" else units[cname].HI
@@ -218,15 +232,24 @@ def make_plan(scenario, subsystems, scheme) -> Plan:
     """The plan of ``scenario`` over ``subsystems`` (``{name: SubsystemBase}``) for ``scheme``."""
     order = scheme.stepping_order(list(subsystems))
     units = _units(scenario, subsystems)
-    conns = _connections(scenario, units)
+    conns, discrete_conns = _connections(scenario, units)
     columns = output_columns(scenario, units)
-    history = _wire(units, conns, scheme, order, columns)
+    kinds = [units[c.split(".", 1)[0]].sub.variable(c.split(".", 1)[1]).type for c in columns]
+    history = _wire(units, conns, scheme, order, columns, kinds)
+    discrete = DiscreteSignals({n: u.sub for n, u in units.items()}, discrete_conns,
+                               [c for c, k in zip(columns, kinds) if k != "Real"],
+                               lambda a, b: scheme.uses_new_value(a, b, order))
+    for u in units.values():
+        port = discrete.ports[u.name]
+        u.disc = bool(port.inb or port.outb)
     ordered = [units[n] for n in order]
     col_index = {c: i for i, c in enumerate(columns)}
+    real_cols = [c for c, k in zip(columns, kinds) if k == "Real"]
+    rec_typed = [(col_index[c], discrete.value_reader(*c.split(".", 1))) for c, k in zip(columns, kinds) if k != "Real"]
     rec = []
     for u in ordered:
-        pos = [u.out_names.index(c.split(".", 1)[1]) for c in columns if c.split(".", 1)[0] == u.name]
-        cols = [col_index[c] for c in columns if c.split(".", 1)[0] == u.name]
+        pos = [u.out_pos[c.split(".", 1)[1]] for c in real_cols if c.split(".", 1)[0] == u.name]
+        cols = [col_index[c] for c in real_cols if c.split(".", 1)[0] == u.name]
         if pos:
             rec.append((u.outb.values, np.asarray(pos, dtype=np.intp), np.asarray(cols, dtype=np.intp)))
     H = scenario.coupling.macro_step
@@ -236,4 +259,5 @@ def make_plan(scenario, subsystems, scheme) -> Plan:
     if not adaptive and not math.isclose(stride * H, interval, rel_tol=1e-9):
         warnings.warn(f"output.interval {interval} is not a multiple of coupling.macro_step {H}; "
                       f"writing every {stride} macro steps ({stride * H} s)", stacklevel=3)
-    return Plan(order=order, units=ordered, history=history, columns=columns, rec=rec, stride=stride)
+    return Plan(order=order, units=ordered, history=history, columns=columns, rec=rec, stride=stride,
+                kinds=kinds, discrete=discrete, rec_typed=rec_typed)

@@ -110,9 +110,10 @@ class DiscardHalving(ConstantStep):
                 "retry_substeps": self.retry_substeps}
 
     @staticmethod
-    def _retryable(e: FmuCallError) -> bool:
-        """Reject-and-retry only fmi2Discard; any other failure fails the step."""
-        return e.status == "discard"
+    def _retryable(e: FmuCallError, stepper) -> bool:
+        """Reject-and-retry only fmi2Discard, and not when the FMU ended the simulation (fmi2Terminated);
+        any other failure fails the step."""
+        return e.status == "discard" and not stepper.fmu_ended(e)
 
     def take_step(self, stepper, t, t_next):
         cp = stepper.save()
@@ -121,7 +122,7 @@ class DiscardHalving(ConstantStep):
                 stepper.step(t, t_next)
                 return                                      # accept
             except FmuCallError as e:
-                if not self._retryable(e):
+                if not self._retryable(e, stepper):
                     raise                                   # fail
                 first = e
             self.retried_steps += 1                         # reject, retry in halves
@@ -156,7 +157,7 @@ class DiscardHalving(ConstantStep):
                 try:
                     stepper.step(a, b)
                 except FmuCallError as e:
-                    if not self._retryable(e):
+                    if not self._retryable(e, stepper):
                         raise
                     if deepest:
                         raise RetriesExhausted(e, a, b) from e

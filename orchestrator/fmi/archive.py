@@ -6,14 +6,23 @@ checks the archive and parses ``modelDescription.xml`` safely:
 * member names: no absolute paths, no drive letters, no backslashes, no ``..``
   components, no NUL, no duplicates;
 * no symbolic links or other special files;
+* the file itself: a regular file (no FIFO or device), opened once;
 * sizes: each member at most :data:`MAX_MEMBER_BYTES`, all members together at
-  most :data:`MAX_TOTAL_BYTES`, at most :data:`MAX_MEMBERS` members, and no
-  member larger than :data:`RATIO_CHECK_MIN_BYTES` whose compression ratio
-  exceeds :data:`MAX_COMPRESSION_RATIO` (zip bombs); sizes are enforced while
-  extracting too, so a lying header does not help;
-* ``modelDescription.xml`` at most :data:`MAX_XML_BYTES`, without a DOCTYPE
-  (so no entity declarations, internal or external), FMI version 2.0, with a
-  ``CoSimulation`` element.
+  most :data:`MAX_TOTAL_BYTES`, at most :data:`MAX_MEMBERS` members, no member
+  larger than :data:`RATIO_CHECK_MIN_BYTES` whose compression ratio exceeds
+  :data:`MAX_COMPRESSION_RATIO`, and no archive of more than
+  :data:`ARCHIVE_RATIO_MIN_BYTES` whose members together exceed
+  :data:`MAX_ARCHIVE_RATIO` (zip bombs of many small members); sizes are
+  enforced while extracting too, so a lying header does not help, and a
+  caller may pass a smaller budget (a run's total, see
+  :mod:`orchestrator.fmi.extraction`); a member whose CRC fails (a corrupted
+  download) is reported as such;
+* ``modelDescription.xml``: a file member of at most :data:`MAX_XML_BYTES`,
+  parsed by :func:`orchestrator.untrusted.parse_xml` (DOCTYPE and entities
+  refused after decoding, whatever the encoding), ``fmiVersion`` exactly
+  ``2.0`` (or ``2.0.x``), a ``CoSimulation`` element, every variable with a
+  valueReference in 0..2^32-1 (fmi2ValueReference is a 32-bit unsigned int)
+  and an FMI 2.0 causality and variability.
 
 Every problem raises :class:`orchestrator.errors.FmuError` naming the file,
 what is wrong and how to fix it.
@@ -25,22 +34,30 @@ from __future__ import annotations
 
 import functools
 import os
+import re
 import stat
 import sys
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any, Mapping
-from xml.etree import ElementTree
 
 from orchestrator.errors import FmuError
+from orchestrator.untrusted import InputError, open_regular, parse_xml
 
 MAX_MEMBER_BYTES = 512 * 2**20        # one member, uncompressed
 MAX_TOTAL_BYTES = 2 * 2**30           # all members, uncompressed
 MAX_MEMBERS = 20000
 MAX_XML_BYTES = 32 * 2**20            # modelDescription.xml
 MAX_COMPRESSION_RATIO = 1000.0        # uncompressed / compressed, for members above:
-RATIO_CHECK_MIN_BYTES = 4 * 2**20
+RATIO_CHECK_MIN_BYTES = 1 * 2**20
+MAX_ARCHIVE_RATIO = 100.0             # all members together, for archives above:
+ARCHIVE_RATIO_MIN_BYTES = 32 * 2**20
+MAX_VALUE_REFERENCE = 2**32 - 1       # fmi2ValueReference is unsigned int
+CAUSALITIES = ("parameter", "calculatedParameter", "input", "output", "local", "independent")
+VARIABILITIES = ("constant", "fixed", "tunable", "discrete", "continuous")
+_VERSION_RE = re.compile(r"^2\.0(\.[0-9]+)?$")
 
 _CHUNK = 1 << 20
 
@@ -56,7 +73,13 @@ class Variable:
     variability: str               # "constant" | "fixed" | "tunable" | "discrete" | "continuous"
     start: Any = None              # parsed to float/int/bool/str when given
     description: str = ""
-    unit: str = ""
+    unit: str = ""                 # the variable's unit, else its declared type's
+    initial: str = ""              # "exact" | "approx" | "calculated" | "" (FMI 2.0 default applies)
+    declared_type: str = ""
+    min: Any = None                # the variable's min/max, else its declared type's (int/float)
+    max: Any = None
+    nominal: float | None = None
+    items: tuple = ()              # Enumeration: ((name, value, description), ...) of the declared type
 
 
 @dataclass(frozen=True)
@@ -93,6 +116,18 @@ def _fail(path, what: str, fix: str) -> FmuError:
     return FmuError(f"{path}: {what}; {fix}")
 
 
+class _OwnedZip(zipfile.ZipFile):
+    """A ZipFile over a file object it owns (closed with the archive)."""
+
+    def close(self) -> None:
+        fp = self.fp
+        try:
+            super().close()
+        finally:
+            if fp is not None:
+                fp.close()
+
+
 def _open_zip(path: Path) -> zipfile.ZipFile:
     path = Path(path)
     if not path.exists():
@@ -100,11 +135,22 @@ def _open_zip(path: Path) -> zipfile.ZipFile:
     if path.is_dir():
         raise _fail(path, "is a directory, expected an .fmu (zip) file", "point to the .fmu file itself")
     try:
-        return zipfile.ZipFile(path)
-    except zipfile.BadZipFile as e:
+        f = open_regular(path, what="FMU file")      # no FIFO, no device: they would hang or never end
+    except InputError as e:
+        raise FmuError(str(e)) from None
+    try:
+        return _OwnedZip(f)
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, EOFError) as e:
+        f.close()
         raise _fail(path, f"not a valid zip archive ({e})", "rebuild or re-export the FMU") from None
     except OSError as e:
+        f.close()
         raise _fail(path, f"cannot be read ({e})", "check permissions and that the file is complete") from None
+
+
+def _corrupt(path: Path, name: str, exc: Exception) -> FmuError:
+    return _fail(path, f"member {name!r} is corrupt ({exc})", "the file is damaged (an interrupted or corrupted "
+                 "download produces this): download or build the FMU again")
 
 
 def _check_name(path: Path, name: str) -> PurePosixPath:
@@ -127,7 +173,7 @@ def _check_name(path: Path, name: str) -> PurePosixPath:
     return PurePosixPath(name)
 
 
-def check_archive(path: Path | str) -> list[zipfile.ZipInfo]:
+def check_archive(path: Path | str, *, required: str = "modelDescription.xml") -> list[zipfile.ZipInfo]:
     """Check every member header of the FMU at ``path``; return the member list.
 
     Raises :class:`FmuError` for unsafe names, links, too many or too large
@@ -166,36 +212,66 @@ def check_archive(path: Path | str) -> list[zipfile.ZipInfo]:
         if total > MAX_TOTAL_BYTES:
             raise _fail(path, f"members add up to more than {MAX_TOTAL_BYTES} bytes uncompressed",
                         "raise orchestrator.fmi.archive.MAX_TOTAL_BYTES if you trust this FMU")
-    if "modelDescription.xml" not in seen:
-        raise _fail(path, "has no modelDescription.xml at the top level of the archive",
-                    "this is not an FMU; export it again as an FMI 2.0 co-simulation FMU")
+    if total > ARCHIVE_RATIO_MIN_BYTES:
+        packed = max(sum(i.compress_size for i in infos), 1)
+        if total > MAX_ARCHIVE_RATIO * packed:
+            raise _fail(path, f"has compression ratio {total / packed:.0f} over the whole archive ({total} bytes "
+                        f"from {packed}; limit {MAX_ARCHIVE_RATIO:.0f} above {ARCHIVE_RATIO_MIN_BYTES} bytes): this "
+                        "looks like a zip bomb", "do not use this FMU (or raise "
+                        "orchestrator.fmi.archive.MAX_ARCHIVE_RATIO if you trust it)")
+    md = [i for i in infos if i.filename.rstrip("/") == required]
+    if not md:
+        raise _fail(path, f"has no {required} at the top level of the archive",
+                    "this is not an FMU; export it again as an FMI 2.0 co-simulation FMU" if required ==
+                    "modelDescription.xml" else "export it again")
+    if md[0].is_dir():
+        raise _fail(path, f"has a folder named {required}/, not a file",
+                    "this is not a valid archive; export it again")
     return infos
 
 
 def _read_member(zf: zipfile.ZipFile, path: Path, info: zipfile.ZipInfo, limit: int) -> bytes:
     chunks = []
     n = 0
-    with zf.open(info) as f:
-        while True:
-            b = f.read(_CHUNK)
-            if not b:
-                break
-            n += len(b)
-            if n > limit:
-                raise _fail(path, f"member {info.filename!r} is larger than {limit} bytes when decompressed "
-                            "(its header says less)", "do not use this FMU")
-            chunks.append(b)
+    for b in _chunks(zf, info, path):
+        n += len(b)
+        if n > limit:
+            raise _fail(path, f"member {info.filename!r} is larger than {limit} bytes when decompressed "
+                        "(its header says less)", "do not use this FMU")
+        chunks.append(b)
     return b"".join(chunks)
 
 
-def safe_extract(path: Path | str, dest: Path | str) -> Path:
+def _chunks(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path):
+    """The decompressed bytes of member ``info`` in chunks; a CRC or stream failure is an
+    FmuError saying the member is corrupt."""
+    with zf.open(info) as f:
+        while True:
+            try:
+                b = f.read(_CHUNK)
+            except (zipfile.BadZipFile, zlib.error, EOFError, OSError) as e:
+                raise _corrupt(path, info.filename, e) from None
+            if not b:
+                return
+            yield b
+
+
+def safe_extract(path: Path | str, dest: Path | str, *, budget: int | None = None,
+                 required: str = "modelDescription.xml") -> Path:
     """Extract the FMU at ``path`` into directory ``dest`` after :func:`check_archive`.
 
-    Sizes are re-checked while decompressing. Returns ``dest`` as a Path.
+    Sizes are re-checked while decompressing; ``budget`` (bytes) lowers the
+    total limit (a run's remaining extraction budget). Returns ``dest`` as a Path.
     """
     path = Path(path)
     dest = Path(dest)
-    infos = check_archive(path)
+    infos = check_archive(path, required=required)
+    limit = MAX_TOTAL_BYTES if budget is None else min(budget, MAX_TOTAL_BYTES)
+    declared = sum(i.file_size for i in infos)
+    if declared > limit:
+        raise _fail(path, f"members add up to {declared} bytes uncompressed, more than the run's extraction "
+                    f"budget ({limit} bytes left)", "use fewer or smaller FMUs in one run (or raise "
+                    "orchestrator.fmi.extraction.MAX_RUN_EXTRACT_BYTES)")
     dest.mkdir(parents=True, exist_ok=True)
     root = dest.resolve()
     total = 0
@@ -209,24 +285,30 @@ def safe_extract(path: Path | str, dest: Path | str) -> Path:
                 target.mkdir(parents=True, exist_ok=True)
                 continue
             target.parent.mkdir(parents=True, exist_ok=True)
-            n = 0
-            with zf.open(info) as src, open(target, "wb") as out:
-                while True:
-                    b = src.read(_CHUNK)
-                    if not b:
-                        break
-                    n += len(b)
-                    total += len(b)
-                    if n > MAX_MEMBER_BYTES or total > MAX_TOTAL_BYTES:
-                        out.close()
-                        target.unlink(missing_ok=True)
-                        raise _fail(path, f"member {info.filename!r} decompresses beyond the size limits "
-                                    f"({MAX_MEMBER_BYTES} per member, {MAX_TOTAL_BYTES} total)", "do not use this FMU")
-                    out.write(b)
+            total += _copy_member(zf, info, target, path, limit - total, limit)
             mode = (info.external_attr >> 16) & 0o777
             if mode & 0o100:
                 os.chmod(target, 0o755)
     return dest
+
+
+def _copy_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, target: Path, path: Path, left: int,
+                 limit: int) -> int:
+    """Decompress one member into ``target`` (at most MAX_MEMBER_BYTES and ``left`` bytes);
+    return the bytes written. A member that fails (CRC, size) leaves no file behind."""
+    n = 0
+    try:
+        with open(target, "wb") as out:
+            for b in _chunks(zf, info, path):
+                n += len(b)
+                if n > MAX_MEMBER_BYTES or n > left:
+                    raise _fail(path, f"member {info.filename!r} decompresses beyond the size limits "
+                                f"({MAX_MEMBER_BYTES} per member, {limit} total)", "do not use this FMU")
+                out.write(b)
+        return n
+    except FmuError:
+        target.unlink(missing_ok=True)
+        raise
 
 
 def _bool(s: str | None, default: bool) -> bool:
@@ -250,26 +332,67 @@ def _start(type_: str, s: str | None):
     return s
 
 
+def _value_reference(path: Path, name: str, vr: str) -> int:
+    """``vr`` as an fmi2ValueReference (unsigned 32-bit): no truncation, no silent wrap-around."""
+    text = vr.strip()
+    if not re.fullmatch(r"[-+]?[0-9]+", text):
+        raise _fail(path, f"variable {name!r} has a non-integer valueReference {vr[:40]!r}", "re-export the FMU")
+    value = int(text) if len(text) <= 20 else MAX_VALUE_REFERENCE + 1
+    if not 0 <= value <= MAX_VALUE_REFERENCE:
+        shown = text if len(text) <= 20 else text[:12] + f"... ({len(text)} digits)"
+        raise _fail(path, f"valueReference {shown} of variable {name!r} is outside 0..{MAX_VALUE_REFERENCE} "
+                    "(fmi2ValueReference is a 32-bit unsigned integer; a larger one would be truncated and read "
+                    "another variable)", "re-export the FMU with valid value references")
+    return value
+
+
+def _number(type_: str, s: str | None):
+    """A min/max/nominal attribute as int (Integer, Enumeration) or float (Real); None if absent or unreadable."""
+    if s is None or type_ not in ("Real", "Integer", "Enumeration"):
+        return None
+    try:
+        return float(s) if type_ == "Real" else int(s)
+    except ValueError:
+        return None
+
+
+def _type_definitions(root) -> dict[str, tuple[dict, tuple]]:
+    """``{SimpleType name: (attributes of its type element, enumeration items)}`` (FMI 2.0 sec. 2.2.3)."""
+    out = {}
+    td = root.find("TypeDefinitions")
+    for st in (td if td is not None else []):
+        if st.tag != "SimpleType" or not st.get("name"):
+            continue
+        el = next((c for c in st if c.tag in ("Real", "Integer", "Boolean", "String", "Enumeration")), None)
+        if el is None:
+            continue
+        items = []
+        if el.tag == "Enumeration":
+            for it in el:
+                if it.tag == "Item" and it.get("name") is not None:
+                    v = _number("Integer", it.get("value"))
+                    if v is not None:
+                        items.append((it.get("name"), v, it.get("description", "") or ""))
+        out[st.get("name")] = (dict(el.attrib), tuple(items))
+    return out
+
+
 def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelDescription:
     """Parse the bytes of an FMI 2.0 ``modelDescription.xml`` (see module doc for the rules)."""
     path = Path(path)
     if len(xml) > MAX_XML_BYTES:
         raise _fail(path, f"modelDescription.xml is {len(xml)} bytes (limit {MAX_XML_BYTES})",
                     "raise orchestrator.fmi.archive.MAX_XML_BYTES if you trust this FMU")
-    head = xml[:4096].lower()
-    if b"<!doctype" in xml.lower() or b"<!entity" in head:
-        raise _fail(path, "modelDescription.xml contains a DOCTYPE/ENTITY declaration, which FMI does not use "
-                    "and which can expand or fetch content", "remove the DOCTYPE from the model description")
-    try:
-        root = ElementTree.fromstring(xml)
-    except ElementTree.ParseError as e:
-        raise _fail(path, f"modelDescription.xml is not well-formed XML ({e})", "re-export the FMU") from None
+    try:                      # defusedxml: DOCTYPE/entities refused after decoding (UTF-16 too)
+        root = parse_xml(xml, display=str(path), what="modelDescription.xml")
+    except InputError as e:
+        raise FmuError(str(e)) from None
     if root.tag != "fmiModelDescription":
         raise _fail(path, f"modelDescription.xml has root element <{root.tag}>, expected <fmiModelDescription>",
                     "re-export the FMU")
     version = root.get("fmiVersion", "")
-    if not version.startswith("2."):
-        raise _fail(path, f"is an FMI {version or '?'} FMU, expected FMI 2.0",
+    if not _VERSION_RE.match(version):
+        raise _fail(path, f"has fmiVersion {version[:40]!r}, expected FMI 2.0 ('2.0')",
                     "export the model as an FMI 2.0 co-simulation FMU")
     cs = root.find("CoSimulation")
     if cs is None:
@@ -279,6 +402,7 @@ def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelD
     if not ident or any(c in ident for c in "/\\\x00") or ident in (".", ".."):
         raise _fail(path, f"has an invalid modelIdentifier {ident!r}", "re-export the FMU")
 
+    types = _type_definitions(root)
     variables: dict[str, Variable] = {}
     mv = root.find("ModelVariables")
     for sv in (mv if mv is not None else []):
@@ -295,18 +419,25 @@ def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelD
                 break
         if type_el is None:
             raise _fail(path, f"variable {name!r} has no type element", "re-export the FMU")
-        try:
-            vr_int = int(vr)
-        except ValueError:
-            raise _fail(path, f"variable {name!r} has a non-integer valueReference {vr!r}", "re-export the FMU") from None
+        vr_int = _value_reference(path, name, vr)
         causality = sv.get("causality", "local")
         variability = sv.get("variability", "continuous")
+        for what, value, allowed in (("causality", causality, CAUSALITIES),
+                                     ("variability", variability, VARIABILITIES)):
+            if value not in allowed:
+                raise _fail(path, f"{what} {value[:40]!r} of variable {name!r} is not an FMI 2.0 {what} (one of "
+                            f"{', '.join(allowed)})", "re-export the FMU with a valid model description")
         if name in variables:
             raise _fail(path, f"variable {name!r} is declared twice", "re-export the FMU")
+        declared = type_el.get("declaredType", "") or ""
+        attrs = {**types.get(declared, ({}, ()))[0], **type_el.attrib}
         variables[name] = Variable(
             name=name, value_reference=vr_int, type=type_el.tag, causality=causality,
             variability=variability, start=_start(type_el.tag, type_el.get("start")),
-            description=sv.get("description", "") or "", unit=type_el.get("unit", "") or "")
+            description=sv.get("description", "") or "", unit=attrs.get("unit", "") or "",
+            initial=sv.get("initial", "") or "", declared_type=declared,
+            min=_number(type_el.tag, attrs.get("min")), max=_number(type_el.tag, attrs.get("max")),
+            nominal=_number("Real", attrs.get("nominal")), items=types.get(declared, ({}, ()))[1])
 
     de = root.find("DefaultExperiment")
     default_experiment = {}

@@ -13,6 +13,14 @@ options, this file and the PythonFMU version is written to
 scenario references in the repository's ``fmus/`` folder when it is missing,
 has no stamp, or the hash changed.
 
+Where a scenario's ``fmu: JournalBearing`` (one of ours, by name) lives,
+:func:`fmu_location`: in a source checkout (``pyproject.toml`` and
+``fmus/README.md`` beside the packages) the repository's ``fmus/`` folder; in an
+installed package a per-user cache (``platformdirs.user_cache_dir("rotorcosim")``,
+``fmus/<first 16 hex digits of the source hash>/<Name>.fmu``), so a changed
+source gets a new folder and nothing is written into site-packages or the
+working directory.
+
 Each build runs in a fresh Python subprocess: the PythonFMU builder imports
 the slave module by its bare name and instantiates the class, which would
 otherwise leave a stale ``journal_bearing`` module in ``sys.modules`` of the
@@ -41,6 +49,28 @@ log = logging.getLogger(__name__)
 
 REPO = Path(__file__).resolve().parents[2]
 FMU_DIR = REPO / "fmus"
+
+
+def in_checkout() -> bool:
+    """True when running from a source checkout (the repository's fmus/ folder and pyproject.toml exist)."""
+    return (REPO / "pyproject.toml").is_file() and (FMU_DIR / "README.md").is_file()
+
+
+def cache_dir() -> Path:
+    """Per-user cache of our built FMUs for an installed package (``ROTORCOSIM_CACHE`` overrides it)."""
+    env = os.environ.get("ROTORCOSIM_CACHE")
+    if env:
+        return Path(env).expanduser() / "fmus"
+    import platformdirs
+    return Path(platformdirs.user_cache_dir("rotorcosim")) / "fmus"
+
+
+def fmu_location(name: str) -> Path:
+    """Where our FMU ``name`` (a key of :data:`RECIPES`) is built on demand (see the module docstring)."""
+    recipe = RECIPES[name]
+    if in_checkout():
+        return FMU_DIR / f"{name}.fmu"
+    return cache_dir() / source_hash(recipe)[:16] / f"{name}.fmu"
 
 # Capabilities we really have (see docs/fmus.md): variable step sizes, full
 # state save/restore (model arrays included) and pickle serialization; no
@@ -75,6 +105,8 @@ SLAVE_PLUMBING = REPO / "fmu_common"
 RECIPES: dict[str, FmuRecipe] = {
     "JournalBearing": FmuRecipe("JournalBearing", REPO / "bearing_fmu" / "journal_bearing.py",
                                 (REPO / "bearing_fmu", SLAVE_PLUMBING)),
+    "FloatingRingBearing": FmuRecipe("FloatingRingBearing", REPO / "bearing_fmu" / "floating_ring_bearing.py",
+                                     (REPO / "bearing_fmu", SLAVE_PLUMBING)),
     "JeffcottRotor": FmuRecipe("JeffcottRotor", REPO / "rotor_fmu" / "jeffcott_rotor.py",
                                (REPO / "rotor_fmu", SLAVE_PLUMBING)),
     "TurbochargerRotor": FmuRecipe("TurbochargerRotor", REPO / "rotor_fmu" / "turbocharger_rotor.py",
@@ -230,13 +262,14 @@ def ensure_fmus(scenario) -> list[Path]:
             resolved = path.resolve()
         except OSError:
             continue
-        if resolved.parent != FMU_DIR.resolve() or resolved.suffix != ".fmu":
-            continue
         name = resolved.stem
-        if name not in RECIPES or name in seen:
+        if name not in RECIPES or resolved.suffix != ".fmu" or resolved in seen:
             continue
-        seen.add(name)
+        ours = resolved.parent == FMU_DIR.resolve() or resolved == fmu_location(name).resolve()
+        if not ours:
+            continue
+        seen.add(resolved)
         if is_stale(resolved, RECIPES[name]):
             log.info("%s is missing or stale: building it", resolved)
-            rebuilt.append(build_one(RECIPES[name], FMU_DIR))
+            rebuilt.append(build_one(RECIPES[name], resolved.parent))
     return rebuilt

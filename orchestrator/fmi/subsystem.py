@@ -42,6 +42,8 @@ import numpy as np
 
 from orchestrator.errors import FmuCallError, FmuError, LifecycleError, ScenarioError
 from orchestrator.fmi.archive import ModelDescription, Variable, binary_path, read_model_description, safe_extract
+from orchestrator.fmi.bundled_python import own_imports
+from orchestrator.fmi.values import FAMILY, TypedBatch, settable_problem
 
 log = logging.getLogger(__name__)
 
@@ -158,6 +160,26 @@ class SubsystemBase(ABC):
                                     "or recorded signal; connect or record Real variables only")
         return RealBatch([v.name for v in vs], [v.value_reference for v in vs])
 
+    def typed_batch(self, names: Sequence[str], family: str) -> TypedBatch:
+        """A :class:`TypedBatch` of ``family`` ("Integer" also holds Enumeration) for variables ``names``."""
+        vs = [self.variable(n) for n in names]
+        for v in vs:
+            if FAMILY.get(v.type) != family:
+                raise ScenarioError(f"'{self.name}.{v.name}' is of type {v.type}, not of the {family} family")
+        return TypedBatch(family, [v.name for v in vs], [v.value_reference for v in vs])
+
+    def set_values(self, batch: TypedBatch) -> None:
+        """fmi2SetInteger/Boolean/String with ``batch`` (non-Real coupling signals)."""
+        raise LifecycleError(f"subsystem '{self.name}' has no {batch.family} variables to set")
+
+    def get_values(self, batch: TypedBatch) -> None:
+        """fmi2GetInteger/Boolean/String into ``batch``."""
+        raise LifecycleError(f"subsystem '{self.name}' has no {batch.family} variables to get")
+
+    def terminated_by_fmu(self) -> bool:
+        """True if the FMU has ended the simulation (fmi2GetBooleanStatus(fmi2Terminated) after fmi2Discard)."""
+        return False
+
     def derivative_batch(self, names: Sequence[str], max_order: int) -> RealBatch:
         """Batch of entries (vr, order) for orders 1..max_order, order-major."""
         vs = [self.variable(n) for n in names]
@@ -223,9 +245,13 @@ class Subsystem(SubsystemBase):
     fmu_path : the ``.fmu`` file; checked with :mod:`orchestrator.fmi.archive`.
     work_dir : directory to extract into (``work_dir/name``); the caller
         removes it after :meth:`free`.
+    extraction : instead of ``work_dir``, an
+        :class:`orchestrator.fmi.extraction.ExtractionPool`: the run's one extraction of
+        this FMU file, shared with the other instances of the same file.
     """
 
-    def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str):
+    def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str | None = None,
+                 extraction=None):
         super().__init__(name)
         self.fmu_path = Path(fmu_path)
         self.md: ModelDescription = read_model_description(self.fmu_path)
@@ -235,7 +261,12 @@ class Subsystem(SubsystemBase):
         self._log_messages: collections.deque[str] = collections.deque(maxlen=8)
         self._state = "new"      # new -> instantiated -> initializing -> stepping -> terminated -> freed; "error"
         self._slave = None
-        self.unzip_dir = safe_extract(self.fmu_path, Path(work_dir) / name)
+        if extraction is not None:
+            self.unzip_dir = extraction.extract(self.fmu_path)
+        elif work_dir is not None:
+            self.unzip_dir = safe_extract(self.fmu_path, Path(work_dir) / name)
+        else:
+            raise LifecycleError(f"Subsystem('{name}'): give work_dir= or extraction= (where to extract the FMU)")
         binary_path(self.unzip_dir, self.md)   # clear error when no binary for this platform
 
         from fmpy.fmi2 import FMU2Slave
@@ -257,7 +288,8 @@ class Subsystem(SubsystemBase):
         self._c_do_step = self._f["fmi2DoStep"]
         self.calls["instantiate"] += 1
         try:
-            self._slave.instantiate(callbacks=cb, loggingOn=True)
+            with own_imports(self.unzip_dir):   # a PythonFMU FMU imports the packages it bundles, not a cached copy
+                self._slave.instantiate(callbacks=cb, loggingOn=True)
         except Exception as e:
             self._free_library()
             raise FmuCallError(name, "fmi2Instantiate", "failed", self._detail(str(e))) from e
@@ -305,9 +337,10 @@ class Subsystem(SubsystemBase):
         from fmpy.fmi2 import fmi2Boolean, fmi2Integer, fmi2Real, fmi2String, fmi2ValueReference
         for pname, value in values.items():
             v = self.variable(pname)
-            if v.causality not in ("parameter", "input") and v.variability != "tunable":
-                raise ScenarioError(f"'{self.name}.{pname}' has causality '{v.causality}', expected a parameter "
-                                    "(or input); set only parameters under 'parameters:'")
+            why = settable_problem(v)
+            if why is not None:
+                raise ScenarioError(f"'{self.name}.{pname}' cannot be given a value before initialization: it is "
+                                    f"{why}; remove it from 'parameters:'")
             vr = (fmi2ValueReference * 1)(v.value_reference)
             try:
                 if v.type == "Real":
@@ -344,6 +377,33 @@ class Subsystem(SubsystemBase):
     def exit_initialization_mode(self) -> None:
         self._call("fmi2ExitInitializationMode", self._component)
         self._state = "stepping"
+
+    def set_values(self, batch: TypedBatch) -> None:
+        if batch.n:
+            self._call(f"fmi2Set{batch.family}", self._component, batch.c_vrs, batch.n, batch.c_values)
+
+    def get_values(self, batch: TypedBatch) -> None:
+        if batch.n:
+            self._call(f"fmi2Get{batch.family}", self._component, batch.c_vrs, batch.n, batch.c_values)
+
+    def terminated_by_fmu(self) -> bool:
+        """fmi2GetBooleanStatus(fmi2Terminated) (FMI 2.0 sec. 4.2.3); False if the FMU cannot answer.
+
+        FMUs generated by PythonFMU (0.6, 0.7) answer True after *every* discarded step (its
+        ``do_step`` returning False), so for them the flag tells nothing: their discard stays a
+        discard (``coupling.discard_retries`` applies), as our own FMUs rely on.
+        """
+        if self.md.generation_tool.startswith("PythonFMU"):
+            return False
+        from fmpy.fmi2 import fmi2Boolean
+        flag = fmi2Boolean(0)
+        try:
+            res = self._f["fmi2GetBooleanStatus"](self._component, 3, ctypes.byref(flag))   # 3 = fmi2Terminated
+        except Exception as e:   # PythonFMU and others may not implement it
+            log.debug("%s: fmi2GetBooleanStatus(fmi2Terminated) raised %s", self.name, e)
+            return False
+        self.calls["getStatus"] += 1
+        return res == 0 and bool(flag.value)
 
     # -- hot path (no allocation) ------------------------------------------------
     def set_real(self, batch: RealBatch) -> None:
@@ -402,8 +462,10 @@ class Subsystem(SubsystemBase):
 
     # -- end ----------------------------------------------------------------------
     def terminate(self) -> None:
-        """fmi2Terminate, unless the instance is in an error state (FMI forbids it then)."""
-        if self._state in ("initializing", "stepping", "instantiated"):
+        """fmi2Terminate after initialization (states stepComplete/stepFailed) only: FMI 2.0 allows
+        fmi2Terminate in no other state (sec. 4.2.4), so an instance still instantiated or in
+        initialization mode, or in an error state, is only freed."""
+        if self._state == "stepping":
             self._state = "terminated"
             self._call("fmi2Terminate", self._component)
 

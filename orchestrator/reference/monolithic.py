@@ -236,6 +236,31 @@ def _columns(scenario: Scenario, system: MonolithicSystem) -> list[str]:
     return [f"{n}.{v}" for n, a in system.adapters.items() for v in a.output_names]
 
 
+def preflight(scenario: Scenario):
+    """The checks :func:`run_monolithic` makes before integrating (``rotorcosim validate`` makes them too).
+
+    Returns ``(system, plan)`` with ``plan`` = ``{"opts", "method", "step", "columns"}``; raises
+    :class:`ScenarioError` for an unsupported model or option.
+    """
+    opts = dict(scenario.coupling.options)
+    unknown = set(opts) - _OPTIONS
+    if unknown:
+        raise ScenarioError(f"coupling.options {sorted(unknown)} are not options of the monolithic "
+                            f"reference (valid: {sorted(_OPTIONS)})")
+    system = MonolithicSystem(scenario)
+    interval = float(scenario.output.interval or scenario.coupling.macro_step)
+    method = str(opts.get("method", "BDF2" if system.implicit else "Radau"))
+    step = float(opts.get("step", min(DEFAULT_STEP, interval)))
+    if method == "BDF2":
+        if not (step > 0 and math.isfinite(step)):
+            raise ScenarioError(f"coupling.options.step must be a positive time [s] (got {step!r})")
+    elif system.implicit:
+        raise ScenarioError(
+            f"coupling.options.method {method!r}: {system.implicit} have a mass-conserving film, "
+            "whose state only the monolithic BDF2 integrator advances; use method: BDF2 (default)")
+    return system, {"opts": opts, "method": method, "step": step, "columns": _columns(scenario, system)}
+
+
 def run_monolithic(scenario: Scenario, out_dir: str | Path | None = None, progress=None):
     """Integrate ``scenario`` monolithically; write results.csv and summary.json; return CoSimResult.
 
@@ -250,16 +275,12 @@ def run_monolithic(scenario: Scenario, out_dir: str | Path | None = None, progre
     from orchestrator.results.summary import make_summary, write_summary
 
     t_wall = time.perf_counter()
-    opts = dict(scenario.coupling.options)
-    unknown = set(opts) - _OPTIONS
-    if unknown:
-        raise ScenarioError(f"coupling.options {sorted(unknown)} are not options of the monolithic "
-                            f"reference (valid: {sorted(_OPTIONS)})")
     for f in scenario.fmus:
         if f.parameters.get("fields_file"):
             warnings.warn(f"monolithic reference: '{f.name}.fields_file' is ignored (no film fields "
                           "are written by the monolithic integrator)", stacklevel=2)
-    system = MonolithicSystem(scenario)
+    system, plan = preflight(scenario)
+    opts, method, step, columns = plan["opts"], plan["method"], plan["step"], plan["columns"]
     t0, t1 = float(scenario.start_time), float(scenario.stop_time)
     interval = float(scenario.output.interval or scenario.coupling.macro_step)
     n_out = int(math.floor((t1 - t0) / interval * (1 + 1e-12))) + 1
@@ -268,17 +289,7 @@ def run_monolithic(scenario: Scenario, out_dir: str | Path | None = None, progre
         t_grid = np.append(t_grid, t1)
     rtol = float(opts.get("rtol", DEFAULT_RTOL))
     atol = float(opts.get("atol", DEFAULT_ATOL))
-    method = str(opts.get("method", "BDF2" if system.implicit else "Radau"))
     max_step = float(opts.get("max_step", interval))
-    step = float(opts.get("step", min(DEFAULT_STEP, interval)))
-    if method == "BDF2":
-        if not (step > 0 and math.isfinite(step)):
-            raise ScenarioError(f"coupling.options.step must be a positive time [s] (got {step!r})")
-    elif system.implicit:
-        raise ScenarioError(
-            f"coupling.options.method {method!r}: {system.implicit} have a mass-conserving film, "
-            "whose state only the monolithic BDF2 integrator advances; use method: BDF2 (default)")
-    columns = _columns(scenario, system)
     S0 = system.initial_state()
     if method == "BDF2":                   # implicit adapters are initialised at t0's inputs
         system.evaluate(t0, S0, start={"step": step, "tol": _film_tol(rtol)})

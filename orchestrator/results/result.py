@@ -18,6 +18,8 @@ class Status(enum.Enum):
     NOT_STARTED = "not started: call setup() and initialize() first"
     RUNNING = "running: call step() until the status changes"
     FINISHED = "finished: the run reached stop_time"
+    STOPPED_BY_FMU = ("stopped by an FMU: an FMU ended the simulation before stop_time (fmi2Terminated); the "
+                      "message says which FMU and when, and the rows up to then are kept")
     FAILED = ("failed: the run stopped early; the message says where and why, the rows written so far are in "
               "results.csv; try a smaller macro step or check the FMU named in the message")
 
@@ -47,7 +49,7 @@ class CoSimResult:
 
     @property
     def success(self) -> bool:
-        return self.status is Status.FINISHED
+        return self.status in (Status.FINISHED, Status.STOPPED_BY_FMU)
 
     @classmethod
     def load(cls, out_dir: str | Path) -> "CoSimResult":

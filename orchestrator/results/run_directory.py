@@ -7,7 +7,6 @@ reference, a compare variant); analysis, plots and compare read runs through it 
 from __future__ import annotations
 
 import csv
-import json
 import logging
 import warnings
 from pathlib import Path
@@ -28,7 +27,13 @@ def read_results(path: str | Path) -> dict[str, np.ndarray]:
     number of fields are skipped. Raises ``ValueError`` / ``OSError`` with the
     file name on an empty or unreadable file.
     """
+    from orchestrator.untrusted import InputError, open_regular
+
     path = Path(path)
+    try:                    # a run folder may come from anyone: no FIFO or device behind the name
+        open_regular(path, what="results file").close()
+    except InputError as exc:
+        raise ValueError(str(exc)) from None
     with path.open(newline="") as fh:
         header = next(csv.reader(fh), None)
     if not header:
@@ -76,8 +81,13 @@ class RunDirectory:
         return read_results(self.results_csv)
 
     def summary(self) -> dict[str, Any]:
-        """summary.json (raises OSError / ValueError)."""
-        return json.loads(self.summary_json.read_text())
+        """summary.json, read with the bounded reader (raises
+        :class:`orchestrator.untrusted.InputError`, or ValueError when it is no JSON object)."""
+        from orchestrator.untrusted import load_json
+        doc = load_json(self.summary_json, what="summary.json")
+        if not isinstance(doc, dict):
+            raise ValueError(f"{self.summary_json}: expected a JSON object, got {type(doc).__name__}")
+        return doc
 
     def field_files(self) -> list[Path]:
         """The film field files a bearing FMU wrote into the folder (``<instance>_fields.npz``)."""

@@ -61,10 +61,12 @@ def versions() -> dict[str, str]:
     """Versions of the software a run depends on (for summary.json)."""
     import platform
     out = {"python": platform.python_version()}
-    for mod, key in (("numpy", "numpy"), ("scipy", "scipy"), ("fmpy", "fmpy"), ("pythonfmu", "pythonfmu")):
+    from importlib.metadata import PackageNotFoundError, version
+    # installed distributions, not sys.modules: an FMU bundling its own pythonfmu may have put its copy there
+    for key in ("numpy", "scipy", "fmpy", "pythonfmu"):
         try:
-            out[key] = __import__(mod).__version__
-        except Exception:
+            out[key] = version(key)
+        except PackageNotFoundError:
             out[key] = "unavailable"
     try:
         from importlib.metadata import version

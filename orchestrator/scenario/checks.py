@@ -10,24 +10,36 @@ from __future__ import annotations
 from orchestrator.errors import CosimError
 from orchestrator.fmi.archive import cached_model_description
 from orchestrator.scenario.coupling_sections import check_capabilities
+from orchestrator.fmi.values import check_value, settable_problem
+from orchestrator.scenario.completion import Completion
 from orchestrator.scenario.nodes import FLOAT_RE, article, did_you_mean, ranked
 
 
-class FmuChecks:
+class FmuChecks(Completion):
     """Checks against the FMUs (a mixin of :class:`orchestrator.scenario.loader.ScenarioLoader`)."""
 
     mds: dict
 
     def check_draft(self, draft) -> dict | None:
-        """Read every FMU of ``draft`` and check it; the checked parameters per instance."""
+        """Read every FMU of ``draft`` and check it; the checked parameters per instance.
+
+        Also completes the draft from the FMUs: DefaultExperiment values the scenario omits
+        (``draft.kw["defaults"]`` says which), array connections element by element and
+        ``output.signals`` patterns expanded."""
         self.mds = {}
         self.fmu_caps = {}
+        self.des = {}
+        self.fixed_step = []
         for f in draft.fmus:
             self.read_fmu(f)
+        draft.kw["defaults"] = self.apply_defaults(draft)
+        self.check_fixed_step(draft)
         params = {f["name"]: self.check_parameters(f) for f in draft.fmus}
+        draft.connections = self.expand_arrays(draft.connections)
         self.check_connections(draft.connections)
         if len(self.fmu_caps) == len(draft.fmus):
             check_capabilities(self, draft.coupling_node, draft.coupling, self.fmu_caps)
+        draft.signals = self.expand_patterns(draft.signals)
         self.check_signals(draft.signals, "output.signals")
         if draft.analysis_node is not None and isinstance(draft.kw.get("analysis"), dict):
             self.check_analysis(draft.analysis_node, draft.signals)
@@ -38,7 +50,16 @@ class FmuChecks:
         if path is None:
             return
         node = f["path_node"]
-        if not path.exists():
+        try:
+            exists = path.exists()
+        except (OSError, ValueError) as exc:           # e.g. a name too long for the file system
+            self.err(node, f"FMU path of '{name}' cannot be used: {path}: {exc}; fix 'fmus.{name}.path'")
+            return
+        if not exists and f.get("ours"):
+            self.err(node, f"our FMU {f['ours']} of '{name}' is not built yet ({path}); run without --no-build, "
+                           "or build it with `rotorcosim build-fmus`")
+            return
+        if not exists:
             self.err(node, f"FMU file of '{name}' not found: {path} (paths are relative to the scenario's "
                            f"folder {self.path.parent.resolve()}); fix 'fmus.{name}.path', or build our FMUs "
                            "with `rotorcosim build-fmus`")
@@ -54,6 +75,9 @@ class FmuChecks:
             return
         self.mds[name] = dict(md.variables)
         self.fmu_caps[name] = md
+        self.des[name] = dict(md.default_experiment)
+        if not md.can_handle_variable_step:
+            self.fixed_step.append(name)
         if md.can_be_instantiated_only_once_per_process:
             users = [g["name"] for g in self.fmu_specs if g["path"] == path]
             if len(users) > 1 and users[0] != name:
@@ -63,27 +87,34 @@ class FmuChecks:
     def check_parameters(self, f: dict) -> dict:
         name, out = f["name"], {}
         variables = self.mds.get(name)
+        settable = None                                # once per FMU (not per parameter: 200k variables)
         for pname, (value, node) in f["parameters"].items():
             if variables is None:
                 out[pname] = value
                 continue
-            settable = [v.name for v in variables.values()
-                        if v.causality in ("parameter", "input") and v.variability != "constant"]
+            if settable is None:
+                settable = [v.name for v in variables.values() if settable_problem(v) is None]
             var = variables.get(pname)
             if var is None:
                 self.err(node, f"'{name}' has no parameter '{pname}'; parameters of '{name}' (closest first): "
                                f"{ranked(pname, settable)}")
                 continue
-            if pname not in settable:
-                self.err(node, f"'{name}.{pname}' is {article(var.variability)} {var.causality}, not a parameter; only "
-                               f"parameters and inputs can be given values: {ranked(pname, settable)}")
+            why = settable_problem(var)
+            if why is not None:
+                self.err(node, f"'{name}.{pname}' is {article(var.variability)} {var.causality}, not a parameter, "
+                               f"and cannot be given a value before initialization: it is {why}; variables that "
+                               f"can (closest first): {ranked(pname, settable)}")
                 continue
-            conv = convert(value, var.type)
+            conv = convert(value, var.type) if var.type != "Enumeration" or not isinstance(value, str) else value
             if conv is None:
                 example = {"Real": "1.5", "Integer": "3", "Enumeration": "1", "Boolean": "true",
                            "String": '"text"'}.get(var.type, "a value")
                 self.err(node, f"parameter '{name}.{pname}' is {var.type} (got {self.got(node)}); write a "
                                f"{var.type} value such as {example}")
+                continue
+            conv, problem = check_value(var, conv, f"{name}.{pname}")
+            if problem is not None:
+                self.err(node, f"parameter {problem}")
                 continue
             out[pname] = conv
         return out
@@ -113,10 +144,13 @@ class FmuChecks:
                 continue
             if src.type != dst.type:
                 self.err(c["node"], f"type mismatch: '{c['from']}' is {src.type} but '{c['to']}' is {dst.type}; "
-                                    "connect variables of the same type (Real to Real)")
+                                    "connect variables of the same type (Real to Real, Integer to Integer, ...)")
             elif src.type != "Real":
-                self.err(c["node"], f"'{c['from']}' -> '{c['to']}' couples {src.type} variables, but the master "
-                                    "couples (and extrapolates) Real signals only; connect Real variables")
+                for key in ("gain", "offset"):
+                    if key + "_node" in c:
+                        self.err(c[key + "_node"], f"'{key}' of the connection '{c['from']}' -> '{c['to']}': gain "
+                                                   f"and offset apply to Real connections only (this one is "
+                                                   f"{src.type}, held over the macro step); remove '{key}'")
 
     def variable(self, signal: str, node, what: str, want: str | None = None):
         """The model variable named by ``instance.variable`` or None (problem reported)."""
@@ -143,10 +177,7 @@ class FmuChecks:
             if "." not in s:
                 self.err(node, f"'{what}' entries must be 'instance.variable' (got {s!r}); add the instance name")
                 continue
-            var = self.variable(s, node, f"'{what}' entry {s!r}")
-            if var is not None and var.type != "Real":
-                self.err(node, f"'{what}' entry {s!r} is {article(var.type)} variable; results.csv records Real "
-                               "variables only: remove it")
+            self.variable(s, node, f"'{what}' entry {s!r}")
 
     def check_analysis(self, node, signals) -> None:
         recorded = None if signals is None else {s for s, _ in signals}

@@ -10,8 +10,11 @@ import re
 from pathlib import Path
 from typing import Sequence
 
+import yaml
+
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario.checks import FmuChecks
+from orchestrator.scenario.limits import check_overrides
 from orchestrator.scenario.model import Scenario
 from orchestrator.scenario.sections import Draft, SectionReader
 
@@ -57,6 +60,8 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
     ScenarioError
         listing every problem found, each as ``file:line: what is wrong (got X); fix``.
     """
+    check_overrides(overrides)
+    path = from_ssp(Path(path))
     loader = ScenarioLoader(Path(path), overrides)
     draft = loader.read_sections()
     if build_fmus and draft is not None and not loader.problems and draft.complete:
@@ -65,6 +70,63 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
     if loader.problems or scenario is None:
         raise ScenarioError(sorted(loader.problems, key=line_order) or [f"{path}: invalid scenario"])
     return scenario
+
+
+def from_ssp(path: Path) -> Path:
+    """An ``.ssp``/``.ssd`` file, or a YAML scenario with ``ssp: FILE``, as a generated YAML scenario.
+
+    The SSP is read by :func:`orchestrator.ssp.scenario_from_ssp` (an archive is extracted into a
+    temporary folder that lives until the process exits); a YAML scenario's own keys then add to or
+    override it: ``fmus.<instance>`` entries are merged key by key (so ``parameters`` can be added),
+    ``connections`` are appended, every other key replaces the SSP's. The generated file is written
+    next to the extracted SSP and loaded as any scenario (problems name that file).
+    """
+    import atexit
+    import shutil
+    import tempfile
+
+    from orchestrator.scenario.ssp import scenario_from_ssp
+    overlay: dict = {}
+    ssp = path
+    if path.suffix.lower() in (".yaml", ".yml") and path.is_file():
+        try:              # bounded like every scenario read (size, UTF-8, depth, aliases)
+            from orchestrator.scenario.nodes import YamlLoader
+            from orchestrator.untrusted import InputError, load_yaml, read_text
+            doc = load_yaml(read_text(path, what="scenario file"), display=str(path), loader_cls=YamlLoader)
+        except (InputError, yaml.YAMLError):
+            return path                                  # the loader reports it with line numbers
+        if not isinstance(doc, dict) or "ssp" not in doc:
+            return path
+        if not isinstance(doc["ssp"], str):
+            raise ScenarioError(f"{path}: 'ssp' must name an .ssp or .ssd file (got {doc['ssp']!r})")
+        ssp = (path.parent / doc.pop("ssp")).resolve()
+        overlay = doc
+    elif path.suffix.lower() not in (".ssp", ".ssd"):
+        return path
+    if not ssp.is_file():
+        raise ScenarioError(f"{path}: SSP file {ssp} not found; check the path")
+    work = Path(tempfile.mkdtemp(prefix="rotorcosim-ssp-"))
+    atexit.register(shutil.rmtree, work, True)
+    doc = scenario_from_ssp(ssp, work / "ssp")
+    for key, value in overlay.items():
+        if key == "fmus" and isinstance(value, dict):
+            for inst, entry in value.items():
+                base = doc["fmus"].get(inst, {})
+                merged = {**base, **(entry or {})}
+                if isinstance(base.get("parameters"), dict) and isinstance((entry or {}).get("parameters"), dict):
+                    merged["parameters"] = {**base["parameters"], **entry["parameters"]}
+                if "path" in (entry or {}):
+                    merged["path"] = str((path.parent / entry["path"]).resolve())
+                doc["fmus"][inst] = merged
+        elif key == "connections" and isinstance(value, list):
+            doc["connections"] = doc.get("connections", []) + value
+        elif key == "coupling" and isinstance(value, dict) and isinstance(doc.get("coupling"), dict):
+            doc["coupling"] = {**doc["coupling"], **value}
+        else:
+            doc[key] = value
+    out = work / f"{ssp.stem}.yaml"
+    out.write_text(f"# generated from {ssp} by rotorcosim\n" + yaml.safe_dump(doc, sort_keys=False))
+    return out
 
 
 def line_order(problem: str) -> tuple[int, int]:

@@ -20,11 +20,12 @@ MAX_DISCARD_RETRIES = 30          # coupling.discard_retries: smallest retried s
 # the keys of each section, and the schema --set overrides navigate by
 TOP_KEYS = ("name", "version", "description", "start_time", "stop_time", "fmus",
             "connections", "coupling", "output", "analysis", "compare")
-FMU_KEYS = ("path", "parameters", "substeps")
+FMU_KEYS = ("path", "fmu", "parameters", "substeps")
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
                  "interpolation_order", "substeps", "discard_retries", "options", "iteration", "step_control")
-OUTPUT_KEYS = ("interval", "signals")
+OUTPUT_KEYS = ("interval", "signals", "format")
+OUTPUT_FORMATS = ("csv", "parquet")
 # override navigation: (schema, key) -> schema of the child; (schema) -> default
 CHILD_SCHEMA = {
     ("top", "fmus"): "instances", ("top", "connections"): "connections",
@@ -126,6 +127,7 @@ class OutputSpec:
 
     interval: float | None = None            # [s]; None -> macro_step
     signals: tuple[str, ...] | None = None   # None -> every connected or FMU output
+    format: str = "csv"                      # "csv" (results.csv) | "parquet" (results.parquet, needs pyarrow)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -144,6 +146,7 @@ class Scenario:
     source: Path | None = None               # the YAML file, if loaded from one
     analysis: Mapping[str, Any] | None = None  # optional run-up analysis section (see docs/scenario-format.md)
     compare: Mapping[str, Any] | None = None   # optional compare section (see docs/compare.md)
+    defaults: Mapping[str, str] = field(default_factory=dict)  # values taken from the FMUs' DefaultExperiment
 
     def fmu(self, name: str) -> FmuSpec:
         for f in self.fmus:

@@ -31,13 +31,24 @@ class YamlLoader(yaml.SafeLoader):
 YamlLoader.add_implicit_resolver("tag:yaml.org,2002:float", FLOAT_RE, list("-+0123456789."))
 
 
+MAX_RANKED = 2000                  # candidates compared in full for a "closest first" list
+
+
 def ranked(name: str, candidates, limit: int = 15) -> str:
-    """``candidates`` closest to ``name`` first, as one readable string."""
+    """``candidates`` closest to ``name`` first, as one readable string.
+
+    Above MAX_RANKED candidates only those sharing the first letter (else the first
+    MAX_RANKED) are compared, so a bad name in an FMU of 200k variables stays cheap."""
+    candidates = list(candidates)
+    total = len(candidates)
+    if total > MAX_RANKED:
+        near = [c for c in candidates if c[:1].lower() == name[:1].lower()]
+        candidates = (near if near else candidates)[:MAX_RANKED]
     order = sorted(candidates, key=lambda c: (
         -difflib.SequenceMatcher(None, name.lower(), c.lower()).ratio(), c))
     text = ", ".join(order[:limit])
-    if len(order) > limit:
-        text += f", ... ({len(order) - limit} more)"
+    if total > limit:
+        text += f", ... ({total - limit} more)"
     return text or "(none)"
 
 

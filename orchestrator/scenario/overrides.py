@@ -10,6 +10,7 @@ import yaml
 
 from orchestrator.scenario.model import CHILD_SCHEMA, SECTION_KEYS
 from orchestrator.scenario.nodes import MAP_TAG, STR_TAG, NodeReader, YamlLoader, did_you_mean, unshared
+from orchestrator.untrusted import InputError, compose_yaml
 
 
 # -- overrides ---------------------------------------------------------
@@ -23,7 +24,10 @@ def apply_override(reader: NodeReader, root, text: str) -> None:
                              "e.g. --set coupling.macro_step=5e-5")
         return
     try:
-        vnode = yaml.compose(raw.strip(), Loader=YamlLoader)
+        vnode = compose_yaml(raw.strip(), display=origin, loader_cls=YamlLoader)
+    except InputError as exc:                        # bounded like the file: depth, aliases, digits
+        reader.problems.append(str(exc))
+        return
     except yaml.YAMLError as exc:
         reader.problems.append(f"{origin}: the value is not valid YAML ({exc}); quote or fix it")
         return

@@ -6,6 +6,7 @@ nothing raised for a bad value); checks against the FMUs are :mod:`.checks`.
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import re
 from dataclasses import dataclass
@@ -17,14 +18,24 @@ import yaml
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario.coupling_sections import load_iteration, load_step_control
 from orchestrator.scenario.model import (
-    CONNECTION_KEYS, COUPLING_KEYS, FMU_KEYS, MAX_DISCARD_RETRIES, MAX_ORDER, OUTPUT_KEYS, SCENARIO_VERSION,
+    CONNECTION_KEYS, COUPLING_KEYS, FMU_KEYS, MAX_DISCARD_RETRIES, MAX_ORDER, OUTPUT_FORMATS, OUTPUT_KEYS,
+    SCENARIO_VERSION,
     SCHEMES, TOP_KEYS, ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario)
 from orchestrator.scenario.nodes import NodeReader, YamlLoader, did_you_mean, flatten_merges
+from orchestrator.scenario.limits import MAX_MACRO_STEPS, MAX_OUTPUT_ROWS, MAX_SUBSTEPS, MIN_RELATIVE_STEP
 from orchestrator.scenario.overrides import apply_override
+from orchestrator.untrusted import InputError, check_yaml_tree, name_problem, read_yaml_tree
 
 log = logging.getLogger("orchestrator.scenario")
 
 INSTANCE_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
+FROM_FMUS = object()        # stop_time not written: taken from the FMUs' DefaultExperiment (checks.apply_defaults)
+
+
+def our_fmus() -> list[str]:
+    """The names of our FMUs (``fmu: NAME``)."""
+    from orchestrator.fmi.build import RECIPES
+    return list(RECIPES)
 
 
 @dataclass
@@ -43,10 +54,11 @@ class Draft:
     signals: list | None
     analysis_node: Any = None
     coupling_node: Any = None
+    output_format: str = "csv"
 
     @property
     def complete(self) -> bool:
-        return None not in self.kw.values() and self.coupling is not None
+        return None not in self.kw.values() and self.coupling is not None      # FROM_FMUS counts as given
 
     def scenario(self, params: dict | None = None) -> Scenario:
         """The :class:`Scenario` of these sections; ``params``: checked parameters per instance
@@ -60,7 +72,8 @@ class Draft:
             connections=tuple(ConnectionSpec(src=c["from"], dst=c["to"], gain=c["gain"], offset=c["offset"],
                                              line=c["line"]) for c in self.connections),
             coupling=CouplingSpec(**self.coupling),
-            output=OutputSpec(interval=self.interval, signals=self.signals and tuple(s for s, _ in self.signals)),
+            output=OutputSpec(interval=self.interval, signals=self.signals and tuple(s for s, _ in self.signals),
+                              format=self.output_format),
             **self.kw)
 
 
@@ -72,28 +85,15 @@ class SectionReader(NodeReader):
         self.overrides = list(overrides)
         self.instances: list[str] = []         # every instance name written under 'fmus'
         self.fmu_specs: list[dict] = []        # parsed 'fmus' entries
+        self.output_format = "csv"
 
     # -- the pass ----------------------------------------------------------
     def read_sections(self) -> Draft | None:
         """Read the file, apply the overrides and parse every section (no FMU is opened)."""
-        try:
-            text = self.path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise ScenarioError(f"{self.display}: cannot read the scenario file ({exc.strerror or exc}); "
-                                "check the path") from None
-        except UnicodeDecodeError as exc:
-            raise ScenarioError(f"{self.display}: the scenario file is not UTF-8 text ({exc.reason} at "
-                                f"byte {exc.start}); save it as UTF-8") from None
-        try:
-            root = yaml.compose(text, Loader=YamlLoader)
-        except yaml.MarkedYAMLError as exc:
-            mark = exc.problem_mark or exc.context_mark
-            where = f"{self.display}:{mark.line + 1}:{mark.column + 1}" if mark else self.display
-            context = f" {exc.context}" if exc.context else ""
-            raise ScenarioError(f"{where}: malformed YAML: {exc.problem}{context}; fix the syntax there "
-                                "(indentation, a missing ':' or a closing bracket)") from None
-        except yaml.YAMLError as exc:
-            raise ScenarioError(f"{self.display}: malformed YAML ({exc}); fix the syntax") from None
+        try:                 # bounded: regular file, size, UTF-8, YAML depth and alias expansion
+            root = read_yaml_tree(self.path, what="scenario file", loader_cls=YamlLoader)
+        except InputError as exc:
+            raise ScenarioError(str(exc)) from None
         if root is None:
             raise ScenarioError(f"{self.display}:1: expected a scenario (a mapping with at least "
                                 "'name', 'stop_time' and 'fmus'), got an empty file; see docs/scenario-format.md")
@@ -103,10 +103,14 @@ class SectionReader(NodeReader):
             mark = exc.problem_mark or exc.context_mark
             raise ScenarioError(f"{self.display}:{mark.line + 1 if mark else 1}: {exc.problem}; '<<' merges "
                                 "mappings only (write '<<: *anchor' or '<<: [*a, *b]')") from None
+        try:
+            check_yaml_tree(root, display=self.display)      # the merged tree, bounded again
+        except InputError as exc:
+            raise ScenarioError(str(exc)) from None
         for text in self.overrides:
             apply_override(self, root, text)
-        top = self.mapping(root, "top level", TOP_KEYS, ("name", "stop_time", "fmus"),
-                           fix="a scenario is a mapping with at least 'name', 'stop_time' and 'fmus'")
+        top = self.mapping(root, "top level", TOP_KEYS, ("name", "fmus"),
+                           fix="a scenario is a mapping with at least 'name' and 'fmus'")
         if top is None:
             return None
         get = lambda key: top[key][1] if key in top else None      # noqa: E731
@@ -114,9 +118,9 @@ class SectionReader(NodeReader):
         kw: dict[str, Any] = {"source": self.path.resolve()}
         if "name" in top:
             name = self.string(get("name"), "name", "give the scenario a name such as 'two-mass-oscillator'")
-            if name is not None and (re.search(r"[/\\\x00-\x1f]", name) or name.startswith(".")):
-                self.err(get("name"), f"'name' is used as a folder name (runs/<name>) and must not contain "
-                                      f"'/', '\\' or control characters nor start with '.' (got {name!r}); rename it")
+            if name is not None and name_problem(name) is not None:     # the one check of names that become paths
+                self.err(get("name"), f"'name' is used as a folder name (runs/<name>), but {name_problem(name)}; "
+                                      "rename it with letters, digits, '-', '_' and '.'")
                 name = None
             kw["name"] = name
         if "version" in top:
@@ -135,7 +139,7 @@ class SectionReader(NodeReader):
                 kw["description"] = d
         start = self.number(get("start_time"), "start_time") if "start_time" in top else 0.0
         kw["start_time"] = start
-        stop = None
+        stop = FROM_FMUS if "stop_time" not in top else None      # the FMUs' DefaultExperiment (checks.py)
         if "stop_time" in top:
             stop = self.number(get("stop_time"), "stop_time", fix="write the end time in seconds, e.g. 0.5")
             if stop is not None and start is not None and stop <= start:
@@ -146,8 +150,10 @@ class SectionReader(NodeReader):
         fmus = self.load_fmus(get("fmus")) if "fmus" in top else []
         self.fmu_specs = fmus
         names = [f["name"] for f in fmus]
-        coupling = self.load_coupling(get("coupling"), names, start, stop)
-        interval, signals = self.load_output(get("output"), stop, start)
+        given_stop = None if stop is FROM_FMUS else stop
+        coupling = self.load_coupling(get("coupling"), names, start, given_stop)
+        interval, signals = self.load_output(get("output"), given_stop, start)
+        self.check_rows(get("output"), interval, coupling, start, given_stop)
         connections = self.load_connections(get("connections"))
         for key in ("analysis", "compare"):
             if key in top:
@@ -157,9 +163,12 @@ class SectionReader(NodeReader):
                 else:
                     kw[key] = self.value(get(key))
 
+        self.top_keys = set(top)
+        self.root_node = root
         return Draft(kw=kw, fmus=fmus, connections=connections, coupling=coupling, interval=interval,
                      signals=signals, analysis_node=get("analysis") if "analysis" in top else None,
-                     coupling_node=get("coupling"))
+                     coupling_node=get("coupling"),
+                     output_format=self.output_format)
 
     # -- sections ----------------------------------------------------------
     def load_fmus(self, node) -> list[dict]:
@@ -175,20 +184,38 @@ class SectionReader(NodeReader):
                 self.err(knode, f"instance name must start with a letter or '_' and contain only letters, digits, "
                                 f"'_' and '-' (got {name!r}); rename it (signals are written 'instance.variable')")
                 continue
-            entry = self.mapping(vnode, f"fmus.{name}", FMU_KEYS, ("path",),
-                                 fix=f"write '{name}: {{path: X.fmu}}'")
+            entry = self.mapping(vnode, f"fmus.{name}", FMU_KEYS, (),
+                                 fix=f"write '{name}: {{path: X.fmu}}' or '{name}: {{fmu: JournalBearing}}'")
             if entry is None:
                 continue
+            if ("path" in entry) == ("fmu" in entry):
+                self.err(vnode, f"'fmus.{name}' needs exactly one of 'path' (an FMU file) and 'fmu' (one of ours by "
+                                f"name: {', '.join(our_fmus())}) (got {'both' if 'path' in entry else 'neither'}); "
+                                f"write '{name}: {{path: X.fmu}}' or '{name}: {{fmu: JournalBearing}}'")
             spec = {"name": name, "line": knode.start_mark.line + 1 if knode.start_mark else None,
                     "node": knode, "path": None, "parameters": {}, "substeps": None}
             if "path" in entry:
                 p = self.string(entry["path"][1], f"fmus.{name}.path", "give the FMU file, relative to this file")
-                if p is not None:
+                if p is not None and (any(ord(ch) < 32 for ch in p) or len(p) > 4096):
+                    self.err(entry["path"][1], f"'fmus.{name}.path' must be a file path without control characters "
+                                               f"and at most 4096 characters (got {p[:60]!r}); fix the path")
+                elif p is not None:
                     spec["path"] = (self.path.parent / Path(p).expanduser()).resolve()
                     spec["path_node"] = entry["path"][1]
+            elif "fmu" in entry:
+                key = self.string(entry["fmu"][1], f"fmus.{name}.fmu", f"name one of ours: {', '.join(our_fmus())}")
+                if key is not None and key not in our_fmus():
+                    self.err(entry["fmu"][1], f"'fmus.{name}.fmu' names our FMUs by name, one of "
+                                              f"{', '.join(our_fmus())} (got {key!r}); "
+                                              f"{did_you_mean(key, our_fmus())}for another FMU write 'path: X.fmu'")
+                elif key is not None:
+                    from orchestrator.fmi.build import fmu_location
+                    spec["path"] = fmu_location(key)
+                    spec["path_node"] = entry["fmu"][1]
+                    spec["ours"] = key
             if "substeps" in entry:
-                spec["substeps"] = self.integer(entry["substeps"][1], f"fmus.{name}.substeps", 1, None,
-                                                "use a whole number of sub-steps >= 1")
+                spec["substeps"] = self.integer(entry["substeps"][1], f"fmus.{name}.substeps", 1, MAX_SUBSTEPS,
+                                                "use a whole number of sub-steps per macro step")
             if "parameters" in entry:
                 pmap = self.mapping(entry["parameters"][1], f"fmus.{name}.parameters",
                                     fix="write 'parameters: {name: value, ...}'")
@@ -246,8 +273,12 @@ class SectionReader(NodeReader):
                 self.err(section["macro_step"][1], f"'coupling.macro_step' must not exceed stop_time - start_time "
                                                    f"({stop - start!r}) (got {h!r}); use a smaller step")
                 h = None
+            if h is not None and start is not None and stop is not None:
+                h = self.check_step_count(section["macro_step"][1], h, start, stop)
             ok &= h is not None
             c["macro_step"] = h
+        elif start is not None and stop is not None:        # the default step must fit too
+            ok &= self.check_step_count(node, CouplingSpec.macro_step, start, stop) is not None
         for key in ("extrapolation_order", "interpolation_order"):
             if key in section:
                 v = self.integer(section[key][1], f"coupling.{key}", 0, MAX_ORDER,
@@ -255,8 +286,8 @@ class SectionReader(NodeReader):
                 ok &= v is not None
                 c[key] = v
         if "substeps" in section:
-            v = self.integer(section["substeps"][1], "coupling.substeps", 1, None,
-                             "use a whole number of sub-steps >= 1")
+            v = self.integer(section["substeps"][1], "coupling.substeps", 1, MAX_SUBSTEPS,
+                             "use a whole number of sub-steps per macro step (a larger one: a smaller macro_step)")
             ok &= v is not None
             c["substeps"] = v
         if "discard_retries" in section:
@@ -283,6 +314,30 @@ class SectionReader(NodeReader):
                 c["options"] = self.value(section["options"][1])
         return c if ok else None
 
+    def check_step_count(self, node, h: float, start: float, stop: float) -> float | None:
+        """``h`` if the run's macro steps stay within MAX_MACRO_STEPS and the time grid
+        resolves them (MIN_RELATIVE_STEP), else None (problem reported)."""
+        scale = max(abs(start), abs(stop))
+        if h < MIN_RELATIVE_STEP * scale:
+            self.err(node, f"'coupling.macro_step' {h!r} is too small for the time {scale:g} s: t = start_time + n * "
+                           f"macro_step cannot resolve it (the limit is macro_step >= {MIN_RELATIVE_STEP:g} * "
+                           "max(|start_time|, |stop_time|)); use a larger step or shift the times towards 0")
+            return None
+        n = (stop - start) / h
+        if n > MAX_MACRO_STEPS:
+            self.err(node, f"(stop_time - start_time) / macro_step = {n:.3g} macro steps (the limit is "
+                           f"{MAX_MACRO_STEPS:.0e}); use a larger macro_step or a shorter run")
+            return None
+        return h
+
+    def check_rows(self, node, interval, coupling, start, stop) -> None:
+        """results.csv (and the in-memory result) get at most MAX_OUTPUT_ROWS rows."""
+        every = interval or (coupling or {}).get("macro_step")
+        if every and start is not None and stop is not None and (stop - start) / every > MAX_OUTPUT_ROWS:
+            self.err(node, f"the run writes (stop_time - start_time) / output.interval = {(stop - start) / every:.3g} "
+                           f"rows of results (the limit is {MAX_OUTPUT_ROWS:.0e}); set a larger 'output.interval' "
+                           "(rows are written every interval, by default every macro step)")
+
     def load_output(self, node, stop, start):
         if node is None:
             return None, None
@@ -290,6 +345,17 @@ class SectionReader(NodeReader):
         if section is None:
             return None, None
         interval = signals = None
+        if "format" in section:
+            fnode = section["format"][1]
+            fmt = self.string(fnode, "output.format", "write 'csv' or 'parquet'")
+            if fmt is not None and fmt not in OUTPUT_FORMATS:
+                self.err(fnode, f"'output.format' must be one of {list(OUTPUT_FORMATS)} (got {fmt!r}); write 'csv' "
+                                "or 'parquet'")
+            elif fmt == "parquet" and importlib.util.find_spec("pyarrow") is None:
+                self.err(fnode, "'output.format: parquet' needs pyarrow, which is not installed; "
+                                "`pip install pyarrow` (or 'rotorcosim[parquet]') or write 'output.format: csv'")
+            elif fmt is not None:
+                self.output_format = fmt
         if "interval" in section:
             interval = self.number(section["interval"][1], "output.interval", positive=True,
                                    fix="give the output interval in seconds, e.g. 1.0e-3")
@@ -316,6 +382,11 @@ class SectionReader(NodeReader):
         out = []
         for i, item in enumerate(node.value):
             where = f"connections[{i}]"
+            if isinstance(item, yaml.ScalarNode) and isinstance(self.value(item), str) and "->" in item.value:
+                c = self.arrow_connection(item, where)     # the one-line form "a.y -> b.u"
+                if c is not None:
+                    out.append(c)
+                continue
             entry = self.mapping(item, where, CONNECTION_KEYS, ("from", "to"),
                                  fix="write '- {from: instance.output, to: instance.input}'")
             if entry is None:
@@ -336,3 +407,13 @@ class SectionReader(NodeReader):
                     c[key + "_node"] = entry[key][1]
             out.append(c)
         return out
+
+    def arrow_connection(self, item, where: str) -> dict | None:
+        """``"drv.f[0] -> osc.f[0]"``: a connection without gain/offset written as one string."""
+        parts = [p.strip() for p in str(self.value(item)).split("->")]
+        if len(parts) != 2 or not all("." in p and " " not in p for p in parts):
+            self.err(item, f"'{where}' {item.value!r} is not 'instance.output -> instance.input'; write one "
+                           "arrow between two 'instance.variable' names (or a mapping {from: ..., to: ...})")
+            return None
+        return {"line": item.start_mark.line + 1 if item.start_mark else None, "node": item, "gain": 1.0,
+                "offset": 0.0, "from": parts[0], "from_node": item, "to": parts[1], "to_node": item}

@@ -9,7 +9,10 @@ What is drawn, when the data exist (see ``docs/analysis.md``):
 * ``waterfall_<journal>.png``: run-up waterfall, frequency of the forward journal
   motion against rotor speed, colour = amplitude / clearance, 1x and 0.5x lines;
 * ``fields_<name>.png``: pressure [bar] and fluid fraction over (phi [deg], z [mm])
-  for every ``*_fields.npz`` (stationary runs), cavity (theta < 1) outlined.
+  for every ``*_fields.npz`` (stationary runs), cavity (theta < 1) outlined;
+* ``signals_<instance>.png``: the recorded signals over time, one figure per
+  instance, for a run without journals (any FMUs) or the ``signals`` picked
+  (:mod:`orchestrator.results.plots.signals`).
 
 The signals come from ``summary.json`` (the ``analysis.spec`` written by
 :func:`orchestrator.results.whirl.analyze_run`), else the ``analysis:`` section of the
@@ -29,12 +32,17 @@ import numpy as np
 from orchestrator.errors import CosimError
 from orchestrator.results.plots import eccentricity, fields, orbit, waterfall
 from orchestrator.results.plots.common import PlotContext, infer_spec, logger
+from orchestrator.results.plots.signals import plot_signals
 
 __all__ = ["plot_run", "plot_result", "draw_all", "infer_spec", "PlotContext"]
 
 
-def plot_run(run_dir: str | Path) -> list[Path]:
+def plot_run(run_dir: str | Path, signals: list[str] | None = None) -> list[Path]:
     """Write the plots of a run into ``run_dir/plots/``; return the written files.
+
+    A run without journals (any third-party system) gets the time histories of its
+    recorded signals; ``signals`` (names or ``*`` patterns) picks which, and draws
+    them also for a run with journals.
 
     Skips (with a ``UserWarning`` naming file, signal and fix) what the run's
     files do not support. Raises :class:`CosimError` when ``run_dir`` is not a
@@ -44,7 +52,7 @@ def plot_run(run_dir: str | Path) -> list[Path]:
     if not run_dir.is_dir():
         raise CosimError(f"{run_dir}: not a directory; give the output directory of a run "
                          "(the one holding results.csv and summary.json)")
-    return _finish(draw_all(PlotContext.from_run_dir(run_dir)), run_dir)
+    return _finish(draw_all(PlotContext.from_run_dir(run_dir), signals=signals), run_dir)
 
 
 def plot_result(res, out_dir: str | Path, *, name: str = "run", spec=None) -> list[Path]:
@@ -61,16 +69,17 @@ def _finish(ctx: PlotContext, where: Path) -> list[Path]:
     return ctx.written
 
 
-def draw_all(ctx: PlotContext) -> PlotContext:
+def draw_all(ctx: PlotContext, signals: list[str] | None = None) -> PlotContext:
     """Every figure the context's data support (the rest is listed in ``ctx.skipped``)."""
     if ctx.cols.get("time", np.empty(0)).size >= 2:
         ctx.spec, src = ctx.load_spec()
         logger.info("plot signals from %s: %s", src, ctx.spec)
+        if not ctx.spec.get("journals") or signals:
+            files, notes = plot_signals(ctx.cols, ctx.out, ctx.name, signals)
+            ctx.written += files
+            ctx.skipped += notes
         if not ctx.spec.get("journals"):
-            ctx.skipped.append(
-                f"journal plots: no journals in the analysis spec ({src}) and no columns named "
-                "like '<inst>.x_1', '<inst>.y_1' in results.csv; add an 'analysis:' section "
-                "(docs/analysis.md)")
+            logger.info("journal plots: no journals in the analysis spec (%s); drew the recorded signals", src)
         else:
             ctx.load_analysis()
             eccentricity.draw(ctx)

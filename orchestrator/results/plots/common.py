@@ -14,7 +14,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from orchestrator.results.plots.checks import checked_result, checked_spec
 from orchestrator.results.run_directory import RunDirectory
+from orchestrator.untrusted import InputError, load_yaml, read_text
 
 logger = logging.getLogger("orchestrator.results.plots")
 
@@ -54,8 +56,8 @@ class PlotContext:
         if run.has_summary():
             try:
                 summary = run.summary()
-            except (OSError, ValueError) as exc:
-                skipped.append(f"{run.summary_json.name} (unreadable: {exc}); using results.csv only")
+            except (OSError, ValueError, InputError) as exc:
+                skipped.append(f"{run.summary_json.name} ({exc}); using results.csv only")
         ctx = cls(name=str(summary.get("scenario") or Path(run_dir).name), out=Path(run_dir) / "plots",
                   summary=summary, run_dir=Path(run_dir))
         ctx.skipped += skipped
@@ -82,28 +84,36 @@ class PlotContext:
                    summary=summary)
 
     def load_spec(self) -> tuple[dict, str]:
-        """The analysis spec: summary.json's, the scenario file's, or inferred from the columns."""
+        """The analysis spec: summary.json's, the scenario file's, or inferred from the columns
+        (a run folder may come from anyone: bounded reads, every part checked)."""
         ana = self.summary.get("analysis")
         if isinstance(ana, Mapping) and isinstance(ana.get("spec"), Mapping):
-            return dict(ana["spec"]), "summary.json"
+            return self._checked_spec(ana["spec"], "summary.json")
         sf = self.summary.get("scenario_file")
-        if sf:
-            try:
-                import yaml
-                doc = yaml.safe_load(Path(sf).read_text())
+        if isinstance(sf, str) and sf:
+            try:          # the scenario named by summary.json: bounded reader, bounded YAML
+                from orchestrator.scenario.nodes import YamlLoader      # the scenario's number rules
+                doc = load_yaml(read_text(sf, what="scenario file"), display=sf, loader_cls=YamlLoader)
                 if isinstance(doc, Mapping) and isinstance(doc.get("analysis"), Mapping):
-                    return dict(doc["analysis"]), str(sf)
-            except (OSError, ValueError, ImportError) as exc:
-                logger.info("cannot read analysis section of %s: %s", sf, exc)
-            except Exception as exc:  # yaml errors
+                    return self._checked_spec(doc["analysis"], sf)
+            except InputError as exc:
+                self.skipped.append(f"the analysis section of the scenario named in summary.json ({exc})")
+            except Exception as exc:  # noqa: BLE001 - yaml syntax errors: the inferred spec is used
                 logger.info("cannot parse %s: %s", sf, exc)
         return infer_spec(self.cols), "inferred from results.csv column names"
 
+    def _checked_spec(self, spec: Mapping, src: str) -> tuple[dict, str]:
+        spec, problems = checked_spec(spec)
+        self.skipped.extend(f"{p} in the analysis spec ({src})" for p in problems)
+        return spec, src
+
     def load_analysis(self) -> None:
         """The whirl markers: summary.json's analysis, else analyse the run folder now."""
-        ana = self.summary.get("analysis")
-        if isinstance(ana, Mapping) and isinstance(ana.get("journals"), Mapping):
-            self.result = dict(ana)
+        result, problem = checked_result(self.summary.get("analysis"))
+        if problem:
+            self.skipped.append(f"the analysis in summary.json ({problem}); recomputed from results.csv")
+        if result is not None:
+            self.result = result
         elif self.spec.get("speed") and self.run_dir is not None:
             from orchestrator.results.whirl import analyze_run
             self.result = analyze_run(self.run_dir, self.spec)

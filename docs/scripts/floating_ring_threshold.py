@@ -1,0 +1,48 @@
+"""Linear stability threshold of the Jeffcott rotor in two floating-ring bearings
+(scenarios/jeffcott_runup_floating_ring_half_sommerfeld.yaml), docs/floating-ring.md.
+
+    .venv/bin/python docs/scripts/floating_ring_threshold.py [f_lo f_hi]
+
+Prints the least-damped eigenvalues on a speed grid and the threshold (Brent on max Re = 0).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+
+from bearing_fmu.floating_ring import RingParams
+from bearing_fmu.model import BearingParams
+from rotor_fmu.floating_ring_stability import ring_system_eigen, ring_threshold_speed
+from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
+
+
+def jeffcott_floating_ring(cavitation=0, n=40):
+    rotor = JeffcottRotor(JeffcottParams(m_disc=5.0, m_journal=0.5, d_external=500.0))
+    inner = BearingParams(R=4.9e-3, B=7.84e-3, psi=2.8e-3, eta0=0.012, n_phi=n, n_z=n, cavitation=cavitation)
+    outer = BearingParams(R=7.84e-3, B=7.84e-3, psi=3.5e-3, eta0=0.012, n_phi=n, n_z=n, cavitation=cavitation)
+    ring = RingParams(inner=inner, outer=outer, m_ring=7.3e-3, J_ring=3.1e-7)
+    return rotor, [ring, ring]
+
+
+def main(f_lo=690.0, f_hi=760.0):
+    rotor, rings = jeffcott_floating_ring()
+    for f in np.linspace(f_lo, f_hi, 3):
+        lam, pts = ring_system_eigen(rotor, rings, 2 * math.pi * f)
+        k = np.argsort(-lam.real)[:4:2]
+        o = pts[0].outputs
+        print(f"{f:7.1f} Hz: ring ratio {o['omega_ring'] / (2 * math.pi * f):.4f}, eps {o['eps']:.4f}, "
+              f"eps_outer {o['eps_outer']:.4f}; least damped "
+              + ", ".join(f"{lam[i].real:+.2f} 1/s at {abs(lam[i].imag) / (2 * math.pi):.1f} Hz" for i in k))
+    w, nu = ring_threshold_speed(rotor, rings, 2 * math.pi * f_lo, 2 * math.pi * f_hi, n_scan=3)
+    if w is None:
+        print(f"stable from {f_lo} to {f_hi} Hz")
+    else:
+        print(f"threshold {w / (2 * math.pi):.2f} Hz, whirl {nu / (2 * math.pi):.2f} Hz "
+              f"(ratio {nu / w:.4f})")
+
+
+if __name__ == "__main__":
+    main(*(float(a) for a in sys.argv[1:3]))

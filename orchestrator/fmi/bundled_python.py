@@ -1,0 +1,95 @@
+"""FMUs that bundle their own Python packages (PythonFMU FMUs) side by side in one process.
+
+A PythonFMU FMU carries its slave module and often its own copy of ``pythonfmu``
+and of the packages it needs under ``resources/``; PythonFMU's native loader
+puts that folder at the front of ``sys.path`` and imports the slave module. In
+one process, Python's module cache (``sys.modules``) then hands the *second*
+FMU the packages the *first* one imported, so an FMU bundling pythonfmu 0.6.9
+(and an older helper package) listed before one built with 0.7.0 makes the
+second fail ("No module named ...") or run with the wrong code, depending on
+the order of the instances.
+
+:func:`own_imports` wraps the instantiation of an FMU: for every top-level
+package or module the FMU bundles in ``resources/``, entries of ``sys.modules``
+that were loaded from somewhere else are set aside, so the FMU imports its own
+copies; afterwards the entries set aside are put back, so the rest of the
+process (our FMU builder, which imports ``pythonfmu``, included) sees the modules
+it saw before. Instances keep the module objects they imported (Python keeps them
+alive through their references), so each runs on with its own code.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+
+def bundled_names(resources: Path) -> list[str]:
+    """Top-level importable names in ``resources`` (packages with ``__init__.py`` and ``.py`` modules)."""
+    if not resources.is_dir():
+        return []
+    names = []
+    for p in sorted(resources.iterdir()):
+        if p.is_dir() and (p / "__init__.py").is_file():
+            names.append(p.name)
+        elif p.suffix == ".py" and p.stem.isidentifier():
+            names.append(p.stem)
+    return names
+
+
+def _origin(mod) -> Path | None:
+    f = getattr(mod, "__file__", None)
+    if f is None:
+        paths = list(getattr(mod, "__path__", []) or [])
+        f = paths[0] if paths else None
+    try:
+        return Path(f).resolve() if f else None
+    except (OSError, TypeError):
+        return None
+
+
+def set_aside(unzip_dir: Path) -> dict:
+    """Remove from ``sys.modules`` the cached modules that the FMU in ``unzip_dir`` bundles itself but that
+    were loaded from elsewhere; return them (``{name: module}``) for :func:`put_back`."""
+    resources = (Path(unzip_dir) / "resources").resolve()
+    if not (resources / "pythonfmu").is_dir():      # not a PythonFMU FMU with its own runtime
+        return {}
+    aside = {}
+    for name in bundled_names(resources):
+        for key in [k for k in sys.modules if k == name or k.startswith(name + ".")]:
+            origin = _origin(sys.modules[key])
+            if origin is not None and resources not in origin.parents:
+                aside[key] = sys.modules.pop(key)
+    if aside:
+        log.debug("%s bundles %s; its own copies are imported", unzip_dir, sorted({k.split(".")[0] for k in aside}))
+    return aside
+
+
+def put_back(aside: dict, names=(), before=frozenset()) -> None:
+    """Restore ``sys.modules`` for the bundled ``names``: drop the entries the FMU added (its own copies stay
+    alive through the FMU's references), then put back those :func:`set_aside` removed."""
+    for key in [k for k in sys.modules if k.split(".", 1)[0] in names and k not in before]:
+        del sys.modules[key]
+    sys.modules.update(aside)
+
+
+class own_imports:
+    """``with own_imports(unzip_dir): instantiate()`` (see the module docstring)."""
+
+    def __init__(self, unzip_dir: Path):
+        self.unzip_dir = unzip_dir
+        self.aside: dict = {}
+
+    def __enter__(self):
+        resources = Path(self.unzip_dir) / "resources"
+        self.names = set(bundled_names(resources)) if (resources / "pythonfmu").is_dir() else set()
+        self.aside = set_aside(self.unzip_dir)
+        self.before = frozenset(k for k in sys.modules if k.split(".", 1)[0] in self.names)
+        return self
+
+    def __exit__(self, *exc):
+        put_back(self.aside, self.names, self.before)
+        return False

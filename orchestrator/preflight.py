@@ -1,0 +1,39 @@
+"""The checks ``run`` makes before its first step, for ``validate`` to make too (same messages).
+
+:func:`preflight` sets the run up as :func:`orchestrator.run` would, without
+stepping: for a co-simulation it creates a :class:`MasterAlgorithm` and calls
+``setup()`` (the FMU archives are checked and extracted, the binary for this
+platform loaded, every FMU instantiated and its values set, the coupling plan
+built: types, fixed-step FMUs, discard retries that need state saving, the
+output interval), then frees everything; for ``scheme: monolithic`` it calls
+:func:`orchestrator.monolithic.preflight`. Whatever ``run`` would raise comes
+back as problem lines; warnings ``run`` would give come back as lines starting
+with ``warning:``.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+from orchestrator.errors import CosimError
+
+
+def preflight(scenario) -> tuple[list[str], list[str]]:
+    """``(problems, warnings)`` that running ``scenario`` would give before its first macro step."""
+    problems: list[str] = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            if scenario.coupling.scheme == "monolithic":
+                from orchestrator.reference.monolithic import preflight as monolithic_preflight
+                monolithic_preflight(scenario)
+            else:
+                from orchestrator.coupling.execution import MasterAlgorithm
+                master = MasterAlgorithm(scenario)
+                try:
+                    master.setup()
+                finally:
+                    master.terminate()
+        except CosimError as e:
+            problems.extend(getattr(e, "problems", None) or [str(e)])
+    return problems, [f"warning: {w.message}" for w in caught]

@@ -1,0 +1,87 @@
+"""Time histories of the recorded signals of any run (``rotorcosim plot DIR [--signals ...]``).
+
+One figure per FMU instance, ``plots/signals_<instance>.png``, with one panel per
+signal over time. Integer and Boolean signals (whole numbers in results.csv) are
+drawn as steps held over the macro step, as the master holds them; String columns
+cannot be drawn and are skipped with a note. ``signals`` picks columns by name or
+pattern (``*`` = any characters, see :mod:`orchestrator.names`: ``osc.x[*]``,
+``bearing1.*``), default every column. Panels per figure are capped at
+:data:`MAX_PANELS`; more signals of one instance go to ``signals_<instance>_2.png``
+and so on.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+MAX_PANELS = 8
+MAX_POINTS = 20000       # points per trace above which the trace is decimated by striding
+DPI = 110
+
+
+def pick(columns: Sequence[str], patterns: Sequence[str] | None) -> tuple[list[str], list[str]]:
+    """Columns matching any pattern (a name, or ``*`` wildcards), and the patterns that matched none."""
+    from orchestrator.names import match
+    if not patterns:
+        return list(columns), []
+    chosen, unmatched = [], []
+    for pat in patterns:
+        hits = match(pat, columns)
+        if not hits:
+            unmatched.append(pat)
+        chosen += [c for c in hits if c not in chosen]
+    return chosen, unmatched
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name) or "signals"
+
+
+def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
+                 patterns: Sequence[str] | None = None) -> tuple[list[Path], list[str]]:
+    """Draw the signals of ``cols`` (``{"time": t, "inst.var": values}``) into ``out_dir``.
+
+    Returns ``(written files, notes on what was skipped)``.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    t = np.asarray(cols.get("time", np.empty(0)), dtype=float)
+    names = [c for c in cols if c != "time"]
+    chosen, unmatched = pick(names, patterns)
+    notes = [f"--signals {p!r}: no recorded signal matches (recorded: {', '.join(names[:12])}"
+             f"{', ...' if len(names) > 12 else ''})" for p in unmatched]
+    if t.size < 2:
+        return [], notes + [f"signal plots: {t.size} row(s) in results.csv, need 2"]
+    groups: dict[str, list[str]] = {}
+    for c in chosen:
+        y = np.asarray(cols[c], dtype=float)
+        if np.all(np.isnan(y)):
+            notes.append(f"signal plots: '{c}' has no numeric values (a String signal?); not drawn")
+            continue
+        groups.setdefault(c.split(".", 1)[0], []).append(c)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stride = max(1, t.size // MAX_POINTS)
+    written = []
+    for inst, sigs in groups.items():
+        for k in range(0, len(sigs), MAX_PANELS):
+            part = sigs[k:k + MAX_PANELS]
+            fig = Figure(figsize=(8, 1.6 + 1.7 * len(part)), layout="constrained")
+            FigureCanvasAgg(fig)
+            axes = fig.subplots(len(part), 1, sharex=True, squeeze=False)[:, 0]
+            for ax, c in zip(axes, part):
+                y = np.asarray(cols[c], dtype=float)
+                whole = bool(np.all(np.isnan(y) | (y == np.round(y))))
+                ax.plot(t[::stride], y[::stride], lw=0.9, drawstyle="steps-post" if whole else "default")
+                ax.set_ylabel(c.split(".", 1)[1], rotation=0, ha="right", va="center")
+                ax.grid(True, lw=0.3)
+            axes[-1].set_xlabel("time [s]")
+            fig.suptitle(f"{title}: {inst}")
+            path = out_dir / f"signals_{_safe(inst)}{'' if k == 0 else f'_{k // MAX_PANELS + 1}'}.png"
+            fig.savefig(path, dpi=DPI)
+            written.append(path)
+    return written, notes

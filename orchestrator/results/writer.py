@@ -1,0 +1,243 @@
+"""Result files as other tools read them: ``results.csv`` (csv module) and optional Parquet.
+
+:class:`ResultsWriter` streams rows to disk and keeps nothing per row in
+memory, so its memory use is flat in the number of rows:
+
+* the header is written by :mod:`csv` (RFC 4180 quoting), so a structured name
+  such as ``m[1,2]`` stays one column; the first column is ``time``;
+* columns are exactly the recorded signals (no empty column when there are
+  none: the header is then ``time`` alone);
+* the time of row ``n`` is computed from the step index, ``t0 + n*H``, and
+  rounded to the decimals of ``t0`` and ``H`` as written (:class:`TimeGrid`),
+  so ``0.1 * 3`` prints as ``0.3`` and joins on time with other tools work;
+* Real values are written with ``repr`` (shortest round-trip form), Integer
+  and Enumeration as integers, Boolean as ``0``/``1``, String as text (quoted
+  by the csv module where needed);
+* the file is flushed at least every ``flush_interval`` seconds of wall time
+  (default 1 s) and at :meth:`close`, so a run that stops early keeps its rows.
+
+``format="parquet"`` writes ``results.parquet`` with the same columns through
+pyarrow (row groups of ``parquet_rows`` rows, so memory stays bounded too);
+pyarrow missing is reported with the fix.
+"""
+
+from __future__ import annotations
+
+import csv
+import time as _time
+from pathlib import Path
+from typing import Any, Sequence
+
+KINDS = ("Real", "Integer", "Enumeration", "Boolean", "String")
+FORMATS = ("csv", "parquet")
+
+
+def _decimals(x: float) -> int | None:
+    """Digits after the decimal point of ``repr(x)`` (``1e-05`` -> 5, ``0.25`` -> 2); None if ``x`` has
+    no short decimal form (e.g. 1/3)."""
+    r = repr(float(x)).lower()
+    if r in ("inf", "-inf", "nan"):
+        return None
+    mant, _, exp = r.partition("e")
+    frac = mant.partition(".")[2].rstrip("0")
+    d = len(frac) - (int(exp) if exp else 0)
+    d = max(d, 0)
+    if len(mant.replace("-", "").replace(".", "").lstrip("0")) >= 16:
+        return None                                  # repr needed all digits: not a short decimal
+    return d
+
+
+class TimeGrid:
+    """``time(n) = t0 + n*H`` rounded to the decimals in which ``t0`` and ``H`` are written.
+
+    ``t_stop`` (when given) is returned for ``n >= n_stop`` as it was written,
+    the end of a shortened last step. Without a short decimal form (H = 1/3)
+    the value is not rounded.
+    """
+
+    def __init__(self, t0: float, h: float, *, t_stop: float | None = None, n_stop: int | None = None):
+        self.t0, self.h = float(t0), float(h)
+        self.t_stop, self.n_stop = t_stop, n_stop
+        d0, dh = _decimals(self.t0), _decimals(self.h)
+        self.digits = None if d0 is None or dh is None else max(d0, dh)
+        if self.digits is not None and self.digits > 15:
+            self.digits = None
+
+    def time(self, n: int) -> float:
+        if self.n_stop is not None and n >= self.n_stop and self.t_stop is not None:
+            return float(self.t_stop)
+        t = self.t0 + n * self.h
+        return round(t, self.digits) if self.digits is not None else t
+
+
+def _formatter(kind: str):
+    if kind == "Real":
+        return lambda v: repr(float(v))
+    if kind in ("Integer", "Enumeration"):
+        return lambda v: str(int(v))
+    if kind == "Boolean":
+        return lambda v: "1" if v else "0"
+    if kind == "String":
+        return str
+    raise ValueError(f"unknown column kind {kind!r}; expected one of {list(KINDS)}")
+
+
+class ResultsWriter:
+    """Stream result rows to ``path`` (``results.csv``, or ``results.parquet`` with ``format="parquet"``).
+
+    Call order: ``w = ResultsWriter(path, columns, kinds)``; ``w.open()``;
+    ``w.write(t, values)`` per row (``values`` aligned with ``columns``);
+    ``w.close()`` (idempotent; also flushes). ``kinds`` gives the FMI type of
+    each column (default all Real).
+    """
+
+    def __init__(self, path: Path | str, columns: Sequence[str], kinds: Sequence[str] | None = None, *,
+                 format: str = "csv", flush_interval: float = 1.0, parquet_rows: int = 65536):
+        if format not in FORMATS:
+            raise ValueError(f"output.format must be one of {list(FORMATS)} (got {format!r})")
+        self.columns = tuple(columns)
+        self.kinds = tuple(kinds) if kinds is not None else ("Real",) * len(self.columns)
+        if len(self.kinds) != len(self.columns):
+            raise ValueError(f"{len(self.columns)} columns but {len(self.kinds)} kinds")
+        if "time" in self.columns:
+            raise ValueError("a recorded signal may not be called 'time' (the first column)")
+        self.format = format
+        self.path = Path(path)
+        self.flush_interval = flush_interval
+        self.rows = 0
+        self._fmt = [_formatter(k) for k in self.kinds]
+        self._all_real = all(k == "Real" for k in self.kinds)
+        self._f = None
+        self._csv = None
+        self._pq = None
+        self._buf: list[list[Any]] = []
+        self._parquet_rows = parquet_rows
+        self._last_flush = 0.0
+
+    # -- life cycle -------------------------------------------------------------------
+    def open(self) -> None:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if self.format == "csv":
+            self._f = open(self.path, "w", newline="", encoding="utf-8")
+            self._csv = csv.writer(self._f, lineterminator="\n")
+            self._csv.writerow(("time", *self.columns))
+            self._f.flush()
+        else:
+            self._pq = _ParquetSink(self.path, self.columns, self.kinds)
+        self._last_flush = _time.monotonic()
+
+    def write(self, t: float, values: Sequence[Any]) -> None:
+        """Append one row at time ``t`` (already on the grid: see :class:`TimeGrid`)."""
+        if self.format == "csv":
+            if self._csv is None:
+                raise RuntimeError(f"{self.path}: write() before open() or after close()")
+            if self._all_real:
+                vals = values.tolist() if hasattr(values, "tolist") else map(float, values)
+                self._csv.writerow((repr(float(t)), *map(repr, vals)))
+            else:
+                self._csv.writerow((repr(float(t)), *[f(v) for f, v in zip(self._fmt, values)]))
+        else:
+            if self._pq is None:
+                raise RuntimeError(f"{self.path}: write() before open() or after close()")
+            self._buf.append([float(t), *values])
+            if len(self._buf) >= self._parquet_rows:
+                self._pq.write(self._buf)
+                self._buf = []
+        self.rows += 1
+        now = _time.monotonic()
+        if now - self._last_flush >= self.flush_interval:
+            self.flush()
+            self._last_flush = now
+
+    def flush(self) -> None:
+        if self._f is not None:
+            self._f.flush()
+        if self._pq is not None and self._buf:
+            self._pq.write(self._buf)
+            self._buf = []
+
+    def close(self) -> None:
+        if self._f is not None:
+            self._f.flush()
+            self._f.close()
+            self._f = None
+            self._csv = None
+        if self._pq is not None:
+            if self._buf:
+                self._pq.write(self._buf)
+                self._buf = []
+            self._pq.close()
+            self._pq = None
+
+
+class _ParquetSink:
+    """pyarrow ParquetWriter with one row group per :meth:`write`."""
+
+    _ARROW = {"Real": "float64", "Integer": "int32", "Enumeration": "int32", "Boolean": "bool_", "String": "string"}
+
+    def __init__(self, path: Path, columns, kinds):
+        try:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+        except ImportError as e:
+            raise RuntimeError("output.format: parquet needs pyarrow, which is not installed; "
+                               "`pip install pyarrow` or write 'output.format: csv'") from e
+        self._pa = pa
+        fields = [pa.field("time", pa.float64())]
+        fields += [pa.field(c, getattr(pa, self._ARROW[k])()) for c, k in zip(columns, kinds)]
+        self.schema = pa.schema(fields)
+        self._w = pq.ParquetWriter(str(path), self.schema)
+
+    def write(self, rows) -> None:
+        pa = self._pa
+        cols = list(zip(*rows))
+        arrays = [pa.array([_clean(v, f.type) for v in col], type=f.type) for col, f in zip(cols, self.schema)]
+        self._w.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+
+    def close(self) -> None:
+        self._w.close()
+
+
+def _clean(v, arrow_type):
+    if str(arrow_type) == "bool":
+        return bool(v)
+    if str(arrow_type) == "int32":
+        return int(v)
+    if str(arrow_type) == "double":
+        return float(v)
+    return v
+
+
+def read_back(path: Path | str, columns: Sequence[str], kinds: Sequence[str]):
+    """Read a file written by :class:`ResultsWriter` into ``(t, {column: array})``.
+
+    Numeric columns come back as float64 arrays (Integer/Boolean as their
+    numbers), String columns as object arrays of str.
+    """
+    import numpy as np
+
+    path = Path(path)
+    columns, kinds = list(columns), list(kinds)
+    if path.suffix == ".parquet":
+        import pyarrow.parquet as pq
+        table = pq.read_table(path)
+        t = np.asarray(table.column("time").to_numpy(), dtype=float)
+        out = {}
+        for c, k in zip(columns, kinds):
+            col = table.column(c).to_pylist()
+            out[c] = np.asarray(col, dtype=object if k == "String" else float)
+        return t, out
+    if "String" not in kinds:
+        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
+        data = data.reshape(-1, len(columns) + 1)
+        return data[:, 0].copy(), {c: data[:, i + 1].copy() for i, c in enumerate(columns)}
+    with open(path, newline="", encoding="utf-8") as f:
+        reader = csv.reader(f)
+        next(reader, None)
+        rows = list(reader)
+    t = np.asarray([float(r[0]) for r in rows])
+    out = {}
+    for i, (c, k) in enumerate(zip(columns, kinds)):
+        vals = [r[i + 1] for r in rows]
+        out[c] = np.asarray(vals, dtype=object) if k == "String" else np.asarray(vals, dtype=float)
+    return t, out

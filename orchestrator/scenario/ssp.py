@@ -1,0 +1,292 @@
+"""SSP 1.0 (System Structure and Parameterization) import and export.
+
+Import (:func:`scenario_from_ssp`): an ``.ssp`` archive (``SystemStructure.ssd`` at
+the top, FMUs and ``.ssv`` files inside) or a bare ``.ssd`` file (sources relative
+to its folder) becomes a scenario document: the top-level system's components
+(FMU instances; ``source`` resolved to the extracted file), its connections
+(with ``LinearTransformation`` factor/offset as gain/offset), the parameter
+bindings of each component (inline ``ssv:ParameterSet`` or a ``source`` ``.ssv``,
+values of every SSP type, ``prefix`` honoured) and the system's
+``DefaultExperiment`` (start/stop time). The document goes through the ordinary
+scenario loader, so every check and message of a YAML scenario applies. Nested
+systems, signal dictionaries and parameter mappings (``.ssm``) are reported as
+unsupported rather than dropped.
+
+Export (:func:`export_ssp`): a loaded scenario as an ``.ssp`` archive that libcosim
+runs (``CosimExecution.from_ssp_file``): components with ``resources/<file>.fmu``,
+typed connectors, connections (gain/offset as ``LinearTransformation``), inline
+parameter values (Enumeration values as ``ssv:Integer``: libcosim cannot read
+``ssv:Enumeration``), ``DefaultExperiment`` with the macro step as libcosim's
+``osp:FixedStepAlgorithm`` annotation. It encodes what libcosim's fixed-step
+algorithm does: Jacobi with zero-order hold; our extrapolation and sub-step
+settings have no SSP equivalent and are not exported (a warning says so).
+
+An SSP is untrusted: the archive is checked and extracted by the FMU archive rules
+(:func:`orchestrator.fmi.archive.safe_extract`: names, links, sizes, ratios, CRC), its XML
+files are read by the bounded reader and parsed by :func:`orchestrator.untrusted.parse_xml`
+(DOCTYPE and entities refused after decoding, as for model descriptions).
+"""
+
+from __future__ import annotations
+
+import shutil
+import warnings
+import zipfile
+from pathlib import Path, PurePosixPath
+from typing import Any
+from xml.etree import ElementTree as ET
+
+from orchestrator.errors import ScenarioError
+from orchestrator.untrusted import InputError, parse_xml, read_bytes
+
+NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
+      "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
+      "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+      "osp": "https://opensimulationplatform.com/SSP/OSPAnnotations"}
+TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
+MAX_XML_BYTES = 16 * 2**20
+
+
+def _parse(data: bytes, where: str) -> ET.Element:
+    if len(data) > MAX_XML_BYTES:
+        raise ScenarioError(f"{where}: {len(data)} bytes of XML (limit {MAX_XML_BYTES}); not a plausible SSP file")
+    try:                  # defusedxml: DOCTYPE/entities refused after decoding (UTF-16 too)
+        return parse_xml(data, display=where, what="SSP file")
+    except InputError as e:
+        raise ScenarioError(str(e)) from None
+
+
+def _read(path: Path) -> bytes:
+    """The bytes of an SSP's XML file: a regular file of at most MAX_XML_BYTES."""
+    try:
+        return read_bytes(path, what="SSP file", limit=MAX_XML_BYTES,
+                          limit_name="orchestrator.scenario.ssp.MAX_XML_BYTES")
+    except InputError as e:
+        raise ScenarioError(str(e)) from None
+
+
+def _safe_member(name: str, where: str) -> PurePosixPath:
+    p = PurePosixPath(name)
+    if not name or name.startswith("/") or "\\" in name or ".." in p.parts or (len(name) > 1 and name[1] == ":"):
+        raise ScenarioError(f"{where}: unsafe path {name!r} (absolute, '..' or a drive letter); "
+                            "SSP sources must be relative paths inside the package")
+    return p
+
+
+class _Source:
+    """Files of an SSP: an archive (extracted into ``work``) or the folder of a bare .ssd."""
+
+    def __init__(self, path: Path, work: Path):
+        self.path = Path(path)
+        if self.path.suffix.lower() == ".ssp":
+            from orchestrator.errors import FmuError
+            from orchestrator.fmi.archive import safe_extract
+            try:          # the FMU archive rules: regular file, names, links, sizes, ratios, CRC
+                safe_extract(self.path, work, required="SystemStructure.ssd")
+            except FmuError as e:
+                raise ScenarioError(f"SSP archive: {e}") from None
+            self.root = work
+            self.ssd = work / "SystemStructure.ssd"
+        else:
+            self.root = self.path.parent
+            self.ssd = self.path
+
+    def file(self, rel: str, what: str) -> Path:
+        _safe_member(rel, f"{self.ssd} ({what})")
+        p = (self.root / rel).resolve()
+        if not p.is_file():
+            raise ScenarioError(f"{self.ssd}: {what} {rel!r} not found (looked in {self.root}); "
+                                "add the file to the SSP or fix the 'source'")
+        return p
+
+
+def _value(el: ET.Element) -> tuple[str, Any] | None:
+    for t in TYPES:
+        v = el.find(f"ssv:{t}", NS)
+        if v is not None:
+            raw = v.get("value")
+            if raw is None:
+                return None
+            if t == "Real":
+                return t, float(raw)
+            if t in ("Integer", "Enumeration"):
+                return t, int(raw) if t == "Integer" or raw.lstrip("-").isdigit() else raw
+            if t == "Boolean":
+                return t, raw.strip().lower() in ("true", "1")
+            return t, raw
+    return None
+
+
+def _parameters(comp: ET.Element, src: _Source, problems: list[str]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for b in comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
+        prefix = b.get("prefix", "") or ""
+        sets = []
+        if b.get("source"):
+            if b.get("source").startswith("#"):
+                problems.append(f"{src.ssd}: component {comp.get('name')!r}: parameter binding source "
+                                f"{b.get('source')!r} (a reference into the SSD) is not supported; use an .ssv file "
+                                "or inline ParameterValues")
+                continue
+            sets.append(_parse(_read(src.file(b.get("source"), "parameter values")), b.get("source")))
+        sets += b.findall("ssd:ParameterValues/ssv:ParameterSet", NS)
+        if b.find("ssd:ParameterMapping", NS) is not None:
+            problems.append(f"{src.ssd}: component {comp.get('name')!r}: parameter mappings (.ssm) are not "
+                            "supported; write the values under the variables' own names")
+        for ps in sets:
+            for p in ps.findall("ssv:Parameters/ssv:Parameter", NS):
+                name = p.get("name", "")
+                if prefix and name.startswith(prefix):
+                    name = name[len(prefix):]
+                v = _value(p)
+                if v is None:
+                    problems.append(f"{src.ssd}: parameter {name!r} of {comp.get('name')!r} has no value")
+                else:
+                    out[name] = v[1]
+    return out
+
+
+def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
+    """The scenario document (a dict in the YAML format) of an SSP archive or .ssd file.
+
+    ``work`` is a folder the archive is extracted into (FMU paths point there).
+    Raises :class:`ScenarioError` listing what cannot be read or is unsupported.
+    """
+    src = _Source(Path(path), Path(work))
+    root = _parse(_read(src.ssd), str(src.ssd))
+    if root.tag != f"{{{NS['ssd']}}}SystemStructureDescription":
+        raise ScenarioError(f"{src.ssd}: root element is {root.tag}, expected ssd:SystemStructureDescription")
+    system = root.find("ssd:System", NS)
+    if system is None:
+        raise ScenarioError(f"{src.ssd}: no ssd:System element; re-export the SSP")
+    problems: list[str] = []
+    if system.find("ssd:Elements/ssd:System", NS) is not None:
+        problems.append(f"{src.ssd}: nested systems are not supported; flatten the system into one level")
+    fmus: dict[str, dict] = {}
+    for comp in system.findall("ssd:Elements/ssd:Component", NS):
+        name, source = comp.get("name"), comp.get("source")
+        if not name or not source:
+            problems.append(f"{src.ssd}: a component lacks 'name' or 'source'")
+            continue
+        if comp.get("type") not in (None, "application/x-fmu-sharedlibrary"):
+            problems.append(f"{src.ssd}: component {name!r} has type {comp.get('type')!r}; only FMUs "
+                            "(application/x-fmu-sharedlibrary) are supported")
+            continue
+        entry: dict[str, Any] = {"path": str(src.file(source, f"FMU of component {name!r}"))}
+        params = _parameters(comp, src, problems)
+        if params:
+            entry["parameters"] = params
+        fmus[name] = entry
+    connections = []
+    for c in system.findall("ssd:Connections/ssd:Connection", NS):
+        s_el, s_con, d_el, d_con = (c.get(k) for k in ("startElement", "startConnector", "endElement",
+                                                      "endConnector"))
+        if not (s_el and d_el):
+            problems.append(f"{src.ssd}: connection {s_con} -> {d_con} touches the system's own connectors; "
+                            "only component-to-component connections are supported")
+            continue
+        conn: dict[str, Any] = {"from": f"{s_el}.{s_con}", "to": f"{d_el}.{d_con}"}
+        lt = c.find("ssc:LinearTransformation", NS)
+        if lt is None:
+            lt = c.find("ssd:LinearTransformation", NS)
+        if lt is not None:
+            conn["gain"] = float(lt.get("factor", 1.0))
+            conn["offset"] = float(lt.get("offset", 0.0))
+        connections.append(conn)
+    if problems:
+        raise ScenarioError(problems)
+    doc: dict[str, Any] = {"name": root.get("name") or Path(path).stem, "fmus": fmus, "connections": connections}
+    if system.get("description"):
+        doc["description"] = system.get("description")
+    de = root.find("ssd:DefaultExperiment", NS)
+    if de is not None:
+        for attr, key in (("startTime", "start_time"), ("stopTime", "stop_time")):
+            if de.get(attr) is not None:
+                doc[key] = float(de.get(attr))
+        fixed = de.find("ssd:Annotations/ssc:Annotation/osp:Algorithm/osp:FixedStepAlgorithm", NS)
+        if fixed is not None and fixed.get("baseStepSize"):
+            doc["coupling"] = {"scheme": "jacobi", "macro_step": float(fixed.get("baseStepSize"))}
+    return doc
+
+
+# ------------------------------------------------------------------------------------ export
+def _type_el(parent: ET.Element, ns: str, fmi_type: str, value=None) -> None:
+    # Enumeration values travel as fmi2Integer; libcosim (0.10) cannot read ssc:/ssv:Enumeration, so they
+    # are written as Integer (our reader takes an Integer value for an Enumeration variable too)
+    el = ET.SubElement(parent, f"{{{NS[ns]}}}{'Integer' if fmi_type == 'Enumeration' else fmi_type}")
+    if value is not None:
+        el.set("value", "true" if value is True else "false" if value is False else repr(value)
+               if isinstance(value, float) else str(value))
+
+
+def export_ssp(scenario, out: Path | str) -> Path:
+    """Write ``scenario`` as an SSP 1.0 archive ``out`` (see the module docstring); return its path."""
+    from orchestrator.fmi.archive import read_model_description
+    out = Path(out)
+    c = scenario.coupling
+    if c.scheme != "jacobi" or c.extrapolation_order or c.substeps != 1 or any(f.substeps for f in scenario.fmus):
+        warnings.warn(f"export-ssp: SSP has no coupling scheme; libcosim runs the exported system as Jacobi with "
+                      f"zero-order hold (this scenario: {c.scheme}, extrapolation_order {c.extrapolation_order}, "
+                      f"substeps {c.substeps})", stacklevel=2)
+    starts = [f"{f.name}.{n}" for f in scenario.fmus for n in f.parameters
+              if read_model_description(f.path).variables[n].causality not in ("parameter", "input")]
+    if starts:
+        warnings.warn(f"export-ssp: {', '.join(starts)} are start values of outputs or locals (initial=\"exact\"); "
+                      "the SSP carries them, but libcosim's SSP loader sets only parameters and inputs and "
+                      "ignores them", stacklevel=2)
+    for ns, uri in NS.items():
+        ET.register_namespace(ns, uri)
+    root = ET.Element(f"{{{NS['ssd']}}}SystemStructureDescription", {"version": "1.0", "name": scenario.name,
+                                                                     "generationTool": "rotorcosim export-ssp"})
+    system = ET.SubElement(root, f"{{{NS['ssd']}}}System", {"name": scenario.name})
+    if scenario.description:
+        system.set("description", scenario.description)
+    elements = ET.SubElement(system, f"{{{NS['ssd']}}}Elements")
+    used: dict[str, set[str]] = {f.name: set() for f in scenario.fmus}
+    for cn in scenario.connections:
+        used[cn.src_instance].add(cn.src_variable)
+        used[cn.dst_instance].add(cn.dst_variable)
+    files: dict[str, Path] = {}
+    for f in scenario.fmus:
+        md = read_model_description(f.path)
+        member = f"resources/{Path(f.path).name}"
+        if member in files and files[member] != Path(f.path).resolve():
+            member = f"resources/{f.name}_{Path(f.path).name}"
+        files[member] = Path(f.path).resolve()
+        comp = ET.SubElement(elements, f"{{{NS['ssd']}}}Component",
+                             {"name": f.name, "source": member, "type": "application/x-fmu-sharedlibrary"})
+        conns = ET.SubElement(comp, f"{{{NS['ssd']}}}Connectors")
+        for var in sorted(used[f.name], key=lambda v: md.variables[v].value_reference):
+            v = md.variables[var]
+            con = ET.SubElement(conns, f"{{{NS['ssd']}}}Connector", {"name": var, "kind": v.causality})
+            _type_el(con, "ssc", v.type)
+        if f.parameters:
+            pv = ET.SubElement(ET.SubElement(ET.SubElement(comp, f"{{{NS['ssd']}}}ParameterBindings"),
+                                             f"{{{NS['ssd']}}}ParameterBinding"), f"{{{NS['ssd']}}}ParameterValues")
+            ps = ET.SubElement(pv, f"{{{NS['ssv']}}}ParameterSet", {"version": "1.0", "name": "parameters"})
+            plist = ET.SubElement(ps, f"{{{NS['ssv']}}}Parameters")
+            for name, value in f.parameters.items():
+                p = ET.SubElement(plist, f"{{{NS['ssv']}}}Parameter", {"name": name})
+                _type_el(p, "ssv", md.variables[name].type, value)
+    cel = ET.SubElement(system, f"{{{NS['ssd']}}}Connections")
+    for cn in scenario.connections:
+        el = ET.SubElement(cel, f"{{{NS['ssd']}}}Connection", {
+            "startElement": cn.src_instance, "startConnector": cn.src_variable,
+            "endElement": cn.dst_instance, "endConnector": cn.dst_variable})
+        if cn.gain != 1.0 or cn.offset != 0.0:
+            ET.SubElement(el, f"{{{NS['ssc']}}}LinearTransformation",
+                          {"factor": repr(float(cn.gain)), "offset": repr(float(cn.offset))})
+    de = ET.SubElement(root, f"{{{NS['ssd']}}}DefaultExperiment",
+                       {"startTime": repr(float(scenario.start_time)), "stopTime": repr(float(scenario.stop_time))})
+    ann = ET.SubElement(ET.SubElement(de, f"{{{NS['ssd']}}}Annotations"), f"{{{NS['ssc']}}}Annotation",
+                        {"type": "com.opensimulationplatform"})
+    ET.SubElement(ET.SubElement(ann, f"{{{NS['osp']}}}Algorithm"), f"{{{NS['osp']}}}FixedStepAlgorithm",
+                  {"baseStepSize": repr(float(c.macro_step))})
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".part")
+    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("SystemStructure.ssd", ET.tostring(root, encoding="utf-8", xml_declaration=True))
+        for member, path in files.items():
+            zf.write(path, member)
+    shutil.move(tmp, out)
+    return out

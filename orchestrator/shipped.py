@@ -1,0 +1,78 @@
+"""The scenarios shipped inside the package: list them, find one by name, copy them for editing.
+
+In a source checkout they are the files of ``scenarios/``; an installed package
+carries the same files as the package ``rotorcosim_scenarios`` (pyproject maps the
+folder). They name our FMUs with ``fmu: NAME`` (built on demand, see
+:func:`orchestrator.build.fmu_location`), so they run from wherever they are,
+copies made by ``rotorcosim init DIR`` included.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+from orchestrator.errors import CosimError
+
+
+def scenario_dir() -> Path:
+    """The folder holding the shipped scenario files."""
+    from importlib.resources import files
+    try:
+        root = files("rotorcosim_scenarios")
+    except ModuleNotFoundError:
+        root = None
+    if root is not None:
+        path = Path(str(root))
+        if path.is_dir():
+            return path
+    here = Path(__file__).resolve().parents[1] / "scenarios"
+    if here.is_dir():
+        return here
+    raise CosimError("the shipped scenarios are missing from this installation (package 'rotorcosim_scenarios'); "
+                     "reinstall rotorcosim")
+
+
+def shipped() -> dict[str, Path]:
+    """``{name: file}`` of the shipped scenarios, sorted by name."""
+    return {p.stem: p for p in sorted(scenario_dir().glob("*.yaml"))}
+
+
+def describe(path: Path) -> str:
+    """The start of the scenario's ``description`` (at most 90 characters), or ''."""
+    import yaml
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError):
+        return ""
+    text = " ".join(str(doc.get("description", "") if isinstance(doc, dict) else "").split())
+    head = text.split(": ", 1)[-1] if text.startswith("Paper section") else text
+    return head if len(head) <= 90 else head[:87].rsplit(" ", 1)[0] + " ..."
+
+
+def resolve(arg: str) -> Path:
+    """``arg`` as a scenario file: an existing file as it is, else a shipped scenario of that name
+    (``quickstart`` or ``quickstart.yaml``), else the path as given (the loader reports it missing)."""
+    path = Path(arg)
+    if path.exists():
+        return path
+    name = path.name[:-5] if path.name.endswith(".yaml") else path.name
+    if path.parent == Path(".") and name in shipped():
+        return shipped()[name]
+    return path
+
+
+def init(dest: str | Path, *, force: bool = False) -> list[Path]:
+    """Copy every shipped scenario into ``dest`` (created); existing files are kept unless ``force``."""
+    dest = Path(dest)
+    files = shipped()
+    clash = [dest / p.name for p in files.values() if (dest / p.name).exists()]
+    if clash and not force:
+        raise CosimError(f"{dest}: {len(clash)} scenario file(s) exist already ({', '.join(c.name for c in clash[:5])}"
+                         f"{', ...' if len(clash) > 5 else ''}); remove them, pick another folder or use --force")
+    dest.mkdir(parents=True, exist_ok=True)
+    out = []
+    for p in files.values():
+        shutil.copyfile(p, dest / p.name)
+        out.append(dest / p.name)
+    return out

@@ -1,0 +1,174 @@
+"""Linear stability of a rotor in floating-ring bearings (docs/floating-ring.md).
+
+For each bearing station with its static load W (:func:`rotor_fmu.stability.static_bearing_loads`)
+and journal speed omega:
+
+1. the steady operating point: ring speed Omega from the torque balance of the two films
+   at their static equilibria (``T_ring,inner + T_ring,outer = 0``, secant in Omega; the
+   eccentric films spin the ring slower than the concentric Petroff ratio), journal and ring
+   positions from :func:`bearing_fmu.floating_ring.static_equilibrium`;
+2. the films' linearized coefficients there (:func:`bearing_fmu.linearize.linearization`,
+   our finite half-Sommerfeld film on the same grid as the run-up): inner ``K_i, C_i`` in the
+   journal-minus-ring coordinates at the wedge speed omega + Omega, outer ``K_o, C_o``;
+3. the rotor's matrices at omega (:meth:`LinearRotor.system_matrices`) augmented with the two
+   ring translation DOFs per station (mass m_r), coupled by the films::
+
+       K[j, j] += K_i,  K[j, r] -= K_i,  K[r, j] -= K_i,  K[r, r] += K_i + K_o   (same for C)
+
+   and the eigenvalues of the first-order system; the threshold is the lowest speed at which
+   an eigenvalue crosses Re = 0 (scan + Brent, as :func:`rotor_fmu.stability.threshold_speed`).
+
+``spin=False`` holds the ring spin at its steady value, as the classical linear analyses do
+(Tatara 1970, Tanaka & Hori 1972, Li & Rohde 1981); ``spin=True`` adds the spin perturbation
+of each ring as a first-order DOF, ``J_r dOmega' = dT/dq q + dT/dq' q' + dT/dOmega dOmega``, and the
+films' force sensitivity to Omega (wedge speeds omega + Omega and Omega), all by central
+differences of the quasi-static model (:func:`_spin_terms`): with eccentric films the torque
+depends linearly on the whirl displacement.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.optimize import brentq
+
+from bearing_fmu.floating_ring import FloatingRing, RingParams, petroff_ratio, static_equilibrium
+from bearing_fmu.linearize import linearization
+
+from .stability import static_bearing_loads
+
+__all__ = ["operating_point", "ring_system_eigen", "ring_threshold_speed"]
+
+
+def _ring_torque(params: RingParams, load: float, omega: float, Om: float):
+    """(net torque on the ring [N m], model) at the static equilibrium with ring speed Om."""
+    journal, ring = static_equilibrium(params, load, omega, omega_ring=Om)
+    fr = FloatingRing(params.replace(floating=1))
+    fr.initialize(*journal, 0.0, 0.0, omega, ring=(*ring, 0.0, 0.0), omega_ring=Om)
+    return fr.outputs["T_ring_inner"] + fr.outputs["T_ring_outer"], fr
+
+
+def operating_point(params: RingParams, load: float, omega: float) -> FloatingRing:
+    """Initialised model at the steady operating point (ring speed from the torque balance,
+    journal and ring at their static equilibria; semi-floating: Omega = 0)."""
+    if not params.floating:
+        journal, ring = static_equilibrium(params, load, omega)
+        fr = FloatingRing(params)
+        fr.initialize(*journal, 0.0, 0.0, omega, ring=(*ring, 0.0, 0.0))
+        return fr
+    a = petroff_ratio(params) * omega
+    b = 0.6 * a
+    fa, fr = _ring_torque(params, load, omega, a)
+    fb, fr_b = _ring_torque(params, load, omega, b)
+    for _ in range(30):                       # secant; the torque is monotone in Omega
+        if abs(fb) < 1e-10 * abs(fr_b.outputs["T_journal"]) or fb == fa:
+            return fr_b
+        a, b, fa = b, b - fb * (b - a) / (fb - fa), fb
+        b = min(max(b, 0.0), omega)
+        fb, fr_b = _ring_torque(params, load, omega, b)
+    return fr_b
+
+
+def _augmented(rotor, omega, points):
+    M, C, K = rotor.system_matrices(omega)
+    n = M.shape[0]
+    nb = len(points)
+    N = n + 2 * nb
+    Ma, Ca, Ka = (np.zeros((N, N)) for _ in range(3))
+    Ma[:n, :n], Ca[:n, :n], Ka[:n, :n] = M, C, K
+    for k, fr in enumerate(points):
+        Ki, Ci = linearization(fr.inner)
+        Ko, Co = linearization(fr.outer)
+        j = list(rotor.bearing_dofs[k])
+        r = [n + 2 * k, n + 2 * k + 1]
+        Ma[np.ix_(r, r)] = fr.params.m_ring * np.eye(2)
+        for A, Ai, Ao in ((Ka, Ki, Ko), (Ca, Ci, Co)):
+            A[np.ix_(j, j)] += Ai
+            A[np.ix_(j, r)] -= Ai
+            A[np.ix_(r, j)] -= Ai
+            A[np.ix_(r, r)] += Ai + Ao
+    return Ma, Ca, Ka
+
+
+def _spin_terms(fr: FloatingRing):
+    """Central differences of the quasi-static ring bearing at its state: (dT, dFi, dFo) with
+    dT (9,) the net ring torque per (x_j, y_j, vx_j, vy_j, x_r, y_r, vx_r, vy_r, Omega) and
+    dFi, dFo (2,) the inner/outer film force per Omega."""
+    j = np.array(fr._journal, dtype=float)
+    z0 = np.concatenate([j[:4], fr._ring, [fr._Om]])
+    c = fr.params.inner.c
+    steps = np.array([1e-5 * c] * 2 + [1e-5 * c * j[4]] * 2 + [1e-5 * c] * 2 + [1e-5 * c * j[4]] * 2
+                     + [1e-6 * j[4]])
+
+    def ev(z):
+        m = FloatingRing(fr.params.replace(floating=1))
+        m.initialize(*z[:4], j[4], ring=tuple(z[4:8]), omega_ring=z[8])
+        o = m.outputs
+        return o["T_ring_inner"] + o["T_ring_outer"], np.array([o["Fx"], o["Fy"]]), m._Fo.copy()
+
+    dT = np.empty(9)
+    for k in range(9):
+        zp, zm = z0.copy(), z0.copy()
+        zp[k] += steps[k]
+        zm[k] -= steps[k]
+        (tp, fip, fop), (tm, fim, fom) = ev(zp), ev(zm)
+        dT[k] = (tp - tm) / (2 * steps[k])
+    dFi, dFo = (fip - fim) / (2 * steps[8]), (fop - fom) / (2 * steps[8])
+    return dT, dFi, dFo
+
+
+def ring_system_eigen(rotor, params_list, omega, spin=False):
+    """Eigenvalues [1/s] of the rotor in floating-ring bearings (one RingParams per bearing
+    station) at journal speed omega [rad/s], and the operating points used (module doc)."""
+    loads = static_bearing_loads(rotor)
+    points = [operating_point(p, float(-ld[1]), omega) for p, ld in zip(params_list, loads)]
+    M, C, K = _augmented(rotor, omega, points)
+    N = M.shape[0]
+    n = rotor.n_dof
+    Mi = np.linalg.inv(M)
+    ns = len(points) if spin and all(p.floating for p in params_list) else 0
+    A = np.zeros((2 * N + ns, 2 * N + ns))
+    A[:N, N:2 * N] = np.eye(N)
+    A[N:2 * N, :N] = -Mi @ K
+    A[N:2 * N, N:2 * N] = -Mi @ C
+    for k in range(ns):
+        fr = points[k]
+        dT, dFi, dFo = _spin_terms(fr)
+        jd = list(rotor.bearing_dofs[k])
+        rd = [n + 2 * k, n + 2 * k + 1]
+        col = 2 * N + k
+        F = np.zeros(N)                            # force per Omega on each DOF
+        F[jd] += dFi
+        F[rd] += -dFi + dFo
+        A[N:2 * N, col] = Mi @ F
+        row = np.zeros(2 * N + ns)
+        row[jd] += dT[0:2]
+        row[[N + d for d in jd]] += dT[2:4]
+        row[rd] += dT[4:6]
+        row[[N + d for d in rd]] += dT[6:8]
+        row[col] = dT[8]
+        A[col] = row / fr.params.J_ring
+    return np.linalg.eigvals(A), points
+
+
+def _max_re(rotor, params_list, omega, spin=False):
+    lam, _ = ring_system_eigen(rotor, params_list, omega, spin)
+    k = int(np.argmax(lam.real))
+    return float(lam.real[k]), float(abs(lam.imag[k]))
+
+
+def ring_threshold_speed(rotor, params_list, omega_min, omega_max, n_scan=40, spin=False):
+    """(lowest unstable speed [rad/s], whirl frequency there [rad/s]) in [omega_min, omega_max],
+    or (None, None); (omega_min, whirl) when already unstable at omega_min."""
+    ws = np.linspace(omega_min, omega_max, n_scan)
+    f = lambda w: _max_re(rotor, params_list, w, spin)[0]
+    prev = ws[0]
+    if f(prev) >= 0:
+        return float(prev), _max_re(rotor, params_list, prev, spin)[1]
+    for w in ws[1:]:
+        if f(w) >= 0:
+            wt = brentq(f, prev, w, xtol=1e-6 * w, rtol=1e-9)
+            return wt, _max_re(rotor, params_list, wt, spin)[1]
+        prev = w
+    return None, None

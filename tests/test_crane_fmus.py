@@ -1,0 +1,105 @@
+"""Third-party PythonFMU FMUs from PyPI: the ``crane-fmu`` wheel (fetched at test time).
+
+The wheel holds DrivingForce and HarmonicOscillator6D (built with PythonFMU 0.6.9, each
+bundling its own pythonfmu and component_model under resources/) and MobileCrane (PythonFMU
+0.7.0). The FMUs import ``component_model``'s dependencies (pint, ...) from the environment, so
+the tests need the ``component-model`` package (test extra) and the network to fetch the wheel;
+without either they are skipped with the reason.
+
+* A driven 6D oscillator with a start value of a state (``osc.x[0]``, an output with
+  initial="exact") gives libcosim's values (Jacobi, zero-order hold, libcosim in a subprocess).
+* FMUs bundling pythonfmu 0.6.9 and 0.7.0 run in one process in either order.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.integration
+HERE = Path(__file__).resolve().parent
+
+
+@pytest.fixture(scope="session")
+def crane_fmus(tmp_path_factory) -> dict[str, Path]:
+    pytest.importorskip("component_model", reason="the crane-fmu FMUs need the component-model package "
+                                                  "(pip install component-model, in the test extra)")
+    d = tmp_path_factory.mktemp("crane_fmu")
+    proc = subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d", str(d),
+                           "crane-fmu==0.2.0"], capture_output=True, text=True, timeout=300)
+    wheels = list(d.glob("crane_fmu-*.whl"))
+    if proc.returncode != 0 or not wheels:
+        pytest.skip(f"cannot fetch the crane-fmu wheel from PyPI (offline?): {proc.stderr.strip()[-300:]}")
+    out = {}
+    with zipfile.ZipFile(wheels[0]) as zf:
+        for name in zf.namelist():
+            if name.startswith("examples/") and name.endswith(".fmu"):
+                target = d / Path(name).name
+                target.write_bytes(zf.read(name))
+                out[target.stem] = target
+    assert {"DrivingForce", "HarmonicOscillator6D", "MobileCrane"} <= set(out), sorted(out)
+    return out
+
+
+def _run(tmp_path: Path, text: str, name: str):
+    import orchestrator
+    p = tmp_path / f"{name}.yaml"
+    p.write_text(text)
+    return orchestrator.run(orchestrator.load_scenario(p), out_dir=tmp_path / name, progress=False)
+
+
+H, N = 0.01, 100
+CONNS = [["drv.f[0]", "osc.f[0]"], ["drv.f[1]", "osc.f[1]"], ["osc.v[0]", "drv.v_osc[0]"]]
+RECORD = ["osc.x[0]", "osc.x[1]", "osc.v[0]", "drv.f[0]"]
+
+
+def test_driven_oscillator_with_a_state_start_value_matches_libcosim(crane_fmus, tmp_path):
+    pytest.importorskip("libcosimpy")
+    spec = importlib.util.spec_from_file_location("test_interop", HERE / "test_interop.py")
+    interop = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(interop)
+    fm = {"drv": str(crane_fmus["DrivingForce"]), "osc": str(crane_fmus["HarmonicOscillator6D"])}
+    lc = interop.run_libcosim({"fmus": fm, "parameters": {"osc": {"x[0]": 1.0}}, "connections": CONNS,
+                               "step": H, "n_steps": N, "record": RECORD}, tmp_path / "lc.npz")
+    conns = "\n".join(f'  - {{from: "{a}", to: "{b}"}}' for a, b in CONNS)
+    res = _run(tmp_path, f"""name: crane_osc
+stop_time: {H * N}
+fmus:
+  drv: {{path: {fm['drv']}}}
+  osc: {{path: {fm['osc']}, parameters: {{"x[0]": 1.0}}}}
+connections:
+{conns}
+coupling: {{scheme: jacobi, macro_step: {H}, extrapolation_order: 0}}
+output: {{signals: [{', '.join(f'"{s}"' for s in RECORD)}]}}
+""", "ours")
+    assert res.success, res.message
+    assert res.outputs["osc.x[0]"][0] == 1.0                      # the start value reached the state
+    for sig in RECORD:
+        a = lc[sig]
+        np.testing.assert_allclose(res.outputs[sig], a, rtol=0, atol=1e-12 * max(np.max(np.abs(a)), 1.0),
+                                   err_msg=sig)
+    assert np.ptp(lc["osc.x[1]"]) > 1e-3                            # the drive really moved the mass
+
+
+@pytest.mark.parametrize("order", [("drv", "crane"), ("crane", "drv")])
+def test_bundled_pythonfmu_versions_in_either_order(crane_fmus, tmp_path, order):
+    paths = {"drv": crane_fmus["DrivingForce"], "crane": crane_fmus["MobileCrane"]}
+    fmus = "\n".join(f"  {k}: {{path: {paths[k]}}}" for k in order)
+    res = _run(tmp_path, f"""name: mixed_pythonfmu
+stop_time: 0.05
+fmus:
+{fmus}
+connections:
+  - {{from: "drv.f[0]", to: "crane.velocity[0]"}}
+coupling: {{scheme: jacobi, macro_step: 0.01, extrapolation_order: 0}}
+""", "run")
+    assert res.success, res.message
+    from importlib.metadata import version
+    import json
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["versions"]["pythonfmu"] == version("pythonfmu")

@@ -1,0 +1,65 @@
+"""The content-addressed numba cache (bearing_fmu/_numba_cache.py): a second copy of the
+package in another directory (what every FMU extraction is) loads the kernels compiled by the
+first instead of recompiling them."""
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import bearing_fmu
+
+PKG = Path(bearing_fmu.__file__).parent
+
+PROBE = """
+import numpy as np, bearing_fmu, bearing_fmu.cavitation as c
+u = np.linspace(-1, 1, 7); o = [np.empty(7) for _ in range(4)]
+c.law_eval(u, 9.9e4, 1e7, 0.05, *o)
+s = c.law_eval.stats
+print(bearing_fmu.__file__, sum(s.cache_hits.values()), sum(s.cache_misses.values()), s.cache_path)
+"""
+
+
+def _copy(dst):
+    shutil.copytree(PKG, dst / "bearing_fmu", ignore=shutil.ignore_patterns("__pycache__"))
+
+
+def _probe(where, env):
+    out = subprocess.run([sys.executable, "-c", PROBE], cwd=where, env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    f, hits, misses, path = out.stdout.split()
+    assert f.startswith(str(where)), f           # the copy, not the installed package
+    return int(hits), int(misses), path
+
+
+def test_second_copy_loads_the_cache(tmp_path):
+    a, b, root = tmp_path / "a", tmp_path / "b", tmp_path / "cache"
+    _copy(a)
+    _copy(b)
+    env = dict(os.environ, ROTORCOSIM_NUMBA_CACHE=str(root), PYTHONPATH="")
+    h1, m1, p1 = _probe(a, env)
+    h2, m2, p2 = _probe(b, env)
+    assert (h1, m1) == (0, 1)                    # compiled in the first copy
+    assert (h2, m2) == (1, 0)                    # loaded from the cache in the second
+    assert p1 == p2 and p1.startswith(str(root))
+
+
+def test_changed_source_gets_its_own_cache(tmp_path):
+    a, root = tmp_path / "a", tmp_path / "cache"
+    _copy(a)
+    env = dict(os.environ, ROTORCOSIM_NUMBA_CACHE=str(root), PYTHONPATH="")
+    _, _, p1 = _probe(a, env)
+    with open(a / "bearing_fmu" / "cavitation.py", "a") as f:
+        f.write("\n# changed\n")
+    h, m, p2 = _probe(a, env)
+    assert p2 != p1 and (h, m) == (0, 1)         # new content: recompiled, not a stale load
+
+
+def test_switched_off_uses_numba_default(tmp_path):
+    a = tmp_path / "a"
+    _copy(a)
+    env = dict(os.environ, ROTORCOSIM_NUMBA_CACHE="off", PYTHONPATH="")
+    _, _, p = _probe(a, env)
+    assert p == str(a / "bearing_fmu" / "__pycache__")
