@@ -238,7 +238,7 @@ output:
         (9, "'g.k' is a parameter, but the 'to' side of a connection must be an input; inputs of 'g': u"),
         (10, "names the instance 'foo', which is not in 'fmus'"),
         (11, "'left.F' is an input, but the 'from' side of a connection must be an output"),
-        (13, "'coupling.scheme' must be one of ['gauss-seidel', 'jacobi', 'monolithic'] (got 'gauss_seidel', "
+        (13, "'coupling.scheme' must be one of ['gauss-seidel', 'jacobi', 'iterative', 'monolithic'] (got 'gauss_seidel', "
              "a string); did you mean 'gauss-seidel'?"),
         (14, "'coupling.sequence' must list every instance exactly once (left listed more than once; missing g)"),
         (15, "'coupling.extrapolation_order' must be between 0 and 3 (got 4)"),

@@ -41,7 +41,7 @@ COUPLING_KEYS = ("scheme", "extrapolation_order", "interpolation_order", "macro_
                  "sequence")
 MAX_VARIANTS = 500             # variants of one comparison (each is a run)
 MAX_WORKERS = 64               # parallel runs of one comparison
-_ABBR = {"gauss-seidel": "gs", "jacobi": "jac", "monolithic": "mono"}
+_ABBR = {"gauss-seidel": "gs", "jacobi": "jac", "iterative": "it", "monolithic": "mono"}
 _VARIANT_KEYS = set(COUPLING_KEYS) | {"name", "family", "set", "tolerance", "expect_order"}
 _TOP_KEYS = {"name", "scenario", "set", "output_interval", "workers", "reference", "signals",
              "derived", "metrics", "tolerance", "variants", "order_metric", "order_tolerance",
@@ -558,6 +558,7 @@ def apply_changes(scenario: Scenario, changes: Mapping[str, Any]) -> Scenario:
     """Return ``scenario`` with dotted-key changes applied.
 
     Keys: ``stop_time``, ``start_time``, ``coupling.<field>``, ``coupling.options.<k>``,
+    ``coupling.iteration.<k>``, ``coupling.step_control.<k>``,
     ``output.interval``, ``output.signals``, ``<instance>.<parameter>`` (an FMU parameter).
     """
     sc = scenario
@@ -569,6 +570,13 @@ def apply_changes(scenario: Scenario, changes: Mapping[str, Any]) -> Scenario:
             opts = dict(sc.coupling.options)
             opts[parts[2]] = value
             sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, options=opts))
+        elif parts[0] == "coupling" and len(parts) == 3 and parts[1] in ("iteration", "step_control"):
+            sub = getattr(sc.coupling, parts[1])
+            if parts[2] not in {f.name for f in dataclasses.fields(sub)}:
+                raise KeyError(f"'{key}': unknown field of coupling.{parts[1]} (fields: "
+                               f"{[f.name for f in dataclasses.fields(sub)]})")
+            sub = dataclasses.replace(sub, **{parts[2]: value})
+            sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, **{parts[1]: sub}))
         elif parts[0] == "coupling" and len(parts) == 2:
             if parts[1] not in {f.name for f in dataclasses.fields(sc.coupling)}:
                 raise KeyError(f"'{key}': unknown coupling field")

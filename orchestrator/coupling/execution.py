@@ -36,6 +36,9 @@ from orchestrator.coupling.macro_step import MacroStep
 from orchestrator.coupling.observers import Observer, Recorder, RunView
 from orchestrator.coupling.plan import make_plan
 from orchestrator.coupling.schemes import CouplingScheme, scheme_from_spec
+from orchestrator.coupling.acceleration import IQNILS, solve_fixed_point
+from orchestrator.coupling.iterative import IterativeMacroStep
+from orchestrator.coupling.loops import loop_through
 from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
     RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController, controller_from_spec)
@@ -51,7 +54,21 @@ from orchestrator.scenario.model import MAX_DISCARD_RETRIES
 
 log = logging.getLogger(__name__)
 
-INIT_EXCHANGE_ITERATIONS = 10     # fixed-point passes to settle feed-through chains at t0
+INIT_LOOP_ITERATIONS = 50         # IQN-ILS iterations for an algebraic loop in the initial exchange
+
+
+def variable_step_ok(sub) -> bool:
+    """canHandleVariableCommunicationStepSize of a subsystem (fakes without a model description: True)."""
+    md = getattr(sub, "md", None)
+    if md is not None and hasattr(md, "can_handle_variable_step"):
+        return bool(md.can_handle_variable_step)
+    return bool(getattr(sub, "can_handle_variable_step", True))
+
+
+def plan_units_in_store_order(scenario, units) -> list:
+    """The units in the order of the history store's columns (the scenario's FMU order, plan.py)."""
+    by_name = {u.name: u for u in units}
+    return [by_name[f.name] for f in scenario.fmus]
 
 
 class MasterAlgorithm:
@@ -194,12 +211,54 @@ class MasterAlgorithm:
             for u in self.units:
                 u.sub.no_set_prior_state = False    # we may restore the state saved before each macro step
         # noSetFMUStatePriorToCurrentPoint for every doStep: False while the master may restore a state
-        self.stepper = MacroStep(plan, self.predictor, macro_step=self.scenario.coupling.macro_step,
-                                 startup_iterations=startup, no_prior=not self.grid.needs_states,
-                                 stages=self._stages())
+        self.signal_names = [f"{u.name}.{n}" for u in plan_units_in_store_order(self.scenario, self.units)
+                             for n in u.ext_names + u.int_names]
+        kw = dict(macro_step=self.scenario.coupling.macro_step, startup_iterations=startup,
+                  no_prior=not self.grid.needs_states, stages=self._stages())
+        c = self.scenario.coupling
+        if c.scheme == "iterative":
+            self._require_states("coupling.scheme = iterative repeats every macro step from the saved states",
+                                 "use scheme gauss-seidel or jacobi")
+            kw.update(startup_iterations=False, no_prior=False)
+            self.stepper = IterativeMacroStep(plan, self.predictor, spec=c.iteration,
+                                              signal_names=self.signal_names, **kw)
+        else:
+            self.stepper = MacroStep(plan, self.predictor, **kw)
+        if getattr(self.grid, "variable", False):
+            self._setup_variable_grid()
         g = self.grid
         tgrid = TimeGrid(g.t0, g.h, t_stop=g.t_stop, n_stop=g.n_steps) if isinstance(g, ConstantStep) else None
         self.view = RunView(self.columns, g.time(0), g.time(g.n_steps), g.n_steps, kinds=self.kinds, grid=tgrid)
+
+    def _require_states(self, what: str, fix: str) -> None:
+        stateless = [u.name for u in self.units if not u.sub.can_get_set_state]
+        if stateless:
+            raise ScenarioError(
+                f"{self._where()}{what}, so every FMU must save and restore its state "
+                f"(canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} cannot (got "
+                f"canGetAndSetFMUstate false); {fix}, or use an FMU built with state support")
+        for u in self.units:
+            u.sub.no_set_prior_state = False
+
+    def _setup_variable_grid(self) -> None:
+        """The error-controlled step (coupling/adaptive.py): FMUs with a fixed step are refused;
+        without state save/restore in every FMU the step adapts forward only."""
+        fixed = [u.name for u in self.units if not variable_step_ok(u.sub)]
+        if fixed:
+            raise ScenarioError(
+                f"{self._where()}coupling.step_control type error varies the macro step, but "
+                f"{', '.join(map(repr, fixed))} cannot take varying steps (canHandleVariableCommunicationStepSize "
+                "false); use step_control type constant")
+        can_reject = all(u.sub.can_get_set_state for u in self.units)
+        self.grid.can_reject = can_reject
+        if can_reject:
+            for u in self.units:
+                u.sub.no_set_prior_state = False
+            self.stepper.no_prior = False
+        else:
+            log.warning("coupling.step_control type error: %s cannot restore a saved state, so no macro step "
+                        "is rejected: the step adapts forward only",
+                        ", ".join(repr(u.name) for u in self.units if not u.sub.can_get_set_state))
 
     # ------------------------------------------------------------ initialize
     def initialize(self) -> None:
@@ -238,28 +297,61 @@ class MasterAlgorithm:
             o.on_initialized(self.view)
 
     def _exchange_initial(self) -> None:
-        for it in range(INIT_EXCHANGE_ITERATIONS):
-            changed = False
-            before = [b.copy() for b in self.history.blocks]
+        """Outputs -> inputs at t0 until they agree (direct feedthrough).
+
+        Plain passes first: a chain of feedthrough FMUs settles exactly in as many
+        passes as it is long. If the signals still change after ``len(units) + 1``
+        passes there is an algebraic loop: it is solved as the fixed point ``x = G(x)``
+        of one exchange (IQN-ILS, coupling/acceleration.py) to ``coupling.iteration.tol``;
+        no convergence raises CouplingError naming the loop (coupling/loops.py).
+        """
+        store = self.history.store
+        t0 = self.grid.time(0)
+
+        def exchange(x=None):
+            if x is not None:
+                store[0] = x
+                self._push_inputs()
             if self.discrete.active:
-                d_before = self.discrete.snapshot()
                 self.discrete.exchange_all()
-                changed = any(not np.array_equal(a, b) for a, b in zip(d_before, self.discrete.snapshot()))
             for u in self.units:
                 u.sub.get_real(u.outb)
-                self.stepper.propagate(u, self.grid.time(0))
-            for u in self.units:
-                if u.nE + u.nI:
-                    u.inb.values[:u.nE] = u.HE[0]
-                    u.inb.values[u.nE:] = u.HI[0]
-                    u.sub.set_real(u.inb)
-            for b, b0 in zip(self.history.blocks, before):
-                if not np.array_equal(b[0], b0[0]):
-                    changed = True
-            if not changed and it > 0:
+                self.stepper.propagate(u, t0)
+            return store[0].copy()
+
+        x = exchange()
+        for _ in range(len(self.units) + 1):
+            d_before = self.discrete.snapshot() if self.discrete.active else ()
+            g = exchange(x)
+            d_after = self.discrete.snapshot() if self.discrete.active else ()
+            if np.array_equal(g, x) and all(np.array_equal(a, b) for a, b in zip(d_before, d_after)):
                 return
-        log.info("initial exchange did not reach a fixed point in %d passes (algebraic loop?)",
-                 INIT_EXCHANGE_ITERATIONS)
+            x = g
+        spec = self.scenario.coupling.iteration
+        res = solve_fixed_point(exchange, x, acceleration=IQNILS(), tol=spec.tol, scale=np.abs(x),
+                                max_iterations=max(spec.max_iterations, INIT_LOOP_ITERATIONS))
+        if res.converged:
+            store[0] = res.x
+            self._push_inputs()
+            log.info("initial exchange: algebraic loop solved in %d iterations (IQN-ILS, residual %.3g of the "
+                     "signals' scale)", res.iterations, res.residual)
+            return
+        name = self.signal_names[res.worst] if self.signal_names else "?"
+        loop = loop_through(self.scenario.connections, name.split(".", 1)[0])
+        raise CouplingError(
+            f"the initial exchange at t={t0:g} s has an algebraic loop that does not converge: after "
+            f"{len(self.units) + 1 + res.iterations} passes (IQN-ILS) the input {name} still changes by "
+            f"{res.residual:.3g} of its scale (tol {spec.tol:g}); the loop is "
+            f"{', '.join(loop) if loop else 'not a cycle of connections (an FMU output that keeps changing)'}. "
+            "The loop's equations have no (or no reachable) solution: check the gains, offsets and the FMUs' "
+            "feedthrough in it, or break it with a state (e.g. a first-order lag)")
+
+    def _push_inputs(self) -> None:
+        for u in self.units:
+            if u.nE + u.nI:
+                u.inb.values[:u.nE] = u.HE[0]
+                u.inb.values[u.nE:] = u.HI[0]
+                u.sub.set_real(u.inb)
 
     # ------------------------------------------------------------------ step
     def step(self) -> Status:
@@ -270,10 +362,19 @@ class MasterAlgorithm:
                                     else "the run is over; read result()"))
         n = self.n
         grid = self.grid
-        t = grid.time(n)
-        t_next = grid.time(n + 1)
+        variable = getattr(grid, "variable", False)
+        on_output = False
+        if variable:
+            t = self.t
+            t_next = min(t + grid.h, self.scenario.stop_time)      # for messages if the step fails
+        else:
+            t = grid.time(n)
+            t_next = grid.time(n + 1)
         try:
-            grid.take_step(self.stepper, t, t_next)
+            if variable:
+                t_next, on_output = grid.take_variable_step(self.stepper, t)
+            else:
+                grid.take_step(self.stepper, t, t_next)
         except RetriesExhausted as x:
             n_h = self.discard_retries
             self._fail(self._fmu_message(x.error, t, t_next)
@@ -294,8 +395,12 @@ class MasterAlgorithm:
         self.n = n + 1
         self.t = t_next
         self.end_time = t_next
-        last = self.n >= self.grid.n_steps
-        self._record(t_next, self.n, last or self.n % self.stride == 0)
+        if variable:
+            last = t_next >= self.scenario.stop_time
+            self._record(t_next, self.n, last or on_output)
+        else:
+            last = self.n >= self.grid.n_steps
+            self._record(t_next, self.n, last or self.n % self.stride == 0)
         if last:
             self.status = Status.FINISHED
             self.message = f"finished at t={t_next:g} s after {self.n} macro steps"
@@ -416,9 +521,13 @@ class MasterAlgorithm:
         """``rejected_steps``: (sub-)step attempts discarded by an FMU and rolled back;
         ``retried_steps``: macro steps redone in smaller steps; ``retry_substeps``: the extra
         step rounds (sub-intervals attempted) of those retries (all 0 without discard_retries)."""
-        return {"macro_steps": self.n, **self.grid.statistics(), "wall_time_s": self.wall_time,
-                "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()},
-                "isolation": dict(self.isolation), "failure": self.failure}
+        st = {"macro_steps": self.n, **self.grid.statistics(), "wall_time_s": self.wall_time,
+              "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()},
+              "isolation": dict(self.isolation), "failure": self.failure}
+        stats = getattr(getattr(self, "stepper", None), "stats", None)
+        if stats is not None:
+            st["iterations"] = stats.as_dict()
+        return st
 
     def result(self) -> CoSimResult:
         t, outputs = self.recorder.arrays()

@@ -255,7 +255,8 @@ def make_plan(scenario, subsystems, scheme) -> Plan:
     H = scenario.coupling.macro_step
     interval = scenario.output.interval or H
     stride = max(1, int(round(interval / H)))
-    if not math.isclose(stride * H, interval, rel_tol=1e-9):
+    adaptive = getattr(getattr(scenario.coupling, "step_control", None), "type", "constant") == "error"
+    if not adaptive and not math.isclose(stride * H, interval, rel_tol=1e-9):
         warnings.warn(f"output.interval {interval} is not a multiple of coupling.macro_step {H}; "
                       f"writing every {stride} macro steps ({stride * H} s)", stacklevel=3)
     return Plan(order=order, units=ordered, history=history, columns=columns, rec=rec, stride=stride,

@@ -84,7 +84,7 @@ def scheme_from_spec(scheme: str, sequence: Sequence[str] = ()) -> CouplingSchem
     """The scheme object for ``coupling.scheme`` (strings become classes once, here)."""
     if scheme == "jacobi":
         return Jacobi()
-    if scheme == "gauss-seidel":
+    if scheme in ("gauss-seidel", "iterative"):     # iterative: Gauss-Seidel passes repeated (iterative.py)
         return GaussSeidel(sequence)
-    raise ScenarioError(f"coupling.scheme must be one of ['gauss-seidel', 'jacobi'] for the master "
+    raise ScenarioError(f"coupling.scheme must be one of ['gauss-seidel', 'iterative', 'jacobi'] for the master "
                         f"(got {scheme!r}); 'monolithic' is run by orchestrator.reference")

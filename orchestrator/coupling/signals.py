@@ -95,6 +95,15 @@ class History:
             start += n
         return list(self.blocks)
 
+    @property
+    def store(self) -> np.ndarray:
+        """The one array behind every block (after :meth:`allocate`): row 0 is the level being
+        filled, i.e. every coupling signal at T(n+1) side by side (the iterative scheme's
+        interface vector)."""
+        if self._store is None:
+            raise RuntimeError("History.store needs allocate()")
+        return self._store
+
     def start(self, t0: float) -> None:
         """Declare row 0 of every block as the values at ``t0`` and make it level 1."""
         self.times[:] = np.nan

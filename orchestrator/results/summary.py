@@ -47,7 +47,8 @@ def cosim_stats(stats: Mapping[str, Any]) -> dict:
             "wall_time_s": stats.get("wall_time_s"),
             "fmu_calls": stats.get("fmu_calls", {}),
             "isolation": stats.get("isolation", {}),
-            "failure": stats.get("failure")}
+            "failure": stats.get("failure"),
+            **{k: stats[k] for k in ("iterations", "step_control") if k in stats}}
 
 
 def write_summary(path: Path | str, summary: Mapping[str, Any]) -> None:

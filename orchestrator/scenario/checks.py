@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from orchestrator.errors import CosimError
 from orchestrator.fmi.archive import cached_model_description
+from orchestrator.scenario.coupling_sections import check_capabilities
 from orchestrator.fmi.values import check_value, settable_problem
 from orchestrator.scenario.completion import Completion
 from orchestrator.scenario.nodes import FLOAT_RE, article, did_you_mean, ranked
@@ -26,6 +27,7 @@ class FmuChecks(Completion):
         (``draft.kw["defaults"]`` says which), array connections element by element and
         ``output.signals`` patterns expanded."""
         self.mds = {}
+        self.fmu_caps = {}
         self.des = {}
         self.fixed_step = []
         for f in draft.fmus:
@@ -35,6 +37,8 @@ class FmuChecks(Completion):
         params = {f["name"]: self.check_parameters(f) for f in draft.fmus}
         draft.connections = self.expand_arrays(draft.connections)
         self.check_connections(draft.connections)
+        if len(self.fmu_caps) == len(draft.fmus):
+            check_capabilities(self, draft.coupling_node, draft.coupling, self.fmu_caps)
         draft.signals = self.expand_patterns(draft.signals)
         self.check_signals(draft.signals, "output.signals")
         if draft.analysis_node is not None and isinstance(draft.kw.get("analysis"), dict):
@@ -70,6 +74,7 @@ class FmuChecks(Completion):
                            "is an FMI 2.0 co-simulation FMU (`rotorcosim info FILE` shows what it contains)")
             return
         self.mds[name] = dict(md.variables)
+        self.fmu_caps[name] = md
         self.des[name] = dict(md.default_experiment)
         if not md.can_handle_variable_step:
             self.fixed_step.append(name)

@@ -11,7 +11,9 @@ from pathlib import Path
 from typing import Any, Mapping
 
 SCENARIO_VERSION = 1
-SCHEMES = ("gauss-seidel", "jacobi", "monolithic")
+SCHEMES = ("gauss-seidel", "jacobi", "iterative", "monolithic")
+ACCELERATIONS = ("none", "aitken", "iqn-ils")       # coupling.iteration.acceleration
+STEP_CONTROL_TYPES = ("constant", "error")          # coupling.step_control.type
 MAX_ORDER = 3                     # highest extrapolation/interpolation order of the coupling signals
 MAX_DISCARD_RETRIES = 30          # coupling.discard_retries: smallest retried step H / 2^30
 
@@ -23,7 +25,7 @@ ISOLATION = ("none", "process")   # fmus.<name>.isolation, coupling.isolation
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
                  "interpolation_order", "substeps", "discard_retries", "isolation", "parallel", "call_timeout",
-                 "options")
+                 "options", "iteration", "step_control")
 OUTPUT_KEYS = ("interval", "signals", "format")
 OUTPUT_FORMATS = ("csv", "parquet")
 # override navigation: (schema, key) -> schema of the child; (schema) -> default
@@ -31,6 +33,7 @@ CHILD_SCHEMA = {
     ("top", "fmus"): "instances", ("top", "connections"): "connections",
     ("top", "coupling"): "coupling", ("top", "output"): "output", ("top", "analysis"): "free",
     ("top", "compare"): "free", ("fmu", "parameters"): "params", ("coupling", "options"): "free",
+    ("coupling", "iteration"): "free", ("coupling", "step_control"): "free",
     "instances": "fmu", "connections": "connection", "free": "free",
 }
 SECTION_KEYS = {"top": TOP_KEYS, "fmu": FMU_KEYS, "connection": CONNECTION_KEYS,
@@ -79,6 +82,33 @@ class ConnectionSpec:
 
 
 @dataclass(frozen=True, kw_only=True)
+class IterationSpec:
+    """``coupling.iteration`` section (used by ``scheme: iterative``, orchestrator/coupling/iterative.py)."""
+
+    max_iterations: int = 20                 # passes per macro step, >= 1
+    tol: float = 1.0e-8                      # relative to each signal's scale
+    acceleration: str = "iqn-ils"            # one of ACCELERATIONS
+
+    def __post_init__(self):
+        if self.acceleration not in ACCELERATIONS:
+            raise ValueError(f"coupling.iteration.acceleration must be one of {list(ACCELERATIONS)} "
+                             f"(got {self.acceleration!r})")
+
+
+@dataclass(frozen=True, kw_only=True)
+class StepControlSpec:
+    """``coupling.step_control``: ``type: constant`` (the default, macro_step throughout) or
+    ``type: error`` (error-controlled macro step, orchestrator/coupling/adaptive.py; ``macro_step``
+    is the first step). ``min_step``/``max_step`` None: macro_step / 1000 and the output interval."""
+
+    type: str = "constant"                   # one of STEP_CONTROL_TYPES
+    rtol: float = 1.0e-4
+    atol: float = 1.0e-8                     # in the signals' units
+    min_step: float | None = None            # [s]
+    max_step: float | None = None            # [s]
+
+
+@dataclass(frozen=True, kw_only=True)
 class CouplingSpec:
     """``coupling:`` section."""
 
@@ -93,6 +123,8 @@ class CouplingSpec:
     parallel: bool = True                    # step the FMUs of a stage concurrently (workers only)
     call_timeout: float | None = None        # [s] longest wait for an isolated FMU's answer; None: no limit
     options: Mapping[str, Any] = field(default_factory=dict)  # scheme-specific extras (e.g. monolithic rtol)
+    iteration: IterationSpec = field(default_factory=IterationSpec)         # scheme: iterative
+    step_control: StepControlSpec = field(default_factory=StepControlSpec)  # constant or error-controlled
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -16,6 +16,7 @@ from typing import Any
 import yaml
 
 from orchestrator.errors import ScenarioError
+from orchestrator.scenario.coupling_sections import load_iteration, load_step_control
 from orchestrator.scenario.model import (
     CONNECTION_KEYS, COUPLING_KEYS, FMU_KEYS, ISOLATION, MAX_DISCARD_RETRIES, MAX_ORDER, OUTPUT_FORMATS, OUTPUT_KEYS,
     SCENARIO_VERSION,
@@ -52,6 +53,7 @@ class Draft:
     interval: float | None
     signals: list | None
     analysis_node: Any = None
+    coupling_node: Any = None
     output_format: str = "csv"
 
     @property
@@ -166,6 +168,7 @@ class SectionReader(NodeReader):
         self.root_node = root
         return Draft(kw=kw, fmus=fmus, connections=connections, coupling=coupling, interval=interval,
                      signals=signals, analysis_node=get("analysis") if "analysis" in top else None,
+                     coupling_node=get("coupling"),
                      output_format=self.output_format)
 
     # -- sections ----------------------------------------------------------
@@ -301,6 +304,11 @@ class SectionReader(NodeReader):
                             "integrator with its own step-size control, no macro steps to retry)",
                             self.loc(section["discard_retries"][1]), v)
         ok &= self.load_worker_keys(section, c)
+        for key, load in (("iteration", load_iteration), ("step_control", load_step_control)):
+            if key in section:
+                v = load(self, section[key][1])
+                ok &= v is not None
+                c[key] = v
         if "options" in section:
             if not isinstance(section["options"][1], yaml.MappingNode):
                 self.err(section["options"][1], f"'coupling.options' must be a mapping (got "

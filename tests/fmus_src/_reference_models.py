@@ -7,6 +7,8 @@ The leading ``_`` keeps it out of the PythonFMU sources this folder is built fro
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from orchestrator.reference.models import ModelAdapter
@@ -31,7 +33,8 @@ class LeftMassAdapter(ModelAdapter):
 
 
 class RightMassAdapter(ModelAdapter):
-    """tests/fmus_src/right_mass.py: ``m2 x2'' = -k2 x2 - d2 v2 - F``, ``F = kc (x2-x1) + dc (v2-v1)``."""
+    """tests/fmus_src/right_mass.py: ``m2 x2'' = -k2 x2 - d2 v2 - F``, ``F = kc (x2-x1) + dc (v2-v1)``
+    (``kc`` becomes ``kc_after`` from ``t_switch`` on)."""
 
     input_names = ("x1", "v1")
     output_names = ("F", "x2", "v2")
@@ -41,16 +44,17 @@ class RightMassAdapter(ModelAdapter):
     def initial_state(self):
         return np.array([self.params["x2_0"], self.params["v2_0"]], dtype=float)
 
-    def _force(self, s, u):
+    def _force(self, t, s, u):
         p = self.params
-        return p["kc"] * (s[0] - u["x1"]) + p["dc"] * (s[1] - u["v1"])
+        kc = p.get("kc_after", p["kc"]) if t >= p.get("t_switch", math.inf) else p["kc"]
+        return kc * (s[0] - u["x1"]) + p["dc"] * (s[1] - u["v1"])
 
     def rhs(self, t, s, u):
         p = self.params
-        return np.array([s[1], (-p["k2"] * s[0] - p["d2"] * s[1] - self._force(s, u)) / p["m2"]])
+        return np.array([s[1], (-p["k2"] * s[0] - p["d2"] * s[1] - self._force(t, s, u)) / p["m2"]])
 
     def outputs(self, t, s, u, *, full=True):
-        return {"F": float(self._force(s, u)), "x2": float(s[0]), "v2": float(s[1])}
+        return {"F": float(self._force(t, s, u)), "x2": float(s[0]), "v2": float(s[1])}
 
 
 def register(register_model) -> None:

@@ -1,0 +1,113 @@
+"""Scenario sections of the coupling beyond explicit: ``coupling.iteration`` and ``coupling.step_control``.
+
+Read by the section reader (scenario/sections.py) (``load_iteration`` / ``load_step_control`` take the
+loader, whose ``mapping``/``number``/``integer``/``value``/``err`` report problems
+with file and line). Format (docs/scenario-format.md)::
+
+    coupling:
+      scheme: iterative
+      iteration: {max_iterations: 20, tol: 1.0e-8, acceleration: iqn-ils}   # none | aitken | iqn-ils
+      step_control: {type: error, rtol: 1.0e-4, atol: 1.0e-8, min_step: 1.0e-6, max_step: 1.0e-2}
+"""
+
+from __future__ import annotations
+
+import logging
+
+import yaml
+
+from orchestrator.scenario.model import ACCELERATIONS, STEP_CONTROL_TYPES, IterationSpec, StepControlSpec
+
+ITERATION_KEYS = ("max_iterations", "tol", "acceleration")
+STEP_CONTROL_KEYS = ("type", "rtol", "atol", "min_step", "max_step")
+MAX_ITERATIONS_LIMIT = 1000
+log = logging.getLogger(__name__)
+
+
+def load_iteration(ld, node) -> IterationSpec | None:
+    section = ld.mapping(node, "coupling.iteration", ITERATION_KEYS,
+                         fix="write e.g. 'iteration: {max_iterations: 20, tol: 1.0e-8, acceleration: iqn-ils}'")
+    if section is None:
+        return None
+    kw: dict = {}
+    ok = True
+    if "max_iterations" in section:
+        v = ld.integer(section["max_iterations"][1], "coupling.iteration.max_iterations", 1, MAX_ITERATIONS_LIMIT,
+                       "give the most passes per macro step, e.g. 20")
+        ok &= v is not None
+        kw["max_iterations"] = v
+    if "tol" in section:
+        v = ld.number(section["tol"][1], "coupling.iteration.tol", positive=True,
+                      fix="give the tolerance relative to each signal's scale, e.g. 1.0e-8")
+        ok &= v is not None
+        kw["tol"] = v
+    if "acceleration" in section:
+        n = section["acceleration"][1]
+        v = ld.value(n) if isinstance(n, yaml.ScalarNode) else None
+        if v not in ACCELERATIONS:
+            ld.err(n, f"'coupling.iteration.acceleration' must be one of {list(ACCELERATIONS)} (got {ld.got(n)}); "
+                      "iqn-ils converges on stiff couplings, none and aitken may not")
+            ok = False
+        kw["acceleration"] = v
+    return IterationSpec(**kw) if ok else None
+
+
+def load_step_control(ld, node) -> StepControlSpec | None:
+    section = ld.mapping(node, "coupling.step_control", STEP_CONTROL_KEYS,
+                         fix="write e.g. 'step_control: {type: error, rtol: 1.0e-4, atol: 1.0e-8}'")
+    if section is None:
+        return None
+    kw: dict = {}
+    ok = True
+    if "type" not in section:
+        ld.err(node, f"'coupling.step_control' is missing the required key 'type'; add 'type: error' (or one of "
+                     f"{list(STEP_CONTROL_TYPES)})")
+        ok = False
+    else:
+        n = section["type"][1]
+        v = ld.value(n) if isinstance(n, yaml.ScalarNode) else None
+        if v not in STEP_CONTROL_TYPES:
+            ld.err(n, f"'coupling.step_control.type' must be one of {list(STEP_CONTROL_TYPES)} (got {ld.got(n)}); "
+                      "use error for an error-controlled macro step")
+            ok = False
+        kw["type"] = v
+    for key, fix in (("rtol", "e.g. 1.0e-4"), ("atol", "in the signals' units, e.g. 1.0e-8"),
+                     ("min_step", "in seconds, e.g. 1.0e-7"), ("max_step", "in seconds, e.g. 1.0e-3")):
+        if key in section:
+            v = ld.number(section[key][1], f"coupling.step_control.{key}", positive=True, fix=f"give a number {fix}")
+            ok &= v is not None
+            kw[key] = v
+    if ok and kw.get("min_step") is not None and kw.get("max_step") is not None and kw["min_step"] > kw["max_step"]:
+        ld.err(section["min_step"][1], f"'coupling.step_control.min_step' ({kw['min_step']!r}) must not exceed "
+                                       f"max_step ({kw['max_step']!r}); swap or change them")
+        ok = False
+    return StepControlSpec(**kw) if ok else None
+
+
+def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
+    """The FMU capability flags the chosen coupling needs (``mds``: instance -> model description).
+
+    ``scheme: iterative`` needs canGetAndSetFMUstate in every FMU (an error);
+    ``step_control: error`` needs canHandleVariableCommunicationStepSize (an error) and,
+    to reject steps, canGetAndSetFMUstate (without it the step adapts forward only: a warning,
+    which ``rotorcosim validate`` prints).
+    """
+    if coupling is None:
+        return
+    stateless = [n for n, md in mds.items() if not md.can_get_and_set_fmu_state]
+    if coupling.get("scheme") == "iterative" and stateless:
+        ld.err(node, f"'coupling.scheme: iterative' repeats every macro step from saved FMU states, but "
+                     f"{', '.join(map(repr, stateless))} cannot save them (canGetAndSetFMUstate is false); use "
+                     "gauss-seidel or jacobi, or FMUs built with state support")
+    sc = coupling.get("step_control")
+    if sc is None or sc.type != "error":
+        return
+    fixed = [n for n, md in mds.items() if not md.can_handle_variable_step]
+    if fixed:
+        ld.err(node, f"'coupling.step_control: {{type: error}}' varies the macro step, but "
+                     f"{', '.join(map(repr, fixed))} cannot take varying steps "
+                     "(canHandleVariableCommunicationStepSize is false); use type: constant")
+    elif stateless:
+        log.warning("%s: %s", ld.loc(node), f"'coupling.step_control: {{type: error}}': {', '.join(map(repr, stateless))} cannot save "
+                      "and restore its state (canGetAndSetFMUstate is false), so no step can be rejected and "
+                      "redone: the macro step only adapts forward (the next step follows the error of the last)")

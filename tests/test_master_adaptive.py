@@ -1,0 +1,176 @@
+"""Error-controlled macro step (coupling.step_control: {type: error}) with plain-Python fakes:
+a two-mass oscillator whose coupling spring steps from stiff to soft, against its exact
+(piecewise matrix-exponential) solution."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from orchestrator.scenario.model import StepControlSpec
+from orchestrator.errors import ScenarioError
+from orchestrator.coupling.execution import MasterAlgorithm
+from orchestrator.coupling.observers import Observer
+from orchestrator.results import Status
+from test_master import LinearFake
+from test_master_iterative import STIFF, fakes, scenario
+
+P1 = dict(STIFF, kc=1.0e5, dc=10.0)       # stiff phase: fast mode 447 rad/s
+P2 = dict(P1, kc=100.0)                    # after the switch: soft
+T_SWITCH = 0.1
+X0 = np.array([0.01, 0.0, 0.0101, 0.0])
+
+
+def _right_matrices(P):
+    m2, k2, d2, kc, dc = (P[k] for k in ("m2", "k2", "d2", "kc", "dc"))
+    return tuple(np.atleast_2d(np.asarray(m, float)) for m in (
+        [[0, 1], [-(k2 + kc) / m2, -(d2 + dc) / m2]], [[0, 0], [kc / m2, dc / m2]],
+        [[kc, dc], [1, 0], [0, 1]], [[-kc, -dc], [0, 0], [0, 0]]))
+
+
+class SwitchedRight(LinearFake):
+    """The right mass whose coupling spring is P1's before ``t_switch`` and P2's after
+    (a doStep across t_switch is split there, so it stays exact)."""
+
+    def __init__(self, t_switch, *, interpolate=False, state=True):
+        self.mats = (_right_matrices(P1), _right_matrices(P2))
+        super().__init__("right", *self.mats[0], X0[2:], ["x1", "v1"], ["F", "x2", "v2"],
+                         interpolate=interpolate, state=state)
+        self.t_switch = t_switch
+        self.t = 0.0
+        self._caches = ({}, {})
+        self._use(0)
+
+    def _use(self, i):
+        self.A, self.B, self.C, self.D = self.mats[i]
+        self._E = self._caches[i]
+
+    def do_step(self, t, h):
+        t_end = t + h
+        if t < self.t_switch < t_end:
+            self._use(0)
+            super().do_step(t, self.t_switch - t)
+            self.calls["doStep"] -= 1
+            self._use(1)
+            super().do_step(self.t_switch, t_end - self.t_switch)
+        else:
+            self._use(0 if t < self.t_switch else 1)
+            super().do_step(t, h)
+        self.t = t_end
+        self._use(0 if t_end < self.t_switch else 1)
+
+    def get_state(self):
+        return (super().get_state(), self.t)
+
+    def set_state(self, s):
+        super().set_state(s[0])
+        self.t = s[1]
+        self._use(0 if self.t < self.t_switch else 1)
+
+
+def switched(state=True):
+    return {"left": fakes(P1, X0, interpolate=False, state=state)["left"],
+            "right": SwitchedRight(T_SWITCH, state=state)}
+
+
+def _A(P):
+    m1, k1, m2, k2, d2, kc, dc = (P[k] for k in ("m1", "k1", "m2", "k2", "d2", "kc", "dc"))
+    return np.array([[0, 1, 0, 0], [-(k1 + kc) / m1, -dc / m1, kc / m1, dc / m1],
+                     [0, 0, 0, 1], [kc / m2, dc / m2, -(k2 + kc) / m2, -(d2 + dc) / m2]])
+
+
+def exact(t):
+    xs = expm(_A(P1) * T_SWITCH) @ X0
+    return np.array([expm(_A(P1) * ti) @ X0 if ti <= T_SWITCH else expm(_A(P2) * (ti - T_SWITCH)) @ xs
+                     for ti in t])
+
+
+def rel_error(res):
+    X = exact(res.t)
+    return max(np.abs(res.outputs["left.x1"] - X[:, 0]).max(), np.abs(res.outputs["right.x2"] - X[:, 2]).max()) / 0.01
+
+
+def run(H, *, T=0.3, control=None, k=1, state=True, observers=()):
+    s = scenario("gauss-seidel", H, T=T, k=k, q=k)
+    c = dataclasses.replace(s.coupling, step_control=control or StepControlSpec())
+    s = dataclasses.replace(s, coupling=c, output=dataclasses.replace(s.output, interval=1e-2))
+    return MasterAlgorithm(s, subsystems=switched(state), observers=observers).run()
+
+
+class Rejections(Observer):
+    def __init__(self):
+        self.n = 0
+
+    def on_step_rejected(self, view):
+        self.n += 1
+
+
+def test_rows_stay_on_the_output_grid_and_the_error_follows_rtol():
+    errs = []
+    for rtol in (1e-2, 1e-3):
+        obs = Rejections()
+        res = run(1e-5, control=StepControlSpec(type="error", rtol=rtol, atol=1e-6), observers=[obs])
+        assert res.success, res.message
+        np.testing.assert_allclose(res.t, np.arange(31) * 1e-2, rtol=0, atol=1e-12)
+        st = res.stats["step_control"]
+        assert st["rejected_steps"] == obs.n and st["forced_steps"] == 0 and st["jumps"] >= 1
+        assert st["accepted_steps"] == res.stats["macro_steps"]
+        assert st["max_step_taken"] > 20 * st["min_step_taken"]          # the step follows the dynamics
+        errs.append(rel_error(res))
+    assert errs[1] < errs[0] / 3                                        # tighter rtol, smaller error
+
+
+def test_error_control_beats_the_best_constant_step_at_the_same_accuracy():
+    """Stiff (447 rad/s) for 0.1 s, soft afterwards: the controlled step is small only while it must
+    be. The best constant step that reaches the controlled run's accuracy needs >= 3x the doSteps."""
+    ctrl = run(1e-5, control=StepControlSpec(type="error", rtol=1e-3, atol=1e-6))
+    assert ctrl.success
+    e_ctrl = rel_error(ctrl)
+    calls_ctrl = ctrl.stats["fmu_calls"]["left"]["doStep"]
+    best = None
+    for H in (2e-4, 1e-4, 5e-5, 2.5e-5, 1.25e-5, 6.25e-6):
+        res = run(H)
+        if res.success and rel_error(res) <= e_ctrl:
+            best = res.stats["fmu_calls"]["left"]["doStep"]
+            break
+    assert best is not None and best >= 3 * calls_ctrl, (best, calls_ctrl, e_ctrl)
+
+
+def test_rejected_steps_are_redone_from_the_saved_states():
+    """A first step 100x too long is rejected (its states and history restored); the result is as
+    accurate as the tolerance asks (a state left corrupted by the rejected attempt would not be)."""
+    good = run(1e-5, T=0.05, control=StepControlSpec(type="error", rtol=1e-3, atol=1e-6))
+    bad = run(1e-3, T=0.05, control=StepControlSpec(type="error", rtol=1e-3, atol=1e-6, min_step=1e-7))
+    assert bad.success and bad.stats["step_control"]["rejected_steps"] >= 1
+    assert rel_error(bad) < 1e-3 and rel_error(bad) < 10 * rel_error(good)      # within rtol, no corruption
+
+
+def test_without_state_restore_the_step_adapts_forward_only(caplog):
+    res = run(1e-5, T=0.2, control=StepControlSpec(type="error", rtol=1e-3, atol=1e-6), state=False)
+    assert res.success
+    st = res.stats["step_control"]
+    assert st["rejected_steps"] == 0 and st["can_reject"] is False
+    assert st["max_step_taken"] > 10 * st["min_step_taken"]
+    assert "adapts forward only" in caplog.text
+
+
+def test_fmu_with_fixed_step_is_refused():
+    subs = switched()
+    subs["left"].can_handle_variable_step = False
+    s = scenario("gauss-seidel", 1e-4)
+    s = dataclasses.replace(s, coupling=dataclasses.replace(s.coupling, step_control=StepControlSpec(type="error")))
+    with pytest.raises(ScenarioError, match="canHandleVariableCommunicationStepSize"):
+        MasterAlgorithm(s, subsystems=subs).setup()
+
+
+def test_error_control_with_iterative_coupling():
+    s = scenario("iterative", 1e-4, T=0.2)
+    s = dataclasses.replace(s, coupling=dataclasses.replace(
+        s.coupling, step_control=StepControlSpec(type="error", rtol=1e-3, atol=1e-6)),
+        output=dataclasses.replace(s.output, interval=1e-2))
+    res = MasterAlgorithm(s, subsystems=switched()).run()
+    assert res.status is Status.FINISHED, res.message
+    assert rel_error(res) < 0.05 and "iterations" in res.stats and "step_control" in res.stats
