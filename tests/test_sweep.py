@@ -75,7 +75,7 @@ def problems(path) -> list[str]:
     ("sweep: 1\nscenario: ramp.yaml\nmode: zipp\nsamples: 3\nparameters:\n"
      "  - {name: a, set: [stop_time], values: [0.1, 0.1]}\n",
      [":3: 'mode' must be one of ['grid', 'zip', 'random'] (got 'zipp'); did you mean 'zip'?",
-      ":4: 'samples' belongs to mode: random", ":6: 'parameters[0].values' repeats a value"]),
+      ":4: 'samples' belongs to mode: random", ":6: the values of parameter 'a' repeat"]),
     ("sweep: 1\nscenario: ramp.yaml\nmode: zip\nparameters:\n  - {name: a, set: [stop_time], values: [0.1, 0.2]}\n"
      "  - {name: b, set: [coupling.macro_step], values: [0.01]}\n",
      ["mode 'zip' runs the i-th value of every parameter together", "{'a': 2, 'b': 1}"]),

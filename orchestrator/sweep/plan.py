@@ -68,6 +68,13 @@ def expand(spec: SweepSpec) -> list[RunPlan]:
         sets = [override_text(path, v) for p, v in zip(spec.parameters, combo, strict=True) for path in p.paths]
         overrides = tuple(common + sets)
         runs.append(RunPlan(run_id=run_id_of(overrides), index=i, values=values, overrides=overrides))
+    first: dict[str, RunPlan] = {}
+    for run in runs:
+        if run.run_id in first:
+            raise SweepError(f"{spec.source}: runs {first[run.run_id].index + 1} and {run.index + 1} are the same "
+                             f"run ({run.values}); in mode zip every column of values must differ somewhere: "
+                             "remove the repetition")
+        first[run.run_id] = run
     return runs
 
 

@@ -1,10 +1,11 @@
 """The map of a sweep folder (``rotorcosim plot DIR`` when DIR holds sweep.csv).
 
 For every collected value: over one parameter a line with markers (runs that did not
-finish marked with a red x at the bottom of the axes); over two parameters a heat map
-of the value with the numbers printed in the cells and unfinished runs drawn as a
-hatched, labelled cell; over more, one such figure per pair of the first two
-parameters with the others fixed is not attempted (a warning says so). PNGs go to
+finish, or have no value, marked with a red x at the bottom of the axes); over two
+parameters a heat map of the value with the numbers printed in the cells and unfinished
+runs drawn as a hatched cell labelled with their status. With more parameters the map is
+over the first two, which must then identify each run (the others derived from them, as
+in a zip sweep that also sets a seed or a clearance per point). PNGs go to
 ``DIR/plots/sweep_<value>.png``. matplotlib's object API with the Agg canvas.
 """
 
@@ -115,12 +116,10 @@ def plot_sweep(out_dir: str | Path) -> list[Path]:
     if not values:
         raise CosimError(f"{out_dir}: the sweep collects no values, so there is no map to draw; add a 'collect:' "
                          "section to the sweep file and rerun it with --resume")
-    if len(params) > 2:
-        warnings.warn(f"plot {out_dir}: {len(params)} parameters; the map is drawn over the first two "
-                      f"({params[0]}, {params[1]}) only where the others take a single value", stacklevel=2)
-        if any(len({r[p] for r in rows}) > 1 for p in params[2:]):
-            raise CosimError(f"{out_dir}: maps are drawn over one or two parameters; this sweep varies "
-                             f"{len(params)}; read sweep.csv (or sweep.parquet) with pandas for other views")
+    if len(params) > 2 and len({(r[params[0]], r[params[1]]) for r in rows}) < len(rows):
+        raise CosimError(f"{out_dir}: maps are drawn over the first two parameters ({params[0]}, {params[1]}), "
+                         f"and in this sweep the other parameters vary on their own; read sweep.csv (or "
+                         "sweep.parquet) with pandas for other views")
     (out_dir / "plots").mkdir(exist_ok=True)
     written = []
     for col in values:

@@ -136,6 +136,12 @@ class _SweepReader(_Loader):
                 mode = m
         samples, seed = self.random_keys(top, mode)
         collect = self.collect(get("collect"), {p.name for p in params}) if "collect" in top else ()
+        if mode != "zip":
+            for p in params:
+                if len(set(map(repr, p.values))) != len(p.values):
+                    self.problems.append(f"{self.display}:{p.line}: the values of parameter '{p.name}' repeat "
+                                         f"(got {list(p.values)}); in mode {mode!r} every value makes its own "
+                                         "runs: remove the repetition")
         if mode == "zip" and params:
             counts = {p.name: len(p.values) for p in params}
             if len(set(counts.values())) > 1:
@@ -223,10 +229,6 @@ class _SweepReader(_Loader):
             return None
         values = self.values(sec[given[0]][1], f"{where}.{given[0]}", given[0])
         if name is None or not paths or values is None:
-            return None
-        if len(set(map(repr, values))) != len(values):
-            self.err(sec[given[0]][1], f"'{where}.{given[0]}' repeats a value (got {list(values)}); every value "
-                                       "makes one run: remove the repetition")
             return None
         return Parameter(name=name, paths=tuple(paths), values=values, line=self.line(node))
 
