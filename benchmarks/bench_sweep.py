@@ -11,7 +11,7 @@ Modes (one per process, so that farm-bench times each from outside, start-up inc
   process with ``orchestrator.load_scenario`` + ``orchestrator.run``: the peer.
 * ``overhead``: (a) ``--tasks`` trivial tasks (:func:`orchestrator.sweep.task.trivial_run`,
   nothing inside) through the LocalCluster: Dask's scheduling overhead per task; (b) one
-  ``execute_run`` of a 1-macro-step run (the fresh ``python -m orchestrator run`` process,
+  ``execute_run`` of a 2-macro-step run (the fresh ``python -m orchestrator run`` process,
   read summary) against the same run in-process: what a fresh process costs per run.
 
     farm-bench -n 3 --timeout 3000 -- .venv/bin/python benchmarks/bench_sweep.py sweep \\
@@ -78,19 +78,29 @@ def bench_overhead(n_tasks: int, workers: int | None, repeats: int) -> None:
     print(f"dask trivial tasks: {n_tasks} tasks on {n_w} workers, median {statistics.median(per) * 1e3:.2f} ms "
           f"per task (wall / tasks; runs {', '.join(f'{p * 1e3:.2f}' for p in per)} ms)")
     scen = ROOT / "scenarios" / "jeffcott_runup_half_sommerfeld_seeded.yaml"
-    one = ["stop_time=0.5501", "output.interval=1e-4"]
-    fresh, inproc = [], []
+    one = ["stop_time=0.5502", "output.interval=1e-4"]   # 2 macro steps
+    fresh, inproc, fresh_cpu, inproc_cpu = [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(repeats):
+            c0 = _children_cpu()
             rec = execute_run(str(scen), one, str(Path(tmp) / f"f{i}"))
+            fresh_cpu.append(_children_cpu() - c0)
             assert rec["status"] == "finished", rec
             fresh.append(rec["wall_time_s"])
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             run(load_scenario(scen, one, build_fmus=False), out_dir=Path(tmp) / f"i{i}", progress=False)
             inproc.append(time.perf_counter() - t0)
-    f, p = statistics.median(fresh), statistics.median(inproc)
-    print(f"1-macro-step HS Jeffcott run: fresh process {f:.2f} s, in-process (after the first) {p:.2f} s "
-          f"(median of {repeats}): a fresh process costs {f - p:.2f} s per run")
+            inproc_cpu.append(time.process_time() - c0)
+    m = statistics.median
+    print(f"2-macro-step HS Jeffcott run (median of {repeats}): fresh process {m(fresh):.2f} s wall / "
+          f"{m(fresh_cpu):.2f} s CPU; in-process (warm) {m(inproc):.2f} s wall / {m(inproc_cpu):.2f} s CPU: "
+          f"a fresh process costs {m(fresh) - m(inproc):.2f} s wall, {m(fresh_cpu) - m(inproc_cpu):.2f} s CPU per run")
+
+
+def _children_cpu() -> float:
+    import resource
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
 
 
 def main(argv=None) -> None:

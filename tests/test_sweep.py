@@ -128,6 +128,16 @@ def test_expansion_modes_and_stable_run_ids(sdir):
     drawn = expand(load_sweep(sdir / "r.yaml"))
     assert len(drawn) == 4 and {r.run_id for r in drawn} <= {r.run_id for r in runs}
     assert [r.run_id for r in drawn] == [r.run_id for r in expand(load_sweep(sdir / "r.yaml"))]
+    (sdir / "r.yaml").write_text((sdir / "g.yaml").read_text() + "mode: random\nsamples: 10\n")
+    with pytest.raises(SweepError, match="'samples' is 10 but the grid of the parameters has only 9"):
+        expand(load_sweep(sdir / "r.yaml"))
+    (sdir / "d.yaml").write_text("sweep: 1\nscenario: ramp.yaml\nmode: zip\nparameters:\n"
+                                 "  - {name: a, set: [stop_time], values: [0.1, 0.2, 0.1]}\n"
+                                 "  - {name: b, set: [coupling.macro_step], values: [0.01, 0.01, 0.02]}\n")
+    assert len(expand(load_sweep(sdir / "d.yaml"))) == 3          # zip columns may repeat values
+    (sdir / "d.yaml").write_text((sdir / "d.yaml").read_text().replace("0.01, 0.01, 0.02", "0.01, 0.01, 0.01"))
+    with pytest.raises(SweepError, match="runs 1 and 3 are the same run"):
+        expand(load_sweep(sdir / "d.yaml"))
 
 
 def test_task_outcome_classification():

@@ -94,7 +94,8 @@ def connect(scheduler: str | None, workers: int | None):
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
     try:
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=None, silence_logs=logging.ERROR,
+                               scheduler_kwargs={"dashboard_address": ":0"})   # its HTTP port: any free one
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
