@@ -118,13 +118,45 @@ def thresholds(psi: float, eta: float) -> dict:
     return out
 
 
+def compare(dirs) -> None:
+    import csv
+    tables = []
+    for d in dirs:
+        with open(Path(d) / "sweep.csv", newline="") as fh:
+            tables.append({(float(r["psi"]), float(r["eta0"])): r for r in csv.DictReader(fh)})
+    num = lambda r, k: f"{float(r[k]):.1f}" if r and r.get(k) not in (None, "") else "-"   # noqa: E731
+    head = "| psi | eta0 [mPa s] | linear short [Hz] | linear HS 40x40 [Hz] |"
+    for d in dirs:
+        head += f" {Path(d).name}: threshold est. [Hz] | onset [Hz] | ratio | status |"
+    print(head)
+    print("|" + "---|" * (4 + 4 * len(dirs)))
+    for p in PSIS:
+        for e in ETAS:
+            if not any((p, e) in t for t in tables):
+                continue
+            lin = thresholds(p, e)
+            line = f"| {p:.1e} | {e * 1e3:g} | {lin['short_hz']:.1f} | {lin['hs40_hz']:.1f} |"
+            for t in tables:
+                r = t.get((p, e))
+                ratio = f"{float(r['whirl_ratio']):.2f}" if r and r.get("whirl_ratio") else "-"
+                line += (f" {num(r, 'threshold_hz')} | {num(r, 'onset_hz')} | {ratio} | "
+                         f"{r['status'] if r else 'not run'} |")
+            print(line)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--csv", help="also write the table to this CSV file")
     ap.add_argument("--seeds", choices=("hs", "mc"), help="print the seeded starts (zip lists) instead")
     ap.add_argument("--at-hz", type=float, default=220.0, help="speed of the seeded start [Hz]")
     ap.add_argument("--points", default="all", help="'all' (3 x 3) or 'corners' (2 x 2)")
+    ap.add_argument("--compare", nargs="+", metavar="SWEEP_DIR",
+                    help="print the table of docs/sweeps.md: these sweep folders' onsets and run threshold "
+                         "estimates beside the linear thresholds at the same points")
     args = ap.parse_args(argv)
+    if args.compare:
+        compare(args.compare)
+        return
     if args.seeds:
         pts = [(p, e) for p in PSIS for e in ETAS]
         if args.points == "corners":

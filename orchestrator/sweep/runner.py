@@ -135,8 +135,10 @@ def _gather(futures: dict, records: dict, bar) -> None:
         try:
             rec = fut.result()
         except Exception as exc:                  # the worker died or the task could not start
-            rec = {"status": "crashed", "message": f"the task failed on its worker: {type(exc).__name__}: {exc}",
-                   "wall_time_s": None, "summary": None}
+            hint = ("; do the workers have rotorcosim installed (docs/sweeps.md, section 2)?"
+                    if isinstance(exc, ImportError) else "")
+            rec = {"status": "crashed", "message": f"the task failed on its worker: {type(exc).__name__}: "
+                                                   f"{exc}{hint}", "wall_time_s": None, "summary": None}
         records[run.run_id] = rec
         bar.update(1)
         if rec["status"] != "finished":
