@@ -56,7 +56,7 @@ def test_pyproject_entry_points_and_extras():
     assert any(d.startswith("pytest") for d in project["optional-dependencies"]["test"])
     deps = {re.split(r"[<>=!~ \[]", d)[0].lower() for d in project["dependencies"]}
     assert {"numpy", "scipy", "fmpy", "pythonfmu", "pyyaml"} <= deps
-    assert set(meta["tool"]["setuptools"]["packages"]) == {"orchestrator", "bearing_fmu", "rotor_fmu"}
+    assert set(meta["tool"]["setuptools"]["packages"]) == {"orchestrator", "orchestrator.sweep", "bearing_fmu", "rotor_fmu"}
 
 
 def test_readme_links_exist_or_are_owned():
