@@ -273,9 +273,10 @@ def test_sweep_on_a_real_dask_scheduler_and_worker(sdir, tmp_path):
         assert "runs: 1 failed, 2 finished" in proc.stdout
         rows = (sdir / "ext" / "sweep.csv").read_text().splitlines()
         assert [r.split(",")[1] for r in rows[1:]] == ["0.05", "0.5", "1.0"]
+        # DASK_SCHEDULER_ADDRESS is the same as --scheduler: --workers is refused there too
         bad = subprocess.run([sys.executable, "-m", "orchestrator", "sweep", str(sdir / "sweep.yaml"),
-                              "--scheduler", address, "--workers", "2"], capture_output=True, text=True,
-                             timeout=120)
+                              "--workers", "2"], capture_output=True, text=True, timeout=120,
+                             env=dict(os.environ, DASK_SCHEDULER_ADDRESS=address))
         assert bad.returncode == 1 and "drop --workers" in bad.stderr and "Traceback" not in bad.stderr
     finally:
         for p in reversed(procs):
@@ -285,3 +286,12 @@ def test_sweep_on_a_real_dask_scheduler_and_worker(sdir, tmp_path):
                 p.wait(timeout=30)
             except subprocess.TimeoutExpired:
                 p.kill()
+
+
+@pytest.mark.parametrize("path", sorted((REPO / "scenarios" / "sweeps").glob("*.yaml")) +
+                         [REPO / "benchmarks" / "sweep_bench.yaml"], ids=lambda p: p.name)
+def test_shipped_sweep_files_and_all_their_runs_validate(path):
+    spec = load_sweep(path)
+    runs = plan_sweep(spec)                      # builds our FMUs when missing, like `rotorcosim run`
+    assert len(runs) == len({r.run_id for r in runs}) >= 5
+    assert {"psi", "eta0"} <= set(runs[0].values) or "eta0" in runs[0].values

@@ -87,8 +87,8 @@ def _heat(rows, p: str, q: str, col: str, path: Path) -> None:
                     color="black" if z[i, j] > mid else "white")
         else:
             ax.add_patch(_hatch(j, i))
-            ax.text(j, i, st if st != "finished" else "no value", ha="center", va="center", fontsize=7,
-                    color="C3")
+            ax.text(j, i, st if st != "finished" else "no value", ha="center", va="center", fontsize=8,
+                    color="C3", fontweight="bold", bbox={"facecolor": "white", "edgecolor": "none", "pad": 1.5})
     ax.set_xticks(range(len(xs)), [_fmt(v) for v in xs])
     ax.set_yticks(range(len(ys)), [_fmt(v) for v in ys])
     ax.set_xlabel(p)
@@ -100,7 +100,7 @@ def _heat(rows, p: str, q: str, col: str, path: Path) -> None:
 
 def _hatch(j, i):
     from matplotlib.patches import Rectangle
-    return Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, hatch="xx", edgecolor="C3", lw=0)
+    return Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, hatch="xx", edgecolor="0.7", lw=0)
 
 
 def plot_sweep(out_dir: str | Path) -> list[Path]:
