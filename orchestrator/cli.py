@@ -273,7 +273,8 @@ def _cmd_build_fmus(args) -> int:
 
 def _add_plot(sub) -> None:
     p = sub.add_parser("plot", help="draw the figures of a finished run")
-    p.add_argument("dir", metavar="DIR", help="output folder of a run (holds results.csv, summary.json)")
+    p.add_argument("dir", metavar="DIR", help="output folder of a run (holds results.csv, summary.json) or of "
+                                              "a sweep (holds sweep.csv: draws the map)")
     p.add_argument("--signals", nargs="+", metavar="SIGNAL",
                    help="recorded signals to draw over time (names or '*' patterns, e.g. 'osc.x[*]' 'drv.*'); "
                         "default: every signal of a run without journals")
@@ -285,8 +286,16 @@ def _cmd_plot(args) -> int:
     if not run_dir.is_dir():
         raise CosimError(f"{run_dir}: no such run folder; give the --out folder of a run (it holds "
                          "results.csv and summary.json)")
+    if (run_dir / "sweep.csv").is_file():              # a sweep folder: draw its map
+        return _print_paths(_feature("orchestrator.sweep.plot", "plot_sweep", "plot")(run_dir))
     plot_run = _feature("orchestrator.results.plots", "plot_run", "plot")
     for path in plot_run(run_dir, signals=args.signals):
+        print(path)
+    return 0
+
+
+def _print_paths(paths) -> int:
+    for path in paths:
         print(path)
     return 0
 
@@ -302,6 +311,43 @@ def _add_compare(sub) -> None:
 def _cmd_compare(args) -> int:
     main_compare = _feature("orchestrator.compare", "main_compare", "compare")
     return int(main_compare(args.file, out_dir=args.out, update_baseline=args.update_baseline))
+
+
+def _add_sweep(sub) -> None:
+    p = sub.add_parser("sweep", help="run a parameter sweep (stability map) on Dask", description=(
+        "Run every run of a sweep file (docs/sweeps.md) as a Dask task, each in its own process, into "
+        "DIR/runs/<run_id>/, and write DIR/sweep.csv. Default: a local cluster, one worker per core."))
+    p.add_argument("file", metavar="FILE", help="sweep YAML file")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: runs/sweep_<file name>)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="address of a running Dask scheduler, e.g. "
+                   "tcp://10.0.0.5:8786 (default: $DASK_SCHEDULER_ADDRESS, else a local cluster)")
+    p.add_argument("--workers", metavar="N", type=int, help="worker processes of the local cluster (default: "
+                   "one per core)")
+    p.add_argument("--resume", action="store_true", help="skip runs whose folder holds a finished summary")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_sweep)
+
+
+def _cmd_sweep(args) -> int:
+    from orchestrator.sweep import default_out_dir, prepare
+    from orchestrator.sweep.runner import run_sweep
+
+    spec, runs = prepare(args.file)
+    out = Path(args.out) if args.out else default_out_dir(args.file)
+    print(f"sweep {args.file}: {len(runs)} runs of {spec.scenario.name} ({spec.mode}) -> {out}", flush=True)
+    o = run_sweep(spec, runs, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
+                  progress=False if args.no_progress else None)
+    counts = {s: sum(r["status"] == s for r in o.rows) for s in dict.fromkeys(r["status"] for r in o.rows)}
+    print(f"table: {o.table}" + (f" ({o.skipped} runs resumed)" if o.skipped else ""))
+    print("runs: " + ", ".join(f"{n} {s}" for s, n in counts.items()))
+    for r in o.rows:
+        if r["status"] not in ("finished", "cancelled"):
+            print(f"  {r['run_id']} {r['status']}: {r['message']}", file=sys.stderr)
+    if o.interrupted:
+        print(f"interrupted: pending runs cancelled, finished runs kept; continue with `{PROG} sweep "
+              f"{args.file} --out {out} --resume`", file=sys.stderr)
+        return 130
+    return 0 if counts.get("finished", 0) == len(o.rows) else 1
 
 
 def _add_set(p) -> None:
@@ -361,7 +407,7 @@ def _cmd_export_ssp(args) -> int:
 
 
 VERBS = (_add_run, _add_validate, _add_info, _add_build_fmus, _add_plot, _add_compare, _add_scenarios, _add_init,
-         _add_export_ssp)
+         _add_export_ssp, _add_sweep)
 
 
 # --------------------------------------------------------------------------- entry point

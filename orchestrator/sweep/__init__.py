@@ -1,0 +1,63 @@
+"""Parameter sweeps and stability maps on Dask distributed (``rotorcosim sweep``, docs/sweeps.md).
+
+```python
+from orchestrator.sweep import sweep
+df = sweep("scenarios/sweeps/jeffcott_hs_onset.yaml", out_dir="runs/hs_map")   # pandas DataFrame
+df[df.status == "finished"][["psi", "eta0", "onset_hz"]]
+```
+
+Pieces: :mod:`~orchestrator.sweep.spec` (the sweep file), :mod:`~orchestrator.sweep.plan`
+(runs and their ids, every run's scenario validated first), :mod:`~orchestrator.sweep.task`
+(one run in a fresh process, the Dask task), :mod:`~orchestrator.sweep.runner` (the cluster,
+progress, resume, Ctrl-C), :mod:`~orchestrator.sweep.table` (sweep.csv / sweep.parquet),
+:mod:`~orchestrator.sweep.plot` (the map).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from orchestrator.errors import CosimError
+from orchestrator.sweep.spec import SweepError, SweepSpec, load_sweep
+
+__all__ = ["sweep", "load_sweep", "prepare", "SweepError", "SweepSpec", "default_out_dir"]
+
+
+def default_out_dir(path: str | Path) -> Path:
+    """``runs/sweep_<file stem>`` under the current folder."""
+    return Path("runs") / f"sweep_{Path(path).stem}"
+
+
+def prepare(path: str | Path):
+    """(spec, runs): the checked sweep file and its runs, every run's scenario validated."""
+    from orchestrator.sweep.plan import plan_sweep
+    spec = load_sweep(path)
+    return spec, plan_sweep(spec)
+
+
+def sweep(path: str | Path, out_dir: str | Path | None = None, *, scheduler: str | None = None,
+          workers: int | None = None, resume: bool = False, progress: bool | None = False):
+    """Run the sweep file ``path`` and return its table as a pandas DataFrame (one row per run).
+
+    Same options as ``rotorcosim sweep``: ``out_dir`` (default ``runs/sweep_<stem>``),
+    ``scheduler`` (address of a running Dask scheduler; default ``DASK_SCHEDULER_ADDRESS`` or
+    a LocalCluster), ``workers`` (LocalCluster size, default one per core), ``resume``,
+    ``progress``. Raises :class:`SweepError` for a bad sweep file or run scenario (before
+    anything runs); failed runs are rows (``status`` column), not exceptions. On
+    KeyboardInterrupt the table of what finished is written, then the interrupt propagates.
+    pandas is imported only here (the CLI does not need it).
+    """
+    try:
+        import pandas as pd
+    except ModuleNotFoundError:
+        raise CosimError("orchestrator.sweep.sweep() returns a pandas DataFrame and pandas is not installed; "
+                         "install it (pip install pandas), or use `rotorcosim sweep` and read sweep.csv") from None
+    from orchestrator.sweep.runner import run_sweep
+    from orchestrator.sweep.table import columns
+
+    spec, runs = prepare(path)
+    outcome = run_sweep(spec, runs, out_dir or default_out_dir(path), scheduler=scheduler, workers=workers,
+                        resume=resume, progress=progress)
+    if outcome.interrupted:
+        raise KeyboardInterrupt(f"sweep interrupted; finished runs are in {outcome.table}")
+    return pd.DataFrame(outcome.rows, columns=columns(spec))

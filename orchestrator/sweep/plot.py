@@ -1,0 +1,132 @@
+"""The map of a sweep folder (``rotorcosim plot DIR`` when DIR holds sweep.csv).
+
+For every collected value: over one parameter a line with markers (runs that did not
+finish, or have no value, marked with a red x at the bottom of the axes); over two
+parameters a heat map of the value with the numbers printed in the cells and unfinished
+runs drawn as a hatched cell labelled with their status. With more parameters the map is
+over the first two, which must then identify each run (the others derived from them, as
+in a zip sweep that also sets a seed or a clearance per point). PNGs go to
+``DIR/plots/sweep_<value>.png``. matplotlib's object API with the Agg canvas.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+
+from orchestrator.errors import CosimError
+from orchestrator.sweep.table import read_table
+
+__all__ = ["plot_sweep", "is_sweep_dir"]
+
+DPI = 110
+
+
+def is_sweep_dir(path: str | Path) -> bool:
+    return (Path(path) / "sweep.csv").is_file()
+
+
+def _figure(size=(6.4, 4.4)):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=size, dpi=DPI)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _fmt(v) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return ""
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def _line(rows, p: str, col: str, path: Path) -> None:
+    fig = _figure()
+    ax = fig.add_subplot()
+    pts = sorted(((r[p], r[col]) for r in rows if r["status"] == "finished" and r[col] is not None),
+                 key=lambda t: t[0])
+    if pts:
+        ax.plot([x for x, _ in pts], [y for _, y in pts], "o-", color="C0", label=f"{col} (finished runs)")
+    bad = [r[p] for r in rows if r["status"] != "finished" or r[col] is None]
+    if bad:
+        y0 = min((y for _, y in pts), default=0.0)
+        ax.plot(bad, [y0] * len(bad), "x", color="C3", ms=9, mew=2,
+                label="failed / no value (" + ", ".join(sorted({r["status"] for r in rows
+                                                                if r["status"] != "finished"}) or ["empty"]) + ")")
+    ax.set_xlabel(p)
+    ax.set_ylabel(col)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+def _heat(rows, p: str, q: str, col: str, path: Path) -> None:
+    import numpy as np
+    xs = sorted({r[p] for r in rows}, key=lambda v: (isinstance(v, str), v))
+    ys = sorted({r[q] for r in rows}, key=lambda v: (isinstance(v, str), v))
+    z = np.full((len(ys), len(xs)), np.nan)
+    status = {}
+    for r in rows:
+        i, j = ys.index(r[q]), xs.index(r[p])
+        status[(i, j)] = r["status"]
+        if r["status"] == "finished" and r[col] is not None:
+            z[i, j] = r[col]
+    fig = _figure((1.6 + 1.15 * len(xs), 1.4 + 0.75 * len(ys)) if len(xs) > 4 else (6.4, 4.6))
+    ax = fig.add_subplot()
+    im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
+    fig.colorbar(im, ax=ax, label=col)
+    finite = z[np.isfinite(z)]
+    mid = 0.5 * (finite.min() + finite.max()) if finite.size else 0.0
+    for (i, j), st in status.items():
+        if np.isfinite(z[i, j]):
+            ax.text(j, i, _fmt(float(z[i, j])), ha="center", va="center", fontsize=8,
+                    color="black" if z[i, j] > mid else "white")
+        else:
+            ax.add_patch(_hatch(j, i))
+            ax.text(j, i, st if st != "finished" else "no value", ha="center", va="center", fontsize=8,
+                    color="C3", fontweight="bold", bbox={"facecolor": "white", "edgecolor": "none", "pad": 1.5})
+    ax.set_xticks(range(len(xs)), [_fmt(v) for v in xs])
+    ax.set_yticks(range(len(ys)), [_fmt(v) for v in ys])
+    ax.set_xlabel(p)
+    ax.set_ylabel(q)
+    ax.set_title(f"{col} over {p} and {q}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+def _hatch(j, i):
+    from matplotlib.patches import Rectangle
+    return Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, hatch="xx", edgecolor="0.7", lw=0)
+
+
+def plot_sweep(out_dir: str | Path) -> list[Path]:
+    """Draw the map of every collected value of the sweep in ``out_dir``; return the PNGs."""
+    out_dir = Path(out_dir)
+    if not is_sweep_dir(out_dir):
+        raise CosimError(f"{out_dir}: no sweep.csv here; give the --out folder of `rotorcosim sweep`")
+    rows, meta = read_table(out_dir)
+    params = [p["name"] for p in meta.get("parameters", [])]
+    values = list(meta.get("collect", {}))
+    if not rows or not params:
+        raise CosimError(f"{out_dir}/sweep.csv: no runs or no parameters (sweep.json missing?); rerun the sweep")
+    if not values:
+        raise CosimError(f"{out_dir}: the sweep collects no values, so there is no map to draw; add a 'collect:' "
+                         "section to the sweep file and rerun it with --resume")
+    if len(params) > 2 and len({(r[params[0]], r[params[1]]) for r in rows}) < len(rows):
+        raise CosimError(f"{out_dir}: maps are drawn over the first two parameters ({params[0]}, {params[1]}), "
+                         f"and in this sweep the other parameters vary on their own; read sweep.csv (or "
+                         "sweep.parquet) with pandas for other views")
+    (out_dir / "plots").mkdir(exist_ok=True)
+    written = []
+    for col in values:
+        path = out_dir / "plots" / f"sweep_{col}.png"
+        if len(params) == 1 or len({r[params[1]] for r in rows}) == 1:
+            _line(rows, params[0], col, path)
+        else:
+            _heat(rows, params[0], params[1], col, path)
+        written.append(path)
+    return written

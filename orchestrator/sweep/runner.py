@@ -1,0 +1,195 @@
+"""Run a planned sweep on Dask distributed and build its table.
+
+:func:`run_sweep` submits one task per run (:func:`orchestrator.sweep.task.execute_run`)
+to a ``distributed.LocalCluster`` (default: one single-threaded worker process per core)
+or to an existing cluster given by its scheduler address, shows a progress bar with ETA,
+and writes ``DIR/sweep.csv`` (and ``sweep.parquet`` with pyarrow) when the runs are done
+or when the user interrupts (Ctrl-C cancels the pending tasks; finished runs are kept).
+A failed or crashed run is a row, never the end of the sweep.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import signal
+import threading
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from orchestrator.errors import CosimError
+from orchestrator.sweep.plan import RunPlan
+from orchestrator.sweep.spec import SweepSpec
+from orchestrator.sweep.table import build_rows, write_table
+from orchestrator.sweep.task import RUN_RECORD, execute_run
+
+__all__ = ["SweepOutcome", "run_sweep", "resumable", "connect"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(kw_only=True)
+class SweepOutcome:
+    """What :func:`run_sweep` did: the table rows, where they are, and whether it was interrupted."""
+
+    rows: list[dict]
+    out_dir: Path
+    table: Path
+    interrupted: bool = False
+    skipped: int = 0                              # runs taken from an earlier sweep (--resume)
+    warnings: list[str] = field(default_factory=list)
+
+
+def resumable(run_dir: Path, run: RunPlan) -> dict | None:
+    """The record of a finished earlier run with the same overrides in ``run_dir``, or None."""
+    try:
+        summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(summary, dict) or summary.get("status") != "finished":
+        return None
+    try:
+        record = json.loads((run_dir / RUN_RECORD).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        record = {}
+    if record.get("overrides") not in (None, list(run.overrides)):
+        return None                                # a different run hashed to this folder: run it again
+    return {"status": "finished", "message": record.get("message", ""),
+            "wall_time_s": record.get("wall_time_s"), "summary": summary}
+
+
+def connect(scheduler: str | None, workers: int | None):
+    """A ``distributed.Client`` and the cluster it owns (None for an external cluster).
+
+    ``scheduler`` (or the environment variable ``DASK_SCHEDULER_ADDRESS``): the address of a
+    running scheduler, e.g. ``tcp://10.0.0.5:8786``; otherwise a LocalCluster of ``workers``
+    (default: the number of cores) single-threaded worker processes on 127.0.0.1.
+    """
+    try:
+        from distributed import Client, LocalCluster
+    except ModuleNotFoundError:
+        raise CosimError("sweeps run on Dask distributed, which is not installed; install it "
+                         "(pip install 'dask[distributed]')") from None
+    _quiet_dask()
+    address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    if address:
+        if workers is not None:
+            raise CosimError("--workers sets the size of the local cluster; with --scheduler (or "
+                             "DASK_SCHEDULER_ADDRESS) the cluster has the workers started for it: drop --workers")
+        try:
+            return Client(address, timeout="20s"), None
+        except (OSError, TimeoutError) as exc:
+            raise CosimError(f"cannot reach the Dask scheduler at {address} ({exc}); start it (`dask scheduler`) "
+                             "and its workers (`dask worker ADDRESS`), or leave out --scheduler for a local "
+                             "cluster") from None
+    n = (os.cpu_count() or 1) if workers is None else workers
+    if n < 1:
+        raise CosimError(f"--workers must be at least 1 (got {n})")
+    # The worker processes start with Ctrl-C (SIGINT) ignored, which their runs inherit: a Ctrl-C
+    # in the terminal reaches the whole process group, and only the client should handle it
+    # (cancel, write the table, close the cluster; closing it ends the running runs).
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
+    try:
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address=None, silence_logs=logging.ERROR,
+                               scheduler_kwargs={"dashboard_address": ":0"})   # its HTTP port: any free one
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+    return Client(cluster), cluster
+
+
+def _main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+def _quiet_dask() -> None:
+    """Dask logs every scheduler and worker event at INFO; keep its errors only (unless debugging)."""
+    if not logging.getLogger().isEnabledFor(logging.DEBUG):
+        logging.getLogger("distributed").setLevel(logging.ERROR)
+
+
+def _progress(total: int, enabled: bool | None):
+    from tqdm import tqdm
+    return tqdm(total=total, unit="run", desc="sweep", disable=not enabled if enabled is not None else None,
+                dynamic_ncols=True)
+
+
+def _submit(client, spec: SweepSpec, todo: list[RunPlan], runs_dir: Path) -> dict:
+    futures = {}
+    for run in todo:
+        fut = client.submit(execute_run, str(spec.scenario), list(run.overrides), str(runs_dir / run.run_id),
+                            key=f"rotorcosim-run-{run.run_id}", pure=False, retries=0)
+        futures[fut] = run
+    return futures
+
+
+def _gather(futures: dict, records: dict, bar) -> None:
+    """Collect finished tasks into ``records`` (run_id -> record) as they complete."""
+    from distributed import as_completed
+    for fut in as_completed(list(futures)):
+        run = futures[fut]
+        try:
+            rec = fut.result()
+        except Exception as exc:                  # the worker died or the task could not start
+            hint = ("; do the workers have rotorcosim installed (docs/sweeps.md, section 2)?"
+                    if isinstance(exc, ImportError) else "")
+            rec = {"status": "crashed", "message": f"the task failed on its worker: {type(exc).__name__}: "
+                                                   f"{exc}{hint}", "wall_time_s": None, "summary": None}
+        records[run.run_id] = rec
+        bar.update(1)
+        if rec["status"] != "finished":
+            bar.set_postfix_str(f"{sum(r['status'] != 'finished' for r in records.values())} not finished")
+
+
+def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, scheduler: str | None = None,
+              workers: int | None = None, resume: bool = False, progress: bool | None = None) -> SweepOutcome:
+    """Run ``runs`` (from :func:`orchestrator.sweep.plan.plan_sweep`) into ``out_dir/runs/<run_id>``.
+
+    ``resume``: runs whose folder holds a finished summary.json of the same overrides are not
+    run again. On KeyboardInterrupt the pending tasks are cancelled, the table is written with
+    the unfinished runs as status ``cancelled``, and the outcome says ``interrupted``.
+    """
+    out_dir = Path(out_dir).resolve()
+    runs_dir = out_dir / "runs"
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    records: dict[str, dict] = {}
+    if resume:
+        for run in runs:
+            rec = resumable(runs_dir / run.run_id, run)
+            if rec is not None:
+                records[run.run_id] = rec
+    skipped = len(records)
+    todo = [r for r in runs if r.run_id not in records]
+    interrupted = False
+    t0 = time.perf_counter()
+    if todo:
+        client = cluster = futures = None
+        bar = _progress(len(todo), progress)
+        try:
+            client, cluster = connect(scheduler, workers)
+            futures = _submit(client, spec, todo, runs_dir)
+            _gather(futures, records, bar)
+        except KeyboardInterrupt:
+            interrupted = True
+            if futures:
+                client.cancel([f for f in futures if not f.done()], force=True)
+        finally:
+            bar.close()
+            if client is not None:
+                client.close()
+            if cluster is not None:
+                cluster.close()
+    log.info("sweep of %d runs took %.1f s", len(todo), time.perf_counter() - t0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rows = build_rows(spec, runs, records, out_dir)
+    table = write_table(rows, spec, out_dir)
+    texts = [str(w.message) for w in caught]
+    for text in texts:
+        warnings.warn(text, stacklevel=2)
+    return SweepOutcome(rows=rows, out_dir=out_dir, table=table, interrupted=interrupted, skipped=skipped,
+                        warnings=texts)

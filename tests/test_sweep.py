@@ -1,0 +1,297 @@
+"""Sweeps (orchestrator.sweep, `rotorcosim sweep`): the file format, expansion, runs on Dask.
+
+The runs use the small test FMUs (Faulty: a ramp that raises at t_fail; Gain), so a run
+takes about a second, most of it the fresh process each run gets.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from orchestrator.cli import main
+from orchestrator.sweep import SweepError, load_sweep
+from orchestrator.sweep.plan import expand, plan_sweep, run_id_of
+from orchestrator.sweep.task import _outcome, execute_run
+
+REPO = Path(__file__).resolve().parents[1]
+SCENARIO = ("name: ramp\nstop_time: 0.1\nfmus:\n"
+            "  f: {path: fmus/Faulty.fmu, parameters: {t_fail: 1.0, mode: 1}}\n"
+            "  g: {path: fmus/Gain.fmu}\nconnections:\n  - {from: f.y, to: g.u}\ncoupling: {macro_step: 0.01}\n")
+# t_fail 0.05 < stop_time: that run fails (the FMU raises); the others finish
+SWEEP = """sweep: 1
+scenario: ramp.yaml
+set: {stop_time: 0.1}
+parameters:
+  - name: t_fail
+    set: [fmus.f.parameters.t_fail]
+    values: [0.05, 0.5, 1.0]
+collect:
+  end: end_time
+  steps: macro_steps
+"""
+
+
+@pytest.fixture
+def sdir(tmp_path, test_fmus) -> Path:
+    (tmp_path / "fmus").mkdir()
+    for name in ("Faulty", "Gain"):
+        shutil.copy(test_fmus[name], tmp_path / "fmus" / f"{name}.fmu")
+    (tmp_path / "ramp.yaml").write_text(SCENARIO)
+    (tmp_path / "sweep.yaml").write_text(SWEEP)
+    return tmp_path
+
+
+def problems(path) -> list[str]:
+    with pytest.raises(SweepError) as info:
+        plan_sweep(load_sweep(path), build_fmus=False)
+    assert info.value.problems
+    return info.value.problems
+
+
+# ------------------------------------------------------------------ the file
+@pytest.mark.parametrize("text, needles", [
+    ("sweep: 2\nscenario: ramp.yaml\nparameters: []\n",
+     [":1: 'sweep' must be between 1 and 1 (got 2); this rotorcosim reads sweep format 1",
+      ":3: 'parameters' must be a non-empty list"]),
+    ("sweep: 1\nscenaro: ramp.yaml\nparameters:\n  - {name: a, set: [stop_time], values: [0.1]}\n",
+     [":2: unknown key 'scenaro' in 'sweep file'; did you mean 'scenario'?",
+      "missing the required key 'scenario'"]),
+    ("sweep: 1\nscenario: nope.yaml\nparameters:\n  - {name: a, set: [stop_time], value: [0.1]}\n",
+     ["'scenario' names 'nope.yaml', which is not a file", ":4: unknown key 'value' in 'parameters[0]'; "
+      "did you mean 'values'?"]),
+    ("sweep: 1\nscenario: ramp.yaml\nparameters:\n  - {name: a, set: [stop_time], linspace: [0.1, 0.2]}\n"
+     "  - {name: status, set: [coupling.macro_step], logspace: [-1, 1, 3]}\n",
+     ["'parameters[0].linspace' must be a list [first, last, count]",
+      "'parameters[1].name' becomes a sweep.csv column", "'parameters[1].logspace[0]' must be positive"]),
+    ("sweep: 1\nscenario: ramp.yaml\nmode: zipp\nsamples: 3\nparameters:\n"
+     "  - {name: a, set: [stop_time], values: [0.1, 0.1]}\n",
+     [":3: 'mode' must be one of ['grid', 'zip', 'random'] (got 'zipp'); did you mean 'zip'?",
+      ":4: 'samples' belongs to mode: random", ":6: the values of parameter 'a' repeat"]),
+    ("sweep: 1\nscenario: ramp.yaml\nmode: zip\nparameters:\n  - {name: a, set: [stop_time], values: [0.1, 0.2]}\n"
+     "  - {name: b, set: [coupling.macro_step], values: [0.01]}\n",
+     ["mode 'zip' runs the i-th value of every parameter together", "{'a': 2, 'b': 1}"]),
+])
+def test_bad_sweep_files_list_every_problem_with_line(sdir, text, needles):
+    (sdir / "bad.yaml").write_text(text)
+    with pytest.raises(SweepError) as info:
+        load_sweep(sdir / "bad.yaml")
+    msg = "\n".join(info.value.problems)
+    for needle in needles:
+        assert needle in msg, msg
+    assert all(p.startswith(str(sdir / "bad.yaml")) for p in info.value.problems)
+    assert str(info.value).startswith("invalid sweep")
+
+
+def test_every_run_scenario_is_validated_before_running(sdir):
+    """A key typo in a parameter's 'set' and a bad value of one run are reported at their sweep
+    file lines, with the run, before anything runs (no runs/ folder appears)."""
+    (sdir / "bad.yaml").write_text(
+        "sweep: 1\nscenario: ramp.yaml\nparameters:\n"
+        "  - name: t\n    set: [fmus.f.parameters.t_fail]\n    values: [0.5, abc]\n"
+        "  - name: h\n    set: [coupling.macro_stp]\n    values: [0.01]\n")
+    found = problems(sdir / "bad.yaml")
+    text = "\n".join(found)
+    assert f"{sdir / 'bad.yaml'}:8: run t=0.5, h=0.01: --set coupling.macro_stp=0.01: unknown key 'macro_stp'" in text
+    assert "did you mean 'macro_step'?" in text
+    assert f"{sdir / 'bad.yaml'}:5: run t='abc', h=0.01: --set fmus.f.parameters.t_fail=\"abc\"" in text
+    assert sum("macro_stp" in p for p in found) == 1            # once, not once per run
+    assert main(["sweep", str(sdir / "bad.yaml"), "--out", str(sdir / "o")]) == 1
+    assert not (sdir / "o").exists()
+
+
+def test_expansion_modes_and_stable_run_ids(sdir):
+    (sdir / "g.yaml").write_text(
+        "sweep: 1\nscenario: ramp.yaml\nparameters:\n  - {name: a, set: [stop_time, output.interval], "
+        "linspace: [0.1, 0.2, 3]}\n  - {name: b, set: [coupling.macro_step], logspace: [1e-3, 1e-1, 3]}\n")
+    spec = load_sweep(sdir / "g.yaml")
+    runs = expand(spec)
+    assert len(runs) == 9 and [r.index for r in runs] == list(range(9))
+    assert runs[0].values == {"a": 0.1, "b": pytest.approx(1e-3)}
+    assert runs[4].values["a"] == pytest.approx(0.15) and runs[4].values["b"] == pytest.approx(1e-2)
+    assert runs[1].overrides == ("stop_time=0.1", "output.interval=0.1", f"coupling.macro_step={runs[1].values['b']!r}")
+    assert len({r.run_id for r in runs}) == 9
+    assert runs[3].run_id == run_id_of(reversed(runs[3].overrides))         # stable, order-independent
+    assert [r.run_id for r in expand(load_sweep(sdir / "g.yaml"))] == [r.run_id for r in runs]
+    (sdir / "z.yaml").write_text((sdir / "g.yaml").read_text() + "mode: zip\n")
+    assert [tuple(r.values.values()) for r in expand(load_sweep(sdir / "z.yaml"))] == [
+        tuple(runs[i].values.values()) for i in (0, 4, 8)]
+    (sdir / "r.yaml").write_text((sdir / "g.yaml").read_text() + "mode: random\nsamples: 4\nseed: 3\n")
+    drawn = expand(load_sweep(sdir / "r.yaml"))
+    assert len(drawn) == 4 and {r.run_id for r in drawn} <= {r.run_id for r in runs}
+    assert [r.run_id for r in drawn] == [r.run_id for r in expand(load_sweep(sdir / "r.yaml"))]
+    (sdir / "r.yaml").write_text((sdir / "g.yaml").read_text() + "mode: random\nsamples: 10\n")
+    with pytest.raises(SweepError, match="'samples' is 10 but the grid of the parameters has only 9"):
+        expand(load_sweep(sdir / "r.yaml"))
+    (sdir / "d.yaml").write_text("sweep: 1\nscenario: ramp.yaml\nmode: zip\nparameters:\n"
+                                 "  - {name: a, set: [stop_time], values: [0.1, 0.2, 0.1]}\n"
+                                 "  - {name: b, set: [coupling.macro_step], values: [0.01, 0.01, 0.02]}\n")
+    assert len(expand(load_sweep(sdir / "d.yaml"))) == 3          # zip columns may repeat values
+    (sdir / "d.yaml").write_text((sdir / "d.yaml").read_text().replace("0.01, 0.01, 0.02", "0.01, 0.01, 0.01"))
+    with pytest.raises(SweepError, match="runs 1 and 3 are the same run"):
+        expand(load_sweep(sdir / "d.yaml"))
+
+
+def test_task_outcome_classification():
+    assert _outcome(0, {"status": "finished"}, "") == ("finished", "")
+    status, msg = _outcome(-6, {"status": "finished"}, "corrupted double-linked list")
+    assert status == "finished" and "exited with code -6" in msg
+    assert _outcome(1, {"status": "failed", "message": "FMU f raised"}, "") == ("failed", "FMU f raised")
+    status, msg = _outcome(-11, None, "Fatal Python error: Segmentation fault")
+    assert status == "crashed" and "killed by signal 11" in msg and "Segmentation fault" in msg
+
+
+def test_a_run_that_dies_without_summary_is_a_crashed_record(sdir):
+    rec = execute_run(str(sdir / "ramp.yaml"), ["coupling.macro_step=-1"], str(sdir / "r"))
+    assert rec["status"] == "crashed" and "exit code 1" in rec["message"] and "macro_step" in rec["message"]
+    assert json.loads((sdir / "r" / "sweep_run.json").read_text())["status"] == "crashed"
+
+
+# ------------------------------------------------------------------ runs on Dask
+def test_small_sweep_on_local_cluster_with_a_failing_run(sdir, recwarn):
+    pd = pytest.importorskip("pandas")
+    from orchestrator.sweep import sweep
+    (sdir / "sweep.yaml").write_text(SWEEP + "  nothing: analysis.none\n")
+    df = sweep(sdir / "sweep.yaml", out_dir=sdir / "out", workers=2)
+    assert isinstance(df, pd.DataFrame)
+    assert list(df.columns) == ["run_id", "t_fail", "end", "steps", "nothing", "status", "message",
+                                "wall_time_s", "run_dir"]
+    assert list(df.status) == ["failed", "finished", "finished"]
+    assert "deliberate failure" in df.message[0]
+    assert df.end[1] == pytest.approx(0.1) and df.steps[1] == 10
+    assert df.end[0] == pytest.approx(0.05)                       # a failed run's summary still counts
+    assert df.nothing.isna().all()
+    assert any("collect 'nothing': 2 finished run(s) have no 'analysis.none'" in str(w.message) for w in recwarn)
+    for row in df.itertuples():
+        assert (sdir / "out" / row.run_dir / "results.csv").is_file()
+    table = pd.read_csv(sdir / "out" / "sweep.csv")
+    assert list(table.status) == list(df.status) and list(table.run_id) == list(df.run_id)
+    pytest.importorskip("pyarrow")
+    assert list(pd.read_parquet(sdir / "out" / "sweep.parquet").t_fail) == [0.05, 0.5, 1.0]
+    assert main(["plot", str(sdir / "out")]) == 0
+    assert (sdir / "out" / "plots" / "sweep_end.png").stat().st_size > 1000
+
+
+def test_two_parameter_sweep_cli_and_heat_map(sdir, capsys):
+    (sdir / "two.yaml").write_text(SWEEP.replace("values: [0.05, 0.5, 1.0]", "values: [0.05, 1.0]")
+                                   .replace("collect:", "  - {name: h, set: [coupling.macro_step], "
+                                                        "values: [0.01, 0.02]}\ncollect:"))
+    assert main(["sweep", str(sdir / "two.yaml"), "--out", str(sdir / "o2"), "--workers", "2",
+                 "--no-progress"]) == 1                            # one parameter value fails its runs
+    out, err = capsys.readouterr()
+    assert "4 runs of ramp.yaml (grid)" in out and "runs: 2 failed, 2 finished" in out
+    assert err.count(" failed: ") == 2
+    assert main(["plot", str(sdir / "o2")]) == 0
+    assert (sdir / "o2" / "plots" / "sweep_steps.png").is_file()
+    rows = (sdir / "o2" / "sweep.csv").read_text().splitlines()
+    assert rows[0] == "run_id,t_fail,h,end,steps,status,message,wall_time_s,run_dir"
+
+
+def _wait_for(pred, timeout, what):
+    t0 = time.monotonic()
+    while not pred():
+        if time.monotonic() - t0 > timeout:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.2)
+
+
+def _processes_using(path: Path) -> list[str]:
+    """Command lines of running processes that mention ``path`` (Linux /proc; empty elsewhere)."""
+    found = []
+    for d in Path("/proc").glob("[0-9]*"):
+        try:
+            cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        if str(path) in cmd:
+            found.append(cmd)
+    return found
+
+
+def test_interrupted_sweep_keeps_finished_runs_and_resumes(sdir):
+    """Ctrl-C (SIGINT) after the first run finished: exit 130, pending runs are 'cancelled' rows;
+    --resume runs only what did not finish."""
+    (sdir / "long.yaml").write_text(SWEEP.replace("[0.05, 0.5, 1.0]", "[2.0, 3.0, 4.0, 5.0, 6.0, 7.0]")
+                                    .replace("stop_time: 0.1", "stop_time: 0.6, coupling.macro_step: 2.0e-4"))
+    cmd = [sys.executable, "-m", "orchestrator", "sweep", str(sdir / "long.yaml"), "--out", str(sdir / "o"),
+           "--workers", "1", "--no-progress"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    try:
+        _wait_for(lambda: any((sdir / "o" / "runs").glob("*/sweep_run.json")), 240, "the first finished run")
+        os.killpg(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, (out, err)
+    assert "--resume" in err and "Traceback" not in err
+    rows = (sdir / "o" / "sweep.csv").read_text().splitlines()[1:]
+    done = [r for r in rows if ",finished," in r]
+    assert 1 <= len(done) < 6 and any(",cancelled," in r for r in rows)
+    _wait_for(lambda: not _processes_using(sdir / "o"), 30, "the interrupted runs to end")   # no orphans
+    # a run that was running at the interrupt may still have finished and written its summary
+    finished = sum(json.loads(p.read_text())["status"] == "finished"
+                   for p in (sdir / "o" / "runs").glob("*/summary.json"))
+    assert finished >= len(done)
+    proc = subprocess.run(cmd + ["--resume"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert f"({finished} runs resumed)" in proc.stdout
+    rows = (sdir / "o" / "sweep.csv").read_text().splitlines()[1:]
+    assert len(rows) == 6 and all(",finished," in r for r in rows)
+
+
+@pytest.mark.timeout(600)
+def test_sweep_on_a_real_dask_scheduler_and_worker(sdir, tmp_path):
+    dask = Path(sys.executable).parent / "dask"
+    if not dask.exists():
+        pytest.skip("the `dask` command is not installed next to this Python")
+    sched_file = tmp_path / "scheduler.json"
+    procs = [subprocess.Popen([str(dask), "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                               "--scheduler-file", str(sched_file)], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)]
+    try:
+        _wait_for(sched_file.exists, 120, "the scheduler file")
+        _wait_for(lambda: "address" in sched_file.read_text(), 30, "the scheduler address")
+        address = json.loads(sched_file.read_text())["address"]
+        assert address.startswith("tcp://127.0.0.1:")
+        procs.append(subprocess.Popen([str(dask), "worker", address, "--nthreads", "1", "--nworkers", "1",
+                                       "--no-dashboard", "--host", "127.0.0.1"],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        proc = subprocess.run([sys.executable, "-m", "orchestrator", "sweep", str(sdir / "sweep.yaml"), "--out",
+                               str(sdir / "ext"), "--scheduler", address, "--no-progress"],
+                              capture_output=True, text=True, timeout=480)
+        assert proc.returncode == 1, proc.stderr                 # one run fails by design
+        assert "runs: 1 failed, 2 finished" in proc.stdout
+        rows = (sdir / "ext" / "sweep.csv").read_text().splitlines()
+        assert [r.split(",")[1] for r in rows[1:]] == ["0.05", "0.5", "1.0"]
+        # DASK_SCHEDULER_ADDRESS is the same as --scheduler: --workers is refused there too
+        bad = subprocess.run([sys.executable, "-m", "orchestrator", "sweep", str(sdir / "sweep.yaml"),
+                              "--workers", "2"], capture_output=True, text=True, timeout=120,
+                             env=dict(os.environ, DASK_SCHEDULER_ADDRESS=address))
+        assert bad.returncode == 1 and "drop --workers" in bad.stderr and "Traceback" not in bad.stderr
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+@pytest.mark.parametrize("path", sorted((REPO / "scenarios" / "sweeps").glob("*.yaml")) +
+                         [REPO / "benchmarks" / "sweep_bench.yaml"], ids=lambda p: p.name)
+def test_shipped_sweep_files_and_all_their_runs_validate(path):
+    spec = load_sweep(path)
+    runs = plan_sweep(spec)                      # builds our FMUs when missing, like `rotorcosim run`
+    assert len(runs) == len({r.run_id for r in runs}) >= 5
+    assert {"psi", "eta0"} <= set(runs[0].values) or "eta0" in runs[0].values
