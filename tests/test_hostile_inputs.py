@@ -286,7 +286,7 @@ def test_parameter_checks_linear_in_fmu_variables(tmp_path, monkeypatch):
     monkeypatch.setattr(scenario_mod, "cached_model_description", lambda p: type("MD", (), {
         "variables": {k: CountingVar(v) for k, v in real(p).variables.items()},
         "can_be_instantiated_only_once_per_process": False, "default_experiment": {},
-        "can_handle_variable_step": True})())
+        "can_handle_variable_step": True, "can_get_and_set_fmu_state": True})())
     with pytest.raises(ScenarioError, match="'a' has no parameter 'nope'"):
         load_scenario(tmp_path / "s.yaml", build_fmus=False)
     assert visits["n"] <= 10 * (n_vars + 3), visits     # a few looks per variable; quadratic: 2.5M
