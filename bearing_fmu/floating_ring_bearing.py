@@ -31,7 +31,9 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 
 from bearing_fmu import journal_bearing as _jb  # the bearing's variable tables and code cache
-from fmu_common.slave import InitializationStateError, RealU, check_shipped_layout, finish_model_description, guard_callbacks
+from fmu_common.slave import (
+    InitializationStateError, RealU, check_shipped_layout, check_step_start, exit_initialization_mode,
+    finish_model_description, guard_callbacks, setup_experiment)
 
 _FILM_REAL = {   # per film (suffix _inner / _outer): name -> (inner default, outer default, unit, description)
     "R": (4.9e-3, 7.84e-3, "m", "film radius: journal radius (inner), ring outer radius (outer) [m]"),
@@ -234,21 +236,11 @@ class FloatingRingBearing(Fmi2Slave):
             self._values["_lin_age"] = age + 1
 
     # -- FMI life cycle ---------------------------------------------------------------
-    def setup_experiment(self, start_time: float, stop_time=None, tolerance=None):
-        self._time = self._start_time = float(start_time)
-
-    def exit_initialization_mode(self):
-        self._ensure_model()
-        self._time = self._start_time
-        self._initialized = True
+    setup_experiment = setup_experiment
+    exit_initialization_mode = exit_initialization_mode
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        if not self._initialized:
-            raise InitializationStateError("do_step before exit_initialization_mode")
-        if abs(current_time - self._time) > 1e-9 * max(1.0, abs(current_time)) + 1e-6 * step_size:
-            raise InitializationStateError(
-                f"do_step at t={current_time!r} but the FMU is at t={self._time!r}; "
-                "restore a saved FMU state to step from an earlier time")
+        check_step_start(self, current_time, step_size)
         if step_size <= 0.0:
             raise ValueError(f"step_size must be > 0 (got {step_size!r})")
         try:
