@@ -315,8 +315,9 @@ def _cmd_compare(args) -> int:
 
 def _add_sweep(sub) -> None:
     p = sub.add_parser("sweep", help="run a parameter sweep (stability map) on Dask", description=(
-        "Run every run of a sweep file (docs/sweeps.md) as a Dask task, each in its own process, into "
-        "DIR/runs/<run_id>/, and write DIR/sweep.csv. Default: a local cluster, one worker per core."))
+        "Run every run of a sweep file (docs/sweeps.md) as a Dask task, in a run process of its worker (not "
+        "the worker itself), into DIR/runs/<run_id>/, and write DIR/sweep.csv. Default: a local cluster, one "
+        "worker per core."))
     p.add_argument("file", metavar="FILE", help="sweep YAML file")
     p.add_argument("--out", metavar="DIR", help="output folder (default: runs/sweep_<file name>)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="address of a running Dask scheduler, e.g. "
@@ -325,6 +326,8 @@ def _add_sweep(sub) -> None:
                    "one per core)")
     p.add_argument("--resume", action="store_true", help="skip runs whose folder holds a finished summary")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--fresh-processes", action="store_true", help="a new Python process for every run instead "
+                   "of one warm run process per worker that runs many (slower; docs/sweeps.md section 2)")
     p.set_defaults(func=_cmd_sweep)
 
 
@@ -336,7 +339,7 @@ def _cmd_sweep(args) -> int:
     out = Path(args.out) if args.out else default_out_dir(args.file)
     print(f"sweep {args.file}: {len(runs)} runs of {spec.scenario.name} ({spec.mode}) -> {out}", flush=True)
     o = run_sweep(spec, runs, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
-                  progress=False if args.no_progress else None)
+                  progress=False if args.no_progress else None, warm=not args.fresh_processes)
     counts = {s: sum(r["status"] == s for r in o.rows) for s in dict.fromkeys(r["status"] for r in o.rows)}
     print(f"table: {o.table}" + (f" ({o.skipped} runs resumed)" if o.skipped else ""))
     print("runs: " + ", ".join(f"{n} {s}" for s, n in counts.items()))

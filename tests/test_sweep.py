@@ -147,12 +147,71 @@ def test_task_outcome_classification():
     assert _outcome(1, {"status": "failed", "message": "FMU f raised"}, "") == ("failed", "FMU f raised")
     status, msg = _outcome(-11, None, "Fatal Python error: Segmentation fault")
     assert status == "crashed" and "killed by signal 11" in msg and "Segmentation fault" in msg
+    status, msg = _outcome(-9, {"status": "running", "message": "the run is in progress"}, "")
+    assert status == "crashed" and "killed by signal 9" in msg     # the summary a run writes at its start
 
 
 def test_a_run_that_dies_without_summary_is_a_crashed_record(sdir):
     rec = execute_run(str(sdir / "ramp.yaml"), ["coupling.macro_step=-1"], str(sdir / "r"))
     assert rec["status"] == "crashed" and "exit code 1" in rec["message"] and "macro_step" in rec["message"]
     assert json.loads((sdir / "r" / "sweep_run.json").read_text())["status"] == "crashed"
+
+
+# ------------------------------------------------------------------ warm run processes
+@pytest.fixture
+def warm():
+    from orchestrator.sweep import warm as warm_mod
+    yield warm_mod
+    warm_mod.close_warm()
+
+
+def _child_pid(warm_mod):
+    return warm_mod._CURRENT.proc.pid if warm_mod._CURRENT is not None else None
+
+
+def test_warm_process_runs_many_scenarios_like_fresh_processes(sdir, warm):
+    """Two runs in the warm process share it; their results are byte for byte those of fresh
+    processes; a failed run retires the process (the next run gets a new one)."""
+    scen, runs = str(sdir / "ramp.yaml"), sdir / "runs"
+    a = execute_run(scen, ["fmus.f.parameters.t_fail=0.5"], str(runs / "a"))
+    pid = _child_pid(warm)
+    b = execute_run(scen, ["fmus.f.parameters.t_fail=0.7", "coupling.macro_step=0.02"], str(runs / "b"))
+    assert a["status"] == b["status"] == "finished" and pid is not None and _child_pid(warm) == pid
+    assert b["summary"]["macro_steps"] == 5 and a["summary"]["macro_steps"] == 10
+    fa = execute_run(scen, ["fmus.f.parameters.t_fail=0.5"], str(runs / "fa"), warm=False)
+    fb = execute_run(scen, ["fmus.f.parameters.t_fail=0.7", "coupling.macro_step=0.02"], str(runs / "fb"),
+                     warm=False)
+    for w, f in (("a", "fa"), ("b", "fb")):
+        assert (runs / w / "results.csv").read_bytes() == (runs / f / "results.csv").read_bytes()
+    assert "status: finished" in (runs / "a" / "run.log").read_text()      # the run's own output
+    bad = execute_run(scen, ["fmus.f.parameters.t_fail=0.05"], str(runs / "bad"))
+    assert bad["status"] == "failed" and "deliberate failure" in bad["message"]
+    assert _child_pid(warm) is None and not psutil_alive(pid)
+    again = execute_run(scen, ["fmus.f.parameters.t_fail=0.5"], str(runs / "again"))
+    assert again["status"] == "finished" and _child_pid(warm) not in (None, pid)
+    assert (runs / "again" / "results.csv").read_bytes() == (runs / "a" / "results.csv").read_bytes()
+
+
+def psutil_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return Path(f"/proc/{pid}/stat").is_file() and ") Z " not in Path(f"/proc/{pid}/stat").read_text()
+
+
+def test_warm_process_that_crashes_or_hangs_is_a_crashed_row_and_is_replaced(sdir, warm):
+    scen, runs = str(sdir / "ramp.yaml"), sdir / "runs"
+    rec = execute_run(scen, ["fmus.f.parameters.t_fail=0.05", "fmus.f.parameters.mode=5"], str(runs / "abort"))
+    assert rec["status"] == "crashed" and f"killed by signal {int(signal.SIGABRT)}" in rec["message"], rec
+    assert _child_pid(warm) is None
+    ok = execute_run(scen, [], str(runs / "ok"))
+    assert ok["status"] == "finished"
+    pid = _child_pid(warm)
+    slow = execute_run(scen, ["stop_time=1000", "fmus.f.parameters.t_fail=2000", "coupling.macro_step=1e-4", "output.interval=1.0"], str(runs / "slow"), timeout_s=3)
+    assert slow["status"] == "crashed" and "timed out after 3 s" in slow["message"], slow
+    assert not psutil_alive(pid)
+    assert execute_run(scen, [], str(runs / "ok2"))["status"] == "finished"
 
 
 # ------------------------------------------------------------------ runs on Dask
@@ -236,7 +295,7 @@ def test_interrupted_sweep_keeps_finished_runs_and_resumes(sdir):
     assert "--resume" in err and "Traceback" not in err
     rows = (sdir / "o" / "sweep.csv").read_text().splitlines()[1:]
     done = [r for r in rows if ",finished," in r]
-    assert 1 <= len(done) < 6 and any(",cancelled," in r for r in rows)
+    assert 1 <= len(done) < 6 and any(",cancelled," in r for r in rows), (rows, out, err)
     _wait_for(lambda: not _processes_using(sdir / "o"), 30, "the interrupted runs to end")   # no orphans
     # a run that was running at the interrupt may still have finished and written its summary
     finished = sum(json.loads(p.read_text())["status"] == "finished"

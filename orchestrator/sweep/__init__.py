@@ -8,7 +8,8 @@ df[df.status == "finished"][["psi", "eta0", "onset_hz"]]
 
 Pieces: :mod:`~orchestrator.sweep.spec` (the sweep file), :mod:`~orchestrator.sweep.plan`
 (runs and their ids, every run's scenario validated first), :mod:`~orchestrator.sweep.task`
-(one run in a fresh process, the Dask task), :mod:`~orchestrator.sweep.runner` (the cluster,
+(one run in a run process of its worker, the Dask task), :mod:`~orchestrator.sweep.warm`
+(the warm run processes), :mod:`~orchestrator.sweep.runner` (the cluster,
 progress, resume, Ctrl-C), :mod:`~orchestrator.sweep.table` (sweep.csv / sweep.parquet),
 :mod:`~orchestrator.sweep.plot` (the map).
 """
@@ -36,13 +37,13 @@ def prepare(path: str | Path):
 
 
 def sweep(path: str | Path, out_dir: str | Path | None = None, *, scheduler: str | None = None,
-          workers: int | None = None, resume: bool = False, progress: bool | None = False):
+          workers: int | None = None, resume: bool = False, progress: bool | None = False, warm: bool = True):
     """Run the sweep file ``path`` and return its table as a pandas DataFrame (one row per run).
 
     Same options as ``rotorcosim sweep``: ``out_dir`` (default ``runs/sweep_<stem>``),
     ``scheduler`` (address of a running Dask scheduler; default ``DASK_SCHEDULER_ADDRESS`` or
     a LocalCluster), ``workers`` (LocalCluster size, default one per core), ``resume``,
-    ``progress``. Raises :class:`SweepError` for a bad sweep file or run scenario (before
+    ``progress``, ``warm`` (False: a fresh process per run, ``--fresh-processes``). Raises :class:`SweepError` for a bad sweep file or run scenario (before
     anything runs); failed runs are rows (``status`` column), not exceptions. On
     KeyboardInterrupt the table of what finished is written, then the interrupt propagates.
     pandas is imported only here (the CLI does not need it).
@@ -57,7 +58,7 @@ def sweep(path: str | Path, out_dir: str | Path | None = None, *, scheduler: str
 
     spec, runs = prepare(path)
     outcome = run_sweep(spec, runs, out_dir or default_out_dir(path), scheduler=scheduler, workers=workers,
-                        resume=resume, progress=progress)
+                        resume=resume, progress=progress, warm=warm)
     if outcome.interrupted:
         raise KeyboardInterrupt(f"sweep interrupted; finished runs are in {outcome.table}")
     return pd.DataFrame(outcome.rows, columns=columns(spec))

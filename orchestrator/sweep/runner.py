@@ -61,6 +61,22 @@ def resumable(run_dir: Path, run: RunPlan) -> dict | None:
             "wall_time_s": record.get("wall_time_s"), "summary": summary}
 
 
+def _recorded(run_dir: Path, run: RunPlan) -> dict | None:
+    """The record a run wrote into ``run_dir`` (``sweep_run.json`` of the same overrides, with its
+    summary), or None: after Ctrl-C, the runs that ended before their result reached the client."""
+    try:
+        record = json.loads((run_dir / RUN_RECORD).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict) or record.get("overrides") != list(run.overrides) or "status" not in record:
+        return None
+    try:
+        summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        summary = None
+    return {**record, "summary": summary if isinstance(summary, dict) else None}
+
+
 def connect(scheduler: str | None, workers: int | None):
     """A ``distributed.Client`` and the cluster it owns (None for an external cluster).
 
@@ -118,11 +134,11 @@ def _progress(total: int, enabled: bool | None):
                 dynamic_ncols=True)
 
 
-def _submit(client, spec: SweepSpec, todo: list[RunPlan], runs_dir: Path) -> dict:
+def _submit(client, spec: SweepSpec, todo: list[RunPlan], runs_dir: Path, warm: bool) -> dict:
     futures = {}
     for run in todo:
         fut = client.submit(execute_run, str(spec.scenario), list(run.overrides), str(runs_dir / run.run_id),
-                            key=f"rotorcosim-run-{run.run_id}", pure=False, retries=0)
+                            warm=warm, key=f"rotorcosim-run-{run.run_id}", pure=False, retries=0)
         futures[fut] = run
     return futures
 
@@ -146,11 +162,13 @@ def _gather(futures: dict, records: dict, bar) -> None:
 
 
 def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, scheduler: str | None = None,
-              workers: int | None = None, resume: bool = False, progress: bool | None = None) -> SweepOutcome:
+              workers: int | None = None, resume: bool = False, progress: bool | None = None,
+              warm: bool = True) -> SweepOutcome:
     """Run ``runs`` (from :func:`orchestrator.sweep.plan.plan_sweep`) into ``out_dir/runs/<run_id>``.
 
     ``resume``: runs whose folder holds a finished summary.json of the same overrides are not
-    run again. On KeyboardInterrupt the pending tasks are cancelled, the table is written with
+    run again. ``warm``: each worker runs its runs in one long-lived run process
+    (:mod:`orchestrator.sweep.warm`); False: a fresh process per run. On KeyboardInterrupt the pending tasks are cancelled, the table is written with
     the unfinished runs as status ``cancelled``, and the outcome says ``interrupted``.
     """
     out_dir = Path(out_dir).resolve()
@@ -171,12 +189,17 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
         bar = _progress(len(todo), progress)
         try:
             client, cluster = connect(scheduler, workers)
-            futures = _submit(client, spec, todo, runs_dir)
+            futures = _submit(client, spec, todo, runs_dir, warm)
             _gather(futures, records, bar)
         except KeyboardInterrupt:
             interrupted = True
             if futures:
                 client.cancel([f for f in futures if not f.done()], force=True)
+            for run in todo:                      # ended on a worker, result not gathered yet
+                if run.run_id not in records:
+                    rec = _recorded(runs_dir / run.run_id, run)
+                    if rec is not None:
+                        records[run.run_id] = rec
         finally:
             bar.close()
             if client is not None:

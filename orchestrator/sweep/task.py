@@ -1,12 +1,14 @@
-"""One run of a sweep, as a Dask task: the scenario in a fresh subprocess, then its summary.
+"""One run of a sweep, as a Dask task: the scenario in a run process of the worker, then its summary.
 
-:func:`execute_run` is what a Dask worker executes. It runs
+:func:`execute_run` is what a Dask worker executes. It runs the equivalent of
 ``python -m orchestrator run SCENARIO --set ... --out RUN_DIR --no-progress`` with the
 worker's own Python (so the workers need rotorcosim installed) and reads the
-``summary.json`` the run wrote. A fresh process per run costs about one interpreter and
-import start-up (measured in BENCHMARKS.md) and buys isolation: a PythonFMU that crashes,
-aborts at interpreter exit (docs/dev/requests.md) or leaks memory takes down that process
-only, and the run becomes a row with status ``crashed`` instead of a dead worker.
+``summary.json`` the run wrote. By default the run goes to the worker's warm run process
+(:mod:`orchestrator.sweep.warm`: one long-lived child of the worker that runs run after run,
+so the interpreter start, the imports and numba's kernel loading are paid once per worker);
+``warm=False`` starts a fresh process for the run. Either way the run is not in the worker
+itself: a PythonFMU that crashes, aborts or leaks memory takes down that process only, and
+the run becomes a row with status ``crashed`` instead of a dead worker.
 
 The task never raises for a failing run; it returns a plain dict (picklable, no rotorcosim
 types) with ``status`` (``finished`` / ``failed`` / ``crashed``), ``message``,
@@ -61,36 +63,34 @@ def _outcome(rc: int, summary: dict | None, stderr: str) -> tuple[str, str]:
             return "finished", (f"the run finished and wrote its results, then its process exited with code "
                                 f"{rc} (a known PythonFMU teardown problem, docs/dev/requests.md)")
         return "finished", ""
-    if summary is not None and summary.get("status"):
+    if summary is not None and summary.get("status") not in (None, "", "running"):
         return "failed", str(summary.get("message") or summary.get("status"))
+    # no summary, or the one a run writes at its start ("running"): the process died mid-run
     why = f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}"
     err = _tail(stderr)
     return "crashed", f"the run's process ended without a summary ({why})" + (f": {err}" if err else "")
 
 
-def execute_run(scenario: str, overrides: list[str], run_dir: str, *, timeout_s: float | None = None) -> dict:
-    """Run one scenario with ``overrides`` into ``run_dir`` in a fresh Python process.
+def execute_run(scenario: str, overrides: list[str], run_dir: str, *, timeout_s: float | None = None,
+                warm: bool = True) -> dict:
+    """Run one scenario with ``overrides`` into ``run_dir`` in a separate Python process.
 
+    ``warm`` (default): in this worker's warm run process (:mod:`orchestrator.sweep.warm`),
+    started on the first run and reused; otherwise a fresh process for this run only.
     Returns the run's record (see the module docstring); never raises for a failed run.
     """
     out = Path(run_dir)
     out.mkdir(parents=True, exist_ok=True)
     for stale in ("summary.json", RUN_RECORD):
         (out / stale).unlink(missing_ok=True)
-    cmd = [sys.executable, "-m", "orchestrator", "run", str(scenario), "--out", str(out), "--no-progress"]
+    args = ["run", str(scenario), "--out", str(out), "--no-progress"]
     for text in overrides:
-        cmd += ["--set", text]
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
+        args += ["--set", text]
     t0 = time.perf_counter()
-    try:
-        proc = subprocess.run(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                              text=True, errors="replace", env=env, timeout=timeout_s,
-                              preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
-        rc, stderr = proc.returncode, proc.stderr
-        (out / "run.log").write_text(proc.stdout + ("\n--- stderr ---\n" + proc.stderr if proc.stderr else ""),
-                                     encoding="utf-8")
-    except subprocess.TimeoutExpired as exc:
-        rc, stderr = -signal.SIGKILL, f"timed out after {exc.timeout:g} s"
+    if warm:
+        rc, stderr = _warm(args, out, timeout_s)
+    else:
+        rc, stderr = _fresh(args, out, timeout_s)
     wall = time.perf_counter() - t0
     summary = _read_summary(out / "summary.json")
     status, message = _outcome(rc, summary, stderr)
@@ -99,6 +99,35 @@ def execute_run(scenario: str, overrides: list[str], run_dir: str, *, timeout_s:
     (out / RUN_RECORD).write_text(json.dumps(record, indent=1), encoding="utf-8")
     record["summary"] = summary
     return record
+
+
+def _fresh(args: list[str], out: Path, timeout_s: float | None) -> tuple[int, str]:
+    """``python -m orchestrator ARGS`` in a new process: (exit code, its stderr)."""
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    try:
+        proc = subprocess.run([sys.executable, "-m", "orchestrator", *args], stdin=subprocess.DEVNULL,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, errors="replace",
+                              env=env, timeout=timeout_s,
+                              preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+    except subprocess.TimeoutExpired as exc:
+        return -signal.SIGKILL, f"timed out after {exc.timeout:g} s"
+    (out / "run.log").write_text(proc.stdout + ("\n--- stderr ---\n" + proc.stderr if proc.stderr else ""),
+                                 encoding="utf-8")
+    return proc.returncode, proc.stderr
+
+
+def _warm(args: list[str], out: Path, timeout_s: float | None) -> tuple[int, str]:
+    """The same in the worker's warm process: (exit code, the end of run.log, where it printed)."""
+    from orchestrator.sweep.warm import warm_run
+    log = out / "run.log"
+    rc, timed_out = warm_run(args, str(log), label=str(out.parent), timeout_s=timeout_s)
+    if timed_out:
+        return rc, f"timed out after {timeout_s:g} s"
+    try:
+        text = log.read_text(encoding="utf-8", errors="replace")[-4 * _STDERR_TAIL:] if rc else ""
+    except OSError:
+        text = ""
+    return rc, text
 
 
 def trivial_run(seconds: float = 0.0) -> dict:

@@ -3,7 +3,8 @@
 mode 0: do_step returns False (fmi2Discard); mode 1: do_step raises
 (fmi2Error); mode 2: the output becomes NaN; mode 3: the output becomes +inf;
 mode 4: the first step past t_fail sends SIGINT to its own process (a Ctrl-C that
-arrives while FMU code runs) and then completes normally.
+arrives while FMU code runs) and then completes normally; mode 5: the process aborts
+(SIGABRT, as a crashing native library would).
 """
 
 import os
@@ -28,7 +29,7 @@ class Faulty(Fmi2Slave):
                                     variability=Fmi2Variability.tunable, description="failure time [s]"))
         self.register_variable(Integer("mode", causality=Fmi2Causality.parameter,
                                        variability=Fmi2Variability.tunable,
-                                       description="0 discard, 1 raise, 2 NaN output, 3 inf output, 4 SIGINT once"))
+                                       description="0 discard, 1 raise, 2 NaN output, 3 inf output, 4 SIGINT once, 5 abort"))
         self.register_variable(Real("u", causality=Fmi2Causality.input, description="ignored input [-]"))
         self.register_variable(Real("y", causality=Fmi2Causality.output, description="ramp output [-]"))
 
@@ -48,5 +49,7 @@ class Faulty(Fmi2Slave):
             if self.mode == 4 and not self._interrupted:
                 self._interrupted = True
                 os.kill(os.getpid(), signal.SIGINT)
+            if self.mode == 5:
+                os.abort()
         self.y = t_end
         return True
