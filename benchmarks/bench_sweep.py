@@ -1,21 +1,25 @@
 """Sweep speed (issue 15): an 8-run sweep on Dask against the same 8 runs in one process,
 and the cost per task.
 
-Modes (one per process, so that farm-bench times each from outside, start-up included):
+Modes (``sweep``, ``sequential``: one per process, timed from outside, start-up included):
 
 * ``sweep``: ``rotorcosim sweep``'s code path (:func:`orchestrator.sweep.runner.run_sweep`) on
   a LocalCluster of ``--workers`` (default: one per core) for ``benchmarks/sweep_bench.yaml``:
   8 seeded half-Sommerfeld Jeffcott run-ups (220 -> 260 Hz, 1000 macro steps each, eta0 over 8
-  values); cluster start-up, one fresh process per run and the table included.
+  values); cluster start-up, the workers' run processes and the table included. Warm run
+  processes (the default); ``--fresh`` for a fresh process per run (``--fresh-processes``).
 * ``sequential``: the same 8 runs (the same plans and overrides) one after another in this
   process with ``orchestrator.load_scenario`` + ``orchestrator.run``: the peer.
+* ``pair``: runs ``sweep``, ``sweep --fresh`` and ``sequential`` as child processes in turn,
+  ``--repeats`` times, and prints each one's wall and CPU (``getrusage`` of the reaped
+  children: the cluster and the run processes included), the medians, the ratios of each round
+  and the load average before each run.
 * ``overhead``: (a) ``--tasks`` trivial tasks (:func:`orchestrator.sweep.task.trivial_run`,
   nothing inside) through the LocalCluster: Dask's scheduling overhead per task; (b) one
-  ``execute_run`` of a 2-macro-step run (the fresh ``python -m orchestrator run`` process,
-  read summary) against the same run in-process: what a fresh process costs per run.
+  ``execute_run`` of a 2-macro-step run in a warm run process, in a fresh process and in this
+  process: what the run process costs per run.
 
-    farm-bench -n 3 --timeout 3000 -- .venv/bin/python benchmarks/bench_sweep.py sweep \\
-        --vs '.venv/bin/python benchmarks/bench_sweep.py sequential'
+    nice -n 5 .venv/bin/python benchmarks/bench_sweep.py pair --repeats 3
     .venv/bin/python benchmarks/bench_sweep.py overhead
 """
 
@@ -24,6 +28,7 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -33,13 +38,13 @@ ROOT = Path(__file__).resolve().parents[1]
 SWEEP = ROOT / "benchmarks" / "sweep_bench.yaml"
 
 
-def bench_sweep(workers: int | None) -> float:
+def bench_sweep(workers: int | None, warm: bool = True) -> float:
     from orchestrator.sweep import prepare
     from orchestrator.sweep.runner import run_sweep
     spec, runs = prepare(SWEEP)
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        out = run_sweep(spec, runs, tmp, workers=workers, progress=False)
+        out = run_sweep(spec, runs, tmp, workers=workers, progress=False, warm=warm)
         wall = time.perf_counter() - t0
     bad = [r for r in out.rows if r["status"] != "finished"]
     assert not bad, bad
@@ -79,11 +84,15 @@ def bench_overhead(n_tasks: int, workers: int | None, repeats: int) -> None:
           f"per task (wall / tasks; runs {', '.join(f'{p * 1e3:.2f}' for p in per)} ms)")
     scen = ROOT / "scenarios" / "jeffcott_runup_half_sommerfeld_seeded.yaml"
     one = ["stop_time=0.5502", "output.interval=1e-4"]   # 2 macro steps
-    fresh, inproc, fresh_cpu, inproc_cpu = [], [], [], []
+    fresh, inproc, fresh_cpu, inproc_cpu, warm = [], [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
+        execute_run(str(scen), one, str(Path(tmp) / "runs" / "w"))            # start the warm process
         for i in range(repeats):
+            rec = execute_run(str(scen), one, str(Path(tmp) / "runs" / f"w{i}"))
+            assert rec["status"] == "finished", rec
+            warm.append(rec["wall_time_s"])
             c0 = _children_cpu()
-            rec = execute_run(str(scen), one, str(Path(tmp) / f"f{i}"))
+            rec = execute_run(str(scen), one, str(Path(tmp) / f"f{i}"), warm=False)
             fresh_cpu.append(_children_cpu() - c0)
             assert rec["status"] == "finished", rec
             fresh.append(rec["wall_time_s"])
@@ -91,10 +100,39 @@ def bench_overhead(n_tasks: int, workers: int | None, repeats: int) -> None:
             run(load_scenario(scen, one, build_fmus=False), out_dir=Path(tmp) / f"i{i}", progress=False)
             inproc.append(time.perf_counter() - t0)
             inproc_cpu.append(time.process_time() - c0)
+    from orchestrator.sweep.warm import close_warm
+    close_warm()
     m = statistics.median
-    print(f"2-macro-step HS Jeffcott run (median of {repeats}): fresh process {m(fresh):.2f} s wall / "
+    print(f"2-macro-step HS Jeffcott run (median of {repeats}): warm run process {m(warm):.2f} s wall; fresh process {m(fresh):.2f} s wall / "
           f"{m(fresh_cpu):.2f} s CPU; in-process (warm) {m(inproc):.2f} s wall / {m(inproc_cpu):.2f} s CPU: "
           f"a fresh process costs {m(fresh) - m(inproc):.2f} s wall, {m(fresh_cpu) - m(inproc_cpu):.2f} s CPU per run")
+
+
+def bench_pair(repeats: int, workers: int | None) -> None:
+    """sweep (warm), sweep (fresh) and sequential in turn, each a child process (module doc)."""
+    me = [sys.executable, str(Path(__file__).resolve())]
+    w = ["--workers", str(workers)] if workers else []
+    variants = {"sweep": me + ["sweep"] + w, "sweep-fresh": me + ["sweep", "--fresh"] + w,
+                "sequential": me + ["sequential"]}
+    res = {k: [] for k in variants}
+    for i in range(repeats):
+        for name, cmd in variants.items():
+            load = os.getloadavg()[0]
+            c0, t0 = _children_cpu(), time.perf_counter()
+            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+            wall, cpu = time.perf_counter() - t0, _children_cpu() - c0
+            res[name].append((wall, cpu))
+            print(f"round {i + 1} {name:12s} wall {wall:7.2f} s  cpu {cpu:7.2f} s  (load before {load:.2f})",
+                  flush=True)
+        seq = res["sequential"][-1][0]
+        print(f"round {i + 1} ratio sequential/sweep wall: warm {seq / res['sweep'][-1][0]:.2f}x, fresh "
+              f"{seq / res['sweep-fresh'][-1][0]:.2f}x", flush=True)
+    m = statistics.median
+    for name, rows in res.items():
+        print(f"median {name:12s} wall {m(r[0] for r in rows):7.2f} s  cpu {m(r[1] for r in rows):7.2f} s")
+    seq = m(r[0] for r in res["sequential"])
+    print(f"speed-up of the sweep over sequential (median walls): warm {seq / m(r[0] for r in res['sweep']):.2f}x, "
+          f"fresh {seq / m(r[0] for r in res['sweep-fresh']):.2f}x")
 
 
 def _children_cpu() -> float:
@@ -105,14 +143,17 @@ def _children_cpu() -> float:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("mode", choices=("sweep", "sequential", "overhead"))
+    ap.add_argument("mode", choices=("sweep", "sequential", "overhead", "pair"))
+    ap.add_argument("--fresh", action="store_true", help="sweep: a fresh process per run")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--tasks", type=int, default=400)
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args(argv)
     load = os.getloadavg()
     if args.mode == "sweep":
-        print(f"sweep wall {bench_sweep(args.workers):.2f} s (load {load[0]:.1f})")
+        print(f"sweep wall {bench_sweep(args.workers, warm=not args.fresh):.2f} s (load {load[0]:.1f})")
+    elif args.mode == "pair":
+        bench_pair(args.repeats, args.workers)
     elif args.mode == "sequential":
         print(f"sequential wall {bench_sequential():.2f} s (load {load[0]:.1f})")
     else:

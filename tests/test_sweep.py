@@ -140,6 +140,25 @@ def test_expansion_modes_and_stable_run_ids(sdir):
         expand(load_sweep(sdir / "d.yaml"))
 
 
+def test_missing_and_null_collect_values_are_empty_cells_with_their_own_warnings(sdir):
+    import warnings
+    from orchestrator.sweep.table import build_rows
+    spec = load_sweep(sdir / "sweep.yaml")
+    runs = plan_sweep(spec, build_fmus=False)
+    done = {"status": "finished", "message": "", "wall_time_s": 1.0}
+    records = {runs[0].run_id: {**done, "summary": {"end_time": 0.1, "macro_steps": None}},
+               runs[1].run_id: {**done, "summary": {"end_time": 0.1}},
+               runs[2].run_id: {**done, "summary": {"end_time": 0.1, "macro_steps": 10}}}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rows = build_rows(spec, runs, records, sdir)
+    assert [r["steps"] for r in rows] == [None, None, 10] and [r["end"] for r in rows] == [0.1] * 3
+    texts = [str(w.message) for w in caught]
+    assert len(texts) == 2
+    assert any("1 finished run(s) have no 'macro_steps'" in t for t in texts)
+    assert any("1 finished run(s) have 'macro_steps' = null" in t and "computed no value" in t for t in texts)
+
+
 def test_task_outcome_classification():
     assert _outcome(0, {"status": "finished"}, "") == ("finished", "")
     status, msg = _outcome(-6, {"status": "finished"}, "corrupted double-linked list")

@@ -3,7 +3,8 @@
 Columns, in order: ``run_id``, each parameter by its name, each collected value by its
 ``collect`` name, ``status`` (``finished`` / ``failed`` / ``crashed`` / ``cancelled``),
 ``message``, ``wall_time_s``, ``run_dir`` (relative to DIR). A collected path that a
-finished run's summary.json lacks gives an empty cell and one warning per column.
+finished run's summary.json lacks gives an empty cell and one warning per column; so does a
+value that is null there (the run computed none, e.g. no onset), with its own warning.
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ def columns(spec: SweepSpec) -> list[str]:
 
 def build_rows(spec: SweepSpec, runs: list[RunPlan], records: dict[str, dict], out_dir: Path) -> list[dict]:
     """Rows in sweep order; runs without a record are ``cancelled``."""
-    rows, missing = [], {name: 0 for name, _ in spec.collect}
+    rows, missing, null = [], {name: 0 for name, _ in spec.collect}, {name: 0 for name, _ in spec.collect}
     for run in runs:
         rec = records.get(run.run_id) or {"status": "cancelled", "summary": None, "wall_time_s": None,
                                           "message": "not run: the sweep was interrupted; rerun with --resume"}
@@ -64,6 +65,8 @@ def build_rows(spec: SweepSpec, runs: list[RunPlan], records: dict[str, dict], o
             value = lookup(summary, path) if summary is not None else _MISSING
             if value is _MISSING and rec["status"] == "finished":
                 missing[name] += 1
+            elif value is None and rec["status"] == "finished":
+                null[name] += 1
             row[name] = _cell(value)
         wall = rec.get("wall_time_s")
         row.update(status=rec["status"], message=rec.get("message") or "",
@@ -74,6 +77,11 @@ def build_rows(spec: SweepSpec, runs: list[RunPlan], records: dict[str, dict], o
         if n:
             warnings.warn(f"collect '{name}': {n} finished run(s) have no '{path}' in their summary.json; their "
                           f"cells are empty (check the path against one run's summary.json)", stacklevel=2)
+    for (name, path), n in zip(spec.collect, null.values(), strict=True):
+        if n:
+            warnings.warn(f"collect '{name}': {n} finished run(s) have '{path}' = null in their summary.json (the "
+                          f"run computed no value there, e.g. no whirl onset within its speed range); their cells "
+                          f"are empty", stacklevel=2)
     return rows
 
 
