@@ -63,3 +63,30 @@ def test_switched_off_uses_numba_default(tmp_path):
     env = dict(os.environ, ROTORCOSIM_NUMBA_CACHE="off", PYTHONPATH="")
     _, _, p = _probe(a, env)
     assert p == str(a / "bearing_fmu" / "__pycache__")
+
+
+ROTOR_PROBE = """
+import numpy as np, rotor_fmu.linear_rotor as l
+t = np.array([0.0, 1.0]); w = np.array([0.0, 10.0]); a = np.array([0.0, 5.0])
+l._drive_eval(0.5, t, w, a)
+s = l._drive_eval.stats
+print(l.__file__, sum(s.cache_hits.values()), sum(s.cache_misses.values()), s.cache_path)
+"""
+
+
+def test_rotor_numba_kernels_share_the_cache_across_copies(tmp_path):
+    """The rotor FMU's numba kernels (ROTORCOSIM_ROTOR_KERNEL=numba) are extracted afresh with
+    their FMU for every run too: a second copy loads what the first compiled."""
+    import rotor_fmu
+    root, hits = tmp_path / "cache", []
+    env = dict(os.environ, ROTORCOSIM_NUMBA_CACHE=str(root), PYTHONPATH="", ROTORCOSIM_ROTOR_KERNEL="numba")
+    for name in ("a", "b"):
+        shutil.copytree(Path(rotor_fmu.__file__).parent, tmp_path / name / "rotor_fmu",
+                        ignore=shutil.ignore_patterns("__pycache__", "data"))
+        out = subprocess.run([sys.executable, "-c", ROTOR_PROBE], cwd=tmp_path / name, env=env,
+                             capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stderr
+        f, h, m, path = out.stdout.split()
+        assert f.startswith(str(tmp_path / name)) and path.startswith(str(root)), (f, path)
+        hits.append((int(h), int(m)))
+    assert hits == [(0, 1), (1, 0)]

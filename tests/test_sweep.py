@@ -219,6 +219,27 @@ def psutil_alive(pid: int) -> bool:
     return Path(f"/proc/{pid}/stat").is_file() and ") Z " not in Path(f"/proc/{pid}/stat").read_text()
 
 
+def test_warm_process_forgets_modules_of_deleted_fmu_folders(tmp_path):
+    """What a run imported from an FMU's extracted folder (deleted after the run) must not be
+    reused by the next run; modules that still exist stay (the warm kernels)."""
+    from orchestrator.sweep.warm import forget_vanished
+    for name in ("gone_pkg", "kept_pkg"):
+        (tmp_path / name / name).mkdir(parents=True)
+        (tmp_path / name / name / "__init__.py").write_text("X = 1\n")
+    before, path_before = set(sys.modules), list(sys.path)
+    sys.path[:0] = [str(tmp_path / "gone_pkg"), str(tmp_path / "kept_pkg")]
+    try:
+        import gone_pkg  # noqa: F401
+        import kept_pkg  # noqa: F401
+        shutil.rmtree(tmp_path / "gone_pkg")
+        assert forget_vanished(before, path_before) == ["gone_pkg"]
+        assert "gone_pkg" not in sys.modules and "kept_pkg" in sys.modules
+        assert str(tmp_path / "gone_pkg") not in sys.path and str(tmp_path / "kept_pkg") in sys.path
+    finally:
+        sys.modules.pop("kept_pkg", None)
+        sys.path[:] = [p for p in sys.path if str(tmp_path) not in p]
+
+
 def test_warm_process_that_crashes_or_hangs_is_a_crashed_row_and_is_replaced(sdir, warm):
     scen, runs = str(sdir / "ramp.yaml"), sdir / "runs"
     rec = execute_run(scen, ["fmus.f.parameters.t_fail=0.05", "fmus.f.parameters.mode=5"], str(runs / "abort"))

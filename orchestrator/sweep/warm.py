@@ -156,10 +156,32 @@ def _clear_warning_registries() -> None:
             reg.clear()
 
 
+def forget_vanished(modules_before: set[str], path_before: list[str]) -> list[str]:
+    """Drop what a run imported from folders that are gone (an FMU's extracted ``resources/``,
+    deleted at the run's end): such a module, left in ``sys.modules``, would be reused by the
+    next run and fail on its first lazy import; the next run imports it again from its own
+    extraction, as a fresh process would. Returns the names dropped."""
+    import importlib
+    dropped = []
+    for name in [n for n in list(sys.modules) if n not in modules_before]:
+        f = getattr(sys.modules.get(name), "__file__", None)
+        if isinstance(f, str) and os.path.isabs(f) and not os.path.exists(f):
+            del sys.modules[name]
+            dropped.append(name)
+    keep = set(path_before)
+    sys.path[:] = [p for p in sys.path if p in keep or not os.path.isabs(p) or os.path.isdir(p)]
+    for p in [p for p in sys.path_importer_cache if isinstance(p, str) and os.path.isabs(p)
+              and not os.path.exists(p)]:
+        del sys.path_importer_cache[p]
+    importlib.invalidate_caches()
+    return dropped
+
+
 def _run_one(main, argv: list[str], log_path: str) -> int:
     """``main(argv)`` with file descriptors 1 and 2 on ``log_path``; its exit code."""
     sys.stdout.flush()
     sys.stderr.flush()
+    modules_before, path_before = set(sys.modules), list(sys.path)
     saved = os.dup(1), os.dup(2)
     log_fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
     try:
@@ -182,6 +204,7 @@ def _run_one(main, argv: list[str], log_path: str) -> int:
         os.dup2(saved[1], 2)
         for fd in (*saved, log_fd):
             os.close(fd)
+        forget_vanished(modules_before, path_before)
 
 
 def serve(fd: int) -> None:
