@@ -11,8 +11,9 @@ What: :class:`ContentCacheLocator`, registered in front of numba's own locators 
 ``<cache root>/<module>-<sha256 of the source>[:20]``, so every copy of the same source
 shares one cache wherever it lies, and a changed source gets a new directory (the old one
 is never read again; each is a few MB). Cache root: ``$ROTORCOSIM_NUMBA_CACHE``, else
-``$NUMBA_CACHE_DIR/rotorcosim``, else ``$XDG_CACHE_HOME/rotorcosim/numba`` (default
-``~/.cache``). A root that cannot be written makes the locator step aside (numba then uses
+``$NUMBA_CACHE_DIR/rotorcosim``, else ``<user cache>/rotorcosim/numba`` with the platform's
+per-user cache folder from platformdirs (Linux: ``$XDG_CACHE_HOME``, default ``~/.cache``;
+the same without platformdirs). A root that cannot be written makes the locator step aside (numba then uses
 its defaults). ``ROTORCOSIM_NUMBA_CACHE=off`` switches it off.
 
 Concurrency: numba writes each cache file to a temporary name and renames it into place
@@ -45,8 +46,13 @@ def cache_root() -> str | None:
         return env
     if os.environ.get("NUMBA_CACHE_DIR"):
         return os.path.join(os.environ["NUMBA_CACHE_DIR"], "rotorcosim")
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return os.path.join(base, "rotorcosim", "numba")
+    try:                          # the per-user cache folder of the platform (honours XDG_CACHE_HOME)
+        from platformdirs import user_cache_dir
+        base = user_cache_dir("rotorcosim", appauthor=False)
+    except ImportError:           # an FMU imported by a Python without platformdirs
+        base = os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"),
+                            "rotorcosim")
+    return os.path.join(base, "numba")
 
 
 def _file_hash(path: str) -> str:

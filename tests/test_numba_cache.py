@@ -90,3 +90,19 @@ def test_rotor_numba_kernels_share_the_cache_across_copies(tmp_path):
         assert f.startswith(str(tmp_path / name)) and path.startswith(str(root)), (f, path)
         hits.append((int(h), int(m)))
     assert hits == [(0, 1), (1, 0)]
+
+
+def test_processes_compiling_at_once_all_succeed_and_leave_a_loadable_cache(tmp_path):
+    """Four processes with an empty cache compile the same kernel at the same time (what the
+    first runs of a sweep do); each succeeds, and a fifth loads the cache they left."""
+    copies, root = [tmp_path / f"c{i}" for i in range(5)], tmp_path / "cache"
+    for c in copies:
+        _copy(c)
+    env = dict(os.environ, ROTORCOSIM_NUMBA_CACHE=str(root), PYTHONPATH="")
+    procs = [subprocess.Popen([sys.executable, "-c", PROBE], cwd=c, env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for c in copies[:4]]
+    for p in procs:
+        out, err = p.communicate(timeout=600)
+        assert p.returncode == 0, err
+        assert int(out.split()[1]) + int(out.split()[2]) == 1        # compiled or loaded, never failed
+    assert _probe(copies[4], env)[:2] == (1, 0)
