@@ -189,6 +189,9 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
         bar = _progress(len(todo), progress)
         try:
             client, cluster = connect(scheduler, workers)
+            if warm:                              # each worker reaps its warm run process when it closes
+                from orchestrator.sweep.warm import WarmPlugin
+                client.register_plugin(WarmPlugin())
             futures = _submit(client, spec, todo, runs_dir, warm)
             _gather(futures, records, bar)
         except KeyboardInterrupt:

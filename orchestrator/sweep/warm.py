@@ -34,7 +34,7 @@ import threading
 import time
 from multiprocessing.connection import Connection
 
-__all__ = ["WarmProcess", "warm_run", "close_warm", "MAX_RUNS", "IDLE_EXIT_S"]
+__all__ = ["WarmProcess", "WarmPlugin", "warm_run", "close_warm", "MAX_RUNS", "IDLE_EXIT_S"]
 
 MAX_RUNS = int(os.environ.get("ROTORCOSIM_SWEEP_RUNS_PER_PROCESS", "50") or 50)
 IDLE_EXIT_S = 600.0
@@ -103,6 +103,14 @@ class WarmProcess:
 
 _LOCK = threading.Lock()
 _CURRENT: WarmProcess | None = None
+_ATEXIT: list[bool] = []
+
+
+def _register_atexit() -> None:
+    if not _ATEXIT:
+        import atexit
+        atexit.register(close_warm)
+        _ATEXIT.append(True)
 
 
 def warm_run(argv: list[str], log_path: str, label: str, timeout_s: float | None = None) -> tuple[int, bool]:
@@ -117,6 +125,7 @@ def warm_run(argv: list[str], log_path: str, label: str, timeout_s: float | None
             _CURRENT = None
         if _CURRENT is None:
             _CURRENT = WarmProcess(label)
+            _register_atexit()
         rc, survived, timed_out = _CURRENT.run(argv, log_path, timeout_s)
         if rc != 0 or not survived:           # failed or crashed: the next run gets a fresh child
             if survived:
@@ -128,12 +137,40 @@ def warm_run(argv: list[str], log_path: str, label: str, timeout_s: float | None
 
 
 def close_warm() -> None:
-    """End this process's warm child, if any (tests; a worker's exit closes it anyway)."""
+    """End this process's warm child, if any, and reap it (so that its CPU time is accounted to
+    the worker). Between runs it is asked to exit; during a run it gets SIGTERM (the run stops
+    as on SIGTERM and that task reports it), so a closing worker never waits for a long run."""
     global _CURRENT
-    with _LOCK:
-        if _CURRENT is not None:
-            _CURRENT.close()
+    cur = _CURRENT
+    if cur is None:
+        return
+    if _LOCK.acquire(blocking=False):
+        try:
+            cur.close()
             _CURRENT = None
+        finally:
+            _LOCK.release()
+        return
+    cur.proc.terminate()
+    try:
+        cur.proc.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        cur.proc.kill()
+
+
+try:
+    from distributed.diagnostics.plugin import WorkerPlugin as _WorkerPlugin
+except ImportError:                        # pragma: no cover - dask is a dependency
+    _WorkerPlugin = object
+
+
+class WarmPlugin(_WorkerPlugin):
+    """Dask worker plugin: the worker closes its warm child when it shuts down."""
+
+    name = "rotorcosim-warm-run-process"
+
+    def teardown(self, worker):
+        close_warm()
 
 
 # ---------------------------------------------------------------- the child side
