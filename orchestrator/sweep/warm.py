@@ -50,9 +50,10 @@ class WarmProcess:
         self.label = label
         self.runs = 0
         # the label (the sweep's runs folder) is on the command line so that one can see whose it is
+        from orchestrator.sweep.task import run_env
         self.proc = subprocess.Popen([sys.executable, "-m", "orchestrator.sweep.warm", str(fd), label],
                                      stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                     stderr=subprocess.DEVNULL, pass_fds=(fd,), close_fds=True)
+                                     stderr=subprocess.DEVNULL, pass_fds=(fd,), close_fds=True, env=run_env())
         child_sock.close()
         self.conn = Connection(os.dup(parent_sock.fileno()))
         parent_sock.close()
