@@ -207,7 +207,7 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
         if "scenario" in sec:
             raise CompareSpecError(f"{path}{_line(sec, 'scenario')}: 'compare.scenario' must not be "
                                    "given in a scenario file (the file itself is the base)")
-        base = load_scenario(path)
+        base = load_scenario(path, build_fmus=True)     # a comparison runs: building is its step
     else:
         if "scenario" not in sec:
             raise CompareSpecError(f"{path}{_line(doc, 'compare')}: 'compare.scenario' is required "
@@ -215,7 +215,7 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
         if not isinstance(sec["scenario"], str) or not sec["scenario"].strip():
             raise CompareSpecError(f"{path}{_line(sec, 'scenario')}: 'compare.scenario' must be the path of the "
                                    f"base scenario, relative to this file (got {sec['scenario']!r})")
-        base = load_scenario((path.parent / sec["scenario"]).resolve())
+        base = load_scenario((path.parent / sec["scenario"]).resolve(), build_fmus=True)
     spec = parse_compare(sec, base, source=path)
     return dataclasses.replace(spec, reference_models=reference_models) if reference_models else spec
 
