@@ -604,7 +604,7 @@ def _analyze_run(out_dir: Path, spec: Mapping[str, Any]) -> dict:
     if not isinstance(spec, Mapping):
         return {"error": f"analysis spec must be a mapping (got {type(spec).__name__})"}
     run = RunDirectory(out_dir)
-    csv_path = run.results_csv
+    csv_path = run.results_file
     if not csv_path.is_file():
         return {"error": f"{csv_path}: not found; the run wrote no results"}
     try:
