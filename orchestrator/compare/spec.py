@@ -524,7 +524,10 @@ def _tolerance(tol, known, key, bad) -> dict[str, float]:
 def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mapping[str, float],
                     known: set[str], *, where: str = "variants[0]",
                     bad: Callable[[str, str], None] | None = None) -> list[VariantSpec]:
-    """Expand one variant group (lists in coupling keys -> cartesian product)."""
+    """Expand one variant group (lists in coupling keys -> cartesian product).
+
+    Length: every key of a variant group is checked here, in one pass that collects all
+    problems, then the product is formed and named."""
     problems = []
     if bad is None:
         def bad(k, msg):
