@@ -30,7 +30,7 @@ from orchestrator.scenario import SCHEMES, Scenario
 from orchestrator.scenario.limits import MAX_SUBSTEPS, limit_problems
 from orchestrator.scenario.nodes import YamlLoader as ScenarioYamlLoader   # same YAML number rules
 from orchestrator.untrusted import (InputError, check_name, construct_yaml, format_template, name_problem,
-                                   read_yaml_tree)
+                                   read_text, read_yaml_tree)
 
 log = logging.getLogger(__name__)
 
@@ -41,6 +41,8 @@ COUPLING_KEYS = ("scheme", "extrapolation_order", "interpolation_order", "macro_
                  "sequence")
 MAX_VARIANTS = 500             # variants of one comparison (each is a run)
 MAX_WORKERS = 64               # parallel runs of one comparison
+MAX_BUILD_SOURCES = 64         # PythonFMU sources built by compare.build_fmus
+MAX_BUILD_SOURCE_BYTES = 2**20  # each of them
 _ABBR = {"gauss-seidel": "gs", "jacobi": "jac", "iterative": "it", "monolithic": "mono"}
 _VARIANT_KEYS = set(COUPLING_KEYS) | {"name", "family", "set", "tolerance", "expect_order"}
 _TOP_KEYS = {"name", "scenario", "set", "output_interval", "workers", "reference", "signals",
@@ -233,13 +235,25 @@ def build_pythonfmu_sources(src_dir: Path, dest: Path) -> list[Path]:
     """
     import re
     src_dir, dest = Path(src_dir).resolve(), Path(dest).resolve()
+    if not src_dir.is_dir():
+        raise CompareSpecError(f"compare.build_fmus.from: {src_dir} is not a folder; name the folder of the "
+                               "PythonFMU sources (relative to the comparison file)")
     sources = sorted(p for p in src_dir.glob("*.py") if not p.name.startswith("_"))
     if not sources:
         raise CompareSpecError(f"compare.build_fmus.from: no PythonFMU sources (*.py) in {src_dir}")
+    if len(sources) > MAX_BUILD_SOURCES:
+        raise CompareSpecError(f"compare.build_fmus.from: {len(sources)} sources in {src_dir} (the limit is "
+                               f"{MAX_BUILD_SOURCES}, each is an FMU build); point it at a folder of test FMUs")
+    if dest.is_file() or Path(dest).is_symlink():
+        raise CompareSpecError(f"compare.build_fmus.to: {dest} is a file or a link, expected a folder for the FMUs")
     dest.mkdir(parents=True, exist_ok=True)
     out = []
     for src in sources:
-        m = re.search(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", src.read_text(), re.M)
+        try:            # a regular file of bounded size (no FIFO or device behind a *.py name)
+            text = read_text(src, what="PythonFMU source", limit=MAX_BUILD_SOURCE_BYTES)
+        except InputError as exc:
+            raise CompareSpecError(f"compare.build_fmus.from: {exc}") from None
+        m = re.search(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", text, re.M)
         if m is None:
             continue
         fmu = dest / f"{m.group(1)}.fmu"
