@@ -13,7 +13,8 @@ Modes (``sweep``, ``sequential``: one per process, timed from outside, start-up 
 * ``pair``: runs ``sweep``, ``sweep --fresh`` and ``sequential`` as child processes in turn,
   ``--repeats`` times, and prints each one's wall and CPU (``getrusage`` of the reaped
   children: the cluster and the run processes included), the medians, the ratios of each round
-  and the load average before each run.
+  and the load average before each run; all three with single-threaded BLAS (as the sweep's run
+  processes have it).
 * ``overhead``: (a) ``--tasks`` trivial tasks (:func:`orchestrator.sweep.task.trivial_run`,
   nothing inside) through the LocalCluster: Dask's scheduling overhead per task; (b) one
   ``execute_run`` of a 2-macro-step run in a warm run process, in a fresh process and in this
@@ -115,11 +116,13 @@ def bench_pair(repeats: int, workers: int | None) -> None:
     variants = {"sweep": me + ["sweep"] + w, "sweep-fresh": me + ["sweep", "--fresh"] + w,
                 "sequential": me + ["sequential"]}
     res = {k: [] for k in variants}
+    from orchestrator.sweep.task import run_env
+    env = run_env()          # single-threaded BLAS for all three, as the sweep's run processes have it
     for i in range(repeats):
         for name, cmd in variants.items():
             load = os.getloadavg()[0]
             c0, t0 = _children_cpu(), time.perf_counter()
-            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, env=env)
             wall, cpu = time.perf_counter() - t0, _children_cpu() - c0
             res[name].append((wall, cpu))
             print(f"round {i + 1} {name:12s} wall {wall:7.2f} s  cpu {cpu:7.2f} s  (load before {load:.2f})",
