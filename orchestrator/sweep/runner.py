@@ -77,6 +77,20 @@ def _recorded(run_dir: Path, run: RunPlan) -> dict | None:
     return {**record, "summary": summary if isinstance(summary, dict) else None}
 
 
+# The local cluster's housekeeping at the pace of runs that take seconds to hours, not of
+# millisecond tasks: Dask's defaults (a statistical profiler sampling every worker every 10 ms,
+# event-loop health ticks every 20 ms, memory checks every 100 ms, system monitor every 0.5 s)
+# cost ~0.1 s CPU per second of sweep on the shared 2-core host, measured idle: 1.7 s in the
+# client and ~3 s in two workers over 30 s, against 0.25 s and ~0.5 s with these (BENCHMARKS.md).
+QUIET_LOCAL_CLUSTER = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "5s",
+    "distributed.admin.system-monitor.gil.enabled": False,
+    "distributed.worker.memory.monitor-interval": "1s",
+}
+
+
 def connect(scheduler: str | None, workers: int | None):
     """A ``distributed.Client`` and the cluster it owns (None for an external cluster).
 
@@ -109,13 +123,16 @@ def connect(scheduler: str | None, workers: int | None):
     # (cancel, write the table, close the cluster; closing it ends the running runs).
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
     try:
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, silence_logs=logging.ERROR,
-                               scheduler_kwargs={"dashboard_address": ":0"})   # its HTTP port: any free one
+        import dask
+        with dask.config.set(QUIET_LOCAL_CLUSTER):
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                   dashboard_address=None, silence_logs=logging.ERROR,
+                                   scheduler_kwargs={"dashboard_address": ":0"})   # its HTTP port: any free one
+            client = Client(cluster)
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
-    return Client(cluster), cluster
+    return client, cluster
 
 
 def _main_thread() -> bool:
