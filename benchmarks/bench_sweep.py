@@ -49,6 +49,7 @@ def bench_sweep(workers: int | None, warm: bool = True) -> float:
         wall = time.perf_counter() - t0
     bad = [r for r in out.rows if r["status"] != "finished"]
     assert not bad, bad
+    print("run walls [s]: " + " ".join(f"{r['wall_time_s']:.1f}" for r in out.rows))
     return wall
 
 
@@ -122,7 +123,7 @@ def bench_pair(repeats: int, workers: int | None) -> None:
         for name, cmd in variants.items():
             load = os.getloadavg()[0]
             c0, t0 = _children_cpu(), time.perf_counter()
-            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, env=env)
+            subprocess.run(cmd, check=True, env=env)
             wall, cpu = time.perf_counter() - t0, _children_cpu() - c0
             res[name].append((wall, cpu))
             print(f"round {i + 1} {name:12s} wall {wall:7.2f} s  cpu {cpu:7.2f} s  (load before {load:.2f})",
