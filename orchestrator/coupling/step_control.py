@@ -180,7 +180,9 @@ def controller_from_spec(scenario) -> StepSizeController:
             raise ScenarioError("coupling.step_control type error and coupling.discard_retries cannot be combined "
                                 "(the error-controlled step has its own rejection); set discard_retries: 0")
         return ErrorControlled(sc, t0=scenario.start_time, t_stop=scenario.stop_time, h0=c.macro_step,
-                               interval=scenario.output.interval or c.macro_step, order=c.extrapolation_order + 1)
+                               interval=scenario.output.interval or c.macro_step,
+                               # the iterative scheme's estimate is of order q+1 (coupling/iterative.py)
+                               order=(c.interpolation_order if c.scheme == "iterative" else c.extrapolation_order) + 1)
     if n_retry:
         return DiscardHalving(scenario.start_time, scenario.stop_time, c.macro_step, n_retry)
     return ConstantStep(scenario.start_time, scenario.stop_time, c.macro_step)
