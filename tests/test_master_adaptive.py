@@ -209,3 +209,20 @@ def test_error_control_rejection_limit(monkeypatch):
     res = MasterAlgorithm(_iterative_controlled(), subsystems=switched()).run()   # the first step is rejected 4x
     assert res.status is Status.FAILED and "rejected 2 attempts in a row" in res.message, res.message
     assert "min_step" in res.message
+
+
+def test_validate_says_a_stateless_fmu_makes_the_step_adapt_forward_only(test_fmus, tmp_path, capsys, caplog):
+    """issue 18: FMUs that cannot save state: the step only adapts forward, and `validate` says so."""
+    from orchestrator.cli import main
+    f = tmp_path / "fwd.yaml"
+    f.write_text(f"""name: forward-only
+stop_time: 0.01
+fmus:
+  t: {{path: {test_fmus['Trivial']}}}
+connections: []
+coupling: {{scheme: gauss-seidel, macro_step: 1.0e-3, step_control: {{type: error, rtol: 1.0e-3}}}}
+""")
+    assert main(["validate", str(f)]) == 0
+    out, err = capsys.readouterr()
+    text = out + err + caplog.text        # the CLI prints the warning on stderr (logging)
+    assert "adapts forward" in text and "'t'" in text and "canGetAndSetFMUstate" in text, text

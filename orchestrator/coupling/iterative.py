@@ -21,7 +21,13 @@ acceleration}``. One macro step [T(n), T(n+1)]:
    (or in this iteration); the FMU states after that pass are kept. Otherwise
    the states and the history are restored to T(n) and the next iterate
    comes from :mod:`orchestrator.coupling.acceleration` (none, aitken, iqn-ils);
-5. not converged in ``max_iterations`` passes (or a non-finite signal): the run
+5. a pass an FMU discards (fmi2Discard: e.g. a quasi-Newton update that moved a journal
+   outside its bearing) is not a failure of the step but of the iterate: the next pass
+   is at the middle between it and the last evaluated iterate (at most 8 times per
+   step, :func:`~orchestrator.coupling.acceleration.solve_fixed_point`); a discard in
+   the first pass (the extrapolated iterate, what an explicit step would feed) fails
+   the step as in the explicit schemes (``discard_retries`` may then halve it);
+6. not converged in ``max_iterations`` passes (or a non-finite signal): the run
    fails with a message naming the signal, its residual and what to change.
    (Halving the step instead was considered and not done: a step that does not
    converge at H is usually a sign of a coupling the chosen acceleration cannot
@@ -48,10 +54,10 @@ import math
 
 import numpy as np
 
-from orchestrator.coupling.acceleration import make_acceleration, solve_fixed_point
+from orchestrator.coupling.acceleration import PassRejected, make_acceleration, solve_fixed_point
 from orchestrator.coupling.macro_step import MacroStep
 from orchestrator.coupling.signals import lagrange_weights
-from orchestrator.errors import CouplingError
+from orchestrator.errors import CouplingError, FmuCallError
 from orchestrator.scenario.model import IterationSpec
 
 
@@ -132,7 +138,12 @@ class IterativeMacroStep(MacroStep):
                 self.restore(cp)
             first[0] = False
             store[0] = x
-            self.advance(t, t_next, commit=False, startup_q=q)
+            try:
+                self.advance(t, t_next, commit=False, startup_q=q)
+            except FmuCallError as e:       # an FMU refused this iterate: backtrack (acceleration.py)
+                if e.status == "discard" and not self.fmu_ended(e):
+                    raise PassRejected(e) from e
+                raise
             return store[0].copy()
 
         try:
