@@ -184,6 +184,7 @@ def test_error_control_with_iterative_coupling():
     assert res.status is Status.FINISHED, res.message
     st = res.stats["step_control"]
     assert st["accepted_steps"] < 2000 and st["max_step_taken"] > 1e-3, st
+    assert sum(st["limiting_signals"].values()) == st["accepted_steps"] + st["rejected_steps"]
     assert rel_error(res) < 1e-2 and res.stats["iterations"]["max_per_step"] <= 20
     np.testing.assert_allclose(res.t, np.arange(21) * 1e-2, rtol=0, atol=1e-12)
 

@@ -158,10 +158,15 @@ class ErrorControlled(StepSizeController):
             self.h_max_taken = max(self.h_max_taken, t_end - t)
             return t_end, on_out
 
-    def _too_many(self, t: float, what: str) -> str:
+    def _limiting(self) -> dict:
+        """The (at most 5) signals that had the largest scaled error most often: name -> attempts."""
         names = self.signal_names
-        top = sorted(self.limiting.items(), key=lambda kv: -kv[1])[:3]
-        lim = ", ".join(f"{names[i] if i < len(names) else i} ({n} steps)" for i, n in top) or "?"
+        top = sorted(self.limiting.items(), key=lambda kv: -kv[1])[:5]
+        return {(names[i] if i < len(names) else str(i)): n for i, n in top}
+
+    def _too_many(self, t: float, what: str) -> str:
+        top = list(self._limiting().items())[:3]
+        lim = ", ".join(f"{name} ({n} steps)" for name, n in top) or "?"
         return (f"the error-controlled macro step {what}; smallest step taken "
                 f"{self.h_min_taken if self.accepted else self.h:.3g} s (min_step {self.pi.min_step:.3g} s), "
                 f"rows up to t={t:.12g} s are kept. The signals with the largest scaled error: {lim}. Loosen "
@@ -173,5 +178,6 @@ class ErrorControlled(StepSizeController):
                 "step_control": {"type": "error", "accepted_steps": self.accepted,
                                  "rejected_steps": self.pi.rejected, "forced_steps": self.pi.forced,
                                  "jumps": self.pi.jumps, "can_reject": self.can_reject,
+                                 "limiting_signals": self._limiting(),
                                  "min_step_taken": self.h_min_taken if self.accepted else None,
                                  "max_step_taken": self.h_max_taken if self.accepted else None}}
