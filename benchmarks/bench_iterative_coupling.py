@@ -74,7 +74,8 @@ def steps(h0: float, up: int, down: int) -> list[float]:
 def one(case, sets, h, out, common):
     interval = max(h, case["interval"])
     sc = load_scenario(str(case["file"]), overrides=common + sets + [f"coupling.macro_step={h!r}",
-                                                                     f"output.interval={interval!r}"])
+                                                                     f"output.interval={interval!r}"],
+                       build_fmus=True)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
