@@ -38,8 +38,9 @@ import numpy as np
 
 from orchestrator.coupling.error_control import PIController, next_stop, scaled_error_norm
 from orchestrator.coupling.signals import lagrange_weights
-from orchestrator.coupling.step_control import StepSizeController
+from orchestrator.coupling.step_control import ConstantStep, DiscardHalving, StepSizeController
 from orchestrator.errors import CouplingError
+from orchestrator.errors import ScenarioError
 from orchestrator.scenario.model import StepControlSpec
 
 log = logging.getLogger(__name__)
@@ -181,3 +182,22 @@ class ErrorControlled(StepSizeController):
                                  "limiting_signals": self._limiting(),
                                  "min_step_taken": self.h_min_taken if self.accepted else None,
                                  "max_step_taken": self.h_max_taken if self.accepted else None}}
+
+
+def controller_from_spec(scenario) -> StepSizeController:
+    """The controller of ``scenario.coupling`` (discard_retries > 0: :class:`DiscardHalving`;
+    step_control type error: :class:`ErrorControlled`)."""
+    c = scenario.coupling
+    n_retry = getattr(c, "discard_retries", 0)
+    sc = getattr(c, "step_control", None)
+    if sc is not None and sc.type == "error":
+        if n_retry:
+            raise ScenarioError("coupling.step_control type error and coupling.discard_retries cannot be combined "
+                                "(the error-controlled step has its own rejection); set discard_retries: 0")
+        return ErrorControlled(sc, t0=scenario.start_time, t_stop=scenario.stop_time, h0=c.macro_step,
+                               interval=scenario.output.interval or c.macro_step,
+                               # the iterative scheme's estimate is of order q+1 (coupling/iterative.py)
+                               order=(c.interpolation_order if c.scheme == "iterative" else c.extrapolation_order) + 1)
+    if n_retry:
+        return DiscardHalving(scenario.start_time, scenario.stop_time, c.macro_step, n_retry)
+    return ConstantStep(scenario.start_time, scenario.stop_time, c.macro_step)

@@ -41,7 +41,8 @@ from orchestrator.coupling.iterative import IterativeMacroStep
 from orchestrator.coupling.loops import loop_through
 from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
-    RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController, controller_from_spec)
+    RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController)
+from orchestrator.coupling.adaptive import controller_from_spec
 from orchestrator.coupling.stages import stages as make_stages
 from orchestrator.errors import CouplingError, FmuCallError, FmuCrashError, LifecycleError, ScenarioError
 from orchestrator.fmi.extraction import ExtractionPool
