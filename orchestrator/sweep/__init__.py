@@ -2,7 +2,7 @@
 
 ```python
 from orchestrator.sweep import sweep
-df = sweep("scenarios/sweeps/jeffcott_hs_onset.yaml", out_dir="runs/hs_map")   # pandas DataFrame
+df = sweep("scenarios/sweeps/jeffcott_hs_onset_map.yaml", out_dir="runs/hs_map")   # pandas DataFrame
 df[df.status == "finished"][["psi", "eta0", "onset_hz"]]
 ```
 
