@@ -113,7 +113,9 @@ class TransientFilm:
     ``ctx`` is a :class:`bearing_fmu.model.BearingModel`-like object with the
     grid, constants and law (see ``model.py``); the integrator only owns the
     numerical state. Diagnostics switches (attributes, default True):
-    ``predictor`` (extrapolate u as Newton start), ``line_search``
+    ``predictor`` (extrapolate u as Newton start), ``predictor_limited`` (the
+    extrapolation stopped at the cavitation switch, as :func:`_limit_switch`
+    stops a Newton step; False = the plain line, the benchmark peer), ``line_search``
     (backtracking on |r|); ``full_newton=True`` refactorises every iteration
     whatever ``krylov_refactor`` says (the benchmark peer).
     """
@@ -126,6 +128,7 @@ class TransientFilm:
         self.lin = (BandLU if linear_solver == "band" else SpluLU)(g.bw)
         self.full_newton = full_newton
         self.predictor = True
+        self.predictor_limited = True
         self.line_search = True
         self.ab = np.zeros((3 * g.bw + 1, n), order="F")
         # theta_transport = 1: limited second-order Couette transport of theta, whose
@@ -407,6 +410,12 @@ class TransientFilm:
                 if self.n_hist >= 1 and self.predictor:
                     # linear extrapolation of u as Newton start (not a state change)
                     u_start = self.u + (h / self.h_prev) * (self.u - self.u_prev)
+                    if self.predictor_limited:
+                        # not across the cavitation switch: u is p / K in the film and
+                        # theta - 1 in the cavity, so a line through a rupturing cell
+                        # (u 0.8 -> 0.09) lands at u ~ -3 (theta ~ -2) and costs
+                        # Newton iterations to undo; stop it at the switch instead
+                        _limit_switch(self.u, u_start, self.ctx.law.delta)
                 else:
                     u_start = self.u
                 u_new, its = self.newton(u_start, th_dot0, th_dot1, kin)
