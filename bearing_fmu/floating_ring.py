@@ -357,8 +357,8 @@ class FloatingRing:
             lam = 1.0
             while lam > 1e-4:
                 rn = r + lam * dr
-                if (math.hypot(*rn) < 0.95 * p.outer.c
-                        and math.hypot(x - rn[0], y - rn[1]) < 0.95 * p.inner.c):
+                if (math.hypot(*rn) < 0.995 * p.outer.c      # a loaded ring sits at eps_outer 0.97
+                        and math.hypot(x - rn[0], y - rn[1]) < 0.995 * p.inner.c):
                     break
                 lam *= 0.5
             r = rn
