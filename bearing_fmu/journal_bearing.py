@@ -54,7 +54,7 @@ from pythonfmu.variables import Boolean
 
 from fmu_common.slave import (
     RealU, check_shipped_layout, check_step_start, exit_initialization_mode, finish_model_description,
-    get_slave_state, guard_callbacks, input_setter, output_getter, param_setter, set_slave_state,
+    get_slave_state, guard_callbacks, input_setter, journal_kinematics, output_getter, param_setter, set_slave_state,
     scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
 
 log = logging.getLogger(__name__)
@@ -89,13 +89,7 @@ INTEGER_PARAMETERS: dict[str, tuple[int, str]] = {
     "contact": (0, "asperity contact of journal and shell: 0 none, 1 Greenwood-Tripp contact with "
                    "boundary friction added to the film force (bearing_fmu/contact.py)"),
 }
-INPUTS: dict[str, tuple[str, str]] = {
-    "x": ("m", "journal centre x relative to the bearing centre [m] (x horizontal)"),
-    "y": ("m", "journal centre y relative to the bearing centre [m] (y vertical up)"),
-    "vx": ("m/s", "journal centre velocity x [m/s]"),
-    "vy": ("m/s", "journal centre velocity y [m/s]"),
-    "omega": ("rad/s", "journal angular speed about +z (counter-clockwise positive) [rad/s]"),
-}
+INPUTS: dict[str, tuple[str, str]] = journal_kinematics()
 OUTPUTS: dict[str, tuple[str, str]] = {
     "Fx": ("N", "film force on the journal, x [N] (plus the asperity contact force when contact = 1)"),
     "Fy": ("N", "film force on the journal, y [N] (plus the asperity contact force when contact = 1)"),

@@ -129,7 +129,7 @@ def main(argv=None):
             commit = git_commit(Path(orchestrator.__file__).parents[1])   # before the run
             t0 = time.perf_counter()
             c0 = time.process_time()
-            res = run(load_scenario(str(path), overrides=overrides), out_dir=d, progress=False)
+            res = run(load_scenario(str(path), overrides=overrides, build_fmus=True), out_dir=d, progress=False)
             cpu = time.process_time() - c0
             wall = time.perf_counter() - t0
             walls.append(wall)

@@ -71,7 +71,7 @@ def split(scenario: Path, stop: float, out: Path) -> None:
     from orchestrator import load_scenario
     from orchestrator.coupling.execution import MasterAlgorithm
 
-    sc = load_scenario(scenario, [f"stop_time={stop}"])
+    sc = load_scenario(scenario, [f"stop_time={stop}"], build_fmus=True)
     m = MasterAlgorithm(sc, out_dir=out)
     m.setup()
     m.initialize()

@@ -29,7 +29,7 @@ CLEARANCE = 2.8e-3 * 0.02
 
 
 def one(path, overrides, out):
-    sc = load_scenario(str(path), overrides=overrides)
+    sc = load_scenario(str(path), overrides=overrides, build_fmus=True)
     t0 = time.perf_counter()
     res = run(sc, out_dir=out, progress=False)
     wall = time.perf_counter() - t0

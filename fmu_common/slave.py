@@ -21,6 +21,20 @@ from xml.etree.ElementTree import Element, SubElement
 from pythonfmu import Real
 
 
+def journal_kinematics(journal: str = "") -> dict[str, tuple[str, str]]:
+    """The rotor-bearing interface: name -> (unit, description) of the journal kinematics a
+    rotor outputs for each bearing (``x_1``, ...) and a bearing takes as its inputs, in one
+    table so that the two sides cannot drift apart (docs/fmus.md). ``journal``: text after
+    "journal" in the descriptions (the rotor passes " {i}", formatted per bearing)."""
+    return {
+        "x": ("m", f"journal{journal} centre x relative to the bearing centre [m] (x horizontal)"),
+        "y": ("m", f"journal{journal} centre y relative to the bearing centre [m] (y vertical up)"),
+        "vx": ("m/s", f"journal{journal} centre velocity x [m/s]"),
+        "vy": ("m/s", f"journal{journal} centre velocity y [m/s]"),
+        "omega": ("rad/s", "journal (rotor) angular speed about +z (counter-clockwise positive) [rad/s]"),
+    }
+
+
 class RealU(Real):
     """PythonFMU ``Real`` with an FMI ``unit`` attribute."""
 

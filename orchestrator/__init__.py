@@ -12,12 +12,34 @@ For step-by-step control use :class:`orchestrator.coupling.MasterAlgorithm`; the
 of the packages is in docs/dev/architecture.md.
 """
 
-from orchestrator.coupling.execution import MasterAlgorithm
-from orchestrator.errors import CosimError, ScenarioError
-from orchestrator.results.result import CoSimResult, Status
-from orchestrator.scenario.loader import load_scenario, validate_scenario
-from orchestrator.scenario.model import Scenario
-from orchestrator.workflow import run
+import importlib
+
+# the public names and where they live; imported on first use (PEP 562), so that
+# `rotorcosim --help` or `import orchestrator.errors` do not import numpy and scipy
+_EXPORTS = {
+    "MasterAlgorithm": "orchestrator.coupling.execution",
+    "CosimError": "orchestrator.errors",
+    "ScenarioError": "orchestrator.errors",
+    "CoSimResult": "orchestrator.results.result",
+    "Status": "orchestrator.results.result",
+    "load_scenario": "orchestrator.scenario.loader",
+    "validate_scenario": "orchestrator.scenario.loader",
+    "Scenario": "orchestrator.scenario.model",
+    "run": "orchestrator.workflow",
+}
 
 __all__ = ["load_scenario", "validate_scenario", "run", "CoSimResult", "Status", "Scenario", "MasterAlgorithm",
            "CosimError", "ScenarioError"]
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'orchestrator' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -37,7 +37,7 @@ from pythonfmu.variables import Boolean
 
 from fmu_common.slave import (
     RealU, check_shipped_layout, check_step_start, exit_initialization_mode, finish_model_description,
-    get_slave_state, guard_callbacks, input_setter, output_getter, param_setter, set_slave_state,
+    get_slave_state, guard_callbacks, input_setter, journal_kinematics, output_getter, param_setter, set_slave_state,
     scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
 
 N_BEARINGS = 2
@@ -74,11 +74,7 @@ PARAMETER_DOCS: dict[str, tuple[str | None, str]] = {
     "shear": (None, "Timoshenko (true) or Euler-Bernoulli (false) beam elements"),
 }
 OUTPUT_DOCS: dict[str, tuple[str, str]] = {
-    "x": ("m", "journal {i} centre x in the bearing frame [m]"),
-    "y": ("m", "journal {i} centre y in the bearing frame [m]"),
-    "vx": ("m/s", "journal {i} centre velocity x [m/s]"),
-    "vy": ("m/s", "journal {i} centre velocity y [m/s]"),
-    "omega": ("rad/s", "rotor speed about +z [rad/s]"),
+    **journal_kinematics(" {i}"),
     "angle": ("rad", "rotation angle (integral of omega) [rad]"),
     "alpha": ("rad/s2", "angular acceleration [rad/s^2]"),
 }

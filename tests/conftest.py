@@ -43,6 +43,15 @@ def build_test_fmus(dest: Path) -> dict[str, Path]:
     return out
 
 
+@pytest.fixture(scope="session", autouse=True)
+def our_fmus_built():
+    """Our own FMUs (``fmus/`` of the checkout) built and up to date once per session:
+    loading a scenario does not build them (issue 12), ``rotorcosim run``/``validate`` do."""
+    from orchestrator.fmi.build import FMU_DIR, build_fmus, in_checkout
+    if in_checkout():
+        build_fmus(FMU_DIR)
+
+
 @pytest.fixture(scope="session")
 def test_fmus(tmp_path_factory) -> dict[str, Path]:
     """Paths of the test FMUs (LeftMass, RightMass, Gain, Integrator, Faulty, Trivial, Params)."""

@@ -479,3 +479,22 @@ if __name__ == "__main__":
         rr = row[-1]
         print("| " + " | ".join([f(v) for v in row[:-1]]
                                 + ["-" if rr is None else f"{rr[0]:.3f} - {rr[1]:.3f}"]) + " |")
+
+
+def test_analyze_run_on_results_parquet(tmp_path):
+    """output.format: parquet: the analysis (and RunDirectory) read results.parquet as the CSV."""
+    pa = pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+    from orchestrator.results import RunDirectory
+    d = whirl_vanishing()
+    (tmp_path / "csv").mkdir()
+    write_run(tmp_path / "csv", d)
+    cols = RunDirectory(tmp_path / "csv").columns()
+    (tmp_path / "pq").mkdir()
+    pq.write_table(pa.table({k: v for k, v in cols.items()}), tmp_path / "pq" / "results.parquet")
+    back = RunDirectory(tmp_path / "pq").columns()
+    assert list(back) == list(cols) and all(np.array_equal(back[k], cols[k]) for k in cols)
+    assert analyze_run(tmp_path / "pq", SPEC) == analyze_run(tmp_path / "csv", SPEC)
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "results.parquet").write_bytes(b"PAR1 not really")
+    assert "not a readable Parquet file" in str(pytest.raises(ValueError, RunDirectory(tmp_path / "bad").columns).value)

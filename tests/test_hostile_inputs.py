@@ -323,3 +323,30 @@ def test_ssp_utf16_doctype_and_special_file(tmp_path, capsys):
     write_fmu(bomb_ssp, md=False, members=[("SystemStructure.ssd", b"<x/>"), ("resources/../../evil", b"x")])
     rc, out = cli(capsys, "validate", bomb_ssp)
     assert rc == 1 and "'..'" in out and not (tmp_path.parent / "evil").exists()
+
+
+def test_compare_build_fmus_reads_only_bounded_regular_sources(tmp_path, monkeypatch):
+    """compare.build_fmus names a folder of PythonFMU sources: a FIFO or an oversized file
+    behind a *.py name is refused with the file named (not read until memory or time runs out),
+    and so are too many sources and a link or file where the FMU folder should be."""
+    from orchestrator.compare import spec as cspec
+    src = tmp_path / "src"
+    src.mkdir()
+    os.mkfifo(src / "fifo.py")
+    with pytest.raises(cspec.CompareSpecError, match="fifo.py"):
+        cspec.build_pythonfmu_sources(src, tmp_path / "out")
+    (src / "fifo.py").unlink()
+    (src / "big.py").write_bytes(b"#" * (cspec.MAX_BUILD_SOURCE_BYTES + 1))
+    with pytest.raises(cspec.CompareSpecError, match="big.py"):
+        cspec.build_pythonfmu_sources(src, tmp_path / "out")
+    (src / "big.py").write_text("x = 1\n")
+    monkeypatch.setattr(cspec, "MAX_BUILD_SOURCES", 0)
+    with pytest.raises(cspec.CompareSpecError, match="the limit is 0"):
+        cspec.build_pythonfmu_sources(src, tmp_path / "out")
+    monkeypatch.undo()
+    (tmp_path / "file").write_text("")
+    with pytest.raises(cspec.CompareSpecError, match="is a file or a link"):
+        cspec.build_pythonfmu_sources(src, tmp_path / "file")
+    with pytest.raises(cspec.CompareSpecError, match="is not a folder"):
+        cspec.build_pythonfmu_sources(tmp_path / "nowhere", tmp_path / "out")
+    assert cspec.build_pythonfmu_sources(src, tmp_path / "out") == []     # no Fmi2Slave class: nothing built

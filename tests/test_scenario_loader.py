@@ -63,9 +63,9 @@ def sdir(tmp_path, test_fmus) -> Path:
     return scenario_dir(tmp_path, test_fmus)
 
 
-def problems_of(path, overrides=()) -> list[str]:
+def problems_of(path, overrides=(), **kw) -> list[str]:
     with pytest.raises(ScenarioError) as info:
-        load_scenario(path, overrides)
+        load_scenario(path, overrides, **kw)
     assert info.value.problems, "a ScenarioError must list its problems"
     # one message lists them all
     for p in info.value.problems:
@@ -424,7 +424,9 @@ def test_fmu_instantiable_once_cannot_serve_two_instances(sdir):
 
 
 def test_own_fmus_are_built_before_they_are_read(sdir, test_fmus, monkeypatch):
-    """load_scenario hands the draft scenario to orchestrator.fmi.build.ensure_fmus first."""
+    """Loading reads and checks only (issue 12); with ``build_fmus=True`` (what run and
+    validate do) load_scenario hands the draft scenario to orchestrator.fmi.build.ensure_fmus
+    first."""
     from orchestrator.fmi import build
     calls = []
 
@@ -439,7 +441,11 @@ def test_own_fmus_are_built_before_they_are_read(sdir, test_fmus, monkeypatch):
     assert calls == []
     # a scenario with other problems is not built either
     assert validate_scenario(path, ["stop_time=-1"]) and calls == []
-    sc = load_scenario(path)
+    # loading does not build: refused with the command that builds it
+    with pytest.raises(ScenarioError, match="rotorcosim build-fmus"):
+        load_scenario(path)
+    assert calls == []
+    sc = load_scenario(path, build_fmus=True)
     assert len(calls) == 1 and calls[0].name == "missing-fmu"
     assert calls[0].fmu("right").path == (sdir / "fmus" / "NoSuchMass.fmu").resolve()
     assert sc.fmu("right").path.is_file()
@@ -451,7 +457,7 @@ def test_build_failure_is_a_scenario_problem(sdir, monkeypatch):
     def failing(scenario):
         raise RuntimeError("pythonfmu exploded")
     monkeypatch.setattr(build, "ensure_fmus", failing)
-    problems = problems_of(sdir / "two_mass.yaml")
+    problems = problems_of(sdir / "two_mass.yaml", build_fmus=True)
     assert problems == [f"{sdir / 'two_mass.yaml'}: building the scenario's FMUs failed (RuntimeError: pythonfmu "
                         "exploded); run `rotorcosim build-fmus --force` to see the details"]
 

@@ -25,7 +25,9 @@ def _fmt(x, spec="{:.3g}") -> str:
 
 
 def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]:
-    """Write report.md, report.json and error_vs_cost.png into ``out_dir``."""
+    """Write report.md, report.json and error_vs_cost.png into ``out_dir``.
+
+    Length: the sections of report.md in the order they appear in it."""
     out_dir = Path(out_dir)
     cols = list(spec.metrics) + list(spec.derived)
     lines = [f"# Comparison `{spec.name}`", ""]

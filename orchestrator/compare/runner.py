@@ -123,7 +123,10 @@ class CompareReport:
 def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
                    runner: Callable[[Scenario, Path], None] = default_runner,
                    workers: int | None = None) -> CompareReport:
-    """Run the reference (and its convergence check) and every variant; measure errors."""
+    """Run the reference (and its convergence check) and every variant; measure errors.
+
+    Length: the comparison as one sequence read top to bottom (FMU snapshot, jobs, parallel
+    runs, errors, orders, checks, baseline, report); each step is a helper of this module."""
     t_start = time.perf_counter()
     out_dir = Path(out_dir)
     runs = out_dir / "runs"

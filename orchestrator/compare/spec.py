@@ -30,7 +30,7 @@ from orchestrator.scenario import SCHEMES, Scenario
 from orchestrator.scenario.limits import MAX_SUBSTEPS, limit_problems
 from orchestrator.scenario.nodes import YamlLoader as ScenarioYamlLoader   # same YAML number rules
 from orchestrator.untrusted import (InputError, check_name, construct_yaml, format_template, name_problem,
-                                   read_yaml_tree)
+                                   read_text, read_yaml_tree)
 
 log = logging.getLogger(__name__)
 
@@ -41,6 +41,8 @@ COUPLING_KEYS = ("scheme", "extrapolation_order", "interpolation_order", "macro_
                  "sequence")
 MAX_VARIANTS = 500             # variants of one comparison (each is a run)
 MAX_WORKERS = 64               # parallel runs of one comparison
+MAX_BUILD_SOURCES = 64         # PythonFMU sources built by compare.build_fmus
+MAX_BUILD_SOURCE_BYTES = 2**20  # each of them
 _ABBR = {"gauss-seidel": "gs", "jacobi": "jac", "iterative": "it", "monolithic": "mono"}
 _VARIANT_KEYS = set(COUPLING_KEYS) | {"name", "family", "set", "tolerance", "expect_order"}
 _TOP_KEYS = {"name", "scenario", "set", "output_interval", "workers", "reference", "signals",
@@ -207,7 +209,7 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
         if "scenario" in sec:
             raise CompareSpecError(f"{path}{_line(sec, 'scenario')}: 'compare.scenario' must not be "
                                    "given in a scenario file (the file itself is the base)")
-        base = load_scenario(path)
+        base = load_scenario(path, build_fmus=True)     # a comparison runs: building is its step
     else:
         if "scenario" not in sec:
             raise CompareSpecError(f"{path}{_line(doc, 'compare')}: 'compare.scenario' is required "
@@ -215,7 +217,7 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
         if not isinstance(sec["scenario"], str) or not sec["scenario"].strip():
             raise CompareSpecError(f"{path}{_line(sec, 'scenario')}: 'compare.scenario' must be the path of the "
                                    f"base scenario, relative to this file (got {sec['scenario']!r})")
-        base = load_scenario((path.parent / sec["scenario"]).resolve())
+        base = load_scenario((path.parent / sec["scenario"]).resolve(), build_fmus=True)
     spec = parse_compare(sec, base, source=path)
     return dataclasses.replace(spec, reference_models=reference_models) if reference_models else spec
 
@@ -233,13 +235,25 @@ def build_pythonfmu_sources(src_dir: Path, dest: Path) -> list[Path]:
     """
     import re
     src_dir, dest = Path(src_dir).resolve(), Path(dest).resolve()
+    if not src_dir.is_dir():
+        raise CompareSpecError(f"compare.build_fmus.from: {src_dir} is not a folder; name the folder of the "
+                               "PythonFMU sources (relative to the comparison file)")
     sources = sorted(p for p in src_dir.glob("*.py") if not p.name.startswith("_"))
     if not sources:
         raise CompareSpecError(f"compare.build_fmus.from: no PythonFMU sources (*.py) in {src_dir}")
+    if len(sources) > MAX_BUILD_SOURCES:
+        raise CompareSpecError(f"compare.build_fmus.from: {len(sources)} sources in {src_dir} (the limit is "
+                               f"{MAX_BUILD_SOURCES}, each is an FMU build); point it at a folder of test FMUs")
+    if dest.is_file() or Path(dest).is_symlink():
+        raise CompareSpecError(f"compare.build_fmus.to: {dest} is a file or a link, expected a folder for the FMUs")
     dest.mkdir(parents=True, exist_ok=True)
     out = []
     for src in sources:
-        m = re.search(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", src.read_text(), re.M)
+        try:            # a regular file of bounded size (no FIFO or device behind a *.py name)
+            text = read_text(src, what="PythonFMU source", limit=MAX_BUILD_SOURCE_BYTES)
+        except InputError as exc:
+            raise CompareSpecError(f"compare.build_fmus.from: {exc}") from None
+        m = re.search(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", text, re.M)
         if m is None:
             continue
         fmu = dest / f"{m.group(1)}.fmu"
@@ -252,7 +266,10 @@ def build_pythonfmu_sources(src_dir: Path, dest: Path) -> list[Path]:
 
 
 def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None = None) -> CompareSpec:
-    """Validate a ``compare:`` mapping against ``base``; raise one CompareSpecError listing all problems."""
+    """Validate a ``compare:`` mapping against ``base``; raise one CompareSpecError listing all problems.
+
+    Every section is read by its own function below, each reporting through ``bad`` so
+    that one pass collects every problem of the file."""
     where = str(source) if source else "<compare>"
     problems: list[str] = []
 
@@ -262,29 +279,63 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     for k in sec:
         if k not in _TOP_KEYS:
             bad(k, f"is not a known key; valid keys: {sorted(_TOP_KEYS)}")
-    if sec.get("name") is not None and not isinstance(sec["name"], str):
-        bad("name", f"must be a text (got {sec['name']!r})")
-    name = str(sec.get("name") or (source.stem if source else base.name))
-    if name_problem(name) is not None:              # the default report folder is out/compare/<name>
-        bad("name", f"becomes a folder name, but {name_problem(name)}; use letters, digits, '-', '_' and '.'")
-
+    name = _name(sec, source, base, bad)
     common = _changes(sec.get("set") or {}, "set", bad)
     try:
         base = apply_changes(base, common)
     except (KeyError, ValueError, TypeError) as exc:
         bad("set", f"cannot be applied: {exc}")
-
     metrics = sec.get("metrics", list(METRICS))
     if not isinstance(metrics, list) or any(m not in METRICS for m in metrics):
         bad("metrics", f"must be a list drawn from {list(METRICS)} (got {metrics!r})")
         metrics = list(METRICS)
-
     signals = _signals(sec.get("signals"), bad)
+    derived = _derived(sec.get("derived") or {}, bad)
+    known = set(metrics) | set(derived)
+    default_tol = _tolerance(sec.get("tolerance") or {}, known, "tolerance", bad)
+    variants = _variants(sec, base, default_tol, known, bad)
+    reference = _reference(sec.get("reference") or {"scheme": "monolithic"}, bad)
+    order_metric = sec.get("order_metric", "rms")
+    if order_metric not in metrics:
+        bad("order_metric", f"must be one of the metrics {metrics} (got {order_metric!r})")
+    nums = _numbers(sec, bad)
+    interval = _output_interval(sec.get("output_interval"), base, variants, bad)
+    window = _window(sec.get("window"), base, bad)
+    baseline = sec.get("baseline")
+    if baseline is not None:
+        baseline = ((source.parent if source else Path.cwd()) / str(baseline)).resolve()
+    if base.output.signals is not None:
+        for s in signals:
+            if s not in base.output.signals:
+                bad("signals", f"lists '{s}', which the base scenario does not output; add it to "
+                    f"'output.signals' (has {list(base.output.signals)})")
+    if not problems:        # every run of the comparison within the loader's numeric limits
+        _check_run_limits(base, reference, variants, interval, bad)
+    if problems:
+        raise CompareSpecError(problems)
+    return CompareSpec(name=name, base=base, variants=tuple(variants), reference=reference,
+                       signals=signals, derived=derived, metrics=tuple(metrics),
+                       order_metric=order_metric, order_tolerance=nums["order_tolerance"],
+                       baseline=baseline, regression_margin=nums["regression_margin"],
+                       regression_floor=nums["regression_floor"], workers=nums["workers"],
+                       output_interval=interval, window=window, source=source)
+
+
+def _name(sec, source, base, bad) -> str:
+    if sec.get("name") is not None and not isinstance(sec["name"], str):
+        bad("name", f"must be a text (got {sec['name']!r})")
+    name = str(sec.get("name") or (source.stem if source else base.name))
+    if name_problem(name) is not None:              # the default report folder is out/compare/<name>
+        bad("name", f"becomes a folder name, but {name_problem(name)}; use letters, digits, '-', '_' and '.'")
+    return name
+
+
+def _derived(derived_sec, bad) -> dict[str, dict]:
+    """``compare.derived``: name -> {key: dotted path into summary.json, scale}."""
     derived = {}
-    derived_sec = sec.get("derived") or {}
     if not isinstance(derived_sec, dict):
         bad("derived", f"must be a mapping name -> {{key, scale}} (got {type(derived_sec).__name__})")
-        derived_sec = {}
+        return derived
     for dname, d in derived_sec.items():
         if isinstance(d, dict) and d.get("scale") is not None and not _positive(d["scale"]):
             bad("derived", f"scale of '{dname}' must be a positive number (got {d['scale']!r})")
@@ -294,9 +345,11 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
                 "summary.json, e.g. analysis.bearing1.onset_speed_hz)")
             continue
         derived[str(dname)] = {"key": str(d["key"]), "scale": d.get("scale")}
-    known = set(metrics) | set(derived)
+    return derived
 
-    default_tol = _tolerance(sec.get("tolerance") or {}, known, "tolerance", bad)
+
+def _variants(sec, base, default_tol, known, bad) -> list[VariantSpec]:
+    """``compare.variants``: every group expanded, at most MAX_VARIANTS, names distinct."""
     variants: list[VariantSpec] = []
     groups = sec.get("variants")
     if not isinstance(groups, list) or not groups:
@@ -314,8 +367,11 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
             bad("variants", f"produce the variant name '{v.name}' twice; give each group a "
                 "distinct 'name' template such as '{scheme}-e{extrapolation_order}-h{macro_step:g}'")
         seen.add(v.name)
+    return variants
 
-    ref = sec.get("reference") or {"scheme": "monolithic"}
+
+def _reference(ref, bad) -> ReferenceSpec:
+    """``compare.reference``: the monolithic reference or a fine co-simulation variant."""
     if not isinstance(ref, dict):
         bad("reference", "must be a mapping, e.g. {scheme: monolithic} or {macro_step: 1e-5}")
         ref = {"scheme": "monolithic"}
@@ -329,12 +385,12 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     if ref_changes.get("coupling.scheme") != "monolithic" and "coupling.macro_step" not in ref_changes:
         bad("reference", "must be {scheme: monolithic, ...} or a co-simulation variant with a "
             "'macro_step' finer than every variant's")
-    reference = ReferenceSpec(changes=ref_changes, check=bool(ref.get("check", True)))
+    return ReferenceSpec(changes=ref_changes, check=bool(ref.get("check", True)))
 
-    order_metric = sec.get("order_metric", "rms")
-    if order_metric not in metrics:
-        bad("order_metric", f"must be one of the metrics {metrics} (got {order_metric!r})")
-    nums = {}
+
+def _numbers(sec, bad) -> dict[str, Any]:
+    """The order tolerance, the regression margin and floor, and ``workers``."""
+    nums: dict[str, Any] = {}
     for key, default, lo in (("order_tolerance", 0.3, 0.0), ("regression_margin", 0.10, 0.0),
                              ("regression_floor", 1e-6, 0.0)):
         val = sec.get(key, default)
@@ -347,7 +403,13 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
                                 or not 1 <= workers <= MAX_WORKERS):
         bad("workers", f"must be an integer between 1 and {MAX_WORKERS} (got {workers!r})")
         workers = None
-    interval = sec.get("output_interval")
+    nums["workers"] = workers
+    return nums
+
+
+def _output_interval(interval, base, variants, bad) -> float | None:
+    """``compare.output_interval``, else the scenario's when it suits every variant, else the
+    largest macro step; it must be a multiple of every variant's macro step."""
     if interval is not None and not _positive(interval):
         bad("output_interval", f"must be a positive number [s] (got {interval!r})")
         interval = None
@@ -363,42 +425,34 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
                     f"{h:g} s of variant '{v.name}'; outputs would be interpolated, choose a common "
                     "multiple of every macro step")
                 break
-    window = sec.get("window")
-    if window is not None:
-        ok = (isinstance(window, list) and len(window) == 2
-              and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in window)
-              and base.start_time <= window[0] < window[1] <= base.stop_time)
-        if not ok:
-            bad("window", f"must be [t_from, t_to] [s] with start_time <= t_from < t_to <= stop_time "
-                f"({base.start_time:g}, {base.stop_time:g}) (got {window!r})")
-            window = None
-        else:
-            window = (float(window[0]), float(window[1]))
-    baseline = sec.get("baseline")
-    if baseline is not None:
-        baseline = ((source.parent if source else Path.cwd()) / str(baseline)).resolve()
-    if base.output.signals is not None:
-        for s in signals:
-            if s not in base.output.signals:
-                bad("signals", f"lists '{s}', which the base scenario does not output; add it to "
-                    f"'output.signals' (has {list(base.output.signals)})")
-    if not problems:        # every run of the comparison within the loader's numeric limits
-        for label, ch in [("reference", ref_changes)] + [(f"variant '{v.name}'", v.changes) for v in variants]:
-            try:
-                found = limit_problems(apply_changes(base, dict(ch, **(
-                    {"output.interval": interval} if interval is not None else {}))))
-            except (KeyError, ValueError, TypeError) as exc:
-                found = [f"cannot be applied ({exc})"]
-            for p in found[:1]:
-                bad("variants" if label != "reference" else "reference", f"makes the {label} run invalid: {p}")
-    if problems:
-        raise CompareSpecError(problems)
-    return CompareSpec(name=name, base=base, variants=tuple(variants), reference=reference,
-                       signals=signals, derived=derived, metrics=tuple(metrics),
-                       order_metric=order_metric, order_tolerance=nums["order_tolerance"],
-                       baseline=baseline, regression_margin=nums["regression_margin"],
-                       regression_floor=nums["regression_floor"], workers=workers,
-                       output_interval=interval, window=window, source=source)
+    return interval
+
+
+def _window(window, base, bad) -> tuple[float, float] | None:
+    """``compare.window``: [t_from, t_to] within the base scenario's run."""
+    if window is None:
+        return None
+    ok = (isinstance(window, list) and len(window) == 2
+          and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in window)
+          and base.start_time <= window[0] < window[1] <= base.stop_time)
+    if not ok:
+        bad("window", f"must be [t_from, t_to] [s] with start_time <= t_from < t_to <= stop_time "
+            f"({base.start_time:g}, {base.stop_time:g}) (got {window!r})")
+        return None
+    return (float(window[0]), float(window[1]))
+
+
+def _check_run_limits(base, reference: ReferenceSpec, variants, interval, bad) -> None:
+    """Every run of the comparison (reference and variants) within the loader's numeric limits."""
+    runs = [("reference", reference.changes)] + [(f"variant '{v.name}'", v.changes) for v in variants]
+    for label, ch in runs:
+        try:
+            found = limit_problems(apply_changes(base, dict(ch, **(
+                {"output.interval": interval} if interval is not None else {}))))
+        except (KeyError, ValueError, TypeError) as exc:
+            found = [f"cannot be applied ({exc})"]
+        for p in found[:1]:
+            bad("variants" if label != "reference" else "reference", f"makes the {label} run invalid: {p}")
 
 
 def _multiple(interval: float, h: float) -> bool:
@@ -484,7 +538,10 @@ def _tolerance(tol, known, key, bad) -> dict[str, float]:
 def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mapping[str, float],
                     known: set[str], *, where: str = "variants[0]",
                     bad: Callable[[str, str], None] | None = None) -> list[VariantSpec]:
-    """Expand one variant group (lists in coupling keys -> cartesian product)."""
+    """Expand one variant group (lists in coupling keys -> cartesian product).
+
+    Length: every key of a variant group is checked here, in one pass that collects all
+    problems, then the product is formed and named."""
     problems = []
     if bad is None:
         def bad(k, msg):

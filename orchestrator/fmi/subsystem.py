@@ -125,6 +125,16 @@ def _callbacks():
     return _CALLBACKS
 
 
+def md_variable(md: ModelDescription, name: str, instance: str, fmu_path: Path) -> Variable:
+    """The variable ``name`` of an FMU's model description; a ScenarioError listing the valid names
+    if it has none (the lookup of :class:`Subsystem` and of the worker proxy alike)."""
+    try:
+        return md.variables[name]
+    except KeyError:
+        raise ScenarioError(f"FMU instance '{instance}' ({Path(fmu_path).name}) has no variable '{name}'; "
+                            f"valid names: {', '.join(md.variables)}") from None
+
+
 class SubsystemBase(ABC):
     """One simulation unit driven by the master (an FMU, or a plain-Python fake).
 
@@ -334,11 +344,7 @@ class Subsystem(SubsystemBase):
 
     # -- description ------------------------------------------------------------
     def variable(self, name: str) -> Variable:
-        try:
-            return self.md.variables[name]
-        except KeyError:
-            raise ScenarioError(f"FMU instance '{self.name}' ({self.fmu_path.name}) has no variable '{name}'; "
-                                f"valid names: {', '.join(self.md.variables)}") from None
+        return md_variable(self.md, name, self.name, self.fmu_path)
 
     # -- lifecycle ----------------------------------------------------------------
     def set_parameters(self, values: Mapping[str, Any], *, out_dir: Path | str | None = None) -> None:

@@ -59,8 +59,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from orchestrator.errors import CosimError, FmuCrashError, FmuError, ScenarioError
-from orchestrator.fmi.subsystem import RealBatch, SubsystemBase
+from orchestrator.errors import CosimError, FmuCrashError, FmuError
+from orchestrator.fmi.subsystem import RealBatch, SubsystemBase, md_variable
 from orchestrator.fmi.archive import ModelDescription, Variable, read_model_description
 from .channel import ARENA_BYTES, FREE_TIMEOUT, FUNCTIONS, REGISTER_BYTES, WorkerChannel, signal_name
 
@@ -166,11 +166,7 @@ class WorkerSubsystem(SubsystemBase):
 
     # -- description ------------------------------------------------------------
     def variable(self, name: str) -> Variable:
-        try:
-            return self.md.variables[name]
-        except KeyError:
-            raise ScenarioError(f"FMU instance '{self.name}' ({self.fmu_path.name}) has no variable '{name}'; "
-                                f"valid names: {', '.join(self.md.variables)}") from None
+        return md_variable(self.md, name, self.name, self.fmu_path)
 
     # -- life cycle ---------------------------------------------------------------
     def set_parameters(self, values: Mapping[str, Any], *, out_dir: Path | str | None = None) -> None:

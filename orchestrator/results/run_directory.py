@@ -1,4 +1,4 @@
-"""The one reader of a run folder: results.csv, summary.json and the field files.
+"""The one reader of a run folder: results.csv (or results.parquet), summary.json and the field files.
 
 :class:`RunDirectory` reads what a run wrote (``rotorcosim run``, the monolithic
 reference, a compare variant); analysis, plots and compare read runs through it only.
@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 RESULTS = "results.csv"
+RESULTS_PARQUET = "results.parquet"     # output.format: parquet (same columns)
 SUMMARY = "summary.json"
 
 log = logging.getLogger(__name__)
@@ -55,9 +56,42 @@ def read_results(path: str | Path) -> dict[str, np.ndarray]:
     return {h: data[:, j] for j, h in enumerate(header)}
 
 
+def read_results_parquet(path: str | Path) -> dict[str, np.ndarray]:
+    """Read ``results.parquet`` (``output.format: parquet``) into ``{column: array}`` as
+    :func:`read_results` reads the CSV: numbers as float64 (Integer and Boolean as their
+    values), String columns as object arrays. Raises ``ValueError`` naming the file when it
+    is no Parquet file, lacks a ``time`` column, or pyarrow is not installed."""
+    from orchestrator.untrusted import InputError, open_regular
+
+    path = Path(path)
+    try:                    # a regular file of bounded size, as every file of a run folder
+        open_regular(path, what="results file").close()
+    except InputError as exc:
+        raise ValueError(str(exc)) from None
+    try:
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise ValueError(f"{path}: reading Parquet results needs pyarrow (pip install pyarrow)") from None
+    try:
+        table = pq.read_table(path)
+    except Exception as exc:                 # pyarrow raises its own ArrowInvalid / OSError
+        raise ValueError(f"{path}: not a readable Parquet file ({type(exc).__name__}: {exc})") from None
+    if "time" not in table.column_names:
+        raise ValueError(f"{path}: no 'time' column (columns: {', '.join(table.column_names[:8])})")
+    out = {}
+    for name in table.column_names:
+        values = table.column(name).to_pylist()
+        try:
+            out[name] = np.asarray([np.nan if v is None else v for v in values], dtype=float)
+        except (TypeError, ValueError):
+            out[name] = np.asarray(values, dtype=object)
+    return out
+
+
 class RunDirectory:
-    """A run folder. ``columns()``: results.csv as ``{column: array}`` (``time`` first);
-    ``summary()``: summary.json as a dict; ``field_files()``: the film field files."""
+    """A run folder. ``columns()``: results.csv (or results.parquet) as ``{column: array}``
+    (``time`` first); ``summary()``: summary.json as a dict; ``field_files()``: the film
+    field files."""
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
@@ -67,18 +101,26 @@ class RunDirectory:
         return self.path / RESULTS
 
     @property
+    def results_file(self) -> Path:
+        """results.csv, or results.parquet when only that was written (``output.format:
+        parquet``); results.csv when neither exists (for messages)."""
+        csv_path, pq_path = self.path / RESULTS, self.path / RESULTS_PARQUET
+        return pq_path if pq_path.is_file() and not csv_path.is_file() else csv_path
+
+    @property
     def summary_json(self) -> Path:
         return self.path / SUMMARY
 
     def has_results(self) -> bool:
-        return self.results_csv.is_file()
+        return self.results_file.is_file()
 
     def has_summary(self) -> bool:
         return self.summary_json.is_file()
 
     def columns(self) -> dict[str, np.ndarray]:
-        """results.csv (raises OSError / ValueError naming the file)."""
-        return read_results(self.results_csv)
+        """results.csv or results.parquet (raises OSError / ValueError naming the file)."""
+        path = self.results_file
+        return read_results_parquet(path) if path.suffix == ".parquet" else read_results(path)
 
     def summary(self) -> dict[str, Any]:
         """summary.json, read with the bounded reader (raises

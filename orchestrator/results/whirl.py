@@ -462,19 +462,48 @@ def _analyze_journal(t, x, y, omega, clearance, *, eps, params) -> dict:
                            "threshold_time_s": None, "threshold_speed_hz": None,  # growth rate crosses 0
                            "threshold_snr": None,
                            "episodes": [], "dominant_ratio": None, "ratio_range": None, "warnings": warn}
-    # eccentricity maximum
+    _max_eps(res, t, x, y, omega, clearance, eps)
+    _sampling_check(warn, t, omega)
+    z = x + 1j * y
+    if not _analysable(warn, t, z, omega):
+        return res
+    s = order_spectra(t, z, omega, p)
+    if s.n_frames == 0:
+        revs = float(np.nanmax(revolutions(t, np.nan_to_num(omega)))) if t.size else 0.0
+        warn.append(f"too little rotation for one analysis window: need {p.window_revs} revolutions, "
+                    f"got {revs:.3g}; whirl not analysed")
+        return res
+    sub = s.subsync_amplitude() / clearance
+    ratio = dominant_ratio(s)
+    res["max_subsync_rel"] = float(np.nanmax(sub))
+    res["max_sync_rel"] = float(np.nanmax(s.sync_amplitude() / clearance))
+    half = 0.5 * (s.t_end - s.t_start)
+    res["time_resolution_s"] = float(np.median(half))
+    eps_list = detect_episodes(s.t, sub, p.threshold, p.threshold * p.off_fraction,
+                               math.ceil(p.persist_revs / p.hop_revs))
+    spd = lambda tt: float(np.interp(tt, t, omega) / TWO_PI)  # noqa: E731
+    all_whirl = _episodes(res, s, sub, ratio, eps_list, p, spd)
+    _threshold(res, s, eps_list, p, clearance, spd)
+    if eps_list:
+        _first_episode(res, s, ratio, all_whirl, half[eps_list[0][2]])
+    return res
+
+
+def _max_eps(res, t, x, y, omega, clearance, eps) -> None:
+    """The eccentricity maximum: of the ``eps`` signal, else of hypot(x, y) / clearance."""
     if eps is not None:
-        e = np.asarray(eps, float)
-        src = "signal"
+        e, src = np.asarray(eps, float), "signal"
     else:
-        e = np.hypot(x, y) / clearance
-        src = "hypot(x, y) / clearance"
+        e, src = np.hypot(x, y) / clearance, "hypot(x, y) / clearance"
     fin = np.isfinite(e)
     if fin.any():
         i = int(np.nanargmax(np.where(fin, e, -np.inf)))
         res.update(max_eps=float(e[i]), max_eps_time_s=float(t[i]),
                    max_eps_speed_hz=float(omega[i] / TWO_PI), eps_source=src)
-    # sampling check: samples per revolution of the output at the top speed
+
+
+def _sampling_check(warn, t, omega) -> None:
+    """Warn when the output has fewer than 8 samples per revolution at the top speed."""
     if t.size > 1:
         f_max = float(np.nanmax(np.abs(omega))) / TWO_PI
         dt = float(np.median(np.diff(t)))
@@ -482,35 +511,27 @@ def _analyze_journal(t, x, y, omega, clearance, *, eps, params) -> dict:
             warn.append(f"output interval {dt:g} s gives {1.0 / (dt * f_max):.1f} samples per revolution "
                         f"at {f_max:.4g} Hz (< 8): amplitudes are low-passed; use output.interval <= "
                         f"{1.0 / (8 * f_max):.3g} s")
-    z = x + 1j * y
+
+
+def _analysable(warn, t, z, omega) -> bool:
+    """False (with the reason in ``warn``) when the orbit cannot be analysed at all."""
     n_fin = int(np.count_nonzero(np.isfinite(z)))
-    revs = float(np.nanmax(revolutions(t, np.nan_to_num(omega)))) if t.size else 0.0
     if n_fin < 2:
         warn.append(f"x/y have {n_fin} finite value(s) of {z.size}; whirl not analysed")
-        return res
+        return False
     if t.size and np.nanmax(omega, initial=-np.inf) <= 0:
         warn.append("rotor speed has no positive finite value (the convention is omega > 0, "
                     "counter-clockwise); whirl not analysed")
-        return res
+        return False
     if n_fin < z.size:
         bad = ~np.isfinite(z)
         warn.append(f"x/y are NaN/inf in {int(bad.sum())} of {z.size} samples (first at t = "
                     f"{t[np.argmax(bad)]:.6g} s; diverged run?); analysed the finite samples")
-    s = order_spectra(t, z, omega, p)
-    if s.n_frames == 0:
-        warn.append(f"too little rotation for one analysis window: need {p.window_revs} revolutions, "
-                    f"got {revs:.3g}; whirl not analysed")
-        return res
-    sub = s.subsync_amplitude() / clearance
-    sync = s.sync_amplitude() / clearance
-    ratio = dominant_ratio(s)
-    res["max_subsync_rel"] = float(np.nanmax(sub))
-    res["max_sync_rel"] = float(np.nanmax(sync))
-    half = 0.5 * (s.t_end - s.t_start)
-    res["time_resolution_s"] = float(np.median(half))
-    persist = math.ceil(p.persist_revs / p.hop_revs)
-    eps_list = detect_episodes(s.t, sub, p.threshold, p.threshold * p.off_fraction, persist)
-    spd = lambda tt: float(np.interp(tt, t, omega) / TWO_PI)  # noqa: E731
+    return True
+
+
+def _episodes(res, s, sub, ratio, eps_list, p, spd) -> np.ndarray:
+    """One ``res["episodes"]`` entry per whirl episode; the frames in whirl (bool array)."""
     all_whirl = np.zeros(s.n_frames, bool)
     for t_on, t_off, k0, k1 in eps_list:
         in_w = np.zeros(s.n_frames, bool)
@@ -526,48 +547,54 @@ def _analyze_journal(t, x, y, omega, clearance, *, eps, params) -> dict:
             "ratio_at_onset": float(ratio[k0]),
             "max_subsync_rel": float(np.nanmax(sub[k0:k1])),
         })
-    # instability threshold: where the growth rate of the sub-synchronous amplitude turns positive
+    return all_whirl
+
+
+def _threshold(res, s, eps_list, p, clearance, spd) -> None:
+    """The instability threshold: where the growth rate of the sub-synchronous amplitude
+    turns positive (before the first episode), with how clearly the mode stands out there."""
+    warn = res["warnings"]
     fit_frames = 2 * max(int(round(p.growth_fit_revs / p.hop_revs / 2)), 1) + 1
     gsub = s.band_amplitude(*p.growth_band) / clearance
     sigma = growth_rate(s.t, gsub, fit_frames)
     k_end = eps_list[0][2] if eps_list else s.n_frames
     t_th, why = growth_threshold(s.t, gsub, sigma, k_end, p.growth_min_factor)
-    if t_th is not None:
-        res["threshold_time_s"], res["threshold_speed_hz"] = t_th, spd(t_th)
-        # how clearly the growing mode stands out at the crossing: largest band bin over
-        # the median band bin (a broadband numerical floor near the threshold biases the
-        # zero crossing late, docs/analysis.md)
-        kk = int(np.argmin(np.abs(s.t - t_th)))
-        sel = (s.orders >= p.growth_band[0] - 1e-12) & (s.orders <= p.growth_band[1] + 1e-12)
-        mags = np.abs(s.X[kk, sel])
-        med = float(np.median(mags))
-        res["threshold_snr"] = float(np.max(mags) / med) if med > 0 else None
-        if res["threshold_snr"] is not None and res["threshold_snr"] < 3.0:
-            warn.append(f"threshold_speed_hz {res['threshold_speed_hz']:.4g} Hz: the growing mode is not "
-                        f"above the broadband floor there (peak / median bin = {res['threshold_snr']:.2g} "
-                        "< 3): the zero crossing lies in the floor and is unreliable (typically late, "
-                        "where the mode rises out of the floor)")
-    else:
+    if t_th is None:
         warn.append(f"threshold_speed_hz not estimated: {why}")
-    if eps_list:
-        first = res["episodes"][0]
-        k0 = eps_list[0][2]
-        res["whirl"] = True
-        res["onset"] = {"time_s": first["onset_time_s"], "speed_hz": first["onset_speed_hz"],
-                        "present_at_start": first["present_at_start"]}
-        res["time_resolution_s"] = float(half[k0])
-        last = res["episodes"][-1]
-        res["onset_time_s"], res["onset_speed_hz"] = first["onset_time_s"], first["onset_speed_hz"]
-        if last["vanish_time_s"] is not None:
-            res["vanish"] = {"time_s": last["vanish_time_s"], "speed_hz": last["vanish_speed_hz"]}
-            res["vanish_time_s"], res["vanish_speed_hz"] = last["vanish_time_s"], last["vanish_speed_hz"]
-        r_all = ratio[all_whirl]
-        res["dominant_ratio"] = float(np.nanmedian(r_all))
-        res["ratio_range"] = [float(np.nanmin(r_all)), float(np.nanmax(r_all))]
-        if first["present_at_start"]:
-            warn.append("sub-synchronous motion already above threshold in the first window "
-                        f"(t = {s.t[0]:.4g} s): the onset lies before it")
-    return res
+        return
+    res["threshold_time_s"], res["threshold_speed_hz"] = t_th, spd(t_th)
+    # how clearly the growing mode stands out at the crossing: largest band bin over
+    # the median band bin (a broadband numerical floor near the threshold biases the
+    # zero crossing late, docs/analysis.md)
+    kk = int(np.argmin(np.abs(s.t - t_th)))
+    sel = (s.orders >= p.growth_band[0] - 1e-12) & (s.orders <= p.growth_band[1] + 1e-12)
+    mags = np.abs(s.X[kk, sel])
+    med = float(np.median(mags))
+    res["threshold_snr"] = float(np.max(mags) / med) if med > 0 else None
+    if res["threshold_snr"] is not None and res["threshold_snr"] < 3.0:
+        warn.append(f"threshold_speed_hz {res['threshold_speed_hz']:.4g} Hz: the growing mode is not "
+                    f"above the broadband floor there (peak / median bin = {res['threshold_snr']:.2g} "
+                    "< 3): the zero crossing lies in the floor and is unreliable (typically late, "
+                    "where the mode rises out of the floor)")
+
+
+def _first_episode(res, s, ratio, all_whirl, resolution) -> None:
+    """Onset (first episode), vanish (last episode) and the whirl ratio over all episodes."""
+    first, last = res["episodes"][0], res["episodes"][-1]
+    res["whirl"] = True
+    res["onset"] = {"time_s": first["onset_time_s"], "speed_hz": first["onset_speed_hz"],
+                    "present_at_start": first["present_at_start"]}
+    res["time_resolution_s"] = float(resolution)
+    res["onset_time_s"], res["onset_speed_hz"] = first["onset_time_s"], first["onset_speed_hz"]
+    if last["vanish_time_s"] is not None:
+        res["vanish"] = {"time_s": last["vanish_time_s"], "speed_hz": last["vanish_speed_hz"]}
+        res["vanish_time_s"], res["vanish_speed_hz"] = last["vanish_time_s"], last["vanish_speed_hz"]
+    r_all = ratio[all_whirl]
+    res["dominant_ratio"] = float(np.nanmedian(r_all))
+    res["ratio_range"] = [float(np.nanmin(r_all)), float(np.nanmax(r_all))]
+    if first["present_at_start"]:
+        res["warnings"].append("sub-synchronous motion already above threshold in the first window "
+                               f"(t = {s.t[0]:.4g} s): the onset lies before it")
 
 
 # ----------------------------------------------------------------------------- files
@@ -604,7 +631,7 @@ def _analyze_run(out_dir: Path, spec: Mapping[str, Any]) -> dict:
     if not isinstance(spec, Mapping):
         return {"error": f"analysis spec must be a mapping (got {type(spec).__name__})"}
     run = RunDirectory(out_dir)
-    csv_path = run.results_csv
+    csv_path = run.results_file
     if not csv_path.is_file():
         return {"error": f"{csv_path}: not found; the run wrote no results"}
     try:

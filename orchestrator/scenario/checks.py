@@ -56,8 +56,9 @@ class FmuChecks(Completion):
             self.err(node, f"FMU path of '{name}' cannot be used: {path}: {exc}; fix 'fmus.{name}.path'")
             return
         if not exists and f.get("ours"):
-            self.err(node, f"our FMU {f['ours']} of '{name}' is not built yet ({path}); run without --no-build, "
-                           "or build it with `rotorcosim build-fmus`")
+            self.err(node, f"our FMU {f['ours']} of '{name}' is not built yet ({path}); build it with "
+                           "`rotorcosim build-fmus` (or run/validate without --no-build; in Python: "
+                           "load_scenario(..., build_fmus=True))")
             return
         if not exists:
             self.err(node, f"FMU file of '{name}' not found: {path} (paths are relative to the scenario's "

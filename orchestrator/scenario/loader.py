@@ -1,4 +1,4 @@
-"""Loading a scenario: read the sections, build our FMUs if asked, check against the FMUs.
+"""Loading a scenario: read the sections, check them against the FMUs (building is not loading).
 
 :func:`load_scenario` raises one :class:`orchestrator.errors.ScenarioError` listing every
 problem with ``file:line``; :func:`validate_scenario` returns them as lines.
@@ -39,7 +39,7 @@ class ScenarioLoader(FmuChecks, SectionReader):
         return draft.scenario(params)
 
 
-def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus: bool = True) -> Scenario:
+def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus: bool = False) -> Scenario:
     """Load and validate a scenario file (format version 1).
 
     Parameters
@@ -49,11 +49,13 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
         validation; the value is read as YAML (``5e-5``, ``true``, ``[a, b]``).
         Examples: ``coupling.macro_step=5e-5``, ``fmus.bearing1.parameters.n_phi=60``,
         ``connections.0.gain=2``. Unknown paths are errors.
-    build_fmus : when the scenario is otherwise valid, let
-        :func:`orchestrator.fmi.build.ensure_fmus` build or rebuild our own FMUs (in the
-        repository's ``fmus/``) that are missing or stale, before their model descriptions
-        are read. Building is a step between reading and checking, not part of the
-        loader: ``build_fmus=False`` reads and checks only.
+    build_fmus : loading reads and checks only (default): a scenario whose own FMU
+        (``fmu: NAME``) is not built yet is refused with the command that builds it.
+        ``True``: when the scenario is otherwise valid, first let
+        :func:`orchestrator.fmi.build.ensure_fmus` build or rebuild our own FMUs that are
+        missing or stale (``rotorcosim run``/``validate`` do; :func:`orchestrator.run`
+        rebuilds stale ones before it runs). Building is a step between reading and
+        checking, not part of loading.
 
     Raises
     ------
@@ -141,9 +143,9 @@ def validate_scenario(path: str | Path, overrides: Sequence[str] = (), *,
                       build_fmus: bool = True) -> list[str]:
     """Every problem of a scenario file as readable lines (empty: the scenario is valid).
 
-    Like :func:`load_scenario`, first builds our own FMUs that are missing or
-    stale (``build_fmus=False``: only check, and report a missing FMU with the
-    command that builds it).
+    Validation is a step of a run, so unlike :func:`load_scenario` it first builds
+    our own FMUs that are missing or stale (``build_fmus=False``: only check, and
+    report a missing FMU with the command that builds it).
     """
     try:
         load_scenario(path, overrides, build_fmus=build_fmus)

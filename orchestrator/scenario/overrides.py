@@ -15,7 +15,10 @@ from orchestrator.untrusted import InputError, compose_yaml
 
 # -- overrides ---------------------------------------------------------
 def apply_override(reader: NodeReader, root, text: str) -> None:
-    """Apply one ``--set key.path=value`` to the node tree (before validation)."""
+    """Apply one ``--set key.path=value`` to the node tree (before validation).
+
+    Length: one walk down the node tree, with the message for each way a path can be wrong
+    (syntax, unknown key, index out of range, aliased node, type of the value) where it is met."""
     origin = f"--set {text}"
     key, sep, raw = text.partition("=")
     key = key.strip()

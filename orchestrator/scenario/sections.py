@@ -90,7 +90,44 @@ class SectionReader(NodeReader):
     # -- the pass ----------------------------------------------------------
     def read_sections(self) -> Draft | None:
         """Read the file, apply the overrides and parse every section (no FMU is opened)."""
-        try:                 # bounded: regular file, size, UTF-8, YAML depth and alias expansion
+        root = self._read_tree()
+        for text in self.overrides:
+            apply_override(self, root, text)
+        top = self.mapping(root, "top level", TOP_KEYS, ("name", "fmus"),
+                           fix="a scenario is a mapping with at least 'name' and 'fmus'")
+        if top is None:
+            return None
+        get = lambda key: top[key][1] if key in top else None      # noqa: E731
+        kw = self._top_scalars(top, get)
+        start, stop = kw["start_time"], kw["stop_time"]
+        fmus = self.load_fmus(get("fmus")) if "fmus" in top else []
+        self.fmu_specs = fmus
+        names = [f["name"] for f in fmus]
+        given_stop = None if stop is FROM_FMUS else stop
+        coupling = self.load_coupling(get("coupling"), names, start, given_stop)
+        self.default_isolation = (coupling or {}).get("isolation") or "none"
+        interval, signals = self.load_output(get("output"), given_stop, start)
+        self.check_rows(get("output"), interval, coupling, start, given_stop)
+        connections = self.load_connections(get("connections"))
+        for key in ("analysis", "compare"):
+            if key in top:
+                if not isinstance(get(key), yaml.MappingNode):
+                    self.err(get(key), f"'{key}' must be a mapping (got {self.got(get(key))}); see "
+                                       f"docs/{'analysis' if key == 'analysis' else 'compare'}.md")
+                else:
+                    kw[key] = self.value(get(key))
+
+        self.top_keys = set(top)
+        self.root_node = root
+        return Draft(kw=kw, fmus=fmus, connections=connections, coupling=coupling, interval=interval,
+                     signals=signals, analysis_node=get("analysis") if "analysis" in top else None,
+                     coupling_node=get("coupling"),
+                     output_format=self.output_format)
+
+    def _read_tree(self):
+        """The file's YAML node tree, bounded (regular file, size, UTF-8, depth, alias
+        expansion), merge keys flattened and bounded again."""
+        try:
             root = read_yaml_tree(self.path, what="scenario file", loader_cls=YamlLoader)
         except InputError as exc:
             raise ScenarioError(str(exc)) from None
@@ -107,14 +144,11 @@ class SectionReader(NodeReader):
             check_yaml_tree(root, display=self.display)      # the merged tree, bounded again
         except InputError as exc:
             raise ScenarioError(str(exc)) from None
-        for text in self.overrides:
-            apply_override(self, root, text)
-        top = self.mapping(root, "top level", TOP_KEYS, ("name", "fmus"),
-                           fix="a scenario is a mapping with at least 'name' and 'fmus'")
-        if top is None:
-            return None
-        get = lambda key: top[key][1] if key in top else None      # noqa: E731
+        return root
 
+    def _top_scalars(self, top, get) -> dict[str, Any]:
+        """``name``, ``version``, ``description``, ``start_time``, ``stop_time`` (``FROM_FMUS``
+        when not given: the FMUs' DefaultExperiment, checks.py)."""
         kw: dict[str, Any] = {"source": self.path.resolve()}
         if "name" in top:
             name = self.string(get("name"), "name", "give the scenario a name such as 'two-mass-oscillator'")
@@ -139,7 +173,7 @@ class SectionReader(NodeReader):
                 kw["description"] = d
         start = self.number(get("start_time"), "start_time") if "start_time" in top else 0.0
         kw["start_time"] = start
-        stop = FROM_FMUS if "stop_time" not in top else None      # the FMUs' DefaultExperiment (checks.py)
+        stop = FROM_FMUS if "stop_time" not in top else None
         if "stop_time" in top:
             stop = self.number(get("stop_time"), "stop_time", fix="write the end time in seconds, e.g. 0.5")
             if stop is not None and start is not None and stop <= start:
@@ -147,29 +181,7 @@ class SectionReader(NodeReader):
                                            f"{stop!r}); set a later stop time")
                 stop = None
         kw["stop_time"] = stop
-        fmus = self.load_fmus(get("fmus")) if "fmus" in top else []
-        self.fmu_specs = fmus
-        names = [f["name"] for f in fmus]
-        given_stop = None if stop is FROM_FMUS else stop
-        coupling = self.load_coupling(get("coupling"), names, start, given_stop)
-        self.default_isolation = (coupling or {}).get("isolation") or "none"
-        interval, signals = self.load_output(get("output"), given_stop, start)
-        self.check_rows(get("output"), interval, coupling, start, given_stop)
-        connections = self.load_connections(get("connections"))
-        for key in ("analysis", "compare"):
-            if key in top:
-                if not isinstance(get(key), yaml.MappingNode):
-                    self.err(get(key), f"'{key}' must be a mapping (got {self.got(get(key))}); see "
-                                       f"docs/{'analysis' if key == 'analysis' else 'compare'}.md")
-                else:
-                    kw[key] = self.value(get(key))
-
-        self.top_keys = set(top)
-        self.root_node = root
-        return Draft(kw=kw, fmus=fmus, connections=connections, coupling=coupling, interval=interval,
-                     signals=signals, analysis_node=get("analysis") if "analysis" in top else None,
-                     coupling_node=get("coupling"),
-                     output_format=self.output_format)
+        return kw
 
     # -- sections ----------------------------------------------------------
     def load_fmus(self, node) -> list[dict]:

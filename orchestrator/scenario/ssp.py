@@ -151,6 +151,9 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
 
     ``work`` is a folder the archive is extracted into (FMU paths point there).
     Raises :class:`ScenarioError` listing what cannot be read or is unsupported.
+
+    Length: the SSD read in document order (system, components, parameter bindings,
+    connections, experiment), each part's unsupported forms reported where they are met.
     """
     src = _Source(Path(path), Path(work))
     root = _parse(_read(src.ssd), str(src.ssd))
@@ -220,7 +223,10 @@ def _type_el(parent: ET.Element, ns: str, fmi_type: str, value=None) -> None:
 
 
 def export_ssp(scenario, out: Path | str) -> Path:
-    """Write ``scenario`` as an SSP 1.0 archive ``out`` (see the module docstring); return its path."""
+    """Write ``scenario`` as an SSP 1.0 archive ``out`` (see the module docstring); return its path.
+
+    Length: the SSD document written top to bottom as SSP 1.0 lays it out (components and
+    connectors, connections, parameter bindings, default experiment), then the archive."""
     from orchestrator.fmi.archive import read_model_description
     out = Path(out)
     c = scenario.coupling

@@ -67,7 +67,7 @@ class PlotContext:
             except (OSError, ValueError) as exc:
                 ctx.skipped.append(f"time histories: {exc}")
         else:
-            ctx.skipped.append(f"time histories: {run.results_csv} not found")
+            ctx.skipped.append(f"time histories: {run.results_file} not found")
         ctx.field_files = run.field_files()
         return ctx
 

@@ -1,0 +1,236 @@
+"""FMI 2.0 ``modelDescription.xml``: the parsed :class:`ModelDescription` and its parser.
+
+:func:`parse_model_description` reads the bytes of an FMU's model description as untrusted
+input (the archive around it is checked by :mod:`orchestrator.fmi.archive`, which reads the
+member and calls it): at most :data:`MAX_XML_BYTES`, parsed by
+:func:`orchestrator.untrusted.parse_xml` (DOCTYPE and entities refused after decoding,
+whatever the encoding), ``fmiVersion`` exactly ``2.0`` (or ``2.0.x``), a ``CoSimulation``
+element, every variable with a valueReference in 0..2^32-1 (fmi2ValueReference is a 32-bit
+unsigned int) and an FMI 2.0 causality and variability (FMI 2.0 sec. 2.2). Every problem
+raises :class:`orchestrator.errors.FmuError` naming the file, what is wrong and the fix.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+from orchestrator.errors import FmuError
+from orchestrator.untrusted import InputError, parse_xml
+
+MAX_XML_BYTES = 32 * 2**20            # modelDescription.xml
+MAX_VALUE_REFERENCE = 2**32 - 1       # fmi2ValueReference is unsigned int
+CAUSALITIES = ("parameter", "calculatedParameter", "input", "output", "local", "independent")
+VARIABILITIES = ("constant", "fixed", "tunable", "discrete", "continuous")
+_VERSION_RE = re.compile(r"^2\.0(\.[0-9]+)?$")
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One ``ScalarVariable`` of a model description."""
+
+    name: str
+    value_reference: int
+    type: str                      # "Real" | "Integer" | "Boolean" | "String" | "Enumeration"
+    causality: str                 # "parameter" | "calculatedParameter" | "input" | "output" | "local" | "independent"
+    variability: str               # "constant" | "fixed" | "tunable" | "discrete" | "continuous"
+    start: Any = None              # parsed to float/int/bool/str when given
+    description: str = ""
+    unit: str = ""                 # the variable's unit, else its declared type's
+    initial: str = ""              # "exact" | "approx" | "calculated" | "" (FMI 2.0 default applies)
+    declared_type: str = ""
+    min: Any = None                # the variable's min/max, else its declared type's (int/float)
+    max: Any = None
+    nominal: float | None = None
+    items: tuple = ()              # Enumeration: ((name, value, description), ...) of the declared type
+
+
+@dataclass(frozen=True)
+class ModelDescription:
+    """The parts of an FMI 2.0 ``modelDescription.xml`` the orchestrator uses."""
+
+    path: Path                     # the FMU file it came from
+    fmi_version: str
+    model_name: str
+    guid: str
+    model_identifier: str          # of the CoSimulation element
+    can_interpolate_inputs: bool = False
+    max_output_derivative_order: int = 0
+    can_get_and_set_fmu_state: bool = False
+    can_handle_variable_step: bool = True
+    needs_execution_tool: bool = False
+    can_be_instantiated_only_once_per_process: bool = False
+    description: str = ""
+    generation_tool: str = ""
+    default_experiment: Mapping[str, float] = field(default_factory=dict)
+    variables: Mapping[str, Variable] = field(default_factory=dict)   # name -> Variable, in file order
+
+    def inputs(self) -> list[Variable]:
+        return [v for v in self.variables.values() if v.causality == "input"]
+
+    def outputs(self) -> list[Variable]:
+        return [v for v in self.variables.values() if v.causality == "output"]
+
+    def parameters(self) -> list[Variable]:
+        return [v for v in self.variables.values() if v.causality == "parameter"]
+
+def _fail(path, what: str, fix: str) -> FmuError:
+    return FmuError(f"{path}: {what}; {fix}")
+
+def _bool(s: str | None, default: bool) -> bool:
+    if s is None:
+        return default
+    return s.strip().lower() in ("true", "1")
+
+
+def _start(type_: str, s: str | None):
+    if s is None:
+        return None
+    try:
+        if type_ == "Real":
+            return float(s)
+        if type_ in ("Integer", "Enumeration"):
+            return int(s)
+        if type_ == "Boolean":
+            return _bool(s, False)
+    except ValueError:
+        return s
+    return s
+
+
+def _value_reference(path: Path, name: str, vr: str) -> int:
+    """``vr`` as an fmi2ValueReference (unsigned 32-bit): no truncation, no silent wrap-around."""
+    text = vr.strip()
+    if not re.fullmatch(r"[-+]?[0-9]+", text):
+        raise _fail(path, f"variable {name!r} has a non-integer valueReference {vr[:40]!r}", "re-export the FMU")
+    value = int(text) if len(text) <= 20 else MAX_VALUE_REFERENCE + 1
+    if not 0 <= value <= MAX_VALUE_REFERENCE:
+        shown = text if len(text) <= 20 else text[:12] + f"... ({len(text)} digits)"
+        raise _fail(path, f"valueReference {shown} of variable {name!r} is outside 0..{MAX_VALUE_REFERENCE} "
+                    "(fmi2ValueReference is a 32-bit unsigned integer; a larger one would be truncated and read "
+                    "another variable)", "re-export the FMU with valid value references")
+    return value
+
+
+def _number(type_: str, s: str | None):
+    """A min/max/nominal attribute as int (Integer, Enumeration) or float (Real); None if absent or unreadable."""
+    if s is None or type_ not in ("Real", "Integer", "Enumeration"):
+        return None
+    try:
+        return float(s) if type_ == "Real" else int(s)
+    except ValueError:
+        return None
+
+
+def _type_definitions(root) -> dict[str, tuple[dict, tuple]]:
+    """``{SimpleType name: (attributes of its type element, enumeration items)}`` (FMI 2.0 sec. 2.2.3)."""
+    out = {}
+    td = root.find("TypeDefinitions")
+    for st in (td if td is not None else []):
+        if st.tag != "SimpleType" or not st.get("name"):
+            continue
+        el = next((c for c in st if c.tag in ("Real", "Integer", "Boolean", "String", "Enumeration")), None)
+        if el is None:
+            continue
+        items = []
+        if el.tag == "Enumeration":
+            for it in el:
+                if it.tag == "Item" and it.get("name") is not None:
+                    v = _number("Integer", it.get("value"))
+                    if v is not None:
+                        items.append((it.get("name"), v, it.get("description", "") or ""))
+        out[st.get("name")] = (dict(el.attrib), tuple(items))
+    return out
+
+
+def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelDescription:
+    """Parse the bytes of an FMI 2.0 ``modelDescription.xml`` (see module doc for the rules)."""
+    path = Path(path)
+    if len(xml) > MAX_XML_BYTES:
+        raise _fail(path, f"modelDescription.xml is {len(xml)} bytes (limit {MAX_XML_BYTES})",
+                    "raise orchestrator.fmi.model_description.MAX_XML_BYTES if you trust this FMU")
+    try:                      # defusedxml: DOCTYPE/entities refused after decoding (UTF-16 too)
+        root = parse_xml(xml, display=str(path), what="modelDescription.xml")
+    except InputError as e:
+        raise FmuError(str(e)) from None
+    if root.tag != "fmiModelDescription":
+        raise _fail(path, f"modelDescription.xml has root element <{root.tag}>, expected <fmiModelDescription>",
+                    "re-export the FMU")
+    version = root.get("fmiVersion", "")
+    if not _VERSION_RE.match(version):
+        raise _fail(path, f"has fmiVersion {version[:40]!r}, expected FMI 2.0 ('2.0')",
+                    "export the model as an FMI 2.0 co-simulation FMU")
+    cs = root.find("CoSimulation")
+    if cs is None:
+        raise _fail(path, "has no <CoSimulation> element (it is a Model Exchange only FMU)",
+                    "export the model as an FMI 2.0 co-simulation FMU")
+    ident = cs.get("modelIdentifier", "")
+    if not ident or any(c in ident for c in "/\\\x00") or ident in (".", ".."):
+        raise _fail(path, f"has an invalid modelIdentifier {ident!r}", "re-export the FMU")
+
+    types = _type_definitions(root)
+    variables: dict[str, Variable] = {}
+    mv = root.find("ModelVariables")
+    for sv in (mv if mv is not None else []):
+        if sv.tag != "ScalarVariable":
+            continue
+        var = _variable(sv, types, path)
+        if var.name in variables:
+            raise _fail(path, f"variable {var.name!r} is declared twice", "re-export the FMU")
+        variables[var.name] = var
+
+    de = root.find("DefaultExperiment")
+    default_experiment = {}
+    if de is not None:
+        for k in ("startTime", "stopTime", "tolerance", "stepSize"):
+            if de.get(k) is not None:
+                try:
+                    default_experiment[k] = float(de.get(k))
+                except ValueError:
+                    pass
+    try:
+        mod = int(cs.get("maxOutputDerivativeOrder", "0"))
+    except ValueError:
+        mod = 0
+    return ModelDescription(
+        path=path, fmi_version=version, model_name=root.get("modelName", ident), guid=root.get("guid", ""),
+        model_identifier=ident,
+        can_interpolate_inputs=_bool(cs.get("canInterpolateInputs"), False),
+        max_output_derivative_order=mod,
+        can_get_and_set_fmu_state=_bool(cs.get("canGetAndSetFMUstate"), False),
+        can_handle_variable_step=_bool(cs.get("canHandleVariableCommunicationStepSize"), False),
+        needs_execution_tool=_bool(cs.get("needsExecutionTool"), False),
+        can_be_instantiated_only_once_per_process=_bool(cs.get("canBeInstantiatedOnlyOncePerProcess"), False),
+        description=root.get("description", "") or "", generation_tool=root.get("generationTool", "") or "",
+        default_experiment=default_experiment, variables=variables)
+
+
+def _variable(sv, types, path: Path) -> Variable:
+    """One ``ScalarVariable`` element: name, valueReference, one type element, an FMI 2.0
+    causality and variability; unit and range from its declared type where it gives none."""
+    name = sv.get("name")
+    vr = sv.get("valueReference")
+    if name is None or vr is None:
+        raise _fail(path, "a ScalarVariable lacks name or valueReference", "re-export the FMU")
+    type_el = next((c for c in sv if c.tag in ("Real", "Integer", "Boolean", "String", "Enumeration")), None)
+    if type_el is None:
+        raise _fail(path, f"variable {name!r} has no type element", "re-export the FMU")
+    vr_int = _value_reference(path, name, vr)
+    causality = sv.get("causality", "local")
+    variability = sv.get("variability", "continuous")
+    for what, value, allowed in (("causality", causality, CAUSALITIES),
+                                 ("variability", variability, VARIABILITIES)):
+        if value not in allowed:
+            raise _fail(path, f"{what} {value[:40]!r} of variable {name!r} is not an FMI 2.0 {what} (one of "
+                        f"{', '.join(allowed)})", "re-export the FMU with a valid model description")
+    declared = type_el.get("declaredType", "") or ""
+    attrs = {**types.get(declared, ({}, ()))[0], **type_el.attrib}
+    return Variable(
+        name=name, value_reference=vr_int, type=type_el.tag, causality=causality,
+        variability=variability, start=_start(type_el.tag, type_el.get("start")),
+        description=sv.get("description", "") or "", unit=attrs.get("unit", "") or "",
+        initial=sv.get("initial", "") or "", declared_type=declared,
+        min=_number(type_el.tag, attrs.get("min")), max=_number(type_el.tag, attrs.get("max")),
+        nominal=_number("Real", attrs.get("nominal")), items=types.get(declared, ({}, ()))[1])
