@@ -11,7 +11,10 @@ explicit limit ~3 us; needs fmus/ built: rotorcosim build-fmus).
 For each variant the macro step is swept over a factor-2 grid. A run counts as stable
 when it finishes, the coupling force does not grow (max |F| over the last fifth of
 the run <= max |F| over the first fifth: the physical fast mode decays, an unstable
-coupling amplifies it) and no displacement exceeds twice the reference's largest. The error is the max over the output rows of |x - x_ref| of
+coupling amplifies it) and no displacement exceeds twice the reference's largest. For
+``jeffcott`` the reference's own film force grows (landing, unbalance build-up), so there
+stable = finishes, bounded and error <= 0.1 of the clearance after the first 1 ms
+(the landing layer from the bearing centres, which no macro step above ~20 us resolves). The error is the max over the output rows of |x - x_ref| of
 the displacement signals, relative to their largest |x_ref|, against the monolithic
 reference (Radau, rtol 1e-10). Prints one line per run and the largest stable step per
 variant, and writes a JSON table.
@@ -49,12 +52,18 @@ CASES = {
                                             "coupling.iteration.acceleration=none"], 1e-4, 9, 1),
                      ("iterative iqn-ils i0", ["coupling.scheme=iterative"], 1e-4, 9, 1)]},
     "jeffcott": {"file": HERE / "jeffcott_hs_plain.yaml", "force": "bearing1.Fy",
+                 # the journals start at the bearing centres and land on the film in ~20 us, and the force
+                 # grows in the reference too: stable = finished, bounded and, after the first 1 ms,
+                 # within 10 % of the clearance (5.6e-5 m) of the reference
+                 "stable_by": "error", "stable_error": 0.1, "skip": 1e-3, "err_scale": 5.6e-5,
                  "disp": ["rotor.x_1", "rotor.y_1", "rotor.x_2", "rotor.y_2"], "interval": 1e-4,
                  "ref": ["coupling.options.rtol=1e-8"],
                  "variants": [
                      ("gauss-seidel e0i0", ["coupling.scheme=gauss-seidel"], 1e-4, 0, 7),
                      ("iterative iqn-ils i1", ["coupling.scheme=iterative", "coupling.interpolation_order=1"],
-                      1e-4, 5, 1)]},
+                      1e-4, 5, 1),
+                     ("iterative iqn-ils i1 it50", ["coupling.scheme=iterative", "coupling.interpolation_order=1",
+                                                    "coupling.iteration.max_iterations=50"], 1e-4, 5, 1)]},
 }
 
 
@@ -65,7 +74,8 @@ def steps(h0: float, up: int, down: int) -> list[float]:
 def one(case, sets, h, out, common):
     interval = max(h, case["interval"])
     sc = load_scenario(str(case["file"]), overrides=common + sets + [f"coupling.macro_step={h!r}",
-                                                                     f"output.interval={interval!r}"])
+                                                                     f"output.interval={interval!r}"],
+                       build_fmus=True)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -80,13 +90,21 @@ def classify(case, res, ref):
     n = max(1, len(F) // 5)
     t_ref, out_ref = ref
     bounded = all(np.nanmax(np.abs(res.outputs[s])) <= 2 * np.max(np.abs(out_ref[s])) for s in case["disp"])
-    stable = bool(np.all(np.isfinite(F)) and F[-n:].max() <= F[:n].max() and bounded)
     idx = np.searchsorted(t_ref, res.t)
     ok = (idx < len(t_ref)) & np.isclose(t_ref[np.minimum(idx, len(t_ref) - 1)], res.t, rtol=0, atol=1e-9)
+    if "skip" in case:
+        ok &= res.t >= res.t[0] + case["skip"] - 1e-12
     err = 0.0
     for s in case["disp"]:
         xr = out_ref[s]
-        err = max(err, float(np.nanmax(np.abs(res.outputs[s][ok] - xr[idx[ok]])) / np.max(np.abs(xr))))
+        if not ok.any():
+            err = float("nan")
+            break
+        err = max(err, float(np.nanmax(np.abs(res.outputs[s][ok] - xr[idx[np.flatnonzero(ok)]]))
+                             / case.get("err_scale", np.max(np.abs(xr)))))
+    if case.get("stable_by") == "error":     # the reference's own force grows (journals landing, run-up)
+        return bool(np.all(np.isfinite(F)) and bounded and err <= case["stable_error"]), err
+    stable = bool(np.all(np.isfinite(F)) and F[-n:].max() <= F[:n].max() and bounded)
     return stable, err
 
 
@@ -99,6 +117,7 @@ def main(argv=None):
     ap.add_argument("--scenario", choices=sorted(CASES), default="two_mass")
     ap.add_argument("--out", default="out/bench_iterative")
     ap.add_argument("--stop", type=float, default=None)
+    ap.add_argument("--only", default=None, help="run only the variants whose name contains this")
     a = ap.parse_args(argv)
     case = CASES[a.scenario]
     if a.scenario == "two_mass":
@@ -112,6 +131,8 @@ def main(argv=None):
     ref = (ref_res.t, ref_res.outputs)
     table = []
     for name, sets, h0, up, down in case["variants"]:
+        if a.only and a.only not in name:
+            continue
         best = None
         for h in steps(h0, up, down):
             res, wall = one(case, sets, h, out / name.replace(" ", "_") / f"{h:g}", common)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from orchestrator.coupling.acceleration import (
-    IQNILS, Aitken, FixedPoint, make_acceleration, scaled_residual, solve_fixed_point)
+    IQNILS, Aitken, FixedPoint, PassRejected, make_acceleration, scaled_residual, solve_fixed_point)
 
 
 def linear_problem(n, radius, seed=0):
@@ -156,3 +156,28 @@ def test_make_acceleration_names():
     assert isinstance(make_acceleration("iqn-ils"), IQNILS)
     with pytest.raises(ValueError, match="iqn-ils"):
         make_acceleration("anderson")
+
+
+def test_a_refused_iterate_is_backtracked_towards_the_last_evaluated_one():
+    """G(x) = -10 x + 22 (fixed point 2), refused above 2.5 (as an FMU discards an iterate that puts a
+    journal outside its bearing): the first relaxed update (11) and its halvings 5.5, 2.75 are refused,
+    1.375 is evaluated, and the secant step then lands on the fixed point."""
+    seen = []
+
+    def G(x):
+        seen.append(float(x[0]))
+        if x[0] > 2.5:
+            raise PassRejected(RuntimeError("discarded"))
+        return -10.0 * x + 22.0
+
+    res = solve_fixed_point(G, np.zeros(1), acceleration=IQNILS(), tol=1e-12, scale=np.ones(1), max_iterations=20)
+    assert res.converged and abs(res.x[0] - 2.0) < 1e-9
+    assert seen[:5] == [0.0, 11.0, 5.5, 2.75, 1.375]
+
+
+def test_a_refused_first_iterate_raises_the_subsystems_error():
+    def G(x):
+        raise PassRejected(ValueError("bearing1 discarded"))
+
+    with pytest.raises(ValueError, match="bearing1 discarded"):
+        solve_fixed_point(G, np.zeros(1), acceleration=IQNILS(), tol=1e-12, scale=np.ones(1), max_iterations=5)

@@ -56,6 +56,18 @@ def test_limits_and_forced_acceptance_at_min_step():
     assert not d.accept and d.h_next == 1e-4                    # rejected, clipped at min_step
 
 
+def test_a_step_stretched_onto_an_output_time_at_min_step_is_not_rejected_for_ever():
+    """next_stop stretches a step by up to 1e-3 h onto an output time: at min_step the retry would be
+    the same stretched step, rejected again (an endless loop before the rejection limit found it)."""
+    c = PIController(order=1, min_step=1e-7, max_step=1e-2)
+    t_out = 0.0032
+    t = t_out - 1.0000001e-7
+    t_end, on_out = next_stop(t, 1e-7, lambda _t: t_out)
+    assert on_out and t_end - t > 1e-7
+    d = c.decide(t_end - t, 4.7)
+    assert d.accept and d.forced
+
+
 def test_without_state_restore_the_controller_never_rejects():
     c = PIController(order=2, min_step=1e-9, max_step=1.0, can_reject=False)
     d = c.decide(1e-2, 1e3)

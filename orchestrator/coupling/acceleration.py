@@ -58,6 +58,17 @@ import numpy as np
 from orchestrator.scenario.model import ACCELERATIONS
 
 INITIAL_RELAXATION = 0.5     # first update of Aitken and IQN-ILS (no secant information yet)
+MAX_BACKTRACKS = 8           # refused iterates per fixed-point problem, each halving the last update
+
+
+class PassRejected(Exception):
+    """Raised by ``G`` when a subsystem refused the iterate (an FMU discarded the pass, e.g. a
+    quasi-Newton update that put a journal outside its bearing): :func:`solve_fixed_point` then
+    backtracks towards the last iterate that was evaluated. ``error`` is raised if it cannot."""
+
+    def __init__(self, error: Exception):
+        super().__init__(str(error))
+        self.error = error
 
 
 class Acceleration(ABC):
@@ -252,14 +263,30 @@ def solve_fixed_point(G: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, *, 
     against 0. The acceleration works on the scale after the first evaluation
     (entries still 0 there count as 1). At most ``max_iterations`` evaluations of
     ``G``; a non-finite residual stops the iteration at once (not converged).
+
+    ``G`` may raise :class:`PassRejected` for an iterate a subsystem refused: the next
+    evaluation is at ``x_last + (x - x_last) / 2`` (``x_last`` the last evaluated iterate;
+    a backtracking line search on the update, Dennis & Schnabel, "Numerical methods for
+    unconstrained optimization and nonlinear equations", SIAM 1996, sec. 6.3), at most
+    ``MAX_BACKTRACKS`` times per problem and counted in ``max_iterations``; the first
+    iterate (nothing to go back to) or one refusal too many raises ``PassRejected.error``.
     """
     x = np.array(x0, dtype=float)
     sc = np.maximum(np.abs(np.asarray(scale, dtype=float)), np.abs(x))
     res, worst, g = math.inf, 0, x
     started = False
+    x_last, backtracks = None, 0
     try:
         for k in range(1, max_iterations + 1):
-            g = np.array(G(x), dtype=float)
+            try:
+                g = np.array(G(x), dtype=float)
+            except PassRejected as e:
+                if x_last is None or backtracks >= MAX_BACKTRACKS or k == max_iterations:
+                    raise e.error from None
+                backtracks += 1
+                x = x_last + 0.5 * (x - x_last)
+                continue
+            x_last = x
             with np.errstate(invalid="ignore"):
                 sc = np.fmax(sc, np.abs(g))
             res, worst = scaled_residual(x, g, np.where(sc > 0.0, sc, 1.0))

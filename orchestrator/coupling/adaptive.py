@@ -8,11 +8,18 @@ Per attempt from T(n) with proposal h (the first is ``coupling.macro_step``):
    history (what an explicit step feeds; the iterative scheme's first iterate);
 3. the step is taken by the configured scheme (explicit, iterative, with discard
    retries); its outputs at ``t_end`` are ``y``;
-4. ``err = scaled_error_norm(P, y, y(T(n)))`` (error_control.py) goes to the PI
+4. ``err = scaled_error_norm(P, y, y(T(n)))`` (error_control.py; for the iterative
+   scheme the fed order-q interpolant against the order-(q+1) one at the step's
+   midpoint instead, :meth:`IterativeMacroStep.error_signals`) goes to the PI
    controller: accept, or reject -> every FMU state and the history are restored
    to T(n) (saved before the attempt), observers get ``on_step_rejected``, and the
    attempt is redone with the smaller proposal. A step accepted as a jump restarts
    the extrapolation (history order 0) from the value after it.
+
+Bounded work: at most ``MAX_REJECTIONS`` rejected attempts in a row and
+``max(MAX_STEPS, MAX_STEPS_PER_NOMINAL * (t_stop - t0) / macro_step)`` accepted steps; past
+either the run fails (CouplingError) naming the signal that limited the step most often,
+the step sizes reached and the keys to change (rtol/atol, min_step).
 
 A step shortened to land on an output time does not shrink the next proposal
 below the one that was cut. FMUs that cannot save and restore their state
@@ -31,11 +38,16 @@ import numpy as np
 
 from orchestrator.coupling.error_control import PIController, next_stop, scaled_error_norm
 from orchestrator.coupling.signals import lagrange_weights
-from orchestrator.coupling.step_control import StepSizeController
+from orchestrator.coupling.step_control import ConstantStep, DiscardHalving, StepSizeController
+from orchestrator.errors import CouplingError
+from orchestrator.errors import ScenarioError
 from orchestrator.scenario.model import StepControlSpec
 
 log = logging.getLogger(__name__)
 MIN_STEP_FRACTION = 1e-3      # default min_step = macro_step * this
+MAX_REJECTIONS = 60           # rejected attempts in a row before the run fails (each shrinks h by >= 0.9x)
+MAX_STEPS = 200_000           # accepted steps before the run fails (DOPRI5's nmax is 100000) ...
+MAX_STEPS_PER_NOMINAL = 100   # ... or this many times (t_stop - t0) / macro_step if that is more
 
 
 class OutputGrid:
@@ -73,6 +85,10 @@ class ErrorControlled(StepSizeController):
         max_step = spec.max_step if spec.max_step is not None else interval
         self.pi = PIController(order=order, min_step=min(min_step, max_step), max_step=max_step)
         self.h = min(max(h0, self.pi.min_step), self.pi.max_step)
+        self.h0 = float(h0)
+        self.max_steps = max(MAX_STEPS, MAX_STEPS_PER_NOMINAL * self.n_steps)
+        self.signal_names: list[str] = []      # set by the master, for messages
+        self.limiting: dict[int, int] = {}     # signal index -> steps it had the largest error
         self.accepted = 0
         self.h_min_taken = math.inf
         self.h_max_taken = 0.0
@@ -95,10 +111,21 @@ class ErrorControlled(StepSizeController):
         past = (hist.times[1:p + 2] - t) / (t_end - t)
         return lagrange_weights(past, [1.0])[0] @ hist.store[1:p + 2]
 
+    def error(self, stepper, pred: np.ndarray, prev: np.ndarray) -> tuple[float, int]:
+        """Scaled local error of the step just committed (module docstring, item 4)."""
+        hist = stepper.history
+        pair = stepper.error_signals() if hasattr(stepper, "error_signals") else None
+        a, b = pair if pair is not None else (pred, hist.store[1])
+        return scaled_error_norm(a, b, prev, rtol=self.spec.rtol, atol=self.spec.atol)
+
     def take_variable_step(self, stepper, t: float) -> tuple[float, bool]:
         """Take one accepted step from ``t``; returns ``(t_end, on_output_time)``."""
         hist = stepper.history
-        atol = self.spec.atol
+        if self.accepted >= self.max_steps:
+            raise CouplingError(self._too_many(t, f"took {self.accepted} accepted steps (the limit is "
+                                                  f"max({MAX_STEPS}, {MAX_STEPS_PER_NOMINAL} x (stop_time - "
+                                                  "start_time) / macro_step))"))
+        rejected = 0
         while True:
             h = self.h
             t_end, on_out = next_stop(t, h, self.grid.after)
@@ -107,16 +134,23 @@ class ErrorControlled(StepSizeController):
             cp = stepper.save() if self.can_reject else None
             try:
                 stepper.step(t, t_end)
-                err, _ = scaled_error_norm(pred, hist.store[1], prev, rtol=self.spec.rtol, atol=atol)
+                err, worst = self.error(stepper, pred, prev)
                 d = self.pi.decide(t_end - t, err)
                 if not d.accept:
                     stepper.restore(cp)
                     self.on_rejected(t, t_end, RuntimeError(f"scaled error {err:.3g} > 1"))
                     self.h = d.h_next
+                    rejected += 1
+                    self.limiting[worst] = self.limiting.get(worst, 0) + 1
+                    if rejected >= MAX_REJECTIONS:
+                        raise CouplingError(self._too_many(t, f"rejected {rejected} attempts in a row at "
+                                                              f"t={t:.12g} s (last h {t_end - t:.3g} s, scaled "
+                                                              f"error {err:.3g})"))
                     continue
             finally:
                 if cp is not None:
                     stepper.release(cp)
+            self.limiting[worst] = self.limiting.get(worst, 0) + 1
             if d.jump:          # restart the extrapolation from the value after the jump
                 hist.count = min(hist.count, 1)
             self.h = max(d.h_next, h) if (on_out and t_end - t < h and err <= 1.0) else d.h_next
@@ -125,10 +159,45 @@ class ErrorControlled(StepSizeController):
             self.h_max_taken = max(self.h_max_taken, t_end - t)
             return t_end, on_out
 
+    def _limiting(self) -> dict:
+        """The (at most 5) signals that had the largest scaled error most often: name -> attempts."""
+        names = self.signal_names
+        top = sorted(self.limiting.items(), key=lambda kv: -kv[1])[:5]
+        return {(names[i] if i < len(names) else str(i)): n for i, n in top}
+
+    def _too_many(self, t: float, what: str) -> str:
+        top = list(self._limiting().items())[:3]
+        lim = ", ".join(f"{name} ({n} steps)" for name, n in top) or "?"
+        return (f"the error-controlled macro step {what}; smallest step taken "
+                f"{self.h_min_taken if self.accepted else self.h:.3g} s (min_step {self.pi.min_step:.3g} s), "
+                f"rows up to t={t:.12g} s are kept. The signals with the largest scaled error: {lim}. Loosen "
+                f"coupling.step_control.rtol ({self.spec.rtol:g}) or atol for them, or raise "
+                "coupling.step_control.min_step (steps at min_step are accepted whatever their error)")
+
     def statistics(self) -> dict:
         return {"rejected_steps": 0, "retried_steps": 0, "retry_substeps": 0,
                 "step_control": {"type": "error", "accepted_steps": self.accepted,
                                  "rejected_steps": self.pi.rejected, "forced_steps": self.pi.forced,
                                  "jumps": self.pi.jumps, "can_reject": self.can_reject,
+                                 "limiting_signals": self._limiting(),
                                  "min_step_taken": self.h_min_taken if self.accepted else None,
                                  "max_step_taken": self.h_max_taken if self.accepted else None}}
+
+
+def controller_from_spec(scenario) -> StepSizeController:
+    """The controller of ``scenario.coupling`` (discard_retries > 0: :class:`DiscardHalving`;
+    step_control type error: :class:`ErrorControlled`)."""
+    c = scenario.coupling
+    n_retry = getattr(c, "discard_retries", 0)
+    sc = getattr(c, "step_control", None)
+    if sc is not None and sc.type == "error":
+        if n_retry:
+            raise ScenarioError("coupling.step_control type error and coupling.discard_retries cannot be combined "
+                                "(the error-controlled step has its own rejection); set discard_retries: 0")
+        return ErrorControlled(sc, t0=scenario.start_time, t_stop=scenario.stop_time, h0=c.macro_step,
+                               interval=scenario.output.interval or c.macro_step,
+                               # the iterative scheme's estimate is of order q+1 (coupling/iterative.py)
+                               order=(c.interpolation_order if c.scheme == "iterative" else c.extrapolation_order) + 1)
+    if n_retry:
+        return DiscardHalving(scenario.start_time, scenario.stop_time, c.macro_step, n_retry)
+    return ConstantStep(scenario.start_time, scenario.stop_time, c.macro_step)

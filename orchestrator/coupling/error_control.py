@@ -62,6 +62,9 @@ JUMP_STEP_RATIO = 0.3    # a rejected attempt at <= 0.3 of a recently rejected s
 JUMP_ERROR_RATIO = 0.5   # still >= 0.5 of that one's is a jump in a signal: accepted
 JUMP_MEMORY = 3          # "recently": at most this many accepted steps ago
 JUMP_MIN_ERROR = 10.0    # and both errors above this (a step near a stability limit fails by ~1)
+MIN_STEP_SLACK = 1.002   # a step up to this x min_step counts as at min_step: next_stop stretches a
+                         # step by up to 1e-3 h onto an output time, and rejecting such a step retried
+                         # the same stretched step for ever (found by the rejection limit, adaptive.py)
 
 
 def scaled_error_norm(predicted: np.ndarray, actual: np.ndarray, previous: np.ndarray, *,
@@ -129,7 +132,7 @@ class PIController:
         p = self.p
         if not math.isfinite(err):
             err = 1e6
-        if err > 1.0 and self.can_reject and h > self.min_step * (1 + 1e-12):
+        if err > 1.0 and self.can_reject and h > self.min_step * MIN_STEP_SLACK:
             last = self._last_reject
             if (last is not None and self._since_reject <= JUMP_MEMORY and h <= JUMP_STEP_RATIO * last[0]
                     and err >= JUMP_ERROR_RATIO * last[1] and min(err, last[1]) > JUMP_MIN_ERROR):

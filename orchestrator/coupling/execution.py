@@ -41,7 +41,8 @@ from orchestrator.coupling.iterative import IterativeMacroStep
 from orchestrator.coupling.loops import loop_through
 from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
-    RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController, controller_from_spec)
+    RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController)
+from orchestrator.coupling.adaptive import controller_from_spec
 from orchestrator.coupling.stages import stages as make_stages
 from orchestrator.errors import CouplingError, FmuCallError, FmuCrashError, LifecycleError, ScenarioError
 from orchestrator.fmi.extraction import ExtractionPool
@@ -251,6 +252,7 @@ class MasterAlgorithm:
                 "false); use step_control type constant")
         can_reject = all(u.sub.can_get_set_state for u in self.units)
         self.grid.can_reject = can_reject
+        self.grid.signal_names = self.signal_names
         if can_reject:
             for u in self.units:
                 u.sub.no_set_prior_state = False

@@ -21,13 +21,31 @@ acceleration}``. One macro step [T(n), T(n+1)]:
    (or in this iteration); the FMU states after that pass are kept. Otherwise
    the states and the history are restored to T(n) and the next iterate
    comes from :mod:`orchestrator.coupling.acceleration` (none, aitken, iqn-ils);
-5. not converged in ``max_iterations`` passes (or a non-finite signal): the run
+5. a pass an FMU discards (fmi2Discard: e.g. a quasi-Newton update that moved a journal
+   outside its bearing) is not a failure of the step but of the iterate: the next pass
+   is at the middle between it and the last evaluated iterate (at most 8 times per
+   step, :func:`~orchestrator.coupling.acceleration.solve_fixed_point`); a discard in
+   the first pass (the extrapolated iterate, what an explicit step would feed) fails
+   the step as in the explicit schemes (``discard_retries`` may then halve it);
+6. not converged in ``max_iterations`` passes (or a non-finite signal): the run
    fails with a message naming the signal, its residual and what to change.
    (Halving the step instead was considered and not done: a step that does not
    converge at H is usually a sign of a coupling the chosen acceleration cannot
    handle, and a silent smaller step would hide it; the message says so.)
 
 The statistics count passes per macro step (``iterations``).
+
+Local error estimate for the error-controlled step (``coupling.step_control: {type:
+error}``, coupling/adaptive.py): after convergence the subsystems were fed the
+order-q interpolant of the converged signals, so the coupling error of the step is
+that interpolant's error, ``O(H^(q+1))``. It is estimated as the difference, at the
+step's midpoint, between the fed interpolant (nodes T(n+1), T(n), ..., T(n+1-q)) and
+the one of order q+1 (one older node more): orders q and q+1, as in Meyer, Kraft &
+Schweizer, J. Comput. Nonlinear Dyn. 16 (2021) 041002 (:meth:`error_signals`). The
+extrapolation error ``y(T+H) - P_k(T+H)`` the explicit scheme uses is *not* an
+estimate here: it measures only how good the first iterate was (``O(H^(k+1))``, with
+k = 0 the size of one step's change), and driving the step by it made a run with
+``extrapolation_order: 0`` and a small ``atol`` creep at 1e-7 s steps for minutes.
 """
 
 from __future__ import annotations
@@ -36,10 +54,10 @@ import math
 
 import numpy as np
 
-from orchestrator.coupling.acceleration import make_acceleration, solve_fixed_point
+from orchestrator.coupling.acceleration import PassRejected, make_acceleration, solve_fixed_point
 from orchestrator.coupling.macro_step import MacroStep
 from orchestrator.coupling.signals import lagrange_weights
-from orchestrator.errors import CouplingError
+from orchestrator.errors import CouplingError, FmuCallError
 from orchestrator.scenario.model import IterationSpec
 
 
@@ -84,6 +102,27 @@ class IterativeMacroStep(MacroStep):
         past = (hist.times[1:p + 2] - t) / h
         return lagrange_weights(past, [1.0])[0] @ hist.store[1:p + 2]
 
+    @property
+    def error_order(self) -> int:
+        """Order in H of :meth:`error_signals` (q + 1): the PI controller's exponent."""
+        return self.predictor.q + 1
+
+    def error_signals(self):
+        """After a committed step: ``(fed, higher)``, the fed order-q interpolant and the order-(q+1)
+        one at the step's midpoint (module docstring), or None while the history is too short
+        for the order-(q+1) interpolant (the controller then uses the prediction error)."""
+        hist = self.history
+        q = min(self.predictor.q, hist.count - 1)
+        if hist.count < q + 2:
+            return None
+        t1, t0 = hist.times[1], hist.times[2]
+        h = t1 - t0
+        nodes = (hist.times[1:q + 3] - t0) / h           # 1, 0, -h1/h, ...
+        store = hist.store
+        fed = lagrange_weights(nodes[:q + 1], [0.5])[0] @ store[1:q + 2]
+        higher = lagrange_weights(nodes, [0.5])[0] @ store[1:q + 3]
+        return fed, higher
+
     def step(self, t: float, t_next: float) -> None:
         hist = self.history
         store = hist.store
@@ -99,7 +138,12 @@ class IterativeMacroStep(MacroStep):
                 self.restore(cp)
             first[0] = False
             store[0] = x
-            self.advance(t, t_next, commit=False, startup_q=q)
+            try:
+                self.advance(t, t_next, commit=False, startup_q=q)
+            except FmuCallError as e:       # an FMU refused this iterate: backtrack (acceleration.py)
+                if e.status == "discard" and not self.fmu_ended(e):
+                    raise PassRejected(e) from e
+                raise
             return store[0].copy()
 
         try:

@@ -166,21 +166,3 @@ class DiscardHalving(ConstantStep):
             finally:
                 if cp is not cp_a:
                     stepper.release(cp)
-
-
-def controller_from_spec(scenario) -> StepSizeController:
-    """The controller of ``scenario.coupling`` (discard_retries > 0: :class:`DiscardHalving`;
-    step_control type error: :class:`orchestrator.coupling.adaptive.ErrorControlled`)."""
-    c = scenario.coupling
-    n_retry = getattr(c, "discard_retries", 0)
-    sc = getattr(c, "step_control", None)
-    if sc is not None and sc.type == "error":
-        from orchestrator.coupling.adaptive import ErrorControlled    # (adaptive imports this module)
-        if n_retry:
-            raise ScenarioError("coupling.step_control type error and coupling.discard_retries cannot be combined "
-                                "(the error-controlled step has its own rejection); set discard_retries: 0")
-        return ErrorControlled(sc, t0=scenario.start_time, t_stop=scenario.stop_time, h0=c.macro_step,
-                               interval=scenario.output.interval or c.macro_step, order=c.extrapolation_order + 1)
-    if n_retry:
-        return DiscardHalving(scenario.start_time, scenario.stop_time, c.macro_step, n_retry)
-    return ConstantStep(scenario.start_time, scenario.stop_time, c.macro_step)
