@@ -213,6 +213,10 @@ class FloatingRingBearing(Fmi2Slave):
             raise ValueError(f"parameter 'init' must be 'flooded' or 'stationary' (got {v['init']!r})")
         model = FloatingRing(self._ring_params())
         ring = "equilibrium" if v["ring_init"] == "equilibrium" else (v["x_ring0"], v["y_ring0"], 0.0, 0.0)
+        if ring != "equilibrium" and not any(self._inputs()):
+            # inputs not set yet (an output read early in initialization mode): a provisional
+            # ring concentric with the journal; the model is rebuilt when the inputs arrive
+            ring = (0.0, 0.0, 0.0, 0.0)
         om0 = None if v["omega_ring0"] < 0 else v["omega_ring0"]
         model.initialize(*self._inputs(), ring=ring, omega_ring=om0, init=v["init"])
         self._model = model

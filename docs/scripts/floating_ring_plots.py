@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.analysis import WhirlParams, read_results, waterfall
+from orchestrator.results.run_directory import read_results
+from orchestrator.results.whirl import WhirlParams, waterfall
 
 
 def main(run_dir, prefix, bearing="bearing1", station="1"):

@@ -13,18 +13,8 @@ import sys
 
 import numpy as np
 
-from bearing_fmu.floating_ring import RingParams
-from bearing_fmu.model import BearingParams
+from rotor_fmu.floating_ring_growth import jeffcott_floating_ring
 from rotor_fmu.floating_ring_stability import ring_system_eigen, ring_threshold_speed
-from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
-
-
-def jeffcott_floating_ring(cavitation=0, n=40):
-    rotor = JeffcottRotor(JeffcottParams(m_disc=5.0, m_journal=0.5, d_external=500.0))
-    inner = BearingParams(R=4.9e-3, B=7.84e-3, psi=2.8e-3, eta0=0.012, n_phi=n, n_z=n, cavitation=cavitation)
-    outer = BearingParams(R=7.84e-3, B=7.84e-3, psi=3.5e-3, eta0=0.012, n_phi=n, n_z=n, cavitation=cavitation)
-    ring = RingParams(inner=inner, outer=outer, m_ring=7.3e-3, J_ring=3.1e-7)
-    return rotor, [ring, ring]
 
 
 def main(f_lo=690.0, f_hi=760.0):
