@@ -23,7 +23,6 @@ from __future__ import annotations
 import copy
 import math
 import pickle
-from pathlib import Path
 from typing import Any
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, String
@@ -32,8 +31,9 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 from bearing_fmu import journal_bearing as _jb  # the bearing's variable tables and code cache
 from fmu_common.slave import (
-    InitializationStateError, RealU, check_shipped_layout, check_step_start, exit_initialization_mode,
-    finish_model_description, guard_callbacks, setup_experiment)
+    RealU, check_shipped_layout, check_step_start, exit_initialization_mode, finish_model_description,
+    guard_callbacks, input_setter, output_getter, param_setter, refresh_coefficients, setup_experiment,
+    value_getter)
 
 _FILM_REAL = {   # per film (suffix _inner / _outer): name -> (inner default, outer default, unit, description)
     "R": (4.9e-3, 7.84e-3, "m", "film radius: journal radius (inner), ring outer radius (outer) [m]"),
@@ -154,30 +154,10 @@ class FloatingRingBearing(Fmi2Slave):
         self.register_variable(RealU(name, unit=unit, description=desc, getter=getter,
                                           setter=setter, **kw))
 
-    def _getter(self, name):
-        return lambda: self._values[name]
-
-    def _output_getter(self, name):
-        def get():
-            if not self._initialized:
-                self._ensure_model()
-            return self._values[name]
-        return get
-
-    def _param_setter(self, name, kind):
-        def set_(value):
-            value = kind(value)
-            if self._initialized and value != self._values[name]:
-                raise InitializationStateError(
-                    f"parameter '{name}' is fixed after initialization (tried {value!r}, has "
-                    f"{self._values[name]!r}); set it before fmi2ExitInitializationMode")
-            self._values[name] = value
-        return set_
-
-    def _input_setter(self, name):
-        def set_(value):
-            self._values[name] = float(value)
-        return set_
+    _getter = value_getter
+    _output_getter = output_getter
+    _param_setter = param_setter
+    _input_setter = input_setter
 
     def to_xml(self, model_options: dict[str, str] = dict()):  # noqa: B006 (PythonFMU's signature)
         units = {v[1] for v in REAL_PARAMETERS.values()}
@@ -227,17 +207,7 @@ class FloatingRingBearing(Fmi2Slave):
         out = self._model.outputs
         for name in OUTPUTS:
             self._values[name] = float(out[name])
-        n_lin = int(self._values["linearize"])
-        if n_lin > 0:
-            age = int(self._values.get("_lin_age", n_lin))
-            if age >= n_lin or not self._initialized:
-                K, C = self._model.linearization()
-                for m, kind in ((K, "k"), (C, "c")):
-                    for a, i in enumerate("xy"):
-                        for b, j in enumerate("xy"):
-                            self._values[f"{kind}{i}{j}"] = float(m[a, b])
-                age = 0
-            self._values["_lin_age"] = age + 1
+        refresh_coefficients(self, self._model.linearization)
 
     # -- FMI life cycle ---------------------------------------------------------------
     setup_experiment = setup_experiment

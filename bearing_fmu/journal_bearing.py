@@ -54,7 +54,8 @@ from pythonfmu.variables import Boolean
 
 from fmu_common.slave import (
     RealU, check_shipped_layout, check_step_start, exit_initialization_mode, finish_model_description,
-    get_slave_state, guard_callbacks, input_setter, journal_kinematics, output_getter, param_setter, set_slave_state,
+    get_slave_state, guard_callbacks, input_setter, journal_kinematics, output_getter, param_setter,
+    refresh_coefficients, set_slave_state,
     scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
 
 log = logging.getLogger(__name__)
@@ -401,18 +402,8 @@ class JournalBearing(Fmi2Slave):
             raise KeyError(f"bearing model outputs lack {missing}; it provides {sorted(out)}")
         for name in OUTPUTS:
             self._values[name] = float(out.get(name, 0.0))
-        n_lin = int(self._values.get("linearize", 0))
-        if n_lin > 0:   # every n_lin-th step (held in between; "_lin_age" is in the FMU state)
-            age = int(self._values.get("_lin_age", n_lin))
-            if age >= n_lin or not self._initialized:
-                from bearing_fmu.linearize import linearization
-                K, C = linearization(self._model)
-                for m, kind in ((K, "k"), (C, "c")):
-                    for a, i in enumerate("xy"):
-                        for b, j in enumerate("xy"):
-                            self._values[f"{kind}{i}{j}"] = float(m[a, b])
-                age = 0
-            self._values["_lin_age"] = age + 1
+        from bearing_fmu.linearize import linearization
+        refresh_coefficients(self, lambda: linearization(self._model))
 
     # -- FMI life cycle --------------------------------------------------------
     setup_experiment = setup_experiment

@@ -214,6 +214,24 @@ def input_setter(self, name: str):
     return set_
 
 
+def refresh_coefficients(self, linearization: Callable[[], tuple]) -> None:
+    """Film coefficient outputs ``kxx..cyy`` for interface-Jacobian coupling: recomputed by
+    ``linearization() -> (K, C)`` every ``linearize``-th step (and while not initialized),
+    held in between; ``_values["_lin_age"]`` counts the steps (it is in the FMU state)."""
+    n_lin = int(self._values.get("linearize", 0))
+    if n_lin <= 0:
+        return
+    age = int(self._values.get("_lin_age", n_lin))
+    if age >= n_lin or not self._initialized:
+        K, C = linearization()
+        for m, kind in ((K, "k"), (C, "c")):
+            for a, i in enumerate("xy"):
+                for b, j in enumerate("xy"):
+                    self._values[f"{kind}{i}{j}"] = float(m[a, b])
+        age = 0
+    self._values["_lin_age"] = age + 1
+
+
 # life cycle shared by the slaves (``self._time``, ``self._start_time``, ``self._initialized``)
 def setup_experiment(self, start_time: float, stop_time=None, tolerance=None):
     self._start_time = float(start_time)
