@@ -20,9 +20,7 @@ made PythonFMU 0.7.0 crash (segfault) on the second instantiation in a process.
 
 from __future__ import annotations
 
-import copy
 import math
-import pickle
 from typing import Any
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, String
@@ -32,8 +30,8 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from bearing_fmu import journal_bearing as _jb  # the bearing's variable tables and code cache
 from fmu_common.slave import (
     RealU, check_shipped_layout, check_step_start, exit_initialization_mode, finish_model_description,
-    guard_callbacks, input_setter, output_getter, param_setter, refresh_coefficients, setup_experiment,
-    value_getter)
+    get_slave_state, guard_callbacks, input_setter, output_getter, param_setter, refresh_coefficients,
+    set_slave_state, setup_experiment, state_from_bytes, state_to_bytes, value_getter)
 
 _FILM_REAL = {   # per film (suffix _inner / _outer): name -> (inner default, outer default, unit, description)
     "R": (4.9e-3, 7.84e-3, "m", "film radius: journal radius (inner), ring outer radius (outer) [m]"),
@@ -231,27 +229,10 @@ class FloatingRingBearing(Fmi2Slave):
 
     # -- FMU state ----------------------------------------------------------------------
     def _get_fmu_state(self) -> dict[str, Any]:
-        return {"values": dict(self._values), "time": self._time, "initialized": self._initialized,
-                "init_key": self._init_key,
-                "model": None if self._model is None else copy.deepcopy(self._model.get_state())}
+        return get_slave_state(self, {})
 
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
-        if state["model"] is not None and self._model is None:
-            self._values.update(state["values"])
-            self._ensure_model()
-        self._values = dict(state["values"])
-        self._time = state["time"]
-        self._initialized = state["initialized"]
-        self._init_key = state["init_key"]
-        if state["model"] is None:
-            self._model = None
-        else:
-            self._model.set_state(copy.deepcopy(state["model"]))
+        set_slave_state(self, state, {})
 
-    @staticmethod
-    def _fmu_state_to_bytes(state: dict[str, Any]) -> bytes:
-        return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
-
-    @staticmethod
-    def _fmu_state_from_bytes(state: bytes) -> dict[str, Any]:
-        return pickle.loads(state)
+    _fmu_state_to_bytes = staticmethod(state_to_bytes)
+    _fmu_state_from_bytes = staticmethod(state_from_bytes)
