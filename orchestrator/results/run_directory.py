@@ -78,13 +78,15 @@ def read_results_parquet(path: str | Path) -> dict[str, np.ndarray]:
         raise ValueError(f"{path}: not a readable Parquet file ({type(exc).__name__}: {exc})") from None
     if "time" not in table.column_names:
         raise ValueError(f"{path}: no 'time' column (columns: {', '.join(table.column_names[:8])})")
+    import pyarrow as pa
     out = {}
     for name in table.column_names:
-        values = table.column(name).to_pylist()
-        try:
-            out[name] = np.asarray([np.nan if v is None else v for v in values], dtype=float)
-        except (TypeError, ValueError):
-            out[name] = np.asarray(values, dtype=object)
+        col = table.column(name)
+        if pa.types.is_integer(col.type) or pa.types.is_floating(col.type) or pa.types.is_boolean(col.type):
+            # whole columns at once (no Python list per row); nulls become NaN
+            out[name] = np.asarray(col.cast(pa.float64()).to_numpy(zero_copy_only=False), dtype=float)
+        else:
+            out[name] = np.asarray(col.to_pylist(), dtype=object)
     return out
 
 
