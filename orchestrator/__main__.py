@@ -1,8 +1,6 @@
 """``python -m orchestrator``: the rotorcosim command line."""
 
-import sys
-
-from orchestrator.cli import main
+from orchestrator.cli import console_main
 
 if __name__ == "__main__":
-    sys.exit(main())
+    console_main()

@@ -496,3 +496,36 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     finally:
         warnings.formatwarning = previous
+
+
+def console_main() -> None:
+    """Entry point of the ``rotorcosim`` command and ``python -m orchestrator``: :func:`main`, then exit.
+
+    When this process loaded an FMU's shared library in-process (any ``isolation: none`` FMU,
+    which is the default), it leaves through ``os._exit`` after running the ``atexit``
+    handlers (multiprocessing's, which stop worker processes; the temporary folders') and
+    flushing the output and the logs, instead of the interpreter's teardown. Why: the
+    teardown frees the Python objects of PythonFMU-built FMUs (ours are), and PythonFMU
+    0.7.0 aborts there intermittently with glibc's "corrupted double-linked list"
+    (SIGABRT, exit 134) although the run has finished and every file is closed: seen in
+    compare worker processes (4 of 7 runs of compare/ci_jeffcott_mc.yaml, which leave the
+    same way, orchestrator/compare/__main__.py) and once in CI's ``rotorcosim validate`` of a
+    shipped scenario (1 in about 170 processes). A crash during a run still shows as one.
+    """
+    code = main()
+    subsystem = sys.modules.get("orchestrator.fmi.subsystem")
+    if subsystem is None or not subsystem.native_fmu_loaded:
+        sys.exit(code)
+    import atexit
+    import os
+    try:
+        atexit._run_exitfuncs()
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except Exception:   # a closed pipe: nothing more can be said
+                pass
+        logging.shutdown()
+        os._exit(code)
+

@@ -60,6 +60,24 @@ def test_validate_subprocess_no_traceback(sdir):
     assert "'left' has no variable 'x'" in proc.stdout and "2 problems found" in proc.stderr
 
 
+def test_console_exit_without_teardown_keeps_output_and_code(sdir, tmp_path):
+    """With an FMU loaded in-process the command leaves through os._exit (cli.console_main):
+    the piped (block-buffered) output is still flushed, atexit handlers still run, and the
+    exit code is the command's."""
+    proc = run_cli("validate", sdir / "two_mass.yaml")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.rstrip().endswith("macro step 0.001 s)")
+    marker = tmp_path / "atexit-ran"
+    code = ("import atexit, pathlib, sys; from orchestrator import cli; "
+            f"atexit.register(lambda: pathlib.Path({str(marker)!r}).write_text("
+            "str(sys.modules['orchestrator.fmi.subsystem'].native_fmu_loaded))); "
+            f"sys.argv = ['rotorcosim', 'run', {str(sdir / 'two_mass.yaml')!r}, '--out', {str(tmp_path / 'o')!r}, "
+            "'--no-progress']; cli.console_main()")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "status: finished" in proc.stdout, proc.stderr
+    assert marker.read_text() == "True"     # the os._exit path was taken, after the atexit handlers
+
+
 def test_validate_good_file(sdir, capsys):
     assert main(["validate", str(sdir / "two_mass.yaml")]) == 0
     out = capsys.readouterr().out

@@ -45,6 +45,11 @@ from orchestrator.fmi.archive import ModelDescription, Variable, binary_path, re
 from orchestrator.fmi.bundled_python import own_imports
 from orchestrator.fmi.values import FAMILY, TypedBatch, settable_problem
 
+
+#: True once this process has loaded an FMU's shared library in-process (read by
+#: :func:`orchestrator.cli.console_main`, which then skips the interpreter's teardown).
+native_fmu_loaded = False
+
 log = logging.getLogger(__name__)
 
 STATUS_NAMES = ("ok", "warning", "discard", "error", "fatal", "pending")
@@ -289,6 +294,8 @@ class Subsystem(SubsystemBase):
 
         from fmpy.fmi2 import FMU2Slave
 
+        global native_fmu_loaded
+        native_fmu_loaded = True     # the CLI then leaves without interpreter teardown (cli.console_main)
         try:
             self._slave = FMU2Slave(guid=self.md.guid, unzipDirectory=str(self.unzip_dir),
                                     modelIdentifier=self.md.model_identifier, instanceName=name)

@@ -188,3 +188,8 @@ def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) 
 
 if __name__ == "__main__":       # started by WorkerSubsystem
     _serve(int(sys.argv[1]), int(sys.argv[2]), *sys.argv[3:6])
+    # leave without the interpreter's teardown, where PythonFMU-built FMUs abort
+    # intermittently (orchestrator.cli.console_main); the FMU is freed and the reply sent
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
