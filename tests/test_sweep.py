@@ -185,7 +185,10 @@ def warm():
 
 
 def _child_pid(warm_mod):
-    return warm_mod._CURRENT.proc.pid if warm_mod._CURRENT is not None else None
+    """The pid of this process's one idle warm child (None when there is none)."""
+    pids = warm_mod.warm_pids()
+    assert not pids["busy"] and len(pids["idle"]) <= 1, pids
+    return pids["idle"][0] if pids["idle"] else None
 
 
 def test_warm_process_runs_many_scenarios_like_fresh_processes(sdir, warm):
@@ -209,6 +212,30 @@ def test_warm_process_runs_many_scenarios_like_fresh_processes(sdir, warm):
     again = execute_run(scen, ["fmus.f.parameters.t_fail=0.5"], str(runs / "again"))
     assert again["status"] == "finished" and _child_pid(warm) not in (None, pid)
     assert (runs / "again" / "results.csv").read_bytes() == (runs / "a" / "results.csv").read_bytes()
+
+
+def test_prestarted_warm_processes_serve_concurrent_runs(sdir, warm):
+    """prestart() starts the children before the first run; two runs at once (two worker
+    threads of one process, as in the local cluster) take two different prestarted children
+    and give them back; results are those of a fresh process."""
+    from concurrent.futures import ThreadPoolExecutor
+    scen, runs = str(sdir / "ramp.yaml"), sdir / "runs"
+    warm.prestart(str(runs), 2)
+    started = set(warm.warm_pids()["idle"])
+    assert len(started) == 2
+    warm.prestart(str(runs), 2)                       # idle ones for the same folder count
+    assert set(warm.warm_pids()["idle"]) == started
+    with ThreadPoolExecutor(2) as pool:
+        recs = list(pool.map(lambda i: execute_run(scen, [f"fmus.f.parameters.t_fail={0.5 + i / 10}"],
+                                                   str(runs / f"c{i}")), range(4)))
+    assert [r["status"] for r in recs] == ["finished"] * 4, recs
+    assert set(warm.warm_pids()["idle"]) == started and not warm.warm_pids()["busy"]
+    fresh = execute_run(scen, ["fmus.f.parameters.t_fail=0.5"], str(runs / "f0"), warm=False)
+    assert fresh["status"] == "finished"
+    assert (runs / "c0" / "results.csv").read_bytes() == (runs / "f0" / "results.csv").read_bytes()
+    other = execute_run(scen, ["fmus.f.parameters.t_fail=0.5"], str(sdir / "elsewhere" / "runs" / "x"))
+    assert other["status"] == "finished"              # another sweep folder: a new child, the old ones retired
+    assert not set(warm.warm_pids()["idle"]) & started and not any(psutil_alive(p) for p in started)
 
 
 def psutil_alive(pid: int) -> bool:

@@ -13,8 +13,6 @@ from __future__ import annotations
 import json
 import logging
 import os
-import signal
-import threading
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -96,7 +94,8 @@ def connect(scheduler: str | None, workers: int | None):
 
     ``scheduler`` (or the environment variable ``DASK_SCHEDULER_ADDRESS``): the address of a
     running scheduler, e.g. ``tcp://10.0.0.5:8786``; otherwise a LocalCluster of ``workers``
-    (default: the number of cores) single-threaded worker processes on 127.0.0.1.
+    (default: the number of cores) single-threaded workers, threads of this process (each run
+    executes in a process of its own, :mod:`orchestrator.sweep.task`).
     """
     try:
         from distributed import Client, LocalCluster
@@ -115,28 +114,27 @@ def connect(scheduler: str | None, workers: int | None):
             raise CosimError(f"cannot reach the Dask scheduler at {address} ({exc}); start it (`dask scheduler`) "
                              "and its workers (`dask worker ADDRESS`), or leave out --scheduler for a local "
                              "cluster") from None
-    n = (os.cpu_count() or 1) if workers is None else workers
-    if n < 1:
-        raise CosimError(f"--workers must be at least 1 (got {n})")
-    # The worker processes start with Ctrl-C (SIGINT) ignored, which their runs inherit: a Ctrl-C
-    # in the terminal reaches the whole process group, and only the client should handle it
-    # (cancel, write the table, close the cluster; closing it ends the running runs).
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
-    try:
-        import dask
-        with dask.config.set(QUIET_LOCAL_CLUSTER):
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                   dashboard_address=None, silence_logs=logging.ERROR,
-                                   scheduler_kwargs={"dashboard_address": ":0"})   # its HTTP port: any free one
-            client = Client(cluster)
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
+    n = local_size(workers)
+    import dask
+    with dask.config.set(QUIET_LOCAL_CLUSTER):
+        # The workers are threads of this process (processes=False), one single-threaded worker
+        # per core: every run executes in a run process of its own (task.execute_run), so a
+        # worker only waits for its run process. Worker processes (a nanny and a worker each)
+        # cost ~2 s wall and ~2 s CPU to start and 0.5 s to close on this 2-core host, and they
+        # doubled the processes of a warm sweep (BENCHMARKS.md, "Sweeps", session 3).
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=False,
+                               dashboard_address=None, silence_logs=logging.ERROR,
+                               scheduler_kwargs={"dashboard_address": ":0"})   # its HTTP port: any free one
+        client = Client(cluster)
     return client, cluster
 
 
-def _main_thread() -> bool:
-    return threading.current_thread() is threading.main_thread()
+def local_size(workers: int | None) -> int:
+    """The number of workers of the local cluster: ``workers``, default the number of cores."""
+    n = (os.cpu_count() or 1) if workers is None else workers
+    if n < 1:
+        raise CosimError(f"--workers must be at least 1 (got {n})")
+    return n
 
 
 def _quiet_dask() -> None:
@@ -205,6 +203,11 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
         client = cluster = futures = None
         bar = _progress(len(todo), progress)
         try:
+            if warm and not (scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")):
+                # the local workers are threads of this process and their run processes its
+                # children: start them now, they import the run's libraries while the cluster starts
+                from orchestrator.sweep.warm import prestart
+                prestart(str(runs_dir), min(local_size(workers), len(todo)))
             client, cluster = connect(scheduler, workers)
             if warm:                              # each worker reaps its warm run process when it closes
                 from orchestrator.sweep.warm import WarmPlugin

@@ -34,11 +34,15 @@ _STDERR_TAIL = 600
 
 def _die_with_parent() -> None:          # pragma: no cover - runs in the child before exec
     """Linux: the run gets SIGTERM when the worker that started it dies (a killed worker must
-    not leave an orphaned simulation behind); elsewhere a no-op."""
+    not leave an orphaned simulation behind), and starts with Ctrl-C (SIGINT) ignored: Ctrl-C
+    belongs to the sweep's client, which cancels and closes the cluster (a run installs its own
+    SIGINT handling while it steps); elsewhere a no-op."""
     try:
         import ctypes
         libc = ctypes.CDLL("libc.so.6", use_errno=True)
         libc.prctl(1, signal.SIGTERM)     # PR_SET_PDEATHSIG
+        libc.signal.argtypes = (ctypes.c_int, ctypes.c_void_p)
+        libc.signal(int(signal.SIGINT), ctypes.c_void_p(1))   # SIG_IGN
     except (OSError, AttributeError):
         pass
 

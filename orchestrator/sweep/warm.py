@@ -34,7 +34,8 @@ import threading
 import time
 from multiprocessing.connection import Connection
 
-__all__ = ["WarmProcess", "WarmPlugin", "warm_run", "close_warm", "MAX_RUNS", "IDLE_EXIT_S"]
+__all__ = ["WarmProcess", "WarmPlugin", "warm_run", "prestart", "close_warm", "warm_pids", "MAX_RUNS",
+           "IDLE_EXIT_S"]
 
 MAX_RUNS = int(os.environ.get("ROTORCOSIM_SWEEP_RUNS_PER_PROCESS", "50") or 50)
 IDLE_EXIT_S = 600.0
@@ -102,8 +103,13 @@ class WarmProcess:
         self.kill()
 
 
+# The pool of this process's warm children: idle ones wait in _IDLE, each run takes one (or
+# starts one) and gives it back when the run ended with exit code 0. A Dask worker thread runs
+# one task at a time, so a process with N worker threads (the local cluster's workers are
+# threads of the sweep's process, runner.connect) has at most N children busy at once.
 _LOCK = threading.Lock()
-_CURRENT: WarmProcess | None = None
+_IDLE: list[WarmProcess] = []
+_BUSY: set[WarmProcess] = set()
 _ATEXIT: list[bool] = []
 
 
@@ -114,49 +120,83 @@ def _register_atexit() -> None:
         _ATEXIT.append(True)
 
 
-def warm_run(argv: list[str], log_path: str, label: str, timeout_s: float | None = None) -> tuple[int, bool]:
-    """Run ``python -m orchestrator ARGV`` in this process's warm child (started when needed):
-    (exit code, timed out); a negative code is the signal that ended the child. One run at a
-    time per process."""
-    global _CURRENT
+def prestart(label: str, n: int) -> None:
+    """Start ``n`` warm children for the sweep folder ``label`` now, without waiting for them:
+    they import the run's libraries while the cluster starts (the sweep's first runs then find
+    them ready). Children already idle for ``label`` count."""
     with _LOCK:
-        if _CURRENT is not None and (not _CURRENT.alive() or _CURRENT.label != label
-                                     or _CURRENT.runs >= MAX_RUNS):
-            _CURRENT.close()
-            _CURRENT = None
-        if _CURRENT is None:
-            _CURRENT = WarmProcess(label)
+        have = sum(1 for w in _IDLE if w.label == label and w.alive())
+        for _ in range(max(0, n - have)):
+            _IDLE.append(WarmProcess(label))
+        _register_atexit()
+
+
+def _take(label: str) -> WarmProcess:
+    """An idle child for ``label`` (started when there is none); retires unusable idle ones."""
+    stale = []
+    with _LOCK:
+        chosen = None
+        for w in list(_IDLE):
+            if not w.alive() or w.runs >= MAX_RUNS or w.label != label:
+                _IDLE.remove(w)
+                stale.append(w)
+            elif chosen is None:
+                _IDLE.remove(w)
+                chosen = w
+        if chosen is None:
+            chosen = WarmProcess(label)
             _register_atexit()
-        rc, survived, timed_out = _CURRENT.run(argv, log_path, timeout_s)
-        if rc != 0 or not survived:           # failed or crashed: the next run gets a fresh child
-            if survived:
-                _CURRENT.close()
-            else:
-                _CURRENT.kill()
-            _CURRENT = None
-        return rc, timed_out
+        _BUSY.add(chosen)
+    for w in stale:
+        w.close()
+    return chosen
+
+
+def warm_run(argv: list[str], log_path: str, label: str, timeout_s: float | None = None) -> tuple[int, bool]:
+    """Run ``python -m orchestrator ARGV`` in one of this process's warm children (started when
+    none is idle): (exit code, timed out); a negative code is the signal that ended the child.
+    Thread-safe: concurrent runs get different children."""
+    wp = _take(label)
+    try:
+        rc, survived, timed_out = wp.run(argv, log_path, timeout_s)
+    except BaseException:
+        wp.kill()
+        raise
+    finally:
+        with _LOCK:
+            _BUSY.discard(wp)
+    if rc == 0 and survived:
+        with _LOCK:
+            _IDLE.append(wp)
+    elif survived:                        # failed: the next run gets a fresh child
+        wp.close()
+    else:
+        wp.kill()
+    return rc, timed_out
+
+
+def warm_pids() -> dict[str, list[int]]:
+    """The process ids of this process's warm children, idle and busy (for tests and diagnostics)."""
+    with _LOCK:
+        return {"idle": [w.proc.pid for w in _IDLE], "busy": [w.proc.pid for w in _BUSY]}
 
 
 def close_warm() -> None:
-    """End this process's warm child, if any, and reap it (so that its CPU time is accounted to
-    the worker). Between runs it is asked to exit; during a run it gets SIGTERM (the run stops
-    as on SIGTERM and that task reports it), so a closing worker never waits for a long run."""
-    global _CURRENT
-    cur = _CURRENT
-    if cur is None:
-        return
-    if _LOCK.acquire(blocking=False):
+    """End this process's warm children and reap them (so that their CPU time is accounted to
+    this process). Idle ones are asked to exit; busy ones get SIGTERM (the run stops as on
+    SIGTERM and its task reports it), so a closing worker never waits for a long run."""
+    with _LOCK:
+        idle, busy = list(_IDLE), list(_BUSY)
+        _IDLE.clear()
+    for w in idle:
+        w.close()
+    for w in busy:
+        w.proc.terminate()
+    for w in busy:
         try:
-            cur.close()
-            _CURRENT = None
-        finally:
-            _LOCK.release()
-        return
-    cur.proc.terminate()
-    try:
-        cur.proc.wait(timeout=30)
-    except subprocess.TimeoutExpired:
-        cur.proc.kill()
+            w.proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            w.proc.kill()
 
 
 try:
@@ -245,10 +285,45 @@ def _run_one(main, argv: list[str], log_path: str) -> int:
         forget_vanished(modules_before, path_before)
 
 
+# What a fresh ``rotorcosim run`` of the shipped scenarios imports anyway, in the order it
+# does: the orchestrator's run path, fmpy and pythonfmu (before any FMU is loaded), and the
+# third-party libraries the shipped FMUs' code imports from the environment (numpy,
+# scipy.linalg, numba). Nothing of an FMU's own code (its resources/ folder) is imported here:
+# each run imports that from its own extraction, as a fresh process does.
+PRELOAD = ("orchestrator.cli", "orchestrator.scenario", "orchestrator.scenario.ssp", "orchestrator.workflow",
+           "orchestrator.results.run_directory", "orchestrator.results.whirl", "orchestrator.fmi.build",
+           "orchestrator.shipped", "fmpy", "pythonfmu", "numpy", "scipy.linalg", "numba")
+
+
+def preload() -> float:
+    """Import :data:`PRELOAD` and set up numba's CPU target (its first use in a process loads
+    ~250 lowering registries, ~0.4 s): the fixed cost of a run process's first run, paid while
+    the process waits for it (BENCHMARKS.md, "Sweeps", session 3). A module that fails to
+    import is skipped (the run that needs it reports it). Returns the seconds it took."""
+    import importlib
+    t0 = time.perf_counter()
+    for name in PRELOAD:
+        try:
+            importlib.import_module(name)
+        except Exception:                     # noqa: BLE001 - a run that needs it reports it
+            continue
+    try:
+        from numba.core.registry import cpu_target
+        cpu_target.target_context.refresh()
+    except Exception:                         # noqa: BLE001 - numba missing or changed: no preload
+        pass
+    return time.perf_counter() - t0
+
+
 def serve(fd: int) -> None:
     """The child's loop: run requests until the parent closes the connection or sends None."""
     conn = Connection(fd)
+    # Ctrl-C belongs to the sweep's client (it cancels and closes the cluster); a run installs
+    # its own SIGINT/SIGTERM handling while it runs (orchestrator.coupling.lifecycle)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_watch_parent, args=(os.getppid(),), daemon=True).start()
+    if os.environ.get("ROTORCOSIM_SWEEP_PRELOAD", "1") != "0":
+        preload()
     from orchestrator.cli import main
     while conn.poll(IDLE_EXIT_S):
         try:
