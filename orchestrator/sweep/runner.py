@@ -141,6 +141,10 @@ def _quiet_dask() -> None:
     """Dask logs every scheduler and worker event at INFO; keep its errors only (unless debugging)."""
     if not logging.getLogger().isEnabledFor(logging.DEBUG):
         logging.getLogger("distributed").setLevel(logging.ERROR)
+        # after Ctrl-C, distributed's sync() cancels its pending call with a loop callback that
+        # may find it already done and log a harmless traceback through tornado (the local
+        # cluster's loop runs in this process); a run's failure is a row, not a log line
+        logging.getLogger("tornado.application").setLevel(logging.CRITICAL)
 
 
 def _progress(total: int, enabled: bool | None):
