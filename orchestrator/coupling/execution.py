@@ -148,6 +148,9 @@ class MasterAlgorithm:
                 self._work_dir = ExtractionPool()      # one extraction per FMU file, shared
                 for f in sc.fmus:
                     self.subsystems[f.name] = self._load(f)
+                for sub in self.subsystems.values():   # the workers started side by side
+                    if isinstance(sub, WorkerSubsystem):
+                        sub.ready()
             for f in sc.fmus:
                 self.subsystems[f.name].set_parameters(dict(f.parameters), out_dir=self.out_dir)
             self._plan()
@@ -164,7 +167,7 @@ class MasterAlgorithm:
         if mode == "process":
             # the worker extracts its own copy under this run's extraction folder (removed with it)
             return WorkerSubsystem(f.name, f.path, work_dir=self._work_dir.root / "workers",
-                                   call_timeout=getattr(c, "call_timeout", None))
+                                   call_timeout=getattr(c, "call_timeout", None), wait=False)
         return Subsystem(f.name, f.path, extraction=self._work_dir)
 
     def _stages(self) -> list:
@@ -173,7 +176,7 @@ class MasterAlgorithm:
         member runs in a worker process, workers first (they compute while in-process members step)."""
         links = [(c.src_instance, c.dst_instance) for c in self.scenario.connections]
         by_name = {u.name: u for u in self.units}
-        parallel = bool(getattr(self.scenario.coupling, "parallel", True))
+        parallel = self._parallel()
         out = []
         for st in make_stages([u.name for u in self.units], links, self.scheme.uses_new_value):
             members = [by_name[n] for n in st.names]
@@ -309,6 +312,7 @@ class MasterAlgorithm:
         """
         store = self.history.store
         t0 = self.grid.time(0)
+        workers = [u for u in self.units if isinstance(u.sub, WorkerSubsystem)] if self._parallel() else None
 
         def exchange(x=None):
             if x is not None:
@@ -316,9 +320,7 @@ class MasterAlgorithm:
                 self._push_inputs()
             if self.discrete.active:
                 self.discrete.exchange_all()
-            for u in self.units:
-                u.sub.get_real(u.outb)
-                self.stepper.propagate(u, t0)
+            self.stepper.read_outputs(t0, workers)
             return store[0].copy()
 
         x = exchange()
@@ -347,6 +349,9 @@ class MasterAlgorithm:
             f"{', '.join(loop) if loop else 'not a cycle of connections (an FMU output that keeps changing)'}. "
             "The loop's equations have no (or no reachable) solution: check the gains, offsets and the FMUs' "
             "feedthrough in it, or break it with a state (e.g. a first-order lag)")
+
+    def _parallel(self) -> bool:
+        return bool(getattr(self.scenario.coupling, "parallel", True))
 
     def _push_inputs(self) -> None:
         for u in self.units:

@@ -200,6 +200,39 @@ class MacroStep:
         if first is not None:
             raise first
 
+    def read_outputs(self, t: float, ask_first: list | None = None) -> None:
+        """Every unit's outputs now into the consumers' newest level, in stepping order (the
+        initial exchange at t0: nothing reaches an FMU between these reads).
+
+        ``ask_first``: units in worker processes (``coupling.parallel``); when there are two or
+        more, each is asked first (``request_real``), so all compute at once (a bearing FMU
+        builds its film at its first output: numba kernels and the stationary film, about a
+        second each), then the values are read and propagated in order: the result is that of
+        one read after the other. As in :meth:`collect`, every asked
+        worker's reply is read before the first failure is raised.
+        """
+        asked = ask_first or []
+        if len(asked) < 2:
+            for u in self.units:
+                u.sub.get_real(u.outb)
+                self.propagate(u, t)
+            return
+        for u in asked:
+            u.sub.request_real(u.outb)
+        first = None
+        for u in self.units:
+            try:
+                if u in asked:
+                    u.sub.receive_real(u.outb)
+                elif first is None:
+                    u.sub.get_real(u.outb)
+                if first is None:
+                    self.propagate(u, t)
+            except (FmuCallError, CouplingError) as e:
+                first = first or e
+        if first is not None:
+            raise first
+
     def propagate(self, u: Unit, t: float) -> None:
         """Unit ``u``'s outputs (in ``u.outb``) through gain/offset into the consumers' new level."""
         out = u.outb.values

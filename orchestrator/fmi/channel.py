@@ -4,7 +4,9 @@
 owns the socket, the shared memory (``arena``) and the process, sends command lists and
 waits for their replies, and turns a dead or silent worker into
 :class:`~orchestrator.errors.FmuCrashError`. One message may be outstanding at a time:
-:meth:`send` then :meth:`receive` (or :meth:`round_trip` for both).
+:meth:`send` then :meth:`receive` (or :meth:`round_trip` for both). The constructor does not
+wait for the worker's interpreter: its greeting is read before the first reply, so the
+master can start several workers and send their first messages before any is up.
 """
 
 from __future__ import annotations
@@ -118,11 +120,7 @@ class WorkerChannel:
         self._poller.register(self._conn.fileno(), select.POLLIN)
         # at interpreter exit, kill a worker nobody closed (it ignores SIGTERM)
         self._finalizer = weakref.finalize(self, _kill_process, self._proc)
-        try:
-            self._started()
-        except BaseException:
-            self.close()
-            raise
+        self.greeted = False       # its "hello" is read with the first reply: workers start side by side
 
     @property
     def pid(self) -> int:
@@ -151,6 +149,13 @@ class WorkerChannel:
     def receive(self) -> Any:
         """Wait for the reply to the message sent last; raise what it reports."""
         msg, function = self.outstanding
+        if not self.greeted:
+            try:
+                self._started()
+            except BaseException:
+                self.outstanding = None
+                raise
+            self.greeted = True
         try:
             reply = self._wait(function)
         except (EOFError, ConnectionResetError, OSError):

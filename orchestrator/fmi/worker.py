@@ -96,7 +96,8 @@ class WorkerSubsystem(SubsystemBase):
     :class:`~orchestrator.errors.FmuCrashError` when the worker dies or times out.
     """
 
-    def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str, call_timeout: float | None = None):
+    def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str, call_timeout: float | None = None,
+                 wait: bool = True):
         super().__init__(name)
         self.fmu_path = Path(fmu_path)
         self.md: ModelDescription = read_model_description(self.fmu_path)
@@ -110,8 +111,24 @@ class WorkerSubsystem(SubsystemBase):
         self._next_state = 0
         self._freed = False
         self._chan = WorkerChannel(name, self.fmu_path, work_dir, call_timeout)
+        self._starting = True
         try:
-            self._chan.round_trip([("init",)], "fmi2Instantiate")
+            self._chan.send([("init",)], "fmi2Instantiate")
+        except BaseException:
+            self._shutdown()
+            raise
+        if wait:
+            self.ready()
+
+    def ready(self) -> None:
+        """Wait until the worker is up and has instantiated the FMU (``wait=False`` returns from the
+        constructor at once, so that several workers start side by side); raises what
+        instantiation raised, after which the proxy is shut down."""
+        if not self._starting:
+            return
+        self._starting = False
+        try:
+            self._chan.receive()
         except BaseException:
             self._shutdown()
             raise
@@ -140,6 +157,9 @@ class WorkerSubsystem(SubsystemBase):
         self._chan.send(msg, function)
 
     def _receive(self) -> Any:
+        if self._starting:                  # the outstanding message is the instantiation
+            self.ready()
+            return None
         try:
             return self._chan.receive()
         finally:
@@ -311,6 +331,9 @@ class WorkerSubsystem(SubsystemBase):
     def free(self) -> None:
         """fmi2FreeInstance, stop the worker, release the arena; idempotent, never raises."""
         if self._freed:
+            return
+        if self._starting:                          # never waited for: not worth waiting for now
+            self._shutdown()
             return
         self._freed = True
         try:
