@@ -13,8 +13,10 @@ run``, with single-threaded BLAS), interleaved, ``--repeat`` times:
 * ``workers, parallel``: bearing1 and bearing2 with ``isolation: process``,
   ``coupling.parallel: true`` (the two films step at the same time; the rotor stays in
   the master);
-* ``one worker, parallel``: only bearing2 in a worker; bearing1 steps in the master while
-  the worker steps bearing2 (one process fewer, one round trip per step);
+* ``workers, parallel, pinned``: the same with ``coupling.pin_workers: true`` (each worker
+  on a CPU of its own, see orchestrator/fmi/channel.py ``_pin``);
+* ``one worker, parallel, pinned``: only bearing2 in a worker (pinned); bearing1 steps in the
+  master while the worker steps bearing2 (one process fewer, one round trip per step);
 * ``workers, sequential``: both in workers, ``parallel: false`` (what the channel costs alone);
 * ``machine control``: no FMU at all: the same pattern of work with CPU-time busy loops
   (the master ``R`` ms, then two child processes ``F`` ms each at once, over a
@@ -46,15 +48,16 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+BOTH = ["fmus.bearing1.isolation=process", "fmus.bearing2.isolation=process"]
 VARIANTS = {
     "in-process": [],
-    "workers, parallel": ["fmus.bearing1.isolation=process", "fmus.bearing2.isolation=process",
-                          "coupling.parallel=true"],
-    "one worker, parallel": ["fmus.bearing2.isolation=process", "coupling.parallel=true"],
-    "workers, sequential": ["fmus.bearing1.isolation=process", "fmus.bearing2.isolation=process",
-                            "coupling.parallel=false"],
+    "workers, parallel": [*BOTH, "coupling.parallel=true"],
+    "workers, parallel, pinned": [*BOTH, "coupling.parallel=true", "coupling.pin_workers=true"],
+    "one worker, parallel, pinned": ["fmus.bearing2.isolation=process", "coupling.parallel=true",
+                                     "coupling.pin_workers=true"],
+    "workers, sequential": [*BOTH, "coupling.parallel=false"],
 }
-MAIN = ("in-process", "workers, parallel")
+MAIN = ("in-process", "workers, parallel, pinned", "one worker, parallel, pinned")
 SINGLE = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 CONTROL_STEPS = 300
 
@@ -223,7 +226,7 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--out", type=Path, default=Path("/tmp/bench_runup_workers"))
     ap.add_argument("--variants", choices=("all", "main"), default="all",
-                    help="main: in-process and workers, parallel only")
+                    help="main: in-process and the two pinned parallel variants only")
     ap.add_argument("--control", default="1.4,5.1", metavar="R,F",
                     help="machine control: master and film CPU ms per step (from --split); 'off' to skip")
     ap.add_argument("--split", action="store_true", help="only the CPU split per FMU and macro step, in process")

@@ -277,3 +277,15 @@ def test_workers_started_without_waiting_come_up_side_by_side(fmus, tmp_path):
     finally:
         for s in (a, b, c, d):
             s.free()
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="CPU affinity is Linux-only")
+def test_a_pinned_worker_stays_on_its_cpu(fmus, tmp_path):
+    """coupling.pin_workers: the worker process runs on the CPU it was given, and only there."""
+    cpu = max(os.sched_getaffinity(0))
+    w = WorkerSubsystem("p", fmus / "LinearBearing.fmu", work_dir=tmp_path, cpu=cpu)
+    try:
+        assert os.sched_getaffinity(w.pid) == {cpu}
+        assert np.isfinite(_drive(w, 3)).all()
+    finally:
+        w.free()

@@ -47,24 +47,36 @@ def test_workers_are_asked_first_and_read_in_order():
     log = []
     w1, inproc, w2 = (_Unit(_Sub(n, log)) for n in ("w1", "rotor", "w2"))
     _stepper([w1, inproc, w2], log).read_outputs(0.0, [w1, w2])
-    assert log == [("request", "w1"), ("request", "w2"), ("receive", "w1"), ("propagate", "w1"),
-                   ("get", "rotor"), ("propagate", "rotor"), ("receive", "w2"), ("propagate", "w2")]
+    assert log == [("request", "w1"), ("request", "w2"), ("get", "rotor"), ("receive", "w1"), ("receive", "w2"),
+                   ("propagate", "w1"), ("propagate", "rotor"), ("propagate", "w2")]
 
 
-def test_without_two_workers_every_output_is_read_in_turn():
+def test_one_worker_computes_while_the_master_reads_the_others():
     log = []
     w1, inproc = (_Unit(_Sub(n, log)) for n in ("w1", "rotor"))
     _stepper([w1, inproc], log).read_outputs(0.0, [w1])
-    assert log == [("get", "w1"), ("propagate", "w1"), ("get", "rotor"), ("propagate", "rotor")]
-    log.clear()
-    _stepper([w1, inproc], log).read_outputs(0.0, None)
-    assert log == [("get", "w1"), ("propagate", "w1"), ("get", "rotor"), ("propagate", "rotor")]
+    assert log == [("request", "w1"), ("get", "rotor"), ("receive", "w1"), ("propagate", "w1"), ("propagate", "rotor")]
 
 
-def test_a_failing_worker_is_raised_after_every_reply_was_read():
+def test_without_workers_every_output_is_read_in_turn():
+    log = []
+    w1, inproc = (_Unit(_Sub(n, log)) for n in ("w1", "rotor"))
+    for ask in (None, []):
+        log.clear()
+        _stepper([w1, inproc], log).read_outputs(0.0, ask)
+        assert log == [("get", "w1"), ("propagate", "w1"), ("get", "rotor"), ("propagate", "rotor")]
+
+
+def test_a_failure_is_raised_in_stepping_order_after_every_reply_was_read():
     log = []
     w1, inproc, w2 = _Unit(_Sub("w1", log, fail="receive")), _Unit(_Sub("rotor", log)), _Unit(_Sub("w2", log, "receive"))
     with pytest.raises(FmuCallError) as info:
         _stepper([w1, inproc, w2], log).read_outputs(0.0, [w1, w2])
     assert info.value.instance == "w1"                     # the first in stepping order
-    assert log == [("request", "w1"), ("request", "w2"), ("receive", "w1"), ("receive", "w2")]
+    assert log == [("request", "w1"), ("request", "w2"), ("get", "rotor"), ("receive", "w1"), ("receive", "w2")]
+    log.clear()
+    first, bad = _Unit(_Sub("rotor", log)), _Unit(_Sub("w", log, fail="receive"))
+    with pytest.raises(FmuCallError) as info:
+        _stepper([first, bad], log).read_outputs(0.0, [bad])
+    assert info.value.instance == "w"
+    assert log == [("request", "w"), ("get", "rotor"), ("receive", "w"), ("propagate", "rotor")]

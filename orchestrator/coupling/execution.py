@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import time as _time
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -167,8 +168,17 @@ class MasterAlgorithm:
         if mode == "process":
             # the worker extracts its own copy under this run's extraction folder (removed with it)
             return WorkerSubsystem(f.name, f.path, work_dir=self._work_dir.root / "workers",
-                                   call_timeout=getattr(c, "call_timeout", None), wait=False)
+                                   call_timeout=getattr(c, "call_timeout", None), wait=False, cpu=self._next_cpu())
         return Subsystem(f.name, f.path, extraction=self._work_dir)
+
+    def _next_cpu(self) -> int | None:
+        """``coupling.pin_workers``: the CPU of the next worker, round robin over the CPUs this
+        process may use (os.sched_getaffinity), in the order of ``fmus``; else None."""
+        if not getattr(self.scenario.coupling, "pin_workers", False) or not hasattr(os, "sched_getaffinity"):
+            return None
+        cpus = sorted(os.sched_getaffinity(0))
+        k = sum(1 for s in self.subsystems.values() if isinstance(s, WorkerSubsystem))
+        return cpus[k % len(cpus)]
 
     def _stages(self) -> list:
         """(stage, members in stepping order, members to step concurrently or None) per stage of the
@@ -313,6 +323,7 @@ class MasterAlgorithm:
         store = self.history.store
         t0 = self.grid.time(0)
         workers = [u for u in self.units if isinstance(u.sub, WorkerSubsystem)] if self._parallel() else None
+        # (read while the others compute: results as one read after the other, MacroStep.read_outputs)
 
         def exchange(x=None):
             if x is not None:

@@ -97,7 +97,7 @@ class WorkerSubsystem(SubsystemBase):
     """
 
     def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str, call_timeout: float | None = None,
-                 wait: bool = True):
+                 wait: bool = True, cpu: int | None = None):
         super().__init__(name)
         self.fmu_path = Path(fmu_path)
         self.md: ModelDescription = read_model_description(self.fmu_path)
@@ -110,7 +110,7 @@ class WorkerSubsystem(SubsystemBase):
         self._used = REGISTER_BYTES
         self._next_state = 0
         self._freed = False
-        self._chan = WorkerChannel(name, self.fmu_path, work_dir, call_timeout)
+        self._chan = WorkerChannel(name, self.fmu_path, work_dir, call_timeout, cpu)
         self._starting = True
         try:
             self._chan.send([("init",)], "fmi2Instantiate")
