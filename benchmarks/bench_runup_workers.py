@@ -1,7 +1,7 @@
 """The shipped mass-conserving Jeffcott run-up with the bearings in worker processes vs in process.
 
     .venv/bin/python benchmarks/bench_runup_workers.py [--scenario oil_bath] [--stop 0.40]
-        [--repeat 3] [--out /tmp/bench_runup_workers] [--variants all|main]
+        [--repeat 3] [--out /tmp/bench_runup_workers] [--variants all|main|inproc,par,pinned,one,seq]
     .venv/bin/python benchmarks/bench_runup_workers.py --split [--stop 0.27]   # CPU per FMU and step
 
 Variants of scenarios/jeffcott_runup_<scenario>.yaml (Gauss-Seidel [rotor, bearing1,
@@ -57,7 +57,8 @@ VARIANTS = {
                                      "coupling.pin_workers=true"],
     "workers, sequential": [*BOTH, "coupling.parallel=false"],
 }
-MAIN = ("in-process", "workers, parallel, pinned", "one worker, parallel, pinned")
+KEYS = dict(zip(("inproc", "par", "pinned", "one", "seq"), VARIANTS))     # --variants inproc,one ...
+MAIN = ("inproc", "pinned", "one")
 SINGLE = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 CONTROL_STEPS = 300
 
@@ -81,11 +82,13 @@ def child(scenario: Path, stop: float, sets: list[str], out: Path) -> None:
     timer = StepTimer()
     res = run(load_scenario(scenario, [f"stop_time={stop}", *sets]), out_dir=out, progress=False,
               observers=[timer])
+    t_end = time.perf_counter()
     if not res.success:
         raise SystemExit(f"run failed: {res.message}")
     steps = [b - a for a, b in zip([timer.t0, *timer.times], timer.times)]
-    (out / "timing.json").write_text(json.dumps({"startup": timer.t0 - t_start, "step_ms": 1e3 * statistics.median(
-        steps[20:] or steps), "steps": len(steps)}))
+    (out / "timing.json").write_text(json.dumps({
+        "startup": timer.t0 - t_start, "step_ms": 1e3 * statistics.median(steps[20:] or steps), "steps": len(steps),
+        "first20": sum(steps[:20]), "finish": t_end - timer.times[-1]}))
 
 
 def one_run(scenario: Path, stop: float, sets: list[str], out: Path) -> dict:
@@ -102,6 +105,7 @@ def one_run(scenario: Path, stop: float, sets: list[str], out: Path) -> dict:
     timing = json.loads((out / "timing.json").read_text())
     return {"wall": wall, "cpu": (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime),
             "startup": timing["startup"], "step_ms": timing["step_ms"], "steps": timing["steps"],
+            "first20": timing["first20"], "finish": timing["finish"],
             "load": (load0[0], os.getloadavg()[0]), "csv": (out / "results.csv").read_bytes()}
 
 
@@ -225,8 +229,9 @@ def main(argv=None) -> int:
     ap.add_argument("--stop", type=float, default=0.40)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--out", type=Path, default=Path("/tmp/bench_runup_workers"))
-    ap.add_argument("--variants", choices=("all", "main"), default="all",
-                    help="main: in-process and the two pinned parallel variants only")
+    ap.add_argument("--variants", default="all",
+                    help="all, main (inproc,pinned,one) or a comma list of " + ",".join(KEYS)
+                         + " (in-process is always run: the peer)")
     ap.add_argument("--control", default="1.4,5.1", metavar="R,F",
                     help="machine control: master and film CPU ms per step (from --split); 'off' to skip")
     ap.add_argument("--split", action="store_true", help="only the CPU split per FMU and macro step, in process")
@@ -236,11 +241,16 @@ def main(argv=None) -> int:
     scenario = args.scenario_path or REPO / "scenarios" / f"jeffcott_runup_{args.scenario}.yaml"
     if args.child:
         child(scenario, args.stop, args.set, args.out)
-        return 0
+        sys.stdout.flush()
+        os._exit(0)       # no interpreter teardown with PythonFMU FMUs loaded (orchestrator.cli.console_main)
     if args.split:
         split(scenario, args.stop, args.out / "split")
         return 0
-    variants = {k: v for k, v in VARIANTS.items() if args.variants == "all" or k in MAIN}
+    picked = KEYS if args.variants == "all" else MAIN if args.variants == "main" else args.variants.split(",")
+    bad = [k for k in picked if k not in KEYS]
+    if bad:
+        ap.error(f"--variants: unknown {bad}; choose from all, main or {', '.join(KEYS)}")
+    variants = {label: VARIANTS[label] for k, label in KEYS.items() if k in picked or k == "inproc"}
     runs: dict[str, list[dict]] = {k: [] for k in variants}
     controls: list[dict] = []
     print(f"{scenario.name}, 0.25 -> {args.stop} s; uptime: {os.popen('uptime').read().strip()}; "
@@ -251,7 +261,7 @@ def main(argv=None) -> int:
             r = one_run(scenario, args.stop, sets, args.out / f"{label.replace(', ', '_').replace(' ', '_')}_{i}")
             runs[label].append(r)
             print(f"  run {i} {label}: wall {r['wall']:.1f} s, cpu {r['cpu']:.1f} s, start-up {r['startup']:.2f} s, "
-                  f"step {r['step_ms']:.2f} ms, load {r['load'][0]:.1f} -> {r['load'][1]:.1f}", flush=True)
+                  f"step {r['step_ms']:.2f} ms (first 20: {r['first20']:.2f} s, after the last: {r['finish']:.2f} s), load {r['load'][0]:.1f} -> {r['load'][1]:.1f}", flush=True)
         if args.control != "off":
             r_ms, f_ms = (float(x) for x in args.control.split(","))
             c = control(r_ms, f_ms)
