@@ -48,7 +48,10 @@ orchestrator.fmi.worker_main``, :mod:`subprocess`), not a multiprocessing child:
 master would copy its threads and in-process FMUs, and multiprocessing's spawn and
 forkserver methods re-run the user's ``__main__`` script in every child, which a script
 without an ``if __name__ == "__main__":`` guard does not survive. Start-up costs about
-0.3 s of CPU per worker (importing numpy and fmpy).
+0.3 s of CPU per worker (importing numpy and fmpy); with ``wait=False`` the constructor
+returns once the process is started and its instantiation sent, and :meth:`ready` (or the
+first call) waits, so the master starts all its workers side by side. ``cpu`` keeps the
+worker on one CPU (``coupling.pin_workers``, see :func:`orchestrator.fmi.channel._pin`).
 """
 
 from __future__ import annotations
