@@ -33,12 +33,15 @@ Method
 
 from __future__ import annotations
 
+import math
+
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import lapack
 from scipy.sparse.linalg import splu
 
+from .cavitation import sigmoid, softplus
 from .film import assemble, assemble_muscl, stencil_matvec, stencil_to_band
 
 
@@ -62,6 +65,86 @@ def _limit_switch(u, un, delta):
             un[k] = delta
         if un[k] < -2.0:
             un[k] = -2.0
+
+
+@nb.njit(cache=True)
+def dominant_weights(H, He, Hdot, th_dot0, omega, a_phi, a_z, dphi, dz, wrel, frel, wp, wth):
+    """Per column: the own-cell (diagonal) coefficients of p and of theta in a cell's
+    residual, ``wp`` [1/Pa] (Poiseuille conductances of its four faces) and ``wth``
+    (time, squeeze and upwind Couette outflow), as :func:`.film.assemble` builds them
+    (interior cells; the edge and mid-plane rows differ by one axial face, which is
+    irrelevant for the choice they serve, see :func:`dominant_update`)."""
+    n_phi = H.size
+    A = dphi * dz
+    for i in range(n_phi):
+        ie = i
+        iw = i - 1 if i > 0 else n_phi - 1
+        wr = 1.0 if wrel is None else wrel[i]
+        fe = 1.0 if frel is None else frel[ie]
+        fw = 1.0 if frel is None else frel[iw]
+        cond = a_phi * (He[ie] ** 3 / fe + He[iw] ** 3 / fw) / dphi
+        wp[i] = dz * cond + 2.0 * dphi * wr * a_z * H[i] ** 3 / dz
+        up = He[ie] if omega >= 0.0 else He[iw]
+        wth[i] = abs(A * wr * (2.0 * H[i] * th_dot0 + 2.0 * Hdot[i])) + dz * abs(omega) * up
+
+
+@nb.njit(cache=True, inline="always")
+def _own_part(v, wp, wth, p_cav, K, delta):
+    """``wp p(v) + wth theta(v)`` (without constants) and its derivative in v."""
+    x = v / delta
+    f = wp * K * delta * softplus(x) - wth * delta * softplus(-x)
+    return f, wp * K * sigmoid(x) + wth * sigmoid(-x)
+
+
+@nb.njit(cache=True)
+def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un):
+    """New iterate ``un`` from the Newton increment ``dx`` in u, with each cell's own
+    nonlinearity taken exactly: the cell moves to the u at which its own (diagonal) part of
+    the residual, ``wp p(u) + wth theta(u)`` (coefficients of :func:`dominant_weights`),
+    takes the value the Newton linearisation predicts, ``f(u) + f'(u) dx``. A scalar,
+    strictly increasing equation (f' >= min(wp K, wth) > 0), solved by safeguarded
+    Newton-bisection (``rtsafe``, Press et al., Numerical Recipes, sec. 9.4) in the bracket
+    ``v0 +- |f(v0) - T| / min f'``. It generalises primary-variable switching (Forsyth, Wu &
+    Pruess 1995, Adv. Water Resour. 18(1); Lehmann & Ackerer 1998, Transp. Porous Media
+    31): a cell governed by theta moves to the linearised theta, one governed by p to the
+    linearised p. Why: near the switch theta(u) has the exponential tail
+    ``1 - delta e^(-u/delta)`` and Newton in u crawled along it by about delta per
+    iteration (BENCHMARKS.md, issue 16). On one branch far from the switch (u and u + dx
+    both beyond 12 delta on the same side) f is linear to e^-12 and the plain step
+    ``u + dx`` is kept; otherwise the solve ends within 1e-9 delta of the root. The
+    solution (r = 0) is the same: only the Newton path changes."""
+    for k in range(u.size):
+        i = k % n_phi
+        d = dx[k]
+        v = u[k] + d
+        un[k] = v
+        lim = 12.0 * delta
+        if (u[k] > lim and v > lim) or (u[k] < -lim and v < -lim):
+            continue            # one branch, far from the switch: f linear to e^-12
+        a, b = wp[i], wth[i]
+        f0, df0 = _own_part(u[k], a, b, p_cav, K, delta)
+        target = f0 + df0 * d
+        m = min(a * K, b)
+        fv, dfv = _own_part(v, a, b, p_cav, K, delta)
+        e = fv - target
+        lo = v - abs(e) / m
+        hi = v + abs(e) / m
+        for _ in range(60):
+            if abs(e) <= 1e-9 * delta * dfv:
+                break           # |v - root| below 1e-9 delta
+            if e > 0.0:
+                hi = v
+            else:
+                lo = v
+            vn = v - e / dfv
+            if not (lo < vn < hi):
+                vn = 0.5 * (lo + hi)
+            if vn == v or hi - lo <= 1e-14 * (abs(v) + delta):
+                break
+            v = vn
+            fv, dfv = _own_part(v, a, b, p_cav, K, delta)
+            e = fv - target
+        un[k] = v
 
 
 class StepFailed(RuntimeError):
@@ -116,7 +199,8 @@ class TransientFilm:
     ``predictor`` (extrapolate u as Newton start), ``predictor_limited`` (the
     extrapolation stopped at the cavitation switch, as :func:`_limit_switch`
     stops a Newton step; False = the plain line, the benchmark peer), ``line_search``
-    (backtracking on |r|); ``full_newton=True`` refactorises every iteration
+    (backtracking on |r|), ``dominant`` (the Newton step taken in each cell's dominant variable,
+    :func:`dominant_update`; False = the plain step in u, the benchmark peer); ``full_newton=True`` refactorises every iteration
     whatever ``krylov_refactor`` says (the benchmark peer).
     """
 
@@ -130,6 +214,7 @@ class TransientFilm:
         self.predictor = True
         self.predictor_limited = True
         self.line_search = True
+        self.dominant = True
         self.ab = np.zeros((3 * g.bw + 1, n), order="F")
         # theta_transport = 1: limited second-order Couette transport of theta, whose
         # exact Jacobian has the 7-point stencil (i +- 2; the grid's band covers it)
@@ -251,6 +336,13 @@ class TransientFilm:
         prev = prev2 = None
         its = 0
         r_ready = False
+        g = self.ctx.grid
+        if self.dominant:
+            c = self.ctx
+            H, He, Hdot, omega = kin
+            wcol_p, wcol_th = np.empty(g.n_phi), np.empty(g.n_phi)
+            dominant_weights(H, He, Hdot, th_dot0, omega, c.a_phi, c.a_z, g.dphi, g.dz,
+                             g.wrel, g.frel, wcol_p, wcol_th)
         while its < max_iter:
             if r_ready:             # evaluated at u by the line search below
                 r = self.r
@@ -272,7 +364,12 @@ class TransientFilm:
                     dx = self._solve(r)
             if not np.all(np.isfinite(dx)):
                 break
-            un = u + dx
+            if self.dominant:
+                law = self.ctx.law
+                un = np.empty_like(u)
+                dominant_update(u, dx, wcol_p, wcol_th, g.n_phi, law.p_cav, law.K, law.delta, un)
+            else:
+                un = u + dx
             _limit_switch(u, un, self.ctx.law.delta)
             # convergence is judged on the Newton step itself (after the switch limit),
             # not on the step the line search below may shorten: a step backtracked to
