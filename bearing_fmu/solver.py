@@ -151,23 +151,129 @@ class StepFailed(RuntimeError):
     """The film could not be advanced (Newton or step-size control failed)."""
 
 
+#: threshold of :func:`band_lu_nopivot`: the pivot must be at least this fraction of the
+#: largest entry below it (threshold partial pivoting; Duff, Erisman & Reid, Direct Methods
+#: for Sparse Matrices, 2nd ed., sec. 4.4: 0.1 is the customary value, growth per step <= 11)
+PIVOT_THRESHOLD = 0.1
+
+
+@nb.njit(cache=True)
+def band_lu_nopivot(ab, bw, thresh):
+    """In-place LU without row interchanges of a matrix in LAPACK band storage
+    (``ab[2 bw + i - j, j] = A[i, j]``, kl = ku = bw, Fortran order; rows 0 .. bw-1 are not
+    used: without interchanges L keeps bandwidth kl and U ku). Returns 0, or k + 1 when at
+    column k the pivot is below ``thresh`` times the largest entry under it, or 0 / not
+    finite: the caller then factors with partial pivoting. Accepting a pivot down to a
+    fraction ``thresh`` of the column is threshold pivoting (Duff, Erisman & Reid, sec. 4.4;
+    the element growth per step is at most 1 + 1/thresh); the film's Newton matrix is
+    column diagonally dominant up to the upwind Couette coupling, for which elimination
+    needs no interchange at all (Golub & Van Loan, Matrix Computations, 4th ed., 3.4.6)."""
+    rows = ab.shape[0]
+    n = ab.shape[1]
+    a = ab.T.ravel()                 # a view: entry (r, c) at c * rows + r
+    d = 2 * bw
+    col = np.empty(bw)
+    for k in range(n):
+        ck = k * rows + d            # flat index of the pivot A[k, k]
+        piv = a[ck]
+        m = min(bw, n - 1 - k)
+        big = 0.0
+        for i in range(1, m + 1):
+            big = max(big, abs(a[ck + i]))
+        if not (abs(piv) > 0.0) or not math.isfinite(piv) or thresh * big > abs(piv):
+            return k + 1
+        inv = 1.0 / piv
+        for i in range(1, m + 1):
+            a[ck + i] *= inv
+            col[i - 1] = a[ck + i]       # the multipliers, apart (no aliasing: SIMD)
+        for j in range(1, m + 1):
+            cj = (k + j) * rows + d - j   # flat index of A[k, k + j]
+            akj = a[cj]
+            if akj != 0.0:
+                _axpy(a, cj + 1, col, m, -akj)
+    return 0
+
+
+@nb.njit(cache=True, inline="always")
+def _axpy(a, start, x, m, alpha):
+    """``a[start:start + m] += alpha x[:m]``."""
+    seg = a[start:start + m]
+    for i in range(m):
+        seg[i] += alpha * x[i]
+
+
+@nb.njit(cache=True)
+def band_solve_nopivot(ab, bw, b, x):
+    """Solve ``A x = b`` with the factors of :func:`band_lu_nopivot`."""
+    rows = ab.shape[0]
+    n = ab.shape[1]
+    a = ab.T.ravel()
+    d = 2 * bw
+    for k in range(n):
+        x[k] = b[k]
+    for k in range(n):
+        xk = x[k]
+        ck = k * rows + d
+        for i in range(1, min(bw, n - 1 - k) + 1):
+            x[k + i] -= a[ck + i] * xk
+    for k in range(n - 1, -1, -1):
+        ck = k * rows + d
+        x[k] /= a[ck]
+        xk = x[k]
+        for i in range(1, min(bw, k) + 1):
+            x[k - i] -= a[ck - i] * xk
+
+
 class BandLU:
-    """LAPACK band LU (dgbtrf/dgbtrs) of a matrix in band storage."""
+    """Band LU of a matrix in LAPACK band storage: elimination without interchanges
+    (numba, :func:`band_lu_nopivot`, threshold ``PIVOT_THRESHOLD``), the film's usual case;
+    when a pivot fails the threshold, LAPACK ``dgbtrf``/``dgbtrs`` (partial pivoting) on the
+    same matrix, counted in ``fallbacks``. Without interchanges the factors keep the band
+    (no kl fill-in columns as in ``dgbtrf``): about half its work at the film's bandwidth."""
 
     name = "band"
 
     def __init__(self, bw: int):
         self.bw = bw
+        self.fallbacks = 0
 
-    def factor(self, ab):
+    def factor(self, ab, rebuild=None):
+        """Factor ``ab`` in place. ``rebuild()``, if given, refills ``ab`` with the matrix
+        (for the pivoting fallback; without it a copy is kept beforehand)."""
+        keep = ab.copy(order="F") if rebuild is None else None
+        if band_lu_nopivot(ab, self.bw, PIVOT_THRESHOLD) == 0:
+            self.lu, self.piv = ab, None
+            return
+        self.fallbacks += 1
+        if rebuild is None:
+            ab[...] = keep
+        else:
+            rebuild()
         lu, piv, info = lapack.dgbtrf(ab, self.bw, self.bw, overwrite_ab=1)
         if info != 0:
             raise StepFailed(f"band LU: singular Newton matrix (dgbtrf info={info})")
         self.lu, self.piv = lu, piv
 
     def solve(self, b):
+        if self.piv is None:
+            x = np.empty(b.size)
+            band_solve_nopivot(self.lu, self.bw, np.ascontiguousarray(b, dtype=float), x)
+            return x
         x, info = lapack.dgbtrs(self.lu, self.bw, self.bw, b, self.piv)
         return x
+
+
+class LapackBandLU(BandLU):
+    """LAPACK ``dgbtrf``/``dgbtrs`` (partial pivoting) always: the benchmark peer of
+    :class:`BandLU` (``linear_solver = "lapack"``)."""
+
+    name = "lapack"
+
+    def factor(self, ab, rebuild=None):
+        lu, piv, info = lapack.dgbtrf(ab, self.bw, self.bw, overwrite_ab=1)
+        if info != 0:
+            raise StepFailed(f"band LU: singular Newton matrix (dgbtrf info={info})")
+        self.lu, self.piv = lu, piv
 
 
 class SpluLU:
@@ -179,7 +285,7 @@ class SpluLU:
         self.bw = bw
         self.offsets = np.arange(-bw, bw + 1)
 
-    def factor(self, ab):
+    def factor(self, ab, rebuild=None):
         bw = self.bw
         data = ab[2 * bw - self.offsets]
         n = ab.shape[1]
@@ -209,7 +315,7 @@ class TransientFilm:
         g = ctx.grid
         n = g.n
         self.n = n
-        self.lin = (BandLU if linear_solver == "band" else SpluLU)(g.bw)
+        self.lin = {"band": BandLU, "lapack": LapackBandLU, "splu": SpluLU}[linear_solver](g.bw)
         self.full_newton = full_newton
         self.predictor = True
         self.predictor_limited = True
@@ -246,12 +352,16 @@ class TransientFilm:
         g = self.ctx.grid
         # rows 0 .. bw-1 of LAPACK band storage are dgbtrf's fill-in workspace and "need not
         # be set" on entry (it zeroes them itself); splu reads rows bw .. 3 bw only
-        self.ab[g.bw:].fill(0.0)
-        stencil_to_band(self.jst, g.n_phi, g.pos, g.bw, self.ab)
-        self.lin.factor(self.ab)
+        self._scatter()
+        self.lin.factor(self.ab, self._scatter)
         self._factored = True
         self.stats["factor"] += 1
         self.jac = dict(u=u.copy(), th_dot0=th_dot0, kin=kin)
+
+    def _scatter(self):
+        g = self.ctx.grid
+        self.ab[g.bw:].fill(0.0)
+        stencil_to_band(self.jst, g.n_phi, g.pos, g.bw, self.ab)
 
     def _solve(self, r):
         g = self.ctx.grid

@@ -174,7 +174,7 @@ def test_band_and_splu_agree(krylov):
     """The solution does not depend on the linear algebra (band LU, SuperLU,
     Newton-Krylov with a reused LU) beyond the Newton tolerance."""
     out = []
-    for ls in ("band", "splu"):
+    for ls in ("band", "lapack", "splu"):
         p = small(linear_solver=ls, krylov_refactor=krylov, **GROOVE)
         b = BearingModel(p)
         b.initialize(0.0, -0.5 * p.c, 0.0, 0.0, W100)
@@ -182,6 +182,43 @@ def test_band_and_splu_agree(krylov):
             b.step(2e-5, 0.0, -0.5 * p.c, 0.0, 0.0, W100)
         out.append(b.outputs["Fy"])
     assert out[0] == pytest.approx(out[1], rel=1e-5)
+    assert out[0] == pytest.approx(out[2], rel=1e-5)
+
+
+def _band_storage(A, bw):
+    n = A.shape[0]
+    ab = np.zeros((3 * bw + 1, n), order="F")
+    for i in range(n):
+        for j in range(max(0, i - bw), min(n, i + bw + 1)):
+            ab[2 * bw + i - j, j] = A[i, j]
+    return ab
+
+
+def test_band_lu_without_interchanges_and_its_fallback():
+    """solver.BandLU: the no-interchange band LU solves a column-dominant band matrix to
+    rounding (against numpy's dense solve); on a matrix whose pivot fails the threshold
+    (a zero on the diagonal) band_lu_nopivot refuses and BandLU falls back to LAPACK's
+    partial pivoting, still to rounding."""
+    from bearing_fmu.solver import BandLU, band_lu_nopivot
+    rng = np.random.default_rng(3)
+    n, bw = 60, 5
+    A = np.zeros((n, n))
+    for i in range(n):
+        for j in range(max(0, i - bw), min(n, i + bw + 1)):
+            A[i, j] = rng.uniform(-1, 1)
+    A += np.diag(2.0 * np.abs(A).sum(axis=0))          # column diagonally dominant
+    b = rng.uniform(-1, 1, n)
+    lu = BandLU(bw)
+    lu.factor(_band_storage(A, bw))
+    assert lu.fallbacks == 0 and lu.piv is None
+    x = np.linalg.solve(A, b)
+    assert np.max(np.abs(lu.solve(b) - x)) <= 1e-12 * np.max(np.abs(x))
+    A[7, 7] = 0.0                                      # partial pivoting must interchange
+    assert band_lu_nopivot(_band_storage(A, bw), bw, 0.1) == 8
+    lu.factor(_band_storage(A, bw))
+    assert lu.fallbacks == 1 and lu.piv is not None
+    x = np.linalg.solve(A, b)
+    assert np.max(np.abs(lu.solve(b) - x)) <= 1e-10 * np.max(np.abs(x))
 
 
 # ------------------------------------------------------------------ step API
