@@ -126,28 +126,59 @@ def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un):
             continue            # one branch, far from the switch: f linear to e^-12
         a, b = wp[i], wth[i]
         f0, df0 = _own_part(u[k], a, b, p_cav, K, delta)
-        target = f0 + df0 * d
-        m = min(a * K, b)
+        un[k] = _own_root(v, f0 + df0 * d, a, b, p_cav, K, delta)
+
+
+@nb.njit(cache=True)
+def _own_root(v, target, a, b, p_cav, K, delta):
+    """The v with ``a p(v) + b theta(v) = target`` (strictly increasing in v), from the
+    guess v: safeguarded Newton-bisection in the bracket ``v +- |f(v) - target| / min f'``,
+    to 1e-9 delta (see :func:`dominant_update`)."""
+    m = min(a * K, b)
+    fv, dfv = _own_part(v, a, b, p_cav, K, delta)
+    e = fv - target
+    lo = v - abs(e) / m
+    hi = v + abs(e) / m
+    for _ in range(60):
+        if abs(e) <= 1e-9 * delta * dfv:
+            break           # |v - root| below 1e-9 delta
+        if e > 0.0:
+            hi = v
+        else:
+            lo = v
+        vn = v - e / dfv
+        if not (lo < vn < hi):
+            vn = 0.5 * (lo + hi)
+        if vn == v or hi - lo <= 1e-14 * (abs(v) + delta):
+            break
+        v = vn
         fv, dfv = _own_part(v, a, b, p_cav, K, delta)
         e = fv - target
-        lo = v - abs(e) / m
-        hi = v + abs(e) / m
-        for _ in range(60):
-            if abs(e) <= 1e-9 * delta * dfv:
-                break           # |v - root| below 1e-9 delta
-            if e > 0.0:
-                hi = v
-            else:
-                lo = v
-            vn = v - e / dfv
-            if not (lo < vn < hi):
-                vn = 0.5 * (lo + hi)
-            if vn == v or hi - lo <= 1e-14 * (abs(v) + delta):
-                break
-            v = vn
-            fv, dfv = _own_part(v, a, b, p_cav, K, delta)
-            e = fv - target
-        un[k] = v
+    return v
+
+
+@nb.njit(cache=True)
+def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out):
+    """Newton start ``out`` for the next internal step, extrapolated linearly in each cell's
+    own part ``f = wp p(u) + wth theta(u)`` (:func:`dominant_update`) instead of in u:
+    ``f(out) = f(u) + ratio (f(u) - f(u_prev))``, ``ratio = h / h_prev``. A line in u through
+    a cell on theta's exponential tail (or crossing the switch) extrapolates the wrong
+    curve; in f it extrapolates the quantity the cell's equation is nearly linear in.
+    Cells on one branch far from the switch (u_prev, u and the line's end beyond 12 delta,
+    same side) keep the line in u (identical there to e^-12). Measured in the whirl orbit
+    of benchmarks/bench_bearing_whirl.py: 7.06 -> 5.22 Newton iterations per macro step."""
+    lim = 12.0 * delta
+    for k in range(u.size):
+        i = k % n_phi
+        v = u[k] + ratio * (u[k] - u_prev[k])
+        out[k] = v
+        if (u[k] > lim and v > lim and u_prev[k] > lim) or \
+                (u[k] < -lim and v < -lim and u_prev[k] < -lim):
+            continue
+        a, b = wp[i], wth[i]
+        f0, _ = _own_part(u[k], a, b, p_cav, K, delta)
+        f1, _ = _own_part(u_prev[k], a, b, p_cav, K, delta)
+        out[k] = _own_root(v, f0 + ratio * (f0 - f1), a, b, p_cav, K, delta)
 
 
 @nb.njit(cache=True)
@@ -328,7 +359,8 @@ class TransientFilm:
     ``predictor`` (extrapolate u as Newton start), ``predictor_limited`` (the
     extrapolation stopped at the cavitation switch, as :func:`_limit_switch`
     stops a Newton step; False = the plain line, the benchmark peer), ``line_search``
-    (backtracking on |r|), ``dominant`` (the Newton step taken in each cell's dominant variable,
+    (backtracking on |r|), ``predictor_dominant`` (the extrapolation in each cell's own part,
+    :func:`dominant_extrapolate`, when ``dominant``; False = the line in u), ``dominant`` (the Newton step taken in each cell's dominant variable,
     :func:`dominant_update`; False = the plain step in u, the benchmark peer), ``search_converged``
     (default False: a converged Newton step is taken whole, without the line search's
     residual; True = the line search first, the older order); ``full_newton=True`` refactorises every iteration
@@ -346,6 +378,7 @@ class TransientFilm:
         self.predictor_limited = True
         self.line_search = True
         self.dominant = True
+        self.predictor_dominant = True
         self.search_converged = False
         self.ab = np.zeros((3 * g.bw + 1, n), order="F")
         # theta_transport = 1: limited second-order Couette transport of theta, whose
@@ -454,7 +487,16 @@ class TransientFilm:
         return th
 
     # ------------------------------------------------------------ Newton
-    def newton(self, u0, th_dot0, th_dot1, kin, max_iter=None):
+    def _weights(self, th_dot0, kin):
+        """Per-column own-cell coefficients (:func:`dominant_weights`) for this step."""
+        c, g = self.ctx, self.ctx.grid
+        H, He, Hdot, omega = kin
+        wcol_p, wcol_th = np.empty(g.n_phi), np.empty(g.n_phi)
+        dominant_weights(H, He, Hdot, th_dot0, omega, c.a_phi, c.a_z, g.dphi, g.dz,
+                         g.wrel, g.frel, wcol_p, wcol_th)
+        return wcol_p, wcol_th
+
+    def newton(self, u0, th_dot0, th_dot1, kin, max_iter=None, weights=None):
         """Solve r(u) = 0 from u0; return (u, iterations) or (None, its).
 
         Newton-Krylov: each iteration assembles the exact stencil Jacobian
@@ -474,11 +516,7 @@ class TransientFilm:
         r_ready = False
         g = self.ctx.grid
         if self.dominant:
-            c = self.ctx
-            H, He, Hdot, omega = kin
-            wcol_p, wcol_th = np.empty(g.n_phi), np.empty(g.n_phi)
-            dominant_weights(H, He, Hdot, th_dot0, omega, c.a_phi, c.a_z, g.dphi, g.dz,
-                             g.wrel, g.frel, wcol_p, wcol_th)
+            wcol_p, wcol_th = weights if weights is not None else self._weights(th_dot0, kin)
         while its < max_iter:
             if r_ready:             # evaluated at u by the line search below
                 r = self.r
@@ -645,9 +683,17 @@ class TransientFilm:
                     a0, a1, a2 = (1 + 2 * w) / (1 + w), -(1 + w), w * w / (1 + w)
                     th_dot0 = a0 / h
                     th_dot1 = (a1 * th_n + a2 * self.th_nm1) / h
+                weights = self._weights(th_dot0, kin) if self.dominant else None
                 if self.n_hist >= 1 and self.predictor:
-                    # linear extrapolation of u as Newton start (not a state change)
-                    u_start = self.u + (h / self.h_prev) * (self.u - self.u_prev)
+                    # linear extrapolation as Newton start (not a state change): in each
+                    # cell's own part (dominant_extrapolate), or in u
+                    if self.predictor_dominant and weights is not None:
+                        law, g = self.ctx.law, self.ctx.grid
+                        u_start = np.empty_like(self.u)
+                        dominant_extrapolate(self.u, self.u_prev, h / self.h_prev, *weights,
+                                             g.n_phi, law.p_cav, law.K, law.delta, u_start)
+                    else:
+                        u_start = self.u + (h / self.h_prev) * (self.u - self.u_prev)
                     if self.predictor_limited:
                         # not across the cavitation switch: u is p / K in the film and
                         # theta - 1 in the cavity, so a line through a rupturing cell
@@ -656,7 +702,7 @@ class TransientFilm:
                         _limit_switch(self.u, u_start, self.ctx.law.delta)
                 else:
                     u_start = self.u
-                u_new, its = self.newton(u_start, th_dot0, th_dot1, kin)
+                u_new, its = self.newton(u_start, th_dot0, th_dot1, kin, weights=weights)
                 last_its = its
                 if u_new is None:
                     self.stats["rejected"] += 1
