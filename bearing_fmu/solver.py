@@ -134,7 +134,7 @@ def _own_root(v, target, a, b, p_cav, K, delta):
     """The v with ``a p(v) + b theta(v) = target`` (strictly increasing in v), from the
     guess v: safeguarded Newton-bisection in the bracket ``v +- |f(v) - target| / min f'``,
     to 1e-9 delta (see :func:`dominant_update`)."""
-    m = min(a * K, b)
+    m = max(min(a * K, b), 1e-300)   # f' >= m; b = 0 only at rest without squeeze
     fv, dfv = _own_part(v, a, b, p_cav, K, delta)
     e = fv - target
     lo = v - abs(e) / m
