@@ -146,7 +146,8 @@ def check_atol_patterns(ld, coupling: dict | None, connections: list) -> None:
     for pat, _ in sc.atol:
         if not any(fnmatch.fnmatchcase(n, pat) for n in names):
             ld.err(nodes.get(pat), f"'coupling.step_control.atol' key '{pat}' matches no coupling signal; "
-                                   f"{did_you_mean(pat, names)}the connections' signals are "
+                                   f"{did_you_mean(pat, names)}keys name a connection's input ('instance.input') or a glob "
+                                   f"pattern of them, which are "
                                    f"{', '.join(names[:12])}{' ...' if len(names) > 12 else ''}")
 
 
