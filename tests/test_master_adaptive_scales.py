@@ -165,3 +165,10 @@ def test_loader_names_the_line_and_the_fix(tmp_path, sc, says):
     assert f"s.yaml:{line}" in msg, msg
     for s in says:
         assert s in msg, msg
+
+
+def test_atol_mapping_given_as_a_dict_keeps_its_order():
+    """compare files' `set:` and the Python API give a dict; it becomes the same tuple."""
+    spec = StepControlSpec(type="error", atol={"rotor.F*": 0.3, "bearing*.*": math.inf})
+    assert spec.atol == (("rotor.F*", 0.3), ("bearing*.*", math.inf))
+    np.testing.assert_array_equal(atol_vector(spec.atol, ["rotor.Fx_1", "bearing1.x"]), [0.3, math.inf])

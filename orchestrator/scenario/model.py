@@ -108,6 +108,10 @@ class StepControlSpec:
     min_step: float | None = None            # [s]
     max_step: float | None = None            # [s]
 
+    def __post_init__(self):
+        if isinstance(self.atol, Mapping):   # e.g. from a compare file's `set:` or Python: keep file order
+            object.__setattr__(self, "atol", tuple((str(k), float(v)) for k, v in self.atol.items()))
+
 
 @dataclass(frozen=True, kw_only=True)
 class CouplingSpec:
