@@ -95,7 +95,8 @@ class FloatingRing:
     on the journal about +z; ``T_ring_inner, T_ring_outer`` [N m] torques of the two films
     on the ring; ``P_loss`` [W] friction power of both films ``-(T_journal omega +
     (T_ring_inner + T_ring_outer) Omega)``; ``p_max``, ``h_min`` of the inner film and
-    ``p_max_outer``, ``h_min_outer``.
+    ``p_max_outer``, ``h_min_outer``; ``ax_ring, ay_ring`` [m/s^2] the ring's acceleration
+    from its force balance; ``kxx_outer .. cyy_outer`` the outer film's coefficients.
     """
 
     def __init__(self, params: RingParams):
@@ -135,7 +136,8 @@ class FloatingRing:
 
     def _update_outputs(self):
         j, r, Om = self._journal, self._ring, self._Om
-        pi_, po = self.params.inner, self.params.outer
+        p = self.params
+        pi_, po = p.inner, p.outer
         Tj, Tri, Tro = self._T
         oi, oo = self.inner.outputs, self.outer.outputs
         self.outputs = dict(
@@ -145,6 +147,14 @@ class FloatingRing:
             vy_ring=float(r[3]), T_journal=Tj, T_ring_inner=Tri, T_ring_outer=Tro,
             P_loss=-(Tj * j[4] + (Tri + Tro) * Om), p_max=oi["p_max"], h_min=oi["h_min"],
             p_max_outer=oo["p_max"], h_min_outer=oo["h_min"])
+        # what the rotor's ring-interface step needs (rotor_fmu/ring_interface.py): the ring's
+        # acceleration from its force balance now, and the outer film's coefficients
+        a = (-self._Fi + self._Fo + np.array([0.0, -p.m_ring * p.gravity])) / p.m_ring
+        self.outputs["ax_ring"], self.outputs["ay_ring"] = float(a[0]), float(a[1])
+        for kind, mat in (("k", self._Ko), ("c", self._Co)):
+            for a_, ci in enumerate("xy"):
+                for b_, cj in enumerate("xy"):
+                    self.outputs[f"{kind}{ci}{cj}_outer"] = float(mat[a_, b_])
 
     # ------------------------------------------------------------- API
     def initialize(self, x, y, vx, vy, omega, *, ring=(0.0, 0.0, 0.0, 0.0), omega_ring=None,

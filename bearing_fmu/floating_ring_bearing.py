@@ -97,6 +97,12 @@ OUTPUTS: dict[str, tuple[str, str]] = {
     "h_min": ("m", "minimum gap of the inner film [m]"),
     "p_max_outer": ("Pa", "maximum pressure of the outer film [Pa]"),
     "h_min_outer": ("m", "minimum gap of the outer film [m]"),
+    # for the rotor's ring-interface step (rotor_fmu/ring_interface.py, docs/floating-ring.md)
+    "ax_ring": ("m/s2", "ring centre acceleration x from its force balance [m/s^2]"),
+    "ay_ring": ("m/s2", "ring centre acceleration y from its force balance [m/s^2]"),
+    **{f"{kind}{i}{j}_outer": (unit, f"outer film {what} -dF{i}/d{var}{j} of the ring in the housing [{unit}]")
+       for kind, unit, what, var in (("k", "N/m", "stiffness", ""), ("c", "N.s/m", "damping", "v"))
+       for i in "xy" for j in "xy"},
 }
 LINEARIZATION_OUTPUTS: dict[str, tuple[str, str]] = {
     f"{kind}{i}{j}": (unit, f"ring bearing {what} -dF{i}/d{var}{j} as the journal sees it [{unit}] "

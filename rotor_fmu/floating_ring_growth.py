@@ -31,6 +31,7 @@ from bearing_fmu.model import BearingParams
 
 from .floating_ring_stability import _augmented, ring_system_eigen
 from .jeffcott import JeffcottModel, JeffcottParams
+from .ring_interface import step_with_ring_interface
 
 __all__ = ["Case", "pencil", "jeffcott_floating_ring", "turbocharger_floating_ring", "slaved_coefficients",
            "sliding_growth", "zero_crossing", "runup_cosim"]
@@ -79,6 +80,20 @@ def slaved_coefficients(fr):
     c = fr.film_coefficients()
     S = np.linalg.solve(c["Ci"] + c["Co"], c["Ci"])
     return c["Ki"] @ (np.eye(2) - S), c["Ci"] @ (np.eye(2) - S)
+
+
+def ring_inputs(frs) -> dict:
+    """What :func:`rotor_fmu.ring_interface.step_with_ring_interface` needs of each ring, read
+    from the :class:`FloatingRing` models as the FMU outputs them."""
+    out = {"m": [], "s": [], "a": [], "Ko": [], "Co": []}
+    for fr in frs:
+        o = fr.outputs
+        out["m"].append(fr.params.m_ring)
+        out["s"].append([o["x_ring"], o["y_ring"], o["vx_ring"], o["vy_ring"]])
+        out["a"].append([o["ax_ring"], o["ay_ring"]])
+        out["Ko"].append([[o[f"k{a}{b}_outer"] for b in "xy"] for a in "xy"])
+        out["Co"].append([[o[f"c{a}{b}_outer"] for b in "xy"] for a in "xy"])
+    return {k: np.array(v) for k, v in out.items()}
 
 
 class Case:
@@ -141,7 +156,7 @@ class Case:
         t = np.arange(0.0, T, dt_out)
         return t, sol.sol(t)
 
-    def cosim(self, T, H, J_ring=1e3, coeffs=0.0, dt_out=2e-4, n_sub=1, input_hold=0):
+    def cosim(self, T, H, J_ring=1e3, coeffs=0.0, dt_out=2e-4, n_sub=1, input_hold=0, ring_coupling=False):
         """Co-simulation as the master runs it (module doc), macro step H [s]: (t, Z).
         ``coeffs`` >= 0: ``FloatingRing.linearization(coeffs)`` (0: the FMU's K_i, C_i);
         < 0: :func:`slaved_coefficients`. ``n_sub`` ring sub-steps per macro step."""
@@ -161,7 +176,11 @@ class Case:
         for i in range(int(round(T / H))):
             F = np.array([[fr.outputs["Fx"], fr.outputs["Fy"]] for fr in frs])
             KC = [fr.linearization(coeffs) if coeffs >= 0 else slaved_coefficients(fr) for fr in frs]
-            rotor.step(H, F, np.array([a for a, _ in KC]), np.array([b for _, b in KC]))
+            if ring_coupling:       # the rings' translation in the rotor's implicit step
+                step_with_ring_interface(rotor, H, F, np.array([a for a, _ in KC]),
+                                         np.array([b for _, b in KC]), ring_inputs(frs))
+            else:
+                rotor.step(H, F, np.array([a for a, _ in KC]), np.array([b for _, b in KC]))
             kin = rotor.journal_kinematics(rotor.t, rotor.s)
             for k, fr in enumerate(frs):
                 fr.step(H, *kin[k], self.w)

@@ -164,6 +164,14 @@ def step_with_interface_jacobian(rotor, dt: float, F, K=None, C=None) -> bool:
         raise ValueError(f"{type(rotor).__name__}.step: dt must be > 0 and finite [s] (got {dt!r})")
     F = rotor._check_F(F)
     MiK, MiC, F_eff = augmented(rotor, F, K, C)
+    step_linear_implicit(rotor, dt, MiK, MiC, F_eff, K, C)
+    return True
+
+
+def step_linear_implicit(rotor, dt: float, MiK, MiC, F_eff, K, C) -> None:
+    """One macro step of ``rotor`` with the augmented matrices ``MiK``, ``MiC`` swapped in and the
+    station forces ``F_eff`` held: trapezoidal sub-steps up to :data:`LSTABLE_SWITCH`, else the
+    L-stable SDIRK (module doc). ``K``, ``C`` (stations, 2, 2) only name the coefficients in errors."""
     if not (np.all(np.isfinite(MiK)) and np.all(np.isfinite(MiC)) and np.all(np.isfinite(F_eff))):
         raise StiffFilmError(
             f"{type(rotor).__name__}: the film coefficients give non-finite rotor matrices "
@@ -181,7 +189,7 @@ def step_with_interface_jacobian(rotor, dt: float, F, K=None, C=None) -> bool:
             rotor.step(dt, F_eff)
         finally:
             rotor._MiK, rotor._MiC, rotor._nsub_cache = saved
-        return True
+        return
     # stiff film: L-stable SDIRK; sub-steps resolve the structure and the film stiffness,
     # the overdamped film modes are damped by L-stability (see the module doc)
     nsub = max(rotor.n_substeps(dt), int(math.ceil(dt * rho_k / 2.0 - 1e-12)))
@@ -195,4 +203,3 @@ def step_with_interface_jacobian(rotor, dt: float, F, K=None, C=None) -> bool:
             f"{rho:.3g} 1/s, largest station damping {float(np.max(np.abs(C))):.3g} N s/m)") from exc
     finally:
         rotor._MiK, rotor._MiC = saved
-    return True

@@ -112,7 +112,7 @@ def rotor_init(self, **kwargs: Any) -> None:
     if fields is None:                # building: from the model's parameter dataclass
         fields = self._parameter_fields()
     for name, default, kind in fields:
-        if name == "t0":          # the experiment start time sets the model start time
+        if name == "t0" or name in RING_PARAMETERS:   # t0: the experiment start time; rings: below
             continue
         unit, desc = PARAMETER_DOCS.get(name, (None, f"rotor model parameter '{name}' (SI units)"))
         self._values[name] = default
@@ -150,6 +150,8 @@ def rotor_init(self, **kwargs: Any) -> None:
                     causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
                     getter=_getter(self, name), setter=_input_setter(self, name)))
             units.add(unit)
+    _register_ring_variables(self, par)
+    units |= {"kg", "m", "m/s", "m/s2", "N/m", "N.s/m"}
     for name in self._output_names():
         base = name.rsplit("_", 1)[0] if name[-1].isdigit() else name
         unit, desc = OUTPUT_DOCS.get(base, (None, None))
@@ -174,6 +176,55 @@ def rotor_init(self, **kwargs: Any) -> None:
 
 
 _getter, _output_getter, _param_setter, _input_setter = value_getter, output_getter, param_setter, input_setter
+
+# floating rings at the bearing stations (rotor_fmu/ring_interface.py, docs/floating-ring.md)
+RING_PARAMETERS = tuple(f"m_ring_{i}" for i in range(1, N_BEARINGS + 1))
+RING_INPUTS: dict[str, tuple[str, str]] = {
+    **{f"{q}_ring": (u, f"floating-ring centre {w} [{u}] at bearing {{i}}")
+       for q, u, w in (("x", "m", "x"), ("y", "m", "y"), ("vx", "m/s", "velocity x"),
+                       ("vy", "m/s", "velocity y"), ("ax", "m/s2", "acceleration x"),
+                       ("ay", "m/s2", "acceleration y"))},
+    **{f"{kind}{a}{b}_outer": (unit, f"outer film {what} {a}{b} of the ring at bearing {{i}} [{unit}]")
+       for kind, unit, what in (("k", "N/m", "stiffness -dF/dr"), ("c", "N.s/m", "damping -dF/dv"))
+       for a in "xy" for b in "xy"},
+}
+
+
+def _register_ring_variables(self, par: dict) -> None:
+    """Parameters ``m_ring_i`` and inputs ``x_ring_i .. cyy_outer_i`` of the ring-interface step:
+    with ``m_ring_i > 0`` the rotor's implicit step integrates the ring of bearing i with the
+    journals (its kxx_i..cyy_i are then the inner film's, in journal-minus-ring coordinates)."""
+    for i, name in enumerate(RING_PARAMETERS, start=1):
+        self._values[name] = 0.0
+        self.register_variable(RealU(
+            name, unit="kg", description=(
+                f"mass of the floating ring at bearing {i} [kg] for the ring-interface step (connect "
+                f"x_ring_{i} .. cyy_outer_{i} from a FloatingRingBearing; 0: no ring, the plain step)"),
+            getter=_getter(self, name), setter=_param_setter(self, name, float), **par))
+    for i in range(1, N_BEARINGS + 1):
+        for base, (unit, desc) in RING_INPUTS.items():
+            name = f"{base}_{i}"
+            self._values[name] = 0.0
+            self.register_variable(RealU(
+                name, unit=unit, description=desc.format(i=i), causality=Fmi2Causality.input,
+                variability=Fmi2Variability.continuous, getter=_getter(self, name),
+                setter=_input_setter(self, name)))
+
+
+def rotor_ring_inputs(self):
+    """The ``ring`` argument of :func:`rotor_fmu.ring_interface.step_with_ring_interface` from
+    the ring parameters and inputs, or None when no station has a ring (m_ring_i = 0)."""
+    import numpy as np
+    m = np.array([self._values[n] for n in RING_PARAMETERS])
+    if not np.any(m):
+        return None
+    st = range(1, N_BEARINGS + 1)
+    v = self._values
+    return dict(
+        m=m, s=np.array([[v[f"{q}_ring_{i}"] for q in ("x", "y", "vx", "vy")] for i in st]),
+        a=np.array([[v[f"ax_ring_{i}"], v[f"ay_ring_{i}"]] for i in st]),
+        Ko=np.array([[[v[f"k{a}{b}_outer_{i}"] for b in "xy"] for a in "xy"] for i in st]),
+        Co=np.array([[[v[f"c{a}{b}_outer_{i}"] for b in "xy"] for a in "xy"] for i in st]))
 
 
 def rotor_to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006
@@ -233,7 +284,12 @@ def rotor_do_step(self, current_time: float, step_size: float) -> bool:
     check_step_start(self, current_time, step_size)
     saved = copy.deepcopy(self._model.get_state())
     try:
-        self._model.step(step_size, self._forces(), *rotor_coefficients(self))
+        ring = rotor_ring_inputs(self)
+        if ring is None:
+            self._model.step(step_size, self._forces(), *rotor_coefficients(self))
+        else:
+            from rotor_fmu.ring_interface import step_with_ring_interface
+            step_with_ring_interface(self._model, step_size, self._forces(), *rotor_coefficients(self), ring)
     except FloatingPointError as exc:   # state became non-finite: cannot complete this step
         self._model.set_state(saved)
         self.log(f"rotor step t={current_time:.9g} dt={step_size:.3g} failed: {exc}", Fmi2Status.discard)

@@ -52,7 +52,7 @@ def test_pyproject_entry_points_and_extras():
     meta = tomllib.loads((REPO / "pyproject.toml").read_text())
     project = meta["project"]
     assert project["name"] == "rotorcosim" and project["requires-python"] == ">=3.11"
-    assert project["scripts"]["rotorcosim"] == "orchestrator.cli:main"
+    assert project["scripts"]["rotorcosim"] == "orchestrator.cli:console_main"
     assert any(d.startswith("pytest") for d in project["optional-dependencies"]["test"])
     deps = {re.split(r"[<>=!~ \[]", d)[0].lower() for d in project["dependencies"]}
     assert {"numpy", "scipy", "fmpy", "pythonfmu", "pyyaml"} <= deps
