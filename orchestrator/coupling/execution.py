@@ -265,7 +265,7 @@ class MasterAlgorithm:
                 "false); use step_control type constant")
         can_reject = all(u.sub.can_get_set_state for u in self.units)
         self.grid.can_reject = can_reject
-        self.grid.signal_names = self.signal_names
+        self.grid.bind(self.signal_names, self.scenario.connections)
         if can_reject:
             for u in self.units:
                 u.sub.no_set_prior_state = False

@@ -103,9 +103,14 @@ class StepControlSpec:
 
     type: str = "constant"                   # one of STEP_CONTROL_TYPES
     rtol: float = 1.0e-4
-    atol: float = 1.0e-8                     # in the signals' units
+    atol: float | tuple = 1.0e-8             # in the signals' units, or ((pattern, atol), ...) per signal
+    interface_jacobian: bool = True          # estimate the force an interface-Jacobian rotor applied
     min_step: float | None = None            # [s]
     max_step: float | None = None            # [s]
+
+    def __post_init__(self):
+        if isinstance(self.atol, Mapping):   # e.g. from a compare file's `set:` or Python: keep file order
+            object.__setattr__(self, "atol", tuple((str(k), float(v)) for k, v in self.atol.items()))
 
 
 @dataclass(frozen=True, kw_only=True)
