@@ -107,7 +107,9 @@ class BearingParams:
         the reused LU, refreshed after m GMRES iterations (krylov_tol: GMRES
         relative tolerance).
         h_init, h_min, h_max [s]: internal steps.
-        linear_solver: "band" (LAPACK band LU, default) or "splu" (SuperLU).
+        linear_solver: "band" (default: band LU without row interchanges when partial
+        pivoting would make none, else LAPACK dgbtrf; solver.BandLU), "lapack" (LAPACK
+        dgbtrf always) or "splu" (SuperLU).
     """
 
     R: float = 0.02
@@ -193,7 +195,8 @@ class BearingParams:
         need("krylov_refactor", isinstance(self.krylov_refactor, int)
              and self.krylov_refactor >= 0, "an integer >= 0 (0: fresh LU every Newton iteration)")
         need("h_min", self.h_min <= self.h_init <= self.h_max, "h_min <= h_init <= h_max")
-        need("linear_solver", self.linear_solver in ("band", "splu"), "'band' or 'splu'")
+        need("linear_solver", self.linear_solver in ("band", "lapack", "splu"),
+             "'band', 'lapack' or 'splu'")
         if problems:
             raise ValueError("invalid bearing parameters:\n  " + "\n  ".join(problems))
         if self.cavitation == 1 and self.axial_bc == 1 and self.groove_width == 0:

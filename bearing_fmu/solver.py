@@ -33,6 +33,8 @@ Method
 
 from __future__ import annotations
 
+import math
+
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
@@ -64,27 +66,268 @@ def _limit_switch(u, un, delta):
             un[k] = -2.0
 
 
+@nb.njit(cache=True)
+def dominant_weights(H, He, Hdot, th_dot0, omega, a_phi, a_z, dphi, dz, wrel, frel, wp, wth):
+    """Per column: the own-cell (diagonal) coefficients of p and of theta in a cell's
+    residual, ``wp`` [1/Pa] (Poiseuille conductances of its four faces) and ``wth``
+    (time, squeeze and upwind Couette outflow), as :func:`.film.assemble` builds them
+    (interior cells; the edge and mid-plane rows differ by one axial face, which is
+    irrelevant for the choice they serve, see :func:`dominant_update`)."""
+    n_phi = H.size
+    A = dphi * dz
+    for i in range(n_phi):
+        ie = i
+        iw = i - 1 if i > 0 else n_phi - 1
+        wr = 1.0 if wrel is None else wrel[i]
+        fe = 1.0 if frel is None else frel[ie]
+        fw = 1.0 if frel is None else frel[iw]
+        cond = a_phi * (He[ie] ** 3 / fe + He[iw] ** 3 / fw) / dphi
+        wp[i] = dz * cond + 2.0 * dphi * wr * a_z * H[i] ** 3 / dz
+        up = He[ie] if omega >= 0.0 else He[iw]
+        wth[i] = abs(A * wr * (2.0 * H[i] * th_dot0 + 2.0 * Hdot[i])) + dz * abs(omega) * up
+
+
+@nb.njit(cache=True, inline="always")
+def _own_part(v, wp, wth, p_cav, K, delta):
+    """``wp p(v) + wth theta(v)`` (without constants) and its derivative in v."""
+    x = v / delta
+    e = math.exp(-abs(x))
+    l1 = math.log1p(e)
+    s = 1.0 / (1.0 + e)              # sigmoid(|x|); sigmoid(-|x|) = e s
+    if x >= 0.0:
+        return wp * K * delta * (x + l1) - wth * delta * l1, wp * K * s + wth * e * s
+    return wp * K * delta * l1 - wth * delta * (l1 - x), wp * K * e * s + wth * s
+
+
+@nb.njit(cache=True)
+def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un):
+    """New iterate ``un`` from the Newton increment ``dx`` in u, with each cell's own
+    nonlinearity taken exactly: the cell moves to the u at which its own (diagonal) part of
+    the residual, ``wp p(u) + wth theta(u)`` (coefficients of :func:`dominant_weights`),
+    takes the value the Newton linearisation predicts, ``f(u) + f'(u) dx``. A scalar,
+    strictly increasing equation (f' >= min(wp K, wth) > 0), solved by safeguarded
+    Newton-bisection (``rtsafe``, Press et al., Numerical Recipes, sec. 9.4) in the bracket
+    ``v0 +- |f(v0) - T| / min f'``. It generalises primary-variable switching (Forsyth, Wu &
+    Pruess 1995, Adv. Water Resour. 18(1); Lehmann & Ackerer 1998, Transp. Porous Media
+    31): a cell governed by theta moves to the linearised theta, one governed by p to the
+    linearised p. Why: near the switch theta(u) has the exponential tail
+    ``1 - delta e^(-u/delta)`` and Newton in u crawled along it by about delta per
+    iteration (BENCHMARKS.md, issue 16). On one branch far from the switch (u and u + dx
+    both beyond 12 delta on the same side) f is linear to e^-12 and the plain step
+    ``u + dx`` is kept; otherwise the solve ends within 1e-9 delta of the root. The
+    solution (r = 0) is the same: only the Newton path changes."""
+    for k in range(u.size):
+        i = k % n_phi
+        d = dx[k]
+        v = u[k] + d
+        un[k] = v
+        lim = 12.0 * delta
+        if (u[k] > lim and v > lim) or (u[k] < -lim and v < -lim):
+            continue            # one branch, far from the switch: f linear to e^-12
+        a, b = wp[i], wth[i]
+        f0, df0 = _own_part(u[k], a, b, p_cav, K, delta)
+        un[k] = _own_root(v, f0 + df0 * d, a, b, p_cav, K, delta)
+
+
+@nb.njit(cache=True)
+def _own_root(v, target, a, b, p_cav, K, delta):
+    """The v with ``a p(v) + b theta(v) = target`` (strictly increasing in v), from the
+    guess v: safeguarded Newton-bisection in the bracket ``v +- |f(v) - target| / min f'``,
+    to 1e-9 delta (see :func:`dominant_update`)."""
+    m = max(min(a * K, b), 1e-300)   # f' >= m; b = 0 only at rest without squeeze
+    fv, dfv = _own_part(v, a, b, p_cav, K, delta)
+    e = fv - target
+    lo = v - abs(e) / m
+    hi = v + abs(e) / m
+    for _ in range(60):
+        if abs(e) <= 1e-9 * delta * dfv:
+            break           # |v - root| below 1e-9 delta
+        if e > 0.0:
+            hi = v
+        else:
+            lo = v
+        vn = v - e / dfv
+        if not (lo < vn < hi):
+            vn = 0.5 * (lo + hi)
+        if vn == v or hi - lo <= 1e-14 * (abs(v) + delta):
+            break
+        v = vn
+        fv, dfv = _own_part(v, a, b, p_cav, K, delta)
+        e = fv - target
+    return v
+
+
+@nb.njit(cache=True)
+def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out):
+    """Newton start ``out`` for the next internal step, extrapolated linearly in each cell's
+    own part ``f = wp p(u) + wth theta(u)`` (:func:`dominant_update`) instead of in u:
+    ``f(out) = f(u) + ratio (f(u) - f(u_prev))``, ``ratio = h / h_prev``. A line in u through
+    a cell on theta's exponential tail (or crossing the switch) extrapolates the wrong
+    curve; in f it extrapolates the quantity the cell's equation is nearly linear in.
+    Cells on one branch far from the switch (u_prev, u and the line's end beyond 12 delta,
+    same side) keep the line in u (identical there to e^-12). Measured in the whirl orbit
+    of benchmarks/bench_bearing_whirl.py: 7.06 -> 5.22 Newton iterations per macro step."""
+    lim = 12.0 * delta
+    for k in range(u.size):
+        i = k % n_phi
+        v = u[k] + ratio * (u[k] - u_prev[k])
+        out[k] = v
+        if (u[k] > lim and v > lim and u_prev[k] > lim) or \
+                (u[k] < -lim and v < -lim and u_prev[k] < -lim):
+            continue
+        a, b = wp[i], wth[i]
+        f0, _ = _own_part(u[k], a, b, p_cav, K, delta)
+        f1, _ = _own_part(u_prev[k], a, b, p_cav, K, delta)
+        out[k] = _own_root(v, f0 + ratio * (f0 - f1), a, b, p_cav, K, delta)
+
+
+@nb.njit(cache=True)
+def _increment_norm_kernel(dx, p, dp, dth, atol, rtol, K):
+    """:meth:`TransientFilm._increment_norm` in one pass (the same maxima and products as
+    the numpy expression it replaces, so the same value bit for bit; nan if dx has one)."""
+    pmax = -np.inf
+    pmin = np.inf
+    mth = 0.0
+    mp = 0.0
+    for k in range(dx.size):
+        pmax = max(pmax, p[k])
+        pmin = min(pmin, p[k])
+        a = abs(dx[k])
+        if not (a == a):
+            return np.nan
+        mth = max(mth, a * dth[k])
+        mp = max(mp, a * dp[k])
+    p_tol = rtol * (pmax - pmin) + atol * K
+    return max(mth / atol, mp / p_tol)
+
+
 class StepFailed(RuntimeError):
     """The film could not be advanced (Newton or step-size control failed)."""
 
 
+#: threshold of :func:`band_lu_nopivot`: the pivot must be at least this fraction of the
+#: largest entry below it (threshold partial pivoting; Duff, Erisman & Reid, Direct Methods
+#: for Sparse Matrices, 2nd ed., sec. 4.4: 0.1 is the customary value, growth per step <= 11)
+PIVOT_THRESHOLD = 0.1
+
+
+@nb.njit(cache=True)
+def band_lu_nopivot(ab, bw, thresh):
+    """In-place LU without row interchanges of a matrix in LAPACK band storage
+    (``ab[2 bw + i - j, j] = A[i, j]``, kl = ku = bw, Fortran order; rows 0 .. bw-1 are not
+    used: without interchanges L keeps bandwidth kl and U ku). Returns 0, or k + 1 when at
+    column k the pivot is below ``thresh`` times the largest entry under it, or 0 / not
+    finite: the caller then factors with partial pivoting. Accepting a pivot down to a
+    fraction ``thresh`` of the column is threshold pivoting (Duff, Erisman & Reid, sec. 4.4;
+    the element growth per step is at most 1 + 1/thresh); the film's Newton matrix is
+    column diagonally dominant up to the upwind Couette coupling, for which elimination
+    needs no interchange at all (Golub & Van Loan, Matrix Computations, 4th ed., 3.4.6)."""
+    rows = ab.shape[0]
+    n = ab.shape[1]
+    a = ab.T.ravel()                 # a view: entry (r, c) at c * rows + r
+    d = 2 * bw
+    col = np.empty(bw)
+    for k in range(n):
+        ck = k * rows + d            # flat index of the pivot A[k, k]
+        piv = a[ck]
+        m = min(bw, n - 1 - k)
+        big = 0.0
+        for i in range(1, m + 1):
+            big = max(big, abs(a[ck + i]))
+        if not (abs(piv) > 0.0) or not math.isfinite(piv) or thresh * big > abs(piv):
+            return k + 1
+        inv = 1.0 / piv
+        for i in range(1, m + 1):
+            a[ck + i] *= inv
+            col[i - 1] = a[ck + i]       # the multipliers, apart (no aliasing: SIMD)
+        for j in range(1, m + 1):
+            cj = (k + j) * rows + d - j   # flat index of A[k, k + j]
+            akj = a[cj]
+            if akj != 0.0:
+                _axpy(a, cj + 1, col, m, -akj)
+    return 0
+
+
+@nb.njit(cache=True, inline="always")
+def _axpy(a, start, x, m, alpha):
+    """``a[start:start + m] += alpha x[:m]``."""
+    seg = a[start:start + m]
+    for i in range(m):
+        seg[i] += alpha * x[i]
+
+
+@nb.njit(cache=True)
+def band_solve_nopivot(ab, bw, b, x):
+    """Solve ``A x = b`` with the factors of :func:`band_lu_nopivot`."""
+    rows = ab.shape[0]
+    n = ab.shape[1]
+    a = ab.T.ravel()
+    d = 2 * bw
+    for k in range(n):
+        x[k] = b[k]
+    for k in range(n):
+        xk = x[k]
+        ck = k * rows + d
+        for i in range(1, min(bw, n - 1 - k) + 1):
+            x[k + i] -= a[ck + i] * xk
+    for k in range(n - 1, -1, -1):
+        ck = k * rows + d
+        x[k] /= a[ck]
+        xk = x[k]
+        for i in range(1, min(bw, k) + 1):
+            x[k - i] -= a[ck - i] * xk
+
+
 class BandLU:
-    """LAPACK band LU (dgbtrf/dgbtrs) of a matrix in band storage."""
+    """Band LU of a matrix in LAPACK band storage: elimination without interchanges
+    (numba, :func:`band_lu_nopivot`, threshold ``PIVOT_THRESHOLD``), the film's usual case;
+    when a pivot fails the threshold, LAPACK ``dgbtrf``/``dgbtrs`` (partial pivoting) on the
+    same matrix, counted in ``fallbacks``. Without interchanges the factors keep the band
+    (no kl fill-in columns as in ``dgbtrf``): about half its work at the film's bandwidth."""
 
     name = "band"
 
     def __init__(self, bw: int):
         self.bw = bw
+        self.fallbacks = 0
 
-    def factor(self, ab):
+    def factor(self, ab, rebuild=None):
+        """Factor ``ab`` in place. ``rebuild()``, if given, refills ``ab`` with the matrix
+        (for the pivoting fallback; without it a copy is kept beforehand)."""
+        keep = ab.copy(order="F") if rebuild is None else None
+        if band_lu_nopivot(ab, self.bw, PIVOT_THRESHOLD) == 0:
+            self.lu, self.piv = ab, None
+            return
+        self.fallbacks += 1
+        if rebuild is None:
+            ab[...] = keep
+        else:
+            rebuild()
         lu, piv, info = lapack.dgbtrf(ab, self.bw, self.bw, overwrite_ab=1)
         if info != 0:
             raise StepFailed(f"band LU: singular Newton matrix (dgbtrf info={info})")
         self.lu, self.piv = lu, piv
 
     def solve(self, b):
+        if self.piv is None:
+            x = np.empty(b.size)
+            band_solve_nopivot(self.lu, self.bw, np.ascontiguousarray(b, dtype=float), x)
+            return x
         x, info = lapack.dgbtrs(self.lu, self.bw, self.bw, b, self.piv)
         return x
+
+
+class LapackBandLU(BandLU):
+    """LAPACK ``dgbtrf``/``dgbtrs`` (partial pivoting) always: the benchmark peer of
+    :class:`BandLU` (``linear_solver = "lapack"``)."""
+
+    name = "lapack"
+
+    def factor(self, ab, rebuild=None):
+        lu, piv, info = lapack.dgbtrf(ab, self.bw, self.bw, overwrite_ab=1)
+        if info != 0:
+            raise StepFailed(f"band LU: singular Newton matrix (dgbtrf info={info})")
+        self.lu, self.piv = lu, piv
 
 
 class SpluLU:
@@ -96,7 +339,7 @@ class SpluLU:
         self.bw = bw
         self.offsets = np.arange(-bw, bw + 1)
 
-    def factor(self, ab):
+    def factor(self, ab, rebuild=None):
         bw = self.bw
         data = ab[2 * bw - self.offsets]
         n = ab.shape[1]
@@ -112,11 +355,15 @@ class TransientFilm:
 
     ``ctx`` is a :class:`bearing_fmu.model.BearingModel`-like object with the
     grid, constants and law (see ``model.py``); the integrator only owns the
-    numerical state. Diagnostics switches (attributes, default True):
+    numerical state. Diagnostics switches (attributes, default True unless said):
     ``predictor`` (extrapolate u as Newton start), ``predictor_limited`` (the
     extrapolation stopped at the cavitation switch, as :func:`_limit_switch`
     stops a Newton step; False = the plain line, the benchmark peer), ``line_search``
-    (backtracking on |r|); ``full_newton=True`` refactorises every iteration
+    (backtracking on |r|), ``predictor_dominant`` (the extrapolation in each cell's own part,
+    :func:`dominant_extrapolate`, when ``dominant``; False = the line in u), ``dominant`` (the Newton step taken in each cell's dominant variable,
+    :func:`dominant_update`; False = the plain step in u, the benchmark peer), ``search_converged``
+    (default False: a converged Newton step is taken whole, without the line search's
+    residual; True = the line search first, the older order); ``full_newton=True`` refactorises every iteration
     whatever ``krylov_refactor`` says (the benchmark peer).
     """
 
@@ -125,11 +372,14 @@ class TransientFilm:
         g = ctx.grid
         n = g.n
         self.n = n
-        self.lin = (BandLU if linear_solver == "band" else SpluLU)(g.bw)
+        self.lin = {"band": BandLU, "lapack": LapackBandLU, "splu": SpluLU}[linear_solver](g.bw)
         self.full_newton = full_newton
         self.predictor = True
         self.predictor_limited = True
         self.line_search = True
+        self.dominant = True
+        self.predictor_dominant = True
+        self.search_converged = False
         self.ab = np.zeros((3 * g.bw + 1, n), order="F")
         # theta_transport = 1: limited second-order Couette transport of theta, whose
         # exact Jacobian has the 7-point stencil (i +- 2; the grid's band covers it)
@@ -161,12 +411,16 @@ class TransientFilm:
         g = self.ctx.grid
         # rows 0 .. bw-1 of LAPACK band storage are dgbtrf's fill-in workspace and "need not
         # be set" on entry (it zeroes them itself); splu reads rows bw .. 3 bw only
-        self.ab[g.bw:].fill(0.0)
-        stencil_to_band(self.jst, g.n_phi, g.pos, g.bw, self.ab)
-        self.lin.factor(self.ab)
+        self._scatter()
+        self.lin.factor(self.ab, self._scatter)
         self._factored = True
         self.stats["factor"] += 1
         self.jac = dict(u=u.copy(), th_dot0=th_dot0, kin=kin)
+
+    def _scatter(self):
+        g = self.ctx.grid
+        self.ab[g.bw:].fill(0.0)
+        stencil_to_band(self.jst, g.n_phi, g.pos, g.bw, self.ab)
 
     def _solve(self, r):
         g = self.ctx.grid
@@ -233,7 +487,16 @@ class TransientFilm:
         return th
 
     # ------------------------------------------------------------ Newton
-    def newton(self, u0, th_dot0, th_dot1, kin, max_iter=None):
+    def _weights(self, th_dot0, kin):
+        """Per-column own-cell coefficients (:func:`dominant_weights`) for this step."""
+        c, g = self.ctx, self.ctx.grid
+        H, He, Hdot, omega = kin
+        wcol_p, wcol_th = np.empty(g.n_phi), np.empty(g.n_phi)
+        dominant_weights(H, He, Hdot, th_dot0, omega, c.a_phi, c.a_z, g.dphi, g.dz,
+                         g.wrel, g.frel, wcol_p, wcol_th)
+        return wcol_p, wcol_th
+
+    def newton(self, u0, th_dot0, th_dot1, kin, max_iter=None, weights=None):
         """Solve r(u) = 0 from u0; return (u, iterations) or (None, its).
 
         Newton-Krylov: each iteration assembles the exact stencil Jacobian
@@ -251,6 +514,9 @@ class TransientFilm:
         prev = prev2 = None
         its = 0
         r_ready = False
+        g = self.ctx.grid
+        if self.dominant:
+            wcol_p, wcol_th = weights if weights is not None else self._weights(th_dot0, kin)
         while its < max_iter:
             if r_ready:             # evaluated at u by the line search below
                 r = self.r
@@ -272,7 +538,12 @@ class TransientFilm:
                     dx = self._solve(r)
             if not np.all(np.isfinite(dx)):
                 break
-            un = u + dx
+            if self.dominant:
+                law = self.ctx.law
+                un = np.empty_like(u)
+                dominant_update(u, dx, wcol_p, wcol_th, g.n_phi, law.p_cav, law.K, law.delta, un)
+            else:
+                un = u + dx
             _limit_switch(u, un, self.ctx.law.delta)
             # convergence is judged on the Newton step itself (after the switch limit),
             # not on the step the line search below may shorten: a step backtracked to
@@ -280,6 +551,19 @@ class TransientFilm:
             # accepted iterates whose residual was 70x that of the start (measured: a
             # free-to-air step at default tolerances, its force 9 % off)
             nrm = self._increment_norm(un - u, atol, rtol)
+            # converged: increment small, or the remaining error estimated from
+            # the contraction rate, rho/(1 - rho) |dx|, is (Hairer & Wanner IV.8).
+            # rho is the larger of the last two ratios of increments: a single ratio
+            # after a first step from a poor start (increment 3e4 tolerances, then
+            # 1e2) says 0.003 and accepted an iterate 100 tolerances from converged.
+            # Tested before the line search: a converged step is taken whole (the test
+            # is on the whole step), and the residual the line search would evaluate
+            # at it (one assembly per Newton solve) is not needed
+            rho = max(nrm / prev, prev / prev2) if prev2 else 1.0
+            done = nrm <= 1.0 or (rho < 0.9 and rho / (1.0 - rho) * nrm <= 1.0)
+            if done and not self.search_converged:
+                self.stats["newton"] += its
+                return un, its
             if prev is not None and self.line_search:
                 # backtracking on |r| (the Newton step is a descent direction);
                 # the residual and Jacobian at the accepted point are kept for
@@ -295,13 +579,7 @@ class TransientFilm:
                         self.residual(un, th_dot0, th_dot1, kin, want_jac=True)))
                 r_ready = True
             u = un
-            # converged: increment small, or the remaining error estimated from
-            # the contraction rate, rho/(1 - rho) |dx|, is (Hairer & Wanner IV.8).
-            # rho is the larger of the last two ratios of increments: a single ratio
-            # after a first step from a poor start (increment 3e4 tolerances, then
-            # 1e2) says 0.003 and accepted an iterate 100 tolerances from converged
-            rho = max(nrm / prev, prev / prev2) if prev2 else 1.0
-            if nrm <= 1.0 or (rho < 0.9 and rho / (1.0 - rho) * nrm <= 1.0):
+            if done:
                 self.stats["newton"] += its
                 return u, its
             prev2, prev = prev, nrm
@@ -314,10 +592,8 @@ class TransientFilm:
         ``max(|dtheta| / atol, |dp| / (rtol (p_max - p_min) + atol K))`` with
         dtheta, dp linearised at the last residual evaluation: theta to
         ``newton_atol``, pressure to ``newton_rtol`` of the pressure range."""
-        law = self.ctx.law
-        p_tol = rtol * (float(self.wp.max()) - float(self.wp.min())) + atol * law.K
-        adx = np.abs(dx)
-        return float(max(np.max(adx * self.wdth) / atol, np.max(adx * self.wdp) / p_tol))
+        return _increment_norm_kernel(dx, self.wp, self.wdp, self.wdth, atol, rtol,
+                                      self.ctx.law.K)
 
     # ------------------------------------------------------------ stepping
     def init_state(self, u):
@@ -407,9 +683,17 @@ class TransientFilm:
                     a0, a1, a2 = (1 + 2 * w) / (1 + w), -(1 + w), w * w / (1 + w)
                     th_dot0 = a0 / h
                     th_dot1 = (a1 * th_n + a2 * self.th_nm1) / h
+                weights = self._weights(th_dot0, kin) if self.dominant else None
                 if self.n_hist >= 1 and self.predictor:
-                    # linear extrapolation of u as Newton start (not a state change)
-                    u_start = self.u + (h / self.h_prev) * (self.u - self.u_prev)
+                    # linear extrapolation as Newton start (not a state change): in each
+                    # cell's own part (dominant_extrapolate), or in u
+                    if self.predictor_dominant and weights is not None:
+                        law, g = self.ctx.law, self.ctx.grid
+                        u_start = np.empty_like(self.u)
+                        dominant_extrapolate(self.u, self.u_prev, h / self.h_prev, *weights,
+                                             g.n_phi, law.p_cav, law.K, law.delta, u_start)
+                    else:
+                        u_start = self.u + (h / self.h_prev) * (self.u - self.u_prev)
                     if self.predictor_limited:
                         # not across the cavitation switch: u is p / K in the film and
                         # theta - 1 in the cavity, so a line through a rupturing cell
@@ -418,7 +702,7 @@ class TransientFilm:
                         _limit_switch(self.u, u_start, self.ctx.law.delta)
                 else:
                     u_start = self.u
-                u_new, its = self.newton(u_start, th_dot0, th_dot1, kin)
+                u_new, its = self.newton(u_start, th_dot0, th_dot1, kin, weights=weights)
                 last_its = its
                 if u_new is None:
                     self.stats["rejected"] += 1

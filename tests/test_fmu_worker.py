@@ -246,3 +246,46 @@ def test_request_and_receive_let_workers_step_at_the_same_time(fmus, tmp_path):
     finally:
         for s in [*subs, ref]:
             s.free()
+
+
+def test_workers_started_without_waiting_come_up_side_by_side(fmus, tmp_path):
+    """wait=False returns before the worker is up; ready() (or the first call) waits for it.
+    A worker never waited for is stopped by free(); one that died before it was up is
+    reported by ready() as a crash, and the proxy is shut down."""
+    ref = Subsystem("r", fmus / "LinearBearing.fmu", work_dir=tmp_path / "ref")
+    try:
+        expected = _drive(ref, 5)
+    finally:
+        ref.free()
+    a, b, c, d = (WorkerSubsystem(n, fmus / "LinearBearing.fmu", work_dir=tmp_path / n, wait=False)
+                  for n in "abcd")
+    os.kill(d.pid, signal.SIGKILL)                                # long before its interpreter is up
+    try:
+        assert all(_alive(s.pid) for s in (a, b, c))
+        a.ready()
+        assert _drive(a, 5).tobytes() == expected.tobytes()
+        assert _drive(b, 5).tobytes() == expected.tobytes()     # no ready(): the first call waits
+        assert a.statistics()["instantiate"] == b.statistics()["instantiate"] == 1
+        c.free()                                                  # never waited for
+        assert not _alive(c.pid)
+        with pytest.raises(FmuCrashError) as info:
+            d.ready()
+        assert (info.value.cause, info.value.instance, info.value.function) == (
+            "SIGKILL", "d", "starting the worker process")
+        assert not _alive(d.pid)
+        d.free()                                                  # idempotent after the crash
+    finally:
+        for s in (a, b, c, d):
+            s.free()
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="CPU affinity is Linux-only")
+def test_a_pinned_worker_stays_on_its_cpu(fmus, tmp_path):
+    """coupling.pin_workers: the worker process runs on the CPU it was given, and only there."""
+    cpu = max(os.sched_getaffinity(0))
+    w = WorkerSubsystem("p", fmus / "LinearBearing.fmu", work_dir=tmp_path, cpu=cpu)
+    try:
+        assert os.sched_getaffinity(w.pid) == {cpu}
+        assert np.isfinite(_drive(w, 3)).all()
+    finally:
+        w.free()

@@ -231,7 +231,7 @@ def test_sigterm_stops_like_ctrl_c(fmu_dir, tmp_path):
         assert list(tmp.iterdir()) == []
 
 
-def _jeffcott_yaml(fmu_dir: Path, scheme: str, isolation: dict, parallel: bool, k: int = 1) -> Path:
+def _jeffcott_yaml(fmu_dir: Path, scheme: str, isolation: dict, parallel: bool, k: int = 1, pin: bool = False) -> Path:
     conns = []
     for i in (1, 2):
         conns += [f"  - {{from: rotor.{v}_{i}, to: bearing{i}.{v}}}" for v in ("x", "y", "vx", "vy")]
@@ -245,9 +245,9 @@ def _jeffcott_yaml(fmu_dir: Path, scheme: str, isolation: dict, parallel: bool, 
         f"  bearing2: {{path: LinearBearing.fmu{iso['bearing2']}}}",
         "connections:", *conns,
         f"coupling: {{scheme: {scheme}, macro_step: 2.0e-5, extrapolation_order: {k}, "
-        f"parallel: {str(parallel).lower()}}}",
+        f"parallel: {str(parallel).lower()}, pin_workers: {str(pin).lower()}}}",
         "output: {interval: 1.0e-4}", ""])
-    path = fmu_dir / f"jeffcott_{scheme}_{'_'.join(f'{n}{v}' for n, v in isolation.items())}_{parallel}_k{k}.yaml"
+    path = fmu_dir / f"jeffcott_{scheme}_{'_'.join(f'{n}{v}' for n, v in isolation.items())}_{parallel}_k{k}_{pin}.yaml"
     path.write_text(text)
     return path
 
@@ -267,14 +267,16 @@ def test_isolated_and_parallel_runs_are_byte_identical(jeffcott_dir, tmp_path, s
 
     variants = {"in-process": ({}, False),
                 "bearings in workers, parallel": ({"bearing1": "process", "bearing2": "process"}, True),
+                "one bearing in a pinned worker, parallel": ({"bearing2": "process"}, True, True),
                 "all in workers, sequential": ({"rotor": "process", "bearing1": "process", "bearing2": "process"},
                                                False),
                 "all in workers, parallel": ({"rotor": "process", "bearing1": "process", "bearing2": "process"},
                                              True)}
     got = {}
-    for label, (iso, par) in variants.items():
+    for label, (iso, par, *pin) in variants.items():
         out = tmp_path / label.replace(" ", "_").replace(",", "")
-        res = run(load_scenario(_jeffcott_yaml(jeffcott_dir, scheme, iso, par, k)), out_dir=out, progress=False)
+        res = run(load_scenario(_jeffcott_yaml(jeffcott_dir, scheme, iso, par, k, pin=bool(pin))), out_dir=out,
+                  progress=False)
         assert res.success, (label, res.message)
         got[label] = ((out / "results.csv").read_bytes(), res.stats["fmu_calls"])
     ref_csv, ref_calls = got["in-process"]

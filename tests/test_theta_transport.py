@@ -77,13 +77,18 @@ BASELINE = {
 }
 
 
-def _run_baseline(kw, predictor_limited=False):
-    p = BearingParams(**kw)
+def _run_baseline(kw, predictor_limited=False, newton_path="old"):
+    # the baselines predate the speed changes of the Newton path (solver.py: the predictor
+    # stopped at the cavitation switch, the step in each cell's dominant variable, the
+    # converged step taken before the line search, the band LU without interchanges):
+    # reproduced with the old path; the default path is checked against them to the Newton
+    # tolerance in the test
+    old = newton_path == "old"
+    p = BearingParams(**dict(kw, linear_solver="lapack") if old else kw)
     b = BearingModel(p)
-    # the baselines predate the Newton predictor stopped at the cavitation switch (a speed
-    # change, solver.py): reproduced with the plain predictor; the default is checked
-    # against them to the Newton tolerance in the test
     b.film.predictor_limited = predictor_limited
+    b.film.dominant = not old
+    b.film.search_converged = old
     c = p.c
     w = 2 * math.pi * 150
     b.initialize(0.1 * c, -0.4 * c, 0.0, 0.0, w)
@@ -114,6 +119,11 @@ def test_option0_unchanged_from_main(case):
     for key in ("Fx", "Fy", "torque"):
         assert got1[key] == pytest.approx(got[key], rel=1e-5), key
     assert kc1 == pytest.approx(kc, rel=1e-4)
+    # and so does the new Newton path (the defaults)
+    got2, kc2 = _run_baseline(kw, predictor_limited=True, newton_path="new")
+    for key in ("Fx", "Fy", "torque"):
+        assert got2[key] == pytest.approx(got[key], rel=1e-5), key
+    assert kc2 == pytest.approx(kc, rel=1e-4)
 
 
 def test_air_baseline_matches_tight_tolerances():
@@ -121,8 +131,9 @@ def test_air_baseline_matches_tight_tolerances():
     tolerances: within 0.1 % of the same run with 100x-1e4x tighter ones (the falsely
     converged Newton of main gave Fy 320 N against 563 N)."""
     kw = BASELINE["air"][0]
-    got, _ = _run_baseline(kw, predictor_limited=True)
-    tight, _ = _run_baseline(dict(kw, theta_atol=1e-5, newton_atol=1e-7, newton_rtol=1e-8))
+    got, _ = _run_baseline(kw, predictor_limited=True, newton_path="new")
+    tight, _ = _run_baseline(dict(kw, theta_atol=1e-5, newton_atol=1e-7, newton_rtol=1e-8),
+                          predictor_limited=True, newton_path="new")
     for key in ("Fx", "Fy"):
         assert got[key] == pytest.approx(tight[key], rel=1e-3), key
 

@@ -55,7 +55,7 @@ def main(argv=None):
         f0, slope = zero_crossing(spd, sig, lo, hi)
         found.append((H, f0))
         print(f"{d}: H = {H:g} s")
-        for f in (700, 720, 740, 760, 780, 800):
+        for f in range(int(lo // 20 + 1) * 20, int(hi) + 1, 20):   # every 20 Hz of the fit range
             k = int(np.argmin(abs(spd - f)))
             if abs(spd[k] - f) < 3:
                 print(f"  {spd[k]:6.1f} Hz: sigma {sig[k]:+7.2f} 1/s, whirl {frq[k]:6.1f} Hz")

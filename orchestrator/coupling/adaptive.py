@@ -37,6 +37,7 @@ import math
 import numpy as np
 
 from orchestrator.coupling.error_control import PIController, next_stop, scaled_error_norm
+from orchestrator.coupling.signal_scales import atol_vector, corrected_prediction, jacobian_groups
 from orchestrator.coupling.signals import lagrange_weights
 from orchestrator.coupling.step_control import ConstantStep, DiscardHalving, StepSizeController
 from orchestrator.errors import CouplingError
@@ -87,7 +88,9 @@ class ErrorControlled(StepSizeController):
         self.h = min(max(h0, self.pi.min_step), self.pi.max_step)
         self.h0 = float(h0)
         self.max_steps = max(MAX_STEPS, MAX_STEPS_PER_NOMINAL * self.n_steps)
-        self.signal_names: list[str] = []      # set by the master, for messages
+        self.signal_names: list[str] = []      # set by the master (bind), for messages
+        self.atol: np.ndarray | None = None    # per signal (bind); None: spec.atol as given
+        self.ij_groups: list = []              # interface-Jacobian forces (bind)
         self.limiting: dict[int, int] = {}     # signal index -> steps it had the largest error
         self.accepted = 0
         self.h_min_taken = math.inf
@@ -111,12 +114,31 @@ class ErrorControlled(StepSizeController):
         past = (hist.times[1:p + 2] - t) / (t_end - t)
         return lagrange_weights(past, [1.0])[0] @ hist.store[1:p + 2]
 
+    def bind(self, names: list[str], connections) -> None:
+        """Per-signal atol and the interface-Jacobian forces of the columns ``names``
+        (signal_scales.py); called by the master at setup."""
+        self.signal_names = list(names)
+        self.atol = atol_vector(self.spec.atol, self.signal_names)
+        self.ij_groups = jacobian_groups(self.signal_names, connections) if self.spec.interface_jacobian else []
+        for _, terms in self.ij_groups:        # the coefficients act through the force's defect
+            for kc, _, _ in terms:
+                self.atol[kc] = math.inf
+        if self.ij_groups:
+            log.info("error-controlled step: interface-Jacobian estimate for %s",
+                     ", ".join(self.signal_names[j] for j, _ in self.ij_groups))
+
     def error(self, stepper, pred: np.ndarray, prev: np.ndarray) -> tuple[float, int]:
         """Scaled local error of the step just committed (module docstring, item 4)."""
         hist = stepper.history
         pair = stepper.error_signals() if hasattr(stepper, "error_signals") else None
-        a, b = pair if pair is not None else (pred, hist.store[1])
-        return scaled_error_norm(a, b, prev, rtol=self.spec.rtol, atol=self.spec.atol)
+        if pair is not None:
+            a, b = pair
+        else:
+            a, b = pred, hist.store[1]
+            if self.ij_groups:
+                a = corrected_prediction(pred, b, prev, self.ij_groups)
+        atol = self.atol if self.atol is not None and len(self.atol) == len(b) else self.spec.atol
+        return scaled_error_norm(a, b, prev, rtol=self.spec.rtol, atol=atol)
 
     def take_variable_step(self, stepper, t: float) -> tuple[float, bool]:
         """Take one accepted step from ``t``; returns ``(t_end, on_output_time)``."""
@@ -180,6 +202,7 @@ class ErrorControlled(StepSizeController):
                                  "rejected_steps": self.pi.rejected, "forced_steps": self.pi.forced,
                                  "jumps": self.pi.jumps, "can_reject": self.can_reject,
                                  "limiting_signals": self._limiting(),
+                                 "interface_jacobian": [self.signal_names[j] for j, _ in self.ij_groups],
                                  "min_step_taken": self.h_min_taken if self.accepted else None,
                                  "max_step_taken": self.h_max_taken if self.accepted else None}}
 

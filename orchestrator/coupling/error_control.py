@@ -71,16 +71,18 @@ def scaled_error_norm(predicted: np.ndarray, actual: np.ndarray, previous: np.nd
                       rtol: float, atol: np.ndarray) -> tuple[float, int]:
     """RMS of the scaled prediction errors (module docstring) and the index of the largest.
 
-    ``previous`` are the signals at the start of the step. A non-finite entry
-    gives ``inf``.
+    ``previous`` are the signals at the start of the step; ``atol`` a number or one per
+    signal, where ``inf`` leaves the signal out (the mean is over the others). A non-finite
+    error gives ``inf``.
     """
     sc = atol + rtol * np.maximum(np.abs(previous), np.abs(actual))
-    e = (actual - predicted) / sc
-    if not len(e):
+    e = (actual - predicted) / sc          # an atol of inf gives 0 (the signal is left out), NaN stays NaN
+    n = int(np.count_nonzero(np.isfinite(atol))) if np.ndim(atol) else len(e)
+    if not len(e) or not n:
         return 0.0, 0
     if not np.all(np.isfinite(e)):
         return math.inf, int(np.flatnonzero(~np.isfinite(e))[0])
-    return float(math.sqrt(float(e @ e) / len(e))), int(np.argmax(np.abs(e)))
+    return float(math.sqrt(float(e @ e) / n)), int(np.argmax(np.abs(e)))
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import time as _time
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -148,6 +149,9 @@ class MasterAlgorithm:
                 self._work_dir = ExtractionPool()      # one extraction per FMU file, shared
                 for f in sc.fmus:
                     self.subsystems[f.name] = self._load(f)
+                for sub in self.subsystems.values():   # the workers started side by side
+                    if isinstance(sub, WorkerSubsystem):
+                        sub.ready()
             for f in sc.fmus:
                 self.subsystems[f.name].set_parameters(dict(f.parameters), out_dir=self.out_dir)
             self._plan()
@@ -164,8 +168,17 @@ class MasterAlgorithm:
         if mode == "process":
             # the worker extracts its own copy under this run's extraction folder (removed with it)
             return WorkerSubsystem(f.name, f.path, work_dir=self._work_dir.root / "workers",
-                                   call_timeout=getattr(c, "call_timeout", None))
+                                   call_timeout=getattr(c, "call_timeout", None), wait=False, cpu=self._next_cpu())
         return Subsystem(f.name, f.path, extraction=self._work_dir)
+
+    def _next_cpu(self) -> int | None:
+        """``coupling.pin_workers``: the CPU of the next worker, round robin over the CPUs this
+        process may use (os.sched_getaffinity), in the order of ``fmus``; else None."""
+        if not getattr(self.scenario.coupling, "pin_workers", False) or not hasattr(os, "sched_getaffinity"):
+            return None
+        cpus = sorted(os.sched_getaffinity(0))
+        k = sum(1 for s in self.subsystems.values() if isinstance(s, WorkerSubsystem))
+        return cpus[k % len(cpus)]
 
     def _stages(self) -> list:
         """(stage, members in stepping order, members to step concurrently or None) per stage of the
@@ -173,7 +186,7 @@ class MasterAlgorithm:
         member runs in a worker process, workers first (they compute while in-process members step)."""
         links = [(c.src_instance, c.dst_instance) for c in self.scenario.connections]
         by_name = {u.name: u for u in self.units}
-        parallel = bool(getattr(self.scenario.coupling, "parallel", True))
+        parallel = self._parallel()
         out = []
         for st in make_stages([u.name for u in self.units], links, self.scheme.uses_new_value):
             members = [by_name[n] for n in st.names]
@@ -252,7 +265,7 @@ class MasterAlgorithm:
                 "false); use step_control type constant")
         can_reject = all(u.sub.can_get_set_state for u in self.units)
         self.grid.can_reject = can_reject
-        self.grid.signal_names = self.signal_names
+        self.grid.bind(self.signal_names, self.scenario.connections)
         if can_reject:
             for u in self.units:
                 u.sub.no_set_prior_state = False
@@ -309,6 +322,8 @@ class MasterAlgorithm:
         """
         store = self.history.store
         t0 = self.grid.time(0)
+        workers = [u for u in self.units if isinstance(u.sub, WorkerSubsystem)] if self._parallel() else None
+        # (read while the others compute: results as one read after the other, MacroStep.read_outputs)
 
         def exchange(x=None):
             if x is not None:
@@ -316,9 +331,7 @@ class MasterAlgorithm:
                 self._push_inputs()
             if self.discrete.active:
                 self.discrete.exchange_all()
-            for u in self.units:
-                u.sub.get_real(u.outb)
-                self.stepper.propagate(u, t0)
+            self.stepper.read_outputs(t0, workers)
             return store[0].copy()
 
         x = exchange()
@@ -347,6 +360,9 @@ class MasterAlgorithm:
             f"{', '.join(loop) if loop else 'not a cycle of connections (an FMU output that keeps changing)'}. "
             "The loop's equations have no (or no reachable) solution: check the gains, offsets and the FMUs' "
             "feedthrough in it, or break it with a state (e.g. a first-order lag)")
+
+    def _parallel(self) -> bool:
+        return bool(getattr(self.scenario.coupling, "parallel", True))
 
     def _push_inputs(self) -> None:
         for u in self.units:

@@ -200,6 +200,42 @@ class MacroStep:
         if first is not None:
             raise first
 
+    def read_outputs(self, t: float, ask_first: list | None = None) -> None:
+        """Every unit's outputs now into the consumers' newest level, in stepping order (the
+        initial exchange at t0: nothing reaches an FMU between these reads).
+
+        ``ask_first``: the units in worker processes (``coupling.parallel``). Each is asked first
+        (``request_real``), the in-process units are read while the workers compute, then the
+        workers' replies (a bearing FMU builds its film at its first output: numba kernels and
+        the stationary film, about a second each, so these run at the same time). Propagation
+        and the error raised follow stepping order, so the result is that of one read after
+        the other; every asked worker's reply is read before a failure is raised.
+        """
+        asked = ask_first or []
+        if not asked or len(self.units) < 2:
+            for u in self.units:
+                u.sub.get_real(u.outb)
+                self.propagate(u, t)
+            return
+        for u in asked:
+            u.sub.request_real(u.outb)
+        errors: dict[str, Exception] = {}
+        for u in self.units:
+            if u not in asked and not errors:
+                try:
+                    u.sub.get_real(u.outb)
+                except (FmuCallError, CouplingError) as e:
+                    errors[u.name] = e
+        for u in asked:
+            try:
+                u.sub.receive_real(u.outb)
+            except (FmuCallError, CouplingError) as e:
+                errors[u.name] = e
+        for u in self.units:                 # every unit before the first failure was read
+            if u.name in errors:
+                raise errors[u.name]
+            self.propagate(u, t)
+
     def propagate(self, u: Unit, t: float) -> None:
         """Unit ``u``'s outputs (in ``u.outb``) through gain/offset into the consumers' new level."""
         out = u.outb.values

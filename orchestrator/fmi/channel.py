@@ -4,7 +4,9 @@
 owns the socket, the shared memory (``arena``) and the process, sends command lists and
 waits for their replies, and turns a dead or silent worker into
 :class:`~orchestrator.errors.FmuCrashError`. One message may be outstanding at a time:
-:meth:`send` then :meth:`receive` (or :meth:`round_trip` for both).
+:meth:`send` then :meth:`receive` (or :meth:`round_trip` for both). The constructor does not
+wait for the worker's interpreter: its greeting is read before the first reply, so the
+master can start several workers and send their first messages before any is up.
 """
 
 from __future__ import annotations
@@ -92,7 +94,8 @@ class WorkerChannel:
     worker is dead (every later call raises it).
     """
 
-    def __init__(self, name: str, fmu_path: Path, work_dir: Path | str, call_timeout: float | None):
+    def __init__(self, name: str, fmu_path: Path, work_dir: Path | str, call_timeout: float | None,
+                 cpu: int | None = None):
         self.name, self.fmu_path, self.call_timeout = name, fmu_path, call_timeout
         self.time: float | None = None
         self.crash: FmuCrashError | None = None
@@ -113,16 +116,14 @@ class WorkerChannel:
             self._release()
             raise
         theirs.close()
+        if cpu is not None:
+            _pin(self._proc.pid, cpu, name)
         self._conn = mp_connection.Connection(mine.detach())
         self._poller = select.poll()
         self._poller.register(self._conn.fileno(), select.POLLIN)
         # at interpreter exit, kill a worker nobody closed (it ignores SIGTERM)
         self._finalizer = weakref.finalize(self, _kill_process, self._proc)
-        try:
-            self._started()
-        except BaseException:
-            self.close()
-            raise
+        self.greeted = False       # its "hello" is read with the first reply: workers start side by side
 
     @property
     def pid(self) -> int:
@@ -151,6 +152,13 @@ class WorkerChannel:
     def receive(self) -> Any:
         """Wait for the reply to the message sent last; raise what it reports."""
         msg, function = self.outstanding
+        if not self.greeted:
+            try:
+                self._started()
+            except BaseException:
+                self.outstanding = None
+                raise
+            self.greeted = True
         try:
             reply = self._wait(function)
         except (EOFError, ConnectionResetError, OSError):
@@ -269,6 +277,20 @@ class WorkerChannel:
         except BufferError as e:   # pragma: no cover - defensive
             log.warning("%s: releasing the shared memory failed: %s", self.name, e)
         os.close(self._arena_fd)
+
+
+def _pin(pid: int, cpu: int, name: str) -> None:
+    """Keep worker ``pid`` on ``cpu`` (``coupling.pin_workers``). Why: a write to a socket wakes the
+    reader "synchronously" (the kernel assumes the writer will sleep next) and the scheduler
+    then tends to put the woken worker on the master's CPU, beside the master or the other
+    worker, while another CPU idles until the load balancer moves it (measured on the 2-core
+    run-up: one worker beside a master that steps the other bearing took 12.4-12.8 ms per
+    macro step, pinned 7.5-7.8 ms; BENCHMARKS.md)."""
+    try:
+        os.sched_setaffinity(pid, {cpu})
+    except (AttributeError, OSError) as e:   # pragma: no cover - not Linux, or the CPU is not ours
+        log.warning("FMU instance '%s': cannot keep its worker process on CPU %d (%s); it runs unpinned",
+                    name, cpu, e)
 
 
 def _kill_process(proc: subprocess.Popen) -> None:

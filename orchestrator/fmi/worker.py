@@ -48,7 +48,10 @@ orchestrator.fmi.worker_main``, :mod:`subprocess`), not a multiprocessing child:
 master would copy its threads and in-process FMUs, and multiprocessing's spawn and
 forkserver methods re-run the user's ``__main__`` script in every child, which a script
 without an ``if __name__ == "__main__":`` guard does not survive. Start-up costs about
-0.3 s of CPU per worker (importing numpy and fmpy).
+0.3 s of CPU per worker (importing numpy and fmpy); with ``wait=False`` the constructor
+returns once the process is started and its instantiation sent, and :meth:`ready` (or the
+first call) waits, so the master starts all its workers side by side. ``cpu`` keeps the
+worker on one CPU (``coupling.pin_workers``, see :func:`orchestrator.fmi.channel._pin`).
 """
 
 from __future__ import annotations
@@ -96,7 +99,8 @@ class WorkerSubsystem(SubsystemBase):
     :class:`~orchestrator.errors.FmuCrashError` when the worker dies or times out.
     """
 
-    def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str, call_timeout: float | None = None):
+    def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str, call_timeout: float | None = None,
+                 wait: bool = True, cpu: int | None = None):
         super().__init__(name)
         self.fmu_path = Path(fmu_path)
         self.md: ModelDescription = read_model_description(self.fmu_path)
@@ -109,9 +113,25 @@ class WorkerSubsystem(SubsystemBase):
         self._used = REGISTER_BYTES
         self._next_state = 0
         self._freed = False
-        self._chan = WorkerChannel(name, self.fmu_path, work_dir, call_timeout)
+        self._chan = WorkerChannel(name, self.fmu_path, work_dir, call_timeout, cpu)
+        self._starting = True
         try:
-            self._chan.round_trip([("init",)], "fmi2Instantiate")
+            self._chan.send([("init",)], "fmi2Instantiate")
+        except BaseException:
+            self._shutdown()
+            raise
+        if wait:
+            self.ready()
+
+    def ready(self) -> None:
+        """Wait until the worker is up and has instantiated the FMU (``wait=False`` returns from the
+        constructor at once, so that several workers start side by side); raises what
+        instantiation raised, after which the proxy is shut down."""
+        if not self._starting:
+            return
+        self._starting = False
+        try:
+            self._chan.receive()
         except BaseException:
             self._shutdown()
             raise
@@ -140,6 +160,9 @@ class WorkerSubsystem(SubsystemBase):
         self._chan.send(msg, function)
 
     def _receive(self) -> Any:
+        if self._starting:                  # the outstanding message is the instantiation
+            self.ready()
+            return None
         try:
             return self._chan.receive()
         finally:
@@ -311,6 +334,9 @@ class WorkerSubsystem(SubsystemBase):
     def free(self) -> None:
         """fmi2FreeInstance, stop the worker, release the arena; idempotent, never raises."""
         if self._freed:
+            return
+        if self._starting:                          # never waited for: not worth waiting for now
+            self._shutdown()
             return
         self._freed = True
         try:

@@ -90,6 +90,10 @@ def _dataclass_kwargs(cls, params: Mapping[str, Any], ignore=()) -> dict[str, An
 # `linearize` (film coefficient outputs for interface-Jacobian coupling; the reference
 # couples monolithically and leaves those outputs 0).
 _BEARING_FMU_ONLY = ("fields_file", "init", "linearize")
+# Rotor FMU parameters without a JeffcottParams field: the ring masses of the ring-interface
+# step (rotor_fmu/ring_interface.py), like the kxx_i inputs a device of the co-simulation step
+# that does not change the physical system.
+_ROTOR_FMU_ONLY = ("m_ring_1", "m_ring_2")
 
 
 class JournalBearingAdapter(ModelAdapter):
@@ -283,9 +287,9 @@ class JeffcottRotorAdapter(ModelAdapter):
     """rotor_fmu.jeffcott.JeffcottModel in its first-order form.
 
     Only the film forces ``Fx_i, Fy_i`` enter ``rhs``. The film-coefficient inputs of
-    interface-Jacobian coupling (``kxx_i`` ... ``cyy_i``) are a device of the
-    co-simulation step and do not change the physical system, which the monolithic
-    integrator solves exactly; they are ignored here.
+    interface-Jacobian coupling (``kxx_i`` ... ``cyy_i``, and the ring-interface step's
+    ``m_ring_i`` and ring inputs) are a device of the co-simulation step and do not change
+    the physical system, which the monolithic integrator solves exactly; they are ignored here.
     """
 
     output_names = ()
@@ -294,7 +298,7 @@ class JeffcottRotorAdapter(ModelAdapter):
         from rotor_fmu.jeffcott import JeffcottParams, JeffcottModel
         self.input_names = tuple(n for n, v in md.variables.items() if v.causality == "input")
         super().__init__(instance, md, params, start_time=start_time)
-        kw = _dataclass_kwargs(JeffcottParams, self.params)
+        kw = _dataclass_kwargs(JeffcottParams, self.params, ignore=_ROTOR_FMU_ONLY)
         kw["t0"] = start_time            # the FMU takes t0 from the experiment start time
         self.model = JeffcottModel(JeffcottParams(**kw))
         self.model.initialize()

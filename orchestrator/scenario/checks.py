@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from orchestrator.errors import CosimError
 from orchestrator.fmi.archive import cached_model_description
-from orchestrator.scenario.coupling_sections import check_capabilities
+from orchestrator.scenario.coupling_sections import check_atol_patterns, check_capabilities
 from orchestrator.fmi.values import check_value, settable_problem
 from orchestrator.scenario.completion import Completion
 from orchestrator.scenario.nodes import FLOAT_RE, article, did_you_mean, ranked
@@ -37,6 +37,7 @@ class FmuChecks(Completion):
         params = {f["name"]: self.check_parameters(f) for f in draft.fmus}
         draft.connections = self.expand_arrays(draft.connections)
         self.check_connections(draft.connections)
+        check_atol_patterns(self, draft.coupling, draft.connections)
         if len(self.fmu_caps) == len(draft.fmus):
             check_capabilities(self, draft.coupling_node, draft.coupling, self.fmu_caps)
         draft.signals = self.expand_patterns(draft.signals)

@@ -8,18 +8,24 @@ with file and line). Format (docs/scenario-format.md)::
       scheme: iterative
       iteration: {max_iterations: 20, tol: 1.0e-8, acceleration: iqn-ils}   # none | aitken | iqn-ils
       step_control: {type: error, rtol: 1.0e-4, atol: 1.0e-8, min_step: 1.0e-6, max_step: 1.0e-2}
+      # atol per signal: a mapping from coupling signals (the consumer's input, "instance.input")
+      # or glob patterns of them to atol; .inf leaves a signal out of the estimate
+      step_control: {type: error, atol: {"rotor.F*": 0.1, "bearing*.*": .inf, "*": 1.0e-8}}
 """
 
 from __future__ import annotations
 
+import fnmatch
 import logging
 
 import yaml
 
+from orchestrator.scenario.nodes import did_you_mean
 from orchestrator.scenario.model import ACCELERATIONS, STEP_CONTROL_TYPES, IterationSpec, StepControlSpec
 
 ITERATION_KEYS = ("max_iterations", "tol", "acceleration")
-STEP_CONTROL_KEYS = ("type", "rtol", "atol", "min_step", "max_step")
+STEP_CONTROL_KEYS = ("type", "rtol", "atol", "min_step", "max_step", "interface_jacobian")
+ATOL_NODES = "_step_control_atol_nodes"     # loader attribute: pattern -> YAML node (check_atol_patterns)
 MAX_ITERATIONS_LIMIT = 1000
 log = logging.getLogger(__name__)
 
@@ -71,8 +77,23 @@ def load_step_control(ld, node) -> StepControlSpec | None:
                       "use error for an error-controlled macro step")
             ok = False
         kw["type"] = v
-    for key, fix in (("rtol", "e.g. 1.0e-4"), ("atol", "in the signals' units, e.g. 1.0e-8"),
+    if "atol" in section and isinstance(section["atol"][1], yaml.MappingNode):
+        v = load_atol_mapping(ld, section["atol"][1])
+        ok &= v is not None
+        kw["atol"] = v
+    if "interface_jacobian" in section:
+        n = section["interface_jacobian"][1]
+        v = ld.value(n) if isinstance(n, yaml.ScalarNode) else None
+        if not isinstance(v, bool):
+            ld.err(n, f"'coupling.step_control.interface_jacobian' must be true or false (got {ld.got(n)}); true "
+                      "(default) estimates the error of the force an interface-Jacobian rotor applied")
+            ok = False
+        kw["interface_jacobian"] = v
+    for key, fix in (("rtol", "e.g. 1.0e-4"), ("atol", "in the signals' units, e.g. 1.0e-8, or a mapping "
+                                                        "{signal or pattern: atol}"),
                      ("min_step", "in seconds, e.g. 1.0e-7"), ("max_step", "in seconds, e.g. 1.0e-3")):
+        if key == "atol" and "atol" in kw:
+            continue
         if key in section:
             v = ld.number(section[key][1], f"coupling.step_control.{key}", positive=True, fix=f"give a number {fix}")
             ok &= v is not None
@@ -82,6 +103,52 @@ def load_step_control(ld, node) -> StepControlSpec | None:
                                        f"max_step ({kw['max_step']!r}); swap or change them")
         ok = False
     return StepControlSpec(**kw) if ok else None
+
+
+def load_atol_mapping(ld, node) -> tuple | None:
+    """``atol: {signal or glob pattern: atol}`` -> ((pattern, atol), ...) in file order.
+
+    A value may be ``.inf`` (the signal is left out of the estimate); the patterns are
+    checked against the connections later (:func:`check_atol_patterns`)."""
+    section = ld.mapping(node, "coupling.step_control.atol",
+                         fix="write e.g. 'atol: {\"rotor.F*\": 0.1, \"*\": 1.0e-8}'")
+    if section is None:
+        return None
+    if not section:
+        ld.err(node, "'coupling.step_control.atol' is an empty mapping; give at least one "
+                     "'signal: atol' entry, e.g. '\"*\": 1.0e-8', or a single number")
+        return None
+    out, ok, nodes = [], True, getattr(ld, ATOL_NODES, None) or {}
+    for key, (knode, vnode) in section.items():
+        v = ld.value(vnode) if isinstance(vnode, yaml.ScalarNode) else None
+        if v == float("inf"):
+            out.append((key, float("inf")))
+        else:
+            v = ld.number(vnode, f"coupling.step_control.atol.{key}", positive=True,
+                          fix="give the absolute tolerance in the signal's unit, or .inf to leave it out")
+            if v is None:
+                ok = False
+                continue
+            out.append((key, v))
+        nodes[key] = knode
+    setattr(ld, ATOL_NODES, nodes)
+    return tuple(out) if ok else None
+
+
+def check_atol_patterns(ld, coupling: dict | None, connections: list) -> None:
+    """Every key of a per-signal ``atol`` must name (or match) a coupling signal, i.e. a
+    connection's consumer input ``instance.input``; the message suggests the closest name."""
+    sc = (coupling or {}).get("step_control")
+    if sc is None or not isinstance(sc.atol, tuple):
+        return
+    names = sorted({str(c["to"]) for c in connections if c.get("to")})
+    nodes = getattr(ld, ATOL_NODES, {})
+    for pat, _ in sc.atol:
+        if not any(fnmatch.fnmatchcase(n, pat) for n in names):
+            ld.err(nodes.get(pat), f"'coupling.step_control.atol' key '{pat}' matches no coupling signal; "
+                                   f"{did_you_mean(pat, names)}keys name a connection's input ('instance.input') or a glob "
+                                   f"pattern of them, which are "
+                                   f"{', '.join(names[:12])}{' ...' if len(names) > 12 else ''}")
 
 
 def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:

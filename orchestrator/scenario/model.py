@@ -25,7 +25,7 @@ ISOLATION = ("none", "process")   # fmus.<name>.isolation, coupling.isolation
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
                  "interpolation_order", "substeps", "discard_retries", "isolation", "parallel", "call_timeout",
-                 "options", "iteration", "step_control")
+                 "pin_workers", "options", "iteration", "step_control")
 OUTPUT_KEYS = ("interval", "signals", "format")
 OUTPUT_FORMATS = ("csv", "parquet")
 # override navigation: (schema, key) -> schema of the child; (schema) -> default
@@ -103,9 +103,14 @@ class StepControlSpec:
 
     type: str = "constant"                   # one of STEP_CONTROL_TYPES
     rtol: float = 1.0e-4
-    atol: float = 1.0e-8                     # in the signals' units
+    atol: float | tuple = 1.0e-8             # in the signals' units, or ((pattern, atol), ...) per signal
+    interface_jacobian: bool = True          # estimate the force an interface-Jacobian rotor applied
     min_step: float | None = None            # [s]
     max_step: float | None = None            # [s]
+
+    def __post_init__(self):
+        if isinstance(self.atol, Mapping):   # e.g. from a compare file's `set:` or Python: keep file order
+            object.__setattr__(self, "atol", tuple((str(k), float(v)) for k, v in self.atol.items()))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -122,6 +127,7 @@ class CouplingSpec:
     isolation: str = "none"                  # default of fmus.<name>.isolation: "process" | "none"
     parallel: bool = True                    # step the FMUs of a stage concurrently (workers only)
     call_timeout: float | None = None        # [s] longest wait for an isolated FMU's answer; None: no limit
+    pin_workers: bool = False                # each worker process on a CPU of its own (round robin)
     options: Mapping[str, Any] = field(default_factory=dict)  # scheme-specific extras (e.g. monolithic rtol)
     iteration: IterationSpec = field(default_factory=IterationSpec)         # scheme: iterative
     step_control: StepControlSpec = field(default_factory=StepControlSpec)  # constant or error-controlled

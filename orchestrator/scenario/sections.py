@@ -364,20 +364,21 @@ class SectionReader(NodeReader):
         return v
 
     def load_worker_keys(self, section: dict, c: dict) -> bool:
-        """coupling.isolation, coupling.parallel, coupling.call_timeout (FMUs in worker processes)."""
+        """coupling.isolation, .parallel, .call_timeout, .pin_workers (FMUs in worker processes)."""
         ok = True
         if "isolation" in section:
             v = self.isolation(section["isolation"][1], "coupling.isolation")
             ok &= v is not None
             c["isolation"] = v
-        if "parallel" in section:
-            node = section["parallel"][1]
-            v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
-            if not isinstance(v, bool):
-                self.err(node, f"'coupling.parallel' must be true or false (got {self.got(node)}); true steps the "
-                               "isolated FMUs of a stage at the same time")
-                ok = False
-            c["parallel"] = v
+        for key, meaning in (("parallel", "true steps the isolated FMUs of a stage at the same time"),
+                             ("pin_workers", "true keeps each worker process on a CPU of its own")):
+            if key in section:
+                node = section[key][1]
+                v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
+                if not isinstance(v, bool):
+                    self.err(node, f"'coupling.{key}' must be true or false (got {self.got(node)}); {meaning}")
+                    ok = False
+                c[key] = v
         if "call_timeout" in section:
             v = self.number(section["call_timeout"][1], "coupling.call_timeout", positive=True,
                             fix="give the longest time in seconds an isolated FMU may take for one call, e.g. 60")

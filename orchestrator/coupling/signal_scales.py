@@ -1,0 +1,107 @@
+"""Per-signal tolerances and the interface-Jacobian error estimate of the error-controlled step.
+
+Per-signal ``atol`` (``coupling.step_control.atol`` as a mapping)
+----------------------------------------------------------------
+A signal is a coupling input, named ``consumer.input`` (the history's column, the name
+``summary.json`` ``step_control.limiting_signals`` uses: ``rotor.Fx_1``, not the producer's
+``bearing1.Fx``). Each key is such a name or a glob pattern (:func:`fnmatch.fnmatchcase`). A
+signal takes the value of the key equal to its name, else of the first pattern in file order
+that matches it, else the default 1e-8. ``.inf`` leaves the signal out of the error norm.
+
+Interface-Jacobian estimate
+---------------------------
+With interface-Jacobian coupling (docs/stiff-coupling.md; Kuebler & Schiehlen 2000;
+Sicklinger et al. 2014; Schweizer & Lu 2015) the consumer of a force ``F_a,i`` (a = x, y at
+station i) also receives the film coefficients ``k_ab,i = -dF_a/db``, ``c_ab,i = -dF_a/dv_b``
+and applies over the step [T, T + H]
+
+    F_used(t) = P_a(t) - sum_b k_ab (b(t) - b(T)) - sum_b c_ab (v_b(t) - v_b(T)),
+
+where P is the order-k prediction and b, v_b its own outputs ``b_i``, ``vb_i`` (b = x, y).
+The explicit predictor/corrector indicator (Busch & Schweizer, PAMM 10 (2010); Meyer, Kraft
+& Schweizer, J. Comput. Nonlinear Dyn. 16 (2021) 041002) compares the input a subsystem
+was *fed* with the coupling variable it turned out to be. Here the rotor was effectively fed
+``F_used``, so the defect it integrated is
+
+    d_a = F_a(T + H) - F_used(T + H)
+        = F_a(T + H) - P_a(T + H) + sum_b k_ab(T) db + c_ab(T) dv_b,
+
+db = b(T + H) - b(T). For a force linear in (b, v_b) with constant coefficients and k = 0
+the defect is exactly 0 (the rotor integrated the exact force), for F = -k x - a x^2 it is
+-a dx^2: the second-order remainder of the linearisation (plus the change of F through
+quantities not linearised, e.g. the speed, and the change of k, c over the step), where the
+raw prediction error F(T + H) - P(T + H) is first order in dx and overstates the error the
+rotor saw by dx / (remainder). This module replaces the raw prediction of such a force by
+``P - k db - c dv`` (the coefficients at T, what the rotor holds with k = 0); the
+coefficients' own signals leave the norm (their effect on the rotor is in d). The
+displacements db are the rotor's outputs as the history holds them (the connection
+``rotor.x_i -> bearing.x``: gain and offset undone).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import re
+
+import numpy as np
+
+DEFAULT_ATOL = 1.0e-8
+FORCE_RE = re.compile(r"^F([xy])_(\w+)$")
+
+
+def atol_vector(atol, names: list[str]) -> np.ndarray:
+    """atol per column ``names`` (module docstring): a number for all, or ((key, atol), ...)."""
+    if not isinstance(atol, (tuple, list)):
+        return np.full(len(names), float(atol))
+    table = dict(atol)
+    out = np.full(len(names), DEFAULT_ATOL)
+    for j, name in enumerate(names):
+        if name in table:
+            out[j] = table[name]
+            continue
+        out[j] = next((v for pat, v in atol if fnmatch.fnmatchcase(name, pat)), DEFAULT_ATOL)
+    return out
+
+
+def jacobian_groups(names: list[str], connections) -> list[tuple[int, list[tuple[int, int, float]]]]:
+    """The interface-Jacobian forces among the columns ``names``.
+
+    Returns ``[(force column, [(coefficient column, kinematics column, 1 / gain), ...]), ...]``:
+    a force input ``U.Fa_i`` counts when every ``U.kab_i``, ``U.cab_i`` (b = x, y) is a column
+    and U's outputs ``b_i``, ``vb_i`` reach some column through a connection with gain != 0.
+    """
+    col = {n: j for j, n in enumerate(names)}
+    via: dict[str, tuple[int, float, float]] = {}      # producer output -> (column, gain, offset)
+    for c in connections:
+        if c.dst in col and c.gain != 0 and c.src not in via:
+            via[c.src] = (col[c.dst], float(c.gain), float(c.offset))
+    groups = []
+    for name, j in col.items():
+        inst, _, var = name.rpartition(".")
+        m = FORCE_RE.match(var)
+        if not m:
+            continue
+        a, i = m.groups()
+        terms = []
+        for kind, kin in (("k", "{b}_{i}"), ("c", "v{b}_{i}")):
+            for b in "xy":
+                kc = col.get(f"{inst}.{kind}{a}{b}_{i}")
+                u = via.get(f"{inst}.{kin.format(b=b, i=i)}")
+                if kc is None or u is None:
+                    break
+                terms.append((kc, u[0], 1.0 / u[1]))
+        if len(terms) == 4:
+            groups.append((j, terms))
+    return groups
+
+
+def corrected_prediction(pred: np.ndarray, new: np.ndarray, prev: np.ndarray, groups) -> np.ndarray:
+    """``pred`` with every interface-Jacobian force replaced by what the rotor applied at the
+    step end: P - sum k (b(T+H) - b(T)) - sum c (v(T+H) - v(T)) (module docstring)."""
+    out = pred.copy()
+    for j, terms in groups:
+        s = 0.0
+        for kc, uc, inv_gain in terms:
+            s += prev[kc] * (new[uc] - prev[uc]) * inv_gain
+        out[j] -= s
+    return out
