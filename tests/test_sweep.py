@@ -249,7 +249,7 @@ def psutil_alive(pid: int) -> bool:
 def test_warm_process_forgets_modules_of_deleted_fmu_folders(tmp_path):
     """What a run imported from an FMU's extracted folder (deleted after the run) must not be
     reused by the next run; modules that still exist stay (the warm kernels)."""
-    from orchestrator.sweep.warm import forget_vanished
+    from orchestrator.sweep.warm_child import forget_vanished
     for name in ("gone_pkg", "kept_pkg"):
         (tmp_path / name / name).mkdir(parents=True)
         (tmp_path / name / name / "__init__.py").write_text("X = 1\n")

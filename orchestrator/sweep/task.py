@@ -19,12 +19,13 @@ writes the same dict without the summary to ``RUN_DIR/sweep_run.json``.
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+from orchestrator.sweep.warm import run_env
 
 __all__ = ["execute_run", "RUN_RECORD"]
 
@@ -103,17 +104,6 @@ def execute_run(scenario: str, overrides: list[str], run_dir: str, *, timeout_s:
     (out / RUN_RECORD).write_text(json.dumps(record, indent=1), encoding="utf-8")
     record["summary"] = summary
     return record
-
-
-# A run keeps one core busy (one single-threaded worker per core): BLAS threads on top of it
-# oversubscribe the cores (a 4 x 4 expm 20 ms instead of 0.1 ms on the loaded 2-core host).
-# The user's own settings win.
-SINGLE_THREADED = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-
-
-def run_env() -> dict[str, str]:
-    """The environment of a run process: this one, with single-threaded BLAS unless set."""
-    return {**SINGLE_THREADED, **os.environ, "PYTHONUNBUFFERED": "1"}
 
 
 def _fresh(args: list[str], out: Path, timeout_s: float | None) -> tuple[int, str]:
