@@ -45,10 +45,12 @@ from .interface import as_station_coeffs, dissipative_damping, step_linear_impli
 def _augmented_rotor(rotor, m_ring: np.ndarray):
     """The rotor with two translational dofs per ring (stations with ``m_ring > 0``) appended,
     cached on ``rotor``; its bearing stations are the journals, then the rings."""
-    key = (tuple(m_ring.tolist()), rotor.M.tobytes(), rotor.K.tobytes(), rotor.C.tobytes())
+    # the rotor's matrices change only in _precompute, which makes a new _MiK: key on it by identity
+    # (no copy of the matrices per step)
+    masses_key = tuple(m_ring.tolist())
     cached = getattr(rotor, "_ring_aug", None)
-    if cached is not None and cached[0] == key:
-        return cached[1]
+    if cached is not None and cached[0] == masses_key and cached[1] is rotor._MiK:
+        return cached[2]
     from .linear_rotor import LinearRotor
 
     n = rotor.n_dof
@@ -71,7 +73,7 @@ def _augmented_rotor(rotor, m_ring: np.ndarray):
                max_phase_per_substep=rotor.max_phase_per_substep, extra_outputs={},
                initial_sag=False, omega_quantum=rotor.omega_quantum)
     aug._initialized = True
-    rotor._ring_aug = (key, aug)
+    rotor._ring_aug = (masses_key, rotor._MiK, aug)
     return aug
 
 
