@@ -20,6 +20,11 @@ The pieces: the plan (:mod:`.plan`: units, links, sequence), one macro step
 step-size controller (:mod:`.step_control`: the grid, accept / reject / retry, the
 discard halving), the scheme (:mod:`.schemes`), the Lagrange history (:mod:`.signals`)
 and the observers (:mod:`.observers`). docs/dev/architecture.md gives the call order.
+
+Length: the life cycle of one execution (setup, initialization with its initial exchange,
+stepping with its failure paths, termination and the result) is one state machine whose
+methods share the FMU handles and the status; the numerics live in the modules above, so
+the file stays above ~400 lines for that reason.
 """
 
 from __future__ import annotations
