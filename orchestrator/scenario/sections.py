@@ -2,6 +2,11 @@
 
 :class:`SectionReader` reads every section into a :class:`Draft` (problems collected,
 nothing raised for a bad value); checks against the FMUs are :mod:`.checks`.
+
+Length: one reader method per section of the documented format (docs/scenario-format.md),
+sharing the node helpers and the problem list so that every problem of a file is reported in
+one pass; above ~400 lines for that reason (the coupling sub-sections live in
+:mod:`.coupling_sections`).
 """
 
 from __future__ import annotations
