@@ -500,12 +500,14 @@ class MasterAlgorithm:
                     row[i] = math.nan if isinstance(v, str) else float(v)
 
     # ------------------------------------------------------------- terminate
-    def terminate(self) -> None:
+    def terminate(self, *, preflight: bool = False) -> None:
         """fmi2Terminate and fmi2FreeInstance for every subsystem (always), then
-        tell the observers. Idempotent."""
+        tell the observers. Idempotent. ``preflight``: the end of ``validate``'s
+        setup and initialization (orchestrator/preflight.py), not logged as a run
+        terminated early."""
         if self._phase in ("terminated", "new"):
             return
-        if self.status is Status.RUNNING:
+        if self.status is Status.RUNNING and not preflight:
             self._fail(f"terminated early at t={self.t:.12g} s by the caller", self.t)
         self.view.status = self.status
         self.view.message = self.message
