@@ -103,7 +103,8 @@ class StepControlSpec:
 
     type: str = "constant"                   # one of STEP_CONTROL_TYPES
     rtol: float = 1.0e-4
-    atol: float | tuple = 1.0e-8             # in the signals' units, or ((pattern, atol), ...) per signal
+    atol: float | tuple | None = None        # in the signals' units, or ((pattern, atol), ...) per signal;
+                                             # None: rtol * the FMUs' nominal where declared, else 1e-8
     interface_jacobian: bool = True          # estimate the force an interface-Jacobian rotor applied
     min_step: float | None = None            # [s]
     max_step: float | None = None            # [s]
