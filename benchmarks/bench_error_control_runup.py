@@ -36,11 +36,12 @@ def read(run: Path) -> tuple[np.ndarray, np.ndarray]:
     return t, np.array([[float(r[s]) for r in rows] for s in SIGNALS])
 
 
-def error(run: Path, ref: tuple, chk: tuple) -> float:
+def error(run: Path, ref: tuple, chk: tuple, until: float = np.inf) -> float:
     t, x = read(run)
     a = np.array([np.interp(t, ref[0], v) for v in ref[1]])
     b = np.array([np.interp(t, chk[0], v) for v in chk[1]])
-    return float(np.abs(x - (b + (b - a) / 3.0)).max() / CLEARANCE)
+    keep = t <= until + 1e-12
+    return float(np.abs(x - (b + (b - a) / 3.0))[:, keep].max() / CLEARANCE)
 
 
 def interpolated_dosteps(const: list[dict], err: float) -> float | None:
@@ -53,17 +54,23 @@ def interpolated_dosteps(const: list[dict], err: float) -> float | None:
     return None
 
 
-def main(folder: str) -> None:
+def main(folder: str, extra: list[str], until: float = np.inf) -> None:
     runs = Path(folder) / "runs"
     ref, chk = read(runs / "reference"), read(runs / "reference-check")
+    a = np.array([np.interp(chk[0], ref[0], v) for v in ref[1]])
+    keep = chk[0] <= until + 1e-12
+    print(f"reference against its check: {np.abs(chk[1] - a)[:, keep].max() / CLEARANCE:.3g} c "
+          f"(the Richardson combination's error is well below this)")
+    dirs = sorted(p for p in runs.iterdir() if p.is_dir() and not p.name.startswith("reference"))
+    dirs += [Path(e) for e in extra]
     rows = []
-    for run in sorted(p for p in runs.iterdir() if p.is_dir() and not p.name.startswith("reference")):
+    for run in dirs:
         s = json.loads((run / "summary.json").read_text())
         if s["status"] != "finished":
             print(f"{run.name}: {s['status']}: {s['message']}")
             continue
         st = s.get("step_control") or {}
-        rows.append(dict(name=run.name, err=error(run, ref, chk), dostep=s["fmu_calls"]["rotor"]["doStep"],
+        rows.append(dict(name=run.name, err=error(run, ref, chk, until), dostep=s["fmu_calls"]["rotor"]["doStep"],
                          steps=s["macro_steps"], rejected=st.get("rejected_steps", 0),
                          adaptive=st.get("type") == "error"))
     const = [r for r in rows if not r["adaptive"]]
@@ -80,4 +87,11 @@ def main(folder: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "out/compare/jeffcott_seeded_error_control")
+    import argparse
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("folder", nargs="?", default="out/compare/jeffcott_seeded_error_control",
+                    help="a rotorcosim compare folder (runs/reference, runs/reference-check, constant steps)")
+    ap.add_argument("runs", nargs="*", help="more run folders (rotorcosim run --out), e.g. the error-controlled runs")
+    ap.add_argument("--until", type=float, default=np.inf, help="error over t <= this only [s]")
+    a = ap.parse_args()
+    main(a.folder, a.runs, a.until)
