@@ -204,8 +204,9 @@ class ErrorControlled(StepSizeController):
             self.limiting[worst] = self.limiting.get(worst, 0) + 1
             if d.jump:          # restart the extrapolation from the value after the jump
                 hist.count = min(hist.count, 1)
-            # a step shortened onto (or on the way to) an output time does not shrink the proposal
-            self.h = max(d.h_next, h) if (t_end - t < h and err <= 1.0) else d.h_next
+            # a step shortened onto an output time does not shrink the proposal (the steps of an
+            # even split on the way to it are < h too, but the PI's proposal after them holds)
+            self.h = max(d.h_next, h) if (on_out and t_end - t < h and err <= 1.0) else d.h_next
             self.accepted += 1
             self.h_min_taken = min(self.h_min_taken, t_end - t)
             self.h_max_taken = max(self.h_max_taken, t_end - t)
