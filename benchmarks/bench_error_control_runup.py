@@ -107,6 +107,6 @@ if __name__ == "__main__":
     ap.add_argument("--until", type=float, default=np.inf, help="error over t <= this only [s]")
     ap.add_argument("--case", choices=sorted(CASES), default="runup",
                     help="runup: the seeded run-up (errors / c, rotor doSteps); switch: compare/coupling_switch.yaml")
-    a = ap.parse_args()
+    a = ap.parse_intermixed_args()
     SIGNALS, CLEARANCE, INSTANCE, RICHARDSON = CASES[a.case]
     main(a.folder, a.runs, a.until)
