@@ -84,23 +84,11 @@ def test_bad_limits_raise():
 
 def test_next_stop_lands_on_the_output_grid():
     grid = lambda t: (math.floor(t / 0.1 + 1e-9) + 1) * 0.1      # noqa: E731
-    assert next_stop(0.0, 0.025, grid) == (pytest.approx(0.025), False)
+    assert next_stop(0.0, 0.03, grid) == (0.03, False)
     assert next_stop(0.09, 0.03, grid) == (pytest.approx(0.1), True)
     t, on = next_stop(0.07, 0.029999, grid)                    # would stop 1e-6 short: stretched
     assert on and t == pytest.approx(0.1)
-
-
-def test_next_stop_splits_the_way_to_an_output_time_evenly():
-    """0.1 with proposal 0.03: four steps of 0.025, not 0.03, 0.03, 0.03 and a 0.01 sliver; with
-    proposal 0.0334 (0.1 = 2.994 x 0.0334): three steps of 0.0333."""
-    grid = lambda t: (math.floor(t / 0.1 + 1e-9) + 1) * 0.1      # noqa: E731
-    ends, t = [], 0.0
-    while t < 0.1 - 1e-12:
-        t, on = next_stop(t, 0.03, grid)
-        ends.append(t)
-    assert ends == pytest.approx([0.025, 0.05, 0.075, 0.1]) and on
-    assert next_stop(0.0, 0.0334, grid) == (pytest.approx(0.1 / 3), False)
-    assert next_stop(0.0, 0.033, grid) == (pytest.approx(0.025), False)      # 3.03 x: four steps
+    assert next_stop(0.07, 0.0299, grid)[1] is False           # 3e-3 short: not stretched
 
 
 def test_a_jump_that_no_step_resolves_is_accepted():

@@ -169,16 +169,14 @@ class PIController:
 def next_stop(t: float, h: float, output_times_after) -> tuple[float, bool]:
     """The end of the next step from ``t`` with proposal ``h``, landing on the next output time.
 
-    ``output_times_after(t)`` gives the first output time > t, at the distance r. The r is
-    split evenly into n = ceil(r / ((1 + STRETCH) h)) steps and the first of them is taken:
-    the step is at most ``(1 + STRETCH) h`` and there is no sliver step before an output time
-    (h, h, h, then 0.02 h: the sliver costs a whole FMU step round and is followed by a step
-    grown from it).
-    Returns ``(t_end, on_output)``.
+    ``output_times_after(t)`` gives the first output time > t. A step that would
+    overshoot it is shortened to end on it; one that would stop within STRETCH h
+    short of it is stretched onto it (no sliver steps). Returns ``(t_end, on_output)``.
+    Splitting the way to the output time evenly instead (n = ceil(r / h) steps of r / n) was
+    tried in session 4 and reverted: on the stepping stiffness 703 doSteps at error 4.9e-4
+    against 673 at 4.4e-4, on ci_coupling 7 033 FMU calls at 7.8e-5 against 6 625 at 6.5e-5.
     """
     t_out = output_times_after(t)
-    r = t_out - t
-    n = math.ceil(r / ((1.0 + STRETCH) * h) - 1e-9)
-    if n <= 1:
+    if t + h >= t_out - STRETCH * h:
         return t_out, True
-    return t + r / n, False
+    return t + h, False
