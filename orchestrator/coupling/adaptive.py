@@ -11,24 +11,24 @@ Per attempt from T(n) with proposal h (the first is ``coupling.macro_step``):
 4. ``err = scaled_error_norm(P, y, y(T(n)))`` (error_control.py; for the iterative
    scheme the fed order-q interpolant against the order-(q+1) one at the step's
    midpoint instead, :meth:`IterativeMacroStep.error_signals`), with ``measure: impulse``
-   times ``h / output interval``, goes to the PI controller: accept, or reject -> every FMU state and the history are restored
-   to T(n) (saved before the attempt), observers get ``on_step_rejected``, and the
-   attempt is redone with the smaller proposal. A step accepted as a jump restarts
-   the extrapolation (history order 0) from the value after it.
+   times ``h / output interval``, goes to the PI controller: accept, or reject -> every
+   FMU state and the history are restored to T(n) (saved before the attempt), observers
+   get ``on_step_rejected``, and the attempt is redone with the smaller proposal. A step
+   accepted as a jump restarts the extrapolation (history order 0) from the value after it.
 
-``measure: impulse`` (opt-in; ``value`` is the default): a defect d of a force over the step changes what the receiving subsystem
-integrates by about the impulse d h (momentum; d h^2 / m in a position), so the same d
-matters less in a small step than in a large one. Controlling d itself (``measure: value``)
-asks for the same d in every step, which spends many small steps where the signals change
-fast and allows too large ones where they change slowly, while the global error propagates
-the state errors, i.e. the impulses. Measured (docs/coupling.md): on the whole seeded
-run-up 0.79-0.93x the doSteps of a constant step at the same error against 0.50-0.78x with
-``value`` (the whirl after the onset took 30 us steps for no gain); on the stepping
-stiffness about as good as ``value``. Not the default: it changes what rtol means (by the
-ratio of step to output interval) and neither measure reaches the goal on the run-up. The order of the estimate is p + 1. The output interval only sets what rtol means
-(the defect of a step as long as the output interval); not the first step (``macro_step``),
-which must not change the accuracy (a first step 100x too long is rejected and the run ends
-as accurate as one started well: tests/test_master_adaptive.py).
+``measure: impulse`` (opt-in; ``value`` is the default): a defect d of a force over the step
+changes what the receiving subsystem integrates by about the impulse d h (momentum; d h^2 / m
+in a position), so the same d matters less in a short step than in a long one. Controlling d
+itself asks for the same d in every step, which spends many short steps where the signals
+change fast. Measured (docs/coupling.md): on the whole seeded run-up 0.85-0.91x the doSteps
+of a constant step at the same error against 0.45-0.53x with ``value`` (the whirl after the
+onset took 30-40 us steps for little gain); on the stepping stiffness erratic (the defect of
+the step across the switch shrinks with the step). Not the default: it changes what rtol
+means, and neither measure reaches the goal on the run-up. The order of the estimate is
+p + 1. The output interval only sets what rtol means (the defect of a step as long as the
+output interval), not the first step (``macro_step``), which must not change the accuracy
+(a first step 100x too long is rejected and the run ends as accurate as one started well:
+tests/test_master_adaptive.py).
 
 Bounded work: at most ``MAX_REJECTIONS`` rejected attempts in a row and
 ``max(MAX_STEPS, MAX_STEPS_PER_NOMINAL * (t_stop - t0) / macro_step)`` accepted steps; past
@@ -39,8 +39,8 @@ A step shortened to land on an output time does not shrink the next proposal
 below the one that was cut. FMUs that cannot save and restore their state
 (canGetAndSetFMUstate false): no rejection, the step adapts forward only (the
 controller sees every error, so the next step still follows the dynamics); the
-master says so at setup and ``validate`` reports it (scenario/coupling_sections.py). FMUs that cannot take
-varying steps (canHandleVariableCommunicationStepSize false) are refused.
+master says so at setup and ``validate`` reports it (scenario/coupling_sections.py). FMUs
+that cannot take varying steps (canHandleVariableCommunicationStepSize false) are refused.
 """
 
 from __future__ import annotations
