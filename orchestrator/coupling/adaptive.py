@@ -22,7 +22,7 @@ in a position), so the same d matters less in a short step than in a long one. C
 itself asks for the same d in every step, which spends many short steps where the signals
 change fast. Measured (docs/coupling.md): on the whole seeded run-up 0.85-0.91x the doSteps
 of a constant step at the same error against 0.45-0.53x with ``value`` (the whirl after the
-onset took 30-40 us steps for little gain); on the stepping stiffness erratic (the defect of
+onset took 26 us steps for little gain); on the stepping stiffness erratic (the defect of
 the step across the switch shrinks with the step). Not the default: it changes what rtol
 means, and neither measure reaches the goal on the run-up. The order of the estimate is
 p + 1. The output interval only sets what rtol means (the defect of a step as long as the
