@@ -214,14 +214,20 @@ def input_setter(self, name: str):
     return set_
 
 
-def refresh_coefficients(self, linearization: Callable[[], tuple]) -> None:
+def refresh_coefficients(self, linearization: Callable[[], tuple],
+                         hold: Callable[[], bool] | None = None) -> None:
     """Film coefficient outputs ``kxx..cyy`` for interface-Jacobian coupling: recomputed by
     ``linearization() -> (K, C)`` every ``linearize``-th step (and while not initialized),
-    held in between; ``_values["_lin_age"]`` counts the steps (it is in the FMU state)."""
+    held in between; ``_values["_lin_age"]`` counts the steps (it is in the FMU state).
+    ``hold() -> bool`` (optional): True skips a refresh that is due (e.g. the kinematics
+    have not moved since the last one; the journal bearing's ``linearize_tol``)."""
     n_lin = int(self._values.get("linearize", 0))
     if n_lin <= 0:
         return
     age = int(self._values.get("_lin_age", n_lin))
+    if age >= n_lin and self._initialized and hold is not None and hold():
+        self._values["_lin_age"] = age + 1
+        return
     if age >= n_lin or not self._initialized:
         K, C = linearization()
         for m, kind in ((K, "k"), (C, "c")):
