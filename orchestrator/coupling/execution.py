@@ -20,6 +20,11 @@ The pieces: the plan (:mod:`.plan`: units, links, sequence), one macro step
 step-size controller (:mod:`.step_control`: the grid, accept / reject / retry, the
 discard halving), the scheme (:mod:`.schemes`), the Lagrange history (:mod:`.signals`)
 and the observers (:mod:`.observers`). docs/dev/architecture.md gives the call order.
+
+Length: the life cycle of one execution (setup, initialization with its initial exchange,
+stepping with its failure paths, termination and the result) is one state machine whose
+methods share the FMU handles and the status; the numerics live in the modules above, so
+the file stays above ~400 lines for that reason.
 """
 
 from __future__ import annotations
@@ -495,12 +500,14 @@ class MasterAlgorithm:
                     row[i] = math.nan if isinstance(v, str) else float(v)
 
     # ------------------------------------------------------------- terminate
-    def terminate(self) -> None:
+    def terminate(self, *, preflight: bool = False) -> None:
         """fmi2Terminate and fmi2FreeInstance for every subsystem (always), then
-        tell the observers. Idempotent."""
+        tell the observers. Idempotent. ``preflight``: the end of ``validate``'s
+        setup and initialization (orchestrator/preflight.py), not logged as a run
+        terminated early."""
         if self._phase in ("terminated", "new"):
             return
-        if self.status is Status.RUNNING:
+        if self.status is Status.RUNNING and not preflight:
             self._fail(f"terminated early at t={self.t:.12g} s by the caller", self.t)
         self.view.status = self.status
         self.view.message = self.message
