@@ -97,23 +97,25 @@ class WorkerChannel:
     of calls the call register does not cover; ``crash`` is the FmuCrashError once the
     worker is dead (every later call raises it).
 
-    ``spin`` (s; :data:`SPIN_WAIT` for a pinned worker, else 0): how long a wait for a reply,
+    ``spin`` (s; default :data:`SPIN_WAIT` for a pinned worker, else 0): how long a wait for a reply,
     and the worker's wait for its next message, poll the socket before they block. Why: a
     blocked process is woken by an interrupt to its idle CPU, which on a VM is a world switch
     of tens to hundreds of microseconds, twice per macro step and worker on the critical path
     of a parallel stage; the waits are short (the master's serial work between a reply and
     the next request, the difference of two film steps), and a pinned worker has its CPU to
     itself (``coupling.pin_workers`` says the CPUs are the run's), so polling costs nobody.
+    Not when every CPU has a pinned worker: then the master shares a CPU with a worker, and
+    polling on either side would take that CPU from the other (the master passes 0).
     """
 
     def __init__(self, name: str, fmu_path: Path, work_dir: Path | str, call_timeout: float | None,
-                 cpu: int | None = None):
+                 cpu: int | None = None, spin: float | None = None):
         self.name, self.fmu_path, self.call_timeout = name, fmu_path, call_timeout
         self.time: float | None = None
         self.crash: FmuCrashError | None = None
         self.outstanding: tuple | None = None    # (message, function) sent, reply not yet read
         self._closed = False
-        self.spin = SPIN_WAIT if cpu is not None else 0.0
+        self.spin = (SPIN_WAIT if cpu is not None else 0.0) if spin is None else float(spin)
         self._arena_fd, self.arena = _arena()
         self._register = np.ndarray((2,), dtype=np.float64, buffer=self.arena)
         self._code = np.ndarray((1,), dtype=np.int64, buffer=self.arena)
