@@ -323,16 +323,17 @@ def ij_step(s, t0, dt, nsub_struct, F, K, C, bdofs, MiK, MiC, MiG, MiKc, MiKa, M
 
 
 def _compile():
-    """The compiled ij_step, or None without numba (the caller then keeps the numpy form)."""
+    """The compiled ij_step, or None without numba or without the content-keyed cache (the
+    caller then keeps the numpy form)."""
     try:
         import numba
     except ImportError:  # pragma: no cover - numba is a dependency
         return None
     try:   # numba cache keyed by source content (bearing_fmu/_numba_cache.py): FMUs extract afresh
         from bearing_fmu._numba_cache import register
-        register()
-    except ImportError:  # pragma: no cover - an FMU used without rotorcosim installed
-        pass
+    except ImportError:  # pragma: no cover - the FMU used without rotorcosim installed: numba's
+        return None      # default cache lies in the fresh extraction folder, so every run would compile
+    register()
     g = globals()
     for name in ("_project", "_augment", "_norm2", "_drive", "_unbalance", "_round_half_even", "_lu",
                  "_lu_solve", "_substeps", "_finite"):
