@@ -49,6 +49,7 @@ from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
     RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController)
 from orchestrator.coupling.adaptive import controller_from_spec
+from orchestrator.coupling.signal_scales import signal_nominals
 from orchestrator.coupling.stages import stages as make_stages
 from orchestrator.errors import CouplingError, FmuCallError, FmuCrashError, LifecycleError, ScenarioError
 from orchestrator.fmi.extraction import ExtractionPool
@@ -269,6 +270,14 @@ class MasterAlgorithm:
         for u in self.units:
             u.sub.no_set_prior_state = False
 
+    def _variable_or_none(self, instance: str, name: str):
+        """``instance``'s variable ``name`` (its model description), or None if it has none."""
+        u = next((u for u in self.units if u.name == instance), None)
+        try:
+            return None if u is None else u.sub.variable(name)
+        except Exception:          # a fake without a model description, or an unknown name
+            return None
+
     def _setup_variable_grid(self) -> None:
         """The error-controlled step (coupling/adaptive.py): FMUs with a fixed step are refused;
         without state save/restore in every FMU the step adapts forward only."""
@@ -280,7 +289,8 @@ class MasterAlgorithm:
                 "false); use step_control type constant")
         can_reject = all(u.sub.can_get_set_state for u in self.units)
         self.grid.can_reject = can_reject
-        self.grid.bind(self.signal_names, self.scenario.connections)
+        self.grid.bind(self.signal_names, self.scenario.connections,
+                       signal_nominals(self.signal_names, self.scenario.connections, self._variable_or_none))
         if can_reject:
             for u in self.units:
                 u.sub.no_set_prior_state = False
