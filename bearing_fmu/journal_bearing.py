@@ -53,7 +53,7 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from pythonfmu.variables import Boolean
 
 from fmu_common.slave import (
-    RealU, check_shipped_layout, check_step_start, exit_initialization_mode, finish_model_description,
+    RealU, check_shipped_layout, check_step_start, fast_get_real, fast_set_real, exit_initialization_mode, finish_model_description,
     get_slave_state, guard_callbacks, input_setter, journal_kinematics, output_getter, param_setter,
     refresh_coefficients, set_slave_state,
     scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
@@ -234,6 +234,10 @@ class JournalBearing(Fmi2Slave):
     description = ("Hydrodynamic journal bearing: Reynolds equation on the developed film, "
                    "half-Sommerfeld or mass-conserving two-phase cavitation, oil bath or free-to-air edges")
     version = "0.1.0"
+
+    # PythonFMU's get_real/set_real without the per-variable isinstance of an ABC (fmu_common.slave)
+    get_real = fast_get_real
+    set_real = fast_set_real
 
     def __init__(self, **kwargs: Any):
         super().__init__(**kwargs)
