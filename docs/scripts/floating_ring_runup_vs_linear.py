@@ -1,7 +1,7 @@
 """The seeded floating-ring run-up's outer-whirl growth rate against the linear model evaluated
 along the run (docs/floating-ring.md, "Why the run-up threshold sat +13 Hz high"):
 
-    .venv/bin/python docs/scripts/floating_ring_runup_vs_linear.py DIR [--fit 690,790] [--step 10]
+    .venv/bin/python docs/scripts/floating_ring_runup_vs_linear.py DIR [--fit 690,790] [--step 10] [--plot PNG]
 
 For the run in DIR (results.csv of jeffcott_runup_floating_ring_half_sommerfeld_seeded or a
 variant): the growth rate sigma of the 60-140 Hz band (journal 1, ring 1; sliding matrix pencil,
@@ -48,6 +48,7 @@ def main(argv=None):
     ap.add_argument("dir")
     ap.add_argument("--fit", default="690,790")
     ap.add_argument("--step", type=float, default=10.0)
+    ap.add_argument("--plot", help="PNG: the run-up's sigma and the four linear curves over speed")
     a = ap.parse_args(argv)
     lo, hi = (float(v) for v in a.fit.split(","))
     c = read(a.dir)
@@ -73,6 +74,27 @@ def main(argv=None):
     f_run, _ = zero_crossing(spd, sig, lo, hi)
     print(f"  growth rate crosses 0: run-up {f_run:.1f} Hz; linear "
           + ", ".join(f"{k} {zero_crossing(fs, np.array(v), lo, hi)[0]:.1f} Hz" for k, v in cols.items()))
+    if a.plot:
+        plot(a.plot, a.dir, spd, sig, fs, cols, lo, hi)
+
+
+def plot(png, title, spd, sig, fs, cols, lo, hi):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    m = (spd >= lo - 10) & (spd <= hi + 10)
+    ax.plot(spd[m], sig[m], "k.", ms=3, label="run-up (sliding matrix pencil)")
+    for (k, v), st in zip(cols.items(), ("C0--", "C0-", "C3--", "C3-")):
+        ax.plot(fs, v, st, label=f"linear, {k}")
+    ax.axhline(0.0, color="0.6", lw=0.8)
+    ax.set_xlabel("journal speed [Hz]")
+    ax.set_ylabel("outer-whirl growth rate [1/s]")
+    ax.set_title(Path(title).name, fontsize=9)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
 
 
 if __name__ == "__main__":
