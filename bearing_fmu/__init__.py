@@ -1,4 +1,7 @@
-"""bearing_fmu: journal-bearing film models (model.py) and their FMU (journal_bearing.py)."""
+"""bearing_fmu: the transient Reynolds film with mass-conserving cavitation, the journal and floating-ring bearing models.
+
+Physics modules import no FMI; the PythonFMU slaves (journal_bearing.py, floating_ring_bearing.py) wrap them.
+"""
 
 from ._numba_cache import register as _register_numba_cache
 

@@ -25,8 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-SIGNALS = ("rotor.x_1", "rotor.y_1", "rotor.x_2", "rotor.y_2")
-CLEARANCE = 1.372e-5
+# case -> (signals, their scale, the instance whose doSteps count, Richardson on the reference)
+CASES = {
+    "runup": (("rotor.x_1", "rotor.y_1", "rotor.x_2", "rotor.y_2"), 1.372e-5, "rotor", True),
+    # compare/coupling_switch.yaml: reference Radau rtol 1e-10 (its check changes it by 1e-11): as is
+    "switch": (("left.x1", "right.x2"), 0.01, "left", False),
+}
+SIGNALS, CLEARANCE, INSTANCE, RICHARDSON = CASES["runup"]
 
 
 def read(run: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -36,11 +41,13 @@ def read(run: Path) -> tuple[np.ndarray, np.ndarray]:
     return t, np.array([[float(r[s]) for r in rows] for s in SIGNALS])
 
 
-def error(run: Path, ref: tuple, chk: tuple) -> float:
+def error(run: Path, ref: tuple, chk: tuple, until: float = np.inf) -> float:
     t, x = read(run)
     a = np.array([np.interp(t, ref[0], v) for v in ref[1]])
     b = np.array([np.interp(t, chk[0], v) for v in chk[1]])
-    return float(np.abs(x - (b + (b - a) / 3.0)).max() / CLEARANCE)
+    keep = t <= until + 1e-12
+    best = b + (b - a) / 3.0 if RICHARDSON else a
+    return float(np.abs(x - best)[:, keep].max() / CLEARANCE)
 
 
 def interpolated_dosteps(const: list[dict], err: float) -> float | None:
@@ -53,17 +60,23 @@ def interpolated_dosteps(const: list[dict], err: float) -> float | None:
     return None
 
 
-def main(folder: str) -> None:
+def main(folder: str, extra: list[str], until: float = np.inf) -> None:
     runs = Path(folder) / "runs"
     ref, chk = read(runs / "reference"), read(runs / "reference-check")
+    a = np.array([np.interp(chk[0], ref[0], v) for v in ref[1]])
+    keep = chk[0] <= until + 1e-12
+    print(f"reference against its check: {np.abs(chk[1] - a)[:, keep].max() / CLEARANCE:.3g} (of the scale; "
+          f"{'errors against their Richardson combination' if RICHARDSON else 'errors against the reference'})")
+    dirs = sorted(p for p in runs.iterdir() if p.is_dir() and not p.name.startswith("reference"))
+    dirs += [Path(e) for e in extra]
     rows = []
-    for run in sorted(p for p in runs.iterdir() if p.is_dir() and not p.name.startswith("reference")):
+    for run in dirs:
         s = json.loads((run / "summary.json").read_text())
         if s["status"] != "finished":
             print(f"{run.name}: {s['status']}: {s['message']}")
             continue
         st = s.get("step_control") or {}
-        rows.append(dict(name=run.name, err=error(run, ref, chk), dostep=s["fmu_calls"]["rotor"]["doStep"],
+        rows.append(dict(name=run.name, err=error(run, ref, chk, until), dostep=s["fmu_calls"][INSTANCE]["doStep"],
                          steps=s["macro_steps"], rejected=st.get("rejected_steps", 0),
                          adaptive=st.get("type") == "error"))
     const = [r for r in rows if not r["adaptive"]]
@@ -76,8 +89,24 @@ def main(folder: str) -> None:
                     if best else "none of the constant steps")
             n = interpolated_dosteps(const, r["err"])
             tail += f"; interpolated {n:.0f}: ratio {n / r['dostep']:.2f}" if n else "; interpolated: outside the ladder"
+            fam = r["name"].split("-error")[0] + "-h"        # the same scheme's constant steps only
+            same = [c for c in const if c["name"].startswith(fam)]
+            if same and len(same) < len(const):
+                n = interpolated_dosteps(same, r["err"])
+                tail += (f"; same scheme ({fam}*) interpolated {n:.0f}: ratio {n / r['dostep']:.2f}" if n
+                         else f"; same scheme ({fam}*): outside its ladder")
         print(f"{r['name']:34s} {r['err']:9.3g} {r['dostep']:7d} {r['rejected']:8d}  {tail}")
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "out/compare/jeffcott_seeded_error_control")
+    import argparse
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("folder", nargs="?", default="out/compare/jeffcott_seeded_error_control",
+                    help="a rotorcosim compare folder (runs/reference, runs/reference-check, constant steps)")
+    ap.add_argument("runs", nargs="*", help="more run folders (rotorcosim run --out), e.g. the error-controlled runs")
+    ap.add_argument("--until", type=float, default=np.inf, help="error over t <= this only [s]")
+    ap.add_argument("--case", choices=sorted(CASES), default="runup",
+                    help="runup: the seeded run-up (errors / c, rotor doSteps); switch: compare/coupling_switch.yaml")
+    a = ap.parse_intermixed_args()
+    SIGNALS, CLEARANCE, INSTANCE, RICHARDSON = CASES[a.case]
+    main(a.folder, a.runs, a.until)

@@ -295,6 +295,27 @@ def test_check_report_flags_an_inaccurate_reference():
     assert len(fails) == 1 and "reference: halving" in fails[0] and "'max'" in fails[0]
 
 
+def test_check_report_flags_a_cost_regression_against_the_baseline():
+    """A baseline with FMU calls (written since session 4) fails a variant that needs more than
+    (1 + regression_margin) x its calls; fewer calls, a baseline without them, or a run without
+    a count pass."""
+    spec = parse_compare(dict(SECTION), base_scenario())
+
+    def rep(calls):
+        class R:
+            reference = {}
+            orders = []
+            variants = [{"name": "v", "stable": True, "errors": {"max": 1e-3}, "tolerance": {},
+                         "message": "", "status": "finished", "fmu_calls": calls}]
+        return R()
+    base = {"variants": {"v": {"stable": True, "errors": {"max": 1e-3}, "fmu_calls": 1000}}}
+    fails = check_report(rep(1101), spec, base)
+    assert len(fails) == 1 and "1101 FMU calls regressed vs baseline 1000" in fails[0]
+    assert check_report(rep(1100), spec, base) == [] and check_report(rep(500), spec, base) == []
+    assert check_report(rep(None), spec, base) == []
+    assert check_report(rep(5000), spec, {"variants": {"v": {"stable": True, "errors": {"max": 1e-3}}}}) == []
+
+
 def test_derived_quantity_error_from_summary():
     """The fake onset speed is 100 Hz * (1 + end deviation of x): its relative error is
     |x_N - cos t_N|; a key missing in the runs gives an infinite error."""

@@ -88,6 +88,7 @@ def test_next_stop_lands_on_the_output_grid():
     assert next_stop(0.09, 0.03, grid) == (pytest.approx(0.1), True)
     t, on = next_stop(0.07, 0.029999, grid)                    # would stop 1e-6 short: stretched
     assert on and t == pytest.approx(0.1)
+    assert next_stop(0.07, 0.0299, grid)[1] is False           # 3e-3 short: not stretched
 
 
 def test_a_jump_that_no_step_resolves_is_accepted():

@@ -123,6 +123,25 @@ def test_rows_stay_on_the_output_grid_and_the_error_follows_rtol():
     assert errs[1] < errs[0] / 3                                        # tighter rtol, smaller error
 
 
+def test_measure_impulse_weighs_the_defect_by_the_step():
+    """measure: impulse (adaptive.py): err times h / output interval, estimate order p + 1 = 3
+    for k = 1. Same switch: over two decades of rtol the error follows the tolerance, and the
+    weighted criterion is looser for steps shorter than the interval than the plain one at the
+    same rtol (fewer doSteps). Not monotone in between: rtol 1e-5 gave 9.4e-4, more than 1e-4's
+    1.9e-4 (the step across the switch; docs/coupling.md, measure), hence not the default."""
+    errs, calls = [], []
+    for rtol in (1e-4, 1e-6):
+        res = run(1e-5, control=StepControlSpec(type="error", rtol=rtol, atol=1e-9, measure="impulse"))
+        assert res.success, res.message
+        assert res.stats["step_control"]["estimate_order"] == 3
+        errs.append(rel_error(res))
+        calls.append(res.stats["fmu_calls"]["left"]["doStep"])
+    assert errs[1] < errs[0] / 3 and errs[0] < 0.05
+    plain = run(1e-5, control=StepControlSpec(type="error", rtol=1e-4, atol=1e-9))
+    assert plain.stats["step_control"]["estimate_order"] == 2
+    assert calls[0] < plain.stats["fmu_calls"]["left"]["doStep"]
+
+
 def test_error_control_beats_the_best_constant_step_at_the_same_accuracy():
     """Stiff (447 rad/s) for 0.1 s, soft afterwards: the controlled step is small only while it must
     be. The best constant step that reaches the controlled run's accuracy needs >= 3x the doSteps."""

@@ -8,9 +8,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-import bearing_fmu
-
-PKG = Path(bearing_fmu.__file__).parent
+# the source packages of the checkout (an in-process FMU run of an earlier test can leave
+# bearing_fmu / rotor_fmu imported from its extraction folder, deleted since)
+PKG = Path(__file__).resolve().parents[1] / "bearing_fmu"
 
 PROBE = """
 import numpy as np, bearing_fmu, bearing_fmu.cavitation as c
@@ -77,11 +77,10 @@ print(l.__file__, sum(s.cache_hits.values()), sum(s.cache_misses.values()), s.ca
 def test_rotor_numba_kernels_share_the_cache_across_copies(tmp_path):
     """The rotor FMU's numba kernels (ROTORCOSIM_ROTOR_KERNEL=numba) are extracted afresh with
     their FMU for every run too: a second copy loads what the first compiled."""
-    import rotor_fmu
     root, hits = tmp_path / "cache", []
     env = dict(os.environ, ROTORCOSIM_NUMBA_CACHE=str(root), PYTHONPATH="", ROTORCOSIM_ROTOR_KERNEL="numba")
     for name in ("a", "b"):
-        shutil.copytree(Path(rotor_fmu.__file__).parent, tmp_path / name / "rotor_fmu",
+        shutil.copytree(PKG.parent / "rotor_fmu", tmp_path / name / "rotor_fmu",
                         ignore=shutil.ignore_patterns("__pycache__", "data"))
         out = subprocess.run([sys.executable, "-c", ROTOR_PROBE], cwd=tmp_path / name, env=env,
                              capture_output=True, text=True, timeout=300)

@@ -92,3 +92,21 @@ def test_valid_scenario_says_which_defaults_were_taken(test_fmus, tmp_path, caps
     out = capsys.readouterr().out
     assert "stop_time = 1.0 (DefaultExperiment stopTime of 'a')" in out
     assert "coupling.macro_step = 0.1 (DefaultExperiment stepSize of 'a')" in out
+
+
+def test_a_parameter_the_fmu_refuses_at_initialization(tmp_path, capsys):
+    """FMI initialization is part of what `run` does before its first step: an FMU that refuses
+    its values there (our bearing: p_feed below p0, a rule across two parameters that no
+    declared range can express) makes `validate` fail with run's message."""
+    import orchestrator
+    from orchestrator.shipped import resolve
+    path = resolve("quickstart")
+    override = "fmus.bearing1.parameters.p_feed=5.0e4"
+    assert main(["validate", str(path), "--set", override]) == 1
+    out = capsys.readouterr().out
+    expected = "BearingParams.p_feed must be >= p0 (a groove feeds oil)"
+    assert "initialization failed: FMU instance 'bearing1'" in out and expected in out
+    res = orchestrator.run(orchestrator.load_scenario(path, overrides=[override], build_fmus=True),
+                           out_dir=tmp_path / "run", progress=False)
+    assert res.status.name == "FAILED" and expected in res.message
+    assert main(["validate", str(path)]) == 0       # the shipped values initialize

@@ -220,17 +220,23 @@ def check_report(report, spec, baseline: Mapping[str, Any] | None) -> list[str]:
                 if not new <= limit:
                     fails.append(f"variant '{v['name']}': {m} error {new:.4g} regressed vs baseline "
                                  f"{old:.4g} (allowed {limit:.4g} = baseline*(1+{m_:g}) + {f_:g})")
+            old_calls, new_calls = b.get("fmu_calls"), v.get("fmu_calls")
+            if old_calls and new_calls is not None and new_calls > old_calls * (1 + m_):
+                fails.append(f"variant '{v['name']}': {new_calls} FMU calls regressed vs baseline {old_calls} "
+                             f"(allowed {old_calls * (1 + m_):.0f} = baseline*(1+{m_:g}); the cost of a "
+                             "variable or iterated step)")
     return fails
 
 
 def write_baseline(report, spec, path: Path) -> None:
-    """Store errors and stability of every variant (not timings, they are machine-dependent)."""
+    """Store errors, stability and FMU calls of every variant (not timings, they are
+    machine-dependent; call counts are not)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     doc = {"version": BASELINE_VERSION, "compare": spec.name,
            "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
            "machine": platform.platform(),
-           "variants": {v["name"]: {"stable": v["stable"],
+           "variants": {v["name"]: {"stable": v["stable"], "fmu_calls": v.get("fmu_calls"),
                                     "errors": {m: (x if math.isfinite(x) else None)
                                                for m, x in v["errors"].items()}}
                         for v in report.variants}}

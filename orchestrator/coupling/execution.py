@@ -20,6 +20,11 @@ The pieces: the plan (:mod:`.plan`: units, links, sequence), one macro step
 step-size controller (:mod:`.step_control`: the grid, accept / reject / retry, the
 discard halving), the scheme (:mod:`.schemes`), the Lagrange history (:mod:`.signals`)
 and the observers (:mod:`.observers`). docs/dev/architecture.md gives the call order.
+
+Length: the life cycle of one execution (setup, initialization with its initial exchange,
+stepping with its failure paths, termination and the result) is one state machine whose
+methods share the FMU handles and the status; the numerics live in the modules above, so
+the file stays above ~400 lines for that reason.
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
     RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController)
 from orchestrator.coupling.adaptive import controller_from_spec
+from orchestrator.coupling.signal_scales import signal_nominals
 from orchestrator.coupling.stages import stages as make_stages
 from orchestrator.errors import CouplingError, FmuCallError, FmuCrashError, LifecycleError, ScenarioError
 from orchestrator.fmi.extraction import ExtractionPool
@@ -254,6 +260,14 @@ class MasterAlgorithm:
         for u in self.units:
             u.sub.no_set_prior_state = False
 
+    def _variable_or_none(self, instance: str, name: str):
+        """``instance``'s variable ``name`` (its model description), or None if it has none."""
+        u = next((u for u in self.units if u.name == instance), None)
+        try:
+            return None if u is None else u.sub.variable(name)
+        except Exception:          # a fake without a model description, or an unknown name
+            return None
+
     def _setup_variable_grid(self) -> None:
         """The error-controlled step (coupling/adaptive.py): FMUs with a fixed step are refused;
         without state save/restore in every FMU the step adapts forward only."""
@@ -265,7 +279,8 @@ class MasterAlgorithm:
                 "false); use step_control type constant")
         can_reject = all(u.sub.can_get_set_state for u in self.units)
         self.grid.can_reject = can_reject
-        self.grid.bind(self.signal_names, self.scenario.connections)
+        self.grid.bind(self.signal_names, self.scenario.connections,
+                       signal_nominals(self.signal_names, self.scenario.connections, self._variable_or_none))
         if can_reject:
             for u in self.units:
                 u.sub.no_set_prior_state = False
@@ -495,12 +510,14 @@ class MasterAlgorithm:
                     row[i] = math.nan if isinstance(v, str) else float(v)
 
     # ------------------------------------------------------------- terminate
-    def terminate(self) -> None:
+    def terminate(self, *, preflight: bool = False) -> None:
         """fmi2Terminate and fmi2FreeInstance for every subsystem (always), then
-        tell the observers. Idempotent."""
+        tell the observers. Idempotent. ``preflight``: the end of ``validate``'s
+        setup and initialization (orchestrator/preflight.py), not logged as a run
+        terminated early."""
         if self._phase in ("terminated", "new"):
             return
-        if self.status is Status.RUNNING:
+        if self.status is Status.RUNNING and not preflight:
             self._fail(f"terminated early at t={self.t:.12g} s by the caller", self.t)
         self.view.status = self.status
         self.view.message = self.message

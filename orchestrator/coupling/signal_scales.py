@@ -6,7 +6,18 @@ A signal is a coupling input, named ``consumer.input`` (the history's column, th
 ``summary.json`` ``step_control.limiting_signals`` uses: ``rotor.Fx_1``, not the producer's
 ``bearing1.Fx``). Each key is such a name or a glob pattern (:func:`fnmatch.fnmatchcase`). A
 signal takes the value of the key equal to its name, else of the first pattern in file order
-that matches it, else the default 1e-8. ``.inf`` leaves the signal out of the error norm.
+that matches it, else its default. ``.inf`` leaves the signal out of the error norm.
+
+Default from the FMUs' ``nominal`` (:func:`signal_nominals`)
+-----------------------------------------------------------
+A signal no key names (or every signal, when ``atol`` is not given) gets ``rtol * nominal``
+when the FMUs declare a ``nominal`` for it (FMI 2.0, sec. 2.2.7: the nominal value of a
+variable, for scaling): a change of rtol times the signal's typical size is within
+tolerance, also where the signal passes zero, the rule of model-exchange importers for state
+tolerances (OpenModelica, Dymola: atol_i = rtol * nominal_i). The nominal is the producer's
+output's, times |gain| of the connection; where the output declares none, the consumer input's.
+A signal without a nominal gets 1e-8. An explicit number ``atol: 1.0e-6`` applies to every
+signal as before (nominals unused).
 
 Interface-Jacobian estimate
 ---------------------------
@@ -41,7 +52,9 @@ displacements db are the rotor's outputs as the history holds them (the connecti
 from __future__ import annotations
 
 import fnmatch
+import math
 import re
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -49,17 +62,48 @@ DEFAULT_ATOL = 1.0e-8
 FORCE_RE = re.compile(r"^F([xy])_(\w+)$")
 
 
-def atol_vector(atol, names: list[str]) -> np.ndarray:
-    """atol per column ``names`` (module docstring): a number for all, or ((key, atol), ...)."""
-    if not isinstance(atol, (tuple, list)):
+def atol_vector(atol, names: list[str], *, rtol: float = 0.0,
+                nominals: Sequence[float | None] | None = None) -> np.ndarray:
+    """atol per column ``names`` (module docstring): a number for all, ((key, atol), ...), or
+    None (not given). A signal no key names gets ``rtol * nominals[j]`` if that is given, else
+    DEFAULT_ATOL."""
+    if atol is not None and not isinstance(atol, (tuple, list)):
         return np.full(len(names), float(atol))
-    table = dict(atol)
-    out = np.full(len(names), DEFAULT_ATOL)
+    nominals = nominals if nominals is not None else [None] * len(names)
+    pairs = tuple(atol or ())
+    table = dict(pairs)
+    out = np.empty(len(names))
     for j, name in enumerate(names):
+        nom = nominals[j]
+        default = rtol * nom if (nom is not None and rtol > 0) else DEFAULT_ATOL
         if name in table:
             out[j] = table[name]
             continue
-        out[j] = next((v for pat, v in atol if fnmatch.fnmatchcase(name, pat)), DEFAULT_ATOL)
+        out[j] = next((v for pat, v in pairs if fnmatch.fnmatchcase(name, pat)), default)
+    return out
+
+
+def signal_nominals(names: list[str], connections, variable) -> list[float | None]:
+    """The nominal of every column ``names`` (module docstring): ``variable(instance, name)``
+    gives an FMU's :class:`~orchestrator.fmi.model_description.Variable` (or None); the producer
+    output's ``nominal`` times |gain|, else the consumer input's, else None."""
+    src = {}
+    for c in connections:
+        src.setdefault(c.dst, c)
+    out: list[float | None] = []
+    for name in names:
+        nom = None
+        c = src.get(name)
+        if c is not None:
+            inst, _, var = c.src.partition(".")
+            v = variable(inst, var)
+            if v is not None and v.nominal is not None and c.gain != 0:
+                nom = abs(float(v.nominal) * float(c.gain))
+        if nom is None:
+            inst, _, var = name.partition(".")
+            v = variable(inst, var)
+            nom = None if v is None or v.nominal is None else abs(float(v.nominal))
+        out.append(nom if nom is not None and math.isfinite(nom) and nom > 0 else None)
     return out
 
 

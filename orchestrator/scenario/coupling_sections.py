@@ -21,10 +21,11 @@ import logging
 import yaml
 
 from orchestrator.scenario.nodes import did_you_mean
-from orchestrator.scenario.model import ACCELERATIONS, STEP_CONTROL_TYPES, IterationSpec, StepControlSpec
+from orchestrator.scenario.model import (
+    ACCELERATIONS, ERROR_MEASURES, STEP_CONTROL_TYPES, IterationSpec, StepControlSpec)
 
 ITERATION_KEYS = ("max_iterations", "tol", "acceleration")
-STEP_CONTROL_KEYS = ("type", "rtol", "atol", "min_step", "max_step", "interface_jacobian")
+STEP_CONTROL_KEYS = ("type", "rtol", "atol", "min_step", "max_step", "interface_jacobian", "measure")
 ATOL_NODES = "_step_control_atol_nodes"     # loader attribute: pattern -> YAML node (check_atol_patterns)
 MAX_ITERATIONS_LIMIT = 1000
 log = logging.getLogger(__name__)
@@ -81,6 +82,14 @@ def load_step_control(ld, node) -> StepControlSpec | None:
         v = load_atol_mapping(ld, section["atol"][1])
         ok &= v is not None
         kw["atol"] = v
+    if "measure" in section:
+        n = section["measure"][1]
+        v = ld.value(n) if isinstance(n, yaml.ScalarNode) else None
+        if v not in ERROR_MEASURES:
+            ld.err(n, f"'coupling.step_control.measure' must be one of {list(ERROR_MEASURES)} (got {ld.got(n)}); "
+                      "value (default) takes the signals' defect as is, impulse weighs it by the step over the output interval")
+            ok = False
+        kw["measure"] = v
     if "interface_jacobian" in section:
         n = section["interface_jacobian"][1]
         v = ld.value(n) if isinstance(n, yaml.ScalarNode) else None

@@ -14,6 +14,7 @@ SCENARIO_VERSION = 1
 SCHEMES = ("gauss-seidel", "jacobi", "iterative", "monolithic")
 ACCELERATIONS = ("none", "aitken", "iqn-ils")       # coupling.iteration.acceleration
 STEP_CONTROL_TYPES = ("constant", "error")          # coupling.step_control.type
+ERROR_MEASURES = ("value", "impulse")       # coupling.step_control.measure (coupling/adaptive.py)
 MAX_ORDER = 3                     # highest extrapolation/interpolation order of the coupling signals
 MAX_DISCARD_RETRIES = 30          # coupling.discard_retries: smallest retried step H / 2^30
 
@@ -103,8 +104,10 @@ class StepControlSpec:
 
     type: str = "constant"                   # one of STEP_CONTROL_TYPES
     rtol: float = 1.0e-4
-    atol: float | tuple = 1.0e-8             # in the signals' units, or ((pattern, atol), ...) per signal
+    atol: float | tuple | None = None        # in the signals' units, or ((pattern, atol), ...) per signal;
+                                             # None: rtol * the FMUs' nominal where declared, else 1e-8
     interface_jacobian: bool = True          # estimate the force an interface-Jacobian rotor applied
+    measure: str = "value"                   # one of ERROR_MEASURES: the defect as is, or times H / output interval
     min_step: float | None = None            # [s]
     max_step: float | None = None            # [s]
 

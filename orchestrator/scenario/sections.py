@@ -2,6 +2,11 @@
 
 :class:`SectionReader` reads every section into a :class:`Draft` (problems collected,
 nothing raised for a bad value); checks against the FMUs are :mod:`.checks`.
+
+Length: one reader method per section of the documented format (docs/scenario-format.md),
+sharing the node helpers and the problem list so that every problem of a file is reported in
+one pass; above ~400 lines for that reason (the coupling sub-sections live in
+:mod:`.coupling_sections`).
 """
 
 from __future__ import annotations
@@ -259,41 +264,14 @@ class SectionReader(NodeReader):
             else:
                 c["scheme"] = s
         if "sequence" in section:
-            seq = self.strings(section["sequence"][1], "coupling.sequence", "list every instance once")
-            if seq is None:
-                ok = False
-            else:
-                order = [s for s, _ in seq]
-                problems = []
-                for s, _ in seq:
-                    if s not in names:
-                        problems.append(f"'{s}' is not an instance ({did_you_mean(s, names)}instances: "
-                                        f"{', '.join(names)})")
-                dup = sorted({s for s in order if order.count(s) > 1})
-                missing = [s for s in names if s not in order]
-                if dup:
-                    problems.append(f"{', '.join(dup)} listed more than once")
-                if missing:
-                    problems.append(f"missing {', '.join(missing)}")
-                if problems:
-                    self.err(section["sequence"][1], "'coupling.sequence' must list every instance exactly once "
-                                                     f"({'; '.join(problems)}); e.g. [{', '.join(names)}]")
-                    ok = False
-                else:
-                    c["sequence"] = tuple(order)
+            order = self.load_sequence(section["sequence"][1], names)
+            ok &= order is not None
+            if order is not None:
+                c["sequence"] = order
+        h = self.load_macro_step(node, section, start, stop)
+        ok &= h is not False
         if "macro_step" in section:
-            h = self.number(section["macro_step"][1], "coupling.macro_step", positive=True,
-                            fix="give the communication step in seconds, e.g. 1.0e-4")
-            if h is not None and start is not None and stop is not None and h > stop - start:
-                self.err(section["macro_step"][1], f"'coupling.macro_step' must not exceed stop_time - start_time "
-                                                   f"({stop - start!r}) (got {h!r}); use a smaller step")
-                h = None
-            if h is not None and start is not None and stop is not None:
-                h = self.check_step_count(section["macro_step"][1], h, start, stop)
-            ok &= h is not None
-            c["macro_step"] = h
-        elif start is not None and stop is not None:        # the default step must fit too
-            ok &= self.check_step_count(node, CouplingSpec.macro_step, start, stop) is not None
+            c["macro_step"] = h if h is not False else None
         for key in ("extrapolation_order", "interpolation_order"):
             if key in section:
                 v = self.integer(section[key][1], f"coupling.{key}", 0, MAX_ORDER,
@@ -329,6 +307,48 @@ class SectionReader(NodeReader):
             else:
                 c["options"] = self.value(section["options"][1])
         return c if ok else None
+
+    def load_sequence(self, node, names: list[str]) -> tuple[str, ...] | None:
+        """``coupling.sequence``: every instance exactly once (None: problem reported)."""
+        seq = self.strings(node, "coupling.sequence", "list every instance once")
+        if seq is None:
+            return None
+        order = [s for s, _ in seq]
+        problems = []
+        for s, _ in seq:
+            if s not in names:
+                problems.append(f"'{s}' is not an instance ({did_you_mean(s, names)}instances: "
+                                f"{', '.join(names)})")
+        dup = sorted({s for s in order if order.count(s) > 1})
+        missing = [s for s in names if s not in order]
+        if dup:
+            problems.append(f"{', '.join(dup)} listed more than once")
+        if missing:
+            problems.append(f"missing {', '.join(missing)}")
+        if problems:
+            self.err(node, "'coupling.sequence' must list every instance exactly once "
+                           f"({'; '.join(problems)}); e.g. [{', '.join(names)}]")
+            return None
+        return tuple(order)
+
+    def load_macro_step(self, node, section, start, stop):
+        """``coupling.macro_step`` checked against the run's length and step count; without
+        the key, the default step is checked. Returns the checked step, None when the key is
+        absent and the default fits, False when a problem was reported."""
+        if "macro_step" in section:
+            h = self.number(section["macro_step"][1], "coupling.macro_step", positive=True,
+                            fix="give the communication step in seconds, e.g. 1.0e-4")
+            if h is not None and start is not None and stop is not None and h > stop - start:
+                self.err(section["macro_step"][1], f"'coupling.macro_step' must not exceed stop_time - start_time "
+                                                   f"({stop - start!r}) (got {h!r}); use a smaller step")
+                h = None
+            if h is not None and start is not None and stop is not None:
+                h = self.check_step_count(section["macro_step"][1], h, start, stop)
+            return False if h is None else h
+        if start is not None and stop is not None:        # the default step must fit too
+            if self.check_step_count(node, CouplingSpec.macro_step, start, stop) is None:
+                return False
+        return None
 
     def check_step_count(self, node, h: float, start: float, stop: float) -> float | None:
         """``h`` if the run's macro steps stay within MAX_MACRO_STEPS and the time grid
