@@ -70,7 +70,7 @@ import numpy as np
 from .cavitation import law_eval, penalty_edge
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _axial_faces(res, diag, g, i, j, n_phi, n_z, Hi, a_z, dz, dphi, p, dp, p0, bath, sym,
                  pa, pb, s_pen, want_jac, jst):
     """Add the north/south (axial) face fluxes of cell (j, i) to its residual ``res`` and
@@ -310,7 +310,7 @@ def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_ph
                 jst[g, 0] = diag
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _neighbours(g, n_phi, n_z):
     i = g % n_phi
     j = g // n_phi
@@ -321,7 +321,7 @@ def _neighbours(g, n_phi, n_z):
     return e, w, nn, ss
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _neighbours2(g, n_phi):
     """Flat cells i + 2 and i - 2 (periodic) of cell g."""
     i = g % n_phi

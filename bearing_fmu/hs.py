@@ -120,6 +120,89 @@ def _solve_many_kernel(ce, cw, H3, rhs, lam, ck, coef, groove, feed_hat, x):
                 x[q, k, i] = y[i] - fact * zz[i]
 
 
+@nb.njit(cache=True)
+def _tangent_kernel(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat, x):
+    """Modes of the pressure and of its directional derivatives, into ``x`` (1 + m, n_z,
+    n_phi): x[0] the modes of :meth:`HalfSommerfeld.solve` at the base kinematics, x[1 + q]
+    the derivative in direction q, ``M_k dx = dd_k - dM_k x0`` (M_k the cyclic tridiagonal
+    system of mode k, :func:`_solve_many_kernel`; ``dce, dH3, drhs`` (m, n_phi) the
+    directional derivatives of the east-face conductances, H^3 and the right-hand side).
+    Each mode's system is factored once (Thomas with Sherman-Morrison, Press et al.,
+    Numerical Recipes, sec. 2.7, reciprocal pivots) and solved for the m derivative
+    right-hand sides together (independent recurrences side by side)."""
+    n = ce.size
+    m = dce.shape[0]
+    n_z = lam.size
+    a = np.empty(n)
+    b = np.empty(n)
+    c = np.empty(n)
+    cp = np.empty(n)
+    inv = np.empty(n)
+    zz = np.empty(n)
+    y = np.empty((n, m + 1))
+    db = np.empty((m, n))
+    for r in range(m):
+        for i in range(n):
+            iw = i - 1 if i > 0 else n - 1
+            db[r, i] = dce[r, i] + dce[r, iw]
+    for k in range(n_z):
+        for i in range(n):
+            iw = i - 1 if i > 0 else n - 1
+            if groove[i]:
+                a[i] = 0.0
+                c[i] = 0.0
+                b[i] = 1.0
+            else:
+                a[i] = -ce[iw]
+                c[i] = -ce[i]
+                b[i] = (ce[i] + ce[iw]) + coef * (lam[k] * H3[i])
+        alpha = c[n - 1]
+        beta = a[0]
+        gamma = -b[0]
+        # the modified tridiagonal system factored once (Sherman-Morrison for the corners)
+        den = b[0] - gamma
+        inv[0] = 1.0 / den
+        cp[0] = c[0] * inv[0]
+        zz[0] = gamma * inv[0]
+        for i in range(1, n):
+            den = (b[i] - alpha * beta / gamma if i == n - 1 else b[i]) - a[i] * cp[i - 1]
+            inv[i] = 1.0 / den
+            cp[i] = c[i] * inv[i]
+            ui = alpha if i == n - 1 else 0.0
+            zz[i] = (ui - a[i] * zz[i - 1]) * inv[i]
+        for i in range(n - 2, -1, -1):
+            zz[i] -= cp[i] * zz[i + 1]
+        zden = 1.0 + zz[0] + beta * zz[n - 1] / gamma
+        # the base right-hand side first: the derivative ones need its solution x0
+        for i in range(n):
+            d0 = feed_hat[k] if groove[i] else ck[k] * rhs[i]
+            y[i, 0] = (d0 - a[i] * y[i - 1, 0]) * inv[i] if i > 0 else d0 * inv[0]
+        for i in range(n - 2, -1, -1):
+            y[i, 0] -= cp[i] * y[i + 1, 0]
+        fact = (y[0, 0] + beta * y[n - 1, 0] / gamma) / zden
+        for i in range(n):
+            x[0, k, i] = y[i, 0] - fact * zz[i]
+        lk = coef * lam[k]
+        for i in range(n):
+            iw = i - 1 if i > 0 else n - 1
+            ie = i + 1 if i + 1 < n else 0
+            xw, xc, xe = x[0, k, iw], x[0, k, i], x[0, k, ie]
+            for r in range(m):
+                if groove[i]:
+                    d = 0.0
+                else:       # dd - dM x0 (dM: the derivatives of a, b, c; 0 on groove rows)
+                    d = (ck[k] * drhs[r, i] + dce[r, iw] * xw - (db[r, i] + lk * dH3[r, i]) * xc
+                         + dce[r, i] * xe)
+                y[i, 1 + r] = (d - a[i] * y[i - 1, 1 + r]) * inv[i] if i > 0 else d * inv[0]
+        for i in range(n - 2, -1, -1):
+            for r in range(m):
+                y[i, 1 + r] -= cp[i] * y[i + 1, 1 + r]
+        for r in range(m):
+            fact = (y[0, 1 + r] + beta * y[n - 1, 1 + r] / gamma) / zden
+            for i in range(n):
+                x[1 + r, k, i] = y[i, 1 + r] - fact * zz[i]
+
+
 class HalfSommerfeld:
     """Quasi-static half-Sommerfeld solver bound to a grid and the constants."""
 
@@ -182,3 +265,25 @@ class HalfSommerfeld:
         _solve_many_kernel(ce, cw, H ** 3, rhs, self.lam, self.ck, dphi * self.a_z / dz,
                            self.gr, self.feed_hat, x)
         return sfft.idst(x, type=2, norm="ortho", axis=1)
+
+    def solve_tangent(self, H, He, Hdot, omega, dH, dHe, dHdot):
+        """Unclipped gauge pressure P (n_z, n_phi) at (H, He, Hdot) and its directional
+        derivatives dP (m, n_z, n_phi) along the m gap directions ``dH, dHe, dHdot`` (m,
+        n_phi): the linear system differentiated (:func:`_tangent_kernel`), one factorisation
+        per axial mode for all m + 1 right-hand sides, one batched inverse DST. Equal to the
+        derivative of :meth:`solve` to round-off (tests/test_hs_batched.py)."""
+        g = self.grid
+        dphi, dz = g.dphi, g.dz
+        n_z, n_phi = g.n_z, g.n_phi
+        m = dH.shape[0]
+        ce = dz * self.a_phi * He ** 3 / dphi
+        dce = dz * self.a_phi * 3.0 * He ** 2 * dHe / dphi
+        Hw = np.roll(He, 1)
+        dHw = np.roll(dHe, 1, axis=1)
+        rhs = -(dz * omega * (He - Hw) + 2.0 * dphi * dz * Hdot)
+        drhs = -(dz * omega * (dHe - dHw) + 2.0 * dphi * dz * dHdot)
+        x = np.empty((m + 1, n_z, n_phi))
+        _tangent_kernel(ce, H ** 3, rhs, dce, 3.0 * H ** 2 * dH, drhs, self.lam, self.ck,
+                        dphi * self.a_z / dz, self.gr, self.feed_hat, x)
+        P = sfft.idst(x, type=2, norm="ortho", axis=1)
+        return P[0], P[1:]

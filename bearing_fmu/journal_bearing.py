@@ -319,6 +319,12 @@ class JournalBearing(Fmi2Slave):
             "t_film", unit="s", description="film (model) time [s]",
             causality=Fmi2Causality.local, variability=Fmi2Variability.continuous,
             initial=Fmi2Initial.calculated, getter=lambda: self._time))
+        self._values["linearize_tol"] = 0.0
+        self._register_real("linearize_tol", "1", (
+            "with linearize >= 1: a due refresh of kxx..cyy is skipped while the inputs stay "
+            "within this distance of those of the last refresh (max of |dx|, |dy| / C, |dvx|, "
+            "|dvy| / (C max(|omega|, 1000/s)), |domega| / max(|omega|, 1/s)); 0: no skipping"),
+                            causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed)
         units.add("s")
         check_shipped_layout(self)
         UNITS.setdefault("s", dict(s="1"))
@@ -351,7 +357,7 @@ class JournalBearing(Fmi2Slave):
         """
         shipped = shipped_parameters(self.resources)
         if shipped is not None:
-            fixed = set(REAL_PARAMETERS) | set(INTEGER_PARAMETERS) | {"init", "fields_file", "linearize"}
+            fixed = set(REAL_PARAMETERS) | set(INTEGER_PARAMETERS) | {"init", "fields_file", "linearize", "linearize_tol"}
             return [(n, v, k) for n, v, k in shipped if n not in fixed]
         try:
             from bearing_fmu.model import BearingParams
@@ -402,8 +408,22 @@ class JournalBearing(Fmi2Slave):
             raise KeyError(f"bearing model outputs lack {missing}; it provides {sorted(out)}")
         for name in OUTPUTS:
             self._values[name] = float(out.get(name, 0.0))
+        refresh_coefficients(self, self._linearization, self._coefficients_hold)
+
+    def _linearization(self):
+        """(K, C) of the model now; remembers the inputs they belong to (``linearize_tol``)."""
         from bearing_fmu.linearize import linearization
-        refresh_coefficients(self, lambda: linearization(self._model))
+        self._values["_lin_at"] = self._inputs()
+        return linearization(self._model)
+
+    def _coefficients_hold(self) -> bool:
+        """True while the inputs are within ``linearize_tol`` of those of the last refresh
+        (:func:`coefficients_moved`); always False with linearize_tol = 0."""
+        tol = float(self._values.get("linearize_tol", 0.0))
+        at = self._values.get("_lin_at")
+        if not tol > 0.0 or at is None:
+            return False
+        return coefficients_moved(at, self._inputs(), self._model.c) <= tol
 
     # -- FMI life cycle --------------------------------------------------------
     setup_experiment = setup_experiment
@@ -444,6 +464,21 @@ class JournalBearing(Fmi2Slave):
 
     _fmu_state_to_bytes = staticmethod(state_to_bytes)
     _fmu_state_from_bytes = staticmethod(state_from_bytes)
+
+
+def coefficients_moved(at, now, c: float) -> float:
+    """Distance of the inputs ``now`` = (x, y, vx, vy, omega) from ``at`` in the scale of the
+    film coefficients: positions in units of the clearance c, velocities in units of
+    c max(|omega|, 1000/s) (the journal's surface-speed scale; 1000/s at rest, as the
+    linearization's t_ref = 1 ms), the speed relative to max(|omega|, 1/s); the maximum.
+    The half-Sommerfeld coefficients are smooth functions of these (their relative change is
+    of the order of this distance times 1/(1 - eps)), so holding them over a distance below
+    ``linearize_tol`` changes them by about that fraction."""
+    x0, y0, vx0, vy0, w0 = at
+    x, y, vx, vy, w = now
+    vs = c * max(abs(w), 1000.0)
+    return max(abs(x - x0) / c, abs(y - y0) / c, abs(vx - vx0) / vs, abs(vy - vy0) / vs,
+               abs(w - w0) / max(abs(w), 1.0))
 
 
 def _is_numerical_failure(exc: Exception) -> bool:

@@ -9,7 +9,8 @@ folder) next to this checkout's, builds the Jeffcott run-up bearing (40 x 40, ma
 15 deg groove, same orbit; ``whirl``: free to air, eps 0.55 whirl at 0.45 x 500 Hz) in both,
 and advances them over the same 0.1 ms macro steps, alternating which goes first, timing
 ``step`` (film) and ``linearization`` (interface-Jacobian coefficients, what the FMU does with
-``linearize: 1``) in CPU time. Prints the medians, their ratio, the operation counts, and
+``linearize: 1``) in CPU time. ``bath2``: the ``bath`` orbit with the shipped oil-bath film
+(second-order theta transport, ``theta_transport: 1``). Prints the medians, their ratio, the operation counts, and
 how far apart the two films end (``--same`` asserts bit identity, for changes that must
 not change the numbers). Both codes share the machine's state at every step, so the ratio
 is meaningful even on a loaded machine.
@@ -31,6 +32,7 @@ BASE = dict(R=4.9e-3, B=7.84e-3, psi=2.8e-3, eta0=0.012, p0=1e5, p_feed=1e5, n_p
             cavitation=1)
 CASES = {
     "bath": dict(axial_bc=0, groove_width=0.0, cav_width=9e4),
+    "bath2": dict(axial_bc=0, groove_width=0.0, cav_width=9e4, theta_transport=1),
     "air": dict(axial_bc=1, groove_width=math.radians(15), groove_angle=math.pi / 2),
     "whirl": dict(axial_bc=1, groove_width=math.radians(15), groove_angle=math.pi / 2),
 }

@@ -27,7 +27,10 @@ run``, with single-threaded BLAS), interleaved, ``--repeat`` times:
 Recorded per run: wall time of the child, its CPU time (user + system of the run and of the
 workers it waited for, ``RUSAGE_CHILDREN``), the time to the first macro step (start-up:
 interpreter, workers, FMU instantiation and initialization), the median wall time of one
-macro step after it (insensitive to start-up and to the odd long step), the load average
+macro step after it (insensitive to start-up and to the odd long step), the median time per
+macro step the master spends waiting for (blocked on or polling) worker replies (about the
+worker path's excess over the master's own share of the stage: near 0 when the master's side
+is the critical path), the load average
 before and after; results.csv of every variant is compared with the in-process one byte
 for byte. The table gives medians and ratios. Read the wall ratios with the load: on a
 shared machine other processes take a share of both cores (Linux autogroups: ``nice`` only
@@ -46,6 +49,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 BOTH = ["fmus.bearing1.isolation=process", "fmus.bearing2.isolation=process"]
@@ -71,14 +76,16 @@ def child(scenario: Path, stop: float, sets: list[str], out: Path) -> None:
 
     class StepTimer(Observer):
         def __init__(self):
-            self.t0, self.times = None, []
+            self.t0, self.times, self.waits = None, [], []
 
         def on_initialized(self, view):
             self.t0 = time.perf_counter()
 
         def on_step_complete(self, view):
             self.times.append(time.perf_counter())
+            self.waits.append(waited[0])
 
+    waited = _time_worker_waits()
     timer = StepTimer()
     res = run(load_scenario(scenario, [f"stop_time={stop}", *sets]), out_dir=out, progress=False,
               observers=[timer])
@@ -88,7 +95,26 @@ def child(scenario: Path, stop: float, sets: list[str], out: Path) -> None:
     steps = [b - a for a, b in zip([timer.t0, *timer.times], timer.times)]
     (out / "timing.json").write_text(json.dumps({
         "startup": timer.t0 - t_start, "step_ms": 1e3 * statistics.median(steps[20:] or steps), "steps": len(steps),
-        "first20": sum(steps[:20]), "finish": t_end - timer.times[-1]}))
+        "first20": sum(steps[:20]), "finish": t_end - timer.times[-1],
+        "wait_ms": 1e3 * statistics.median(np.diff(timer.waits)[19:] if len(timer.waits) > 21 else [0.0])}))
+
+
+def _time_worker_waits() -> list:
+    """Accumulate the master's time blocked (or polling) for worker replies: [seconds]. How long
+    the master idles per macro step after its own share of a parallel stage tells whether the
+    worker's side (channel, wake-up, a slower film) or the master's is the critical path."""
+    from orchestrator.fmi.channel import WorkerChannel
+    waited = [0.0]
+    wait = WorkerChannel._wait
+
+    def timed(self, function):
+        t0 = time.perf_counter()
+        try:
+            return wait(self, function)
+        finally:
+            waited[0] += time.perf_counter() - t0
+    WorkerChannel._wait = timed
+    return waited
 
 
 def one_run(scenario: Path, stop: float, sets: list[str], out: Path) -> dict:
@@ -105,7 +131,7 @@ def one_run(scenario: Path, stop: float, sets: list[str], out: Path) -> dict:
     timing = json.loads((out / "timing.json").read_text())
     return {"wall": wall, "cpu": (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime),
             "startup": timing["startup"], "step_ms": timing["step_ms"], "steps": timing["steps"],
-            "first20": timing["first20"], "finish": timing["finish"],
+            "first20": timing["first20"], "finish": timing["finish"], "wait_ms": timing["wait_ms"],
             "load": (load0[0], os.getloadavg()[0]), "csv": (out / "results.csv").read_bytes()}
 
 
@@ -202,23 +228,24 @@ def split(scenario: Path, stop: float, out: Path) -> None:
 def _table(runs: dict, controls: list, repeat: int) -> bool:
     ref = runs["in-process"]
     same = all(r["csv"] == ref[0]["csv"] for rs in runs.values() for r in rs)
-    keys = ("wall", "cpu", "startup", "step_ms")
+    keys = ("wall", "cpu", "startup", "step_ms", "wait_ms")
     med = {k: {m: statistics.median(r[m] for r in rs) for m in keys} for k, rs in runs.items()}
     loads = [x for rs in runs.values() for r in rs for x in r["load"]]
     base = med["in-process"]
     print(f"\n{ref[0]['steps']} macro steps, median of {repeat} interleaved runs; load average "
           f"{min(loads):.1f}..{max(loads):.1f} on {os.cpu_count()} cores; results.csv identical in every run: {same}")
-    print("| variant | wall | vs in-process | CPU incl. workers | vs in-process | start-up | per macro step | vs in-process |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| variant | wall | vs in-process | CPU incl. workers | vs in-process | start-up | per macro step | vs in-process "
+          "| master waits for workers, per step |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for k, m in med.items():
         print(f"| {k} | {m['wall']:.1f} s | {m['wall'] / base['wall']:.2f}x | {m['cpu']:.1f} s | "
               f"{m['cpu'] / base['cpu']:.2f}x | {m['startup']:.2f} s | {m['step_ms']:.2f} ms | "
-              f"{m['step_ms'] / base['step_ms']:.2f}x |")
+              f"{m['step_ms'] / base['step_ms']:.2f}x | {m['wait_ms']:.2f} ms |")
     if controls:
         s = statistics.median(c["serial_ms"] for c in controls)
         p = statistics.median(c["parallel_ms"] for c in controls)
         print(f"| machine control (no FMU: R, then F || F in two processes) | | | | | | {p:.2f} ms | "
-              f"{p / s:.2f}x of {s:.2f} ms |")
+              f"{p / s:.2f}x of {s:.2f} ms | |")
     return same
 
 
@@ -261,7 +288,7 @@ def main(argv=None) -> int:
             r = one_run(scenario, args.stop, sets, args.out / f"{label.replace(', ', '_').replace(' ', '_')}_{i}")
             runs[label].append(r)
             print(f"  run {i} {label}: wall {r['wall']:.1f} s, cpu {r['cpu']:.1f} s, start-up {r['startup']:.2f} s, "
-                  f"step {r['step_ms']:.2f} ms (first 20: {r['first20']:.2f} s, after the last: {r['finish']:.2f} s), load {r['load'][0]:.1f} -> {r['load'][1]:.1f}", flush=True)
+                  f"step {r['step_ms']:.2f} ms, waits {r['wait_ms']:.2f} ms (first 20: {r['first20']:.2f} s, after the last: {r['finish']:.2f} s), load {r['load'][0]:.1f} -> {r['load'][1]:.1f}", flush=True)
         if args.control != "off":
             r_ms, f_ms = (float(x) for x in args.control.split(","))
             c = control(r_ms, f_ms)

@@ -26,7 +26,6 @@ serialize with ``pickle``.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 from typing import Any
 from xml.etree.ElementTree import Element
@@ -36,7 +35,7 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from pythonfmu.variables import Boolean
 
 from fmu_common.slave import (
-    RealU, check_shipped_layout, check_step_start, exit_initialization_mode, finish_model_description,
+    RealU, check_shipped_layout, fast_get_real, fast_set_real, check_step_start, exit_initialization_mode, finish_model_description,
     get_slave_state, guard_callbacks, input_setter, journal_kinematics, output_getter, param_setter, set_slave_state,
     scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
 
@@ -214,10 +213,10 @@ def _register_ring_variables(self, par: dict) -> None:
 def rotor_ring_inputs(self):
     """The ``ring`` argument of :func:`rotor_fmu.ring_interface.step_with_ring_interface` from
     the ring parameters and inputs, or None when no station has a ring (m_ring_i = 0)."""
+    if not any(self._values[n] for n in RING_PARAMETERS):
+        return None
     import numpy as np
     m = np.array([self._values[n] for n in RING_PARAMETERS])
-    if not np.any(m):
-        return None
     st = range(1, N_BEARINGS + 1)
     v = self._values
     return dict(
@@ -256,24 +255,34 @@ def rotor_ensure_model(self) -> None:
 
 def rotor_copy_outputs(self) -> None:
     out = self._model.outputs
-    for name in self._output_names():
-        self._values[name] = float(out[name])
+    values = self._values
+    names = self.__dict__.get("_output_list")
+    if names is None:                  # the names are fixed once the slave is made
+        names = self._output_list = tuple(self._output_names())
+    for name in names:
+        values[name] = float(out[name])
+
+
+FORCE_NAMES = tuple(f"F{c}_{i}" for i in range(1, N_BEARINGS + 1) for c in "xy")
+COEFF_NAMES = tuple(f"{kind}{a}{b}_{i}" for kind in "kc" for i in range(1, N_BEARINGS + 1)
+                    for a in "xy" for b in "xy")    # (kind, station, row, column) order
 
 
 def rotor_forces(self):
     import numpy as np
-    return np.array([[self._values[f"Fx_{i}"], self._values[f"Fy_{i}"]]
-                     for i in range(1, N_BEARINGS + 1)])
+    values = self._values
+    return np.array([values[n] for n in FORCE_NAMES]).reshape(N_BEARINGS, 2)
 
 
 def rotor_coefficients(self):
     """Film coefficients (K, C), each (N_BEARINGS, 2, 2), from the inputs kxx_i..cyy_i;
     (None, None) when all are 0 (plain coupling, bit-identical to the old step)."""
-    import numpy as np
-    v = np.array([[[[self._values[f"{kind}{a}{b}_{i}"] for b in "xy"] for a in "xy"]
-                   for i in range(1, N_BEARINGS + 1)] for kind in "kc"])
-    if not np.any(v):
+    values = self._values
+    v = [values[n] for n in COEFF_NAMES]
+    if not any(v):
         return None, None
+    import numpy as np
+    v = np.array(v).reshape(2, N_BEARINGS, 2, 2)
     return v[0], v[1]
 
 
@@ -282,7 +291,7 @@ rotor_setup_experiment, rotor_exit_initialization_mode = setup_experiment, exit_
 
 def rotor_do_step(self, current_time: float, step_size: float) -> bool:
     check_step_start(self, current_time, step_size)
-    saved = copy.deepcopy(self._model.get_state())
+    saved = self._model.get_state()        # a copy (LinearRotor.get_state copies the state vector)
     try:
         ring = rotor_ring_inputs(self)
         if ring is None:
@@ -337,6 +346,8 @@ class JeffcottRotor(Fmi2Slave):
     setup_experiment = rotor_setup_experiment
     exit_initialization_mode = rotor_exit_initialization_mode
     do_step = rotor_do_step
+    get_real = fast_get_real
+    set_real = fast_set_real
     _get_fmu_state = rotor_get_fmu_state
     _set_fmu_state = rotor_set_fmu_state
     _fmu_state_to_bytes = staticmethod(state_to_bytes)

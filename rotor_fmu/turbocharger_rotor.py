@@ -72,6 +72,8 @@ class TurbochargerRotor(Fmi2Slave):
     setup_experiment = _slave.rotor_setup_experiment
     exit_initialization_mode = _slave.rotor_exit_initialization_mode
     do_step = _slave.rotor_do_step
+    get_real = _slave.fast_get_real
+    set_real = _slave.fast_set_real
     _get_fmu_state = _slave.rotor_get_fmu_state
     _set_fmu_state = _slave.rotor_set_fmu_state
     _fmu_state_to_bytes = staticmethod(_slave.state_to_bytes)

@@ -289,3 +289,58 @@ def test_a_pinned_worker_stays_on_its_cpu(fmus, tmp_path):
         assert np.isfinite(_drive(w, 3)).all()
     finally:
         w.free()
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="CPU affinity is Linux-only")
+def test_a_pinned_worker_and_its_master_poll_before_blocking(fmus, tmp_path):
+    """A pinned worker gets channel.SPIN_WAIT (its command line) and the master's channel polls as
+    long; an unpinned one blocks at once (spin 0); both step the same."""
+    from orchestrator.fmi import channel
+    cpu = max(os.sched_getaffinity(0))
+    pinned = WorkerSubsystem("p", fmus / "LinearBearing.fmu", work_dir=tmp_path / "p", cpu=cpu)
+    plain = WorkerSubsystem("u", fmus / "LinearBearing.fmu", work_dir=tmp_path / "u")
+    still = WorkerSubsystem("s", fmus / "LinearBearing.fmu", work_dir=tmp_path / "s", cpu=cpu, spin=0.0)
+    try:
+        assert pinned._chan.spin == channel.SPIN_WAIT > 0 and plain._chan.spin == 0.0 == still._chan.spin
+        for w, spin in ((pinned, channel.SPIN_WAIT), (still, 0.0)):
+            with open(f"/proc/{w.pid}/cmdline", "rb") as f:
+                assert f.read().split(b"\0")[-2] == repr(spin).encode()
+        ref = _drive(plain, 5)
+        assert np.array_equal(_drive(pinned, 5), ref) and np.array_equal(_drive(still, 5), ref)
+    finally:
+        pinned.free()
+        plain.free()
+        still.free()
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="CPU affinity is Linux-only")
+def test_pinned_workers_poll_only_when_a_cpu_is_left_for_the_master():
+    """With as many isolated FMUs as CPUs the master shares a CPU with a worker: nobody polls."""
+    from types import SimpleNamespace as NS
+    from orchestrator.coupling.execution import MasterAlgorithm
+    n = len(os.sched_getaffinity(0))
+
+    def master(k, default="none"):
+        fmus = [NS(isolation="process")] * k + [NS(isolation=None)] * 2
+        return NS(scenario=NS(coupling=NS(isolation=default), fmus=fmus))
+    assert MasterAlgorithm._cpu_left(master(n - 1)) and not MasterAlgorithm._cpu_left(master(n))
+    assert not MasterAlgorithm._cpu_left(master(n - 1, default="process"))   # the two without their own key
+
+
+def test_spin_poll_returns_when_readable_and_gives_up_after_its_time():
+    import select
+    import socket
+    import time
+    from orchestrator.fmi.channel import spin_poll
+    a, b = socket.socketpair()
+    try:
+        p = select.poll()
+        p.register(a.fileno(), select.POLLIN)
+        t0 = time.perf_counter()
+        assert not spin_poll(p, 0.01)
+        assert time.perf_counter() - t0 >= 0.01
+        b.send(b"x")
+        assert spin_poll(p, 10.0)
+    finally:
+        a.close()
+        b.close()

@@ -349,3 +349,78 @@ def test_rotor_state_round_trip_and_gravity(built_fmus, name):
     assert np.array_equal(first, second)
     assert first[-1, outs.index("vy_2")] < 0.0               # unsupported journal falls under gravity
     assert first[-1, outs.index("omega")] == pytest.approx(2 * math.pi * 200.0 * 15 * h, rel=1e-9)
+
+
+def _coefficient_run(path, tol, steps, h, orbit, restore_at=None):
+    """kxx..cyy after initialization and after each of ``steps`` steps of a half-Sommerfeld bearing FMU with
+    linearize = 1 and ``linearize_tol = tol`` (None: not set), the journal on ``orbit(t)``;
+    with ``restore_at = k``: the state saved after step k is restored at the end and the
+    remaining steps repeated (second list)."""
+    c = PSI * R_TEST
+    names = [f"{k}{i}{j}" for k in "kc" for i in "xy" for j in "xy"]
+    with open_slave(path) as (s, vr):
+        s.setupExperiment(startTime=0.0)
+        s.enterInitializationMode()
+        s.setReal([vr["R"], vr["B"], vr["psi"]], [R_TEST, 1.6 * R_TEST, PSI])
+        s.setInteger([vr["n_phi"], vr["n_z"], vr["cavitation"], vr["linearize"]], [16, 8, 0, 1])
+        if tol is not None:
+            s.setReal([vr["linearize_tol"]], [tol])
+        s.setReal([vr[n] for n in ("x", "y", "vx", "vy", "omega")], orbit(0.0, c) + [2 * math.pi * 100.0])
+        s.exitInitializationMode()
+        kvr, cvr = [vr[n] for n in ("x", "y", "vx", "vy")], [vr[n] for n in names]
+
+        def advance(k0, k1):
+            rows = []
+            for k in range(k0, k1):
+                s.setReal(kvr, orbit((k + 1) * h, c))
+                s.doStep(k * h, h)
+                rows.append(s.getReal(cvr))
+            return np.array(rows)
+
+        first = np.vstack([[s.getReal(cvr)], advance(0, restore_at or steps)])   # row 0: initial
+        if restore_at is None:
+            return first, None
+        state = s.getFMUstate()
+        rest = advance(restore_at, steps)
+        s.setFMUstate(state)
+        again = advance(restore_at, steps)
+        s.freeFMUstate(state)
+        return np.vstack([first, rest]), again
+
+
+def test_bearing_linearize_tol_holds_coefficients_while_the_journal_stays(built_fmus):
+    """``linearize_tol`` (Real, default 0): with linearize = 1 a due refresh of kxx..cyy is
+    skipped while the inputs stay within the tolerance of the last refresh, in units of the
+    clearance (positions), c omega (velocities) and omega. 0 and unset: every step, as before;
+    a restored state repeats the held values."""
+    from fmpy import read_model_description
+    from bearing_fmu.journal_bearing import coefficients_moved
+    path = _fmu(built_fmus, "JournalBearing")
+    v = {x.name: x for x in read_model_description(path).modelVariables}["linearize_tol"]
+    assert v.type == "Real" and v.causality == "parameter" and float(v.start) == 0.0
+    c = PSI * R_TEST
+    w = 2 * math.pi * 40.0
+
+    def slow(t, c):        # 40 Hz orbit of radius 0.005 c: moves ~2.5e-5 c per 2e-5 s step
+        a = 0.005 * c
+        return [a * math.cos(w * t), -0.5 * c + a * math.sin(w * t), -a * w * math.sin(w * t),
+                a * w * math.cos(w * t)]
+
+    every, _ = _coefficient_run(path, None, 40, 2e-5, slow)
+    zero, _ = _coefficient_run(path, 0.0, 40, 2e-5, slow)
+    assert np.array_equal(every, zero)
+    assert np.all(np.any(np.diff(every, axis=0) != 0, axis=1))    # refreshed every step
+    held, again = _coefficient_run(path, 2e-4, 40, 2e-5, slow, restore_at=17)   # rows 0..40
+    changed = np.flatnonzero(np.any(np.diff(held, axis=0) != 0, axis=1)) + 1
+    assert 2 <= changed.size <= 20                                   # refreshed now and then
+    assert np.array_equal(held[18:], again)                         # the state holds the anchor
+    # each held row is the coefficient of an earlier step (the last refresh) and within the
+    # tolerance's effect of the coefficient of its own step
+    for k in range(held.shape[0]):
+        assert any(np.array_equal(held[k], every[j]) for j in range(k + 1))
+    assert np.allclose(held, every, rtol=5e-3, atol=0)
+    # the distance: positions / c, velocities / (c omega), speed relative
+    base = (0.0, 0.0, 0.0, 0.0, 100.0)
+    assert coefficients_moved(base, (2e-3 * c, 0, 0, 0, 100.0), c) == pytest.approx(2e-3)
+    assert coefficients_moved(base, (0, 0, 0, 3e-3 * c * 1000, 100.0), c) == pytest.approx(3e-3)
+    assert coefficients_moved(base, (0, 0, 0, 0, 100.5), c) == pytest.approx(0.5 / 100.5)

@@ -73,3 +73,37 @@ def test_fmu_default_coefficients_use_the_batched_path_unchanged():
         Ks, Cs = hs_linearization_scalar(b, *b._inputs)
         np.testing.assert_allclose(K, Ks, rtol=0, atol=1e-8 * np.abs(Ks).max())
         np.testing.assert_allclose(Cm, Cs, rtol=0, atol=1e-8 * np.abs(Cs).max())
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_solve_tangent_is_the_derivative_of_solve(case):
+    """HalfSommerfeld.solve_tangent: the base field equals solve, each directional field the
+    central difference of solve along that gap direction (x, y, vx, vy), to the difference's
+    truncation/round-off level."""
+    from bearing_fmu.linearize import _tangent_directions
+    b = bearing(**CASES[case])
+    g = b.grid_full
+    cs, sn, ce, se, dH, dHe, dHdot = _tangent_directions(b)
+    for x, y, vx, vy, w in KINS:
+        H, He, Hdot = g.gap(x, y, vx, vy, C)
+        P0, dP = b.hs.solve_tangent(H, He, Hdot, w, dH, dHe, dHdot)
+        ref = b.hs.solve(H, He, Hdot, w)
+        np.testing.assert_allclose(P0, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+        z0 = np.array([x, y, vx, vy])
+        for j, s in enumerate((1e-6 * C, 1e-6 * C, 1e-6 * C * w, 1e-6 * C * w)):
+            zp, zm = z0.copy(), z0.copy()
+            zp[j] += s
+            zm[j] -= s
+            fd = (b.hs.solve(*g.gap(*zp, C), w) - b.hs.solve(*g.gap(*zm, C), w)) / (2 * s)
+            np.testing.assert_allclose(dP[j], fd, rtol=0, atol=1e-6 * np.abs(fd).max())
+
+
+def test_coefficients_of_the_tangent_solve_equal_the_finite_differences():
+    """hs_linearization (one tangent solve) against hs_linearization_fd (8 perturbed solves)."""
+    from bearing_fmu.linearize import hs_linearization_fd
+    for case in sorted(CASES):
+        b = bearing(**CASES[case])
+        for k in KINS:
+            (K, Cm), (Kf, Cf) = hs_linearization(b, *k), hs_linearization_fd(b, *k)
+            np.testing.assert_allclose(K, Kf, rtol=0, atol=1e-8 * np.abs(Kf).max())
+            np.testing.assert_allclose(Cm, Cf, rtol=0, atol=1e-8 * np.abs(Cf).max())

@@ -455,8 +455,11 @@ def test_below_the_switch_the_trapezoidal_path_is_bit_identical(monkeypatch):
     """Steps that need <= LSTABLE_SWITCH sub-steps use the unchanged trapezoidal code: the
     result equals (bit for bit) the former implementation, i.e. rotor.step with the
     augmented matrices swapped in and max(n_substeps, ceil(need)) sub-steps; above the
-    switch the L-stable path is taken."""
+    switch the L-stable path is taken. (The numpy form: the compiled step, rotor_fmu/ij_kernel.py,
+    agrees with it to round-off, tests/test_ij_kernel.py.)"""
+    import rotor_fmu.interface as interface
     from rotor_fmu.interface import LSTABLE_SWITCH, augmented
+    monkeypatch.setattr(interface, "FAST", False)
     lin = LinearBearing()
     calls = []
 

@@ -173,9 +173,19 @@ class MasterAlgorithm:
         self.isolation[f.name] = mode
         if mode == "process":
             # the worker extracts its own copy under this run's extraction folder (removed with it)
+            cpu = self._next_cpu()
             return WorkerSubsystem(f.name, f.path, work_dir=self._work_dir.root / "workers",
-                                   call_timeout=getattr(c, "call_timeout", None), wait=False, cpu=self._next_cpu())
+                                   call_timeout=getattr(c, "call_timeout", None), wait=False, cpu=cpu,
+                                   spin=None if cpu is None or self._cpu_left() else 0.0)
         return Subsystem(f.name, f.path, extraction=self._work_dir)
+
+    def _cpu_left(self) -> bool:
+        """Is a CPU left for the master beside the pinned workers? Only then may they and the
+        master poll instead of sleeping (orchestrator.fmi.channel.WorkerChannel.spin)."""
+        c = self.scenario.coupling
+        n = sum(1 for f in self.scenario.fmus
+                if (getattr(f, "isolation", None) or getattr(c, "isolation", "none")) == "process")
+        return n < len(os.sched_getaffinity(0))
 
     def _next_cpu(self) -> int | None:
         """``coupling.pin_workers``: the CPU of the next worker, round robin over the CPUs this

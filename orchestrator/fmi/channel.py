@@ -20,6 +20,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import time
 import weakref
 from multiprocessing import connection as mp_connection
 from pathlib import Path
@@ -81,6 +82,9 @@ def _worker_env() -> dict:
     return env
 
 
+SPIN_WAIT = float(os.environ.get("ROTORCOSIM_WORKER_SPIN", "0.002"))
+"""s: how long a pinned channel and its worker poll before they block (WorkerChannel.spin);
+``ROTORCOSIM_WORKER_SPIN=0`` switches polling off (for a/b measurements)."""
 FREE_TIMEOUT = 30.0       # s: longest wait for fmi2FreeInstance (and what is queued before it) in free()
 STARTUP_TIMEOUT = 300.0   # s: the worker's interpreter must be up by then (imports only, no FMU code)
 
@@ -92,15 +96,26 @@ class WorkerChannel:
     ``time`` is set by the owner (the simulation time of its last call) for crash reports
     of calls the call register does not cover; ``crash`` is the FmuCrashError once the
     worker is dead (every later call raises it).
+
+    ``spin`` (s; default :data:`SPIN_WAIT` for a pinned worker, else 0): how long a wait for a reply,
+    and the worker's wait for its next message, poll the socket before they block. Why: a
+    blocked process is woken by an interrupt to its idle CPU, which on a VM is a world switch
+    of tens to hundreds of microseconds, twice per macro step and worker on the critical path
+    of a parallel stage; the waits are short (the master's serial work between a reply and
+    the next request, the difference of two film steps), and a pinned worker has its CPU to
+    itself (``coupling.pin_workers`` says the CPUs are the run's), so polling costs nobody.
+    Not when every CPU has a pinned worker: then the master shares a CPU with a worker, and
+    polling on either side would take that CPU from the other (the master passes 0).
     """
 
     def __init__(self, name: str, fmu_path: Path, work_dir: Path | str, call_timeout: float | None,
-                 cpu: int | None = None):
+                 cpu: int | None = None, spin: float | None = None):
         self.name, self.fmu_path, self.call_timeout = name, fmu_path, call_timeout
         self.time: float | None = None
         self.crash: FmuCrashError | None = None
         self.outstanding: tuple | None = None    # (message, function) sent, reply not yet read
         self._closed = False
+        self.spin = (SPIN_WAIT if cpu is not None else 0.0) if spin is None else float(spin)
         self._arena_fd, self.arena = _arena()
         self._register = np.ndarray((2,), dtype=np.float64, buffer=self.arena)
         self._code = np.ndarray((1,), dtype=np.int64, buffer=self.arena)
@@ -108,7 +123,7 @@ class WorkerChannel:
         try:
             self._proc = subprocess.Popen(
                 [sys.executable, "-m", "orchestrator.fmi.worker_main", str(theirs.fileno()), str(self._arena_fd),
-                 name, str(fmu_path), str(work_dir)],
+                 name, str(fmu_path), str(work_dir), repr(self.spin)],
                 pass_fds=(theirs.fileno(), self._arena_fd), env=_worker_env(), stdin=subprocess.DEVNULL)
         except BaseException:
             mine.close()
@@ -190,6 +205,8 @@ class WorkerChannel:
         try:
             # Connection.poll builds a selector per call (~10 us); one poll object and a plain
             # blocking recv when there is no timeout cost next to nothing
+            if self.spin and spin_poll(self._poller, self.spin):
+                return self._conn.recv()
             if self.call_timeout is None or self._poller.poll(self.call_timeout * 1000.0):
                 return self._conn.recv()         # EOFError if the worker died
         except (EOFError, OSError):
@@ -277,6 +294,16 @@ class WorkerChannel:
         except BufferError as e:   # pragma: no cover - defensive
             log.warning("%s: releasing the shared memory failed: %s", self.name, e)
         os.close(self._arena_fd)
+
+
+def spin_poll(poller, seconds: float) -> bool:
+    """Poll ``poller`` (a select.poll) without blocking for up to ``seconds``; True when readable."""
+    end = time.perf_counter() + seconds
+    while True:
+        if poller.poll(0):
+            return True
+        if time.perf_counter() >= end:
+            return False
 
 
 def _pin(pid: int, cpu: int, name: str) -> None:

@@ -100,7 +100,7 @@ class WorkerSubsystem(SubsystemBase):
     """
 
     def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str, call_timeout: float | None = None,
-                 wait: bool = True, cpu: int | None = None):
+                 wait: bool = True, cpu: int | None = None, spin: float | None = None):
         super().__init__(name)
         self.fmu_path = Path(fmu_path)
         self.md: ModelDescription = read_model_description(self.fmu_path)
@@ -113,7 +113,7 @@ class WorkerSubsystem(SubsystemBase):
         self._used = REGISTER_BYTES
         self._next_state = 0
         self._freed = False
-        self._chan = WorkerChannel(name, self.fmu_path, work_dir, call_timeout, cpu)
+        self._chan = WorkerChannel(name, self.fmu_path, work_dir, call_timeout, cpu, spin)
         self._starting = True
         try:
             self._chan.send([("init",)], "fmi2Instantiate")

@@ -14,6 +14,7 @@ import ctypes
 import logging
 import mmap
 import os
+import select
 import signal
 import sys
 from multiprocessing import connection as mp_connection
@@ -23,7 +24,7 @@ import numpy as np
 
 from orchestrator.errors import FmuCallError, ScenarioError
 from orchestrator.fmi.subsystem import RealBatch
-from .channel import ARENA_BYTES, CODES
+from .channel import ARENA_BYTES, CODES, spin_poll
 from .worker import SLOTS
 
 class _Collect(logging.Handler):
@@ -68,8 +69,9 @@ def _worker_setup() -> _Collect:
     return handler
 
 
-def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str) -> None:
-    """Worker main: load the FMU, then execute command lists until 'free' or the socket closes."""
+def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str, spin: float = 0.0) -> None:
+    """Worker main: load the FMU, then execute command lists until 'free' or the socket closes;
+    ``spin`` > 0: poll that long for the next message before blocking (WorkerChannel.spin)."""
     from orchestrator.fmi.subsystem import Subsystem
 
     import fmpy.fmi2  # noqa: F401  (imported before "hello": the start-up is not the FMU's time)
@@ -94,8 +96,12 @@ def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str)
             return
         code[0] = 0
         conn.send(("ok", None, logs.take()))
+        poller = select.poll()
+        poller.register(conn.fileno(), select.POLLIN)
         while True:
             try:
+                if spin:
+                    spin_poll(poller, spin)
                 msg = conn.recv()
             except (EOFError, OSError):
                 return
@@ -187,7 +193,7 @@ def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) 
 
 
 if __name__ == "__main__":       # started by WorkerSubsystem
-    _serve(int(sys.argv[1]), int(sys.argv[2]), *sys.argv[3:6])
+    _serve(int(sys.argv[1]), int(sys.argv[2]), *sys.argv[3:6], *map(float, sys.argv[6:7]))
     # leave without the interpreter's teardown, where PythonFMU-built FMUs abort
     # intermittently (orchestrator.cli.console_main); the FMU is freed and the reply sent
     sys.stdout.flush()

@@ -89,7 +89,7 @@ def _dataclass_kwargs(cls, params: Mapping[str, Any], ignore=()) -> dict[str, An
 # and the initial film of the mass-conserving model (half-Sommerfeld ignores it), and
 # `linearize` (film coefficient outputs for interface-Jacobian coupling; the reference
 # couples monolithically and leaves those outputs 0).
-_BEARING_FMU_ONLY = ("fields_file", "init", "linearize")
+_BEARING_FMU_ONLY = ("fields_file", "init", "linearize", "linearize_tol")
 # Rotor FMU parameters without a JeffcottParams field: the ring masses of the ring-interface
 # step (rotor_fmu/ring_interface.py), like the kxx_i inputs a device of the co-simulation step
 # that does not change the physical system.
