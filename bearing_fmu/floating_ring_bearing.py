@@ -70,8 +70,12 @@ INTEGER_PARAMETERS.update({
     "linearize": (0, "N >= 1: output kxx..cyy of the whole ring bearing, refreshed every N-th step; 0: outputs 0"),
     "jacobian_every": (1, "the films' coefficients used by the ring integration are recomputed after "
                           "every N-th step [-]"),
-    "input_hold": (0, "journal inputs inside a step: 0 zero-order hold (FMI semantics), 1 first-order hold "
-                      "from the previous step's input (second order when stepped after the rotor, Gauss-Seidel)"),
+    "input_hold": (2, "journal inputs inside a step: 0 zero-order hold (FMI semantics), 1 first-order hold "
+                      "from the previous step's input (second order when stepped after the rotor, Gauss-Seidel), "
+                      "2 cubic Hermite of the previous and new position and velocity (ring_integrator 1; "
+                      "BDF2 uses it as 1)"),
+    "ring_integrator": (1, "ring translation inside a step: 0 linearly implicit BDF2, 1 exponential (the "
+                           "linearised ring ODE integrated exactly for the journal input, docs/floating-ring.md)"),
 })
 STRING_PARAMETERS: dict[str, tuple[str, str]] = {
     "init": ("flooded", "initial film of the mass-conserving films: 'flooded' or 'stationary'"),
@@ -179,7 +183,7 @@ class FloatingRingBearing(Fmi2Slave):
             films[side] = BearingParams(p0=v["p0"], **kw)
         return RingParams(**films, m_ring=v["m_ring"], J_ring=v["J_ring"], floating=v["floating"],
                           gravity=v["gravity"], h_ring=v["h_ring"], jacobian_every=v["jacobian_every"],
-                          input_hold=v["input_hold"])
+                          input_hold=v["input_hold"], ring_integrator=v["ring_integrator"])
 
     def _inputs(self):
         return tuple(self._values[n] for n in INPUTS)

@@ -34,7 +34,11 @@ class RingParams:
     are recomputed after every jacobian_every-th step and held in between (1: every step);
     input_hold: journal inputs inside a step, 0 zero-order hold (the new input over the whole
     step, FMI semantics), 1 first-order hold (linear from the previous step's input to the new
-    one: second order in time when the master steps the bearing after the rotor, Gauss-Seidel).
+    one: second order in time when the master steps the bearing after the rotor, Gauss-Seidel),
+    2 cubic Hermite (position and velocity of the previous and the new input, consistent);
+    ring_integrator: 0 linearly implicit BDF2, 1 exponential (the ring's ODE linearised at each
+    sub-step's start integrated exactly for the held or interpolated input; module doc of
+    :mod:`bearing_fmu.floating_ring`).
     """
 
     inner: BearingParams
@@ -45,7 +49,8 @@ class RingParams:
     gravity: float = 9.81
     h_ring: float = 1.0e-4
     jacobian_every: int = 1
-    input_hold: int = 0
+    input_hold: int = 2
+    ring_integrator: int = 1
 
     def __post_init__(self):
         problems = []
@@ -62,9 +67,12 @@ class RingParams:
                 problems.append(f"RingParams.{name} must be a positive finite number (got {v!r})")
         if not (isinstance(self.jacobian_every, int) and self.jacobian_every >= 1):
             problems.append(f"RingParams.jacobian_every must be an integer >= 1 (got {self.jacobian_every!r})")
-        if self.input_hold not in (0, 1):
-            problems.append(f"RingParams.input_hold must be 0 (zero-order hold) or 1 (first-order hold) "
-                            f"(got {self.input_hold!r})")
+        if self.input_hold not in (0, 1, 2):
+            problems.append(f"RingParams.input_hold must be 0 (zero-order hold), 1 (first-order hold) "
+                            f"or 2 (cubic Hermite) (got {self.input_hold!r})")
+        if self.ring_integrator not in (0, 1):
+            problems.append(f"RingParams.ring_integrator must be 0 (BDF2) or 1 (exponential) "
+                            f"(got {self.ring_integrator!r})")
         if self.floating not in (0, 1):
             problems.append(f"RingParams.floating must be 1 (full floating) or 0 (semi-floating) "
                             f"(got {self.floating!r})")

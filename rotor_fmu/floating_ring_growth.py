@@ -156,17 +156,21 @@ class Case:
         t = np.arange(0.0, T, dt_out)
         return t, sol.sol(t)
 
-    def cosim(self, T, H, J_ring=1e3, coeffs=0.0, dt_out=2e-4, n_sub=1, input_hold=0, ring_coupling=False):
+    def cosim(self, T, H, J_ring=1e3, coeffs=0.0, dt_out=2e-4, n_sub=1, input_hold=None, ring_coupling=False,
+              ring_integrator=None):
         """Co-simulation as the master runs it (module doc), macro step H [s]: (t, Z).
         ``coeffs`` >= 0: ``FloatingRing.linearization(coeffs)`` (0: the FMU's K_i, C_i);
-        < 0: :func:`slaved_coefficients`. ``n_sub`` ring sub-steps per macro step."""
+        < 0: :func:`slaved_coefficients`. ``n_sub`` ring sub-steps per macro step; ``input_hold``,
+        ``ring_integrator`` as RingParams (None: the rings' own, i.e. the defaults)."""
         N, n, bd, z0 = self.N, self.n, self.bd, self.z0
         rotor = self.rotor
         rotor.initialize()
         rotor.s = np.concatenate([z0[:n], z0[N:N + n]])
         frs = []
         for k, p in enumerate(self.pts):
-            fr = FloatingRing(self.rings[k].replace(h_ring=H / n_sub, J_ring=J_ring, input_hold=input_hold))
+            kw = {k_: v_ for k_, v_ in (("input_hold", input_hold), ("ring_integrator", ring_integrator))
+                  if v_ is not None}
+            fr = FloatingRing(self.rings[k].replace(h_ring=H / n_sub, J_ring=J_ring, **kw))
             r = [n + 2 * k, n + 2 * k + 1]
             fr.initialize(*z0[bd[k]], *z0[N + bd[k]], self.w, ring=(*z0[r], *z0[N + np.array(r)]),
                           omega_ring=self.Om[k])

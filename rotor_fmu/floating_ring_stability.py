@@ -49,9 +49,13 @@ def _ring_torque(params: RingParams, load: float, omega: float, Om: float):
     return fr.outputs["T_ring_inner"] + fr.outputs["T_ring_outer"], fr
 
 
-def operating_point(params: RingParams, load: float, omega: float) -> FloatingRing:
+def operating_point(params: RingParams, load: float, omega: float, omega_ring=None) -> FloatingRing:
     """Initialised model at the steady operating point (ring speed from the torque balance,
-    journal and ring at their static equilibria; semi-floating: Omega = 0)."""
+    journal and ring at their static equilibria; semi-floating: Omega = 0). ``omega_ring``
+    [rad/s]: the ring speed given instead (e.g. the one a run-up has, lagging the steady one on
+    a ramp by about tau dOmega/dt); the journal and ring at their static equilibria for it."""
+    if params.floating and omega_ring is not None:
+        return _ring_torque(params, load, omega, float(omega_ring))[1]
     if not params.floating:
         journal, ring = static_equilibrium(params, load, omega)
         fr = FloatingRing(params)
@@ -118,11 +122,13 @@ def _spin_terms(fr: FloatingRing):
     return dT, dFi, dFo
 
 
-def ring_system_eigen(rotor, params_list, omega, spin=False):
+def ring_system_eigen(rotor, params_list, omega, spin=False, omega_ring=None):
     """Eigenvalues [1/s] of the rotor in floating-ring bearings (one RingParams per bearing
-    station) at journal speed omega [rad/s], and the operating points used (module doc)."""
+    station) at journal speed omega [rad/s], and the operating points used (module doc).
+    ``omega_ring``: one ring speed [rad/s] per station instead of the torque balance's."""
     loads = static_bearing_loads(rotor)
-    points = [operating_point(p, float(-ld[1]), omega) for p, ld in zip(params_list, loads)]
+    oms = [None] * len(params_list) if omega_ring is None else list(omega_ring)
+    points = [operating_point(p, float(-ld[1]), omega, om) for p, ld, om in zip(params_list, loads, oms)]
     M, C, K = _augmented(rotor, omega, points)
     N = M.shape[0]
     n = rotor.n_dof

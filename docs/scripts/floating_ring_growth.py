@@ -2,12 +2,13 @@
 monolithic nonlinear model, co-simulation (rotor_fmu/floating_ring_growth.py; docs/floating-ring.md).
 
     .venv/bin/python docs/scripts/floating_ring_growth.py F_HZ mono [T]
-    .venv/bin/python docs/scripts/floating_ring_growth.py F_HZ cosim H [T [J_ring [coeffs [n_sub [input_hold]]]]]
+    .venv/bin/python docs/scripts/floating_ring_growth.py F_HZ cosim H [T [J_ring [coeffs [n_sub [input_hold [ring_integrator]]]]]]
 
 F_HZ "tc60": the turbocharger in floating rings at 60 Hz instead of the Jeffcott rotor.
 T [s] default 0.1; J_ring default 1e3 kg m^2 (spin held, like ``mono`` and the linear model),
 3.1e-7 the real ring (spin free); coeffs 0 the FMU's K_i, C_i, H the step coefficients, -1 the
-velocity-slaved ones; n_sub ring sub-steps per macro step; input_hold as the FMU parameter.
+velocity-slaved ones; n_sub ring sub-steps per macro step; input_hold, ring_integrator as the
+FMU parameters (default: the FMU's defaults, 2 and 1).
 """
 
 from __future__ import annotations
@@ -35,9 +36,10 @@ def main(argv):
         Jr = float(argv[4]) if len(argv) > 4 else 1e3
         co = float(argv[5]) if len(argv) > 5 else 0.0
         ns = int(argv[6]) if len(argv) > 6 else 1
-        ih = int(argv[7]) if len(argv) > 7 else 0
-        t, Z = case.cosim(T, H, Jr, co, n_sub=ns, input_hold=ih)
-        label = f"cosim H={H:g} J_ring={Jr:g} coeffs={co:g} n_sub={ns} input_hold={ih}"
+        ih = int(argv[7]) if len(argv) > 7 else None
+        ri = int(argv[8]) if len(argv) > 8 else None
+        t, Z = case.cosim(T, H, Jr, co, n_sub=ns, input_hold=ih, ring_integrator=ri)
+        label = f"cosim H={H:g} J_ring={Jr:g} coeffs={co:g} n_sub={ns} input_hold={ih} ring_integrator={ri}"
     poles = case.rates(t, Z)
     print(f"{label} ({time.time() - t0:.0f} s): " + ", ".join(f"{a:+.2f} 1/s at {b:.1f} Hz (energy {e:.2g})" for a, b, e in poles[:4]))
 
