@@ -43,6 +43,8 @@ import math
 
 import numpy as np
 
+from . import linear_rotor as _linear_rotor
+
 DONE, FALLBACK = 0, 1
 DECIDE_TOL = 1e-9          # relative distance of H rho / 2 - 1e-12 to an integer below which numpy decides
 PSD_TOL = 1e-12            # relative size of a station's smallest damping eigenvalue below which numpy decides
@@ -139,19 +141,9 @@ def _norm2(A):
     return math.sqrt(big)
 
 
-def _drive(t, tt, ww, aa):
-    """(omega, alpha, angle) of the speed table, as :func:`rotor_fmu.linear_rotor._drive_eval`."""
-    m = tt.shape[0]
-    if t <= tt[0]:
-        return ww[0], 0.0, aa[0] + ww[0] * (t - tt[0])
-    if t >= tt[m - 1]:
-        return ww[m - 1], 0.0, aa[m - 1] + ww[m - 1] * (t - tt[m - 1])
-    i = 0
-    while tt[i + 1] <= t:
-        i += 1
-    sl = (ww[i + 1] - ww[i]) / (tt[i + 1] - tt[i])
-    d = t - tt[i]
-    return ww[i] + sl * d, sl, aa[i] + ww[i] * d + 0.5 * sl * d * d
+# (omega, alpha, angle) of the speed table: the rotor's own evaluation, compiled here with the
+# rest of the kernel (linear_rotor jits it only with ROTORCOSIM_ROTOR_KERNEL=numba)
+_drive = getattr(_linear_rotor._drive_eval, "py_func", _linear_rotor._drive_eval)
 
 
 def _unbalance(t0, h, nsub, tt, ww, aa, me, ph, fu):

@@ -268,10 +268,10 @@ class SectionReader(NodeReader):
             ok &= order is not None
             if order is not None:
                 c["sequence"] = order
-        h = self.load_macro_step(node, section, start, stop)
-        ok &= h is not False
+        step_ok, h = self.load_macro_step(node, section, start, stop)
+        ok &= step_ok
         if "macro_step" in section:
-            c["macro_step"] = h if h is not False else None
+            c["macro_step"] = h
         for key in ("extrapolation_order", "interpolation_order"):
             if key in section:
                 v = self.integer(section[key][1], f"coupling.{key}", 0, MAX_ORDER,
@@ -331,10 +331,10 @@ class SectionReader(NodeReader):
             return None
         return tuple(order)
 
-    def load_macro_step(self, node, section, start, stop):
+    def load_macro_step(self, node, section, start, stop) -> tuple[bool, float | None]:
         """``coupling.macro_step`` checked against the run's length and step count; without
-        the key, the default step is checked. Returns the checked step, None when the key is
-        absent and the default fits, False when a problem was reported."""
+        the key, the default step is checked. Returns (no problem reported, the checked step
+        or None)."""
         if "macro_step" in section:
             h = self.number(section["macro_step"][1], "coupling.macro_step", positive=True,
                             fix="give the communication step in seconds, e.g. 1.0e-4")
@@ -344,11 +344,10 @@ class SectionReader(NodeReader):
                 h = None
             if h is not None and start is not None and stop is not None:
                 h = self.check_step_count(section["macro_step"][1], h, start, stop)
-            return False if h is None else h
+            return h is not None, h
         if start is not None and stop is not None:        # the default step must fit too
-            if self.check_step_count(node, CouplingSpec.macro_step, start, stop) is None:
-                return False
-        return None
+            return self.check_step_count(node, CouplingSpec.macro_step, start, stop) is not None, None
+        return True, None
 
     def check_step_count(self, node, h: float, start: float, stop: float) -> float | None:
         """``h`` if the run's macro steps stay within MAX_MACRO_STEPS and the time grid
