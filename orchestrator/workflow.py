@@ -108,8 +108,11 @@ def _execute(scenario, out_dir: Path, folder: RunFolder, progress, observers) ->
             stop = RunStopped(folder.stop_signal or getattr(exc, "signum", None) or signal.SIGINT)
         else:
             msg, stop = f"the run stopped at t={res.end_time:.12g} s: {type(exc).__name__}: {exc}", None
-        folder.finish(_summary(scenario, replace(res, status=Status.FAILED,
-                                                 message=msg + ("; " + res.message if res.message else ""))))
+        summary = _summary(scenario, replace(res, status=Status.FAILED,
+                                             message=msg + ("; " + res.message if res.message else "")))
+        if stop is not None:                    # machine-readable: a sweep counts such a run as cancelled
+            summary["stopped_by"] = signal.Signals(stop.signum).name
+        folder.finish(summary)
         if stop is not None:
             raise stop from None
         raise

@@ -168,6 +168,33 @@ def test_task_outcome_classification():
     assert status == "crashed" and "killed by signal 11" in msg and "Segmentation fault" in msg
     status, msg = _outcome(-9, {"status": "running", "message": "the run is in progress"}, "")
     assert status == "crashed" and "killed by signal 9" in msg     # the summary a run writes at its start
+    # a run a signal stopped did not fail: it is cancelled, and --resume runs it again
+    status, msg = _outcome(130, {"status": "failed", "stopped_by": "SIGINT",
+                                 "message": "interrupted by the user at t=0.3 s"}, "")
+    assert status == "cancelled" and "interrupted by the user at t=0.3 s" in msg and "--resume" in msg
+    assert _outcome(143, {"status": "failed", "stopped_by": "SIGTERM", "message": "terminated"}, "")[0] == "cancelled"
+
+
+def test_a_run_stopped_by_a_signal_says_so_in_its_summary(sdir):
+    """SIGINT to a running `rotorcosim run`: the summary is failed with ``stopped_by: SIGINT``
+    (what a sweep reads to count the run as cancelled, not failed)."""
+    out = sdir / "stopped"
+    proc = subprocess.Popen([sys.executable, "-m", "orchestrator", "run", str(sdir / "ramp.yaml"), "--out", str(out),
+                             "--no-progress", "--set", "stop_time=1000", "--set", "fmus.f.parameters.t_fail=1.0e9"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        _wait_for(lambda: (out / "results.csv").is_file(), 120, "the run's results file")
+        time.sleep(1.0)                                              # well into the stepping
+        os.killpg(proc.pid, signal.SIGINT)
+        proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["stopped_by"] == "SIGINT"
+    assert "interrupted by the user" in summary["message"]
+    assert _outcome(proc.returncode, summary, "")[0] == "cancelled"
 
 
 def test_a_run_that_dies_without_summary_is_a_crashed_record(sdir):
@@ -340,6 +367,32 @@ def _processes_using(path: Path) -> list[str]:
         if str(path) in cmd:
             found.append(cmd)
     return found
+
+
+def _sleeping_run(scenario, overrides, run_dir, *, warm=True):     # stands in for task.execute_run
+    time.sleep(0.05 if any(o.endswith("t_fail=0.05") for o in overrides) else 30.0)
+    return {"status": "finished", "message": "", "wall_time_s": 0.0, "summary": {"status": "finished"}}
+
+
+def test_ctrl_c_in_the_sweep_process_always_ends_the_sweep(sdir, monkeypatch):
+    """SIGINT to the sweep's own process while it waits for its tasks: the outcome is
+    interrupted, the run that finished is kept, the others are cancelled (the handler sets a
+    flag that the loop checks; a KeyboardInterrupt raised inside Dask's code could be lost)."""
+    import threading
+
+    from orchestrator.sweep import prepare
+    from orchestrator.sweep import runner
+    monkeypatch.setattr(runner, "execute_run", _sleeping_run)
+    spec, runs = prepare(sdir / "sweep.yaml")
+    timer = threading.Timer(6.0, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        outcome = runner.run_sweep(spec, runs, sdir / "o", workers=2, warm=False, progress=False)
+    finally:
+        timer.cancel()
+    assert outcome.interrupted
+    assert [r["status"] for r in outcome.rows] == ["finished", "cancelled", "cancelled"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler       # Ctrl-C is Python's again
 
 
 def test_interrupted_sweep_keeps_finished_runs_and_resumes(sdir):

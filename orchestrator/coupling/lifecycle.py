@@ -183,7 +183,8 @@ class RunFolder:
                     signum = getattr(exc, "signum", None)
                     if signum is not None:
                         self.stop_signal = signum
-                    self.fail(self.stop_message(None) + " before the co-simulation started")
+                    self.fail(self.stop_message(None) + " before the co-simulation started",
+                              stopped_by=signal.Signals(self.stop_signal or signal.SIGINT).name)
                 else:
                     extra = {"failure": exc.report()} if callable(getattr(exc, "report", None)) else {}
                     self.fail(f"setup failed: {exc}", error=type(exc).__name__, **extra)

@@ -10,9 +10,12 @@ A failed or crashed run is a row, never the end of the sweep.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
+import signal
+import threading
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -162,22 +165,77 @@ def _submit(client, spec: SweepSpec, todo: list[RunPlan], runs_dir: Path, warm: 
     return futures
 
 
-def _gather(futures: dict, records: dict, bar) -> None:
-    """Collect finished tasks into ``records`` (run_id -> record) as they complete."""
+class _Interrupt:
+    """Ctrl-C as a flag the sweep's loop checks, not a KeyboardInterrupt raised wherever the
+    main thread happens to be.
+
+    Python raises KeyboardInterrupt in the main thread at its next bytecode. In a sweep that is
+    mostly Dask's client code, and an exception raised inside a finaliser or a callback there
+    is printed and dropped ("Exception ignored in ..."): the sweep then carried on and ended
+    with exit 1, its interrupted run a ``failed`` row. Here the handler only sets
+    :attr:`requested`; :func:`_gather` looks at it every :data:`_POLL_S` and raises the
+    KeyboardInterrupt itself, from its own code. A second Ctrl-C raises at once. Outside the
+    main thread (the Python API called from a thread) Python delivers no signals and nothing
+    is installed.
+    """
+
+    def __init__(self):
+        self.requested = False
+        self._previous = None
+
+    def __enter__(self) -> "_Interrupt":
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def _handler(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __exit__(self, *exc) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
+
+
+_POLL_S = 0.2
+
+
+def _stopped_by_user(rec: dict) -> bool:
+    """Whether a run was stopped by Ctrl-C: it reaches the runs' processes too (one process
+    group), so a run that stopped that way means the user interrupted the sweep."""
+    summary = rec.get("summary") or {}
+    return rec.get("status") == "cancelled" and summary.get("stopped_by") == "SIGINT"
+
+
+def _gather(futures: dict, records: dict, bar, interrupt: _Interrupt) -> None:
+    """Collect finished tasks into ``records`` (run_id -> record) as they complete; raise
+    KeyboardInterrupt when the user interrupted (``interrupt``, or a run stopped by Ctrl-C)."""
     from distributed import as_completed
-    for fut in as_completed(list(futures)):
-        run = futures[fut]
-        try:
-            rec = fut.result()
-        except Exception as exc:                  # the worker died or the task could not start
-            hint = ("; do the workers have rotorcosim installed (docs/sweeps.md, section 2)?"
-                    if isinstance(exc, ImportError) else "")
-            rec = {"status": "crashed", "message": f"the task failed on its worker: {type(exc).__name__}: "
-                                                   f"{exc}{hint}", "wall_time_s": None, "summary": None}
-        records[run.run_id] = rec
-        bar.update(1)
-        if rec["status"] != "finished":
-            bar.set_postfix_str(f"{sum(r['status'] != 'finished' for r in records.values())} not finished")
+    pending = as_completed(list(futures))
+    while not pending.is_empty():
+        if interrupt.requested:
+            raise KeyboardInterrupt
+        batch = pending.next_batch(block=False)
+        if not batch:
+            time.sleep(_POLL_S)
+            continue
+        for fut in batch:
+            run = futures[fut]
+            try:
+                rec = fut.result()
+            except Exception as exc:                  # the worker died or the task could not start
+                hint = ("; do the workers have rotorcosim installed (docs/sweeps.md, section 2)?"
+                        if isinstance(exc, ImportError) else "")
+                rec = {"status": "crashed", "message": f"the task failed on its worker: {type(exc).__name__}: "
+                                                       f"{exc}{hint}", "wall_time_s": None, "summary": None}
+            records[run.run_id] = rec
+            bar.update(1)
+            if rec["status"] != "finished":
+                bar.set_postfix_str(f"{sum(r['status'] != 'finished' for r in records.values())} not finished")
+            if _stopped_by_user(rec):
+                interrupt.requested = True
 
 
 def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, scheduler: str | None = None,
@@ -206,7 +264,9 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
     if todo:
         client = cluster = futures = None
         bar = _progress(len(todo), progress)
+        stack = contextlib.ExitStack()
         try:
+            interrupt = stack.enter_context(_Interrupt())
             if warm and not (scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")):
                 # the local workers are threads of this process and their run processes its
                 # children: start them now, they import the run's libraries while the cluster starts
@@ -217,7 +277,7 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
                 from orchestrator.sweep.warm import WarmPlugin
                 client.register_plugin(WarmPlugin())
             futures = _submit(client, spec, todo, runs_dir, warm)
-            _gather(futures, records, bar)
+            _gather(futures, records, bar, interrupt)
         except KeyboardInterrupt:
             interrupted = True
             if futures:
@@ -228,6 +288,7 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
                     if rec is not None:
                         records[run.run_id] = rec
         finally:
+            stack.close()                         # Ctrl-C is Python's again
             bar.close()
             if client is not None:
                 client.close()

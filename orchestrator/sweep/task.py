@@ -11,7 +11,8 @@ itself: a PythonFMU that crashes, aborts or leaks memory takes down that process
 the run becomes a row with status ``crashed`` instead of a dead worker.
 
 The task never raises for a failing run; it returns a plain dict (picklable, no rotorcosim
-types) with ``status`` (``finished`` / ``failed`` / ``crashed``), ``message``,
+types) with ``status`` (``finished`` / ``failed`` / ``crashed``, or ``cancelled`` for a run that a signal
+stopped: its summary has ``stopped_by``), ``message``,
 ``wall_time_s``, ``returncode`` and ``summary`` (the parsed summary.json or None), and
 writes the same dict without the summary to ``RUN_DIR/sweep_run.json``.
 """
@@ -68,6 +69,10 @@ def _outcome(rc: int, summary: dict | None, stderr: str) -> tuple[str, str]:
             return "finished", (f"the run finished and wrote its results, then its process exited with code "
                                 f"{rc} (a known PythonFMU teardown problem, docs/dev/requests.md)")
         return "finished", ""
+    if summary is not None and summary.get("stopped_by") and summary.get("status") not in (None, "", "running"):
+        # stopped by a signal (Ctrl-C reaches the whole process group; a closing worker sends
+        # SIGTERM): the run did not fail, it was not let finish; --resume runs it again
+        return "cancelled", f"{summary.get('message') or 'stopped by ' + str(summary['stopped_by'])}; rerun with --resume"
     if summary is not None and summary.get("status") not in (None, "", "running"):
         return "failed", str(summary.get("message") or summary.get("status"))
     # no summary, or the one a run writes at its start ("running"): the process died mid-run
