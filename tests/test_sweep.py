@@ -374,6 +374,7 @@ def _sleeping_run(scenario, overrides, run_dir, *, warm=True):     # stands in f
     return {"status": "finished", "message": "", "wall_time_s": 0.0, "summary": {"status": "finished"}}
 
 
+@pytest.mark.filterwarnings("ignore:collect")        # the stand-in runs write no end_time/steps
 def test_ctrl_c_in_the_sweep_process_always_ends_the_sweep(sdir, monkeypatch):
     """SIGINT to the sweep's own process while it waits for its tasks: the outcome is
     interrupted, the run that finished is kept, the others are cancelled (the handler sets a
