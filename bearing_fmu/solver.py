@@ -293,6 +293,26 @@ def band_solve_nopivot(ab, bw, b, x):
             x[k - i] -= a[ck - i] * xk
 
 
+@nb.njit(cache=True)
+def band_newton_step_nopivot(ab, bw, r, order, pos, work, dx):
+    """The Newton step ``dx = -J^-1 r`` with the factors of :func:`band_lu_nopivot` in the
+    band ordering (``order``: flat cell at each position, ``pos`` its inverse): the
+    gather ``-r[order]``, :func:`band_solve_nopivot` and the scatter back in one call (the
+    same operations, so the same values bit for bit as ``TransientFilm._solve``). ``work``
+    (n,) is scratch. Returns False when dx has a non-finite entry."""
+    n = r.size
+    for k in range(n):
+        work[k] = -r[order[k]]
+    band_solve_nopivot(ab, bw, work, work)
+    ok = True
+    for k in range(n):
+        v = work[pos[k]]
+        dx[k] = v
+        if not math.isfinite(v):
+            ok = False
+    return ok
+
+
 class BandLU:
     """Band LU of a matrix in LAPACK band storage: elimination without interchanges
     (numba, :func:`band_lu_nopivot`, threshold ``PIVOT_THRESHOLD``), the film's usual case;
@@ -405,6 +425,7 @@ class TransientFilm:
         self._assemble = assemble_muscl if self.muscl else assemble
         self.jst = np.zeros((n, 7 if self.muscl else 5))
         self.r = np.empty(n)
+        self._work, self._dx = np.empty(n), np.empty(n)
         self._w = np.empty(n)
         self.wp, self.wdp, self.wth, self.wdth = (np.empty(n) for _ in range(4))
         self.film = ~np.tile(g.groove, g.n_z)
@@ -444,6 +465,19 @@ class TransientFilm:
         g = self.ctx.grid
         x = self.lin.solve(-r[g.order])
         return x[g.pos]
+
+    def _newton_step(self, r):
+        """(dx, finite): the Newton step ``-J^-1 r`` of :meth:`_solve` (same values bit for
+        bit) into a buffer of the film, in one numba call when the LU has no interchanges
+        (:func:`band_newton_step_nopivot`), and whether it is finite."""
+        lin = self.lin
+        if isinstance(lin, BandLU) and lin.piv is None:
+            g = self.ctx.grid
+            ok = band_newton_step_nopivot(lin.lu, lin.bw, r, g.order, g.pos, self._work,
+                                          self._dx)
+            return self._dx, ok
+        dx = self._solve(r)
+        return dx, bool(np.all(np.isfinite(dx)))
 
     def _psolve(self, v):
         g = self.ctx.grid
@@ -550,11 +584,11 @@ class TransientFilm:
                 # last factorisation (same step, kinematics and BDF coefficient; at most a
                 # few tolerances of u away) is kept for this iteration
                 self.stats["reused"] += 1
-                dx = self._solve(r)
+                dx, finite = self._newton_step(r)
             elif not self._factored or self.full_newton or prm.krylov_refactor == 0:
                 self._factor(u, th_dot0, kin, jst_ready=True)
                 fresh = True
-                dx = self._solve(r)
+                dx, finite = self._newton_step(r)
             else:
                 dx, kits, ok = self._gmres(-r, prm.krylov_tol, prm.krylov_refactor)
                 self.stats["krylov"] += kits
@@ -562,7 +596,8 @@ class TransientFilm:
                     self._factor(u, th_dot0, kin, jst_ready=True)
                     fresh = True
                     dx = self._solve(r)
-            if not np.all(np.isfinite(dx)):
+                finite = bool(np.all(np.isfinite(dx)))
+            if not finite:
                 break
             if self.dominant:
                 law = self.ctx.law
