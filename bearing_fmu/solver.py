@@ -16,7 +16,9 @@ Method
 * Nonlinear solve: Newton. Every iteration assembles the exact 5-point
   stencil Jacobian (numba; 7-point with ``theta_transport = 1``, whose limited
   second-order face values couple i +- 2; the band ordering covers them). Default (``krylov_refactor = 0``): band LU
-  (``dgbtrf``, ordering of :mod:`.grid`) and a direct solve every iteration;
+  (``dgbtrf``, ordering of :mod:`.grid`) and a direct solve every iteration, except that an
+  iteration after a Newton step of at most ``LU_REUSE_BELOW`` (10) tolerances keeps the
+  last LU (simplified Newton);
   on the half-width grid the LU is cheap (n_z/2 bandwidth), and this measured
   fastest on 40x40, 80x80 and 160x40. Option ``krylov_refactor = m > 0``:
   Newton-Krylov, GMRES preconditioned by the LAST band LU, REUSED across
@@ -201,6 +203,19 @@ def _increment_norm_kernel(dx, p, dp, dth, atol, rtol, K):
     return max(mth / atol, mp / p_tol)
 
 
+#: simplified-Newton rule of :meth:`TransientFilm.newton`: an iteration reuses the LU of the
+#: previous one (no new factorisation) when the previous Newton step was at most this many
+#: Newton tolerances (the increment norm of :meth:`TransientFilm._increment_norm`). The
+#: iterate is then within ~10 tolerances of the point the LU was factored at, so the chord
+#: step contracts nearly as a Newton step would, and the convergence test (on the increments,
+#: with the contraction-rate estimate, Hairer & Wanner IV.8, made for simplified Newton)
+#: is unchanged. Measured (benchmarks/bench_bearing_ab.py cases, BENCHMARKS.md, issue 16
+#: session 5): bound 10: LUs per macro step 5.46 -> 5.10 (whirl), 2.88 -> 2.39 (air), the same
+#: Newton iterations, force distance from a 1000x tighter Newton run 1.58e-5 -> 1.59e-5 (whirl),
+#: 4.8e-9 -> 5.4e-9 (air); bound 30: 4.64 LUs but 5.2e-5 (3x); 1000: Newton failures.
+LU_REUSE_BELOW = 10.0
+
+
 class StepFailed(RuntimeError):
     """The film could not be advanced (Newton or step-size control failed)."""
 
@@ -276,6 +291,26 @@ def band_solve_nopivot(ab, bw, b, x):
         xk = x[k]
         for i in range(1, min(bw, k) + 1):
             x[k - i] -= a[ck - i] * xk
+
+
+@nb.njit(cache=True)
+def band_newton_step_nopivot(ab, bw, r, order, pos, work, dx):
+    """The Newton step ``dx = -J^-1 r`` with the factors of :func:`band_lu_nopivot` in the
+    band ordering (``order``: flat cell at each position, ``pos`` its inverse): the
+    gather ``-r[order]``, :func:`band_solve_nopivot` and the scatter back in one call (the
+    same operations, so the same values bit for bit as ``TransientFilm._solve``). ``work``
+    (n,) is scratch. Returns False when dx has a non-finite entry."""
+    n = r.size
+    for k in range(n):
+        work[k] = -r[order[k]]
+    band_solve_nopivot(ab, bw, work, work)
+    ok = True
+    for k in range(n):
+        v = work[pos[k]]
+        dx[k] = v
+        if not math.isfinite(v):
+            ok = False
+    return ok
 
 
 class BandLU:
@@ -364,7 +399,9 @@ class TransientFilm:
     :func:`dominant_update`; False = the plain step in u, the benchmark peer), ``search_converged``
     (default False: a converged Newton step is taken whole, without the line search's
     residual; True = the line search first, the older order); ``full_newton=True`` refactorises every iteration
-    whatever ``krylov_refactor`` says (the benchmark peer).
+    whatever ``krylov_refactor`` says (the benchmark peer); ``lu_reuse_below`` (default
+    :data:`LU_REUSE_BELOW`; 0 = a fresh LU every iteration, the benchmark peer) the
+    simplified-Newton rule of :meth:`newton`.
     """
 
     def __init__(self, ctx, linear_solver="band", full_newton=False):
@@ -379,6 +416,7 @@ class TransientFilm:
         self.line_search = True
         self.dominant = True
         self.predictor_dominant = True
+        self.lu_reuse_below = LU_REUSE_BELOW
         self.search_converged = False
         self.ab = np.zeros((3 * g.bw + 1, n), order="F")
         # theta_transport = 1: limited second-order Couette transport of theta, whose
@@ -387,11 +425,12 @@ class TransientFilm:
         self._assemble = assemble_muscl if self.muscl else assemble
         self.jst = np.zeros((n, 7 if self.muscl else 5))
         self.r = np.empty(n)
+        self._work, self._dx = np.empty(n), np.empty(n)
         self._w = np.empty(n)
         self.wp, self.wdp, self.wth, self.wdth = (np.empty(n) for _ in range(4))
         self.film = ~np.tile(g.groove, g.n_z)
         self.stats = dict(steps=0, rejected=0, newton=0, factor=0, failed_newton=0, krylov=0,
-                          restarts=0)
+                          restarts=0, reused=0)
         self._factored = False
 
     # ------------------------------------------------------------ kernels
@@ -426,6 +465,19 @@ class TransientFilm:
         g = self.ctx.grid
         x = self.lin.solve(-r[g.order])
         return x[g.pos]
+
+    def _newton_step(self, r):
+        """(dx, finite): the Newton step ``-J^-1 r`` of :meth:`_solve` (same values bit for
+        bit) into a buffer of the film, in one numba call when the LU has no interchanges
+        (:func:`band_newton_step_nopivot`), and whether it is finite."""
+        lin = self.lin
+        if isinstance(lin, BandLU) and lin.piv is None:
+            g = self.ctx.grid
+            ok = band_newton_step_nopivot(lin.lu, lin.bw, r, g.order, g.pos, self._work,
+                                          self._dx)
+            return self._dx, ok
+        dx = self._solve(r)
+        return dx, bool(np.all(np.isfinite(dx)))
 
     def _psolve(self, v):
         g = self.ctx.grid
@@ -525,10 +577,18 @@ class TransientFilm:
             r_ready = False
             its += 1
             fresh = False
-            if not self._factored or self.full_newton or prm.krylov_refactor == 0:
+            if (prev is not None and prev <= self.lu_reuse_below and self._factored
+                    and not self.full_newton and prm.krylov_refactor == 0):
+                # simplified Newton (refactorisation rule): the last Newton step moved the
+                # iterate by at most lu_reuse_below tolerances, so the LU of this solve's
+                # last factorisation (same step, kinematics and BDF coefficient; at most a
+                # few tolerances of u away) is kept for this iteration
+                self.stats["reused"] += 1
+                dx, finite = self._newton_step(r)
+            elif not self._factored or self.full_newton or prm.krylov_refactor == 0:
                 self._factor(u, th_dot0, kin, jst_ready=True)
                 fresh = True
-                dx = self._solve(r)
+                dx, finite = self._newton_step(r)
             else:
                 dx, kits, ok = self._gmres(-r, prm.krylov_tol, prm.krylov_refactor)
                 self.stats["krylov"] += kits
@@ -536,7 +596,8 @@ class TransientFilm:
                     self._factor(u, th_dot0, kin, jst_ready=True)
                     fresh = True
                     dx = self._solve(r)
-            if not np.all(np.isfinite(dx)):
+                finite = bool(np.all(np.isfinite(dx)))
+            if not finite:
                 break
             if self.dominant:
                 law = self.ctx.law

@@ -1,0 +1,93 @@
+"""Simplified Newton of the film (solver.LU_REUSE_BELOW) and the fused Newton step
+(solver.band_newton_step_nopivot), issue 16 speed part.
+
+A short whirl of the Jeffcott free-to-air bearing on a coarse grid (24 x 12, a few dozen
+0.1 ms steps, well under a second): the kept LU must actually be used, must not add Newton
+iterations, and must leave the film where full Newton and a much tighter Newton put it
+(to the Newton tolerance); the fused step must equal ``TransientFilm._solve`` bit for bit.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from bearing_fmu import solver
+from bearing_fmu.model import BearingModel, BearingParams
+
+C = 4.9e-3 * 2.8e-3
+KW = dict(R=4.9e-3, B=7.84e-3, psi=2.8e-3, eta0=0.012, p0=1e5, p_feed=1e5, n_phi=24, n_z=12,
+          cavitation=1, axial_bc=1, groove_width=math.radians(15), groove_angle=math.pi / 2)
+
+
+def orbit(k, eps=0.55, spin=500.0, ratio=0.45):
+    w = 2 * math.pi * spin
+    nu, r, t = ratio * w, eps * C, k * 1e-4
+    return (r * math.cos(nu * t), r * math.sin(nu * t), -r * nu * math.sin(nu * t),
+            r * nu * math.cos(nu * t), w)
+
+
+def run(reuse, steps=40, **extra):
+    b = BearingModel(BearingParams(**dict(KW, **extra)))
+    b.film.lu_reuse_below = reuse
+    b.initialize(*orbit(0), init="stationary")
+    F = []
+    for k in range(1, steps + 1):
+        b.step(1e-4, *orbit(k))
+        F.append((b.outputs["Fx"], b.outputs["Fy"]))
+    return b, np.array(F)
+
+
+def test_default_bound_is_the_documented_one():
+    b = BearingModel(BearingParams(**KW))
+    assert b.film.lu_reuse_below == solver.LU_REUSE_BELOW == 10.0
+
+
+def test_kept_lu_saves_factorisations_not_accuracy():
+    full, F_full = run(0.0)
+    simp, F_simp = run(solver.LU_REUSE_BELOW)
+    tight, F_tight = run(0.0, newton_atol=1e-7, newton_rtol=1e-8)
+    assert full.stats["reused"] == 0
+    assert simp.stats["reused"] > 0
+    # every reuse is a factorisation saved; no extra Newton iterations beyond noise
+    assert simp.stats["factor"] == simp.stats["newton"] - simp.stats["reused"] + \
+        (full.stats["factor"] - full.stats["newton"])
+    assert simp.stats["newton"] <= full.stats["newton"] * 1.02 + 1
+    assert simp.stats["failed_newton"] == 0
+    scale = np.abs(F_tight).max()
+    err_full = np.abs(F_full - F_tight).max() / scale
+    err_simp = np.abs(F_simp - F_tight).max() / scale
+    # to the Newton tolerance (newton_rtol 1e-5 of the pressure range), and not much worse
+    # than full Newton
+    assert err_simp < 1e-4
+    assert err_simp < 3 * err_full + 1e-9
+
+
+def test_fused_newton_step_equals_solve():
+    b, _ = run(0.0, steps=5)
+    f = b.film
+    u = f.u.copy()
+    hist = -f.theta(u) / 1e-5
+    kin = b._kin
+    r = f.residual(u, 1e5, hist, kin, want_jac=True).copy()
+    f._factor(u, 1e5, kin, jst_ready=True)
+    assert f.lin.piv is None                     # the no-interchange path
+    ref = f._solve(r)
+    dx, ok = f._newton_step(r)
+    assert ok and np.array_equal(dx, ref)
+    bad = r.copy()
+    bad[3] = np.nan
+    _, ok = f._newton_step(bad)
+    assert not ok
+
+
+@pytest.mark.parametrize("reuse", [0.0, solver.LU_REUSE_BELOW])
+def test_restore_repeats_bit_for_bit(reuse):
+    # the kept LU lives inside one Newton solve only: a restored state repeats exactly
+    b, _ = run(reuse, steps=10)
+    s = b.get_state()
+    b.step(1e-4, *orbit(11))
+    F1 = (b.outputs["Fx"], b.outputs["Fy"])
+    b.set_state(s)
+    b.step(1e-4, *orbit(11))
+    assert (b.outputs["Fx"], b.outputs["Fy"]) == F1
