@@ -71,7 +71,7 @@ def _force(b, p, th, kin, film=True):
         np.ascontiguousarray(p).ravel(), np.ascontiguousarray(th).ravel(), H, He, g.groove,
         g.phi, omega, b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, prm.penalty_a,
         prm.penalty_b, prm.penalty_smoothing, prm.R, prm.B, b.c, prm.eta0, sym,
-        prm.theta_transport if film else 0, g.wrel, g.frel)
+        prm.theta_transport if film else 0, g.wrel, g.frel, b.law.delta, b.law.K)
     return np.array([Fx, Fy])
 
 

@@ -343,7 +343,8 @@ class BearingModel:
             p.ravel(), th.ravel(), H, He, g.groove, g.phi, omega, self.a_phi, self.a_z,
             g.dphi, g.dz, self.bath, self.p0, prm.penalty_a, prm.penalty_b,
             prm.penalty_smoothing, prm.R, prm.B, self.c, prm.eta0, sym,
-            prm.theta_transport if self.film is not None else 0, g.wrel, g.frel)
+            prm.theta_transport if self.film is not None else 0, g.wrel, g.frel,
+            self.law.delta, self.law.K)
         if self.film is None:       # half-Sommerfeld: force with the rupture inside the cells
             Fx, Fy, *_ = integrals(
                 self._pf_hs.ravel(), th.ravel(), H, He, g.groove, g.phi, omega, self.a_phi,

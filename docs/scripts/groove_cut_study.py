@@ -35,12 +35,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))          # repo roo
 from bearing_fmu.model import BearingParams, solve_stationary  # noqa: E402
 
 R = 4.9e-3
-W = math.radians(15.0)
+W = math.radians(float(__import__("os").environ.get("GROOVE_DEG", "15")))
 X0, Y0 = 2.547003e-06, -4.683927e-07          # tests/test_groove_width.py (250 Hz point)
 OMEGA = 2 * math.pi * 250
 
 
 CAV = {}
+NS = [int(v) for v in __import__("os").environ.get("GROOVE_NS", "20,40,80,160").split(",")]
 
 
 def force(n, alpha):
@@ -76,6 +77,10 @@ def main(argv):
         w = float(argv[k + 1])
         CAV.update(cav_width=w, penalty_smoothing=min(10.0, w / 10))
         argv = argv[:k] + argv[k + 2:]
+    if "--tt" in argv:
+        k = argv.index("--tt")
+        CAV.update(theta_transport=int(argv[k + 1]))
+        argv = argv[:k] + argv[k + 2:]
     which = argv or ["cut", "faces", "frac"]
     if "frac" in which:
         n = 40
@@ -84,7 +89,7 @@ def main(argv):
             # west edge at phi_i + f dphi for the film cell i west of it: edge = 81 deg + f dphi
             run(n, math.radians(81.0) + f * dphi - (math.pi / 2 - W / 2))
     if "cut" in which:
-        for n in (20, 40, 80, 160):
+        for n in NS:
             run(n, 0.0)
     if "faces" in which:
         for n in (24, 48, 96, 192):

@@ -20,8 +20,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from orchestrator.results.whirl import (WhirlParams, analyze_run, growth_rate, order_spectra,  # noqa: E402
-                                   read_results)
+from orchestrator.results.run_directory import read_results  # noqa: E402
+from orchestrator.results.whirl import (WhirlParams, analyze_run, growth_rate,  # noqa: E402
+                                        order_spectra)
 
 
 def main(argv=None):
