@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.test_fmus import open_slave
+from test_fmus import open_slave   # tests/ is on sys.path: works under `pytest` and `python -m pytest`
 
 pytestmark = pytest.mark.integration
 
