@@ -23,6 +23,7 @@ Variables (see ``docs/fmus.md``)
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 from pythonfmu import Fmi2Slave
@@ -91,6 +92,12 @@ class TurbochargerRotor(Fmi2Slave):
     def _extra_output_names() -> list[str]:
         return [f"{c}_{w}" for w in WHEELS for c in ("x", "y", "vx", "vy")]
 
-    @staticmethod
-    def _make_model(params: dict[str, Any], t0: float):
+    def _make_model(self, params: dict[str, Any], t0: float):
+        # the default rotor file from THIS instance's resources: a rotor_fmu imported by an earlier
+        # instance in the same process points its DATA_DIR into that instance's extracted folder,
+        # deleted when its run ended (two turbocharger runs in one process failed on the second)
+        if not params.get("rotor_file") and self.resources:
+            bundled = Path(self.resources) / "rotor_fmu" / "data" / "turbocharger.yaml"
+            if bundled.is_file():
+                params = {**params, "rotor_file": str(bundled)}
         return _model(params, t0)

@@ -36,7 +36,11 @@ def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("dirs", nargs="+")
     ap.add_argument("--fit", default="690,820")
+    ap.add_argument("--band", default="60,140",
+                    help="whirl frequency band [Hz] of the pole followed (default 60,140: the outer-film "
+                         "whirl; 480,650 for the inner-film whirl near 0.5 (journal + ring) at 800-900 Hz)")
     a = ap.parse_args(argv)
+    band = tuple(float(v) for v in a.band.split(","))
     lo, hi = (float(v) for v in a.fit.split(","))
     found = []
     for d in a.dirs:
@@ -50,7 +54,7 @@ def main(argv=None):
             H = sm.get("coupling", {}).get("macro_step", float("nan"))     # nan: run still going
             t = c["time"]
         Y = np.array([c["rotor.x_1"], c["rotor.y_1"], c["bearing1.x_ring"], c["bearing1.y_ring"]])
-        tm, sig, frq = sliding_growth(t, Y, (60.0, 140.0))
+        tm, sig, frq = sliding_growth(t, Y, band)
         spd = np.interp(tm, t, c["rotor.omega"]) / (2 * math.pi)
         f0, slope = zero_crossing(spd, sig, lo, hi)
         found.append((H, f0))
