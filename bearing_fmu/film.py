@@ -148,6 +148,20 @@ def groove_exit(He, n_phi, i, side, fr, dphi, omega, a_phi, cond, dpg, c, K):
     return B, -k, dk_dc * dpg
 
 
+@nb.njit(cache=True, inline="always")
+def _poiseuille_out(He, n_phi, i, side, fr_f, dphi, omega, a_phi, cond, p, dp, dth, g, g2, K,
+                    delta, leaves_groove):
+    """(P, s, d): the Poiseuille flux P from g2 into cell g through their face, and its
+    derivative in cell g's unknown as the product ``s * d`` (the diagonal gains ``dz * s * d``),
+    for both assemblies: the two-point flux, or :func:`groove_exit` where the film leaves the
+    groove (``leaves_groove``). Split so that the callers' sums round as before."""
+    if leaves_groove:
+        B, dBdp, dBdc = groove_exit(He, n_phi, i, side, fr_f, dphi, omega, a_phi, cond,
+                                    p[g2] - p[g], dth[g], K)
+        return B, -1.0, dBdp * dp[g] - dBdc * dth[g] * (1.0 - dth[g]) / delta
+    return cond * (p[g2] - p[g]), cond, dp[g]
+
+
 @nb.njit(cache=True)
 def _weights(wrel, frel, n_phi):
     """(column widths, east-face distances) relative to dphi: ``wrel``, ``frel`` or ones."""
@@ -211,15 +225,12 @@ def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z
                 # outward flux through this face: Couette (upwinded theta) + Poiseuille
                 own_up = up_e if side == 0 else not up_e
                 th_up = th[g] if own_up else th[g2]
-                if wrel is not None and groove[i2] and not own_up:
-                    # the film leaves the groove: upwind-consistent edge flux (groove_exit)
-                    B, dBdp, dBdc = groove_exit(He, n_phi, i, side, fr[fi], dphi, omega, a_phi,
-                                                cond, p[g2] - p[g], dth[g], K)
-                    res += dz * (sgn * omega * Hf * th_up - B)
-                    diag -= dz * (dBdp * dp[g] - dBdc * dth[g] * (1.0 - dth[g]) / delta)
-                else:
-                    res += dz * (sgn * omega * Hf * th_up - cond * (p[g2] - p[g]))
-                    diag += dz * cond * dp[g]
+                # where the film leaves the groove: the upwind-consistent edge flux (groove_exit)
+                pq, ds, dd = _poiseuille_out(He, n_phi, i, side, fr[fi], dphi, omega, a_phi, cond,
+                                             p, dp, dth, g, g2, K, delta,
+                                             wrel is not None and groove[i2] and not own_up)
+                res += dz * (sgn * omega * Hf * th_up - pq)
+                diag += dz * ds * dd
                 off = -dz * cond * dp[g2]
                 if own_up:
                     diag += dz * sgn * omega * Hf * dth[g]
@@ -345,15 +356,12 @@ def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_ph
                 cond = a_phi * Hf * Hf * Hf / (dphi * fr[fi])
                 thf, k1, k2, k3, d1, d2, d3 = face_theta(th, groove, fi, row, n_phi, up_e)
                 own_up = up_e if side == 0 else not up_e
-                if wrel is not None and groove[i2] and not own_up:
-                    # the film leaves the groove: upwind-consistent edge flux (groove_exit)
-                    B, dBdp, dBdc = groove_exit(He, n_phi, i, side, fr[fi], dphi, omega, a_phi,
-                                                cond, p[g2] - p[g], dth[g], K)
-                    res += dz * (sgn * omega * Hf * thf - B)
-                    diag -= dz * (dBdp * dp[g] - dBdc * dth[g] * (1.0 - dth[g]) / delta)
-                else:
-                    res += dz * (sgn * omega * Hf * thf - cond * (p[g2] - p[g]))
-                    diag += dz * cond * dp[g]
+                # where the film leaves the groove: the upwind-consistent edge flux (groove_exit)
+                pq, ds, dd = _poiseuille_out(He, n_phi, i, side, fr[fi], dphi, omega, a_phi, cond,
+                                             p, dp, dth, g, g2, K, delta,
+                                             wrel is not None and groove[i2] and not own_up)
+                res += dz * (sgn * omega * Hf * thf - pq)
+                diag += dz * ds * dd
                 if want_jac:
                     if not groove[i2]:
                         jst[g, 1 + side] += -dz * cond * dp[g2]
