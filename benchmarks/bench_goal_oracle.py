@@ -5,6 +5,7 @@ macro-step schedule needs for a given error, against the best constant step.
     OPENBLAS_NUM_THREADS=1 nice -n 10 .venv/bin/python benchmarks/bench_goal_oracle.py verify \\
         --reference out/compare/jeffcott_seeded_error_control_whole
     .venv/bin/python benchmarks/bench_goal_oracle.py report [--reference ...]
+    OPENBLAS_NUM_THREADS=1 nice -n 10 .venv/bin/python benchmarks/bench_goal_oracle.py tail [--splits T ...]
 
 Case: scenarios/jeffcott_runup_half_sommerfeld_seeded.yaml (t = 0.55-0.95 s through the whirl
 onset), IJ Gauss-Seidel k = q = 0, output every 1.6 ms, the rotor's ``max_phase_per_substep``
@@ -26,6 +27,9 @@ controller (a given step per time window, each window's edges on the output grid
    run, and their error (against the fine run, and against the monolithic reference's Richardson
    combination of a compare folder, as bench_error_control_runup.py) and doSteps compared with the
    constant ladder interpolated log-log at the same error.
+
+4. ``tail``: every step after a split time free (no cost, no error: fine steps, not counted); the
+   bound for any step sequence that is constant before it (see :func:`tail_free`).
 
 Results are cached as ``--out/<name>.npz`` (delete to rerun). Results: docs/coupling.md
 ("Session 5: the oracle bound"), BENCHMARKS.md.
@@ -293,9 +297,40 @@ def bound(res: dict, a, h_c: float, p: float, h_max: float, quiet=False):
     return rows
 
 
+def tail_free(out: Path, a) -> None:
+    """Stage ``tail``: the bound with every step after a split time FREE, whatever the steps there.
+
+    For a split t_s and a constant step h before it, the run uses h on [T0, t_s] and the fine step
+    after it; its error against the fine run is then made before t_s only (amplified by the whirl
+    wherever it ends up), and only its doSteps before t_s are counted. The constant ladder at that
+    error, divided by those doSteps, bounds what ANY step sequence that is constant before t_s can
+    save, even one that varies within a whirl period after t_s (session 5's caveat), at no cost and
+    no error there."""
+    fine = const(out, a.fine)
+    ladder = {h: const(out, h) for h in sorted(set(a.ladder), reverse=True)}
+    lad = [(r["dostep"], float(np.abs(on_same_times(r, fine)).max())) for h, r in ladder.items()]
+    print(f"fine run {a.fine:g} s: {fine['dostep']} doSteps; constant steps, max |x_h - x_fine| / c: "
+          + ", ".join(f"{h * 1e3:g} ms {e:.3g} ({n})" for h, (n, e) in zip(ladder, lad)))
+    m = round((T1 - T0) / INTERVAL)
+    for t_s in a.splits:
+        j = round((t_s - T0) / INTERVAL)
+        if not 0 < j < m:
+            raise SystemExit(f"--splits {t_s}: must lie inside ({T0}, {T1})")
+        t_s = T0 + j * INTERVAL
+        print(f"\nsteps free after t_s = {t_s:.4f} s ({(T1 - t_s) / (T1 - T0):.0%} of the run):")
+        for h in ladder:
+            r = run_schedule(out, f"tail_{t_s:.4f}_{h:g}_{a.fine:g}", [T0, t_s, T1], [h, a.fine])
+            n_pre = int(round((t_s - T0) / h))
+            e = float(np.abs(on_same_times(r, fine)).max())
+            n_c = interp_dosteps(lad, e)
+            print(f"  h = {h * 1e3:g} ms before t_s: {n_pre} doSteps counted ({r['dostep']} run), error vs fine "
+                  f"{e:.3g}: " + (f"constant at that error {n_c:.0f}, ratio {n_c / n_pre:.2f}" if n_c
+                                  else "outside the ladder"), flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("stage", choices=["weights", "verify", "report"])
+    ap.add_argument("stage", choices=["weights", "verify", "report", "tail"])
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "goal_oracle")
     ap.add_argument("--windows", type=int, default=25)
     ap.add_argument("--fine", type=float, default=2.5e-5)
@@ -307,8 +342,13 @@ def main() -> None:
     ap.add_argument("--h-min", type=float, default=2.5e-5)
     ap.add_argument("--h-max", type=float, nargs="+", default=[1.6e-3, 4e-4])
     ap.add_argument("--reference", type=Path, default=None, help="a compare folder with runs/reference(-check)")
+    ap.add_argument("--splits", type=float, nargs="+", default=[0.8384, 0.7744, 0.6464],
+                    help="tail: times (on the output grid) after which the steps are free")
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
+    if a.stage == "tail":
+        tail_free(a.out, a)
+        return
     res = analyse(a.out, a)
     p = a.p if a.p is not None else res["p_const"]
     if len(a.coarse) >= 2:                   # the order per window: |delta_k(h_c1)| / |delta_k(h_c2)|
