@@ -171,3 +171,46 @@ def test_turbocharger_in_mass_conserving_floating_rings_starts_near_its_equilibr
                                     load_rel=0.10)
     for b in ("bearing1", "bearing2"):
         assert np.all(out[f"{b}.eps_outer"] < 0.99)
+
+
+@pytest.mark.parametrize("scenario", ["turbocharger_runup_floating_ring_half_sommerfeld_seeded.yaml",
+                                      "turbocharger_runup_floating_ring_free_to_air_seeded.yaml"])
+def test_seeded_turbocharger_in_floating_rings_starts_at_its_seed(tmp_path, scenario):
+    """The seeded credibility scenarios start on the ramp at the speed their start time gives
+    (34 Hz, below the linear threshold 42.19 Hz) with the compressor-side journal 0.02 c_i in +x
+    off its floating-ring static equilibrium there, the turbine-side journal and both rings at
+    theirs and the rings at their torque-balance speeds, all recomputed here from
+    rotor_fmu.floating_ring_stability.operating_point; over 5 ms the turbine-side journal stays
+    within 0.05 c_i of its start and the seeded journal, with half-Sommerfeld films, moves back
+    towards its equilibrium; the mass-conserving films start stationary at the HS equilibria and
+    settle, which moves it further off at first (measured 0.026 c_i after 5 ms), within 0.05 c_i."""
+    from orchestrator import load_scenario, run
+    from rotor_fmu.floating_ring_growth import turbocharger_floating_ring
+    from rotor_fmu.floating_ring_stability import operating_point
+    from rotor_fmu.stability import static_bearing_loads
+    sc = load_scenario(REPO / "scenarios" / scenario)
+    rp = sc.fmu("rotor").parameters
+    omega = 2 * math.pi * rp["f_max"] * sc.start_time / rp["t_ramp"]
+    assert omega / (2 * math.pi) == pytest.approx(34.0, abs=1e-4)
+    rotor, rings = turbocharger_floating_ring()
+    c_i = 1.372e-5
+    ops = [operating_point(p, float(-ld[1]), omega) for p, ld in zip(rings, static_bearing_loads(rotor))]
+    (x1, y1), (x2, y2) = (op._journal[:2] for op in ops)
+    assert rp["journal_x0"] == pytest.approx(x1 + 0.02 * c_i, abs=1e-3 * c_i)
+    assert rp["journal_y0"] == pytest.approx(y1, abs=1e-3 * c_i)
+    assert rp["journal_x0"] + rp["journal_dx0_2"] == pytest.approx(x2, abs=1e-3 * c_i)
+    assert rp["journal_y0"] + rp["journal_dy0_2"] == pytest.approx(y2, abs=1e-3 * c_i)
+    for k, op in ((1, ops[0]), (2, ops[1])):
+        bp = sc.fmu(f"bearing{k}").parameters
+        assert bp["omega_ring0"] == pytest.approx(op.outputs["omega_ring"], rel=1e-4)
+        assert bp["x_ring0"] == pytest.approx(op.outputs["x_ring"], abs=1e-3 * c_i)
+        assert bp["y_ring0"] == pytest.approx(op.outputs["y_ring"], abs=1e-3 * c_i)
+    res = run(replace(sc, stop_time=sc.start_time + 5e-3), out_dir=tmp_path, progress=False)
+    assert res.success, res.message
+    out = {k: np.asarray(v) for k, v in res.outputs.items()}
+    d1 = np.hypot(out["rotor.x_1"] - x1, out["rotor.y_1"] - y1)
+    assert d1[0] == pytest.approx(0.02 * c_i, rel=0.02)
+    if "half_sommerfeld" in scenario:
+        assert d1[-1] < d1[0]
+    assert np.max(d1) < 0.05 * c_i
+    assert np.max(np.hypot(out["rotor.x_2"] - x2, out["rotor.y_2"] - y2)) < 0.05 * c_i
