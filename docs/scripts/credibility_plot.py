@@ -24,24 +24,16 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))      # runup_credibility (it adds the repository)
 
-from orchestrator.results.run_directory import read_results  # noqa: E402
-from orchestrator.results.whirl import WhirlParams, growth_rate, order_spectra  # noqa: E402
+from runup_credibility import subsync_series  # noqa: E402
 
 
 def series(d: Path, journal: str):
     """(speed_hz, amplitude / c, growth rate [1/s], onset_hz, threshold_hz) of one run."""
-    sm = json.loads((d / "summary.json").read_text())
-    spec = sm["analysis"]["spec"]
-    js = spec["journals"][journal]
-    res = sm["analysis"]["journals"][journal]
-    p = WhirlParams()
-    cols = read_results(d / "results.csv")
-    s = order_spectra(cols["time"], cols[js["x"]] + 1j * cols[js["y"]], cols[spec["speed"]], p)
-    amp = s.band_amplitude(*p.growth_band) / js["clearance"]
-    fit = 2 * max(int(round(p.growth_fit_revs / p.hop_revs / 2)), 1) + 1
-    return s.speed_hz, amp, growth_rate(s.t, amp, fit), res.get("onset_speed_hz"), res.get("threshold_speed_hz")
+    res = json.loads((d / "summary.json").read_text())["analysis"]["journals"][journal]
+    s, amp, sig = subsync_series(d, journal)
+    return s.speed_hz, amp, sig, res.get("onset_speed_hz"), res.get("threshold_speed_hz")
 
 
 def main(argv=None):

@@ -25,6 +25,20 @@ from orchestrator.results.whirl import (WhirlParams, analyze_run, growth_rate,  
                                         order_spectra)
 
 
+def subsync_series(d: Path, journal: str = "bearing1", p: WhirlParams | None = None):
+    """(order spectra, amplitude / c, growth rate [1/s]) of ``journal``'s forward sub-synchronous
+    motion in the growth band of a finished run ``d`` (16-revolution windows, slope over
+    ``growth_fit_revs``), as the whirl analysis computes them."""
+    p = p or WhirlParams()
+    spec = json.loads((d / "summary.json").read_text())["analysis"]["spec"]
+    js = spec["journals"][journal]
+    cols = read_results(d / "results.csv")
+    s = order_spectra(cols["time"], cols[js["x"]] + 1j * cols[js["y"]], cols[spec["speed"]], p)
+    amp = s.band_amplitude(*p.growth_band) / js["clearance"]
+    fit = 2 * max(int(round(p.growth_fit_revs / p.hop_revs / 2)), 1) + 1
+    return s, amp, growth_rate(s.t, amp, fit)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("dirs", nargs="+")
@@ -40,14 +54,9 @@ def main(argv=None):
         d = Path(d)
         sm = json.loads((d / "summary.json").read_text())
         spec = sm["analysis"]["spec"]
-        js = spec["journals"][a.journal]
         old = sm["analysis"]["journals"][a.journal]
         new = analyze_run(d, spec)["journals"][a.journal]
-        cols = read_results(d / "results.csv")
-        s = order_spectra(cols["time"], cols[js["x"]] + 1j * cols[js["y"]], cols[spec["speed"]], p)
-        amp = s.band_amplitude(*p.growth_band) / js["clearance"]
-        fit = 2 * max(int(round(p.growth_fit_revs / p.hop_revs / 2)), 1) + 1
-        sig = growth_rate(s.t, amp, fit)
+        s, amp, sig = subsync_series(d, a.journal, p)
         cells = []
         for f in speeds:
             if s.n_frames and s.speed_hz.min() <= f <= s.speed_hz.max():
