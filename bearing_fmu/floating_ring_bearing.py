@@ -47,6 +47,8 @@ _FILM_INT = {
     "n_z": (40, 40, "grid cells in the axial direction [-]"),
     "cavitation": (1, 1, "0 half-Sommerfeld (quasi-static), 1 mass-conserving two-phase (transient)"),
     "axial_bc": (0, 0, "0 oil bath (Dirichlet p0), 1 free to air (Neumann penalty)"),
+    "theta_transport": (0, 0, "Couette transport of the fluid fraction (cavitation 1): 0 first-order "
+                              "upwind, 1 limited second order (MUSCL)"),
 }
 REAL_PARAMETERS: dict[str, tuple[float, str, str]] = {
     f"{n}_{side}": (d[k], unit, f"{side} film: {desc}")
