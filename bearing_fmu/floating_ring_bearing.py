@@ -41,6 +41,9 @@ _FILM_REAL = {   # per film (suffix _inner / _outer): name -> (inner default, ou
     "p_feed": (1.0e5, 1.0e5, "Pa", "feed pressure in the groove [Pa] (inner: fed through the ring)"),
     "groove_width": (0.0, 0.0, "rad", "opening angle of the axial feed groove [rad] (0: no groove)"),
     "groove_angle": (math.pi / 2, math.pi / 2, "rad", "groove centre, from +x counter-clockwise [rad]"),
+    "cav_width": (1.0e3, 1.0e3, "Pa", "width of the smooth theta(p) step below p0 (cavitation 1): the cavity "
+                                      "pressure is p0 - cav_width [Pa]; keep it small against the film's "
+                                      "pressure range"),
 }
 _FILM_INT = {
     "n_phi": (40, 40, "grid cells in the circumferential direction [-]"),

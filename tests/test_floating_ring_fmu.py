@@ -22,7 +22,7 @@ REPO = Path(__file__).resolve().parents[1]
 SCENARIO = REPO / "scenarios" / "jeffcott_runup_floating_ring_half_sommerfeld.yaml"
 
 FILM = ("R", "B", "psi", "eta0", "n_phi", "n_z", "cavitation", "axial_bc", "theta_transport", "groove_width",
-        "groove_angle")
+        "groove_angle", "cav_width")
 
 
 @pytest.fixture(scope="module")
