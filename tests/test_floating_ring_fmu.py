@@ -96,17 +96,19 @@ def test_fmu_matches_the_model_and_restores_its_state(fmu):
         assert got[k] == pytest.approx(ref, rel=1e-12, abs=1e-30)
 
 
-def test_theta_transport_parameters_reach_the_films(fmu):
-    """theta_transport_inner/outer = 1 through the FMU gives the model with the limited
-    second-order theta transport in that film, and not the first-order one."""
+@pytest.mark.parametrize("name, value", [("theta_transport", 1), ("cav_width", 100.0)])
+def test_film_options_reach_their_film(fmu, name, value):
+    """``<name>_inner`` / ``<name>_outer`` through the FMU give the model with that option in that
+    film only (theta_transport 1: the limited second-order theta transport; cav_width: the smooth
+    theta(p) step), and not the model without it."""
     from bearing_fmu.floating_ring import FloatingRing, RingParams
     from bearing_fmu.model import BearingParams
     journal = (2.2e-5, -1.0e-5, 2e-3, -1e-3, OMEGA)      # off the equilibrium: the films move
     sides = (("inner", 4.9e-3, 2.8e-3), ("outer", 7.84e-3, 3.5e-3))
 
-    def model(tt):
+    def model(option_in=None):
         films = {s: BearingParams(R=r, B=7.84e-3, psi=psi, eta0=0.012, n_phi=24, n_z=8, cavitation=1,
-                                  axial_bc=1, groove_width=0.3, theta_transport=tt[s])
+                                  axial_bc=1, groove_width=0.3, **({name: value} if s == option_in else {}))
                  for s, r, psi in sides}
         m = FloatingRing(RingParams(**films, m_ring=7.3e-3, J_ring=3.1e-7))
         m.initialize(*journal, ring="equilibrium")
@@ -114,17 +116,17 @@ def test_theta_transport_parameters_reach_the_films(fmu):
             m.step(1e-4, *journal)
         return [m.outputs[n] for n in OUT[:9]]
 
-    for tt in ({"inner": 1, "outer": 0}, {"inner": 0, "outer": 1}):
+    without = model()
+    for side, *_ in sides:
         params = dict(PARAMS, axial_bc_inner=1, axial_bc_outer=1, groove_width_inner=0.3,
-                      groove_width_outer=0.3, theta_transport_inner=tt["inner"],
-                      theta_transport_outer=tt["outer"])
+                      groove_width_outer=0.3, **{f"{name}_{side}": value})
         with open_slave(fmu) as (slave, vr):
             _setup(slave, vr, params, journal)
             for k in range(3):
                 slave.doStep(k * 1e-4, 1e-4)
             got = slave.getReal([vr[n] for n in OUT[:9]])
-        assert got == pytest.approx(model(tt), rel=1e-12, abs=1e-30)
-        assert got != pytest.approx(model({"inner": 0, "outer": 0}), rel=1e-9, abs=1e-30)
+        assert got == pytest.approx(model(side), rel=1e-12, abs=1e-30)
+        assert got != pytest.approx(without, rel=1e-9, abs=1e-30)
 
 
 def test_journal_outside_the_clearance_is_a_discard(fmu):
