@@ -127,3 +127,33 @@ def test_sigterm_during_setup_writes_a_failed_summary(tmp_path):
     assert s["status"] == "failed" and s["message"] == ("terminated by signal SIGTERM before the co-simulation "
                                                         "started")
     assert signal.getsignal(signal.SIGTERM) is previous
+
+
+REPO = Path(__file__).resolve().parents[1]
+
+_AFTER_A_RUN = """
+import sys
+from dataclasses import replace
+from pathlib import Path
+from orchestrator import load_scenario, run
+assert "rotor_fmu" not in sys.modules, "rotor_fmu imported before the run: the check would not bite"
+sc = load_scenario(Path(sys.argv[1]) / "scenarios" / "turbocharger_runup_half_sommerfeld.yaml")
+res = run(replace(sc, stop_time=sc.start_time + 1e-3), out_dir=Path(sys.argv[2]), progress=False)
+assert res.success, res.message
+import rotor_fmu.floating_ring_growth                # a submodule the run did not import
+from rotor_fmu.rotor_file import load_rotor_file     # and a data file of the package
+load_rotor_file()
+print("imports ok after the run")
+"""
+
+
+def test_the_process_imports_our_packages_after_a_run_removed_its_fmus(tmp_path):
+    """A run imports rotor_fmu from the extracted rotor FMU when the process has not imported it
+    yet; the run folder is removed at the end. Later imports of its submodules and data files
+    in the same process must still work (they failed with "cannot read the file
+    .../resources/rotor_fmu/data/turbocharger.yaml" before the pool forgot those modules)."""
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    proc = subprocess.run([sys.executable, "-c", _AFTER_A_RUN, str(REPO), str(tmp_path / "run")],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "imports ok after the run" in proc.stdout

@@ -76,6 +76,43 @@ def put_back(aside: dict, names=(), before=frozenset()) -> None:
     sys.modules.update(aside)
 
 
+def forget_imports_under(root: Path) -> list[str]:
+    """Drop from ``sys.modules`` the modules loaded from files under ``root``, and ``root``'s folders
+    from ``sys.path``; return the module names dropped.
+
+    Called before a run folder of extracted FMUs is removed. A Python FMU's slave module
+    imports its packages from the extracted ``resources/`` (our rotor FMUs import ``rotor_fmu``
+    from there when the process has not imported it yet). Left in ``sys.modules`` after the
+    folder is gone, such a package breaks every later import of its submodules and data files
+    in the same process (a notebook, a test session, a sweep worker). Measured: after a
+    turbocharger run, ``rotor_fmu.floating_ring_growth.turbocharger_floating_ring()`` failed
+    with "cannot read the file .../resources/rotor_fmu/data/turbocharger.yaml". Instances
+    still alive keep their module objects (Python keeps them alive through their references)."""
+    try:
+        root = Path(root).resolve()
+    except OSError:
+        return []
+    dropped = []
+    for key, mod in list(sys.modules.items()):
+        origin = _origin(mod)
+        if origin is not None and (origin == root or root in origin.parents):
+            del sys.modules[key]
+            dropped.append(key)
+    kept = []
+    for entry in sys.path:
+        try:
+            p = Path(entry).resolve() if entry else None
+        except (OSError, TypeError, ValueError):
+            p = None
+        if p is not None and (p == root or root in p.parents):
+            continue
+        kept.append(entry)
+    sys.path[:] = kept
+    if dropped:
+        log.debug("forgot %d modules imported from %s", len(dropped), root)
+    return dropped
+
+
 class own_imports:
     """``with own_imports(unzip_dir): instantiate()`` (see the module docstring)."""
 
