@@ -20,6 +20,7 @@ alive through their references), so each runs on with its own code.
 
 from __future__ import annotations
 
+import importlib
 import logging
 import sys
 from pathlib import Path
@@ -87,7 +88,8 @@ def forget_imports_under(root: Path) -> list[str]:
     in the same process (a notebook, a test session, a sweep worker). Measured: after a
     turbocharger run, ``rotor_fmu.floating_ring_growth.turbocharger_floating_ring()`` failed
     with "cannot read the file .../resources/rotor_fmu/data/turbocharger.yaml". Instances
-    still alive keep their module objects (Python keeps them alive through their references)."""
+    still alive keep their module objects (Python keeps them alive through their references).
+    The warm sweep processes do the same after each run (``orchestrator.sweep.warm_child.forget_vanished``)."""
     try:
         root = Path(root).resolve()
     except OSError:
@@ -108,6 +110,14 @@ def forget_imports_under(root: Path) -> list[str]:
             continue
         kept.append(entry)
     sys.path[:] = kept
+    for entry in [e for e in sys.path_importer_cache if isinstance(e, str) and e]:
+        try:
+            p = Path(entry).resolve()
+        except (OSError, ValueError):
+            continue
+        if p == root or root in p.parents:
+            del sys.path_importer_cache[entry]
+    importlib.invalidate_caches()
     if dropped:
         log.debug("forgot %d modules imported from %s", len(dropped), root)
     return dropped
