@@ -94,29 +94,22 @@ def forget_imports_under(root: Path) -> list[str]:
         root = Path(root).resolve()
     except OSError:
         return []
-    dropped = []
-    for key, mod in list(sys.modules.items()):
-        origin = _origin(mod)
-        if origin is not None and (origin == root or root in origin.parents):
-            del sys.modules[key]
-            dropped.append(key)
-    kept = []
-    for entry in sys.path:
+
+    def under(path) -> bool:
+        return path is not None and (path == root or root in path.parents)
+
+    def entry_under(entry) -> bool:            # a sys.path / importer-cache key
         try:
-            p = Path(entry).resolve() if entry else None
-        except (OSError, TypeError, ValueError):
-            p = None
-        if p is not None and (p == root or root in p.parents):
-            continue
-        kept.append(entry)
-    sys.path[:] = kept
-    for entry in [e for e in sys.path_importer_cache if isinstance(e, str) and e]:
-        try:
-            p = Path(entry).resolve()
+            return isinstance(entry, str) and bool(entry) and under(Path(entry).resolve())
         except (OSError, ValueError):
-            continue
-        if p == root or root in p.parents:
-            del sys.path_importer_cache[entry]
+            return False
+
+    dropped = [key for key, mod in list(sys.modules.items()) if under(_origin(mod))]
+    for key in dropped:
+        del sys.modules[key]
+    sys.path[:] = [e for e in sys.path if not entry_under(e)]
+    for entry in [e for e in sys.path_importer_cache if entry_under(e)]:
+        del sys.path_importer_cache[entry]
     importlib.invalidate_caches()
     if dropped:
         log.debug("forgot %d modules imported from %s", len(dropped), root)

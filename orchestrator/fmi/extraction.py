@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 
 from orchestrator.errors import FmuError
+from orchestrator.fmi.bundled_python import forget_imports_under
 
 log = logging.getLogger(__name__)
 
@@ -133,7 +134,6 @@ class ExtractionPool:
 
     def close(self) -> None:
         if self._own:
-            from orchestrator.fmi.bundled_python import forget_imports_under
             forget_imports_under(self.root)             # modules the FMUs imported from there
             shutil.rmtree(self.root, ignore_errors=True)
         self._done.clear()
