@@ -512,7 +512,13 @@ def console_main() -> None:
     same way, orchestrator/compare/__main__.py) and once in CI's ``rotorcosim validate`` of a
     shipped scenario (1 in about 170 processes). A crash during a run still shows as one.
     """
-    code = main()
+    exit_process(main())
+
+
+def exit_process(code: int) -> None:
+    """Leave the process with ``code``: ``sys.exit`` when no FMU library was loaded in-process,
+    else ``os._exit`` after the ``atexit`` handlers and flushing the output and the logs (why:
+    :func:`console_main`). The test suite leaves the same way (tests/exit_plugin.py)."""
     subsystem = sys.modules.get("orchestrator.fmi.subsystem")
     if subsystem is None or not subsystem.native_fmu_loaded:
         sys.exit(code)

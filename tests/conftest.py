@@ -20,6 +20,7 @@ from pathlib import Path  # noqa: E402
 import pytest
 
 from orchestrator.reference.models import load_model_file
+from tests.exit_plugin import pytest_sessionfinish, pytest_unconfigure  # noqa: F401  (hooks: leave without teardown)
 
 # the monolithic reference's adapters of the two-mass test FMUs (not in production code)
 load_model_file(Path(__file__).parent / "fmus_src" / "_reference_models.py")

@@ -286,3 +286,40 @@ def test_run_prints_the_whirl_analysis():
     assert lines[3] == "  bearing3: not analysed: no signal rotor.x_3"
     assert cli._analysis_lines({"error": "results.csv: not found"}) == [
         "analysis: not available: results.csv: not found"]
+
+
+
+_SESSION = """
+import atexit, pathlib
+import orchestrator.cli as cli
+import orchestrator.fmi.subsystem as subsystem
+
+MARKER = pathlib.Path({marker!r})
+leave = cli.exit_process
+
+def recorded(code):                              # what the plugin calls, recorded
+    MARKER.write_text(f"exit_process({{code}})")
+    leave(code)
+
+def test_loads_an_fmu():
+    subsystem.native_fmu_loaded = True          # what loading an FMU in-process sets
+    cli.exit_process = recorded
+    atexit.register(lambda: MARKER.write_text(MARKER.read_text() + " atexit"))
+    assert {ok}
+"""
+
+
+@pytest.mark.parametrize("ok, code", [(True, 0), (False, 1)])
+def test_pytest_session_with_an_fmu_leaves_through_exit_process_with_its_status(tmp_path, ok, code):
+    """tests/exit_plugin.py: a test session that loaded an FMU in-process ends through
+    cli.exit_process (no interpreter teardown, where PythonFMU can abort) with pytest's own
+    exit status, its summary printed and the atexit handlers run after it."""
+    marker = tmp_path / "marker"
+    test = tmp_path / "test_session.py"
+    test.write_text(_SESSION.format(marker=str(marker), ok=ok))
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "tests.exit_plugin",
+                           "-p", "no:cacheprovider", "--rootdir", str(tmp_path), "-c", os.devnull,
+                           str(test)], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == code, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert ("1 passed" if ok else "1 failed") in proc.stdout
+    assert marker.read_text() == f"exit_process({code}) atexit"
