@@ -80,7 +80,7 @@ def sigmoid(x):
     return e / (1.0 + e)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def law_eval(u, p_cav, K, delta, p_out, dp_out, th_out, dth_out):
     """Evaluate p(u), dp/du, theta(u), dtheta/du for an array u (in place).
 

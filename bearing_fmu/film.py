@@ -162,7 +162,7 @@ def _poiseuille_out(He, n_phi, i, side, fr_f, dphi, omega, a_phi, cond, p, dp, d
     return cond * (p[g2] - p[g]), cond, dp[g]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _weights(wrel, frel, n_phi):
     """(column widths, east-face distances) relative to dphi: ``wrel``, ``frel`` or ones."""
     if wrel is None:
@@ -170,7 +170,7 @@ def _weights(wrel, frel, n_phi):
     return wrel, frel
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
              dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
              r, want_jac, jst, p, dp, th, dth, sym, wrel=None, frel=None):
@@ -313,7 +313,7 @@ def _col(k, g, n_phi):
     return 6
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
                    dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
                    r, want_jac, jst, p, dp, th, dth, sym, wrel=None, frel=None):
@@ -400,7 +400,7 @@ def _neighbours2(g, n_phi):
     return row + (i + 2) % n_phi, row + (i - 2) % n_phi
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def stencil_to_band(jst, n_phi, pos, bw, ab):
     """Scatter the stencil (5 or 7 columns) into LAPACK band storage (entry (g, g2) at
     ``ab[2 bw + pos[g] - pos[g2], pos[g2]]``, shape (3 bw + 1, N)); ``ab``
@@ -424,7 +424,7 @@ def stencil_to_band(jst, n_phi, pos, bw, ab):
                 ab[2 * bw + pg - pos[ww], pos[ww]] += jst[g, 6]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def stencil_matvec(jst, n_phi, x, y):
     """y = J x for the stencil Jacobian (5 or 7 columns)."""
     n = jst.shape[0]
@@ -442,7 +442,7 @@ def stencil_matvec(jst, n_phi, x, y):
         y[g] = v
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
               pa, pb, s_pen, R, B, c, eta0, sym, order=0, wrel=None, frel=None,
               delta=1.0, K=0.0):
@@ -532,7 +532,7 @@ def _half_cell_pos(a, m):
     return 0.5 * mx * mx / d, mx / d
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def hs_force_pressure(P, out):
     """Cell pressures for the half-Sommerfeld FORCE integral from the unclipped gauge
     pressure ``P`` (n_z, n_phi), into ``out``.

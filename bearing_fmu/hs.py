@@ -25,7 +25,7 @@ import numpy as np
 import scipy.fft as sfft
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def cyclic_tridiag_many(a, b, c, d, x):
     """Solve n_sys cyclic tridiagonal systems (rows of a, b, c, d) into x.
 
@@ -65,7 +65,7 @@ def cyclic_tridiag_many(a, b, c, d, x):
             x[k, i] = y[i] - fact * zz[i]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _solve_many_kernel(ce, cw, H3, rhs, lam, ck, coef, groove, feed_hat, x):
     """:func:`cyclic_tridiag_many` over the m n_z systems of :meth:`HalfSommerfeld.solve_many`,
     building each system's coefficients on the fly from the per-kinematics vectors
@@ -120,7 +120,7 @@ def _solve_many_kernel(ce, cw, H3, rhs, lam, ck, coef, groove, feed_hat, x):
                 x[q, k, i] = y[i] - fact * zz[i]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _tangent_kernel(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat, x):
     """Modes of the pressure and of its directional derivatives, into ``x`` (1 + m, n_z,
     n_phi): x[0] the modes of :meth:`HalfSommerfeld.solve` at the base kinematics, x[1 + q]

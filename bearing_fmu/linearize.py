@@ -94,7 +94,7 @@ def _central(f, z0, steps):
     return D
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _hs_forces_many(P, phi, p0, area, F):
     """Half-Sommerfeld forces F (m, 2) of m unclipped gauge pressure fields P (m, n_z, n_phi):
     the cell pressures of the force quadrature (:func:`.film.hs_force_pressure`, exactly
@@ -201,7 +201,7 @@ def _tangent_directions(b):
     return d
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _hs_central_tangent(P0, dP, steps, phi, area, D):
     """-(F(P0 + s_j dP_j) - F(P0 - s_j dP_j)) / (2 s_j) into D[:, j] (2, 4): the central
     differences of :func:`_hs_forces_many`'s force (cell pressures of the force quadrature,

@@ -46,7 +46,7 @@ from scipy.sparse.linalg import splu
 from .film import assemble, assemble_muscl, stencil_matvec, stencil_to_band
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _limit_switch(u, un, delta):
     """Newton damping across the cavitation switch (in place on ``un``).
 
@@ -68,7 +68,7 @@ def _limit_switch(u, un, delta):
             un[k] = -2.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def dominant_weights(H, He, Hdot, th_dot0, omega, a_phi, a_z, dphi, dz, wrel, frel, wp, wth):
     """Per column: the own-cell (diagonal) coefficients of p and of theta in a cell's
     residual, ``wp`` [1/Pa] (Poiseuille conductances of its four faces) and ``wth``
@@ -101,7 +101,7 @@ def _own_part(v, wp, wth, p_cav, K, delta):
     return wp * K * delta * l1 - wth * delta * (l1 - x), wp * K * e * s + wth * s
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un):
     """New iterate ``un`` from the Newton increment ``dx`` in u, with each cell's own
     nonlinearity taken exactly: the cell moves to the u at which its own (diagonal) part of
@@ -131,7 +131,7 @@ def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un):
         un[k] = _own_root(v, f0 + df0 * d, a, b, p_cav, K, delta)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _own_root(v, target, a, b, p_cav, K, delta):
     """The v with ``a p(v) + b theta(v) = target`` (strictly increasing in v), from the
     guess v: safeguarded Newton-bisection in the bracket ``v +- |f(v) - target| / min f'``,
@@ -159,7 +159,7 @@ def _own_root(v, target, a, b, p_cav, K, delta):
     return v
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out):
     """Newton start ``out`` for the next internal step, extrapolated linearly in each cell's
     own part ``f = wp p(u) + wth theta(u)`` (:func:`dominant_update`) instead of in u:
@@ -183,7 +183,7 @@ def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out)
         out[k] = _own_root(v, f0 + ratio * (f0 - f1), a, b, p_cav, K, delta)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _increment_norm_kernel(dx, p, dp, dth, atol, rtol, K):
     """:meth:`TransientFilm._increment_norm` in one pass (the same maxima and products as
     the numpy expression it replaces, so the same value bit for bit; nan if dx has one)."""
@@ -226,7 +226,7 @@ class StepFailed(RuntimeError):
 PIVOT_THRESHOLD = 0.1
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def band_lu_nopivot(ab, bw, thresh):
     """In-place LU without row interchanges of a matrix in LAPACK band storage
     (``ab[2 bw + i - j, j] = A[i, j]``, kl = ku = bw, Fortran order; rows 0 .. bw-1 are not
@@ -271,7 +271,7 @@ def _axpy(a, start, x, m, alpha):
         seg[i] += alpha * x[i]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def band_solve_nopivot(ab, bw, b, x):
     """Solve ``A x = b`` with the factors of :func:`band_lu_nopivot`."""
     rows = ab.shape[0]
@@ -293,7 +293,7 @@ def band_solve_nopivot(ab, bw, b, x):
             x[k - i] -= a[ck - i] * xk
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def band_newton_step_nopivot(ab, bw, r, order, pos, work, dx):
     """The Newton step ``dx = -J^-1 r`` with the factors of :func:`band_lu_nopivot` in the
     band ordering (``order``: flat cell at each position, ``pos`` its inverse): the
@@ -401,7 +401,10 @@ class TransientFilm:
     residual; True = the line search first, the older order); ``full_newton=True`` refactorises every iteration
     whatever ``krylov_refactor`` says (the benchmark peer); ``lu_reuse_below`` (default
     :data:`LU_REUSE_BELOW`; 0 = a fresh LU every iteration, the benchmark peer) the
-    simplified-Newton rule of :meth:`newton`.
+    simplified-Newton rule of :meth:`newton`; ``fused`` (default True) advances a macro step
+    in one numba call without the GIL (:mod:`.fused`, :meth:`fused_eligible`; False = the
+    Python loop of :meth:`_advance_loop`, the benchmark peer and the reference the fused
+    path is tested against).
     """
 
     def __init__(self, ctx, linear_solver="band", full_newton=False):
@@ -418,6 +421,8 @@ class TransientFilm:
         self.predictor_dominant = True
         self.lu_reuse_below = LU_REUSE_BELOW
         self.search_converged = False
+        self.fused = True
+        self.pivot_threshold = PIVOT_THRESHOLD      # of the fused path's LU (a test changes it)
         self.ab = np.zeros((3 * g.bw + 1, n), order="F")
         # theta_transport = 1: limited second-order Couette transport of theta, whose
         # exact Jacobian has the 7-point stencil (i +- 2; the grid's band covers it)
@@ -713,10 +718,81 @@ class TransientFilm:
             self.stats["restarts"] += 1
             return its
 
+    def fused_eligible(self) -> bool:
+        """Does :meth:`advance` take the one-call path of :mod:`.fused`? Yes for the
+        default configuration (``fused`` True, the numba band LU, direct Newton with the
+        simplified-Newton rule, every diagnostics switch at its default); the benchmark
+        peers and the Newton-Krylov option take the Python loop."""
+        return (self.fused and type(self.lin) is BandLU and not self.full_newton
+                and self.ctx.params.krylov_refactor == 0 and self.predictor
+                and self.predictor_limited and self.line_search and self.dominant
+                and self.predictor_dominant and not self.search_converged)
+
     def advance(self, dt, kin):
-        """Advance from t to t + dt with kinematics ``kin`` held constant."""
-        prm = self.ctx.params
+        """Advance from t to t + dt with kinematics ``kin`` held constant: in one numba
+        call without the GIL (:func:`.fused.advance_fused`) when :meth:`fused_eligible`,
+        else (or to finish a macro step whose LU needs row interchanges) the Python loop."""
         t_end = self.t + dt
+        if self.fused_eligible():
+            done, its = self._advance_fused(dt, kin)
+            if done:
+                return its
+        return self._advance_loop(t_end, dt, kin)
+
+    def _advance_fused(self, dt, kin):
+        """(finished, iterations): :func:`.fused.advance_fused` on this film's state; not
+        finished when an LU pivot needs interchanges (the state is then that of the last
+        accepted internal step, and :meth:`_advance_loop` goes on from it)."""
+        from . import fused as _fused       # here: fused imports this module's kernels
+        c, g, prm = self.ctx, self.ctx.grid, self.ctx.params
+        H, He, Hdot, omega = kin
+        t_end = self.t + dt
+        if self._theta_u is None:
+            th_u, valid = np.empty(self.n), 0.0
+        else:
+            th_u, valid = self._theta_u, 1.0
+        arrays = [self.u, self.u_prev, self.th_nm1, self.th_nm2, th_u]
+        for k in range(1, 5):           # the kernel writes each in place: no aliases
+            if any(arrays[k] is a for a in arrays[:k]):
+                arrays[k] = arrays[k].copy()
+        u, u_prev, th_nm1, th_nm2, th_u = arrays
+        sc = np.array([self.t, self.h_prev, self.h_prev2, self.h_next, float(self.n_hist),
+                       valid, 0.0])
+        st = np.zeros(6, dtype=np.int64)
+        code, its = _fused.advance_fused(
+            float(dt), H, He, Hdot, float(omega), u, u_prev, th_nm1, th_nm2, th_u, sc, st,
+            self.muscl, g.groove, self.film, c.u_feed, c.a_phi, c.a_z, g.dphi, g.dz, c.bath,
+            c.p0, c.law.p_cav, c.law.K, c.law.delta, c.params.penalty_a, c.params.penalty_b,
+            c.params.penalty_smoothing, c.sym, g.wrel, g.frel, g.n_phi, g.order, g.pos, g.bw,
+            self.ab, self.jst, self.r, self.wp, self.wdp, self.wth, self.wdth,
+            prm.h_min, prm.h_max, prm.theta_atol, prm.newton_atol, prm.newton_rtol,
+            prm.newton_max_iter, float(self.lu_reuse_below), self.pivot_threshold)
+        self.u, self.u_prev, self.th_nm1, self.th_nm2 = u, u_prev, th_nm1, th_nm2
+        self._theta_u = th_u if sc[_fused.TH_U_VALID] else None
+        self.t, self.h_prev, self.h_prev2, self.h_next = (float(v) for v in sc[:4])
+        self.n_hist = int(sc[_fused.N_HIST])
+        for key, k in (("steps", _fused.S_STEPS), ("rejected", _fused.S_REJECTED),
+                       ("newton", _fused.S_NEWTON), ("factor", _fused.S_FACTOR),
+                       ("failed_newton", _fused.S_FAILED_NEWTON), ("reused", _fused.S_REUSED)):
+            self.stats[key] += int(st[k])
+        self._factored = False
+        if code == _fused.H_MIN:
+            raise self._h_min_failure(t_end - self.t)
+        return code == _fused.DONE, int(its)
+
+    def _h_min_failure(self, remaining):
+        prm = self.ctx.params
+        return StepFailed(
+            f"film step size fell below h_min = {prm.h_min:g} s "
+            f"{remaining:.3g} s before the end of the macro step (film time "
+            f"{self.t:.9g} s since its initialisation; Newton failures {self.stats['failed_newton']}, "
+            f"rejections {self.stats['rejected']}); the kinematics may be "
+            "outside the clearance or jump too fast; reduce the macro step "
+            "or loosen theta_atol")
+
+    def _advance_loop(self, t_end, dt, kin):
+        """The Python loop of :meth:`advance` (from ``self.t`` to ``t_end``)."""
+        prm = self.ctx.params
         last_its = 0
         while t_end - self.t > 1e-12 * max(abs(t_end), dt):
             rem = t_end - self.t
@@ -725,13 +801,7 @@ class TransientFilm:
                 h = rem
             while True:
                 if h < prm.h_min:
-                    raise StepFailed(
-                        f"film step size fell below h_min = {prm.h_min:g} s "
-                        f"{t_end - self.t:.3g} s before the end of the macro step (film time "
-                        f"{self.t:.9g} s since its initialisation; Newton failures {self.stats['failed_newton']}, "
-                        f"rejections {self.stats['rejected']}); the kinematics may be "
-                        "outside the clearance or jump too fast; reduce the macro step "
-                        "or loosen theta_atol")
+                    raise self._h_min_failure(t_end - self.t)
                 # theta(u) of the current state: kept from the last accepted step (same
                 # array, so bit for bit what theta(self.u) returns; one law evaluation less)
                 th_n = self._theta_u if self._theta_u is not None else self.theta(self.u)
@@ -847,3 +917,4 @@ class TransientFilm:
                    float(s["jac_omega"]))
             self._factor(np.array(s["jac_u"]), float(s["jac_th_dot0"]), kin)
             self.stats["factor"] -= 1      # a restore is not a solver factorisation
+

@@ -1,0 +1,94 @@
+"""The film's macro step in one numba call (bearing_fmu/fused.py, issue 16 speed part)
+against the Python loop it replaces (``TransientFilm.fused = False``).
+
+A short whirl orbit of the Jeffcott bearing on a coarse grid: free to air with the groove of
+its true width, oil bath, whole-cell groove columns (no groove weights), the limited
+second-order theta transport. The two paths do the same arithmetic apart from two sums
+(fused.py module doc), so forces and the solver's counters must agree; the PIVOT return
+(an LU that needs row interchanges) must hand the macro step to the Python loop, and a
+step size below h_min must fail as the Python loop fails, with the state kept.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from bearing_fmu import fused
+from bearing_fmu.model import BearingModel, BearingParams
+from bearing_fmu.solver import StepFailed
+
+C = 4.9e-3 * 2.8e-3
+KW = dict(R=4.9e-3, B=7.84e-3, psi=2.8e-3, eta0=0.012, p0=1e5, p_feed=1e5, n_phi=24, n_z=12,
+          cavitation=1, axial_bc=1, groove_width=math.radians(15), groove_angle=math.pi / 2)
+COUNTERS = ("steps", "rejected", "newton", "factor", "failed_newton", "reused")
+
+
+def orbit(k, eps=0.55, spin=500.0, ratio=0.45):
+    w = 2 * math.pi * spin
+    nu, r, t = ratio * w, eps * C, k * 1e-4
+    return (r * math.cos(nu * t), r * math.sin(nu * t), -r * nu * math.sin(nu * t),
+            r * nu * math.cos(nu * t), w)
+
+
+def run(use_fused, steps=30, pivot_threshold=None, **extra):
+    b = BearingModel(BearingParams(**dict(KW, **extra)))
+    b.film.fused = use_fused
+    if pivot_threshold is not None:
+        b.film.pivot_threshold = pivot_threshold
+    b.initialize(*orbit(0), init="stationary")
+    F = []
+    for k in range(1, steps + 1):
+        b.step(1e-4, *orbit(k))
+        F.append((b.outputs["Fx"], b.outputs["Fy"]))
+    return b, np.array(F)
+
+
+@pytest.mark.parametrize("case", [
+    {},                                            # free to air, groove of its true width
+    {"axial_bc": 0},                               # oil bath
+    {"groove_width": 0.0, "axial_bc": 0},          # no groove weights (wrel None)
+    {"theta_transport": 1},                        # 7-point stencil (assemble_muscl)
+])
+def test_fused_macro_step_is_the_python_loop(case):
+    loop, F_loop = run(False, **case)
+    one, F_one = run(True, **case)
+    assert not loop.film.fused_eligible() and one.film.fused_eligible()
+    assert {k: one.stats[k] for k in COUNTERS} == {k: loop.stats[k] for k in COUNTERS}
+    assert one.stats["steps"] > 30 and one.stats["newton"] > one.stats["steps"]
+    np.testing.assert_allclose(F_one, F_loop, rtol=1e-10, atol=1e-10 * np.abs(F_loop).max())
+    for name in ("u", "u_prev", "th_nm1", "th_nm2"):
+        np.testing.assert_allclose(getattr(one.film, name), getattr(loop.film, name), rtol=1e-10,
+                                   atol=1e-12)
+    assert (one.film.h_prev, one.film.h_prev2, one.film.n_hist, one.film.t) == \
+        pytest.approx((loop.film.h_prev, loop.film.h_prev2, loop.film.n_hist, loop.film.t), rel=1e-12)
+
+
+def test_a_pivot_that_needs_interchanges_hands_the_step_to_the_python_loop():
+    loop, F_loop = run(False, steps=8)
+    handed, F_handed = run(True, steps=8, pivot_threshold=1e300)    # no pivot meets it
+    # every solve went through the Python loop: the same path, so the same numbers bit for bit
+    assert {k: handed.stats[k] for k in COUNTERS} == {k: loop.stats[k] for k in COUNTERS}
+    assert np.array_equal(F_handed, F_loop)
+
+
+def test_a_step_below_h_min_fails_as_the_loop_does_and_keeps_the_state():
+    msgs = {}
+    for use_fused in (False, True):
+        b, _ = run(use_fused, steps=3)
+        before = b.get_state()
+        # no internal step is this long (a macro step is 1e-4 s)
+        b.params = dataclasses.replace(b.params, h_min=1.0, h_init=1.0, h_max=1.0)
+        with pytest.raises(StepFailed) as info:
+            b.step(1e-4, *orbit(4))
+        msgs[use_fused] = str(info.value)
+        after = b.get_state()
+        for key, v in before.items():
+            assert np.array_equal(np.asarray(after[key]), np.asarray(v)), key
+    assert "fell below h_min = 1 s" in msgs[True]
+    assert msgs[True] == msgs[False]
+
+
+def test_return_codes_are_distinct():
+    assert len({fused.DONE, fused.H_MIN, fused.PIVOT}) == 3
