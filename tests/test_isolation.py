@@ -271,7 +271,9 @@ def test_isolated_and_parallel_runs_are_byte_identical(jeffcott_dir, tmp_path, s
                 "all in workers, sequential": ({"rotor": "process", "bearing1": "process", "bearing2": "process"},
                                                False),
                 "all in workers, parallel": ({"rotor": "process", "bearing1": "process", "bearing2": "process"},
-                                             True)}
+                                             True),
+                "in-process, threads": ({}, "threads"),
+                "one bearing in a worker, threads": ({"bearing2": "process"}, "threads")}
     got = {}
     for label, (iso, par, *pin) in variants.items():
         out = tmp_path / label.replace(" ", "_").replace(",", "")

@@ -1,4 +1,5 @@
-"""coupling.parallel and coupling.pin_workers in a scenario: booleans, bad values named."""
+"""coupling.parallel and coupling.pin_workers in a scenario: booleans (parallel also
+'threads'), bad values named."""
 
 from __future__ import annotations
 
@@ -17,9 +18,17 @@ def test_pin_workers_defaults_to_false_and_reads_a_boolean():
     assert load_scenario(SCENARIO, ["coupling.pin_workers=true"]).coupling.pin_workers is True
 
 
-@pytest.mark.parametrize("key", ["pin_workers", "parallel"])
-def test_a_non_boolean_is_refused_naming_the_key(key):
+@pytest.mark.parametrize("key, allowed", [("pin_workers", "true or false"),
+                                          ("parallel", "true, false or threads")])
+@pytest.mark.parametrize("value", ["3", "thread", "Threads"])
+def test_a_bad_value_is_refused_naming_the_key_and_the_choices(key, allowed, value):
     with pytest.raises(ScenarioError) as info:
-        load_scenario(SCENARIO, [f"coupling.{key}=3"])
+        load_scenario(SCENARIO, [f"coupling.{key}={value}"])
     text = str(info.value)
-    assert f"'coupling.{key}' must be true or false (got 3" in text and f"coupling.{key}=3" in text
+    assert f"'coupling.{key}' must be {allowed} (got " in text and f"coupling.{key}={value}" in text
+
+
+def test_parallel_reads_true_false_and_threads():
+    assert load_scenario(SCENARIO).coupling.parallel is True
+    assert load_scenario(SCENARIO, ["coupling.parallel=false"]).coupling.parallel is False
+    assert load_scenario(SCENARIO, ["coupling.parallel=threads"]).coupling.parallel == "threads"

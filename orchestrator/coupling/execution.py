@@ -51,6 +51,7 @@ from orchestrator.coupling.step_control import (
 from orchestrator.coupling.adaptive import controller_from_spec
 from orchestrator.coupling.signal_scales import signal_nominals
 from orchestrator.coupling.stages import stages as make_stages
+from orchestrator.coupling.threads import StageThreads
 from orchestrator.errors import CouplingError, FmuCallError, FmuCrashError, LifecycleError, ScenarioError
 from orchestrator.fmi.extraction import ExtractionPool
 from orchestrator.fmi.subsystem import Subsystem, SubsystemBase
@@ -127,6 +128,8 @@ class MasterAlgorithm:
         self.end_time = float(scenario.start_time)
         self.wall_time = 0.0
         self._work_dir: ExtractionPool | None = None
+        self._pool: StageThreads | None = None   # coupling.parallel: threads
+        self._threaded_steps = 0
         self.isolation: dict[str, str] = {}      # instance -> "process" | "none" (FMUs the master loaded)
         self.failure: dict | None = None         # what failed (summary.json "failure"), see _fail_fmu
         self._phase = "new"
@@ -203,13 +206,28 @@ class MasterAlgorithm:
         links = [(c.src_instance, c.dst_instance) for c in self.scenario.connections]
         by_name = {u.name: u for u in self.units}
         parallel = self._parallel()
+        threads = self._threads()
         out = []
         for st in make_stages([u.name for u in self.units], links, self.scheme.uses_new_value):
             members = [by_name[n] for n in st.names]
             workers = [u for u in members if isinstance(u.sub, WorkerSubsystem)]
             together = workers + [u for u in members if u not in workers] if workers and len(members) > 1 else None
-            out.append((st, members, together if parallel else None))
+            # parallel: threads, a stage of FMUs all in this process: each member in a thread
+            threaded = threads and len(members) > 1 and not workers
+            out.append((st, members, together if parallel else None, threaded))
         return out
+
+    def _threads(self) -> bool:
+        """``coupling.parallel: threads`` (orchestrator.coupling.threads)."""
+        return getattr(self.scenario.coupling, "parallel", True) == "threads"
+
+    def _stage_threads(self, stages: list):
+        """The thread pool of the stages stepped in threads, or None when there are none."""
+        n = max((len(m) - 1 for _, m, _, threaded in stages if threaded), default=0)
+        if n == 0:
+            return None
+        self._pool = StageThreads(n)
+        return self._pool
 
     def _plan(self) -> None:
         plan = make_plan(self.scenario, self.subsystems, self.scheme)
@@ -243,8 +261,10 @@ class MasterAlgorithm:
         # noSetFMUStatePriorToCurrentPoint for every doStep: False while the master may restore a state
         self.signal_names = [f"{u.name}.{n}" for u in plan_units_in_store_order(self.scenario, self.units)
                              for n in u.ext_names + u.int_names]
+        stages = self._stages()
         kw = dict(macro_step=self.scenario.coupling.macro_step, startup_iterations=startup,
-                  no_prior=not self.grid.needs_states, stages=self._stages())
+                  no_prior=not self.grid.needs_states, stages=stages,
+                  threads=self._stage_threads(stages))
         c = self.scenario.coupling
         if c.scheme == "iterative":
             self._require_states("coupling.scheme = iterative repeats every macro step from the saved states",
@@ -552,6 +572,10 @@ class MasterAlgorithm:
                 o.on_terminated(self.view)
 
     def _release(self) -> None:
+        if self._pool is not None:          # no FMU steps in a thread once it is closed
+            self._threaded_steps += self._pool.runs
+            self._pool.close()
+            self._pool = None
         for sub in self.subsystems.values():
             try:
                 sub.free()
@@ -569,6 +593,9 @@ class MasterAlgorithm:
         st = {"macro_steps": self.n, **self.grid.statistics(), "wall_time_s": self.wall_time,
               "fmu_calls": {name: sub.statistics() for name, sub in self.subsystems.items()},
               "isolation": dict(self.isolation), "failure": self.failure}
+        if self._threads():
+            # stage steps whose members stepped at the same time in threads (parallel: threads)
+            st["threaded_stage_steps"] = self._threaded_steps + (self._pool.runs if self._pool else 0)
         stats = getattr(getattr(self, "stepper", None), "stats", None)
         if stats is not None:
             st["iterations"] = stats.as_dict()

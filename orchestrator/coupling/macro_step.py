@@ -45,7 +45,8 @@ class MacroStep:
     """
 
     def __init__(self, plan: Plan, predictor: LagrangePredictor, *, macro_step: float,
-                 startup_iterations: bool, no_prior: bool, stages: list | None = None):
+                 startup_iterations: bool, no_prior: bool, stages: list | None = None,
+                 threads=None):
         self.plan = plan
         self.units = plan.units
         self.history = plan.history
@@ -54,8 +55,11 @@ class MacroStep:
         self.macro_step = macro_step
         self.startup_iterations = startup_iterations
         self.no_prior = no_prior
-        # (stage, members, members to step concurrently or None); default: one unit per stage
-        self.stages = stages if stages is not None else [(None, [u], None) for u in self.units]
+        # (stage, members, members to step concurrently or None, step the members in threads);
+        # default: one unit per stage
+        self.stages = stages if stages is not None else [(None, [u], None, False) for u in self.units]
+        # orchestrator.coupling.threads.StageThreads for the stages stepped in threads, or None
+        self.threads = threads
 
     # ------------------------------------------------------------ checkpoints
     def save(self) -> Checkpoint:
@@ -160,7 +164,10 @@ class MacroStep:
         hist.times[0] = t_next
         predictor = self.predictor
         discrete = self.discrete
-        for st, members, together in self.stages:
+        for st, members, together, threaded in self.stages:
+            if threaded and self.threads is not None and st.concurrent(startup=startup_q is not None):
+                self.advance_threaded(members, t, h, t_next, startup_q)
+                continue
             if together is not None and st.concurrent(startup=startup_q is not None):
                 for u in together:           # every member's inputs and doSteps sent: workers compute now
                     w = predictor.step_weights(hist, t, h, u.substeps, q=startup_q)
@@ -183,6 +190,28 @@ class MacroStep:
             hist.commit()
             if discrete.active:
                 discrete.commit()
+
+    def advance_threaded(self, members: list, t: float, h: float, t_next: float,
+                         startup_q: int | None) -> None:
+        """The members of one stage over [t, t + h] at the same time, on the master's threads
+        (``coupling.parallel: threads``, :mod:`.threads`). The weights and non-Real inputs are
+        set here first; the threads only deliver the inputs, doStep and read the outputs of
+        their own unit; the outputs are then propagated in stepping order, and the first
+        failure in stepping order is raised once every member has finished."""
+        predictor, discrete = self.predictor, self.discrete
+        jobs = []
+        for u in members:
+            w = predictor.step_weights(self.history, t, h, u.substeps, q=startup_q)
+            if u.disc:
+                discrete.set_inputs(u.name)
+            jobs.append(_StepJob(u, w, t, h))
+        errors = self.threads.run(jobs)
+        for u, e in zip(members, errors, strict=True):
+            if e is not None:
+                raise e
+            self.propagate(u, t_next)
+            if u.disc:
+                discrete.read(u.name)
 
     def collect(self, members: list, t_next: float) -> None:
         """The outputs of a concurrently stepped stage, in order; every member's reply is read
@@ -265,3 +294,17 @@ class MacroStep:
             "the coupled system is probably unstable at this macro step or the FMU failed silently. "
             f"Try a smaller coupling.macro_step (now {self.macro_step:g}), a lower "
             "extrapolation_order, or the gauss-seidel scheme")
+
+
+class _StepJob:
+    """One member's part of a threaded stage: input delivery, doSteps, output read."""
+
+    __slots__ = ("u", "w", "t", "h")
+
+    def __init__(self, u, w, t: float, h: float):
+        self.u, self.w, self.t, self.h = u, w, t, h
+
+    def __call__(self) -> None:
+        u = self.u
+        u.delivery.advance(u, self.w, self.t, self.h)
+        u.sub.get_real(u.outb)

@@ -128,7 +128,8 @@ class CouplingSpec:
     substeps: int = 1                        # >= 1
     discard_retries: int = 0                 # 0..30: halvings of a macro step an FMU discards (0: stop)
     isolation: str = "none"                  # default of fmus.<name>.isolation: "process" | "none"
-    parallel: bool = True                    # step the FMUs of a stage concurrently (workers only)
+    parallel: bool | str = True              # step the FMUs of a stage concurrently: True (workers),
+    #                                          False, or "threads" (also in-process FMUs, each in a thread)
     call_timeout: float | None = None        # [s] longest wait for an isolated FMU's answer; None: no limit
     pin_workers: bool = False                # each worker process on a CPU of its own (round robin)
     options: Mapping[str, Any] = field(default_factory=dict)  # scheme-specific extras (e.g. monolithic rtol)

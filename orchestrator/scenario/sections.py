@@ -389,13 +389,17 @@ class SectionReader(NodeReader):
             v = self.isolation(section["isolation"][1], "coupling.isolation")
             ok &= v is not None
             c["isolation"] = v
-        for key, meaning in (("parallel", "true steps the isolated FMUs of a stage at the same time"),
+        for key, meaning in (("parallel", "true steps the isolated FMUs of a stage at the same time, 'threads' "
+                                          "also those in the master's process (each in a thread)"),
                              ("pin_workers", "true keeps each worker process on a CPU of its own")):
             if key in section:
                 node = section[key][1]
                 v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
-                if not isinstance(v, bool):
-                    self.err(node, f"'coupling.{key}' must be true or false (got {self.got(node)}); {meaning}")
+                if key == "parallel" and v == "threads":
+                    pass
+                elif not isinstance(v, bool):
+                    allowed = "true, false or threads" if key == "parallel" else "true or false"
+                    self.err(node, f"'coupling.{key}' must be {allowed} (got {self.got(node)}); {meaning}")
                     ok = False
                 c[key] = v
         if "call_timeout" in section:
