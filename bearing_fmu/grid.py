@@ -73,12 +73,21 @@ class Grid:
 
     def gap(self, x, y, vx, vy, c):
         """Return H at centres, H at east faces and dH/dt at centres."""
-        cs, sn = np.cos(self.phi), np.sin(self.phi)
+        cs, sn, cf, sf = self._trig()
         H = 1.0 - (x * cs + y * sn) / c
-        phi_f = self.phi_e if self.phi_f is None else self.phi_f
-        He = 1.0 - (x * np.cos(phi_f) + y * np.sin(phi_f)) / c
+        He = 1.0 - (x * cf + y * sf) / c
         Hdot = -(vx * cs + vy * sn) / c
         return H, He, Hdot
+
+    def _trig(self):
+        """cos, sin of the cell centres and of the east faces of the gap (phi_f, else phi_e),
+        computed once per grid (the grid is immutable; gap is called every film step)."""
+        t = self.__dict__.get("_trig_cache")
+        if t is None:
+            phi_f = self.phi_e if self.phi_f is None else self.phi_f
+            t = (np.cos(self.phi), np.sin(self.phi), np.cos(phi_f), np.sin(phi_f))
+            object.__setattr__(self, "_trig_cache", t)
+        return t
 
 
 def groove_columns(n_phi: int, width: float, angle: float) -> np.ndarray:

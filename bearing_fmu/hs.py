@@ -203,6 +203,34 @@ def _tangent_kernel(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat
                 x[1 + r, k, i] = y[i, 1 + r] - fact * zz[i]
 
 
+@nb.njit(cache=True, nogil=True)
+def _tangent_modes(H, He, Hdot, omega, dH, dHe, dHdot, dz, dphi, a_phi, coef, lam, ck, groove,
+                   feed_hat, x):
+    """The coefficients of :func:`_tangent_kernel` from the gap and its directions (east-face
+    conductances ``dz a_phi He^3 / dphi``, H^3, the Couette and squeeze right-hand side and
+    their directional derivatives), then the kernel, in one call without the GIL (the
+    interface coefficients are computed every macro step in a whirl; issue 16)."""
+    n = H.size
+    m = dH.shape[0]
+    ce = np.empty(n)
+    H3 = np.empty(n)
+    rhs = np.empty(n)
+    dce = np.empty((m, n))
+    dH3 = np.empty((m, n))
+    drhs = np.empty((m, n))
+    k = dz * a_phi / dphi
+    for i in range(n):
+        iw = i - 1 if i > 0 else n - 1
+        ce[i] = k * He[i] ** 3
+        H3[i] = H[i] ** 3
+        rhs[i] = -(dz * omega * (He[i] - He[iw]) + 2.0 * dphi * dz * Hdot[i])
+        for r in range(m):
+            dce[r, i] = k * 3.0 * He[i] ** 2 * dHe[r, i]
+            dH3[r, i] = 3.0 * H[i] ** 2 * dH[r, i]
+            drhs[r, i] = -(dz * omega * (dHe[r, i] - dHe[r, iw]) + 2.0 * dphi * dz * dHdot[r, i])
+    _tangent_kernel(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat, x)
+
+
 class HalfSommerfeld:
     """Quasi-static half-Sommerfeld solver bound to a grid and the constants."""
 
@@ -273,17 +301,9 @@ class HalfSommerfeld:
         per axial mode for all m + 1 right-hand sides, one batched inverse DST. Equal to the
         derivative of :meth:`solve` to round-off (tests/test_hs_batched.py)."""
         g = self.grid
-        dphi, dz = g.dphi, g.dz
         n_z, n_phi = g.n_z, g.n_phi
-        m = dH.shape[0]
-        ce = dz * self.a_phi * He ** 3 / dphi
-        dce = dz * self.a_phi * 3.0 * He ** 2 * dHe / dphi
-        Hw = np.roll(He, 1)
-        dHw = np.roll(dHe, 1, axis=1)
-        rhs = -(dz * omega * (He - Hw) + 2.0 * dphi * dz * Hdot)
-        drhs = -(dz * omega * (dHe - dHw) + 2.0 * dphi * dz * dHdot)
-        x = np.empty((m + 1, n_z, n_phi))
-        _tangent_kernel(ce, H ** 3, rhs, dce, 3.0 * H ** 2 * dH, drhs, self.lam, self.ck,
-                        dphi * self.a_z / dz, self.gr, self.feed_hat, x)
+        x = np.empty((dH.shape[0] + 1, n_z, n_phi))
+        _tangent_modes(H, He, Hdot, float(omega), dH, dHe, dHdot, g.dz, g.dphi, self.a_phi,
+                       g.dphi * self.a_z / g.dz, self.lam, self.ck, self.gr, self.feed_hat, x)
         P = sfft.idst(x, type=2, norm="ortho", axis=1)
         return P[0], P[1:]

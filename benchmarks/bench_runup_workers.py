@@ -1,7 +1,7 @@
 """The shipped mass-conserving Jeffcott run-up with the bearings in worker processes vs in process.
 
     .venv/bin/python benchmarks/bench_runup_workers.py [--scenario oil_bath] [--stop 0.40]
-        [--repeat 3] [--out /tmp/bench_runup_workers] [--variants all|main|inproc,par,pinned,one,seq]
+        [--repeat 3] [--out /tmp/bench_runup_workers] [--variants all|main|inproc,par,pinned,one,seq,threads]
     .venv/bin/python benchmarks/bench_runup_workers.py --split [--stop 0.27]   # CPU per FMU and step
 
 Variants of scenarios/jeffcott_runup_<scenario>.yaml (Gauss-Seidel [rotor, bearing1,
@@ -18,6 +18,8 @@ run``, with single-threaded BLAS), interleaved, ``--repeat`` times:
 * ``one worker, parallel, pinned``: only bearing2 in a worker (pinned); bearing1 steps in the
   master while the worker steps bearing2 (one process fewer, one round trip per step);
 * ``workers, sequential``: both in workers, ``parallel: false`` (what the channel costs alone);
+* ``in-process, threads``: every FMU in the master, ``coupling.parallel: threads`` (bearing1 in
+  the master's thread, bearing2 in a thread of the master at the same time; one process);
 * ``machine control``: no FMU at all: the same pattern of work with CPU-time busy loops
   (the master ``R`` ms, then two child processes ``F`` ms each at once, over a
   multiprocessing pipe; R, F from ``--split``), against the same work in one process. It
@@ -61,9 +63,10 @@ VARIANTS = {
     "one worker, parallel, pinned": ["fmus.bearing2.isolation=process", "coupling.parallel=true",
                                      "coupling.pin_workers=true"],
     "workers, sequential": [*BOTH, "coupling.parallel=false"],
+    "in-process, threads": ["coupling.parallel=threads"],
 }
-KEYS = dict(zip(("inproc", "par", "pinned", "one", "seq"), VARIANTS))     # --variants inproc,one ...
-MAIN = ("inproc", "pinned", "one")
+KEYS = dict(zip(("inproc", "par", "pinned", "one", "seq", "threads"), VARIANTS))  # --variants inproc,one ...
+MAIN = ("inproc", "pinned", "one", "threads")
 SINGLE = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 CONTROL_STEPS = 300
 
