@@ -128,16 +128,20 @@ def test_a_crashing_isolated_fmu_stops_the_run_cleanly(fmu_dir, tmp_path, tmp_ro
 
 @pytest.mark.parametrize("fault", ["nan", "error"])
 def test_nan_and_fmi2error_of_an_isolated_fmu_fail_as_in_process(fmu_dir, tmp_path, tmp_root, fault):
+    """... and as in a threaded stage (parallel: threads, both FMUs in the master)."""
     from orchestrator import load_scenario, run
 
     results = {}
-    for isolation in ("none", "process"):
-        out = tmp_path / isolation
-        res = run(load_scenario(_scenario(fmu_dir, fault=fault, isolation=isolation)), out_dir=out, progress=False)
+    for isolation, parallel in (("none", True), ("process", True), ("none", "threads")):
+        key = isolation if parallel is True else "threads"
+        out = tmp_path / key
+        res = run(load_scenario(_scenario(fmu_dir, fault=fault, isolation=isolation, parallel=parallel,
+                                          name=f"misbehaving_{key}")), out_dir=out, progress=False)
         assert not res.success
-        results[isolation] = (res.message, (out / "results.csv").read_bytes(), _summary(out))
-    assert results["none"][0] == results["process"][0]
-    assert results["none"][1] == results["process"][1]
+        results[key] = (res.message, (out / "results.csv").read_bytes(), _summary(out))
+    assert results["none"][0] == results["process"][0] == results["threads"][0]
+    assert results["none"][1] == results["process"][1] == results["threads"][1]
+    assert results["threads"][2]["threaded_stage_steps"] == 5     # the 5th failed, rows 0..4 ms kept
     assert results["process"][2]["status"] == "failed"
     assert "fmi2Error" in results["process"][0] if fault == "error" else "nan" in results["process"][0]
     assert len(_rows(tmp_path / "process")) == 5

@@ -43,13 +43,13 @@ def test_jobs_run_at_the_same_time_and_failures_come_back_in_order():
     pool.close()
 
 
-def _scenario(tmp_path, parallel):
+def _scenario(tmp_path, parallel, name="jeffcott_runup_free_to_air", stop=0.2504):
     from orchestrator import load_scenario
 
-    sets = ["stop_time=0.2504", f"coupling.parallel={parallel}"]
+    sets = [f"stop_time={stop}", f"coupling.parallel={parallel}"]
     for b in ("bearing1", "bearing2"):
         sets += [f"fmus.{b}.parameters.n_phi=16", f"fmus.{b}.parameters.n_z=8"]
-    return load_scenario(ROOT / "scenarios" / "jeffcott_runup_free_to_air.yaml", sets)
+    return load_scenario(ROOT / "scenarios" / f"{name}.yaml", sets)
 
 
 @pytest.mark.integration
@@ -67,6 +67,9 @@ def test_two_film_bearings_step_in_threads_with_the_same_results(tmp_path):
     assert "threaded_stage_steps" not in out["true"][1]
     # 4 macro steps, each with the stage [bearing1, bearing2] stepped in threads
     assert out["threads"][1]["threaded_stage_steps"] == out["threads"][1]["macro_steps"] == 4
+    import json
+    summary = json.loads((tmp_path / "threads" / "summary.json").read_text())
+    assert summary["threaded_stage_steps"] == 4
     m = MasterAlgorithm(_scenario(tmp_path, "threads"), out_dir=tmp_path / "plan")
     m.setup()
     try:
@@ -74,3 +77,21 @@ def test_two_film_bearings_step_in_threads_with_the_same_results(tmp_path):
         assert flags == {("rotor",): False, ("bearing1", "bearing2"): True}
     finally:
         m.terminate()
+
+
+@pytest.mark.integration
+def test_the_run_from_rest_with_contact_and_retries_is_the_same_in_threads(tmp_path):
+    """From rest on the shell (asperity contact on, coupling.discard_retries: 4, so the
+    master saves the FMU states every macro step): the shipped configuration, 30 steps."""
+    from orchestrator import run
+
+    got = {}
+    for parallel in ("false", "threads"):
+        d = tmp_path / parallel
+        res = run(_scenario(tmp_path, parallel, "jeffcott_runup_free_to_air_from_rest", 0.003),
+                  out_dir=d, progress=False)
+        assert res.success, res.message
+        got[parallel] = ((d / "results.csv").read_bytes(), res.stats["retried_steps"],
+                         res.stats["rejected_steps"])
+    assert got["threads"] == got["false"]
+    assert len(got["false"][0]) > 3000

@@ -29,6 +29,8 @@ def test_a_bad_value_is_refused_naming_the_key_and_the_choices(key, allowed, val
 
 
 def test_parallel_reads_true_false_and_threads():
-    assert load_scenario(SCENARIO).coupling.parallel is True
+    hs = SCENARIO.with_name("jeffcott_runup_half_sommerfeld.yaml")     # no parallel key
+    assert load_scenario(hs).coupling.parallel is True
+    assert load_scenario(SCENARIO).coupling.parallel == "threads"      # shipped so (session 12)
     assert load_scenario(SCENARIO, ["coupling.parallel=false"]).coupling.parallel is False
     assert load_scenario(SCENARIO, ["coupling.parallel=threads"]).coupling.parallel == "threads"
