@@ -249,6 +249,16 @@ class HalfSommerfeld:
         self._d = np.empty((n_z, n_phi))
         self._x = np.empty((n_z, n_phi))
 
+    def idst_matrix(self):
+        """(n_z, n_z) matrix of the inverse orthonormal DST-II along z (``M @ X`` equals
+        ``scipy.fft.idst(X, type=2, norm="ortho", axis=0)`` to round-off), built once: the
+        interface coefficients transform their 5 fields inside one numba call with it."""
+        M = getattr(self, "_idst_M", None)
+        if M is None:
+            M = np.ascontiguousarray(sfft.idst(np.eye(self.grid.n_z), type=2, norm="ortho", axis=0))
+            self._idst_M = M
+        return M
+
     def solve(self, H, He, Hdot, omega):
         """Return the unclipped gauge pressure P = p - p0, shape (n_z, n_phi)."""
         g = self.grid

@@ -51,6 +51,7 @@ from scipy.linalg import lapack
 
 from .contact import average_gap, contact_coefficients
 from .film import assemble, assemble_muscl, hs_force_pressure, integrals, stencil_to_band
+from .hs import _tangent_modes
 
 __all__ = ["linearization", "hs_force", "film_force_at"]
 
@@ -174,15 +175,42 @@ def hs_linearization(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3):
     z0 = np.array([x, y, vx, vy], dtype=float)
     steps = _steps(b, z0, omega, rel_step, t_ref)
     g = b.grid_full
-    c = b.c
+    hs = b.hs
     cs, sn, ce, se, dH, dHe, dHdot = _tangent_directions(b)
-    H = 1.0 - (x * cs + y * sn) / c                 # the operations of Grid.gap
-    He = 1.0 - (x * ce + y * se) / c
-    Hdot = -(vx * cs + vy * sn) / c
-    P0, dP = b.hs.solve_tangent(H, He, Hdot, float(omega), dH, dHe, dHdot)
     D = np.empty((2, 4))
-    _hs_central_tangent(P0, dP, steps, g.phi, b.params.R * g.dphi * b.params.B * g.dz, D)
+    _hs_coefficients(float(x), float(y), float(vx), float(vy), float(omega), b.c, cs, sn, ce, se,
+                     dH, dHe, dHdot, g.dz, g.dphi, hs.a_phi, g.dphi * hs.a_z / g.dz, hs.lam, hs.ck,
+                     hs.gr, hs.feed_hat, hs.idst_matrix(), steps, g.phi,
+                     b.params.R * g.dphi * b.params.B * g.dz, D)
     return D[:, :2].copy(), D[:, 2:].copy()
+
+
+@nb.njit(cache=True, nogil=True)
+def _hs_coefficients(x, y, vx, vy, omega, c, cs, sn, ce, se, dH, dHe, dHdot, dz, dphi, a_phi,
+                     coef, lam, ck, groove, feed_hat, M, steps, phi, area, D):
+    """:func:`hs_linearization` after its steps, in one call without the GIL: the gap (the
+    operations of ``Grid.gap``), the tangent solve (:func:`.hs._tangent_modes`), the inverse
+    DST-II of every field as a product with ``M`` (:meth:`.hs.HalfSommerfeld.idst_matrix`;
+    equal to scipy's transform to round-off) and the central differences
+    (:func:`_hs_central_tangent`), into ``D`` (2, 4)."""
+    n = cs.size
+    m = dH.shape[0]
+    n_z = lam.size
+    H = np.empty(n)
+    He = np.empty(n)
+    Hdot = np.empty(n)
+    for i in range(n):
+        H[i] = 1.0 - (x * cs[i] + y * sn[i]) / c
+        He[i] = 1.0 - (x * ce[i] + y * se[i]) / c
+        Hdot[i] = -(vx * cs[i] + vy * sn[i]) / c
+    X = np.empty((m + 1, n_z, n))
+    _tangent_modes(H, He, Hdot, omega, dH, dHe, dHdot, dz, dphi, a_phi, coef, lam, ck, groove,
+                   feed_hat, X)
+    P0 = np.dot(M, X[0])
+    dP = np.empty((m, n_z, n))
+    for r in range(m):
+        dP[r] = np.dot(M, X[r + 1])
+    _hs_central_tangent(P0, dP, steps, phi, area, D)
 
 
 def _tangent_directions(b):

@@ -107,3 +107,15 @@ def test_coefficients_of_the_tangent_solve_equal_the_finite_differences():
             (K, Cm), (Kf, Cf) = hs_linearization(b, *k), hs_linearization_fd(b, *k)
             np.testing.assert_allclose(K, Kf, rtol=0, atol=1e-8 * np.abs(Kf).max())
             np.testing.assert_allclose(Cm, Cf, rtol=0, atol=1e-8 * np.abs(Cf).max())
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_the_dst_matrix_of_the_coefficient_kernel_is_scipys_inverse_dst(case):
+    """hs_linearization transforms its fields with HalfSommerfeld.idst_matrix inside numba:
+    the product must be scipy's inverse DST-II (ortho) to round-off, on odd and even n_z."""
+    import scipy.fft as sfft
+    b = bearing(**CASES[case])
+    n_z, n_phi = b.hs.grid.n_z, b.hs.grid.n_phi
+    X = np.random.default_rng(1).standard_normal((n_z, n_phi))
+    ref = sfft.idst(X, type=2, norm="ortho", axis=0)
+    np.testing.assert_allclose(b.hs.idst_matrix() @ X, ref, rtol=0, atol=1e-13 * np.abs(ref).max())
