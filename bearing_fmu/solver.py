@@ -917,4 +917,3 @@ class TransientFilm:
                    float(s["jac_omega"]))
             self._factor(np.array(s["jac_u"]), float(s["jac_th_dot0"]), kin)
             self.stats["factor"] -= 1      # a restore is not a solver factorisation
-
