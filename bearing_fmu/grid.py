@@ -42,6 +42,7 @@ LU (``dgbtrf``) factors it in O(N bw^2).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -73,21 +74,18 @@ class Grid:
 
     def gap(self, x, y, vx, vy, c):
         """Return H at centres, H at east faces and dH/dt at centres."""
-        cs, sn, cf, sf = self._trig()
+        cs, sn, cf, sf = self._trig
         H = 1.0 - (x * cs + y * sn) / c
         He = 1.0 - (x * cf + y * sf) / c
         Hdot = -(vx * cs + vy * sn) / c
         return H, He, Hdot
 
+    @cached_property
     def _trig(self):
         """cos, sin of the cell centres and of the east faces of the gap (phi_f, else phi_e),
         computed once per grid (the grid is immutable; gap is called every film step)."""
-        t = self.__dict__.get("_trig_cache")
-        if t is None:
-            phi_f = self.phi_e if self.phi_f is None else self.phi_f
-            t = (np.cos(self.phi), np.sin(self.phi), np.cos(phi_f), np.sin(phi_f))
-            object.__setattr__(self, "_trig_cache", t)
-        return t
+        phi_f = self.phi_e if self.phi_f is None else self.phi_f
+        return np.cos(self.phi), np.sin(self.phi), np.cos(phi_f), np.sin(phi_f)
 
 
 def groove_columns(n_phi: int, width: float, angle: float) -> np.ndarray:

@@ -20,6 +20,8 @@ which the half-Sommerfeld condition removes anyway (b -> infinity limit).
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numba as nb
 import numpy as np
 import scipy.fft as sfft
@@ -249,15 +251,12 @@ class HalfSommerfeld:
         self._d = np.empty((n_z, n_phi))
         self._x = np.empty((n_z, n_phi))
 
+    @cached_property
     def idst_matrix(self):
         """(n_z, n_z) matrix of the inverse orthonormal DST-II along z (``M @ X`` equals
         ``scipy.fft.idst(X, type=2, norm="ortho", axis=0)`` to round-off), built once: the
         interface coefficients transform their 5 fields inside one numba call with it."""
-        M = getattr(self, "_idst_M", None)
-        if M is None:
-            M = np.ascontiguousarray(sfft.idst(np.eye(self.grid.n_z), type=2, norm="ortho", axis=0))
-            self._idst_M = M
-        return M
+        return np.ascontiguousarray(sfft.idst(np.eye(self.grid.n_z), type=2, norm="ortho", axis=0))
 
     def solve(self, H, He, Hdot, omega):
         """Return the unclipped gauge pressure P = p - p0, shape (n_z, n_phi)."""

@@ -180,7 +180,7 @@ def hs_linearization(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3):
     D = np.empty((2, 4))
     _hs_coefficients(float(x), float(y), float(vx), float(vy), float(omega), b.c, cs, sn, ce, se,
                      dH, dHe, dHdot, g.dz, g.dphi, hs.a_phi, g.dphi * hs.a_z / g.dz, hs.lam, hs.ck,
-                     hs.gr, hs.feed_hat, hs.idst_matrix(), steps, g.phi,
+                     hs.gr, hs.feed_hat, hs.idst_matrix, steps, g.phi,
                      b.params.R * g.dphi * b.params.B * g.dz, D)
     return D[:, :2].copy(), D[:, 2:].copy()
 

@@ -10,26 +10,15 @@ step size below h_min must fail as the Python loop fails, with the state kept.
 """
 
 import dataclasses
-import math
 
 import numpy as np
 import pytest
 
-from bearing_fmu import fused
 from bearing_fmu.model import BearingModel, BearingParams
 from bearing_fmu.solver import StepFailed
+from tests.test_simplified_newton import KW, orbit     # the same bearing and whirl orbit
 
-C = 4.9e-3 * 2.8e-3
-KW = dict(R=4.9e-3, B=7.84e-3, psi=2.8e-3, eta0=0.012, p0=1e5, p_feed=1e5, n_phi=24, n_z=12,
-          cavitation=1, axial_bc=1, groove_width=math.radians(15), groove_angle=math.pi / 2)
 COUNTERS = ("steps", "rejected", "newton", "factor", "failed_newton", "reused")
-
-
-def orbit(k, eps=0.55, spin=500.0, ratio=0.45):
-    w = 2 * math.pi * spin
-    nu, r, t = ratio * w, eps * C, k * 1e-4
-    return (r * math.cos(nu * t), r * math.sin(nu * t), -r * nu * math.sin(nu * t),
-            r * nu * math.cos(nu * t), w)
 
 
 def run(use_fused, steps=30, pivot_threshold=None, **extra):
@@ -88,7 +77,3 @@ def test_a_step_below_h_min_fails_as_the_loop_does_and_keeps_the_state():
             assert np.array_equal(np.asarray(after[key]), np.asarray(v)), key
     assert "fell below h_min = 1 s" in msgs[True]
     assert msgs[True] == msgs[False]
-
-
-def test_return_codes_are_distinct():
-    assert len({fused.DONE, fused.H_MIN, fused.PIVOT}) == 3

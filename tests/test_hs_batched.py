@@ -118,4 +118,4 @@ def test_the_dst_matrix_of_the_coefficient_kernel_is_scipys_inverse_dst(case):
     n_z, n_phi = b.hs.grid.n_z, b.hs.grid.n_phi
     X = np.random.default_rng(1).standard_normal((n_z, n_phi))
     ref = sfft.idst(X, type=2, norm="ortho", axis=0)
-    np.testing.assert_allclose(b.hs.idst_matrix() @ X, ref, rtol=0, atol=1e-13 * np.abs(ref).max())
+    np.testing.assert_allclose(b.hs.idst_matrix @ X, ref, rtol=0, atol=1e-13 * np.abs(ref).max())

@@ -128,8 +128,7 @@ class MasterAlgorithm:
         self.end_time = float(scenario.start_time)
         self.wall_time = 0.0
         self._work_dir: ExtractionPool | None = None
-        self._pool: StageThreads | None = None   # coupling.parallel: threads
-        self._threaded_steps = 0
+        self._pool: StageThreads | None = None   # coupling.parallel: threads (kept after close: its count)
         self.isolation: dict[str, str] = {}      # instance -> "process" | "none" (FMUs the master loaded)
         self.failure: dict | None = None         # what failed (summary.json "failure"), see _fail_fmu
         self._phase = "new"
@@ -573,9 +572,7 @@ class MasterAlgorithm:
 
     def _release(self) -> None:
         if self._pool is not None:          # no FMU steps in a thread once it is closed
-            self._threaded_steps += self._pool.runs
             self._pool.close()
-            self._pool = None
         for sub in self.subsystems.values():
             try:
                 sub.free()
@@ -595,7 +592,7 @@ class MasterAlgorithm:
               "isolation": dict(self.isolation), "failure": self.failure}
         if self._threads():
             # stage steps whose members stepped at the same time in threads (parallel: threads)
-            st["threaded_stage_steps"] = self._threaded_steps + (self._pool.runs if self._pool else 0)
+            st["threaded_stage_steps"] = self._pool.runs if self._pool else 0
         stats = getattr(getattr(self, "stepper", None), "stats", None)
         if stats is not None:
             st["iterations"] = stats.as_dict()
