@@ -275,9 +275,9 @@ def _axpy(a, start, x, m, alpha):
 def band_solve_nopivot(ab, bw, b, x):
     """Solve ``A x = b`` with the factors of :func:`band_lu_nopivot` (``b`` may be ``x``).
 
-    Each elimination is an axpy on a slice of the band column and one of x: with the two
-    slices as separate arrays numba vectorises the loop (2.4x faster alone than indexing
-    one flat view of ``ab`` at the film's bandwidth; 0.977x the time per macro step of the
+    Each elimination is an :func:`_axpy` of a slice of the band column into a slice of x:
+    with the two as separate arrays numba vectorises the loop (2.4x faster alone than indexing
+    one flat view of ``ab`` at the film's bandwidth; 0.977-0.988x the time per macro step of the
     whirl benchmark as a whole). Each entry of x sees the same operations in the same
     order, so the values are the same bit for bit (BENCHMARKS.md, issue 16)."""
     n = ab.shape[1]
@@ -287,18 +287,12 @@ def band_solve_nopivot(ab, bw, b, x):
     for k in range(n):
         xk = x[k]
         m = min(bw, n - 1 - k)
-        col = ab[d + 1:d + 1 + m, k]          # L[k + 1 .. k + m, k]
-        xs = x[k + 1:k + 1 + m]
-        for i in range(m):
-            xs[i] -= col[i] * xk
+        _axpy(x, k + 1, ab[d + 1:d + 1 + m, k], m, -xk)     # L[k + 1 .. k + m, k]
     for k in range(n - 1, -1, -1):
         x[k] /= ab[d, k]
         xk = x[k]
         m = min(bw, k)
-        col = ab[d - m:d, k]                  # U[k - m .. k - 1, k]
-        xs = x[k - m:k]
-        for i in range(m):
-            xs[i] -= col[i] * xk
+        _axpy(x, k - m, ab[d - m:d, k], m, -xk)              # U[k - m .. k - 1, k]
 
 
 @nb.njit(cache=True, nogil=True)
