@@ -75,10 +75,12 @@ def advance_fused(dt, H, He, Hdot, omega,
                   pa, pb, s_pen, sym, wrel, frel,
                   n_phi, order, pos, bw, ab, jst, r, p, dp, th, dth,
                   h_min, h_max, theta_atol, atol, rtol, max_iter, lu_reuse_below,
-                  pivot_threshold=PIVOT_THRESHOLD):
+                  p_u, pivot_threshold=PIVOT_THRESHOLD):
     """Advance the film state from ``sc[T]`` to ``sc[T] + dt`` (module doc). Arrays ``u,
     u_prev, th_nm1, th_nm2, th_u`` (n,) and ``sc`` (7,), ``st`` (6,) are the state and
     counters, changed in place; ``ab, jst, r, p, dp, th, dth`` the integrator's buffers;
+    ``p_u`` (n,) receives p(u) of each accepted state (with ``th_u`` = theta(u): the same
+    :func:`.cavitation.law_eval` values, so the caller's outputs need not evaluate the law);
     ``pivot_threshold`` that of :func:`.solver.band_lu_nopivot` (a test forces the
     :data:`PIVOT` return with a threshold no pivot meets).
     Returns (code, Newton iterations of the last solve)."""
@@ -235,6 +237,7 @@ def advance_fused(dt, H, He, Hdot, omega,
         u_prev[:] = u
         u[:] = u_new
         th_u[:] = th_new
+        p_u[:] = s1                 # p(u_new) of the law_eval above
         sc[H_PREV2] = sc[H_PREV]
         sc[H_PREV] = h
         sc[N_HIST] += 1.0

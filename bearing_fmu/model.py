@@ -36,6 +36,7 @@ import math
 import warnings
 from dataclasses import dataclass, fields as dc_fields
 
+import numba as nb
 import numpy as np
 
 from .cavitation import CavitationLaw
@@ -358,17 +359,17 @@ class BearingModel:
         e_ang = math.atan2(y, x)
         l_ang = math.atan2(-Fy, -Fx)
         att = (e_ang - l_ang + math.pi) % (2 * math.pi) - math.pi
+        p_max, p_min, H_min = _extrema(p, H)
         self.outputs = dict(Fx=Fx, Fy=Fy, eps=math.hypot(x, y) / self.c, attitude=att,
-                            p_max=float(p.max()), p_min=float(p.min()),
-                            h_min=float(H.min() * self.c), torque=T, q_feed=qf, q_side=qs,
-                            F_contact=Fc)
+                            p_max=p_max, p_min=p_min, h_min=H_min * self.c, torque=T,
+                            q_feed=qf, q_side=qs, F_contact=Fc)
 
     def _pth(self, full=True):
         """(p, theta); full width, or the solver grid's rows (full=False)."""
         if self.film is None:
             return self._p_hs, np.ones_like(self._p_hs)
         shape = (self.grid.n_z, self.grid.n_phi)
-        p, th = self.law.p_theta(self.film.u)
+        p, th = self.film.p_theta()
         p, th = p.reshape(shape), th.reshape(shape)
         if full:
             return self._mirror(p), self._mirror(th)
@@ -533,6 +534,28 @@ class BearingModel:
                 return u, it + 1
         f._factored = False
         return None, max_iter
+
+
+@nb.njit(cache=True, nogil=True)
+def _extrema(p, H):
+    """(max p, min p, min H) in one call, as ``p.max(), p.min(), H.min()`` return them (nan
+    when the array holds one)."""
+    pmax, pmin, hmin = -np.inf, np.inf, np.inf
+    for v in p.flat:
+        if v != v:
+            pmax = pmin = np.nan
+            break
+        if v > pmax:
+            pmax = v
+        if v < pmin:
+            pmin = v
+    for v in H.flat:
+        if v != v:
+            hmin = np.nan
+            break
+        if v < hmin:
+            hmin = v
+    return pmax, pmin, hmin
 
 
 def solve_stationary(params: BearingParams, x, y, omega, vx=0.0, vy=0.0) -> BearingModel:

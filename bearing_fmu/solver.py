@@ -315,6 +315,11 @@ def band_newton_step_nopivot(ab, bw, r, order, pos, work, dx):
     return ok
 
 
+#: ``TransientFilm.stats`` keys of the fused call's counters, in the order of
+#: ``fused.S_STEPS .. S_REUSED``
+_FUSED_STATS = ("steps", "rejected", "newton", "factor", "failed_newton", "reused")
+
+
 class BandLU:
     """Band LU of a matrix in LAPACK band storage: elimination without interchanges
     (numba, :func:`band_lu_nopivot`, threshold ``PIVOT_THRESHOLD``), the film's usual case;
@@ -678,6 +683,19 @@ class TransientFilm:
         self._zero = np.zeros(n)
         self._factored = False
         self._theta_u = None
+        self._p_u = np.empty(n)     # p(u) of the state the fused call accepted last
+        self._pth_of = None         # ... and that state's u (the array object): see p_theta
+
+    def p_theta(self):
+        """(p, theta) of the current state, new arrays: kept from the fused call that
+        accepted it (the same :func:`.cavitation.law_eval` of the same u, so bit for bit
+        what ``law.p_theta(u)`` returns), else evaluated. The film's u is rebound by every
+        other path that changes it (``init_state``, ``set_state``, the Python loop), and
+        only the fused call writes it in place, so the object identity tells whether the
+        kept values belong to it."""
+        if self._pth_of is not None and self._pth_of is self.u:
+            return self._p_u.copy(), self._theta_u.copy()
+        return self.ctx.law.p_theta(self.u)
 
     def restart_history(self):
         """Forget the BDF history: the next internal step is a BDF1 (backward Euler) step
@@ -753,14 +771,19 @@ class TransientFilm:
             th_u, valid = np.empty(self.n), 0.0
         else:
             th_u, valid = self._theta_u, 1.0
-        arrays = [self.u, self.u_prev, self.th_nm1, self.th_nm2, th_u]
-        for k in range(1, 5):           # the kernel writes each in place: no aliases
-            if any(arrays[k] is a for a in arrays[:k]):
-                arrays[k] = arrays[k].copy()
-        u, u_prev, th_nm1, th_nm2, th_u = arrays
+        u, u_prev, th_nm1, th_nm2 = self.u, self.u_prev, self.th_nm1, self.th_nm2
+        if (u_prev is u or th_nm1 is th_nm2 or th_u is th_nm1 or th_u is th_nm2
+                or th_u is u or th_u is u_prev or th_nm1 is u or th_nm1 is u_prev
+                or th_nm2 is u or th_nm2 is u_prev):
+            arrays = [u, u_prev, th_nm1, th_nm2, th_u]
+            for k in range(1, 5):       # the kernel writes each in place: no aliases
+                if any(arrays[k] is a for a in arrays[:k]):
+                    arrays[k] = arrays[k].copy()
+            u, u_prev, th_nm1, th_nm2, th_u = arrays
         sc = np.array([self.t, self.h_prev, self.h_prev2, self.h_next, float(self.n_hist),
                        valid, 0.0])
         st = np.zeros(6, dtype=np.int64)
+        p_u = self._p_u
         code, its = _fused.advance_fused(
             float(dt), H, He, Hdot, float(omega), u, u_prev, th_nm1, th_nm2, th_u, sc, st,
             self.muscl, g.groove, self.film, c.u_feed, c.a_phi, c.a_z, g.dphi, g.dz, c.bath,
@@ -768,15 +791,18 @@ class TransientFilm:
             c.params.penalty_smoothing, c.sym, g.wrel, g.frel, g.n_phi, g.order, g.pos, g.bw,
             self.ab, self.jst, self.r, self.wp, self.wdp, self.wth, self.wdth,
             prm.h_min, prm.h_max, prm.theta_atol, prm.newton_atol, prm.newton_rtol,
-            prm.newton_max_iter, float(self.lu_reuse_below), self.pivot_threshold)
+            prm.newton_max_iter, float(self.lu_reuse_below), p_u, self.pivot_threshold)
+        if st[_fused.S_STEPS] > 0:
+            self._pth_of = u            # p_u, th_u are p(u), theta(u) of this state
         self.u, self.u_prev, self.th_nm1, self.th_nm2 = u, u_prev, th_nm1, th_nm2
         self._theta_u = th_u if sc[_fused.TH_U_VALID] else None
-        self.t, self.h_prev, self.h_prev2, self.h_next = (float(v) for v in sc[:4])
+        if self._theta_u is None:
+            self._pth_of = None
+        self.t, self.h_prev, self.h_prev2, self.h_next = sc[:4].tolist()
         self.n_hist = int(sc[_fused.N_HIST])
-        for key, k in (("steps", _fused.S_STEPS), ("rejected", _fused.S_REJECTED),
-                       ("newton", _fused.S_NEWTON), ("factor", _fused.S_FACTOR),
-                       ("failed_newton", _fused.S_FAILED_NEWTON), ("reused", _fused.S_REUSED)):
-            self.stats[key] += int(st[k])
+        stats = self.stats
+        for key, v in zip(_FUSED_STATS, st.tolist()):
+            stats[key] += v
         self._factored = False
         if code == _fused.H_MIN:
             raise self._h_min_failure(t_end - self.t)

@@ -77,3 +77,34 @@ def test_a_step_below_h_min_fails_as_the_loop_does_and_keeps_the_state():
             assert np.array_equal(np.asarray(after[key]), np.asarray(v)), key
     assert "fell below h_min = 1 s" in msgs[True]
     assert msgs[True] == msgs[False]
+
+
+@pytest.mark.parametrize("case", [{}, {"theta_transport": 1}])
+def test_kept_p_theta_is_the_law_of_the_current_state(case):
+    """The fused call keeps p(u), theta(u) of the state it accepted (the outputs use them
+    instead of evaluating the law again): bit for bit the law's values, after a fused step,
+    after a restore (set_state), after a PIVOT hand-over to the Python loop and after
+    init_state; and what p_theta hands out is a copy (changing it changes no state)."""
+    def same_as_law(b):
+        p, th = b.film.p_theta()
+        p_law, th_law = b.law.p_theta(b.film.u)
+        assert np.array_equal(p, p_law) and np.array_equal(th, th_law)
+        return p, th
+
+    b, _ = run(True, steps=5, **case)
+    assert b.film._pth_of is b.film.u               # kept from the fused call
+    p, th = same_as_law(b)
+    p[:] = -1.0
+    th[:] = -1.0
+    same_as_law(b)
+    s = b.get_state()
+    b.step(1e-4, *orbit(6))
+    same_as_law(b)
+    b.set_state(s)                                  # u rebound: evaluated, not kept
+    assert b.film._pth_of is not b.film.u
+    same_as_law(b)
+    b.film.pivot_threshold = 1e300                  # the loop finishes the macro step
+    b.step(1e-4, *orbit(6))
+    same_as_law(b)
+    b.film.init_state(b.film.u * 0.5)
+    same_as_law(b)
