@@ -437,13 +437,12 @@ class JournalBearing(Fmi2Slave):
         check_step_start(self, current_time, step_size)
         if step_size <= 0.0:
             raise ValueError(f"step_size must be > 0 (got {step_size!r})")
-        saved = self._model.get_state()     # fresh copies of every array (no deepcopy needed)
         try:
+            # a step that raises leaves the model as it was (BearingModel.step)
             self._model.step(step_size, *self._inputs())
         except Exception as exc:  # the film could not be advanced: Discard, keep the state at t
             if not _is_numerical_failure(exc):
                 raise
-            self._model.set_state(saved)
             self.log(f"bearing step t={current_time:.9g} dt={step_size:.3g} failed: {exc}",
                      Fmi2Status.discard)
             return False

@@ -407,25 +407,40 @@ class BearingModel:
         self._update_outputs()
 
     def step(self, dt, x, y, vx, vy, omega):
-        """Advance the film by dt [s] with the kinematics held constant."""
+        """Advance the film by dt [s] with the kinematics held constant.
+
+        A step that raises (StepFailed, a floating-point error, anything) leaves the model
+        as it was before the call: state, inputs, time and outputs (the FMU's fmi2Discard
+        relies on it, ``JournalBearing.do_step``)."""
         self._check_init("step")
         if not (dt > 0 and math.isfinite(dt)):
             raise ValueError(f"BearingModel.step: dt must be a positive finite time [s] (got {dt!r})")
         kin = self._kinematics(x, y, vx, vy, omega)
+        before = (self._kin, self._inputs, self._xy, self._t, self.outputs)
         if self.film is None:
-            self._p_hs, self._pf_hs = self._hs_fields(kin)
-            self._t += dt
-        else:
-            saved = self.film.get_state()
+            hs_before = (self._p_hs, self._pf_hs)
             try:
-                self.film.advance_restarting(dt, kin, saved)
-            except StepFailed:
-                self.film.set_state(saved)
+                self._p_hs, self._pf_hs = self._hs_fields(kin)
+                self._t += dt
+                self._kin = kin
+                self._set_inputs(x, y, vx, vy, omega)
+                self._update_outputs()
+            except BaseException:
+                self._p_hs, self._pf_hs = hs_before
+                self._kin, self._inputs, self._xy, self._t, self.outputs = before
                 raise
+            return
+        saved = self.film.get_state()
+        try:
+            self.film.advance_restarting(dt, kin, saved)
             self._t = self.film.t
-        self._kin = kin
-        self._set_inputs(x, y, vx, vy, omega)
-        self._update_outputs()
+            self._kin = kin
+            self._set_inputs(x, y, vx, vy, omega)
+            self._update_outputs()
+        except BaseException:
+            self.film.set_state(saved)
+            self._kin, self._inputs, self._xy, self._t, self.outputs = before
+            raise
 
     @property
     def t(self) -> float:

@@ -108,3 +108,45 @@ def test_kept_p_theta_is_the_law_of_the_current_state(case):
     same_as_law(b)
     b.film.init_state(b.film.u * 0.5)
     same_as_law(b)
+
+
+@pytest.mark.parametrize("where", ["advance", "outputs"])
+@pytest.mark.parametrize("cavitation", [1, 0])
+def test_a_step_that_raises_leaves_the_model_as_it_was(where, cavitation, monkeypatch):
+    """BearingModel.step is a transaction (the FMU's fmi2Discard keeps no copy of its own):
+    whatever raises, after the film advanced in place or while the outputs are formed, the
+    state, inputs, time and outputs are those before the call, and the next step gives what
+    it gives without the failed attempt."""
+    def fresh():
+        b = BearingModel(BearingParams(**dict(KW, cavitation=cavitation)))
+        b.initialize(*orbit(0), init="stationary")
+        for k in range(1, 4):
+            b.step(1e-4, *orbit(k))
+        return b
+
+    b = fresh()
+    s0, out0, t0, inp0 = b.get_state(), dict(b.outputs), b.t, b._inputs
+    cls = type(b)
+    if where == "advance" and cavitation:
+        real = type(b.film).advance_restarting
+
+        def half_then_fail(self, dt, kin, saved):
+            real(self, dt, kin, saved)              # the film has moved on in place ...
+            raise FloatingPointError("overflow in a kernel")   # ... and then the step fails
+        monkeypatch.setattr(type(b.film), "advance_restarting", half_then_fail)
+    else:
+        def fail(self):
+            raise FloatingPointError("invalid value in the outputs")
+        monkeypatch.setattr(cls, "_update_outputs", fail)
+    with pytest.raises(FloatingPointError):
+        b.step(1e-4, *orbit(4))
+    monkeypatch.undo()
+    assert b.t == t0 and b._inputs == inp0 and b.outputs == out0
+    s1 = b.get_state()
+    assert s1.keys() == s0.keys()
+    for k in s0:
+        assert np.array_equal(np.asarray(s1[k]), np.asarray(s0[k])), k
+    b.step(1e-4, *orbit(4))
+    ref = fresh()
+    ref.step(1e-4, *orbit(4))
+    assert b.outputs == ref.outputs
