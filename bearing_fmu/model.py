@@ -419,26 +419,23 @@ class BearingModel:
         before = (self._kin, self._inputs, self._xy, self._t, self.outputs)
         if self.film is None:
             hs_before = (self._p_hs, self._pf_hs)
-            try:
+        else:
+            saved = self.film.get_state()
+        try:
+            if self.film is None:
                 self._p_hs, self._pf_hs = self._hs_fields(kin)
                 self._t += dt
-                self._kin = kin
-                self._set_inputs(x, y, vx, vy, omega)
-                self._update_outputs()
-            except BaseException:
-                self._p_hs, self._pf_hs = hs_before
-                self._kin, self._inputs, self._xy, self._t, self.outputs = before
-                raise
-            return
-        saved = self.film.get_state()
-        try:
-            self.film.advance_restarting(dt, kin, saved)
-            self._t = self.film.t
+            else:
+                self.film.advance_restarting(dt, kin, saved)
+                self._t = self.film.t
             self._kin = kin
             self._set_inputs(x, y, vx, vy, omega)
             self._update_outputs()
         except BaseException:
-            self.film.set_state(saved)
+            if self.film is None:
+                self._p_hs, self._pf_hs = hs_before
+            else:
+                self.film.set_state(saved)
             self._kin, self._inputs, self._xy, self._t, self.outputs = before
             raise
 

@@ -693,7 +693,7 @@ class TransientFilm:
         other path that changes it (``init_state``, ``set_state``, the Python loop), and
         only the fused call writes it in place, so the object identity tells whether the
         kept values belong to it."""
-        if self._pth_of is not None and self._pth_of is self.u:
+        if self._pth_of is self.u:
             return self._p_u.copy(), self._theta_u.copy()
         return self.ctx.law.p_theta(self.u)
 
@@ -771,15 +771,12 @@ class TransientFilm:
             th_u, valid = np.empty(self.n), 0.0
         else:
             th_u, valid = self._theta_u, 1.0
-        u, u_prev, th_nm1, th_nm2 = self.u, self.u_prev, self.th_nm1, self.th_nm2
-        if (u_prev is u or th_nm1 is th_nm2 or th_u is th_nm1 or th_u is th_nm2
-                or th_u is u or th_u is u_prev or th_nm1 is u or th_nm1 is u_prev
-                or th_nm2 is u or th_nm2 is u_prev):
-            arrays = [u, u_prev, th_nm1, th_nm2, th_u]
-            for k in range(1, 5):       # the kernel writes each in place: no aliases
+        arrays = [self.u, self.u_prev, self.th_nm1, self.th_nm2, th_u]
+        if len({id(a) for a in arrays}) < 5:    # the kernel writes each in place: no aliases
+            for k in range(1, 5):
                 if any(arrays[k] is a for a in arrays[:k]):
                     arrays[k] = arrays[k].copy()
-            u, u_prev, th_nm1, th_nm2, th_u = arrays
+        u, u_prev, th_nm1, th_nm2, th_u = arrays
         sc = np.array([self.t, self.h_prev, self.h_prev2, self.h_next, float(self.n_hist),
                        valid, 0.0])
         st = np.zeros(6, dtype=np.int64)
@@ -796,8 +793,6 @@ class TransientFilm:
             self._pth_of = u            # p_u, th_u are p(u), theta(u) of this state
         self.u, self.u_prev, self.th_nm1, self.th_nm2 = u, u_prev, th_nm1, th_nm2
         self._theta_u = th_u if sc[_fused.TH_U_VALID] else None
-        if self._theta_u is None:
-            self._pth_of = None
         self.t, self.h_prev, self.h_prev2, self.h_next = sc[:4].tolist()
         self.n_hist = int(sc[_fused.N_HIST])
         stats = self.stats
