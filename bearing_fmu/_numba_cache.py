@@ -8,9 +8,11 @@ from a fresh copy against 2.9 s with a filled cache), a quarter of a 30 s run-up
 
 What: :class:`ContentCacheLocator`, registered in front of numba's own locators when
 ``bearing_fmu`` is imported (before any kernel is decorated), keeps the cache of a module in
-``<cache root>/<module>-<sha256 of the source>[:20]``, so every copy of the same source
-shares one cache wherever it lies, and a changed source gets a new directory (the old one
-is never read again; each is a few MB). Cache root: ``$ROTORCOSIM_NUMBA_CACHE``, else
+``<cache root>/<module>-<sha256 of its package's sources>[:20]`` (:func:`_package_hash`: all
+``.py`` files of the module's folder, because a cached kernel holds the compiled code of the
+kernels it calls in other modules), so every copy of the same sources shares one cache
+wherever it lies, and a change to any of them gets a new directory (the old one is never
+read again; each is a few MB). Cache root: ``$ROTORCOSIM_NUMBA_CACHE``, else
 ``$NUMBA_CACHE_DIR/rotorcosim``, else ``<user cache>/rotorcosim/numba`` with the platform's
 per-user cache folder from platformdirs (Linux: ``$XDG_CACHE_HOME``, default ``~/.cache``;
 the same without platformdirs). A root that cannot be written makes the locator step aside (numba then uses
@@ -55,9 +57,33 @@ def cache_root() -> str | None:
     return os.path.join(base, "numba")
 
 
-def _file_hash(path: str) -> str:
-    with open(path, "rb") as f:
-        return hashlib.sha256(f.read()).hexdigest()
+#: (folder, its .py files with mtime and size) -> digest: one hash of a package per import,
+#: not one per decorated kernel
+_DIGESTS: dict = {}
+
+
+def _package_hash(py_file: str) -> str:
+    """sha256 of the source of every ``.py`` file in ``py_file``'s folder (names and
+    contents, sorted by name). A compiled kernel carries the machine code of every kernel
+    it calls, and numba's own stamp covers only the caller's file: keyed by its file alone,
+    ``fused.advance_fused`` kept running the old ``film.assemble`` after film.py changed
+    (measured, issue 16). So the key is the package, in which the kernels call each other;
+    a change to any of its files gives every module of it a new cache directory."""
+    folder = os.path.dirname(os.path.abspath(py_file))
+    names = sorted(n for n in os.listdir(folder) if n.endswith(".py"))
+    stats = []
+    for n in names:
+        st = os.stat(os.path.join(folder, n))
+        stats.append((n, st.st_mtime_ns, st.st_size))
+    key = (folder, tuple(stats))
+    digest = _DIGESTS.get(key)
+    if digest is None:
+        h = hashlib.sha256()
+        for n in names:
+            with open(os.path.join(folder, n), "rb") as f:
+                h.update(n.encode() + b"\0" + f.read() + b"\0")
+        digest = _DIGESTS[key] = h.hexdigest()
+    return digest
 
 
 try:
@@ -94,7 +120,7 @@ if _CacheLocator is not None:
             if root is None or not os.path.isfile(py_file):
                 return None
             try:
-                self = cls(py_func, py_file, _file_hash(py_file), root)
+                self = cls(py_func, py_file, _package_hash(py_file), root)
                 os.makedirs(self._path, exist_ok=True)
                 tempfile.TemporaryFile(dir=self._path).close()
             except OSError:

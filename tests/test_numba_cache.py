@@ -105,3 +105,34 @@ def test_processes_compiling_at_once_all_succeed_and_leave_a_loadable_cache(tmp_
         assert p.returncode == 0, err
         assert int(out.split()[1]) + int(out.split()[2]) == 1        # compiled or loaded, never failed
     assert _probe(copies[4], env)[:2] == (1, 0)
+
+
+CALLER_PROBE = """
+import numpy as np, bearing_fmu, bearing_fmu.fused as fz
+print(bearing_fmu.__file__, fz.advance_fused._cache._cache_path)
+"""
+
+
+def test_changed_callee_in_another_module_gets_a_new_cache_for_the_caller(tmp_path):
+    """A cached kernel holds the compiled code of the kernels it calls: ``fused.advance_fused``
+    calls ``film.assemble``. Keyed by its own file only, a change to film.py alone left the
+    fused kernel loading its old machine code (the film's old residual) from the cache; the
+    key now covers the package's sources, so the caller's cache directory changes too."""
+    a, root = tmp_path / "a", tmp_path / "cache"
+    _copy(a)
+    env = dict(os.environ, ROTORCOSIM_NUMBA_CACHE=str(root), PYTHONPATH="")
+
+    def cache_dir():
+        out = subprocess.run([sys.executable, "-c", CALLER_PROBE], cwd=a, env=env,
+                             capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stderr
+        f, path = out.stdout.split()
+        assert f.startswith(str(a)), f
+        return path
+
+    p1 = cache_dir()
+    assert p1.startswith(str(root)) and os.path.basename(p1).startswith("fused-")
+    with open(a / "bearing_fmu" / "film.py", "a") as f:      # the callee's file, not fused.py
+        f.write("\n# changed\n")
+    p2 = cache_dir()
+    assert p2 != p1 and os.path.basename(p2).startswith("fused-")
