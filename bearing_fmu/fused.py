@@ -49,15 +49,15 @@ S_STEPS, S_REJECTED, S_NEWTON, S_FACTOR, S_FAILED_NEWTON, S_REUSED = range(6)
 @nb.njit(cache=True)
 def _residual(muscl, u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
               dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen, r, jst, p, dp, th, dth,
-              sym, wrel, frel):
+              sym, wrel, frel, e_u, l1_u):
     if muscl:
         assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
                        dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen, r, True, jst,
-                       p, dp, th, dth, sym, wrel, frel)
+                       p, dp, th, dth, sym, wrel, frel, e_u, l1_u)
     else:
         assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
                  dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen, r, True, jst,
-                 p, dp, th, dth, sym, wrel, frel)
+                 p, dp, th, dth, sym, wrel, frel, e_u, l1_u)
 
 
 @nb.njit(cache=True)
@@ -94,6 +94,7 @@ def advance_fused(dt, H, He, Hdot, omega,
     est = np.empty(n)
     s1, s2, s3 = np.empty(n), np.empty(n), np.empty(n)
     work, dx = np.empty(n), np.empty(n)
+    e_it, l1_it = np.empty(n), np.empty(n)      # law_eval's e, log1p(e) of the iterate
     wcol_p, wcol_th = np.empty(n_phi), np.empty(n_phi)
     n_film = 0
     for k in range(n):
@@ -148,7 +149,7 @@ def advance_fused(dt, H, He, Hdot, omega,
                 if not r_ready:
                     _residual(muscl, uu, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega,
                               a_phi, a_z, dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
-                              r, jst, p, dp, th, dth, sym, wrel, frel)
+                              r, jst, p, dp, th, dth, sym, wrel, frel, e_it, l1_it)
                 r_ready = False
                 its += 1
                 if prev >= 0.0 and prev <= lu_reuse_below:
@@ -163,7 +164,8 @@ def advance_fused(dt, H, He, Hdot, omega,
                     st[S_FACTOR] += 1
                 if not band_newton_step_nopivot(ab, bw, r, order, pos, work, dx):
                     break
-                dominant_update(uu, dx, wcol_p, wcol_th, n_phi, p_cav, K, delta, un)
+                dominant_update(uu, dx, wcol_p, wcol_th, n_phi, p_cav, K, delta, un, e_it,
+                                l1_it)
                 _limit_switch(uu, un, delta)
                 for k in range(n):
                     step[k] = un[k] - uu[k]
@@ -182,7 +184,7 @@ def advance_fused(dt, H, He, Hdot, omega,
                     lam = 1.0
                     _residual(muscl, un, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega,
                               a_phi, a_z, dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
-                              r, jst, p, dp, th, dth, sym, wrel, frel)
+                              r, jst, p, dp, th, dth, sym, wrel, frel, e_it, l1_it)
                     rn = _norm(r)
                     while rn > r0 and lam > 0.1:
                         lam *= 0.5
@@ -190,7 +192,7 @@ def advance_fused(dt, H, He, Hdot, omega,
                             un[k] = uu[k] + 0.5 * (un[k] - uu[k])
                         _residual(muscl, un, th_dot0, th_dot1, H, He, Hdot, groove, u_feed,
                                   omega, a_phi, a_z, dphi, dz, bath, p0, p_cav, K, delta, pa,
-                                  pb, s_pen, r, jst, p, dp, th, dth, sym, wrel, frel)
+                                  pb, s_pen, r, jst, p, dp, th, dth, sym, wrel, frel, e_it, l1_it)
                         rn = _norm(r)
                     r_ready = True
                 uu[:] = un

@@ -95,6 +95,13 @@ def _own_part(v, wp, wth, p_cav, K, delta):
     x = v / delta
     e = math.exp(-abs(x))
     l1 = math.log1p(e)
+    return _own_part_el(x, e, l1, wp, wth, K, delta)
+
+
+@nb.njit(cache=True, inline="always")
+def _own_part_el(x, e, l1, wp, wth, K, delta):
+    """:func:`_own_part` from ``x = v / delta``, ``e = exp(-|x|)`` and ``l1 = log1p(e)``
+    (what :func:`.cavitation.law_eval` computes for the same v, bit for bit)."""
     s = 1.0 / (1.0 + e)              # sigmoid(|x|); sigmoid(-|x|) = e s
     if x >= 0.0:
         return wp * K * delta * (x + l1) - wth * delta * l1, wp * K * s + wth * e * s
@@ -102,7 +109,18 @@ def _own_part(v, wp, wth, p_cav, K, delta):
 
 
 @nb.njit(cache=True, nogil=True)
-def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un):
+def law_el(u, delta, e_out, l1_out):
+    """``e = exp(-|u / delta|)`` and ``log1p(e)`` of each cell, as
+    :func:`.cavitation.law_eval` computes them (for :func:`dominant_update`)."""
+    for k in range(u.size):
+        x = u[k] / delta
+        e = math.exp(-abs(x))
+        e_out[k] = e
+        l1_out[k] = math.log1p(e)
+
+
+@nb.njit(cache=True, nogil=True)
+def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un, e_u, l1_u):
     """New iterate ``un`` from the Newton increment ``dx`` in u, with each cell's own
     nonlinearity taken exactly: the cell moves to the u at which its own (diagonal) part of
     the residual, ``wp p(u) + wth theta(u)`` (coefficients of :func:`dominant_weights`),
@@ -117,7 +135,9 @@ def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un):
     iteration (BENCHMARKS.md, issue 16). On one branch far from the switch (u and u + dx
     both beyond 12 delta on the same side) f is linear to e^-12 and the plain step
     ``u + dx`` is kept; otherwise the solve ends within 1e-9 delta of the root. The
-    solution (r = 0) is the same: only the Newton path changes."""
+    solution (r = 0) is the same: only the Newton path changes. ``e_u``, ``l1_u``: e and
+    log1p(e) of u (:func:`law_el`; the residual's :func:`.cavitation.law_eval` at u gives
+    them), so that f(u) costs no exp or log1p here (1 of the ~2.6-5 evaluations per cell)."""
     for k in range(u.size):
         i = k % n_phi
         d = dx[k]
@@ -127,7 +147,7 @@ def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un):
         if (u[k] > lim and v > lim) or (u[k] < -lim and v < -lim):
             continue            # one branch, far from the switch: f linear to e^-12
         a, b = wp[i], wth[i]
-        f0, df0 = _own_part(u[k], a, b, p_cav, K, delta)
+        f0, df0 = _own_part_el(u[k] / delta, e_u[k], l1_u[k], a, b, K, delta)
         un[k] = _own_root(v, f0 + df0 * d, a, b, p_cav, K, delta)
 
 
@@ -614,7 +634,10 @@ class TransientFilm:
             if self.dominant:
                 law = self.ctx.law
                 un = np.empty_like(u)
-                dominant_update(u, dx, wcol_p, wcol_th, g.n_phi, law.p_cav, law.K, law.delta, un)
+                e_u, l1_u = np.empty_like(u), np.empty_like(u)
+                law_el(u, law.delta, e_u, l1_u)
+                dominant_update(u, dx, wcol_p, wcol_th, g.n_phi, law.p_cav, law.K, law.delta, un,
+                                e_u, l1_u)
             else:
                 un = u + dx
             _limit_switch(u, un, self.ctx.law.delta)

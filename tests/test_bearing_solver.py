@@ -359,7 +359,7 @@ def test_dominant_update_solves_the_cells_own_equation():
     the exponential tail reaches the linearised theta in one step); far from the switch on
     one branch it is the plain step u + dx."""
     from bearing_fmu.cavitation import CavitationLaw
-    from bearing_fmu.solver import dominant_update
+    from bearing_fmu.solver import dominant_update, law_el
     law = CavitationLaw(1e5, 1e3, 0.05)
     u = np.array([0.06, -0.3, 0.02, 5.0, -0.9, 30.0])
     dx = np.array([0.2, 0.25, -0.4, 1.0, -0.05, -2.0])
@@ -371,7 +371,9 @@ def test_dominant_update_solves_the_cells_own_equation():
         return float(wp[0] * p[0] + wth[0] * th[0])
 
     un = np.empty_like(u)
-    dominant_update(u, dx, wp, wth, 1, law.p_cav, law.K, law.delta, un)
+    e_u, l1_u = np.empty_like(u), np.empty_like(u)
+    law_el(u, law.delta, e_u, l1_u)
+    dominant_update(u, dx, wp, wth, 1, law.p_cav, law.K, law.delta, un, e_u, l1_u)
     h = 1e-7
     for k in range(u.size):
         if abs(u[k]) > 12 * law.delta and abs(u[k] + dx[k]) > 12 * law.delta:
@@ -409,3 +411,18 @@ def test_dominant_newton_path_needs_fewer_iterations_same_answer():
     assert out[True][0] < 0.75 * out[False][0], out      # measured 212 vs 394 (0.54)
     for i in (1, 2):
         assert out[True][i] == pytest.approx(out[False][i], rel=1e-4), out
+
+
+def test_law_eval_hands_dominant_update_the_same_exp_and_log1p():
+    """The fused film step takes e = exp(-|u/delta|) and log1p(e) of the iterate from the
+    residual's law_eval instead of computing them again in dominant_update: both must be
+    what solver.law_el computes, bit for bit, or the Newton path would change."""
+    from bearing_fmu.cavitation import CavitationLaw, law_eval
+    from bearing_fmu.solver import law_el
+    law = CavitationLaw(1e5, 1e3, 0.05)
+    u = np.concatenate([np.linspace(-2.0, 3.0, 501), [0.0, -0.0, 1e-300, -1e-300, 0.6, -0.6]])
+    outs = [np.empty_like(u) for _ in range(6)]
+    law_eval(u, law.p_cav, law.K, law.delta, *outs)
+    e, l1 = np.empty_like(u), np.empty_like(u)
+    law_el(u, law.delta, e, l1)
+    assert np.array_equal(outs[4], e) and np.array_equal(outs[5], l1)
