@@ -37,11 +37,11 @@ from .cavitation import law_eval
 from .film import assemble, assemble_muscl, stencil_to_band
 from .solver import (PIVOT_THRESHOLD, _increment_norm_kernel, _limit_switch, band_lu_nopivot,
                      band_newton_step_nopivot, dominant_extrapolate, dominant_update,
-                     dominant_weights)
+                     dominant_weights, law_el)
 
 DONE, H_MIN, PIVOT = 0, 1, 2
 #: indices of the scalar state ``sc``
-T, H_PREV, H_PREV2, H_NEXT, N_HIST, TH_U_VALID, H_FAILED = range(7)
+T, H_PREV, H_PREV2, H_NEXT, N_HIST, TH_U_VALID, H_FAILED, EL_U_VALID, EL_UP_VALID = range(9)
 #: indices of the counters ``st`` (added to ``TransientFilm.stats`` by the caller)
 S_STEPS, S_REJECTED, S_NEWTON, S_FACTOR, S_FAILED_NEWTON, S_REUSED = range(6)
 
@@ -75,12 +75,15 @@ def advance_fused(dt, H, He, Hdot, omega,
                   pa, pb, s_pen, sym, wrel, frel,
                   n_phi, order, pos, bw, ab, jst, r, p, dp, th, dth,
                   h_min, h_max, theta_atol, atol, rtol, max_iter, lu_reuse_below,
-                  p_u, pivot_threshold=PIVOT_THRESHOLD):
+                  p_u, el, pivot_threshold=PIVOT_THRESHOLD):
     """Advance the film state from ``sc[T]`` to ``sc[T] + dt`` (module doc). Arrays ``u,
     u_prev, th_nm1, th_nm2, th_u`` (n,) and ``sc`` (7,), ``st`` (6,) are the state and
     counters, changed in place; ``ab, jst, r, p, dp, th, dth`` the integrator's buffers;
     ``p_u`` (n,) receives p(u) of each accepted state (with ``th_u`` = theta(u): the same
     :func:`.cavitation.law_eval` values, so the caller's outputs need not evaluate the law);
+    ``el`` (4, n) e = exp(-|u / delta|) and log1p(e) of u and of u_prev
+    (:func:`.solver.dominant_extrapolate`), valid on entry where ``sc[EL_U_VALID]``,
+    ``sc[EL_UP_VALID]`` say so (else computed here) and kept valid for both on return;
     ``pivot_threshold`` that of :func:`.solver.band_lu_nopivot` (a test forces the
     :data:`PIVOT` return with a threshold no pivot meets).
     Returns (code, Newton iterations of the last solve)."""
@@ -100,6 +103,11 @@ def advance_fused(dt, H, He, Hdot, omega,
     for k in range(n):
         if film[k]:
             n_film += 1
+    if sc[EL_U_VALID] == 0.0:
+        law_el(u, delta, el[0], el[1])
+    if sc[EL_UP_VALID] == 0.0:
+        law_el(u_prev, delta, el[2], el[3])
+    e_new, l1_new = np.empty(n), np.empty(n)
     t = sc[T]
     t_end = t + dt
     last_its = 0
@@ -134,7 +142,7 @@ def advance_fused(dt, H, He, Hdot, omega,
                              wcol_p, wcol_th)
             if n_hist >= 1:
                 dominant_extrapolate(u, u_prev, h / sc[H_PREV], wcol_p, wcol_th, n_phi, p_cav,
-                                     K, delta, u_start)
+                                     K, delta, u_start, el)
                 _limit_switch(u, u_start, delta)
             else:
                 u_start[:] = u
@@ -205,7 +213,7 @@ def advance_fused(dt, H, He, Hdot, omega,
                 h *= 0.25
                 continue
             # ---- Milne error estimate ----
-            law_eval(u_new, p_cav, K, delta, s1, s2, th_new, s3)
+            law_eval(u_new, p_cav, K, delta, s1, s2, th_new, s3, e_new, l1_new)
             if n_hist >= 2:
                 h1, h2 = sc[H_PREV], sc[H_PREV2]
                 Ln = (h + h1) * (h + h1 + h2) / (h1 * (h1 + h2))
@@ -238,6 +246,10 @@ def advance_fused(dt, H, He, Hdot, omega,
         th_nm1[:] = th_u
         u_prev[:] = u
         u[:] = u_new
+        el[2, :] = el[0]
+        el[3, :] = el[1]
+        el[0, :] = e_new
+        el[1, :] = l1_new
         th_u[:] = th_new
         p_u[:] = s1                 # p(u_new) of the law_eval above
         sc[H_PREV2] = sc[H_PREV]

@@ -180,7 +180,7 @@ def _own_root(v, target, a, b, p_cav, K, delta):
 
 
 @nb.njit(cache=True, nogil=True)
-def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out):
+def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out, el):
     """Newton start ``out`` for the next internal step, extrapolated linearly in each cell's
     own part ``f = wp p(u) + wth theta(u)`` (:func:`dominant_update`) instead of in u:
     ``f(out) = f(u) + ratio (f(u) - f(u_prev))``, ``ratio = h / h_prev``. A line in u through
@@ -188,7 +188,10 @@ def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out)
     curve; in f it extrapolates the quantity the cell's equation is nearly linear in.
     Cells on one branch far from the switch (u_prev, u and the line's end beyond 12 delta,
     same side) keep the line in u (identical there to e^-12). Measured in the whirl orbit
-    of benchmarks/bench_bearing_whirl.py: 7.06 -> 5.22 Newton iterations per macro step."""
+    of benchmarks/bench_bearing_whirl.py: 7.06 -> 5.22 Newton iterations per macro step.
+    ``el`` (4, n): e = exp(-|x|) and log1p(e) of u (rows 0, 1) and of u_prev (rows 2, 3)
+    (:func:`law_el`; kept from the steps that accepted them, so f(u) and f(u_prev) cost
+    no exp or log1p here)."""
     lim = 12.0 * delta
     for k in range(u.size):
         i = k % n_phi
@@ -198,8 +201,8 @@ def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out)
                 (u[k] < -lim and v < -lim and u_prev[k] < -lim):
             continue
         a, b = wp[i], wth[i]
-        f0, _ = _own_part(u[k], a, b, p_cav, K, delta)
-        f1, _ = _own_part(u_prev[k], a, b, p_cav, K, delta)
+        f0, _ = _own_part_el(u[k] / delta, el[0, k], el[1, k], a, b, K, delta)
+        f1, _ = _own_part_el(u_prev[k] / delta, el[2, k], el[3, k], a, b, K, delta)
         out[k] = _own_root(v, f0 + ratio * (f0 - f1), a, b, p_cav, K, delta)
 
 
@@ -708,6 +711,8 @@ class TransientFilm:
         self._theta_u = None
         self._p_u = np.empty(n)     # p(u) of the state the fused call accepted last
         self._pth_of = None         # ... and that state's u (the array object): see p_theta
+        self._el = np.empty((4, n))  # law_el of u, u_prev kept by the fused call ...
+        self._el_of = (None, None)  # ... and the arrays they belong to (identity, as _pth_of)
 
     def p_theta(self):
         """(p, theta) of the current state, new arrays: kept from the fused call that
@@ -801,7 +806,7 @@ class TransientFilm:
                     arrays[k] = arrays[k].copy()
         u, u_prev, th_nm1, th_nm2, th_u = arrays
         sc = np.array([self.t, self.h_prev, self.h_prev2, self.h_next, float(self.n_hist),
-                       valid, 0.0])
+                       valid, 0.0, float(self._el_of[0] is u), float(self._el_of[1] is u_prev)])
         st = np.zeros(6, dtype=np.int64)
         p_u = self._p_u
         code, its = _fused.advance_fused(
@@ -811,10 +816,12 @@ class TransientFilm:
             c.params.penalty_smoothing, c.sym, g.wrel, g.frel, g.n_phi, g.order, g.pos, g.bw,
             self.ab, self.jst, self.r, self.wp, self.wdp, self.wth, self.wdth,
             prm.h_min, prm.h_max, prm.theta_atol, prm.newton_atol, prm.newton_rtol,
-            prm.newton_max_iter, float(self.lu_reuse_below), p_u, self.pivot_threshold)
+            prm.newton_max_iter, float(self.lu_reuse_below), p_u, self._el,
+            self.pivot_threshold)
         if st[_fused.S_STEPS] > 0:
             self._pth_of = u            # p_u, th_u are p(u), theta(u) of this state
         self.u, self.u_prev, self.th_nm1, self.th_nm2 = u, u_prev, th_nm1, th_nm2
+        self._el_of = (u, u_prev)       # the kernel leaves _el valid for both
         self._theta_u = th_u if sc[_fused.TH_U_VALID] else None
         self.t, self.h_prev, self.h_prev2, self.h_next = sc[:4].tolist()
         self.n_hist = int(sc[_fused.N_HIST])
@@ -867,8 +874,11 @@ class TransientFilm:
                     if self.predictor_dominant and weights is not None:
                         law, g = self.ctx.law, self.ctx.grid
                         u_start = np.empty_like(self.u)
+                        el = np.empty((4, self.n))
+                        law_el(self.u, law.delta, el[0], el[1])
+                        law_el(self.u_prev, law.delta, el[2], el[3])
                         dominant_extrapolate(self.u, self.u_prev, h / self.h_prev, *weights,
-                                             g.n_phi, law.p_cav, law.K, law.delta, u_start)
+                                             g.n_phi, law.p_cav, law.K, law.delta, u_start, el)
                     else:
                         u_start = self.u + (h / self.h_prev) * (self.u - self.u_prev)
                     if self.predictor_limited:

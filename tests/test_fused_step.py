@@ -110,6 +110,52 @@ def test_kept_p_theta_is_the_law_of_the_current_state(case):
     same_as_law(b)
 
 
+@pytest.mark.parametrize("case", [{}, {"theta_transport": 1}])
+def test_kept_exp_and_log1p_belong_to_the_current_u_and_u_prev(case):
+    """The fused call keeps e = exp(-|u/delta|) and log1p(e) of u and u_prev across macro
+    steps (dominant_extrapolate uses them). Wherever the film says they belong to its
+    current arrays (``_el_of``), they must be solver.law_el of those arrays bit for bit:
+    after fused steps, a restore (set_state), a BDF restart, a PIVOT hand-over to the
+    Python loop and init_state; and the steps after each must stay those of the Python loop."""
+    from bearing_fmu.solver import law_el
+
+    def check(f):
+        kept = 0
+        for rows, arr, of in (((0, 1), f.u, f._el_of[0]), ((2, 3), f.u_prev, f._el_of[1])):
+            if of is arr:
+                e, l1 = np.empty(f.n), np.empty(f.n)
+                law_el(arr, f.ctx.law.delta, e, l1)
+                assert np.array_equal(f._el[rows[0]], e) and np.array_equal(f._el[rows[1]], l1)
+                kept += 1
+        return kept
+
+    b, _ = run(True, steps=5, **case)
+    ref, _ = run(False, steps=5, **case)
+    assert check(b.film) == 2
+    s = b.get_state()
+    k = 6
+    for change in ("step", "set_state", "restart", "pivot", "init_state"):
+        for m in (b, ref):
+            if change == "set_state":
+                m.set_state(s)
+            elif change == "restart":
+                m.film.restart_history()
+            elif change == "init_state":
+                m.film.init_state(m.film.u * 0.999)
+        if change == "pivot":
+            b.film.pivot_threshold = 1e300             # the loop finishes this macro step
+        check(b.film)
+        for m in (b, ref):
+            m.step(1e-4, *orbit(k))
+        b.film.pivot_threshold = ref.film.pivot_threshold
+        check(b.film)              # after the Python loop: nothing is claimed to be kept
+        for m in (b, ref):
+            m.step(1e-4, *orbit(k + 1))
+        assert check(b.film) == 2
+        np.testing.assert_allclose(b.film.u, ref.film.u, rtol=1e-10, atol=1e-12)
+        k += 2
+
+
 @pytest.mark.parametrize("where", ["advance", "outputs"])
 @pytest.mark.parametrize("cavitation", [1, 0])
 def test_a_step_that_raises_leaves_the_model_as_it_was(where, cavitation, monkeypatch):
