@@ -286,6 +286,24 @@ output:
      "'analysis.speed': 'g' has no variable 'omega'"),
     ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u]}\nanalysis: {speed: g.y}\n",
      "'analysis.speed' is 'g.y', which is not recorded (not in output.signals)"),
+    # the analysis section is checked as the run-up analysis will read it (docs/analysis.md)
+    ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u, g.y]}\nanalysis: {speed: g.y, journals: {b1: {x: g.u, y: g.y}}, extra: 1}\n",
+     "unknown key 'extra' in 'analysis'; valid keys: speed, journals, fields, whirl"),
+    ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u, g.y]}\nanalysis: {journals: {b1: {x: g.u, y: g.y, clearance: 1.0e-5}}}\n",
+     "'analysis' is missing the required key 'speed'"),
+    ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u, g.y]}\nanalysis: {speed: g.y, journals: {}}\n", "'analysis.journals' is empty; name at least one journal"),
+    ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u, g.y]}\nanalysis: {speed: g.y, journals: {b1: {x: g.u, y: g.y}}}\n",
+     "'analysis.journals.b1' needs 'clearance' [m] (or an 'eps' signal to estimate it from)"),
+    ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u, g.y]}\nanalysis: {speed: g.y, journals: {b1: {x: g.u, clearance: 1.0e-5}}}\n",
+     "'analysis.journals.b1' is missing the required key 'y'"),
+    ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u, g.y]}\nanalysis: {speed: g.y, journals: {b1: {x: g.u, y: g.y, clearance: -1}}}\n",
+     "'analysis.journals.b1.clearance' must be positive (got -1"),
+    ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u, g.y]}\nanalysis: {speed: g.y, journals: {b1: {x: g.u, y: g.y, clearance: 1.0e-5}}, fields: [g]}\n", "'analysis.fields' must be a non-empty text (got a list)"),
+    ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u, g.y]}\nanalysis: {speed: g.y, journals: {b1: {x: g.u, y: g.y, clearance: 1.0e-5}}, whirl: {window_rev: 8}}\n", "unknown key 'window_rev' in 'analysis.whirl'; did you mean 'window_revs'?"),
+    ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u, g.y]}\nanalysis: {speed: g.y, journals: {b1: {x: g.u, y: g.y, clearance: 1.0e-5}}, whirl: {band: 0.5}}\n", "'analysis.whirl.band' must be a list of two orders [low, high] (got 0.5"),
+    ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u, g.y]}\nanalysis: {speed: g.y, journals: {b1: {x: g.u, y: g.y, clearance: 1.0e-5}}, whirl: {hop_revs: often}}\n", "'analysis.whirl.hop_revs' must be a finite number (got 'often'"),
+    ("name: x\nstop_time: 1\nfmus:\n  g: {path: fmus/Gain.fmu}\noutput: {signals: [g.u, g.y]}\nanalysis: {speed: g.y, journals: {b1: {x: g.u, y: g.y, clearance: 1.0e-5}}, whirl: {band: [0.9, 0.1], threshold: -1}}\n",
+     "band must satisfy 0 < low < high < 1 (got (0.9, 0.1)); threshold must be > 0 (got -1.0)"),
 ])
 def test_structural_problems(sdir, text, needle):
     problems = problems_of(write(sdir, text))

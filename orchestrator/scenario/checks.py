@@ -7,11 +7,14 @@ of the right causality and type in a readable FMU.
 
 from __future__ import annotations
 
+import yaml
+
 from orchestrator.errors import CosimError
 from orchestrator.fmi.archive import cached_model_description
 from orchestrator.scenario.coupling_sections import check_atol_patterns, check_capabilities
 from orchestrator.fmi.values import check_value, settable_problem
 from orchestrator.scenario.completion import Completion
+from orchestrator.scenario.model import ANALYSIS_KEYS, JOURNAL_KEYS
 from orchestrator.scenario.nodes import FLOAT_RE, article, did_you_mean, ranked
 
 
@@ -185,18 +188,40 @@ class FmuChecks(Completion):
             self.variable(s, node, f"'{what}' entry {s!r}")
 
     def check_analysis(self, node, signals) -> None:
+        """The ``analysis`` section (docs/analysis.md): known keys only, ``speed`` and every
+        journal's ``x``, ``y``, ``eps`` recorded signals, ``clearance`` a positive number,
+        ``fields`` a name, ``whirl`` the detection parameters (checked as the analysis will)."""
         recorded = None if signals is None else {s for s, _ in signals}
-        section = self.mapping(node, "analysis") or {}
+        section = self.mapping(node, "analysis", ANALYSIS_KEYS, ("speed", "journals"),
+                               fix="see docs/analysis.md") or {}
         found = []
         if "speed" in section:
             found.append(("analysis.speed", section["speed"][1]))
         if "journals" in section:
-            journals = self.mapping(section["journals"][1], "analysis.journals") or {}
+            journals = self.mapping(section["journals"][1], "analysis.journals",
+                                    fix="write one entry per journal, e.g. bearing1: {x: rotor.x_1, y: rotor.y_1, "
+                                        "clearance: 1.0e-5}") or {}
+            if "journals" in section and not journals and isinstance(section["journals"][1], yaml.MappingNode):
+                self.err(section["journals"][1], "'analysis.journals' is empty; name at least one journal, e.g. "
+                                                 "bearing1: {x: rotor.x_1, y: rotor.y_1, clearance: 1.0e-5}")
             for jname, (_, jnode) in journals.items():
-                entry = self.mapping(jnode, f"analysis.journals.{jname}") or {}
+                where = f"analysis.journals.{jname}"
+                entry = self.mapping(jnode, where, JOURNAL_KEYS, ("x", "y"),
+                                     fix="write {x: SIGNAL, y: SIGNAL, eps: SIGNAL, clearance: METRES}") or {}
                 for key in ("x", "y", "eps"):
                     if key in entry:
-                        found.append((f"analysis.journals.{jname}.{key}", entry[key][1]))
+                        found.append((f"{where}.{key}", entry[key][1]))
+                if "clearance" in entry:
+                    self.number(entry["clearance"][1], f"{where}.clearance", positive=True,
+                                fix="give the radial clearance c = psi R in m, e.g. 1.372e-5")
+                elif entry and "eps" not in entry:
+                    self.err(jnode, f"'{where}' needs 'clearance' [m] (or an 'eps' signal to estimate it from); "
+                                    "add clearance: c = psi R, e.g. 1.372e-5")
+        if "fields" in section:
+            self.string(section["fields"][1], "analysis.fields", "name the instance whose fields file "
+                                                                   "(<instance>_fields.npz) is plotted")
+        if "whirl" in section:
+            self.check_whirl(section["whirl"][1])
         for what, vnode in found:
             s = self.string(vnode, what, "name a signal as 'instance.variable'")
             if s is None:
@@ -207,6 +232,38 @@ class FmuChecks(Completion):
                 self.err(vnode, f"'{what}' is {s!r}, which is not recorded (not in output.signals); add it to "
                                 "output.signals")
 
+    def check_whirl(self, node) -> None:
+        """``analysis.whirl``: keys of :class:`~orchestrator.results.whirl.WhirlParams`, numbers
+        (``band``/``growth_band``: two numbers), then the ranges the analysis checks."""
+        from dataclasses import fields
+
+        from orchestrator.results.whirl import WhirlParams
+        known = tuple(f.name for f in fields(WhirlParams))
+        entry = self.mapping(node, "analysis.whirl", known, fix="see docs/analysis.md, 'Method'")
+        if entry is None:
+            return
+        values, ok = {}, True
+        for key, (_, vnode) in entry.items():
+            what = f"analysis.whirl.{key}"
+            if key in ("band", "growth_band"):
+                items = vnode.value if isinstance(vnode, yaml.SequenceNode) else None
+                if items is None or len(items) != 2:
+                    self.err(vnode, f"'{what}' must be a list of two orders [low, high] (got {self.got(vnode)}); "
+                                    "e.g. [0.15, 0.85]")
+                    ok = False
+                    continue
+                pair = [self.number(v, f"{what} entry", fix="write two numbers such as [0.15, 0.85]") for v in items]
+                ok = ok and None not in pair
+                values[key] = tuple(pair)
+            else:
+                v = self.number(vnode, what)
+                ok = ok and v is not None
+                values[key] = v
+        if ok and values:
+            try:
+                WhirlParams.from_mapping(values)
+            except ValueError as exc:
+                self.err(node, f"{exc}; fix the values (docs/analysis.md, 'Method')")
 
 
 def convert(value, fmi_type: str):

@@ -29,6 +29,8 @@ COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
                  "pin_workers", "options", "iteration", "step_control")
 OUTPUT_KEYS = ("interval", "signals", "format")
 OUTPUT_FORMATS = ("csv", "parquet")
+ANALYSIS_KEYS = ("speed", "journals", "fields", "whirl")   # analysis (docs/analysis.md)
+JOURNAL_KEYS = ("x", "y", "eps", "clearance")             # analysis.journals.<name>
 # override navigation: (schema, key) -> schema of the child; (schema) -> default
 CHILD_SCHEMA = {
     ("top", "fmus"): "instances", ("top", "connections"): "connections",
