@@ -44,6 +44,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import cached_property
 
+import numba as nb
 import numpy as np
 
 
@@ -73,12 +74,9 @@ class Grid:
         return self.n_phi * self.n_z
 
     def gap(self, x, y, vx, vy, c):
-        """Return H at centres, H at east faces and dH/dt at centres."""
+        """Return H at centres, H at east faces and dH/dt at centres (new arrays)."""
         cs, sn, cf, sf = self._trig
-        H = 1.0 - (x * cs + y * sn) / c
-        He = 1.0 - (x * cf + y * sf) / c
-        Hdot = -(vx * cs + vy * sn) / c
-        return H, He, Hdot
+        return _gap(float(x), float(y), float(vx), float(vy), float(c), cs, sn, cf, sf)
 
     @cached_property
     def _trig(self):
@@ -86,6 +84,24 @@ class Grid:
         computed once per grid (the grid is immutable; gap is called every film step)."""
         phi_f = self.phi_e if self.phi_f is None else self.phi_f
         return np.cos(self.phi), np.sin(self.phi), np.cos(phi_f), np.sin(phi_f)
+
+
+@nb.njit(cache=True)
+def _gap(x, y, vx, vy, c, cs, sn, cf, sf):
+    """``H = 1 - (x cos + y sin) / c`` at the centres, the same at the east faces (``cf``,
+    ``sf``) and ``dH/dt = -(vx cos + vy sin) / c``: the numpy expressions this replaces, the
+    same operations in the same order per element (so the same values bit for bit), in one
+    compiled call instead of nine numpy ones (the gap is formed every film step; issue 16).
+    Holds the GIL: a short call, see :func:`.film.integrals`."""
+    n = cs.size
+    H = np.empty(n)
+    He = np.empty(n)
+    Hdot = np.empty(n)
+    for i in range(n):
+        H[i] = 1.0 - (x * cs[i] + y * sn[i]) / c
+        He[i] = 1.0 - (x * cf[i] + y * sf[i]) / c
+        Hdot[i] = -(vx * cs[i] + vy * sn[i]) / c
+    return H, He, Hdot
 
 
 def groove_columns(n_phi: int, width: float, angle: float) -> np.ndarray:

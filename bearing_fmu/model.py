@@ -264,9 +264,10 @@ class BearingModel:
 
     # ----------------------------------------------------------- helpers
     def _kinematics(self, x, y, vx, vy, omega):
-        vals = (x, y, vx, vy, omega)
-        if not all(math.isfinite(float(v)) for v in vals):
-            raise ValueError(f"BearingModel: non-finite input (x, y, vx, vy, omega) = {vals}")
+        isfinite = math.isfinite
+        if not (isfinite(x) and isfinite(y) and isfinite(vx) and isfinite(vy) and isfinite(omega)):
+            raise ValueError(f"BearingModel: non-finite input (x, y, vx, vy, omega) = "
+                             f"{(x, y, vx, vy, omega)}")
         eps = math.hypot(x, y) / self.c
         if self.params.contact:
             depth = -self.params.contact_h_limit
@@ -335,7 +336,7 @@ class BearingModel:
         return np.concatenate([a, a[::-1]], axis=0) if self.sym else a
 
     def _update_outputs(self):
-        p, th = self._pth(full=False)
+        p, th = self._pth(full=False, copy=False)
         H, He, Hdot, omega = self._kin
         prm = self.params
         sym = self.sym and self.film is not None
@@ -364,12 +365,13 @@ class BearingModel:
                             p_max=p_max, p_min=p_min, h_min=H_min * self.c, torque=T,
                             q_feed=qf, q_side=qs, F_contact=Fc)
 
-    def _pth(self, full=True):
-        """(p, theta); full width, or the solver grid's rows (full=False)."""
+    def _pth(self, full=True, copy=True):
+        """(p, theta); full width, or the solver grid's rows (full=False); ``copy=False``:
+        the film's kept arrays where it has them (read them at once, :meth:`.p_theta`)."""
         if self.film is None:
             return self._p_hs, np.ones_like(self._p_hs)
         shape = (self.grid.n_z, self.grid.n_phi)
-        p, th = self.film.p_theta()
+        p, th = self.film.p_theta(copy)
         p, th = p.reshape(shape), th.reshape(shape)
         if full:
             return self._mirror(p), self._mirror(th)
@@ -548,7 +550,7 @@ class BearingModel:
         return None, max_iter
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True)
 def _extrema(p, H):
     """(max p, min p, min H) in one call, as ``p.max(), p.min(), H.min()`` return them (nan
     when the array holds one)."""

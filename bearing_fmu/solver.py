@@ -338,6 +338,18 @@ def band_newton_step_nopivot(ab, bw, r, order, pos, work, dx):
     return ok
 
 
+_FUSED = []
+
+
+def _fused():
+    """The :mod:`.fused` module (imported on first use, not at the top: it imports this
+    module's kernels; kept, since an import statement costs microseconds every call)."""
+    if not _FUSED:
+        from . import fused
+        _FUSED.append(fused)
+    return _FUSED[0]
+
+
 #: ``TransientFilm.stats`` keys of the fused call's counters, in the order of
 #: ``fused.S_STEPS .. S_REUSED``
 _FUSED_STATS = ("steps", "rejected", "newton", "factor", "failed_newton", "reused")
@@ -713,15 +725,19 @@ class TransientFilm:
         self._pth_of = None         # ... and that state's u (the array object): see p_theta
         self._el = np.empty((4, n))  # law_el of u, u_prev kept by the fused call ...
         self._el_of = (None, None)  # ... and the arrays they belong to (identity, as _pth_of)
+        self._fused_cache = None    # the constant arguments of the fused call (_fused_args)
 
-    def p_theta(self):
+    def p_theta(self, copy=True):
         """(p, theta) of the current state, new arrays: kept from the fused call that
         accepted it (the same :func:`.cavitation.law_eval` of the same u, so bit for bit
         what ``law.p_theta(u)`` returns), else evaluated. The film's u is rebound by every
         other path that changes it (``init_state``, ``set_state``, the Python loop), and
         only the fused call writes it in place, so the object identity tells whether the
-        kept values belong to it."""
+        kept values belong to it. ``copy=False``: the kept arrays themselves when they are
+        valid (to be read at once: the next fused call overwrites them)."""
         if self._pth_of is self.u:
+            if not copy:
+                return self._p_u, self._theta_u
             return self._p_u.copy(), self._theta_u.copy()
         return self.ctx.law.p_theta(self.u)
 
@@ -791,47 +807,63 @@ class TransientFilm:
         """(finished, iterations): :func:`.fused.advance_fused` on this film's state; not
         finished when an LU pivot needs interchanges (the state is then that of the last
         accepted internal step, and :meth:`_advance_loop` goes on from it)."""
-        from . import fused as _fused       # here: fused imports this module's kernels
-        c, g, prm = self.ctx, self.ctx.grid, self.ctx.params
         H, He, Hdot, omega = kin
         t_end = self.t + dt
         if self._theta_u is None:
             th_u, valid = np.empty(self.n), 0.0
         else:
             th_u, valid = self._theta_u, 1.0
-        arrays = [self.u, self.u_prev, self.th_nm1, self.th_nm2, th_u]
-        if len({id(a) for a in arrays}) < 5:    # the kernel writes each in place: no aliases
+        u, u_prev, th_nm1, th_nm2 = self.u, self.u_prev, self.th_nm1, self.th_nm2
+        if len({id(u), id(u_prev), id(th_nm1), id(th_nm2), id(th_u)}) < 5:
+            # the kernel writes each in place: no aliases
+            arrays = [u, u_prev, th_nm1, th_nm2, th_u]
             for k in range(1, 5):
                 if any(arrays[k] is a for a in arrays[:k]):
                     arrays[k] = arrays[k].copy()
-        u, u_prev, th_nm1, th_nm2, th_u = arrays
-        sc = np.array([self.t, self.h_prev, self.h_prev2, self.h_next, float(self.n_hist),
-                       valid, 0.0, float(self._el_of[0] is u), float(self._el_of[1] is u_prev)])
+            u, u_prev, th_nm1, th_nm2, th_u = arrays
+        el_u, el_up = self._el_of
+        sc = np.array((self.t, self.h_prev, self.h_prev2, self.h_next, float(self.n_hist),
+                       valid, 0.0, 1.0 if el_u is u else 0.0, 1.0 if el_up is u_prev else 0.0))
         st = np.zeros(6, dtype=np.int64)
-        p_u = self._p_u
-        code, its = _fused.advance_fused(
-            float(dt), H, He, Hdot, float(omega), u, u_prev, th_nm1, th_nm2, th_u, sc, st,
-            self.muscl, g.groove, self.film, c.u_feed, c.a_phi, c.a_z, g.dphi, g.dz, c.bath,
-            c.p0, c.law.p_cav, c.law.K, c.law.delta, c.params.penalty_a, c.params.penalty_b,
-            c.params.penalty_smoothing, c.sym, g.wrel, g.frel, g.n_phi, g.order, g.pos, g.bw,
-            self.ab, self.jst, self.r, self.wp, self.wdp, self.wth, self.wdth,
-            prm.h_min, prm.h_max, prm.theta_atol, prm.newton_atol, prm.newton_rtol,
-            prm.newton_max_iter, float(self.lu_reuse_below), p_u, self._el,
-            self.pivot_threshold)
-        if st[_fused.S_STEPS] > 0:
+        F = _fused()
+        code, its = F.advance_fused(float(dt), H, He, Hdot, float(omega), u, u_prev, th_nm1,
+                                    th_nm2, th_u, sc, st, *self._fused_args())
+        if st[F.S_STEPS] > 0:
             self._pth_of = u            # p_u, th_u are p(u), theta(u) of this state
         self.u, self.u_prev, self.th_nm1, self.th_nm2 = u, u_prev, th_nm1, th_nm2
         self._el_of = (u, u_prev)       # the kernel leaves _el valid for both
-        self._theta_u = th_u if sc[_fused.TH_U_VALID] else None
-        self.t, self.h_prev, self.h_prev2, self.h_next = sc[:4].tolist()
-        self.n_hist = int(sc[_fused.N_HIST])
+        self.t, self.h_prev, self.h_prev2, self.h_next, n_hist = sc[:F.N_HIST + 1].tolist()
+        self.n_hist = int(n_hist)
+        self._theta_u = th_u if sc[F.TH_U_VALID] else None
         stats = self.stats
         for key, v in zip(_FUSED_STATS, st.tolist()):
             stats[key] += v
         self._factored = False
-        if code == _fused.H_MIN:
+        if code == F.H_MIN:
             raise self._h_min_failure(t_end - self.t)
-        return code == _fused.DONE, int(its)
+        return code == F.DONE, int(its)
+
+    def _fused_args(self):
+        """The arguments of :func:`.fused.advance_fused` after the state and counters: the
+        film's constants, buffers and solver settings, built once and kept while the
+        parameters object, the simplified-Newton bound, the pivot threshold and the buffers of
+        the kept law values are the same objects (:meth:`init_state` makes new buffers; a test
+        may replace the model's parameters between steps)."""
+        prm = self.ctx.params
+        key = (prm, self.lu_reuse_below, self.pivot_threshold, self._p_u, self._el)
+        cached = self._fused_cache
+        if cached is not None and all(a is b for a, b in zip(cached[0], key)):
+            return cached[1]
+        c, g = self.ctx, self.ctx.grid
+        args = (self.muscl, g.groove, self.film, c.u_feed, c.a_phi, c.a_z, g.dphi, g.dz, c.bath,
+                c.p0, c.law.p_cav, c.law.K, c.law.delta, prm.penalty_a, prm.penalty_b,
+                prm.penalty_smoothing, c.sym, g.wrel, g.frel, g.n_phi, g.order, g.pos, g.bw,
+                self.ab, self.jst, self.r, self.wp, self.wdp, self.wth, self.wdth,
+                prm.h_min, prm.h_max, prm.theta_atol, prm.newton_atol, prm.newton_rtol,
+                prm.newton_max_iter, float(self.lu_reuse_below), self._p_u, self._el,
+                self.pivot_threshold)
+        self._fused_cache = (key, args)
+        return args
 
     def _h_min_failure(self, remaining):
         prm = self.ctx.params
