@@ -148,6 +148,11 @@ def _tangent_kernel(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat
             iw = i - 1 if i > 0 else n - 1
             db[r, i] = dce[r, i] + dce[r, iw]
     for k in range(n_z):
+        if ck[k] == 0.0 and feed_hat[k] == 0.0:
+            # a mode odd about the mid-plane: nothing drives it (the gap, and so every
+            # right-hand side, is uniform in z), so it and its derivatives are zero
+            x[:, k, :] = 0.0
+            continue
         for i in range(n):
             iw = i - 1 if i > 0 else n - 1
             if groove[i]:
@@ -250,6 +255,27 @@ class HalfSommerfeld:
         self._c = np.empty((n_z, n_phi))
         self._d = np.empty((n_z, n_phi))
         self._x = np.empty((n_z, n_phi))
+
+    @cached_property
+    def coefficient_rows(self):
+        """(Mh, modes, wrow) for the interface coefficients (:func:`.linearize._hs_coefficients`):
+        the axial modes that carry the film (``modes``: ``ck`` or ``feed_hat`` nonzero; the
+        others are exactly zero, :func:`_tangent_kernel`), the rows of the field to compute
+        and their weights in the force. The gap depends on phi only, both edges are at p0
+        and the groove spans the width, so the field is symmetric about the mid-plane: where
+        the rows of :attr:`idst_matrix` on those modes are mirror images of each other bit
+        for bit (even n_z: the odd modes are exactly zero), the lower half of the rows is
+        computed and each weighted 2, which is a quarter of the transform's products and half
+        the force quadrature (issue 16; equal to the full field to round-off,
+        tests/test_hs_batched.py); otherwise every row, weight 1."""
+        n_z = self.grid.n_z
+        M = self.idst_matrix
+        modes = np.flatnonzero((self.ck != 0.0) | (self.feed_hat != 0.0))
+        Mm = M[:, modes]
+        half = (n_z + 1) // 2
+        if n_z % 2 == 0 and np.array_equal(Mm, Mm[::-1]):
+            return np.ascontiguousarray(Mm[:half]), modes.astype(np.int64), np.full(half, 2.0)
+        return np.ascontiguousarray(Mm), modes.astype(np.int64), np.ones(n_z)
 
     @cached_property
     def idst_matrix(self):

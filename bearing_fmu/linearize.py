@@ -180,19 +180,21 @@ def hs_linearization(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3):
     D = np.empty((2, 4))
     _hs_coefficients(float(x), float(y), float(vx), float(vy), float(omega), b.c, cs, sn, ce, se,
                      dH, dHe, dHdot, g.dz, g.dphi, hs.a_phi, g.dphi * hs.a_z / g.dz, hs.lam, hs.ck,
-                     hs.gr, hs.feed_hat, hs.idst_matrix, steps, g.phi,
+                     hs.gr, hs.feed_hat, *hs.coefficient_rows, steps, g.phi,
                      b.params.R * g.dphi * b.params.B * g.dz, D)
     return D[:, :2].copy(), D[:, 2:].copy()
 
 
 @nb.njit(cache=True, nogil=True)
 def _hs_coefficients(x, y, vx, vy, omega, c, cs, sn, ce, se, dH, dHe, dHdot, dz, dphi, a_phi,
-                     coef, lam, ck, groove, feed_hat, M, steps, phi, area, D):
+                     coef, lam, ck, groove, feed_hat, Mh, modes, wrow, steps, phi, area, D):
     """:func:`hs_linearization` after its steps, in one call without the GIL: the gap (the
     operations of ``Grid.gap``), the tangent solve (:func:`.hs._tangent_modes`), the inverse
-    DST-II of every field as a product with ``M`` (:meth:`.hs.HalfSommerfeld.idst_matrix`;
+    DST-II of every field as a product with ``Mh`` (rows and mode columns of
+    :meth:`.hs.HalfSommerfeld.idst_matrix`, :meth:`.hs.HalfSommerfeld.coefficient_rows`;
     equal to scipy's transform to round-off) and the central differences
-    (:func:`_hs_central_tangent`), into ``D`` (2, 4)."""
+    (:func:`_hs_central_tangent`, row r of the fields weighted ``wrow[r]``), into ``D``
+    (2, 4). ``modes``: the axial modes that carry the fields (the others are exactly zero)."""
     n = cs.size
     m = dH.shape[0]
     n_z = lam.size
@@ -206,11 +208,16 @@ def _hs_coefficients(x, y, vx, vy, omega, c, cs, sn, ce, se, dH, dHe, dHdot, dz,
     X = np.empty((m + 1, n_z, n))
     _tangent_modes(H, He, Hdot, omega, dH, dHe, dHdot, dz, dphi, a_phi, coef, lam, ck, groove,
                    feed_hat, X)
-    P0 = np.dot(M, X[0])
-    dP = np.empty((m, n_z, n))
+    Xh = np.empty((m + 1, modes.size, n))
+    for f in range(m + 1):
+        for q in range(modes.size):
+            Xh[f, q] = X[f, modes[q]]
+    rows = Mh.shape[0]
+    P0 = np.dot(Mh, Xh[0])
+    dP = np.empty((m, rows, n))
     for r in range(m):
-        dP[r] = np.dot(M, X[r + 1])
-    _hs_central_tangent(P0, dP, steps, phi, area, D)
+        dP[r] = np.dot(Mh, Xh[r + 1])
+    _hs_central_tangent(P0, dP, steps, phi, area, D, wrow)
 
 
 def _tangent_directions(b):
@@ -230,10 +237,12 @@ def _tangent_directions(b):
 
 
 @nb.njit(cache=True, nogil=True)
-def _hs_central_tangent(P0, dP, steps, phi, area, D):
+def _hs_central_tangent(P0, dP, steps, phi, area, D, wrow):
     """-(F(P0 + s_j dP_j) - F(P0 - s_j dP_j)) / (2 s_j) into D[:, j] (2, 4): the central
     differences of :func:`_hs_forces_many`'s force (cell pressures of the force quadrature,
-    :func:`.film.hs_force_pressure`), with the perturbed fields from the tangent solve."""
+    :func:`.film.hs_force_pressure`), with the perturbed fields from the tangent solve;
+    row r of the fields weighted ``wrow[r]`` (2 for a row that stands for its mirror image
+    about the mid-plane too, :func:`_hs_coefficients`)."""
     n_z, n_phi = P0.shape
     Pq = np.empty((n_z, n_phi))
     pf = np.empty((n_z, n_phi))
@@ -251,8 +260,8 @@ def _hs_central_tangent(P0, dP, steps, phi, area, D):
                 cs = math.cos(phi[i])
                 sn = math.sin(phi[i])
                 for r in range(n_z):
-                    Fx -= pf[r, i] * cs
-                    Fy -= pf[r, i] * sn
+                    Fx -= wrow[r] * pf[r, i] * cs
+                    Fy -= wrow[r] * pf[r, i] * sn
             F[side, 0] = Fx * area
             F[side, 1] = Fy * area
         D[0, j] = -(F[0, 0] - F[1, 0]) / (2.0 * steps[j])

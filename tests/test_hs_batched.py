@@ -119,3 +119,36 @@ def test_the_dst_matrix_of_the_coefficient_kernel_is_scipys_inverse_dst(case):
     X = np.random.default_rng(1).standard_normal((n_z, n_phi))
     ref = sfft.idst(X, type=2, norm="ortho", axis=0)
     np.testing.assert_allclose(b.hs.idst_matrix @ X, ref, rtol=0, atol=1e-13 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_coefficients_from_the_lower_rows_equal_those_of_every_row(case):
+    """The coefficient kernel transforms only the modes that carry the film and, for even n_z,
+    only the lower half of the rows, each standing for its mirror image
+    (HalfSommerfeld.coefficient_rows): the same coefficients as every mode and row, to
+    round-off; odd n_z keeps every row."""
+    from bearing_fmu.linearize import _hs_coefficients, _steps, _tangent_directions
+    b = bearing(**CASES[case])
+    g, hs = b.grid_full, b.hs
+    Mh, modes, wrow = hs.coefficient_rows
+    if g.n_z % 2 == 0:
+        assert Mh.shape == (g.n_z // 2, g.n_z // 2) and np.all(wrow == 2.0)
+    else:
+        assert Mh.shape[0] == g.n_z and np.all(wrow == 1.0)
+    every = (np.ascontiguousarray(hs.idst_matrix), np.arange(g.n_z), np.ones(g.n_z))
+    cs, sn, ce, se, dH, dHe, dHdot = _tangent_directions(b)
+    for k in KINS:
+        D = {}
+        for name, rows in (("reduced", hs.coefficient_rows), ("every", every)):
+            D[name] = np.empty((2, 4))
+            _hs_coefficients(*k, b.c, cs, sn, ce, se, dH, dHe, dHdot, g.dz, g.dphi, hs.a_phi,
+                             g.dphi * hs.a_z / g.dz, hs.lam, hs.ck, hs.gr, hs.feed_hat, *rows,
+                             _steps(b, np.array(k[:4]), k[4], 1e-5, 1e-3), g.phi,
+                             b.params.R * g.dphi * b.params.B * g.dz, D[name])
+        # round-off of the force sums (~1e-16 of 2 n_z n_phi terms, summed in another order)
+        # over the central difference's 2 s (s = 1e-5 of c): ~1e-10 of the coefficients, a
+        # tenth of what the tangent solve itself is held to against the finite differences
+        for cols in (slice(0, 2), slice(2, 4)):     # stiffness and damping, each to its scale
+            ref = D["every"][:, cols]
+            np.testing.assert_allclose(D["reduced"][:, cols], ref, rtol=0,
+                                       atol=1e-9 * np.abs(ref).max())
