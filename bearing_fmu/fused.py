@@ -35,9 +35,9 @@ import numpy as np
 
 from .cavitation import law_eval
 from .film import assemble, assemble_muscl, stencil_to_band
-from .solver import (PIVOT_THRESHOLD, _increment_norm_kernel, _limit_switch, band_lu_nopivot,
-                     band_newton_step_nopivot, dominant_extrapolate, dominant_update,
-                     dominant_weights, law_el)
+from .solver import (CHORD_RATE_MAX, PIVOT_THRESHOLD, _increment_norm_kernel, _limit_switch,
+                     band_lu_nopivot, band_newton_step_nopivot, dominant_extrapolate,
+                     dominant_update, dominant_weights, jacobian_moved, law_el)
 
 DONE, H_MIN, PIVOT = 0, 1, 2
 #: indices of the scalar state ``sc``
@@ -75,7 +75,7 @@ def advance_fused(dt, H, He, Hdot, omega,
                   pa, pb, s_pen, sym, wrel, frel,
                   n_phi, order, pos, bw, ab, jst, r, p, dp, th, dth,
                   h_min, h_max, theta_atol, atol, rtol, max_iter, lu_reuse_below,
-                  p_u, el, pivot_threshold=PIVOT_THRESHOLD):
+                  p_u, el, jst_f, jac_reuse_below, pivot_threshold=PIVOT_THRESHOLD):
     """Advance the film state from ``sc[T]`` to ``sc[T] + dt`` (module doc). Arrays ``u,
     u_prev, th_nm1, th_nm2, th_u`` (n,) and ``sc`` (7,), ``st`` (6,) are the state and
     counters, changed in place; ``ab, jst, r, p, dp, th, dth`` the integrator's buffers;
@@ -84,6 +84,8 @@ def advance_fused(dt, H, He, Hdot, omega,
     ``el`` (4, n) e = exp(-|u / delta|) and log1p(e) of u and of u_prev
     (:func:`.solver.dominant_extrapolate`), valid on entry where ``sc[EL_U_VALID]``,
     ``sc[EL_UP_VALID]`` say so (else computed here) and kept valid for both on return;
+    ``jst_f`` (as ``jst``) receives the stencil Jacobian of every LU (the second
+    simplified-Newton rule, ``jac_reuse_below``: :data:`.solver.JACOBIAN_REUSE_BELOW`);
     ``pivot_threshold`` that of :func:`.solver.band_lu_nopivot` (a test forces the
     :data:`PIVOT` return with a threshold no pivot meets).
     Returns (code, Newton iterations of the last solve)."""
@@ -153,6 +155,7 @@ def advance_fused(dt, H, He, Hdot, omega,
             its = 0
             r_ready = False
             ok = False
+            chord_prev = False
             while its < max_iter:
                 if not r_ready:
                     _residual(muscl, uu, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega,
@@ -160,7 +163,13 @@ def advance_fused(dt, H, He, Hdot, omega,
                               r, jst, p, dp, th, dth, sym, wrel, frel, e_it, l1_it)
                 r_ready = False
                 its += 1
-                if prev >= 0.0 and prev <= lu_reuse_below:
+                keep = prev >= 0.0
+                if keep and prev > lu_reuse_below:      # TransientFilm.newton's second rule
+                    slow = chord_prev and prev > CHORD_RATE_MAX * prev2
+                    keep = (jac_reuse_below > 0.0 and not slow
+                            and jacobian_moved(jst, jst_f) <= jac_reuse_below)
+                chord_prev = keep and prev > lu_reuse_below
+                if keep:
                     st[S_REUSED] += 1
                 else:
                     ab[bw:, :] = 0.0
@@ -170,6 +179,7 @@ def advance_fused(dt, H, He, Hdot, omega,
                         sc[H_NEXT] = h
                         return PIVOT, last_its
                     st[S_FACTOR] += 1
+                    jst_f[:, :] = jst
                 if not band_newton_step_nopivot(ab, bw, r, order, pos, work, dx):
                     break
                 dominant_update(uu, dx, wcol_p, wcol_th, n_phi, p_cav, K, delta, un, e_it,

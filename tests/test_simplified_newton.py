@@ -27,9 +27,12 @@ def orbit(k, eps=0.55, spin=500.0, ratio=0.45):
             r * nu * math.cos(nu * t), w)
 
 
-def run(reuse, steps=40, **extra):
+def run(reuse, steps=40, jac=0.0, **extra):
+    """The whirl on the film with the two simplified-Newton rules at ``reuse`` (increment,
+    LU_REUSE_BELOW) and ``jac`` (Jacobian change, JACOBIAN_REUSE_BELOW); 0: rule off."""
     b = BearingModel(BearingParams(**dict(KW, **extra)))
     b.film.lu_reuse_below = reuse
+    b.film.jac_reuse_below = jac
     b.initialize(*orbit(0), init="stationary")
     F = []
     for k in range(1, steps + 1):
@@ -41,6 +44,7 @@ def run(reuse, steps=40, **extra):
 def test_default_bound_is_the_documented_one():
     b = BearingModel(BearingParams(**KW))
     assert b.film.lu_reuse_below == solver.LU_REUSE_BELOW == 10.0
+    assert b.film.jac_reuse_below == solver.JACOBIAN_REUSE_BELOW == 0.1
 
 
 def test_kept_lu_saves_factorisations_not_accuracy():
@@ -61,6 +65,39 @@ def test_kept_lu_saves_factorisations_not_accuracy():
     # than full Newton
     assert err_simp < 1e-4
     assert err_simp < 3 * err_full + 1e-9
+
+
+@pytest.mark.parametrize("extra", [{}, {"axial_bc": 0, "groove_width": 0.0, "cav_width": 9e4}])
+def test_kept_lu_while_the_jacobian_holds_saves_factorisations_to_the_newton_tolerance(extra):
+    """The second rule (JACOBIAN_REUSE_BELOW) keeps the LU after larger Newton steps as long as
+    the assembled Newton matrix stays within 10 % of the factored one: fewer LUs than the first
+    rule alone, every kept iteration one LU saved against full Newton, few extra iterations,
+    and the film still where a Newton run 1000x tighter puts it to the Newton tolerance."""
+    full, F_full = run(0.0, **extra)
+    simp, F_simp = run(solver.LU_REUSE_BELOW, **extra)
+    both, F_both = run(solver.LU_REUSE_BELOW, jac=solver.JACOBIAN_REUSE_BELOW, **extra)
+    tight, F_tight = run(0.0, newton_atol=1e-7, newton_rtol=1e-8, **extra)
+    assert both.stats["factor"] < simp.stats["factor"] < full.stats["factor"]
+    assert both.stats["factor"] == both.stats["newton"] - both.stats["reused"] + \
+        (full.stats["factor"] - full.stats["newton"])
+    assert both.stats["newton"] <= full.stats["newton"] * 1.1 + 1
+    assert both.stats["failed_newton"] == both.stats["rejected"] == 0
+    scale = np.abs(F_tight).max()
+    err_both = np.abs(F_both - F_tight).max() / scale
+    assert err_both < 1e-4          # newton_rtol 1e-5 of the pressure range, accumulated
+
+
+def test_jacobian_moved_measures_rows_against_their_factored_diagonal():
+    jf = np.array([[4.0, -1.0, -1.0], [1.0, 0.0, 0.0], [2.0, 0.5, 0.0]])
+    assert solver.jacobian_moved(jf, jf) == 0.0
+    j = jf.copy()
+    j[0, 1] -= 0.2          # row 0: 0.2 / 4
+    j[2, 0] += 0.3          # row 2: 0.3 / 2
+    assert solver.jacobian_moved(j, jf) == pytest.approx(0.15)
+    jf0 = jf.copy()
+    jf0[1, 0] = 0.0
+    assert solver.jacobian_moved(jf0, jf0) == 0.0
+    assert solver.jacobian_moved(j, jf0) == np.inf      # a changed row over a zero diagonal
 
 
 def test_fused_newton_step_equals_solve():

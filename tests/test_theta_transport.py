@@ -94,6 +94,7 @@ def _run_baseline(kw, predictor_limited=False, newton_path="old"):
     b.film.search_converged = old
     if old:
         b.film.lu_reuse_below = 0.0     # a fresh LU every iteration (simplified Newton came later)
+        b.film.jac_reuse_below = 0.0
     c = p.c
     w = 2 * math.pi * 150
     b.initialize(0.1 * c, -0.4 * c, 0.0, 0.0, w)
