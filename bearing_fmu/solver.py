@@ -247,10 +247,12 @@ LU_REUSE_BELOW = 10.0
 #: but switches no cell leaves it nearly unchanged, and the chord step with the kept LU then
 #: contracts by about this fraction; where cells cross the cavitation switch the rows of those
 #: cells change by O(1) and the rule factors again. Measured on recorded run-up kinematics of
-#: the shipped Jeffcott bearings (benchmarks/bench_newton_reuse.py, BENCHMARKS.md): 0.1 saves
-#: 26 % of the LUs in the oil-bath whirl and 47 % in its quiet phases for +2 % Newton
-#: iterations, the force within 4e-5 (whirl) of a run 1000x tighter in Newton (full Newton:
-#: 9e-6); 0.2 saves more LUs but costs 11 % more iterations and 1.7e-4 in the force.
+#: the shipped Jeffcott bearings (benchmarks/bench_newton_reuse.py, BENCHMARKS.md "Session
+#: 16"): 0.1 saves 26 % of the LUs in the oil-bath whirl and 47 % in its quiet phase for +2 %
+#: and +0.2 % Newton iterations (free to air: 4-11 % of the LUs); in the quiet phase the force
+#: stays within 3e-6 of a run 1000x tighter in Newton (full Newton: 5e-8); in the whirl the
+#: film amplifies any perturbation (full Newton itself is 1.3e-2 from the tight run there).
+#: 0.2 saves a few more LUs for 11 % more iterations in the oil-bath whirl.
 JACOBIAN_REUSE_BELOW = 0.1
 
 #: a chord step (an iteration on a kept LU under :data:`JACOBIAN_REUSE_BELOW`) that reduced the
