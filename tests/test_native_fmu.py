@@ -210,34 +210,3 @@ def test_rotorcosim_info_on_the_c_fmu(fmu_dir, capsys):
     assert "needsExecutionTool: no" in out
     for line in ("k ", "Fx ", "omega "):
         assert any(row.strip().startswith(line) for row in out.splitlines()), line
-
-
-def test_hot_path_keeps_the_gil_for_python_fmus_and_releases_it_for_native_ones(fmu_dir, tmp_path):
-    """set/doStep/get of a PythonFMU FMU are called holding the GIL (its C++ layer takes it
-    back at once; subsystem.holding_the_gil), those of a C FMU release it (where threads
-    gain); both still step and return values."""
-    import ctypes
-
-    from orchestrator.fmi.subsystem import Subsystem, holding_the_gil
-
-    def keeps_gil(f):
-        return bool(f._flags_ & ctypes._FUNCFLAG_PYTHONAPI)
-
-    subs = {name: Subsystem(name, fmu_dir / f"{name}.fmu", work_dir=tmp_path)
-            for name in ("LinearBearing", "JeffcottRotor")}
-    try:
-        c, py = subs["LinearBearing"], subs["JeffcottRotor"]
-        assert not any(keeps_gil(f) for f in (c._c_set_real, c._c_get_real, c._c_do_step))
-        assert all(keeps_gil(f) for f in (py._c_set_real, py._c_get_real, py._c_do_step))
-        for sub in subs.values():
-            sub.setup_experiment(0.0, 1.0)
-            sub.enter_initialization_mode()
-            sub.exit_initialization_mode()
-            sub.do_step(0.0, 1e-4)
-            sub.do_step(1e-4, 1e-4)
-        # the wrapper calls the same C function: same result as ctypes' own call
-        f = c._f["fmi2DoStep"]
-        assert holding_the_gil(f)(c._component, 2e-4, 1e-4, 1) == f(c._component, 3e-4, 1e-4, 1) == 0
-    finally:
-        for sub in subs.values():
-            sub.free()

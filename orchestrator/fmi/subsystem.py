@@ -259,22 +259,6 @@ class SubsystemBase(ABC):
         return dict(self.calls)
 
 
-def holding_the_gil(func):
-    """The C function behind the ctypes function ``func``, called without releasing the GIL.
-
-    A PythonFMU FMU's C++ layer takes the GIL back at once to run the slave's Python code
-    (``PyGILState_Ensure``), so releasing it around the call only lets another thread of the
-    master take it in between, and the caller then waits for it to come back: with a stage
-    in threads (``coupling.parallel: threads``) each bearing's set/doStep/get calls handed
-    the GIL to the other bearing's Python and back. Held, the slave runs at once; code that
-    releases the GIL itself (the film kernel, ``nogil`` numba) still runs beside the other
-    threads. Measured on the shipped free-to-air run-up to 1.0 s (threads): wall A/B 0.95
-    (0.93-1.17, 6 interleaved pairs), results byte-identical (BENCHMARKS.md, issue 16).
-    Native FMUs keep ctypes' release: their doStep is where threads gain."""
-    proto = ctypes.PYFUNCTYPE(func.restype, *func.argtypes)
-    return proto(ctypes.cast(func, ctypes.c_void_p).value)
-
-
 class Subsystem(SubsystemBase):
     """An FMI 2.0 co-simulation FMU instance (through fmpy's ``FMU2Slave``).
 
@@ -327,9 +311,6 @@ class Subsystem(SubsystemBase):
         self._c_set_real = self._f["fmi2SetReal"]
         self._c_get_real = self._f["fmi2GetReal"]
         self._c_do_step = self._f["fmi2DoStep"]
-        if self.md.generation_tool.startswith("PythonFMU"):
-            self._c_set_real, self._c_get_real, self._c_do_step = (
-                holding_the_gil(f) for f in (self._c_set_real, self._c_get_real, self._c_do_step))
         self.calls["instantiate"] += 1
         try:
             with own_imports(self.unzip_dir):   # a PythonFMU FMU imports the packages it bundles, not a cached copy
