@@ -152,3 +152,27 @@ def test_coefficients_from_the_lower_rows_equal_those_of_every_row(case):
             ref = D["every"][:, cols]
             np.testing.assert_allclose(D["reduced"][:, cols], ref, rtol=0,
                                        atol=1e-9 * np.abs(ref).max())
+
+
+def test_with_contact_the_tangent_solve_serves_where_the_roughness_leaves_the_gap_alone(monkeypatch):
+    """contact = 1: the film sees the expected gap of the roughness, the nominal gap above 8
+    roughness heights. Away from the shell (every gap of the finite differences above that) the
+    coefficients come from the tangent solve and equal the 8 perturbed solves with contact to
+    the tangent solve's own accuracy; near the shell the perturbed solves are used."""
+    import bearing_fmu.linearize as lin
+    b = bearing(n_phi=40, n_z=40, cavitation=1, axial_bc=1, groove_width=math.radians(15),
+                groove_angle=math.pi / 2, contact=1)
+    s = b.params.sigma_rough / C                   # 8 s = 0.175: eps up to 0.825 is away
+    calls = []
+    fd = lin.hs_linearization_fd
+    monkeypatch.setattr(lin, "hs_linearization_fd", lambda *a, **k: calls.append(a[1:3]) or fd(*a, **k))
+    away = (0.5 * C, -0.3 * C, 0.02, -0.01, 2 * math.pi * 400)          # eps 0.58
+    K, Cm = hs_linearization(b, *away)
+    assert calls == []
+    Kf, Cf = fd(b, *away)
+    np.testing.assert_allclose(K, Kf, rtol=0, atol=1e-8 * np.abs(Kf).max())
+    np.testing.assert_allclose(Cm, Cf, rtol=0, atol=1e-8 * np.abs(Cf).max())
+    e_near = (1.0 - 7.9 * s) * C                   # the smallest gap below 8 sigma
+    near = (e_near, 0.0, 0.0, 0.0, 2 * math.pi * 400)
+    hs_linearization(b, *near)
+    assert calls == [(e_near, 0.0)]
