@@ -43,6 +43,32 @@ def test_jobs_run_at_the_same_time_and_failures_come_back_in_order():
     pool.close()
 
 
+def test_hand_offs_that_outlast_the_watch_go_to_sleep_and_still_arrive():
+    """A job longer than the watch (handoff.SPIN_TURNS, ~2 ms) puts the master to sleep, a gap
+    between stages longer than it puts the stage thread to sleep: both are woken by the other
+    side, every job runs once, and close() ends the threads."""
+    import time
+    pool = StageThreads(1)
+    ran = []
+
+    def slow():
+        time.sleep(0.05)
+        ran.append("slow")
+
+    assert pool.run([lambda: ran.append("first"), slow]) == [None, None]
+    time.sleep(0.05)                                   # the stage thread falls asleep
+    w = pool._workers[0]
+    assert w.asleep
+    boom = RuntimeError("late failure")
+
+    def fails():
+        raise boom
+    assert pool.run([lambda: ran.append("again"), fails]) == [None, boom]
+    assert ran == ["first", "slow", "again"] and pool.runs == 2
+    pool.close()
+    assert not w.thread.is_alive()
+
+
 def _scenario(tmp_path, parallel, name="jeffcott_runup_free_to_air", stop=0.2504):
     from orchestrator import load_scenario
 
