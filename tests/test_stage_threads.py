@@ -69,6 +69,20 @@ def test_hand_offs_that_outlast_the_watch_go_to_sleep_and_still_arrive():
     assert not w.thread.is_alive()
 
 
+def test_more_stage_threads_than_cores_sleep_instead_of_watching(monkeypatch):
+    import orchestrator.coupling.threads as threads
+    monkeypatch.setattr(threads, "usable_cores", lambda: 2)
+    wide, narrow = StageThreads(2), StageThreads(1)
+    try:
+        assert wide.turns == 0 and narrow.turns == threads.SPIN_TURNS
+        ran = []
+        jobs = [lambda k=k: ran.append(k) for k in range(3)]
+        assert wide.run(jobs) == [None, None, None] and sorted(ran) == [0, 1, 2]
+    finally:
+        wide.close()
+        narrow.close()
+
+
 def _scenario(tmp_path, parallel, name="jeffcott_runup_free_to_air", stop=0.2504):
     from orchestrator import load_scenario
 

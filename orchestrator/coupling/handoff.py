@@ -61,8 +61,9 @@ def _store(typingctx, arr, idx, value):
 
 @nb.njit(cache=True, nogil=True)
 def watch(flags, k, value, turns):
-    """True as soon as ``flags[k] == value``; False after ``turns`` turns without it."""
-    for _ in range(turns):
+    """True as soon as ``flags[k] == value``; False after ``turns`` turns without it (the
+    slot is looked at once at least)."""
+    for _ in range(max(turns, 1)):
         if _load(flags, k) == value:
             return True
     return False
@@ -73,7 +74,7 @@ def post_and_watch(flags, k, posted, value, turns):
     """``flags[k] = posted`` (atomic, after everything this thread wrote), then :func:`watch`
     for ``value``: the GIL is already released when the other thread sees ``posted``."""
     _store(flags, k, posted)
-    for _ in range(turns):
+    for _ in range(max(turns, 1)):
         if _load(flags, k) == value:
             return True
     return False

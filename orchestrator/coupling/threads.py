@@ -27,11 +27,13 @@ wall A/B 0.915 (0.895-0.963, 3 pairs), the oil bath to 1.0 s 0.914 (2 pairs), th
 run-up from rest to 1.2 s 0.89 (2 pairs); results byte-identical. The price: during a run
 each stage thread keeps its core busy (CPU time +6 %), so run no more threaded runs at once
 than there are cores for their threads. A hand-off that outlasts the watch (a long job, a
-long pause between stages) sleeps on an event as before.
+long pause between stages) sleeps on an event as before; with more stage threads than the
+process has cores, nobody watches (every hand-off sleeps).
 """
 
 from __future__ import annotations
 
+import os
 import threading
 from typing import Callable, Sequence
 
@@ -44,8 +46,9 @@ class _Worker:
     """One stage thread: watches its flag slot for a job (:mod:`.handoff`: a compiled loop
     without the GIL, then asleep on ``wake``), runs it, posts DONE and watches again."""
 
-    def __init__(self, flags, k: int):
+    def __init__(self, flags, k: int, turns: int):
         self.flags, self.i = flags, 8 * k          # slot k: its own cache line
+        self.turns = turns
         self.job: Callable[[], None] | None = None
         self.error: BaseException | None = None
         self.closing = False
@@ -60,8 +63,8 @@ class _Worker:
         self.thread.start()
 
     def _loop(self) -> None:
-        flags, i = self.flags, self.i
-        got = watch(flags, i, JOB, SPIN_TURNS)
+        flags, i, turns = self.flags, self.i, self.turns
+        got = watch(flags, i, JOB, turns)
         while True:
             while not got:              # asleep until the master posts a job (and sets wake)
                 self.asleep = True
@@ -81,7 +84,7 @@ class _Worker:
                 self.finished.set()
             # DONE is posted from inside the compiled loop, with the GIL already released, so
             # the master finds it free when it sees DONE
-            got = post_and_watch(flags, i, DONE, JOB, SPIN_TURNS)
+            got = post_and_watch(flags, i, DONE, JOB, turns)
 
 
 class StageThreads:
@@ -89,7 +92,10 @@ class StageThreads:
 
     def __init__(self, n: int):
         self._flags = new_flags(n)
-        self._workers = [_Worker(self._flags, k) for k in range(max(1, n))]
+        # watch only while every thread of a stage has a core of its own: a thread that
+        # watches on a shared core would take it from one that works
+        self.turns = SPIN_TURNS if max(1, n) + 1 <= usable_cores() else 0
+        self._workers = [_Worker(self._flags, k, self.turns) for k in range(max(1, n))]
         self._closed = False
         self.runs = 0           # stage steps run (summary.json "threaded_stage_steps")
 
@@ -119,7 +125,7 @@ class StageThreads:
         for k, w in enumerate(busy, 1):
             while True:
                 try:
-                    while not watch(flags, w.i, DONE, SPIN_TURNS):
+                    while not watch(flags, w.i, DONE, self.turns):
                         w.master_asleep = True          # a long job: asleep until its end
                         if flags[w.i] != DONE:
                             w.finished.wait(0.002)
@@ -143,6 +149,14 @@ class StageThreads:
                 w.wake.set()
             for w in self._workers:
                 w.thread.join(timeout=10.0)
+
+
+def usable_cores() -> int:
+    """The processors this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):          # not on every platform
+        return os.cpu_count() or 1
 
 
 def in_worker_thread() -> bool:
