@@ -51,6 +51,7 @@ from scipy.linalg import lapack
 
 from .contact import H_AVG, average_gap, contact_coefficients
 from .film import assemble, assemble_muscl, hs_force_pressure, integrals, stencil_to_band
+from .grid import _gap
 from .hs import _tangent_modes
 
 __all__ = ["linearization", "hs_force", "film_force_at"]
@@ -207,13 +208,7 @@ def _hs_coefficients(x, y, vx, vy, omega, c, cs, sn, ce, se, dH, dHe, dHdot, dz,
     n = cs.size
     m = dH.shape[0]
     n_z = lam.size
-    H = np.empty(n)
-    He = np.empty(n)
-    Hdot = np.empty(n)
-    for i in range(n):
-        H[i] = 1.0 - (x * cs[i] + y * sn[i]) / c
-        He[i] = 1.0 - (x * ce[i] + y * se[i]) / c
-        Hdot[i] = -(vx * cs[i] + vy * sn[i]) / c
+    H, He, Hdot = _gap(x, y, vx, vy, c, cs, sn, ce, se)
     X = np.empty((m + 1, n_z, n))
     _tangent_modes(H, He, Hdot, omega, dH, dHe, dHdot, dz, dphi, a_phi, coef, lam, ck, groove,
                    feed_hat, X)
