@@ -35,9 +35,9 @@ import numpy as np
 
 from .cavitation import law_eval
 from .film import assemble, assemble_muscl, stencil_to_band
-from .solver import (CHORD_RATE_MAX, PIVOT_THRESHOLD, _increment_norm_kernel, _limit_switch,
-                     band_lu_nopivot, band_newton_step_nopivot, dominant_extrapolate,
-                     dominant_update, dominant_weights, jacobian_moved, law_el)
+from .solver import (PIVOT_THRESHOLD, _increment_norm_kernel, _limit_switch, band_lu_nopivot,
+                     band_newton_step_nopivot, dominant_extrapolate, dominant_update,
+                     dominant_weights, keep_lu, law_el)
 
 DONE, H_MIN, PIVOT = 0, 1, 2
 #: indices of the scalar state ``sc``
@@ -163,11 +163,8 @@ def advance_fused(dt, H, He, Hdot, omega,
                               r, jst, p, dp, th, dth, sym, wrel, frel, e_it, l1_it)
                 r_ready = False
                 its += 1
-                keep = prev >= 0.0
-                if keep and prev > lu_reuse_below:      # TransientFilm.newton's second rule
-                    slow = chord_prev and prev > CHORD_RATE_MAX * prev2
-                    keep = (jac_reuse_below > 0.0 and not slow
-                            and jacobian_moved(jst, jst_f) <= jac_reuse_below)
+                keep = prev >= 0.0 and keep_lu(prev, prev2, chord_prev, lu_reuse_below,
+                                               jac_reuse_below, jst, jst_f)
                 chord_prev = keep and prev > lu_reuse_below
                 if keep:
                     st[S_REUSED] += 1

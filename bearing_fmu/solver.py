@@ -278,6 +278,22 @@ def jacobian_moved(jst, jst_f):
     return worst
 
 
+@nb.njit(cache=True, nogil=True)
+def keep_lu(prev, prev2, chord_prev, lu_reuse_below, jac_reuse_below, jst, jst_f):
+    """The simplified-Newton rules of an iteration that follows a Newton step of ``prev``
+    tolerances (``prev2`` the one before, ``chord_prev`` whether that step was a chord step of
+    the second rule): keep the LU of this solve's last factorisation when ``prev <=
+    lu_reuse_below`` (:data:`LU_REUSE_BELOW`), or when the Newton matrix ``jst`` moved by at
+    most ``jac_reuse_below`` from the factored ``jst_f`` (:data:`JACOBIAN_REUSE_BELOW`)
+    unless the last chord step contracted by less than :data:`CHORD_RATE_MAX`. Shared by
+    :meth:`TransientFilm.newton` and :func:`.fused.advance_fused`."""
+    if prev <= lu_reuse_below:
+        return True
+    if jac_reuse_below <= 0.0 or (chord_prev and prev > CHORD_RATE_MAX * prev2):
+        return False
+    return jacobian_moved(jst, jst_f) <= jac_reuse_below
+
+
 class StepFailed(RuntimeError):
     """The film could not be advanced (Newton or step-size control failed)."""
 
@@ -667,14 +683,10 @@ class TransientFilm:
             r_ready = False
             its += 1
             fresh = False
-            keep = simplified = (prev is not None and self._factored and not self.full_newton
-                                 and prm.krylov_refactor == 0)
-            if simplified and prev > self.lu_reuse_below:
-                # second rule (JACOBIAN_REUSE_BELOW): the Newton matrix hardly moved since the
-                # LU was factored, unless the last such chord step contracted too slowly
-                slow = chord_prev and prev > CHORD_RATE_MAX * prev2
-                keep = (self.jac_reuse_below > 0.0 and not slow
-                        and jacobian_moved(self.jst, self.jst_f) <= self.jac_reuse_below)
+            keep = (prev is not None and self._factored and not self.full_newton
+                    and prm.krylov_refactor == 0
+                    and keep_lu(prev, prev2 or 0.0, chord_prev, self.lu_reuse_below,
+                                self.jac_reuse_below, self.jst, self.jst_f))
             chord_prev = keep and prev > self.lu_reuse_below
             if keep:
                 # simplified Newton (refactorisation rules): the last Newton step moved the

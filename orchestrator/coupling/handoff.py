@@ -74,10 +74,7 @@ def post_and_watch(flags, k, posted, value, turns):
     """``flags[k] = posted`` (atomic, after everything this thread wrote), then :func:`watch`
     for ``value``: the GIL is already released when the other thread sees ``posted``."""
     _store(flags, k, posted)
-    for _ in range(max(turns, 1)):
-        if _load(flags, k) == value:
-            return True
-    return False
+    return watch(flags, k, value, turns)
 
 
 def new_flags(n: int) -> np.ndarray:

@@ -201,7 +201,7 @@ class FmuChecks(Completion):
             journals = self.mapping(section["journals"][1], "analysis.journals",
                                     fix="write one entry per journal, e.g. bearing1: {x: rotor.x_1, y: rotor.y_1, "
                                         "clearance: 1.0e-5}") or {}
-            if "journals" in section and not journals and isinstance(section["journals"][1], yaml.MappingNode):
+            if not journals and isinstance(section["journals"][1], yaml.MappingNode):
                 self.err(section["journals"][1], "'analysis.journals' is empty; name at least one journal, e.g. "
                                                  "bearing1: {x: rotor.x_1, y: rotor.y_1, clearance: 1.0e-5}")
             for jname, (_, jnode) in journals.items():
