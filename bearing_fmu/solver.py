@@ -169,7 +169,10 @@ def _own_root(v, target, a, b, p_cav, K, delta):
         else:
             lo = v
         vn = v - e / dfv
-        if not (lo < vn < hi):
+        if not (lo <= vn <= hi):
+            # closed bracket: on a branch where f is linear with slope m, the Newton step
+            # lands exactly on the bracket end, which is then the root (an open test sent
+            # such cells to bisection, ~35 iterations each)
             vn = 0.5 * (lo + hi)
         if vn == v or hi - lo <= 1e-14 * (abs(v) + delta):
             break

@@ -413,6 +413,31 @@ def test_dominant_newton_path_needs_fewer_iterations_same_answer():
         assert out[True][i] == pytest.approx(out[False][i], rel=1e-4), out
 
 
+def test_own_root_takes_the_newton_step_onto_the_bracket_end(monkeypatch):
+    """solver._own_root on the full-film branch, where f = a p(v) + b theta(v) is linear
+    with the slope m = a K that also sizes the bracket: the Newton step from a guess left of
+    the root lands exactly on the bracket end, which is the root. The bracket test must
+    accept it (an open test sent such cells, which cross the switch at a moving front, to
+    bisection: 36 evaluations instead of 2)."""
+    import bearing_fmu.solver as S
+    from bearing_fmu.cavitation import CavitationLaw
+    law = CavitationLaw(1e5, 1e3, 0.05)
+    a, b = 0.3652551287215366 / law.K, 108.55686296998903      # a K << b (theta-weighted cell)
+    calls = []
+    real = S._own_part
+
+    def counted(*args):
+        calls.append(1)
+        return real(*args)
+
+    monkeypatch.setattr(S, "_own_part", counted)
+    d = law.delta
+    target = float(real(280.6 * d, a, b, law.p_cav, law.K, d)[0])
+    v = S._own_root.py_func(204.2 * d, target, a, b, law.p_cav, law.K, d)
+    assert abs(v / d - 280.6) < 1e-8
+    assert len(calls) <= 3
+
+
 def test_law_eval_hands_dominant_update_the_same_exp_and_log1p():
     """The fused film step takes e = exp(-|u/delta|) and log1p(e) of the iterate from the
     residual's law_eval instead of computing them again in dominant_update: both must be
