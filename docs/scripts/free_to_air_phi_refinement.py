@@ -12,10 +12,13 @@ docs/scripts/grid_convergence.py (Jeffcott run-up bearing, 15 deg groove at phi 
   seconds), force and the eight quasi-steady coefficients;
 * ``width``: Fy on the same phi sequence for several ``cav_width`` (the pressure width of
   the cavitation law theta(p), bearing_fmu/cavitation.py; 1 kPa is the default and what the
-  shipped free-to-air scenarios use).
+  shipped free-to-air scenarios use);
+* ``split``: that Fy split into the part of the cells below p0 (the cavity, at about p0 -
+  cav_width) and the part of the cells at or above p0 (the full film), with the film's own
+  force quadrature (``linearize._force`` of the pressure with the other part set to p0).
 
-Run: ``nice .venv/bin/python docs/scripts/free_to_air_phi_refinement.py [z] [phi] [width]``
-(all three by default; about two minutes on one core). Prints markdown tables.
+Run: ``nice .venv/bin/python docs/scripts/free_to_air_phi_refinement.py [z] [phi] [width] [split]``
+(all four by default; about two minutes on one core). Prints markdown tables.
 """
 
 from __future__ import annotations
@@ -57,7 +60,7 @@ def header(label, grids):
 
 
 def main(argv):
-    parts = argv or ["z", "phi", "width"]
+    parts = argv or ["z", "phi", "width", "split"]
     q = gc.hs_equilibrium(40)
     omega = 2 * math.pi * gc.F_HZ
     if "z" in parts:
@@ -79,6 +82,21 @@ def main(argv):
             vals = [gc.mc_quantities("air", n, q, omega, n_z=40, coefficients=False,
                                      cav_width=w)[1] for n in PHI_GRIDS]
             row(f"cav_width {w:g} Pa", vals)
+    if "split" in parts:
+        from bearing_fmu.linearize import _force
+        from bearing_fmu.model import BearingModel
+        print("\n### Fy [N] of the cells below p0 and at or above p0: n_z = 40\n")
+        print("| cav_width | n_phi | Fy | cells below p0 | cells at or above p0 |")
+        print("|---|---|---|---|---|")
+        for w in (1e2, 1e3, 3e3):
+            for n in (48, 192, 768, 1536):
+                b = BearingModel(gc.params("air", n, 40, cav_width=w))
+                b.initialize(q[0], q[1], 0.0, 0.0, omega, init="stationary")
+                p, th = b.law.p_theta(b.film.u)
+                below = _force(b, np.minimum(p, b.p0), th, b._kin)[1]
+                above = _force(b, np.maximum(p, b.p0), th, b._kin)[1]
+                print(f"| {w:g} Pa | {n} | {b.outputs['Fy']:.5f} | {below:+.5f} | {above:.5f} |",
+                      flush=True)
 
 
 if __name__ == "__main__":
