@@ -475,11 +475,21 @@ def stencil_to_band(jst, n_phi, pos, bw, ab):
     """Scatter the stencil (5 or 7 columns) into LAPACK band storage (entry (g, g2) at
     ``ab[2 bw + pos[g] - pos[g2], pos[g2]]``, shape (3 bw + 1, N)); ``ab``
     must be zeroed by the caller (a memset in numpy is faster)."""
+    stencil_rows_to_band(jst, n_phi, pos, bw, ab, 0)
+
+
+@nb.njit(cache=True, nogil=True)
+def stencil_rows_to_band(jst, n_phi, pos, bw, ab, row_from):
+    """:func:`stencil_to_band` for the rows at band positions ``>= row_from`` only (the
+    partial refactorisation of :func:`.solver.refactor_partial`); their entries in ``ab``
+    must be zero."""
     n = jst.shape[0]
     n_z = n // n_phi
     for g in range(n):
-        e, w, nn, ss = _neighbours(g, n_phi, n_z)
         pg = pos[g]
+        if pg < row_from:
+            continue
+        e, w, nn, ss = _neighbours(g, n_phi, n_z)
         ab[2 * bw, pg] += jst[g, 0]
         nb_ = (e, w, nn, ss)
         for k in range(4):

@@ -37,7 +37,7 @@ from .cavitation import law_eval
 from .film import assemble, assemble_muscl, stencil_to_band
 from .solver import (PIVOT_THRESHOLD, _increment_norm_kernel, _limit_switch, band_lu_nopivot,
                      band_newton_step_nopivot, dominant_extrapolate, dominant_update,
-                     dominant_weights, keep_lu, law_el)
+                     dominant_weights, keep_lu, law_el, refactor_partial)
 
 DONE, H_MIN, PIVOT = 0, 1, 2
 #: indices of the scalar state ``sc``
@@ -169,14 +169,20 @@ def advance_fused(dt, H, He, Hdot, omega,
                 if keep:
                     st[S_REUSED] += 1
                 else:
-                    ab[bw:, :] = 0.0
-                    stencil_to_band(jst, n_phi, pos, bw, ab)
-                    if band_lu_nopivot(ab, bw, pivot_threshold) != 0:
+                    if prev >= 0.0 and jac_reuse_below > 0.0:
+                        # a later LU of this solve: from the first row that moved on
+                        code, _ = refactor_partial(jst, jst_f, n_phi, pos, bw, ab,
+                                                   pivot_threshold, jac_reuse_below)
+                    else:
+                        ab[bw:, :] = 0.0
+                        stencil_to_band(jst, n_phi, pos, bw, ab)
+                        code = band_lu_nopivot(ab, bw, pivot_threshold)
+                        jst_f[:, :] = jst
+                    if code != 0:
                         sc[T] = t       # this solve is redone by the Python loop: not counted
                         sc[H_NEXT] = h
                         return PIVOT, last_its
                     st[S_FACTOR] += 1
-                    jst_f[:, :] = jst
                 if not band_newton_step_nopivot(ab, bw, r, order, pos, work, dx):
                     break
                 dominant_update(uu, dx, wcol_p, wcol_th, n_phi, p_cav, K, delta, un, e_it,

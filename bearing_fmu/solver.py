@@ -18,7 +18,9 @@ Method
   second-order face values couple i +- 2; the band ordering covers them). Default (``krylov_refactor = 0``): band LU
   (``dgbtrf``, ordering of :mod:`.grid`) and a direct solve every iteration, except that an
   iteration after a Newton step of at most ``LU_REUSE_BELOW`` (10) tolerances keeps the
-  last LU (simplified Newton);
+  last LU (simplified Newton), so does one whose Newton matrix moved by at most
+  ``JACOBIAN_REUSE_BELOW`` in every row, and a later LU of the same solve is redone only
+  from the first band row that moved by more (:func:`refactor_partial`);
   on the half-width grid the LU is cheap (n_z/2 bandwidth), and this measured
   fastest on 40x40, 80x80 and 160x40. Option ``krylov_refactor = m > 0``:
   Newton-Krylov, GMRES preconditioned by the LAST band LU, REUSED across
@@ -43,7 +45,7 @@ import scipy.sparse as sp
 from scipy.linalg import lapack
 from scipy.sparse.linalg import splu
 
-from .film import assemble, assemble_muscl, stencil_matvec, stencil_to_band
+from .film import assemble, assemble_muscl, stencil_matvec, stencil_rows_to_band, stencil_to_band
 
 
 @nb.njit(cache=True, nogil=True)
@@ -334,12 +336,19 @@ def band_lu_nopivot(ab, bw, thresh):
     the element growth per step is at most 1 + 1/thresh); the film's Newton matrix is
     column diagonally dominant up to the upwind Couette coupling, for which elimination
     needs no interchange at all (Golub & Van Loan, Matrix Computations, 4th ed., 3.4.6)."""
+    return _band_lu_from(ab, bw, thresh, 0)
+
+
+@nb.njit(cache=True, nogil=True)
+def _band_lu_from(ab, bw, thresh, k_from):
+    """:func:`band_lu_nopivot` from column ``k_from`` on (columns before it are factored and
+    their updates applied to the rest)."""
     rows = ab.shape[0]
     n = ab.shape[1]
     a = ab.T.ravel()                 # a view: entry (r, c) at c * rows + r
     d = 2 * bw
     col = np.empty(bw)
-    for k in range(n):
+    for k in range(k_from, n):
         ck = k * rows + d            # flat index of the pivot A[k, k]
         piv = a[ck]
         m = min(bw, n - 1 - k)
@@ -358,6 +367,94 @@ def band_lu_nopivot(ab, bw, thresh):
             if akj != 0.0:
                 _axpy(a, cj + 1, col, m, -akj)
     return 0
+
+
+#: a partial refactorisation (:func:`refactor_partial`) starts no earlier than this many
+#: bandwidths into the band; before that a full one costs about as much
+PARTIAL_MIN_BW = 2
+
+
+@nb.njit(cache=True, nogil=True)
+def first_moved_position(jst, jst_f, pos, bound):
+    """The smallest band position of a row of ``jst`` that moved by more than ``bound`` from
+    ``jst_f`` (the measure of :func:`jacobian_moved`), or the number of rows when none did."""
+    n = jst.shape[0]
+    kmin = n
+    for g in range(n):
+        if pos[g] >= kmin:
+            continue
+        d = abs(jst_f[g, 0])
+        s = 0.0
+        for k in range(jst.shape[1]):
+            s += abs(jst[g, k] - jst_f[g, k])
+        if s > bound * d or (s > 0.0 and not d > 0.0):
+            kmin = pos[g]
+    return kmin
+
+
+@nb.njit(cache=True, nogil=True)
+def refactor_partial(jst, jst_f, n_phi, pos, bw, ab, thresh, bound):
+    """Refactor the band LU ``ab`` of the stencil Jacobian ``jst_f`` for ``jst``, keeping the
+    rows before the first band position ``kmin`` whose row moved by more than ``bound``
+    (:func:`first_moved_position`; those rows moved by at most ``bound`` each, the tolerance
+    of the second simplified-Newton rule, :data:`JACOBIAN_REUSE_BELOW`).
+
+    Without interchanges, U's rows before ``kmin`` and L's columns before ``kmin - bw`` depend
+    on those rows only, so they stand. The rows from ``kmin`` on are scattered anew. The
+    eliminations of the pivots ``kmin - bw .. kmin - 1`` are replayed on those rows only,
+    with the multipliers they give. Then elimination continues from ``kmin``
+    (:func:`_band_lu_from`). The cost is (N - kmin) / N of a full LU plus about bw^3. The
+    result is the LU of the matrix whose rows before ``kmin`` are ``jst_f``'s and whose
+    other rows are ``jst``'s, and ``jst_f`` is updated to it. Returns (code, kmin): code 0,
+    or k + 1 for a pivot below ``thresh`` (as :func:`band_lu_nopivot`; the caller factors
+    again from scratch). When ``kmin < PARTIAL_MIN_BW * bw``, or when no row moved by more
+    than ``bound``, this is a full factorisation of ``jst`` (kmin returned as 0)."""
+    n = jst.shape[0]
+    kmin = first_moved_position(jst, jst_f, pos, bound)
+    if kmin < PARTIAL_MIN_BW * bw or kmin >= n:
+        # early, or no row moved by more than bound (the rules asked for a new LU because the
+        # chord steps contracted too slowly): the whole matrix
+        ab[bw:, :] = 0.0
+        stencil_to_band(jst, n_phi, pos, bw, ab)
+        jst_f[:, :] = jst
+        return band_lu_nopivot(ab, bw, thresh), 0
+    rows = ab.shape[0]
+    a = ab.T.ravel()
+    d = 2 * bw
+    k0 = kmin - bw
+    # zero the entries of the rows >= kmin (columns k0 .. n-1) and scatter them anew
+    for j in range(k0, n):
+        for i in range(max(kmin, j - bw), min(n - 1, j + bw) + 1):
+            a[j * rows + d + i - j] = 0.0
+    stencil_rows_to_band(jst, n_phi, pos, bw, ab, kmin)
+    for g in range(n):
+        if pos[g] >= kmin:
+            jst_f[g, :] = jst[g, :]
+    # replay the eliminations of the pivots k0 .. kmin-1 on the rows >= kmin
+    for k in range(k0, kmin):
+        ck = k * rows + d
+        piv = a[ck]
+        m = min(bw, n - 1 - k)
+        s = kmin - k - 1                   # col[s:m]: the multipliers of the rows >= kmin
+        big = 0.0
+        for i in range(1, s + 1):          # kept multipliers, times the pivot
+            big = max(big, abs(a[ck + i] * piv))
+        for i in range(s + 1, m + 1):
+            big = max(big, abs(a[ck + i]))
+        if thresh * big > abs(piv):
+            return k + 1, kmin
+        inv = 1.0 / piv
+        for i in range(s + 1, m + 1):
+            a[ck + i] *= inv
+        for j in range(1, m + 1):
+            cj = (k + j) * rows + d - j    # flat index of U[k, k + j]
+            ukj = a[cj]
+            if ukj != 0.0:
+                seg = a[cj + 1 + s:cj + 1 + m]
+                mult = a[ck + 1 + s:ck + 1 + m]
+                for i in range(m - s):
+                    seg[i] -= ukj * mult[i]
+    return _band_lu_from(ab, bw, thresh, kmin), kmin
 
 
 @nb.njit(cache=True, inline="always")
@@ -580,6 +677,26 @@ class TransientFilm:
         self.stats["factor"] += 1
         self.jac = dict(u=u.copy(), th_dot0=th_dot0, kin=kin)
 
+    def _refactor_partial(self, u, th_dot0, kin):
+        """A later LU of this Newton solve by :func:`refactor_partial` (from the first band
+        row that moved by more than ``jac_reuse_below`` on); False when it does not apply
+        (no factor of this solve without interchanges, the rule off, full Newton) or a
+        pivot failed its threshold (the caller then factors the whole matrix)."""
+        lin = self.lin
+        if not (self._factored and type(lin) is BandLU and lin.piv is None
+                and self.jac_reuse_below > 0.0 and not self.full_newton
+                and self.ctx.params.krylov_refactor == 0):
+            return False
+        g = self.ctx.grid
+        code, _ = refactor_partial(self.jst, self.jst_f, g.n_phi, g.pos, g.bw, self.ab,
+                                   PIVOT_THRESHOLD, self.jac_reuse_below)
+        if code != 0:
+            return False
+        lin.lu, lin.piv = self.ab, None
+        self.stats["factor"] += 1
+        self.jac = dict(u=u.copy(), th_dot0=th_dot0, kin=kin)
+        return True
+
     def _scatter(self):
         g = self.ctx.grid
         self.ab[g.bw:].fill(0.0)
@@ -715,7 +832,10 @@ class TransientFilm:
                 self.stats["reused"] += 1
                 dx, finite = self._newton_step(r)
             elif not self._factored or self.full_newton or prm.krylov_refactor == 0:
-                self._factor(u, th_dot0, kin, jst_ready=True)
+                if prev is not None and not self._refactor_partial(u, th_dot0, kin):
+                    self._factor(u, th_dot0, kin, jst_ready=True)
+                elif prev is None:
+                    self._factor(u, th_dot0, kin, jst_ready=True)
                 fresh = True
                 dx, finite = self._newton_step(r)
             else:

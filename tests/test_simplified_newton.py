@@ -118,10 +118,70 @@ def test_fused_newton_step_equals_solve():
     assert not ok
 
 
-@pytest.mark.parametrize("reuse", [0.0, solver.LU_REUSE_BELOW])
-def test_restore_repeats_bit_for_bit(reuse):
-    # the kept LU lives inside one Newton solve only: a restored state repeats exactly
-    b, _ = run(reuse, steps=10)
+def _mixed_case(extra, scale_before):
+    """A film's stencil Jacobian J1, its band LU, and J2: the rows at band positions from
+    N/2 on scaled by 1.3, the diagonal of the others by ``scale_before``."""
+    from bearing_fmu.film import stencil_to_band
+    b, _ = run(0.0, steps=3, **extra)
+    f, g = b.film, b.film.ctx.grid
+    f.residual(f.u, 2e4, np.zeros(f.n), b._kin, want_jac=True)
+    J1 = f.jst.copy()
+    late = g.pos >= f.n // 2
+    J2 = J1 * np.where(late, 1.3, 1.0)[:, None]
+    J2[~late, 0] *= scale_before
+    ab = np.zeros((3 * g.bw + 1, f.n), order="F")
+    stencil_to_band(J1, g.n_phi, g.pos, g.bw, ab)
+    assert solver.band_lu_nopivot(ab, g.bw, solver.PIVOT_THRESHOLD) == 0
+    return g, J1, J2, ab
+
+
+def _full_lu(J, g):
+    from bearing_fmu.film import stencil_to_band
+    ref = np.zeros((3 * g.bw + 1, J.shape[0]), order="F")
+    stencil_to_band(J, g.n_phi, g.pos, g.bw, ref)
+    assert solver.band_lu_nopivot(ref, g.bw, solver.PIVOT_THRESHOLD) == 0
+    return ref
+
+
+@pytest.mark.parametrize("extra", [{"n_phi": 48}, {"n_phi": 48, "axial_bc": 0, "groove_width": 0.0,
+                                                   "theta_transport": 1}])
+def test_partial_refactorisation_is_the_lu_of_the_mixed_matrix(extra):
+    """solver.refactor_partial keeps the factored rows before the first row that moved by more
+    than the bound and refactors from there: the result is, bit for bit, the LU of the matrix
+    whose early rows are the factored ones and whose later rows are new, and jst_f becomes that
+    matrix. With the bound 0 nothing is kept approximately: the LU of the new matrix itself."""
+    g, J1, J2, ab = _mixed_case(extra, 1.01)
+    jf = J1.copy()
+    code, kmin = solver.refactor_partial(J2, jf, g.n_phi, g.pos, g.bw, ab,
+                                         solver.PIVOT_THRESHOLD, 0.1)
+    assert code == 0 and solver.PARTIAL_MIN_BW * g.bw <= kmin <= J1.shape[0] // 2
+    mixed = np.where((g.pos >= kmin)[:, None], J2, J1)
+    assert np.array_equal(jf, mixed)
+    assert np.array_equal(ab[g.bw:], _full_lu(mixed, g)[g.bw:])
+    g, J1, J2, ab = _mixed_case(extra, 1.0)
+    jf = J1.copy()
+    code, kmin = solver.refactor_partial(J2, jf, g.n_phi, g.pos, g.bw, ab,
+                                         solver.PIVOT_THRESHOLD, 0.0)
+    assert code == 0 and kmin == J1.shape[0] // 2
+    assert np.array_equal(ab[g.bw:], _full_lu(J2, g)[g.bw:]) and np.array_equal(jf, J2)
+
+
+def test_partial_refactorisation_factors_everything_when_an_early_row_moved():
+    g, J1, J2, ab = _mixed_case({"n_phi": 48}, 1.0)
+    J2[int(np.argmin(g.pos))] *= 1.3                 # the first row in the band
+    jf = J1.copy()
+    code, kmin = solver.refactor_partial(J2, jf, g.n_phi, g.pos, g.bw, ab,
+                                         solver.PIVOT_THRESHOLD, 0.1)
+    assert (code, kmin) == (0, 0)
+    assert np.array_equal(ab[g.bw:], _full_lu(J2, g)[g.bw:]) and np.array_equal(jf, J2)
+
+
+@pytest.mark.parametrize("reuse,jac", [(0.0, 0.0), (solver.LU_REUSE_BELOW, 0.0),
+                                       (solver.LU_REUSE_BELOW, solver.JACOBIAN_REUSE_BELOW)])
+def test_restore_repeats_bit_for_bit(reuse, jac):
+    # the kept and the partly refactored LU live inside one Newton solve only: a restored
+    # state repeats exactly
+    b, _ = run(reuse, steps=10, jac=jac)
     s = b.get_state()
     b.step(1e-4, *orbit(11))
     F1 = (b.outputs["Fx"], b.outputs["Fy"])
