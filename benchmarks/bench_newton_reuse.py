@@ -82,27 +82,35 @@ def replay(scenario, data, t0, t1, bound, warm=30, **extra):
     return counts, cpu, np.array(F)
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def windows_cli(description, name, default, help_, argv=None):
+    """The command line of this benchmark and of bench_theta_atol.py: ``--scenario``,
+    ``--windows``, ``--NAME`` (comma-separated values) and ``--kin``; records the kinematics
+    if needed. Returns (scenario, windows, values, recorded columns)."""
+    ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--scenario", default="oil_bath", choices=["free_to_air", "oil_bath"])
     ap.add_argument("--windows", default="0.3:0.4,0.7:0.8", help="t0:t1 [s] of the run-up, comma-separated")
-    ap.add_argument("--bounds", default="0,0.1,0.2", help="JACOBIAN_REUSE_BELOW values")
+    ap.add_argument(f"--{name}", default=default, help=help_)
     ap.add_argument("--kin", default=None, help="folder of a recorded run (made if missing)")
     a = ap.parse_args(argv)
     windows = [tuple(float(x) for x in w.split(":")) for w in a.windows.split(",")]
-    bounds = [float(x) for x in a.bounds.split(",")]
+    values = [float(x) for x in getattr(a, name).split(",")]
     kin_dir = Path(a.kin) if a.kin else Path(tempfile.mkdtemp(prefix="kin_"))
     csv = record(a.scenario, max(t1 for _, t1 in windows) + 0.01, kin_dir)
     from orchestrator.results.run_directory import RunDirectory
-    data = RunDirectory(csv.parent).columns()
     print(f"scenario {a.scenario}, bearing1, kinematics {csv}")
+    return a.scenario, windows, values, RunDirectory(csv.parent).columns()
+
+
+def main(argv=None):
+    scenario, windows, bounds, data = windows_cli(__doc__.splitlines()[0], "bounds", "0,0.1,0.2",
+                                                  "JACOBIAN_REUSE_BELOW values", argv)
     print("| window [s] | bound | CPU ms / macro step | internal steps | Newton | LU | force error |")
     print("|---|---|---|---|---|---|---|")
     for t0, t1 in windows:
-        _, _, F_ref = replay(a.scenario, data, t0, t1, 0.0, newton_atol=1e-7, newton_rtol=1e-8)
+        _, _, F_ref = replay(scenario, data, t0, t1, 0.0, newton_atol=1e-7, newton_rtol=1e-8)
         scale = np.abs(F_ref).max()
         for bound in bounds:
-            c, cpu, F = replay(a.scenario, data, t0, t1, bound)
+            c, cpu, F = replay(scenario, data, t0, t1, bound)
             err = np.abs(F - F_ref).max() / scale
             print(f"| {t0:g}-{t1:g} | {bound:g} | {cpu:.3f} | {c['steps']:.3f} | {c['newton']:.3f} | "
                   f"{c['factor']:.3f} | {err:.1e} |")

@@ -18,9 +18,7 @@ Run:
 
 from __future__ import annotations
 
-import argparse
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -33,27 +31,16 @@ from bearing_fmu.solver import JACOBIAN_REUSE_BELOW  # noqa: E402
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scenario", default="oil_bath", choices=["free_to_air", "oil_bath"])
-    ap.add_argument("--windows", default="0.3:0.4,0.7:0.8", help="t0:t1 [s] of the run-up, comma-separated")
-    ap.add_argument("--atols", default="1e-3,2e-3,4e-3", help="theta_atol values")
-    ap.add_argument("--kin", default=None, help="folder of a recorded run (made if missing)")
-    a = ap.parse_args(argv)
-    windows = [tuple(float(x) for x in w.split(":")) for w in a.windows.split(",")]
-    atols = [float(x) for x in a.atols.split(",")]
-    kin_dir = Path(a.kin) if a.kin else Path(tempfile.mkdtemp(prefix="kin_"))
-    csv = nr.record(a.scenario, max(t1 for _, t1 in windows) + 0.01, kin_dir)
-    from orchestrator.results.run_directory import RunDirectory
-    data = RunDirectory(csv.parent).columns()
-    print(f"scenario {a.scenario}, bearing1, kinematics {csv}")
+    scenario, windows, atols, data = nr.windows_cli(__doc__.splitlines()[0], "atols",
+                                                    "1e-3,2e-3,4e-3", "theta_atol values", argv)
     print("| window [s] | theta_atol | CPU ms / macro step | internal steps | Newton | LU | force distance |")
     print("|---|---|---|---|---|---|---|")
     for t0, t1 in windows:
-        _, _, F_ref = nr.replay(a.scenario, data, t0, t1, JACOBIAN_REUSE_BELOW, theta_atol=1e-5,
+        _, _, F_ref = nr.replay(scenario, data, t0, t1, JACOBIAN_REUSE_BELOW, theta_atol=1e-5,
                                 newton_atol=1e-6, newton_rtol=1e-7)
         scale = np.abs(F_ref).max()
         for atol in atols:
-            c, cpu, F = nr.replay(a.scenario, data, t0, t1, JACOBIAN_REUSE_BELOW, theta_atol=atol)
+            c, cpu, F = nr.replay(scenario, data, t0, t1, JACOBIAN_REUSE_BELOW, theta_atol=atol)
             err = np.abs(F - F_ref).max() / scale
             print(f"| {t0:g}-{t1:g} | {atol:g} | {cpu:.3f} | {c['steps']:.3f} | {c['newton']:.3f} | "
                   f"{c['factor']:.3f} | {err:.1e} |", flush=True)
