@@ -81,21 +81,28 @@ def sigmoid(x):
 
 
 @nb.njit(cache=True, nogil=True)
-def law_eval(u, p_cav, K, delta, p_out, dp_out, th_out, dth_out, e_out=None, l1_out=None):
+def law_eval(u, p_cav, K, delta, p_out, dp_out, th_out, dth_out, e_out=None, l1_out=None,
+             valid=None):
     """Evaluate p(u), dp/du, theta(u), dtheta/du for an array u (in place).
 
     The four functions of x = u / delta share ``e = exp(-|x|)`` and ``log1p(e)``: one exp
     and one log1p per cell instead of four and two, bit for bit what :func:`softplus` and
     :func:`sigmoid` return (the same operations on the same operands). ``e_out``,
     ``l1_out``, if given, receive e and log1p(e) (for :func:`.solver.dominant_update`,
-    which needs the same two of the same u)."""
+    which needs the same two of the same u). ``valid`` (uint8, with e_out and l1_out), if
+    given: where it is set, e_out and l1_out already hold e and log1p(e) of this u (the
+    Newton update computed them, :func:`.solver.dominant_update`) and are read instead."""
     for k in range(u.size):
         x = u[k] / delta
-        e = math.exp(-abs(x))
-        l1 = math.log1p(e)
-        if e_out is not None:
-            e_out[k] = e
-            l1_out[k] = l1
+        if valid is not None and valid[k]:
+            e = e_out[k]
+            l1 = l1_out[k]
+        else:
+            e = math.exp(-abs(x))
+            l1 = math.log1p(e)
+            if e_out is not None:
+                e_out[k] = e
+                l1_out[k] = l1
         if x > 0.0:
             sp_pos, sp_neg = x + l1, l1          # softplus(x), softplus(-x)
         else:

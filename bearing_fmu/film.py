@@ -251,7 +251,7 @@ def _weights(wrel, frel, n_phi):
 def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
              dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
              r, want_jac, jst, p, dp, th, dth, sym, wrel=None, frel=None,
-             e_out=None, l1_out=None):
+             e_out=None, l1_out=None, valid=None):
     """Residual r(u) (flat cell order) and, if ``want_jac``, the Jacobian.
 
     The time derivative of theta is ``th_dot0 * theta(u) + th_dot1`` (BDF
@@ -265,12 +265,12 @@ def assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z
     (:func:`.grid.groove_weights`): column widths and east-face centre distances
     relative to dphi (1 everywhere when omitted: whole-cell groove columns).
     ``e_out``, ``l1_out`` (N,), optional: receive :func:`.cavitation.law_eval`'s e and
-    log1p(e) of u.
+    log1p(e) of u; ``valid``: where set, they already hold them (law_eval's ``valid``).
     """
     n_phi = H.size
     n_z = u.size // n_phi
     wr, fr = _weights(wrel, frel, n_phi)
-    law_eval(u, p_cav, K, delta, p, dp, th, dth, e_out, l1_out)
+    law_eval(u, p_cav, K, delta, p, dp, th, dth, e_out, l1_out, valid)
     cf, leaves = _column_terms(H, He, Hdot, groove, th_dot0, omega, a_phi, a_z, dphi, dz,
                                wr, fr, wrel is not None)
     up_e = omega >= 0.0
@@ -392,14 +392,14 @@ def _col(k, g, n_phi):
 def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
                    dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
                    r, want_jac, jst, p, dp, th, dth, sym, wrel=None, frel=None,
-                   e_out=None, l1_out=None):
+                   e_out=None, l1_out=None, valid=None):
     """:func:`assemble` with the limited second-order Couette transport of theta
     (``theta_transport = 1``, module doc). Same arguments; ``jst`` is (N, 7): the
     5-point columns of :func:`assemble` plus [east-east (i+2), west-west (i-2)]."""
     n_phi = H.size
     n_z = u.size // n_phi
     wr, fr = _weights(wrel, frel, n_phi)
-    law_eval(u, p_cav, K, delta, p, dp, th, dth, e_out, l1_out)
+    law_eval(u, p_cav, K, delta, p, dp, th, dth, e_out, l1_out, valid)
     cf, leaves = _column_terms(H, He, Hdot, groove, th_dot0, omega, a_phi, a_z, dphi, dz,
                                wr, fr, wrel is not None)
     up_e = omega >= 0.0

@@ -49,15 +49,15 @@ S_STEPS, S_REJECTED, S_NEWTON, S_FACTOR, S_FAILED_NEWTON, S_REUSED = range(6)
 @nb.njit(cache=True)
 def _residual(muscl, u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
               dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen, r, jst, p, dp, th, dth,
-              sym, wrel, frel, e_u, l1_u):
+              sym, wrel, frel, e_u, l1_u, valid):
     if muscl:
         assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
                        dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen, r, True, jst,
-                       p, dp, th, dth, sym, wrel, frel, e_u, l1_u)
+                       p, dp, th, dth, sym, wrel, frel, e_u, l1_u, valid)
     else:
         assemble(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
                  dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen, r, True, jst,
-                 p, dp, th, dth, sym, wrel, frel, e_u, l1_u)
+                 p, dp, th, dth, sym, wrel, frel, e_u, l1_u, valid)
 
 
 @nb.njit(cache=True)
@@ -99,7 +99,11 @@ def advance_fused(dt, H, He, Hdot, omega,
     est = np.empty(n)
     s1, s2, s3 = np.empty(n), np.empty(n), np.empty(n)
     work, dx = np.empty(n), np.empty(n)
-    e_it, l1_it = np.empty(n), np.empty(n)      # law_eval's e, log1p(e) of the iterate
+    # e = exp(-|u / delta|) and log1p(e) of the iterate: written by the residual (law_eval),
+    # and by the predictor and the Newton update for the cells whose own root they solved
+    # (``valid`` 1), so that the residual at the new iterate reads them there
+    e_it, l1_it = np.empty(n), np.empty(n)
+    valid = np.zeros(n, dtype=np.uint8)
     wcol_p, wcol_th = np.empty(n_phi), np.empty(n_phi)
     n_film = 0
     for k in range(n):
@@ -144,10 +148,11 @@ def advance_fused(dt, H, He, Hdot, omega,
                              wcol_p, wcol_th)
             if n_hist >= 1:
                 dominant_extrapolate(u, u_prev, h / sc[H_PREV], wcol_p, wcol_th, n_phi, p_cav,
-                                     K, delta, u_start, el)
-                _limit_switch(u, u_start, delta)
+                                     K, delta, u_start, el, e_it, l1_it, valid)
+                _limit_switch(u, u_start, delta, valid)
             else:
                 u_start[:] = u
+                valid[:] = 0
             # ---- Newton (TransientFilm.newton, default branches) ----
             uu = u_start           # current iterate (u_start is scratch from here on)
             prev = -1.0
@@ -160,7 +165,7 @@ def advance_fused(dt, H, He, Hdot, omega,
                 if not r_ready:
                     _residual(muscl, uu, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega,
                               a_phi, a_z, dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
-                              r, jst, p, dp, th, dth, sym, wrel, frel, e_it, l1_it)
+                              r, jst, p, dp, th, dth, sym, wrel, frel, e_it, l1_it, valid)
                 r_ready = False
                 its += 1
                 keep = prev >= 0.0 and keep_lu(prev, prev2, chord_prev, lu_reuse_below,
@@ -185,9 +190,11 @@ def advance_fused(dt, H, He, Hdot, omega,
                     st[S_FACTOR] += 1
                 if not band_newton_step_nopivot(ab, bw, r, order, pos, work, dx):
                     break
+                # e_it, l1_it: of uu on entry, of un where valid on return (per cell: read,
+                # then written)
                 dominant_update(uu, dx, wcol_p, wcol_th, n_phi, p_cav, K, delta, un, e_it,
-                                l1_it)
-                _limit_switch(uu, un, delta)
+                                l1_it, e_it, l1_it, valid)
+                _limit_switch(uu, un, delta, valid)
                 for k in range(n):
                     step[k] = un[k] - uu[k]
                 nrm = _increment_norm_kernel(step, p, dp, dth, atol, rtol, K)
@@ -205,15 +212,17 @@ def advance_fused(dt, H, He, Hdot, omega,
                     lam = 1.0
                     _residual(muscl, un, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega,
                               a_phi, a_z, dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen,
-                              r, jst, p, dp, th, dth, sym, wrel, frel, e_it, l1_it)
+                              r, jst, p, dp, th, dth, sym, wrel, frel, e_it, l1_it, valid)
                     rn = _norm(r)
                     while rn > r0 and lam > 0.1:
                         lam *= 0.5
+                        valid[:] = 0
                         for k in range(n):
                             un[k] = uu[k] + 0.5 * (un[k] - uu[k])
                         _residual(muscl, un, th_dot0, th_dot1, H, He, Hdot, groove, u_feed,
                                   omega, a_phi, a_z, dphi, dz, bath, p0, p_cav, K, delta, pa,
-                                  pb, s_pen, r, jst, p, dp, th, dth, sym, wrel, frel, e_it, l1_it)
+                                  pb, s_pen, r, jst, p, dp, th, dth, sym, wrel, frel, e_it, l1_it,
+                                  valid)
                         rn = _norm(r)
                     r_ready = True
                 uu[:] = un
@@ -226,7 +235,9 @@ def advance_fused(dt, H, He, Hdot, omega,
                 h *= 0.25
                 continue
             # ---- Milne error estimate ----
-            law_eval(u_new, p_cav, K, delta, s1, s2, th_new, s3, e_new, l1_new)
+            law_eval(u_new, p_cav, K, delta, s1, s2, th_new, s3, e_it, l1_it, valid)
+            e_new[:] = e_it
+            l1_new[:] = l1_it
             if n_hist >= 2:
                 h1, h2 = sc[H_PREV], sc[H_PREV2]
                 Ln = (h + h1) * (h + h1 + h2) / (h1 * (h1 + h2))

@@ -49,7 +49,7 @@ from .film import assemble, assemble_muscl, stencil_matvec, stencil_rows_to_band
 
 
 @nb.njit(cache=True, nogil=True)
-def _limit_switch(u, un, delta):
+def _limit_switch(u, un, delta, valid=None):
     """Newton damping across the cavitation switch (in place on ``un``).
 
     A full Newton step taken with the film-branch slope dp/du = K can throw a
@@ -59,15 +59,18 @@ def _limit_switch(u, un, delta):
     where both branches have slope 1/2); the next iteration, with the Jacobian of
     the new branch, continues from there. Cells are also kept above u = -2
     (theta = -1), which no solution reaches. Only the path changes, not the
-    solution.
+    solution. ``valid`` (optional, :func:`dominant_update`): cleared where a cell is moved.
     """
     for k in range(u.size):
+        v = un[k]
         if u[k] > 0.0 and un[k] < 0.0:
             un[k] = 0.0
         elif u[k] < 0.0 and un[k] > delta:
             un[k] = delta
         if un[k] < -2.0:
             un[k] = -2.0
+        if valid is not None and un[k] != v:
+            valid[k] = 0            # e and log1p(e) kept for un are not those of the new value
 
 
 @nb.njit(cache=True, nogil=True)
@@ -122,7 +125,8 @@ def law_el(u, delta, e_out, l1_out):
 
 
 @nb.njit(cache=True, nogil=True)
-def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un, e_u, l1_u):
+def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un, e_u, l1_u, e_n=None,
+                    l1_n=None, valid=None):
     """New iterate ``un`` from the Newton increment ``dx`` in u, with each cell's own
     nonlinearity taken exactly: the cell moves to the u at which its own (diagonal) part of
     the residual, ``wp p(u) + wth theta(u)`` (coefficients of :func:`dominant_weights`),
@@ -139,7 +143,9 @@ def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un, e_u, l1_u):
     ``u + dx`` is kept; otherwise the solve ends within 1e-9 delta of the root. The
     solution (r = 0) is the same: only the Newton path changes. ``e_u``, ``l1_u``: e and
     log1p(e) of u (:func:`law_el`; the residual's :func:`.cavitation.law_eval` at u gives
-    them), so that f(u) costs no exp or log1p here (1 of the ~2.6-5 evaluations per cell)."""
+    them), so that f(u) costs no exp or log1p here (1 of the ~2.6-5 evaluations per cell).
+    ``e_n``, ``l1_n``, ``valid`` (optional, together): receive e and log1p(e) of ``un`` where
+    the root was solved (``valid`` 1 there, 0 elsewhere), for the residual at ``un``."""
     for k in range(u.size):
         i = k % n_phi
         d = dx[k]
@@ -147,23 +153,30 @@ def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un, e_u, l1_u):
         un[k] = v
         lim = 12.0 * delta
         if (u[k] > lim and v > lim) or (u[k] < -lim and v < -lim):
+            if valid is not None:
+                valid[k] = 0
             continue            # one branch, far from the switch: f linear to e^-12
         a, b = wp[i], wth[i]
         f0, df0 = _own_part_el(u[k] / delta, e_u[k], l1_u[k], a, b, K, delta)
-        un[k] = _own_root(v, f0 + df0 * d, a, b, p_cav, K, delta)
+        un[k], ev, l1v = _own_root(v, f0 + df0 * d, a, b, p_cav, K, delta)
+        if valid is not None:
+            e_n[k] = ev
+            l1_n[k] = l1v
+            valid[k] = 1
 
 
 @nb.njit(cache=True, inline="always")
 def _own_part2(v, wp, wth, K, delta):
     """:func:`_own_part` with the second derivative: f, f' and f'' = (wp K - wth) sigma(x)
     sigma(-x) / delta of ``f = wp p(v) + wth theta(v)`` (x = v / delta; f is convex where
-    wp K > wth and concave where wp K < wth, everywhere)."""
+    wp K > wth and concave where wp K < wth, everywhere), and e = exp(-|x|), log1p(e) as
+    :func:`.cavitation.law_eval` computes them for v."""
     x = v / delta
     e = math.exp(-abs(x))
     l1 = math.log1p(e)
     f, df = _own_part_el(x, e, l1, wp, wth, K, delta)
     s = 1.0 / (1.0 + e)
-    return f, df, (wp * K - wth) * e * s * s / delta
+    return f, df, (wp * K - wth) * e * s * s / delta, e, l1
 
 
 @nb.njit(cache=True, nogil=True)
@@ -172,9 +185,11 @@ def _own_root(v, target, a, b, p_cav, K, delta):
     guess v: safeguarded Halley-bisection in the bracket ``v +- |f(v) - target| / min f'``,
     to 1e-9 delta (see :func:`dominant_update`). Halley's step ``-2 e f' / (2 f'^2 - e f'')``
     (cubic convergence; f'' costs no exp or log more than f') needs about one evaluation per
-    cell less than Newton's on the run-up films."""
+    cell less than Newton's on the run-up films. Returns (v, e, log1p(e)) of the v returned
+    (always the last one evaluated), which the residual at the new iterate reads instead of
+    computing them again (:func:`.cavitation.law_eval`'s ``valid``)."""
     m = max(min(a * K, b), 1e-300)   # f' >= m; b = 0 only at rest without squeeze
-    fv, dfv, d2 = _own_part2(v, a, b, K, delta)
+    fv, dfv, d2, ev, l1v = _own_part2(v, a, b, K, delta)
     e = fv - target
     lo = v - abs(e) / m
     hi = v + abs(e) / m
@@ -195,13 +210,14 @@ def _own_root(v, target, a, b, p_cav, K, delta):
         if vn == v or hi - lo <= 1e-14 * (abs(v) + delta):
             break
         v = vn
-        fv, dfv, d2 = _own_part2(v, a, b, K, delta)
+        fv, dfv, d2, ev, l1v = _own_part2(v, a, b, K, delta)
         e = fv - target
-    return v
+    return v, ev, l1v
 
 
 @nb.njit(cache=True, nogil=True)
-def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out, el):
+def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out, el,
+                         e_n=None, l1_n=None, valid=None):
     """Newton start ``out`` for the next internal step, extrapolated linearly in each cell's
     own part ``f = wp p(u) + wth theta(u)`` (:func:`dominant_update`) instead of in u:
     ``f(out) = f(u) + ratio (f(u) - f(u_prev))``, ``ratio = h / h_prev``. A line in u through
@@ -212,7 +228,7 @@ def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out,
     of benchmarks/bench_bearing_whirl.py: 7.06 -> 5.22 Newton iterations per macro step.
     ``el`` (4, n): e = exp(-|x|) and log1p(e) of u (rows 0, 1) and of u_prev (rows 2, 3)
     (:func:`law_el`; kept from the steps that accepted them, so f(u) and f(u_prev) cost
-    no exp or log1p here)."""
+    no exp or log1p here). ``e_n``, ``l1_n``, ``valid``: as in :func:`dominant_update`."""
     lim = 12.0 * delta
     for k in range(u.size):
         i = k % n_phi
@@ -220,11 +236,17 @@ def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out,
         out[k] = v
         if (u[k] > lim and v > lim and u_prev[k] > lim) or \
                 (u[k] < -lim and v < -lim and u_prev[k] < -lim):
+            if valid is not None:
+                valid[k] = 0
             continue
         a, b = wp[i], wth[i]
         f0, _ = _own_part_el(u[k] / delta, el[0, k], el[1, k], a, b, K, delta)
         f1, _ = _own_part_el(u_prev[k] / delta, el[2, k], el[3, k], a, b, K, delta)
-        out[k] = _own_root(v, f0 + ratio * (f0 - f1), a, b, p_cav, K, delta)
+        out[k], ev, l1v = _own_root(v, f0 + ratio * (f0 - f1), a, b, p_cav, K, delta)
+        if valid is not None:
+            e_n[k] = ev
+            l1_n[k] = l1v
+            valid[k] = 1
 
 
 @nb.njit(cache=True, nogil=True)

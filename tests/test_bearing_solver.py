@@ -433,7 +433,7 @@ def test_own_root_takes_the_newton_step_onto_the_bracket_end(monkeypatch):
     monkeypatch.setattr(S, "_own_part2", counted)
     d = law.delta
     target = float(real(280.6 * d, a, b, law.K, d)[0])
-    v = S._own_root.py_func(204.2 * d, target, a, b, law.p_cav, law.K, d)
+    v, _, _ = S._own_root.py_func(204.2 * d, target, a, b, law.p_cav, law.K, d)
     assert abs(v / d - 280.6) < 1e-8
     assert len(calls) <= 3
 
