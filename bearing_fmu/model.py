@@ -492,13 +492,41 @@ class BearingModel:
     def _steady(self, kin, u0, max_iter=40):
         """Steady mass-conserving film: Newton on the steady equations (no time
         term), falling back to pseudo-transient continuation (BDF1 with growing
-        steps) when plain Newton does not converge."""
+        steps) when plain Newton does not converge. With Newton tolerances tighter than
+        the defaults, the continuation's inner Newton steps may not reach them (flat cells,
+        e.g. 40 x 160: the increments stall at rounding): then the continuation runs at the
+        default tolerances and the last Newton polishes to the requested ones."""
         f = self.film
         zero = np.zeros(f.n)
         u, its = self._steady_newton(kin, u0, zero, max_iter)
         if u is not None:
             return u
-        # pseudo-transient continuation from a flooded film
+        us, its = self._steady_newton(kin, self._continuation(kin, u0), zero, max_iter)
+        prm = self.params
+        atol0, rtol0 = (BearingParams.__dataclass_fields__[k].default
+                        for k in ("newton_atol", "newton_rtol"))
+        tight = prm.newton_atol < atol0 or prm.newton_rtol < rtol0
+        if us is None and tight:
+            self.params = prm.replace(newton_atol=max(prm.newton_atol, atol0),
+                                      newton_rtol=max(prm.newton_rtol, rtol0))
+            try:
+                u = self._continuation(kin, u0)
+            finally:
+                self.params = prm
+            us, its = self._steady_newton(kin, u, zero, max_iter)
+        if us is None:
+            hint = (f"; the Newton tolerances (newton_atol = {prm.newton_atol:g}, newton_rtol = "
+                    f"{prm.newton_rtol:g}) may be below what this grid reaches: loosen them"
+                    if tight else "")
+            raise StepFailed("solve_stationary: steady Newton did not converge even "
+                             "after pseudo-transient continuation; check the inputs "
+                             "(eps < 1, a groove or oil bath feeding the film)" + hint)
+        return us
+
+    def _continuation(self, kin, u0):
+        """Pseudo-transient continuation from ``u0`` (BDF1 steps growing from 0.1 / omega
+        while the inner Newton converges in a few iterations) towards the steady film."""
+        f = self.film
         omega = abs(kin[3]) or 1.0
         h = 0.1 / omega
         u = u0.copy()
@@ -514,12 +542,7 @@ class BearingModel:
             h *= 2.0 if its <= 6 else 1.0
             if change < 1e-8 or h * omega > 1e6:
                 break
-        us, its = self._steady_newton(kin, u, zero, max_iter)
-        if us is None:
-            raise StepFailed("solve_stationary: steady Newton did not converge even "
-                             "after pseudo-transient continuation; check the inputs "
-                             "(eps < 1, a groove or oil bath feeding the film)")
-        return us
+        return u
 
     def _steady_newton(self, kin, u0, zero, max_iter):
         """Full Newton with backtracking on the steady residual."""

@@ -158,6 +158,21 @@ def test_stationary_mass_balance_and_newton(bc):
     assert f["p"].min() == pytest.approx(p.p0 - p.cav_width, abs=1.0)
 
 
+def test_stationary_with_tight_newton_tolerances_on_flat_cells():
+    """solve_stationary with Newton tolerances far below the defaults on flat cells (the
+    Jeffcott bearing, 30 x 120, 1e-10): the continuation's inner Newton stalls at rounding
+    there, so it runs at the default tolerances and the last Newton polishes to the requested
+    ones; the film is the one the default tolerances give. (The continuation at 1e-10 failed
+    with "did not converge".)"""
+    kw = dict(R=4.9e-3, B=1.6 * 4.9e-3, psi=2.8e-3, eta0=0.012, p0=1e5, p_feed=1e5,
+              cavitation=1, axial_bc=1, n_phi=30, n_z=120, **GROOVE)
+    x, y, w = 2.547e-06, -4.684e-07, 2 * math.pi * 250.0
+    tight = solve_stationary(BearingParams(**kw, newton_atol=1e-10, newton_rtol=1e-11), x, y, w)
+    loose = solve_stationary(BearingParams(**kw), x, y, w)
+    assert tight.params.newton_atol == 1e-10          # restored after the continuation
+    assert tight.outputs["Fy"] == pytest.approx(loose.outputs["Fy"], rel=1e-6)
+
+
 def test_stationary_is_a_fixed_point_of_step():
     p = small(**GROOVE)
     kin = (0.0, -0.6 * p.c, 0.0, 0.0, W100)
