@@ -230,6 +230,10 @@ class BearingModel:
     was before the call (the caller may restore/retry with a smaller dt).
     """
 
+    #: :meth:`get_state` returns copies the model does not keep (the FMU wrapper's state
+    #: need not deep-copy them again: fmu_common.slave.get_slave_state)
+    STATE_IS_COPY = True
+
     def __init__(self, params: BearingParams):
         if not isinstance(params, BearingParams):
             raise TypeError(f"BearingModel(params): expected BearingParams, got "

@@ -309,11 +309,19 @@ def state_from_bytes(state: bytes) -> dict[str, Any]:
 
 def get_slave_state(self, extra: dict[str, str]) -> dict[str, Any]:
     """The slave's FMU state: FMI-visible values, time, phase, the model's own state (deep
-    copy) and the ``extra`` attributes (state key -> attribute name)."""
+    copy, unless the model's class says with ``STATE_IS_COPY = True`` that its ``get_state``
+    returns arrays and values it does not keep) and the ``extra`` attributes (state key ->
+    attribute name)."""
     state = {"values": dict(self._values), "time": self._time, "initialized": self._initialized,
              "init_key": self._init_key}
     state.update({key: getattr(self, attr) for key, attr in extra.items()})
-    state["model"] = None if self._model is None else copy.deepcopy(self._model.get_state())
+    model = self._model
+    if model is None:
+        state["model"] = None
+    elif getattr(model, "STATE_IS_COPY", False):
+        state["model"] = model.get_state()
+    else:
+        state["model"] = copy.deepcopy(model.get_state())
     return state
 
 

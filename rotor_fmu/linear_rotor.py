@@ -316,6 +316,10 @@ class LinearRotor:
     after ``initialize``.  ``get_state``/``set_state`` restore exactly.
     """
 
+    #: :meth:`get_state` returns copies the model does not keep (the FMU wrapper's state
+    #: need not deep-copy them again: fmu_common.slave.get_slave_state)
+    STATE_IS_COPY = True
+
     n_bearings: int
 
     # ------------------------------------------------------------------ set-up
