@@ -34,10 +34,10 @@ import numba as nb
 import numpy as np
 
 from .cavitation import law_eval
-from .film import assemble, assemble_muscl, stencil_to_band
-from .solver import (PIVOT_THRESHOLD, _increment_norm_kernel, _limit_switch, band_lu_nopivot,
+from .film import assemble, assemble_muscl
+from .solver import (PIVOT_THRESHOLD, _increment_norm_kernel, _limit_switch,
                      band_newton_step_nopivot, dominant_extrapolate, dominant_update,
-                     dominant_weights, keep_lu, law_el, refactor_partial)
+                     dominant_weights, factor_full, keep_lu, law_el, refactor_partial)
 
 DONE, H_MIN, PIVOT = 0, 1, 2
 #: indices of the scalar state ``sc``
@@ -179,10 +179,7 @@ def advance_fused(dt, H, He, Hdot, omega,
                         code, _ = refactor_partial(jst, jst_f, n_phi, pos, bw, ab,
                                                    pivot_threshold, jac_reuse_below)
                     else:
-                        ab[bw:, :] = 0.0
-                        stencil_to_band(jst, n_phi, pos, bw, ab)
-                        code = band_lu_nopivot(ab, bw, pivot_threshold)
-                        jst_f[:, :] = jst
+                        code = factor_full(jst, jst_f, n_phi, pos, bw, ab, pivot_threshold)
                     if code != 0:
                         sc[T] = t       # this solve is redone by the Python loop: not counted
                         sc[H_NEXT] = h

@@ -95,17 +95,9 @@ def dominant_weights(H, He, Hdot, th_dot0, omega, a_phi, a_z, dphi, dz, wrel, fr
 
 
 @nb.njit(cache=True, inline="always")
-def _own_part(v, wp, wth, p_cav, K, delta):
-    """``wp p(v) + wth theta(v)`` (without constants) and its derivative in v."""
-    x = v / delta
-    e = math.exp(-abs(x))
-    l1 = math.log1p(e)
-    return _own_part_el(x, e, l1, wp, wth, K, delta)
-
-
-@nb.njit(cache=True, inline="always")
 def _own_part_el(x, e, l1, wp, wth, K, delta):
-    """:func:`_own_part` from ``x = v / delta``, ``e = exp(-|x|)`` and ``l1 = log1p(e)``
+    """``wp p(v) + wth theta(v)`` (without constants) and its derivative in v, from ``x = v /
+    delta``, ``e = exp(-|x|)`` and ``l1 = log1p(e)``
     (what :func:`.cavitation.law_eval` computes for the same v, bit for bit)."""
     s = 1.0 / (1.0 + e)              # sigmoid(|x|); sigmoid(-|x|) = e s
     if x >= 0.0:
@@ -158,7 +150,7 @@ def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un, e_u, l1_u, e_n=N
             continue            # one branch, far from the switch: f linear to e^-12
         a, b = wp[i], wth[i]
         f0, df0 = _own_part_el(u[k] / delta, e_u[k], l1_u[k], a, b, K, delta)
-        un[k], ev, l1v = _own_root(v, f0 + df0 * d, a, b, p_cav, K, delta)
+        un[k], ev, l1v = _own_root(v, f0 + df0 * d, a, b, K, delta)
         if valid is not None:
             e_n[k] = ev
             l1_n[k] = l1v
@@ -166,8 +158,8 @@ def dominant_update(u, dx, wp, wth, n_phi, p_cav, K, delta, un, e_u, l1_u, e_n=N
 
 
 @nb.njit(cache=True, inline="always")
-def _own_part2(v, wp, wth, K, delta):
-    """:func:`_own_part` with the second derivative: f, f' and f'' = (wp K - wth) sigma(x)
+def _own_part(v, wp, wth, K, delta):
+    """:func:`_own_part_el` of v with the second derivative: f, f' and f'' = (wp K - wth) sigma(x)
     sigma(-x) / delta of ``f = wp p(v) + wth theta(v)`` (x = v / delta; f is convex where
     wp K > wth and concave where wp K < wth, everywhere), and e = exp(-|x|), log1p(e) as
     :func:`.cavitation.law_eval` computes them for v."""
@@ -180,7 +172,7 @@ def _own_part2(v, wp, wth, K, delta):
 
 
 @nb.njit(cache=True, nogil=True)
-def _own_root(v, target, a, b, p_cav, K, delta):
+def _own_root(v, target, a, b, K, delta):
     """The v with ``a p(v) + b theta(v) = target`` (strictly increasing in v), from the
     guess v: safeguarded Halley-bisection in the bracket ``v +- |f(v) - target| / min f'``,
     to 1e-9 delta (see :func:`dominant_update`). Halley's step ``-2 e f' / (2 f'^2 - e f'')``
@@ -189,7 +181,7 @@ def _own_root(v, target, a, b, p_cav, K, delta):
     (always the last one evaluated), which the residual at the new iterate reads instead of
     computing them again (:func:`.cavitation.law_eval`'s ``valid``)."""
     m = max(min(a * K, b), 1e-300)   # f' >= m; b = 0 only at rest without squeeze
-    fv, dfv, d2, ev, l1v = _own_part2(v, a, b, K, delta)
+    fv, dfv, d2, ev, l1v = _own_part(v, a, b, K, delta)
     e = fv - target
     lo = v - abs(e) / m
     hi = v + abs(e) / m
@@ -210,7 +202,7 @@ def _own_root(v, target, a, b, p_cav, K, delta):
         if vn == v or hi - lo <= 1e-14 * (abs(v) + delta):
             break
         v = vn
-        fv, dfv, d2, ev, l1v = _own_part2(v, a, b, K, delta)
+        fv, dfv, d2, ev, l1v = _own_part(v, a, b, K, delta)
         e = fv - target
     return v, ev, l1v
 
@@ -242,7 +234,7 @@ def dominant_extrapolate(u, u_prev, ratio, wp, wth, n_phi, p_cav, K, delta, out,
         a, b = wp[i], wth[i]
         f0, _ = _own_part_el(u[k] / delta, el[0, k], el[1, k], a, b, K, delta)
         f1, _ = _own_part_el(u_prev[k] / delta, el[2, k], el[3, k], a, b, K, delta)
-        out[k], ev, l1v = _own_root(v, f0 + ratio * (f0 - f1), a, b, p_cav, K, delta)
+        out[k], ev, l1v = _own_root(v, f0 + ratio * (f0 - f1), a, b, K, delta)
         if valid is not None:
             e_n[k] = ev
             l1_n[k] = l1v
@@ -303,6 +295,16 @@ JACOBIAN_REUSE_BELOW = 0.1
 CHORD_RATE_MAX = 0.5
 
 
+@nb.njit(cache=True, inline="always")
+def _row_change(jst, jst_f, g):
+    """(sum_k |jst[g, k] - jst_f[g, k]|, |jst_f[g, 0]|): how far row g moved, and its
+    factored diagonal."""
+    s = 0.0
+    for k in range(jst.shape[1]):
+        s += abs(jst[g, k] - jst_f[g, k])
+    return s, abs(jst_f[g, 0])
+
+
 @nb.njit(cache=True, nogil=True)
 def jacobian_moved(jst, jst_f):
     """How far the stencil Jacobian ``jst`` is from ``jst_f`` (the one factored): the largest
@@ -310,10 +312,7 @@ def jacobian_moved(jst, jst_f):
     diagonal). See :data:`JACOBIAN_REUSE_BELOW`."""
     worst = 0.0
     for g in range(jst.shape[0]):
-        d = abs(jst_f[g, 0])
-        s = 0.0
-        for k in range(jst.shape[1]):
-            s += abs(jst[g, k] - jst_f[g, k])
+        s, d = _row_change(jst, jst_f, g)
         if s > 0.0:
             if not d > 0.0:
                 return np.inf
@@ -405,13 +404,20 @@ def first_moved_position(jst, jst_f, pos, bound):
     for g in range(n):
         if pos[g] >= kmin:
             continue
-        d = abs(jst_f[g, 0])
-        s = 0.0
-        for k in range(jst.shape[1]):
-            s += abs(jst[g, k] - jst_f[g, k])
+        s, d = _row_change(jst, jst_f, g)
         if s > bound * d or (s > 0.0 and not d > 0.0):
             kmin = pos[g]
     return kmin
+
+
+@nb.njit(cache=True, nogil=True)
+def factor_full(jst, jst_f, n_phi, pos, bw, ab, thresh):
+    """The band LU of the stencil Jacobian ``jst`` into ``ab`` (:func:`band_lu_nopivot`'s
+    return code), ``jst_f`` set to the matrix factored."""
+    ab[bw:, :] = 0.0
+    stencil_to_band(jst, n_phi, pos, bw, ab)
+    jst_f[:, :] = jst
+    return band_lu_nopivot(ab, bw, thresh)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -436,10 +442,7 @@ def refactor_partial(jst, jst_f, n_phi, pos, bw, ab, thresh, bound):
     if kmin < PARTIAL_MIN_BW * bw or kmin >= n:
         # early, or no row moved by more than bound (the rules asked for a new LU because the
         # chord steps contracted too slowly): the whole matrix
-        ab[bw:, :] = 0.0
-        stencil_to_band(jst, n_phi, pos, bw, ab)
-        jst_f[:, :] = jst
-        return band_lu_nopivot(ab, bw, thresh), 0
+        return factor_full(jst, jst_f, n_phi, pos, bw, ab, thresh), 0
     rows = ab.shape[0]
     a = ab.T.ravel()
     d = 2 * bw
@@ -854,9 +857,7 @@ class TransientFilm:
                 self.stats["reused"] += 1
                 dx, finite = self._newton_step(r)
             elif not self._factored or self.full_newton or prm.krylov_refactor == 0:
-                if prev is not None and not self._refactor_partial(u, th_dot0, kin):
-                    self._factor(u, th_dot0, kin, jst_ready=True)
-                elif prev is None:
+                if prev is None or not self._refactor_partial(u, th_dot0, kin):
                     self._factor(u, th_dot0, kin, jst_ready=True)
                 fresh = True
                 dx, finite = self._newton_step(r)

@@ -439,16 +439,16 @@ def test_own_root_takes_the_newton_step_onto_the_bracket_end(monkeypatch):
     law = CavitationLaw(1e5, 1e3, 0.05)
     a, b = 0.3652551287215366 / law.K, 108.55686296998903      # a K << b (theta-weighted cell)
     calls = []
-    real = S._own_part2
+    real = S._own_part
 
     def counted(*args):
         calls.append(1)
         return real(*args)
 
-    monkeypatch.setattr(S, "_own_part2", counted)
+    monkeypatch.setattr(S, "_own_part", counted)
     d = law.delta
     target = float(real(280.6 * d, a, b, law.K, d)[0])
-    v, _, _ = S._own_root.py_func(204.2 * d, target, a, b, law.p_cav, law.K, d)
+    v, _, _ = S._own_root.py_func(204.2 * d, target, a, b, law.K, d)
     assert abs(v / d - 280.6) < 1e-8
     assert len(calls) <= 3
 
