@@ -36,7 +36,7 @@ import hashlib
 import os
 import tempfile
 
-__all__ = ["ContentCacheLocator", "cache_root", "register"]
+__all__ = ["ContentCacheLocator", "cache_root", "njit_cached", "register"]
 
 
 def cache_root() -> str | None:
@@ -140,3 +140,25 @@ def register() -> bool:
                and getattr(c, "__module__", "").endswith("_numba_cache") for c in classes):
         classes.insert(0, ContentCacheLocator)
     return True
+
+
+def njit_cached(func, **options):
+    """``numba.njit(cache=True, **options)(func)`` through :class:`ContentCacheLocator`; a
+    function whose source file is gone is compiled without the on-disk cache instead.
+
+    Why: numba picks the cache location when the function is decorated, from the file of
+    its source, and raises "cannot cache function ...: no locator available" when no locator
+    accepts that file. A process that ran a Python FMU and removed its extraction folder (an
+    importer freeing the FMU, fmpy's ``extract`` into a temporary folder) keeps that FMU's
+    modules imported; a kernel decorated later from one of them (``rotor_fmu.ij_kernel``
+    compiles the speed table of ``rotor_fmu.linear_rotor``) then failed the FMU's
+    ``fmi2DoStep`` with that error. Without the cache the kernel is compiled in memory: the same
+    code, only not kept for the next process."""
+    import numba
+    register()
+    try:
+        return numba.njit(cache=True, **options)(func)
+    except RuntimeError as exc:
+        if "no locator" not in str(exc):
+            raise
+        return numba.njit(cache=False, **options)(func)

@@ -318,19 +318,18 @@ def _compile():
     """The compiled ij_step, or None without numba or without the content-keyed cache (the
     caller then keeps the numpy form)."""
     try:
-        import numba
+        import numba  # noqa: F401
     except ImportError:  # pragma: no cover - numba is a dependency
         return None
     try:   # numba cache keyed by source content (bearing_fmu/_numba_cache.py): FMUs extract afresh
-        from bearing_fmu._numba_cache import register
+        from bearing_fmu._numba_cache import njit_cached
     except ImportError:  # pragma: no cover - the FMU used without rotorcosim installed: numba's
         return None      # default cache lies in the fresh extraction folder, so every run would compile
-    register()
     g = globals()
     for name in ("_project", "_augment", "_norm2", "_drive", "_unbalance", "_round_half_even", "_lu",
                  "_lu_solve", "_substeps", "_finite"):
-        g[name] = numba.njit(cache=True)(g[name])
-    return numba.njit(cache=True)(ij_step)
+        g[name] = njit_cached(g[name])
+    return njit_cached(ij_step)
 
 
 kernel = _compile()

@@ -184,12 +184,11 @@ _drive_eval_py = _drive_eval
 
 def _jit(f):
     try:   # cache by source content: the FMU extracts this file afresh for every run (bearing_fmu/_numba_cache.py)
-        from bearing_fmu._numba_cache import register
-        register()
+        from bearing_fmu._numba_cache import njit_cached as jit
     except ImportError:  # pragma: no cover - an FMU used without rotorcosim installed: numba's default
-        pass
+        jit = _numba.njit(cache=True)
     try:
-        return _numba.njit(cache=True)(f)
+        return jit(f)
     except Exception:  # pragma: no cover - unwritable cache location
         return _numba.njit(cache=False)(f)
 

@@ -136,3 +136,69 @@ def test_changed_callee_in_another_module_gets_a_new_cache_for_the_caller(tmp_pa
         f.write("\n# changed\n")
     p2 = cache_dir()
     assert p2 != p1 and os.path.basename(p2).startswith("fused-")
+
+
+GONE_PROBE = """
+import importlib, shutil, sys, numba
+from bearing_fmu._numba_cache import njit_cached
+sys.path.insert(0, sys.argv[1])
+m = importlib.import_module("gone_kernels")
+shutil.rmtree(sys.argv[1])                      # the folder goes, the module stays imported
+try:
+    numba.njit(cache=True)(m.twice)
+    print("plain-ok")
+except RuntimeError as exc:
+    print("plain-fails" if "no locator" in str(exc) else "plain-other")
+print(njit_cached(m.twice)(21.0))
+"""
+
+
+def test_kernel_from_a_deleted_source_folder_compiles_without_the_cache(tmp_path):
+    """A module whose folder was removed after its import (an FMU's extraction folder freed while
+    its modules stay imported): ``njit_cached`` compiles its function in memory, where numba's
+    ``cache=True`` stops with "no locator available"."""
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "gone_kernels.py").write_text("def twice(x):\n    return 2.0 * x\n")
+    env = dict(os.environ, ROTORCOSIM_NUMBA_CACHE=str(tmp_path / "cache"),
+               PYTHONPATH=str(PKG.parent))
+    out = subprocess.run([sys.executable, "-c", GONE_PROBE, str(src)], env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["plain-fails", "42.0"]
+
+
+FREED_FMU_PROBE = """
+import shutil, sys
+from dataclasses import replace
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from orchestrator import load_scenario, run
+fmu, scenario, out = sys.argv[1:4]
+md = read_model_description(fmu)
+folder = extract(fmu)
+s = FMU2Slave(guid=md.guid, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier,
+              instanceName="r")
+s.instantiate(); s.setupExperiment(startTime=0.0); s.enterInitializationMode(); s.exitInitializationMode()
+s.doStep(0.0, 1e-4); s.terminate(); s.freeInstance()
+shutil.rmtree(folder)
+sc = load_scenario(scenario)
+res = run(replace(sc, stop_time=sc.start_time + 1e-3), out_dir=out, progress=False)
+print(res.success, res.message)
+"""
+
+
+def test_run_after_a_freed_rotor_fmu_whose_folder_is_gone(tmp_path):
+    """A process runs the rotor FMU, frees it and deletes its extraction folder (its modules stay
+    imported), then runs a scenario whose rotor steps through the interface-Jacobian kernel. That
+    kernel compiles the speed table of the stale ``rotor_fmu.linear_rotor``: the run failed in
+    the rotor's fmi2DoStep ("cannot cache function '_drive_eval': no locator available") and
+    now completes (``pytest tests/test_fmus.py tests/test_floating_ring_fmu.py`` did this)."""
+    from orchestrator.fmi.build import build_fmus
+    fmu, = build_fmus(tmp_path / "fmus", force=True, names=["JeffcottRotor"])
+    scenario = PKG.parent / "scenarios" / "jeffcott_runup_floating_ring_half_sommerfeld.yaml"
+    out = subprocess.run([sys.executable, "-c", FREED_FMU_PROBE, str(fmu), str(scenario), str(tmp_path / "run")],
+                         env=dict(os.environ, PYTHONPATH=str(PKG.parent)), capture_output=True,
+                         text=True, timeout=600, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert out.stdout.startswith("True"), out.stdout[-3000:]
