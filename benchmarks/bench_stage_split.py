@@ -5,16 +5,19 @@ Runs a shipped scenario in this process (``coupling.parallel: threads``, as ship
 run on the threads (``StageThreads.run``: the two bearings at once), the first job of that
 stage (the bearing stepped on the master's thread) and the film solve inside each bearing
 (``TransientFilm.advance_restarting``, per thread). The serial rest (rotor, exchange, result
-rows) is the step minus the stage.
+rows) is the step minus the stage. ``--handoff``: how the stage threads hand over
+(:mod:`orchestrator.coupling.threads`): chosen by measurement (auto), always watching, always
+sleeping.
 
 Run:
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_stage_split.py \
-        --scenario jeffcott_runup_oil_bath --stop 0.45
+        --scenario jeffcott_runup_oil_bath --stop 0.45 [--handoff auto|watch|sleep]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import threading
@@ -30,6 +33,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="jeffcott_runup_oil_bath")
     ap.add_argument("--stop", type=float, default=0.45, help="stop time [s]")
+    ap.add_argument("--handoff", choices=["auto", "watch", "sleep"], default=None,
+                    help="hand-offs of the stage threads (ROTORCOSIM_STAGE_HANDOFF; default: as set, else auto)")
     a = ap.parse_args(argv)
 
     import bearing_fmu.solver as solver
@@ -73,6 +78,8 @@ def main(argv=None):
             name = threading.current_thread().name
             film[name] = film.get(name, 0.0) + time.perf_counter() - t0
 
+    if a.handoff:
+        os.environ["ROTORCOSIM_STAGE_HANDOFF"] = a.handoff
     threads.StageThreads.run = timed_stage
     execution.MasterAlgorithm.step = timed_step
     solver.TransientFilm.advance_restarting = timed_film
@@ -88,6 +95,10 @@ def main(argv=None):
           f"{total - acc['step']:.2f} s outside the steps")
     print(f"per macro step: {acc['step'] * us:.0f} us; stage {acc['stage'] * us:.0f} us (its first job "
           f"{acc['job0'] * us:.0f} us); serial rest {(acc['step'] - acc['stage']) * us:.0f} us")
+    pool = getattr(res, "stats", {}) or {}
+    if "threaded_stage_steps" in pool:
+        print(f"stage steps in threads {pool['threaded_stage_steps']}, of them with watching hand-offs "
+              f"{pool.get('threaded_stage_steps_watched', 'n/a')}")
     for name, s in sorted(film.items()):
         print(f"film solve on {name}: {s * us:.0f} us per macro step")
 

@@ -135,3 +135,100 @@ def test_the_run_from_rest_with_contact_and_retries_is_the_same_in_threads(tmp_p
                          res.stats["rejected_steps"])
     assert got["threads"] == got["false"]
     assert len(got["false"][0]) > 3000
+
+
+# --------------------------------------------------------------------------- hand-off mode
+def _drive(chooser, cost, steps, first=0):
+    """Tick ``chooser`` over the stage steps ``first`` ... ``first + steps - 1``, whose cost
+    ``cost(k, watching)`` depends on the mode the chooser gave (the clock goes on from the last
+    call on the same chooser); returns the modes."""
+    t = getattr(chooser, "_test_clock", 0.0)
+    modes = []
+    for k in range(first, first + steps):
+        m = chooser.tick(t)
+        modes.append(m)
+        t += cost(k, m)
+    chooser._test_clock = t
+    return modes
+
+
+def test_hand_offs_sleep_when_watching_costs_more():
+    """With every core busy, watching makes a step cost 2.5x (measured: another busy process
+    beside the oil-bath run-up on 2 cores, BENCHMARKS.md session 18): the chooser sleeps,
+    except in the probe windows that check it again."""
+    from orchestrator.coupling.threads import HandoffChooser
+    c = HandoffChooser(window=8, min_hold=2, max_hold=16)
+    modes = _drive(c, lambda k, w: 2.5 if w else 1.0, 4000)
+    assert not any(c.choices) and len(c.choices) >= 5
+    assert sum(modes[1000:]) / 3000 < 0.15          # probes only
+
+
+def test_hand_offs_watch_on_a_quiet_machine_and_follow_a_change_of_load():
+    """Quiet: watching is the cheaper (sleeping costs the wake-ups), so it is kept. When
+    another process starts at step 2000, the next windows cost more than the held one before,
+    a probe follows at once and the chooser sleeps from then on."""
+    from orchestrator.coupling.threads import HandoffChooser
+    c = HandoffChooser(window=8, min_hold=2, max_hold=64)
+
+    def cost(k, watching):
+        if k < 2000:
+            return 1.0 if watching else 1.1
+        return 2.5 if watching else 1.2
+    modes = _drive(c, cost, 2000)
+    assert sum(modes[200:]) / 1800 > 0.85 and c.choices[-1]
+    n = len(c.choices)
+    modes += _drive(c, cost, 40, first=2000)         # 5 windows after the change
+    assert c.choices[n:] and not c.choices[-1]
+    modes += _drive(c, cost, 1960, first=2040)
+    assert sum(modes[2100:]) / 1900 < 0.15
+
+
+def test_the_probe_alternates_its_order_and_the_hold_grows_while_the_choice_stays():
+    from orchestrator.coupling.threads import HandoffChooser
+    c = HandoffChooser(window=4, min_hold=2, max_hold=8)
+    modes = _drive(c, lambda k, w: 1.0 if w else 1.1, 400)
+    windows = [modes[i] for i in range(0, 400, 4)]
+    assert windows[:2] == [True, False]             # first probe: watching, then sleeping
+    assert c.hold == 8 and all(c.choices)
+    # the second probe starts with sleeping: windows 2, 3 hold, then the probe (False, True)
+    assert windows[2:4] == [True, True] and windows[4:6] == [False, True]
+
+
+def test_pool_switches_the_stage_threads_mode_and_jobs_still_run(monkeypatch):
+    """The pool applies the chooser's mode to its stage threads between stage steps; jobs run
+    once each in either mode, and the counts say how many steps watched."""
+    import orchestrator.coupling.threads as threads
+    monkeypatch.setattr(threads, "usable_cores", lambda: 4)
+    pool = StageThreads(1, handoff="auto")
+    pool._chooser = threads.HandoffChooser(window=3, min_hold=1, max_hold=1)
+    try:
+        ran = []
+        seen = []
+        for k in range(30):
+            assert pool.run([lambda k=k: ran.append(k), lambda k=k: ran.append(-k - 1)]) == [None, None]
+            seen.append((pool.turns, pool._workers[0].turns))
+        assert sorted(ran) == sorted([k for k in range(30)] + [-k - 1 for k in range(30)])
+        assert {t for t, _ in seen} == {0, threads.SPIN_TURNS}       # both modes were used
+        assert all(t == w for t, w in seen)                          # the thread follows the pool
+        assert pool.runs == 30 and 0 < pool.watched < 30
+        assert pool.watched == sum(t > 0 for t, _ in seen)
+    finally:
+        pool.close()
+
+
+def test_fixed_hand_off_modes_and_a_bad_setting(monkeypatch):
+    import orchestrator.coupling.threads as threads
+    monkeypatch.setattr(threads, "usable_cores", lambda: 4)
+    for mode, turns in (("watch", threads.SPIN_TURNS), ("sleep", 0)):
+        monkeypatch.setenv("ROTORCOSIM_STAGE_HANDOFF", mode)
+        pool = StageThreads(1)
+        try:
+            for _ in range(300):
+                pool.run([lambda: None, lambda: None])
+            assert pool.turns == turns and pool._chooser is None
+            assert pool.watched == (300 if turns else 0)
+        finally:
+            pool.close()
+    monkeypatch.setenv("ROTORCOSIM_STAGE_HANDOFF", "spin")
+    with pytest.raises(ValueError, match="ROTORCOSIM_STAGE_HANDOFF must be one of .*'auto'.*got 'spin'"):
+        StageThreads(1)

@@ -593,6 +593,8 @@ class MasterAlgorithm:
         if self._threads():
             # stage steps whose members stepped at the same time in threads (parallel: threads)
             st["threaded_stage_steps"] = self._pool.runs if self._pool else 0
+            # of them with watching hand-offs (the pool chooses: coupling/threads.py)
+            st["threaded_stage_steps_watched"] = self._pool.watched if self._pool else 0
         stats = getattr(getattr(self, "stepper", None), "stats", None)
         if stats is not None:
             st["iterations"] = stats.as_dict()

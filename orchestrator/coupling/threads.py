@@ -29,17 +29,87 @@ each stage thread keeps its core busy (CPU time +6 %), so run no more threaded r
 than there are cores for their threads. A hand-off that outlasts the watch (a long job, a
 long pause between stages) sleeps on an event as before; with more stage threads than the
 process has cores, nobody watches (every hand-off sleeps).
+
+Watching pays only while each thread has a core to itself. Another busy process on the same
+cores (a second run, a build, a browser) makes the watching threads take turns with the ones
+that work: measured with one busy-looping process beside the oil-bath run-up on 2 cores, a
+macro step took 6.1-7.5 ms with watching against 2.4-2.5 ms with sleeping hand-offs
+(``benchmarks/bench_stage_split.py``, BENCHMARKS.md session 18). So the pool measures which
+pays (:class:`HandoffChooser`): it times windows of stage steps with and without watching,
+keeps the faster mode and measures again later (``ROTORCOSIM_STAGE_HANDOFF``: ``auto``, the
+default; ``watch`` or ``sleep`` to fix the mode). The mode changes when a hand-off happens,
+never what the FMUs receive, so results do not depend on it.
 """
 
 from __future__ import annotations
 
 import os
 import threading
+import time
 from typing import Callable, Sequence
 
 from orchestrator.coupling.handoff import SPIN_TURNS, new_flags, post_and_watch, watch
 
 IDLE, JOB, DONE = 0, 1, 2           # the states of a worker's flag slot (handoff.new_flags)
+HANDOFF_MODES = ("auto", "watch", "sleep")
+
+
+class HandoffChooser:
+    """Which hand-off pays now, watching or sleeping (module doc), by timing the pool's use.
+
+    :meth:`tick` is called at the start of every stage step with the clock and returns
+    whether that step watches. The time from one window's first step to the next window's
+    first step (``window`` steps, with the master's serial work between them) is the cost
+    of the window's mode. A probe times one window in each mode, in turn watching first and
+    sleeping first (neighbouring windows cost about the same whatever the run does), and the
+    faster mode then runs for ``hold`` windows. The hold doubles, up to ``max_hold``, while
+    probes keep choosing the same mode, and falls back to ``min_hold`` when the choice changes.
+    The price: on a quiet machine one window in about ``2 + hold`` sleeps (sleeping cost
+    about 9 % more per step there, so about 0.3 % in all); with every core busy one window
+    watches (2.5x the cost there, so a few % in all)."""
+
+    def __init__(self, window: int = 128, min_hold: int = 4, max_hold: int = 64, jump: float = 1.3):
+        self.window, self.min_hold, self.max_hold, self.jump = window, min_hold, max_hold, jump
+        self.hold = min_hold
+        self.plan: list[bool] = [True, False]      # the modes of the probe windows still to come
+        self.timed: bool | None = None              # mode of the window being timed (None: holding)
+        self.cost: dict[bool, float] = {}
+        self.watching = True
+        self.left = 0                               # steps left in the current window
+        self.holding = 0                            # windows left before the next probe
+        self.start: float | None = None             # clock at the current window's first step
+        self.ref = 0.0                              # cost of the last window in the held mode
+        self.flip = False                           # order of the next probe
+        self.choices: list[bool] = []               # every probe's choice (diagnostics, tests)
+
+    def tick(self, now: float) -> bool:
+        self.left -= 1
+        if self.left > 0:
+            return self.watching
+        # a window ends here (or the first one starts)
+        cost = None if self.start is None else now - self.start
+        self.start, self.left = now, self.window
+        if self.timed is not None:
+            self.cost[self.timed] = cost
+        if not self.plan and self.timed is not None:    # the probe is complete: choose
+            choice = self.cost[True] <= self.cost[False]
+            same = bool(self.choices) and self.choices[-1] == choice
+            self.hold = min(2 * self.hold, self.max_hold) if same else self.min_hold
+            self.choices.append(choice)
+            self.watching, self.timed, self.holding = choice, None, self.hold
+            self.ref = self.cost[choice]
+        elif not self.plan and cost is not None:    # holding
+            self.holding -= 1
+            # a window that cost much more or less than the last one in this mode: the
+            # machine's load may have changed (or the run's work: a probe costs two windows)
+            moved = not self.ref / self.jump <= cost <= self.ref * self.jump
+            self.ref = cost
+            if self.holding <= 0 or moved:          # probe again, in the other order
+                self.flip = not self.flip
+                self.plan = [False, True] if self.flip else [True, False]
+        if self.plan:                               # the probe's next window
+            self.watching = self.timed = self.plan.pop(0)
+        return self.watching
 
 
 class _Worker:
@@ -63,8 +133,8 @@ class _Worker:
         self.thread.start()
 
     def _loop(self) -> None:
-        flags, i, turns = self.flags, self.i, self.turns
-        got = watch(flags, i, JOB, turns)
+        flags, i = self.flags, self.i
+        got = watch(flags, i, JOB, self.turns)
         while True:
             while not got:              # asleep until the master posts a job (and sets wake)
                 self.asleep = True
@@ -84,20 +154,34 @@ class _Worker:
                 self.finished.set()
             # DONE is posted from inside the compiled loop, with the GIL already released, so
             # the master finds it free when it sees DONE
-            got = post_and_watch(flags, i, DONE, JOB, turns)
+            got = post_and_watch(flags, i, DONE, JOB, self.turns)   # turns: the pool's mode now
 
 
 class StageThreads:
     """``n`` threads that run the extra members' jobs of a stage."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, handoff: str | None = None):
         self._flags = new_flags(n)
+        mode = (handoff or os.environ.get("ROTORCOSIM_STAGE_HANDOFF", "") or "auto").strip().lower()
+        if mode not in HANDOFF_MODES:
+            raise ValueError(f"ROTORCOSIM_STAGE_HANDOFF must be one of {list(HANDOFF_MODES)} (got {mode!r}); "
+                             "unset it for the default 'auto'")
         # watch only while every thread of a stage has a core of its own: a thread that
         # watches on a shared core would take it from one that works
-        self.turns = SPIN_TURNS if max(1, n) + 1 <= usable_cores() else 0
+        if max(1, n) + 1 > usable_cores():
+            mode = "sleep"
+        self.handoff = mode
+        self._chooser = HandoffChooser() if mode == "auto" else None
+        self.turns = 0 if mode == "sleep" else SPIN_TURNS
         self._workers = [_Worker(self._flags, k, self.turns) for k in range(max(1, n))]
         self._closed = False
         self.runs = 0           # stage steps run (summary.json "threaded_stage_steps")
+        self.watched = 0        # of them with watching hand-offs ("threaded_stage_steps_watched")
+
+    def _set_watching(self, on: bool) -> None:
+        self.turns = SPIN_TURNS if on else 0
+        for w in self._workers:
+            w.turns = self.turns
 
     def run(self, jobs: Sequence[Callable[[], None]]) -> list[BaseException | None]:
         """Run ``jobs`` at the same time (the first in this thread) and wait for all of them;
@@ -108,7 +192,12 @@ class StageThreads:
         extra = jobs[1:]
         if len(extra) > len(self._workers):
             raise ValueError(f"StageThreads({len(self._workers)}) cannot run {len(jobs)} jobs at once")
+        if self._chooser is not None:
+            on = self._chooser.tick(time.perf_counter())
+            if on != (self.turns > 0):
+                self._set_watching(on)
         self.runs += 1
+        self.watched += self.turns > 0
         flags = self._flags
         busy = self._workers[:len(extra)]
         for w, job in zip(busy, extra):

@@ -48,7 +48,8 @@ def cosim_stats(stats: Mapping[str, Any]) -> dict:
             "fmu_calls": stats.get("fmu_calls", {}),
             "isolation": stats.get("isolation", {}),
             "failure": stats.get("failure"),
-            **{k: stats[k] for k in ("iterations", "step_control", "threaded_stage_steps") if k in stats}}
+            **{k: stats[k] for k in ("iterations", "step_control", "threaded_stage_steps",
+                                     "threaded_stage_steps_watched") if k in stats}}
 
 
 def write_summary(path: Path | str, summary: Mapping[str, Any]) -> None:
