@@ -61,7 +61,7 @@ def _add_run(sub) -> None:
         "missing or stale."))
     p.add_argument("file", metavar="FILE", help="scenario YAML file, or the name of a shipped scenario "
                                                 "(`rotorcosim scenarios` lists them), e.g. quickstart")
-    p.add_argument("--out", metavar="DIR", help="output folder (default: runs/<scenario name> under the "
+    p.add_argument("--out", metavar="DIR", type=_folder, help="output folder (default: runs/<scenario name> under the "
                                                 "current folder)")
     _add_set(p)
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
@@ -253,7 +253,7 @@ def _range_text(v) -> str:
 def _add_build_fmus(sub) -> None:
     p = sub.add_parser("build-fmus", help="build rotorcosim's own FMUs (bearing, rotors)")
     p.add_argument("--force", action="store_true", help="rebuild even when up to date")
-    p.add_argument("--out", metavar="DIR", help="destination folder, e.g. to hand the FMUs to other tools "
+    p.add_argument("--out", metavar="DIR", type=_folder, help="destination folder, e.g. to hand the FMUs to other tools "
                                                 "(default: the repository's fmus/ in a source checkout, else the "
                                                 "per-user cache that 'fmu: NAME' in a scenario uses)")
     p.set_defaults(func=_cmd_build_fmus)
@@ -306,7 +306,7 @@ def _print_paths(paths) -> int:
 def _add_compare(sub) -> None:
     p = sub.add_parser("compare", help="compare coupling schemes against a reference (CI regression gate)")
     p.add_argument("file", metavar="FILE", help="comparison YAML file (or a scenario with a compare: section)")
-    p.add_argument("--out", metavar="DIR", help="report folder")
+    p.add_argument("--out", metavar="DIR", type=_folder, help="report folder")
     p.add_argument("--update-baseline", action="store_true", help="rewrite the stored baseline from this run")
     p.set_defaults(func=_cmd_compare)
 
@@ -322,7 +322,7 @@ def _add_sweep(sub) -> None:
         "the worker itself), into DIR/runs/<run_id>/, and write DIR/sweep.csv. Default: a local cluster, one "
         "worker per core."))
     p.add_argument("file", metavar="FILE", help="sweep YAML file")
-    p.add_argument("--out", metavar="DIR", help="output folder (default: runs/sweep_<file name>)")
+    p.add_argument("--out", metavar="DIR", type=_folder, help="output folder (default: runs/sweep_<file name>)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="address of a running Dask scheduler, e.g. "
                    "tcp://10.0.0.5:8786 (default: $DASK_SCHEDULER_ADDRESS, else a local cluster)")
     p.add_argument("--workers", metavar="N", type=int, help="worker processes of the local cluster (default: "
@@ -447,12 +447,39 @@ def _version() -> str:
         return "unknown"
 
 
+import errno as _errno
+
+#: what to do about the operating system's errors that bad paths give (``--out`` a file, a
+#: folder without write permission, ...), added to their one-line message
+_OS_FIXES = {
+    _errno.EEXIST: "a file of that name is in the way where a folder is needed: remove it or choose another name",
+    _errno.ENOTDIR: "a part of that path is a file, not a folder: choose another path",
+    _errno.EISDIR: "that is a folder where a file is needed: choose a file name",
+    _errno.ENOENT: "no such file or folder: check the path (relative paths start in the current folder)",
+    _errno.EACCES: "permission denied: choose a place you can write to, or change its permissions",
+    _errno.EPERM: "operation not permitted: choose a place you own",
+    _errno.EROFS: "that file system is read-only: choose another place",
+    _errno.ENOSPC: "the disk is full: free some space or choose another place",
+    _errno.ENAMETOOLONG: "the name is too long: choose a shorter one",
+}
+
+
+def _folder(value: str) -> str:
+    """argparse type of the ``--out DIR`` options: not empty (an empty one silently meant the
+    default folder)."""
+    if not value.strip():
+        raise argparse.ArgumentTypeError("an empty folder name: give a folder, or leave --out out "
+                                         "for the default")
+    return value
+
+
 def _describe(exc: BaseException) -> str:
     if isinstance(exc, CosimError):
         return f"error: {exc}"
     if isinstance(exc, OSError):
         where = f"{exc.filename}: " if exc.filename else ""
-        return f"error: {where}{exc.strerror or exc}"
+        fix = _OS_FIXES.get(exc.errno, "")
+        return f"error: {where}{exc.strerror or exc}" + (f"; {fix}" if fix else "")
     import yaml
     if isinstance(exc, yaml.YAMLError):
         return f"error: malformed YAML: {exc}"

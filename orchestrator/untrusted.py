@@ -36,6 +36,7 @@ import os
 import re
 import stat
 import string
+import unicodedata
 from pathlib import Path
 from typing import Any, BinaryIO, Mapping
 
@@ -154,16 +155,24 @@ def load_json(path: str | os.PathLike, *, what: str = "JSON file", limit: int | 
 # --------------------------------------------------------------------------- YAML
 @functools.lru_cache(maxsize=None)
 def _bounded_composer(loader_cls: type) -> type:
-    """A subclass of ``loader_cls`` whose composer stops at :data:`MAX_YAML_DEPTH` levels."""
+    """A subclass of ``loader_cls`` whose composer stops at :data:`MAX_YAML_DEPTH` levels and
+    at :data:`MAX_YAML_NODES` values written out (without aliases: a file that is simply too
+    big is told so, not taken for an alias bomb, and stops before the rest is composed)."""
     import yaml
 
     class Bounded(loader_cls):
         _depth = 0
+        _nodes = 0
 
         def compose_node(self, parent, index):
-            if self._depth >= MAX_YAML_DEPTH and not self.check_event(yaml.AliasEvent):
+            alias = self.check_event(yaml.AliasEvent)
+            if self._depth >= MAX_YAML_DEPTH and not alias:
                 mark = self.peek_event().start_mark
                 raise _DepthError(mark)
+            if not alias:
+                self._nodes += 1
+                if self._nodes > MAX_YAML_NODES:
+                    raise _SizeError(self.peek_event().start_mark)
             self._depth += 1
             try:
                 return super().compose_node(parent, index)
@@ -178,6 +187,10 @@ class _DepthError(Exception):
     def __init__(self, mark):
         super().__init__(mark)
         self.mark = mark
+
+
+class _SizeError(_DepthError):
+    pass
 
 
 def _where(display: str, node_or_mark) -> str:
@@ -201,6 +214,10 @@ def compose_yaml(text: str, *, display: str, loader_cls: type | None = None):
     loader = _bounded_composer(loader_cls or yaml.SafeLoader)(text)
     try:
         root = loader.get_single_node()
+    except _SizeError as exc:
+        raise InputError(f"{_where(display, exc.mark)}: the YAML has more than {MAX_YAML_NODES} values (the "
+                         "limit; a scenario has a few hundred): shorten it or split it into several "
+                         "files") from None
     except _DepthError as exc:
         raise InputError(f"{_where(display, exc.mark)}: the YAML is nested more than {MAX_YAML_DEPTH} levels "
                          "deep (the limit); a scenario needs a handful of levels: flatten it") from None
@@ -232,8 +249,19 @@ def read_yaml_tree(path: str | os.PathLike, *, what: str, loader_cls: type | Non
             context = f"{exc.context}{at}, "
         raise InputError(f"{where}: malformed YAML: {context}{exc.problem}; fix the syntax there "
                          "(indentation, a missing ':' or a closing bracket)") from None
+    except yaml.reader.ReaderError as exc:      # a character YAML does not allow (NUL, other controls)
+        before = text[:exc.position]
+        line, column = before.count("\n") + 1, exc.position - (before.rfind("\n") + 1) + 1
+        code = exc.character if isinstance(exc.character, int) else ord(str(exc.character)[:1] or "\0")
+        raise InputError(f"{path}:{line}:{column}: a character YAML does not allow (U+{code:04X})"
+                         f"{_reader_hint(code)}") from None
     except yaml.YAMLError as exc:
         raise InputError(f"{path}: malformed YAML ({exc}); fix the syntax") from None
+
+
+def _reader_hint(code) -> str:
+    return ("; the file may be binary or in another encoding than UTF-8: save it as UTF-8 text"
+            if code == 0 else "; delete it or write it as an escape in a double-quoted string")
 
 
 def check_yaml_tree(root, *, display: str) -> None:
@@ -366,6 +394,12 @@ def name_problem(name: Any) -> str | None:
     bad = sorted({c for c in name if c in '/\\:<>"|?*' or ord(c) < 32 or ord(c) == 127})
     if bad:
         return f"it contains {', '.join(repr(c) for c in bad)} (got {name!r})"
+    # invisible and direction-changing characters (U+202E shows the rest of a name reversed,
+    # U+200B is not seen at all): a folder name must read as it is
+    hidden = sorted({c for c in name if unicodedata.category(c) in ("Cc", "Cf", "Cs", "Zl", "Zp")})
+    if hidden:
+        codes = ", ".join(f"U+{ord(c):04X} ({unicodedata.name(c, 'unnamed')})" for c in hidden)
+        return f"it contains invisible or direction-changing characters: {codes} (got {name!r})"
     if name.startswith("."):
         return f"it starts with '.' (got {name!r}; '..' and hidden names are not allowed)"
     if name.endswith((".", " ")) or name.startswith(" "):

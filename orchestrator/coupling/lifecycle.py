@@ -87,6 +87,11 @@ class RunFolder:
 
     # -- entering ---------------------------------------------------------------
     def __enter__(self) -> "RunFolder":
+        if self.out_dir.exists() and not self.out_dir.is_dir():
+            from orchestrator.errors import CosimError
+            raise CosimError(f"output folder {self.out_dir}: there is a file of that name, not a folder; "
+                             "give --out a new folder (or a run folder of rotorcosim, whose results "
+                             "are moved aside)")
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self._lock()
         try:

@@ -112,7 +112,12 @@ class NodeReader:
             if not isinstance(knode, yaml.ScalarNode):
                 self.err(knode, f"keys of '{where}' must be names (got {self.got(knode)}); write a plain name")
                 continue
-            key = str(self.value(knode))
+            raw = self.value(knode)
+            if raw is None or isinstance(raw, bool):   # ~, null, yes/no, on/off, true/false
+                self.err(knode, f"keys of '{where}' must be names (got {knode.value!r}, which YAML reads as "
+                                f"{raw!r}); write a plain name, in quotes if it must be {knode.value!r}")
+                continue
+            key = str(raw)
             if key in out:
                 self.err(knode, f"key '{key}' appears twice in '{where}' (first on line "
                                 f"{out[key][0].start_mark.line + 1}); keep one of them")

@@ -26,6 +26,11 @@ def apply_override(reader: NodeReader, root, text: str) -> None:
         reader.problems.append(f"{origin}: expected KEY.PATH=VALUE (got {text!r}); "
                              "e.g. --set coupling.macro_step=5e-5")
         return
+    if any(not part.strip() for part in key.split(".")):
+        reader.problems.append(f"{origin}: the key path {key!r} has an empty part (a leading, trailing or "
+                               "double '.'); write its parts with single dots between them, "
+                               "e.g. --set coupling.macro_step=5e-5")
+        return
     try:
         vnode = compose_yaml(raw.strip(), display=origin, loader_cls=YamlLoader)
     except InputError as exc:                        # bounded like the file: depth, aliases, digits

@@ -1,0 +1,134 @@
+"""Catalogue of hostile input, part 3: the smaller items a probe of the CLI found (2026-12-06).
+
+Each case runs what a user runs and checks the message (file, line or field, what came, the
+fix), the exit code, and that no "internal error" or traceback appears.
+"""
+
+from __future__ import annotations
+
+import errno
+
+import pytest
+
+from hostile_builders import cli, md_scenario, scenario_text, write_fmu
+
+
+# --------------------------------------------------------------------------- --out
+def test_out_that_is_a_file_is_named_as_such(tmp_path, capsys):
+    p = md_scenario(tmp_path)
+    (tmp_path / "taken").write_text("not a folder")
+    rc, out = cli(capsys, "run", p, "--out", tmp_path / "taken")
+    assert rc == 1
+    assert f"output folder {tmp_path / 'taken'}: there is a file of that name, not a folder" in out
+    assert "give --out a new folder" in out
+    assert (tmp_path / "taken").read_text() == "not a folder"
+
+
+@pytest.mark.parametrize("verb", [["run", "s.yaml"], ["build-fmus"], ["sweep", "w.yaml"], ["compare", "c.yaml"]])
+def test_empty_out_is_refused_not_taken_for_the_default(tmp_path, capsys, monkeypatch, verb):
+    monkeypatch.chdir(tmp_path)           # (the old code built FMUs into a folder ' ' here)
+    with pytest.raises(SystemExit) as e:
+        cli(capsys, *verb, "--out", " ")
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --out: an empty folder name: give a folder, or leave --out out for the default" in err
+
+
+@pytest.mark.parametrize("code, words", [
+    (errno.EEXIST, "a file of that name is in the way where a folder is needed"),
+    (errno.ENOTDIR, "a part of that path is a file, not a folder"),
+    (errno.EACCES, "permission denied: choose a place you can write to"),
+    (errno.ENOSPC, "the disk is full"),
+])
+def test_os_errors_say_what_to_do(code, words):
+    from orchestrator.cli import _describe
+    text = _describe(OSError(code, "os text", "some/path"))
+    assert text.startswith("error: some/path: os text; ") and words in text
+
+
+def test_os_error_the_cli_meets_gets_its_fix(tmp_path, capsys):
+    (tmp_path / "afile").write_text("x")
+    rc, out = cli(capsys, "build-fmus", "--out", tmp_path / "afile" / "sub")
+    assert rc == 1 and "a part of that path is a file, not a folder: choose another path" in out
+
+
+# --------------------------------------------------------------------------- scenario keys
+@pytest.mark.parametrize("key, reads", [("~", "None"), ("null", "None"), ("true", "True"), ("no", "False"),
+                                        ("on", "True")])
+def test_instance_names_yaml_reads_as_null_or_boolean(tmp_path, capsys, key, reads):
+    write_fmu(tmp_path / "m.fmu")
+    p = tmp_path / "s.yaml"
+    p.write_text(scenario_text().replace("  a: {path: m.fmu}", f"  {key}: {{path: m.fmu}}"))
+    rc, out = cli(capsys, "validate", p)
+    assert rc == 1
+    assert f"{p}:4: keys of 'fmus' must be names (got {key!r}, which YAML reads as {reads})" in out
+    assert f"in quotes if it must be {key!r}" in out
+
+
+def test_quoted_such_name_is_a_name(tmp_path, capsys):
+    write_fmu(tmp_path / "m.fmu")
+    p = tmp_path / "s.yaml"
+    p.write_text(scenario_text().replace("  a: {path: m.fmu}", "  'on': {path: m.fmu}"))
+    from orchestrator import load_scenario
+    assert [f.name for f in load_scenario(p).fmus] == ["on"]
+
+
+@pytest.mark.parametrize("key", ["....", "a..b", "coupling..macro_step", ".x", "coupling.", " .x"])
+def test_set_with_an_empty_part_of_the_key_path(tmp_path, capsys, key):
+    p = md_scenario(tmp_path)
+    rc, out = cli(capsys, "validate", p, "--set", f"{key}=1")
+    assert rc == 1
+    assert f"--set {key}=1: the key path {key.strip()!r} has an empty part" in out
+    assert "e.g. --set coupling.macro_step=5e-5" in out
+
+
+# --------------------------------------------------------------------------- names
+@pytest.mark.parametrize("name, code", [("\\u202eevil", "U+202E (RIGHT-TO-LEFT OVERRIDE)"),
+                                        ("ab\\u200bc", "U+200B (ZERO WIDTH SPACE)"),
+                                        ("x\\u2028y", "U+2028 (LINE SEPARATOR)")])
+def test_names_with_invisible_or_direction_changing_characters(tmp_path, capsys, name, code):
+    p = md_scenario(tmp_path, top="")
+    p.write_text(p.read_text().replace("name: hostile", f'name: "{name}"'))
+    rc, out = cli(capsys, "validate", p)
+    assert rc == 1 and f"{p}:1: 'name'" in out
+    assert "invisible or direction-changing characters" in out and code in out
+
+
+def test_names_in_other_scripts_are_fine(tmp_path, capsys):
+    p = md_scenario(tmp_path)
+    p.write_text(p.read_text().replace("name: hostile", "name: Läufer-轴承"))
+    from orchestrator import load_scenario
+    assert load_scenario(p).name == "Läufer-轴承"
+
+
+# --------------------------------------------------------------------------- YAML itself
+@pytest.mark.parametrize("char, hint", [("\x00", "save it as UTF-8 text"), ("\x07", "delete it")])
+def test_a_character_yaml_forbids_gets_line_and_column(tmp_path, capsys, char, hint):
+    p = md_scenario(tmp_path)
+    lines = p.read_text().splitlines()
+    lines[1] = lines[1] + char                          # "stop_time: 0.01<char>"
+    p.write_text("\n".join(lines) + "\n")
+    rc, out = cli(capsys, "validate", p)
+    assert rc == 1
+    assert f"{p}:2:{len(lines[1])}: a character YAML does not allow (U+{ord(char):04X})" in out
+    assert hint in out and "position" not in out
+
+
+def test_a_big_flat_file_is_too_big_not_an_alias_bomb(tmp_path, capsys, monkeypatch):
+    import orchestrator.untrusted as untrusted
+    monkeypatch.setattr(untrusted, "MAX_YAML_NODES", 60)
+    p = md_scenario(tmp_path, extra="description: >\n  x\n")
+    p.write_text(p.read_text() + "".join(f"x_{i}: {i}\n" for i in range(40)))
+    rc, out = cli(capsys, "validate", p)
+    assert rc == 1
+    assert "the YAML has more than 60 values (the limit" in out and "split it" in out
+    assert "alias bomb" not in out
+
+
+def test_an_alias_bomb_is_still_called_one(tmp_path, capsys, monkeypatch):
+    import orchestrator.untrusted as untrusted
+    monkeypatch.setattr(untrusted, "MAX_YAML_NODES", 60)
+    p = md_scenario(tmp_path)
+    p.write_text(p.read_text() + "x: &a [1, 2, 3, 4, 5, 6, 7, 8]\ny: [*a, *a, *a, *a, *a, *a, *a, *a]\n")
+    rc, out = cli(capsys, "validate", p)
+    assert rc == 1 and "looks like an alias bomb" in out
