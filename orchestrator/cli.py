@@ -397,7 +397,8 @@ def _cmd_init(args) -> int:
 def _add_export_ssp(sub) -> None:
     p = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive (runs in libcosim)")
     p.add_argument("file", metavar="SCENARIO", help="scenario YAML file (or a shipped scenario's name)")
-    p.add_argument("out", metavar="OUT.ssp", help="archive to write")
+    p.add_argument("out", metavar="OUT.ssp", help="archive to write: a new file in an existing folder, or a "
+                                                  "regular file to replace")
     _add_set(p)
     p.set_defaults(func=_cmd_export_ssp)
 
@@ -405,8 +406,9 @@ def _add_export_ssp(sub) -> None:
 def _cmd_export_ssp(args) -> int:
     from orchestrator.scenario import load_scenario
     from orchestrator.shipped import resolve
-    from orchestrator.scenario.ssp import export_ssp
+    from orchestrator.scenario.ssp import check_output_path, export_ssp
 
+    check_output_path(args.out)          # before loading (and maybe building FMUs): a bad OUT fails at once
     scenario = load_scenario(str(resolve(args.file)), args.set, build_fmus=True)
     print(export_ssp(scenario, args.out))
     return 0

@@ -21,6 +21,12 @@ parameter values (Enumeration values as ``ssv:Integer``: libcosim cannot read
 algorithm does: Jacobi with zero-order hold; our extrapolation and sub-step
 settings have no SSP equivalent and are not exported (a warning says so).
 
+The output is a regular ``.ssp`` file or a new name in an existing folder
+(:func:`check_output_path`): a directory, FIFO, device or socket at ``out``, a symbolic link
+or a missing folder is refused before anything is written. The archive is written to a
+temporary file created exclusively beside ``out`` (no link can be planted there) and renamed
+over ``out``, so an existing file is replaced atomically and nothing is left on failure.
+
 An SSP is untrusted: the archive is checked and extracted by the FMU archive rules
 (:func:`orchestrator.fmi.archive.safe_extract`: names, links, sizes, ratios, CRC), its XML
 files are read by the bounded reader and parsed by :func:`orchestrator.untrusted.parse_xml`
@@ -29,7 +35,10 @@ files are read by the bounded reader and parsed by :func:`orchestrator.untrusted
 
 from __future__ import annotations
 
-import shutil
+import contextlib
+import os
+import stat
+import tempfile
 import warnings
 import zipfile
 from pathlib import Path, PurePosixPath
@@ -38,6 +47,7 @@ from xml.etree import ElementTree as ET
 
 from orchestrator.errors import ScenarioError
 from orchestrator.untrusted import InputError, parse_xml, read_bytes
+from orchestrator.untrusted import _kind   # the one wording of file kinds ("a named pipe (FIFO)")
 
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
@@ -222,13 +232,63 @@ def _type_el(parent: ET.Element, ns: str, fmi_type: str, value=None) -> None:
                if isinstance(value, float) else str(value))
 
 
+def check_output_path(out: Path | str) -> Path:
+    """``out`` as a place to write the archive: an existing regular file (replaced) or a new
+    name in an existing folder. Raises :class:`InputError` for a directory, FIFO, device or
+    socket, a symbolic link (never written through) or a missing folder (not created)."""
+    out = Path(out)
+    expected = "expected a new or existing regular .ssp file"
+    try:
+        st = os.lstat(out)
+    except (FileNotFoundError, NotADirectoryError):     # a new name (its folder is checked below)
+        st = None
+    except OSError as e:
+        raise InputError(f"{out}: cannot inspect the output path ({e.strerror or e}); {expected}") from None
+    if st is not None:
+        if stat.S_ISLNK(st.st_mode):
+            raise InputError(f"{out}: is a symbolic link (to {os.readlink(out)}); export-ssp does not write through "
+                             f"a link; {expected}: remove the link or give another path")
+        if not stat.S_ISREG(st.st_mode):
+            fix = f"name the file inside it, e.g. {out / 'system.ssp'}" if stat.S_ISDIR(st.st_mode) else \
+                "give another path (export-ssp writes no pipes or devices)"
+            raise InputError(f"{out}: is {_kind(st.st_mode)}; {expected}: {fix}")
+        return out
+    parent = out.parent
+    if not parent.is_dir():
+        what = "does not exist" if not parent.exists() else "is not a folder"
+        raise InputError(f"{out}: the folder {parent} {what}; export-ssp does not create folders: create it "
+                         f"(mkdir -p {parent}) or give a path in an existing folder")
+    return out
+
+
+def _write_archive(out: Path, root: ET.Element, files: dict[str, Path]) -> None:
+    """The archive written to an exclusively created temporary file beside ``out``, then renamed
+    over it (``os.replace`` replaces a name, never writes through it); removed on failure."""
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent)
+    except OSError as e:
+        raise InputError(f"{out}: cannot create a file in {out.parent} ({e.strerror or e}); give a path in a "
+                         "folder you may write to") from None
+    try:
+        os.fchmod(fd, 0o644)
+        with os.fdopen(fd, "wb") as f, zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED) as zf:
+            zf.writestr("SystemStructure.ssd", ET.tostring(root, encoding="utf-8", xml_declaration=True))
+            for member, path in files.items():
+                zf.write(path, member)
+        os.replace(tmp, out)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
 def export_ssp(scenario, out: Path | str) -> Path:
     """Write ``scenario`` as an SSP 1.0 archive ``out`` (see the module docstring); return its path.
 
     Length: the SSD document written top to bottom as SSP 1.0 lays it out (components and
     connectors, connections, parameter bindings, default experiment), then the archive."""
     from orchestrator.fmi.archive import read_model_description
-    out = Path(out)
+    out = check_output_path(out)
     c = scenario.coupling
     if c.scheme != "jacobi" or c.extrapolation_order or c.substeps != 1 or any(f.substeps for f in scenario.fmus):
         warnings.warn(f"export-ssp: SSP has no coupling scheme; libcosim runs the exported system as Jacobi with "
@@ -288,11 +348,5 @@ def export_ssp(scenario, out: Path | str) -> Path:
                         {"type": "com.opensimulationplatform"})
     ET.SubElement(ET.SubElement(ann, f"{{{NS['osp']}}}Algorithm"), f"{{{NS['osp']}}}FixedStepAlgorithm",
                   {"baseStepSize": repr(float(c.macro_step))})
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".part")
-    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
-        zf.writestr("SystemStructure.ssd", ET.tostring(root, encoding="utf-8", xml_declaration=True))
-        for member, path in files.items():
-            zf.write(path, member)
-    shutil.move(tmp, out)
+    _write_archive(check_output_path(out), root, files)
     return out
