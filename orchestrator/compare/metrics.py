@@ -22,7 +22,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import platform
+import stat
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -228,10 +230,41 @@ def check_report(report, spec, baseline: Mapping[str, Any] | None) -> list[str]:
     return fails
 
 
+def check_baseline_target(path: Path, where: str = "'compare.baseline'") -> Path:
+    """``path`` as the file ``--update-baseline`` will write, checked before any run: an existing
+    regular file or a new name; its folder exists or can be made (the nearest existing
+    ancestor is a folder). A directory, FIFO, device, socket or symbolic link at ``path`` is
+    refused (:class:`orchestrator.untrusted.InputError`), so a long comparison never ends
+    blocked on a pipe or failing to write. ``where`` names the file and field."""
+    from orchestrator.untrusted import InputError, _kind
+
+    path = Path(path)
+    expected = "--update-baseline writes a regular JSON file there"
+    try:
+        st = os.lstat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        st = None
+    if st is not None and stat.S_ISLNK(st.st_mode):
+        raise InputError(f"{where}: {path} is a symbolic link (to {os.readlink(path)}); {expected} and does not write "
+                         "through a link: name the real file in 'compare.baseline' or remove the link")
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{where}: {path} is {_kind(st.st_mode)}; {expected}: name a new or existing regular file, "
+                         "e.g. baselines/NAME.json")
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise InputError(f"{where}: {path} cannot be created: {folder} is not a folder; name a file in a folder")
+    return path
+
+
 def write_baseline(report, spec, path: Path) -> None:
     """Store errors, stability and FMU calls of every variant (not timings, they are
-    machine-dependent; call counts are not)."""
-    path = Path(path)
+    machine-dependent; call counts are not). Written atomically and never through a link
+    (:func:`orchestrator.results.safe_write.write_text_no_follow`); the folder is created."""
+    from orchestrator.results.safe_write import write_text_no_follow
+
+    path = check_baseline_target(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     doc = {"version": BASELINE_VERSION, "compare": spec.name,
            "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
@@ -240,7 +273,7 @@ def write_baseline(report, spec, path: Path) -> None:
                                     "errors": {m: (x if math.isfinite(x) else None)
                                                for m, x in v["errors"].items()}}
                         for v in report.variants}}
-    path.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    write_text_no_follow(path, json.dumps(doc, indent=1, sort_keys=True) + "\n")
 
 
 # --------------------------------------------------------------------------- report

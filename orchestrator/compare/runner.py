@@ -34,8 +34,8 @@ from typing import Any, Callable
 import numpy as np
 
 from orchestrator.compare.metrics import (
-    METRICS, RunData, check_report, derived_error, derived_values, fit_order, load_baseline, read_run,
-    signal_errors, write_baseline)
+    METRICS, RunData, check_baseline_target, check_report, derived_error, derived_values, fit_order, load_baseline,
+    read_run, signal_errors, write_baseline)
 from orchestrator.compare.report import write_report
 from orchestrator.compare.spec import (
     CompareSpec, CompareSpecError, ReferenceSpec, VariantSpec, apply_changes, expand_variants, load_compare,
@@ -277,6 +277,8 @@ def main_compare(path: str | os.PathLike, out_dir: str | os.PathLike | None = No
         if update_baseline and spec.baseline is None:
             raise CosimError(f"{spec.source}: --update-baseline given but the file has no 'compare.baseline' path; "
                              "add 'baseline: baselines/NAME.json' to its compare: section")
+        if update_baseline:     # a pipe, folder or link there would fail (or block) only after every run
+            check_baseline_target(spec.baseline, f"{spec.source}: 'compare.baseline'")
     except CosimError as exc:
         print(f"rotorcosim compare: {exc}", file=sys.stderr)
         return 2

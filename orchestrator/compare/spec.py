@@ -18,6 +18,7 @@ import itertools
 import logging
 import math
 import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -31,6 +32,7 @@ from orchestrator.scenario.limits import MAX_SUBSTEPS, limit_problems
 from orchestrator.scenario.nodes import YamlLoader as ScenarioYamlLoader   # same YAML number rules
 from orchestrator.untrusted import (InputError, check_name, construct_yaml, format_template, name_problem,
                                    read_text, read_yaml_tree)
+from orchestrator.untrusted import _kind   # the one wording of file kinds ("a named pipe (FIFO)")
 
 log = logging.getLogger(__name__)
 
@@ -301,9 +303,7 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     nums = _numbers(sec, bad)
     interval = _output_interval(sec.get("output_interval"), base, variants, bad)
     window = _window(sec.get("window"), base, bad)
-    baseline = sec.get("baseline")
-    if baseline is not None:
-        baseline = ((source.parent if source else Path.cwd()) / str(baseline)).resolve()
+    baseline = _baseline(sec.get("baseline"), source, bad)
     if base.output.signals is not None:
         for s in signals:
             if s not in base.output.signals:
@@ -386,6 +386,28 @@ def _reference(ref, bad) -> ReferenceSpec:
         bad("reference", "must be {scheme: monolithic, ...} or a co-simulation variant with a "
             "'macro_step' finer than every variant's")
     return ReferenceSpec(changes=ref_changes, check=bool(ref.get("check", True)))
+
+
+def _baseline(baseline, source, bad) -> Path | None:
+    """``compare.baseline`` relative to the file; its folder resolved, not the file itself (a link
+    there stays a link, which --update-baseline refuses to write through). What is there must
+    be a regular file (or nothing yet): a folder, FIFO or device is refused before any run."""
+    if baseline is None:
+        return None
+    if not isinstance(baseline, str) or not baseline.strip():
+        bad("baseline", f"must be a file name such as baselines/NAME.json (got {baseline!r})")
+        return None
+    path = (source.parent if source else Path.cwd()) / baseline
+    path = path.parent.resolve() / path.name
+    try:
+        mode = os.stat(path).st_mode             # stat, not open: a FIFO does not block
+    except OSError:                              # missing (reported when it is read) or unreadable
+        return path
+    if not stat.S_ISREG(mode):
+        bad("baseline", f"names {path}, which is {_kind(mode)}; the baseline is a regular JSON file (read by the "
+            "regression gate, written by --update-baseline): name a file, e.g. baselines/NAME.json")
+        return None
+    return path
 
 
 def _numbers(sec, bad) -> dict[str, Any]:

@@ -1,0 +1,112 @@
+"""Hostile comparison files: the baseline path, non-finite numbers, the reference's step and
+the compared signals are checked when the file is loaded, before any run.
+
+Each case writes a comparison over the two-mass test FMUs, calls ``main_compare`` with a
+runner that records calls, and checks the exit code, that nothing ran, and that the message
+names the file and line (or field), what came and the fix.
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from hostile_builders import two_mass_dir
+from orchestrator.compare import main_compare
+
+needs_fifo = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs os.mkfifo")
+needs_symlink = pytest.mark.skipif(os.name == "nt", reason="symbolic links")
+
+
+def compare_file(tmp, body: str, *, signals: str = "[left.x1]", reference: str = "{macro_step: 1.0e-4}",
+                 variants: str = "[{macro_step: 1.0e-3}]") -> os.PathLike:
+    """Lines: 1 compare, 2 scenario, 3 signals, 4 reference, 5 variants, 6.. ``body``."""
+    p = tmp / "cmp.yaml"
+    p.write_text(f"compare:\n  scenario: two_mass.yaml\n  signals: {signals}\n  reference: {reference}\n"
+                 f"  variants: {variants}\n{body}")
+    return p
+
+
+def run_compare(capsys, path, tmp, **kw) -> tuple[int, str]:
+    """``main_compare`` with a runner that must not be called (every case fails before a run)."""
+    calls = []
+
+    def runner(scenario, out_dir):
+        calls.append(out_dir)
+    rc = main_compare(path, out_dir=tmp / "out", runner=runner, workers=1, **kw)
+    cap = capsys.readouterr()
+    text = cap.out + cap.err
+    assert "internal error" not in text and "Traceback" not in text, text
+    assert calls == [], f"runs started: {calls}"
+    return rc, text
+
+
+@pytest.fixture
+def base(tmp_path, test_fmus):
+    return two_mass_dir(tmp_path, test_fmus)
+
+
+# --------------------------------------------------------------------------- baseline path
+@needs_fifo
+@pytest.mark.parametrize("update", [True, False])
+def test_baseline_fifo_is_refused_before_any_run(base, capsys, update):
+    """With --update-baseline the old code ran everything, then blocked forever writing the FIFO."""
+    os.mkfifo(base / "b.json")
+    p = compare_file(base, "  baseline: b.json\n")
+    rc, text = run_compare(capsys, p, base, update_baseline=update)
+    assert rc == 2, text
+    assert f"{p}:6: 'compare.baseline' names {base / 'b.json'}, which is a named pipe (FIFO)" in text
+    assert "baselines/NAME.json" in text
+    assert not os.path.isfile(base / "b.json")                  # still the FIFO
+
+
+def test_baseline_directory_is_refused_before_any_run(base, capsys):
+    (base / "bdir").mkdir()
+    p = compare_file(base, "  baseline: bdir\n")
+    rc, text = run_compare(capsys, p, base, update_baseline=True)
+    assert rc == 2 and f"{p}:6: 'compare.baseline'" in text and "which is a directory" in text, text
+    assert list((base / "bdir").iterdir()) == []
+
+
+@needs_symlink
+def test_update_baseline_does_not_write_through_a_link(base, capsys):
+    victim = base / "victim.json"
+    victim.write_text("keep me")
+    (base / "b.json").symlink_to(victim)
+    p = compare_file(base, "  baseline: b.json\n")
+    rc, text = run_compare(capsys, p, base, update_baseline=True)
+    assert rc == 2, text
+    assert f"{p}: 'compare.baseline': {base / 'b.json'} is a symbolic link" in text
+    assert "does not write through a link" in text
+    assert victim.read_text() == "keep me" and (base / "b.json").is_symlink()
+
+
+def test_update_baseline_below_a_file_is_refused_before_any_run(base, capsys):
+    (base / "plain").write_text("x")
+    p = compare_file(base, "  baseline: plain/b.json\n")
+    rc, text = run_compare(capsys, p, base, update_baseline=True)
+    assert rc == 2 and f"{base / 'plain'} is not a folder" in text and "'compare.baseline'" in text, text
+
+
+def test_write_baseline_refuses_a_link_planted_after_the_check(tmp_path):
+    """write_baseline checks again (the runs take long) and writes through a temporary file and a
+    rename: a link planted at the baseline meanwhile is refused, its target untouched."""
+    from orchestrator.compare.metrics import write_baseline
+    from orchestrator.errors import CosimError
+
+    class Report:
+        variants = [{"name": "v", "stable": True, "fmu_calls": 3, "errors": {"max": 0.5}}]
+
+    class Spec:
+        name = "c"
+    target = tmp_path / "b.json"
+    write_baseline(Report(), Spec(), target)
+    assert '"max": 0.5' in target.read_text()
+    victim = tmp_path / "victim.json"
+    victim.write_text("keep me")
+    target.unlink()
+    target.symlink_to(victim)
+    with pytest.raises(CosimError, match="symbolic link"):
+        write_baseline(Report(), Spec(), target)
+    assert victim.read_text() == "keep me"
