@@ -110,3 +110,35 @@ def test_write_baseline_refuses_a_link_planted_after_the_check(tmp_path):
     with pytest.raises(CosimError, match="symbolic link"):
         write_baseline(Report(), Spec(), target)
     assert victim.read_text() == "keep me"
+
+
+# --------------------------------------------------------------------------- numbers
+@pytest.mark.parametrize("line, words", [
+    ("  regression_margin: .nan\n", "'compare.regression_margin' must be a finite number >= 0"),
+    ("  regression_margin: .inf\n", "'compare.regression_margin' must be a finite number >= 0"),
+    ("  order_tolerance: .nan\n", "'compare.order_tolerance' must be a finite number >= 0"),
+    ("  order_tolerance: .inf\n", "'compare.order_tolerance' must be a finite number >= 0"),
+    ("  regression_floor: .nan\n", "'compare.regression_floor' must be a finite number >= 0"),
+    ("  tolerance: {max: .nan}\n", "'compare.tolerance' value of 'max' must be a positive number (got nan)"),
+    ("  tolerance: {rms: .inf}\n", "'compare.tolerance' value of 'rms' must be a positive number (got inf)"),
+])
+def test_non_finite_numbers_are_refused_with_file_and_line(base, capsys, line, words):
+    p = compare_file(base, line)
+    rc, text = run_compare(capsys, p, base)
+    assert rc == 2 and f"{p}:6: {words}" in text and "(got " in text, text
+
+
+@pytest.mark.parametrize("variants, words", [
+    ("[{macro_step: 1.0e-3, tolerance: {max: .nan}}]", "'compare.variants[0].tolerance' value of 'max'"),
+    ("[{macro_step: 1.0e-3, expect_order: .nan}]", "'compare.variants[0].expect_order' must be a finite number"),
+])
+def test_non_finite_variant_values_are_refused(base, capsys, variants, words):
+    p = compare_file(base, "", variants=variants)
+    rc, text = run_compare(capsys, p, base)
+    assert rc == 2 and f"{p}:5: {words}" in text, text
+
+
+def test_non_finite_signal_scale_is_refused(base, capsys):
+    p = compare_file(base, "", signals="{left.x1: {scale: .nan}}")
+    rc, text = run_compare(capsys, p, base)
+    assert rc == 2 and f"{p}:3: 'compare.signals' scale of 'left.x1' must be a positive finite number" in text, text

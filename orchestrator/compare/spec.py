@@ -275,8 +275,9 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     where = str(source) if source else "<compare>"
     problems: list[str] = []
 
-    def bad(key, msg, m=sec):
-        problems.append(f"{where}{_line(m, key)}: 'compare.{key}' {msg}")
+    def bad(key, msg, m=sec, at=None):      # line of ``at`` (default ``key``) in ``m``, else of the top key
+        line = _line(m, key if at is None else at) or _line(sec, key.split("[")[0].split(".")[0])
+        problems.append(f"{where}{line}: 'compare.{key}' {msg}")
 
     for k in sec:
         if k not in _TOP_KEYS:
@@ -357,7 +358,7 @@ def _variants(sec, base, default_tol, known, bad) -> list[VariantSpec]:
         groups = []
     for i, g in enumerate(groups):
         variants.extend(expand_variants(g, base, default_tol, known, where=f"variants[{i}]",
-                                        bad=lambda k, msg, m=g, i=i: bad(f"variants[{i}].{k}", msg, m)))
+                                        bad=lambda k, msg, m=g, i=i: bad(f"variants[{i}].{k}", msg, m, k)))
     if len(variants) > MAX_VARIANTS:
         bad("variants", f"make {len(variants)} variants (the limit is {MAX_VARIANTS}, each is a run); use fewer")
         variants = variants[:MAX_VARIANTS]
@@ -413,11 +414,13 @@ def _baseline(baseline, source, bad) -> Path | None:
 def _numbers(sec, bad) -> dict[str, Any]:
     """The order tolerance, the regression margin and floor, and ``workers``."""
     nums: dict[str, Any] = {}
-    for key, default, lo in (("order_tolerance", 0.3, 0.0), ("regression_margin", 0.10, 0.0),
-                             ("regression_floor", 1e-6, 0.0)):
+    for key, default, what in (("order_tolerance", 0.3, "allowed |observed - expect_order|"),
+                               ("regression_margin", 0.10, "relative growth allowed over the baseline"),
+                               ("regression_floor", 1e-6, "absolute growth allowed over the baseline")):
         val = sec.get(key, default)
-        if not isinstance(val, (int, float)) or isinstance(val, bool) or val < lo:
-            bad(key, f"must be a number >= {lo} (got {val!r})")
+        if not _finite(val) or val < 0:     # nan would fail (or pass) every check; inf switches the check off
+            bad(key, f"must be a finite number >= 0, the {what} (got {val!r}); write a number such as {default:g}, "
+                "or leave the key out for the default")
             val = default
         nums[key] = float(val)
     workers = sec.get("workers")
@@ -486,8 +489,12 @@ def _macro(v: VariantSpec, base: Scenario) -> float:
     return float(v.changes.get("coupling.macro_step", base.coupling.macro_step))
 
 
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
 def _positive(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+    return _finite(x) and x > 0
 
 
 def _change_problem(key: str, v) -> str | None:
@@ -531,8 +538,9 @@ def _signals(sig, bad) -> dict[str, float | None]:
         out = {}
         for s, opt in sig.items():
             scale = (opt or {}).get("scale") if isinstance(opt, dict) else opt
-            if scale is not None and (not isinstance(scale, (int, float)) or scale <= 0):
-                bad("signals", f"scale of '{s}' must be a positive number [signal unit] (got {scale!r})")
+            if scale is not None and not _positive(scale):
+                bad("signals", f"scale of '{s}' must be a positive finite number [signal unit] (got {scale!r}); "
+                    "e.g. the clearance for a displacement, or leave it out for the reference's peak")
                 scale = None
             out[str(s)] = None if scale is None else float(scale)
         return out
@@ -550,8 +558,9 @@ def _tolerance(tol, known, key, bad) -> dict[str, float]:
         if k not in known:
             bad(key, f"names '{k}', which is neither a metric nor a derived quantity; "
                 f"valid: {sorted(known)}")
-        elif not isinstance(v, (int, float)) or isinstance(v, bool) or v <= 0:
-            bad(key, f"value of '{k}' must be a positive number (got {v!r})")
+        elif not _positive(v):     # nan fails every variant, inf checks nothing
+            bad(key, f"value of '{k}' must be a positive number (got {v!r}), finite: the largest error "
+                f"allowed, e.g. 0.01 (nan would fail every variant, inf check nothing); leave '{k}' out to not check it")
         else:
             out[k] = float(v)
     return out
@@ -591,8 +600,9 @@ def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mappi
     tol.update(_tolerance(group.get("tolerance") or {}, known, "tolerance", bad))
     extra = _changes(group.get("set") or {}, "set", bad)
     expect = group.get("expect_order")
-    if expect is not None and not isinstance(expect, (int, float)):
-        bad("expect_order", f"must be a number (got {expect!r})")
+    if expect is not None and not _finite(expect):
+        bad("expect_order", f"must be a finite number, the expected order of convergence (got {expect!r}); "
+            "e.g. 1, or leave it out")
         expect = None
     count = math.prod(len(vals) for _, vals in axes)
     if count > MAX_VARIANTS:
