@@ -13,7 +13,7 @@ import os
 import pytest
 
 from hostile_builders import two_mass_dir
-from orchestrator.compare import main_compare
+from orchestrator.compare import load_compare, main_compare
 
 needs_fifo = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs os.mkfifo")
 needs_symlink = pytest.mark.skipif(os.name == "nt", reason="symbolic links")
@@ -142,3 +142,51 @@ def test_non_finite_signal_scale_is_refused(base, capsys):
     p = compare_file(base, "", signals="{left.x1: {scale: .nan}}")
     rc, text = run_compare(capsys, p, base)
     assert rc == 2 and f"{p}:3: 'compare.signals' scale of 'left.x1' must be a positive finite number" in text, text
+
+
+# --------------------------------------------------------------------------- reference step
+@pytest.mark.parametrize("reference, words", [
+    ("{scheme: gauss-seidel, macro_step: 1.0e-2}", "macro_step 0.01 s is not finer than the macro step 0.001 s"),
+    ("{macro_step: 1.0e-3}", "macro_step 0.001 s is not finer than the macro step 0.001 s"),
+    ("{macro_step: 3.0e-4}", "macro_step 0.0003 s does not divide the macro step 0.001 s"),
+    ("{set: {coupling.macro_step: 3.0e-4}}", "macro_step 0.0003 s does not divide the macro step 0.001 s"),
+])
+def test_reference_must_be_finer_and_divide_every_variant_step(base, capsys, reference, words):
+    p = compare_file(base, "", reference=reference, variants="[{macro_step: [1.0e-3, 2.0e-3]}]")
+    rc, text = run_compare(capsys, p, base)
+    assert rc == 2 and f"{p}:4: 'compare.reference' {words}" in text, text
+    assert "e.g. 0.0001" in text and "scheme: monolithic" in text
+
+
+def test_finer_dividing_reference_is_accepted(base):
+    p = compare_file(base, "", reference="{macro_step: 2.5e-4}", variants="[{macro_step: [1.0e-3, 2.0e-3]}]")
+    spec = load_compare(p)
+    assert spec.reference.changes["coupling.macro_step"] == 2.5e-4 and len(spec.variants) == 2
+
+
+# --------------------------------------------------------------------------- signals
+@pytest.fixture
+def base_all_outputs(base):
+    """The two-mass base recording its default signals (every output): no output.signals."""
+    text = (base / "two_mass.yaml").read_text()
+    (base / "two_mass.yaml").write_text(text.replace("  signals: [left.x1, right.F]\n", ""))
+    assert "signals" not in (base / "two_mass.yaml").read_text()
+    return base
+
+
+@pytest.mark.parametrize("signals, words", [
+    ("[nope.x]", "entry 'nope.x' names the instance 'nope', which is not an FMU of the base scenario; "
+                 "instances: left, right"),
+    ("[left.nope]", "entry 'left.nope': 'left' has no variable 'nope'; outputs of 'left' (closest first): "),
+    ("[left.F]", "entry 'left.F': 'F' of 'left' is an input, and a run records only outputs"),
+    ("[x1]", "entry 'x1' must be 'instance.variable'"),
+])
+def test_unknown_signal_is_refused_before_the_reference_runs(base_all_outputs, capsys, signals, words):
+    p = compare_file(base_all_outputs, "", signals=signals)
+    rc, text = run_compare(capsys, p, base_all_outputs)
+    assert rc == 2 and f"{p}:3: 'compare.signals' {words}" in text, text
+
+
+def test_output_of_the_base_is_accepted_as_a_signal(base_all_outputs):
+    spec = load_compare(compare_file(base_all_outputs, "", signals="[left.x1, left.v1]"))
+    assert list(spec.signals) == ["left.x1", "left.v1"]

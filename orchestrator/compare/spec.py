@@ -305,11 +305,8 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     interval = _output_interval(sec.get("output_interval"), base, variants, bad)
     window = _window(sec.get("window"), base, bad)
     baseline = _baseline(sec.get("baseline"), source, bad)
-    if base.output.signals is not None:
-        for s in signals:
-            if s not in base.output.signals:
-                bad("signals", f"lists '{s}', which the base scenario does not output; add it to "
-                    f"'output.signals' (has {list(base.output.signals)})")
+    _check_signals(signals, base, bad)
+    _check_reference_step(reference, base, variants, bad)
     if not problems:        # every run of the comparison within the loader's numeric limits
         _check_run_limits(base, reference, variants, interval, bad)
     if problems:
@@ -409,6 +406,69 @@ def _baseline(baseline, source, bad) -> Path | None:
             "regression gate, written by --update-baseline): name a file, e.g. baselines/NAME.json")
         return None
     return path
+
+
+def _check_reference_step(reference: ReferenceSpec, base: Scenario, variants, bad) -> None:
+    """A co-simulation reference's macro step must be finer than every variant's and divide it
+    (docs/compare.md), so that it is the more accurate run and its rows fall on the common
+    output grid (a multiple of every variant's step)."""
+    if reference.monolithic or not variants:
+        return
+    h_ref = reference.changes.get("coupling.macro_step", base.coupling.macro_step)
+    if not _positive(h_ref):
+        return                                   # reported by _changes
+    wrong = [v for v in variants if not (h_ref < _macro(v, base) and _multiple(_macro(v, base), h_ref))]
+    if not wrong:
+        return
+    h, name = _macro(wrong[0], base), wrong[0].name
+    why = (f"is not finer than the macro step {h:g} s of variant '{name}'" if h_ref >= h else
+           f"does not divide the macro step {h:g} s of variant '{name}' ({h / h_ref:.6g} reference steps)")
+    steps = sorted({_macro(v, base) for v in variants})
+    fits = [steps[0] / k for k in (10, 2, 4, 5, 20, 100) if all(_multiple(x, steps[0] / k) for x in steps)]
+    example = f"e.g. {fits[0]:g}" if fits else "a common divisor of them"
+    bad("reference", f"macro_step {h_ref:g} s {why}; a co-simulation reference must be finer than every variant "
+        f"and divide its step (docs/compare.md), so that its rows fall on the output grid: give it a macro_step "
+        f"that divides every variant's ({', '.join(f'{x:g}' for x in steps)} s), {example}, or use "
+        "'scheme: monolithic'")
+
+
+def _check_signals(signals, base: Scenario, bad) -> None:
+    """Every compared signal is ``instance.variable`` with an FMU instance of the base and,
+    when its model description can be read, a variable the run records (``output.signals``,
+    or by default every output), so that a typo fails here and not after the reference ran."""
+    from orchestrator.errors import FmuError
+    from orchestrator.fmi.archive import cached_model_description
+    from orchestrator.scenario.nodes import article, ranked
+
+    instances = {f.name: f for f in base.fmus}
+    recorded = None if base.output.signals is None else set(base.output.signals)
+    for s in signals:
+        inst, dot, var = s.partition(".")
+        if not dot or not var:
+            bad("signals", f"entry {s!r} must be 'instance.variable', e.g. '{next(iter(instances), 'rotor')}.x_1'")
+            continue
+        if inst not in instances:
+            bad("signals", f"entry {s!r} names the instance '{inst}', which is not an FMU of the base scenario; "
+                f"instances: {', '.join(instances)}")
+            continue
+        if recorded is not None:
+            if s not in recorded:
+                bad("signals", f"lists '{s}', which the base scenario does not output; add it to "
+                    f"'output.signals' (has {list(base.output.signals)})")
+            continue
+        try:
+            md = cached_model_description(instances[inst].path)
+        except (FmuError, OSError):
+            continue                                 # the run reports an unreadable FMU
+        outputs = [v.name for v in md.outputs()]
+        if var not in md.variables:
+            bad("signals", f"entry {s!r}: '{inst}' has no variable '{var}'; outputs of '{inst}' (closest first): "
+                f"{ranked(var, outputs)}")
+        elif var not in outputs:
+            bad("signals", f"entry {s!r}: '{var}' of '{inst}' is {article(md.variables[var].causality)}, "
+                "and a run records only outputs unless 'output.signals' lists it; "
+                f"add '{s}' to the scenario's 'output.signals' or compare an output of '{inst}' (closest first): "
+                f"{ranked(var, outputs)}")
 
 
 def _numbers(sec, bad) -> dict[str, Any]:
