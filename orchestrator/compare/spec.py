@@ -620,7 +620,8 @@ def _tolerance(tol, known, key, bad) -> dict[str, float]:
                 f"valid: {sorted(known)}")
         elif not _positive(v):     # nan fails every variant, inf checks nothing
             bad(key, f"value of '{k}' must be a positive number (got {v!r}), finite: the largest error "
-                f"allowed, e.g. 0.01 (nan would fail every variant, inf check nothing); leave '{k}' out to not check it")
+                f"allowed, e.g. 0.01 (nan would fail every variant, inf check nothing); leave '{k}' out to not "
+                "check it")
         else:
             out[k] = float(v)
     return out
