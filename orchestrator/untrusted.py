@@ -471,3 +471,25 @@ def format_template(template: str, fields: Mapping[str, Any], *, what: str, wher
     except (ValueError, TypeError) as exc:          # e.g. ':d' applied to a float
         raise InputError(f"{prefix}{what} {template!r} cannot be formatted ({exc}); use ':g' for numbers "
                          f"(fields: {valid})") from None
+
+
+OUT_DIR_FIELD = "{out_dir}"
+
+
+def out_dir_escape(value: str) -> str | None:
+    """Why a String parameter written as a path in the run folder (``{out_dir}/...``, which the
+    master replaces by the run folder) would leave it (None: it stays inside, or it is no such
+    path). ``{out_dir}/../x`` would write beside the run folder, wherever the run is."""
+    if not isinstance(value, str) or not value.startswith(OUT_DIR_FIELD):
+        return None
+    rest = value[len(OUT_DIR_FIELD):].replace("\\", "/")
+    parts = [q for q in rest.split("/") if q not in ("", ".")]
+    depth = 0
+    for q in parts:
+        depth += -1 if q == ".." else 1
+        if depth < 0:
+            return (f"'..' climbs out of the run folder (got {value!r}); write a path below it, "
+                    f"e.g. '{OUT_DIR_FIELD}/name.npz'")
+    if OUT_DIR_FIELD in rest:
+        return f"'{OUT_DIR_FIELD}' may appear once, at the start (got {value!r})"
+    return None

@@ -132,3 +132,23 @@ def test_an_alias_bomb_is_still_called_one(tmp_path, capsys, monkeypatch):
     p.write_text(p.read_text() + "x: &a [1, 2, 3, 4, 5, 6, 7, 8]\ny: [*a, *a, *a, *a, *a, *a, *a, *a]\n")
     rc, out = cli(capsys, "validate", p)
     assert rc == 1 and "looks like an alias bomb" in out
+
+
+# --------------------------------------------------------------------------- {out_dir} paths
+@pytest.mark.parametrize("value, words", [
+    ("{out_dir}/../../escape.npz", "'..' climbs out of the run folder"),
+    ("{out_dir}/a/../../b.npz", "'..' climbs out of the run folder"),
+    ("{out_dir}/x/{out_dir}", "'{out_dir}' may appear once, at the start"),
+])
+def test_out_dir_paths_that_leave_the_run_folder(tmp_path, capsys, value, words):
+    p = md_scenario(tmp_path)
+    p.write_text(p.read_text().replace("  a: {path: m.fmu}", f"  a: {{path: m.fmu, parameters: {{f: '{value}'}}}}"))
+    rc, out = cli(capsys, "validate", p)
+    assert rc == 1 and f"{p}:4: parameter 'a.f' is a path in the run folder, but {words}" in out
+
+
+@pytest.mark.parametrize("value", ["{out_dir}/fields.npz", "{out_dir}/a/../b.npz", "{out_dir}", "/abs/x.npz",
+                                   "plain text"])
+def test_paths_that_stay_or_are_not_run_folder_paths(value):
+    from orchestrator.untrusted import out_dir_escape
+    assert out_dir_escape(value) is None

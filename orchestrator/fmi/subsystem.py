@@ -44,6 +44,7 @@ from orchestrator.errors import FmuCallError, FmuError, LifecycleError, Scenario
 from orchestrator.fmi.archive import ModelDescription, Variable, binary_path, read_model_description, safe_extract
 from orchestrator.fmi.bundled_python import own_imports
 from orchestrator.fmi.values import FAMILY, TypedBatch, settable_problem
+from orchestrator.untrusted import out_dir_escape
 
 
 #: True once this process has loaded an FMU's shared library in-process (read by
@@ -381,6 +382,10 @@ class Subsystem(SubsystemBase):
                     if not isinstance(value, str):
                         raise TypeError
                     if out_dir is not None:
+                        why = out_dir_escape(value)
+                        if why:          # (scenarios made in Python do not pass the loader's check)
+                            raise ScenarioError(f"parameter '{self.name}.{pname}' is a path in the run "
+                                                f"folder, but {why}")
                         value = value.replace("{out_dir}", str(Path(out_dir).resolve()))
                     self._call("fmi2SetString", self._component, vr, 1, (fmi2String * 1)(value.encode("utf-8")))
             except TypeError:

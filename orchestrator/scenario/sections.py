@@ -29,7 +29,7 @@ from orchestrator.scenario.model import (
 from orchestrator.scenario.nodes import NodeReader, YamlLoader, did_you_mean, flatten_merges
 from orchestrator.scenario.limits import MAX_MACRO_STEPS, MAX_OUTPUT_ROWS, MAX_SUBSTEPS, MIN_RELATIVE_STEP
 from orchestrator.scenario.overrides import apply_override
-from orchestrator.untrusted import InputError, check_yaml_tree, name_problem, read_yaml_tree
+from orchestrator.untrusted import InputError, check_yaml_tree, name_problem, out_dir_escape, read_yaml_tree
 
 log = logging.getLogger("orchestrator.scenario")
 
@@ -245,6 +245,9 @@ class SectionReader(NodeReader):
                                      f"text) (got {self.got(pv)}); write one value")
                     else:
                         spec["parameters"][pname] = (self.value(pv), pv)
+                        why = out_dir_escape(self.value(pv))
+                        if why:
+                            self.err(pv, f"parameter '{name}.{pname}' is a path in the run folder, but {why}")
             out.append(spec)
         return out
 
