@@ -215,7 +215,8 @@ def _cmd_info(args) -> int:
                          yes(md.can_be_instantiated_only_once_per_process))):
         print(f"  {flag}: {value}")
     if md.default_experiment:
-        print("default experiment: " + ", ".join(f"{k}={v:g}" for k, v in md.default_experiment.items()))
+        print("default experiment: " + ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v!r} (not a number)"
+                                                 for k, v in md.default_experiment.items()))
     rank = {c: i for i, c in enumerate(_CAUSALITY_ORDER)}
     variables = sorted(md.variables.values(), key=lambda v: rank.get(v.causality, len(rank)))
     by_ref: dict = {}

@@ -152,3 +152,43 @@ def test_out_dir_paths_that_leave_the_run_folder(tmp_path, capsys, value, words)
 def test_paths_that_stay_or_are_not_run_folder_paths(value):
     from orchestrator.untrusted import out_dir_escape
     assert out_dir_escape(value) is None
+
+
+# --------------------------------------------------------------------------- DefaultExperiment
+def _de_scenario(tmp_path, de: str, *, drop: str):
+    from hostile_builders import md_xml
+    md = md_xml().replace("<ModelVariables>", f"<DefaultExperiment {de}/><ModelVariables>")
+    write_fmu(tmp_path / "m.fmu", md)
+    p = tmp_path / "s.yaml"
+    text = scenario_text(top="start_time: 0.0\n")
+    for key in drop.split(","):
+        text = {"start_time": text.replace("start_time: 0.0\n", ""),
+                "stop_time": text.replace("stop_time: 0.01\n", ""),
+                "macro_step": text.replace("coupling:\n  macro_step: 1.0e-3\n", "")}[key]
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("de, drop, key, shown", [
+    ('startTime="NaN"', "start_time", "start_time", "nan"),
+    ('startTime="abc"', "start_time", "start_time", "'abc'"),
+    ('stopTime="inf"', "stop_time", "stop_time", "inf"),
+    ('stepSize="0"', "macro_step", "coupling.macro_step", "0.0"),
+    ('stepSize="-1e-3"', "macro_step", "coupling.macro_step", "-0.001"),
+])
+def test_unusable_default_experiment_values_are_named(tmp_path, capsys, de, drop, key, shown):
+    p = _de_scenario(tmp_path, de, drop=drop)
+    rc, out = cli(capsys, "validate", p)
+    assert rc == 1
+    attr = de.split("=")[0]
+    assert f"'{key}' is missing and the DefaultExperiment {attr} of 'a' is {shown}, not a finite number" in out
+    assert f"add '{key}: <seconds>' to the scenario" in out
+    assert "no FMU declares" not in out
+
+
+def test_unusable_default_experiment_values_do_not_matter_when_the_scenario_gives_them(tmp_path):
+    from orchestrator import load_scenario
+    p = _de_scenario(tmp_path, 'startTime="abc" stopTime="NaN" stepSize="0"', drop="start_time")
+    p.write_text("start_time: 0.0\n" + p.read_text())
+    sc = load_scenario(p)
+    assert sc.start_time == 0.0 and sc.stop_time == 0.01 and sc.coupling.macro_step == 1e-3

@@ -188,8 +188,8 @@ def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelD
             if de.get(k) is not None:
                 try:
                     default_experiment[k] = float(de.get(k))
-                except ValueError:
-                    pass
+                except ValueError:           # kept as written: reported where it would be used
+                    default_experiment[k] = de.get(k)[:40]
     try:
         mod = int(cs.get("maxOutputDerivativeOrder", "0"))
     except ValueError:

@@ -22,6 +22,8 @@ from orchestrator.names import array_elements, index_of, is_pattern, match
 from orchestrator.scenario.model import CouplingSpec
 from orchestrator.scenario.sections import FROM_FMUS
 
+INVALID = "(invalid)"        # a DefaultExperiment value that is not a usable number (reported)
+
 
 def fixed_step_problem(t0: float, t_stop: float, h: float, fixed: Sequence[str], discard_retries: int = 0) -> str | None:
     """Why a run cannot honour FMUs that cannot vary their communication step size, or None.
@@ -57,23 +59,34 @@ class Completion:
         kw, coupling, taken = draft.kw, draft.coupling, {}
         top = getattr(self, "top_keys", set())
 
-        def first(attr):
+        def first(attr, key, positive=False):
+            """The first FMU's DefaultExperiment ``attr`` and its instance; a value that is not
+            a finite number (or not > 0 with ``positive``) is reported against ``key`` and
+            gives (None, INVALID)."""
             for f in draft.fmus:
                 de = self.des.get(f["name"], {})
                 if attr in de:
-                    return de[attr], f["name"]
+                    v, who = de[attr], f["name"]
+                    if not (isinstance(v, float) and math.isfinite(v) and (v > 0 or not positive)):
+                        need = "a finite number > 0" if positive else "a finite number"
+                        self.err(getattr(self, "root_node", None),
+                                 f"'{key}' is missing and the DefaultExperiment {attr} of '{who}' is {v!r}, not "
+                                 f"{need}; add '{key}: <seconds>' to the scenario (or fix the FMU's "
+                                 "modelDescription.xml)")
+                        return None, INVALID
+                    return v, who
             return None, None
 
         if "start_time" not in top:
-            v, who = first("startTime")
+            v, who = first("startTime", "start_time")
             if v is not None:
                 kw["start_time"] = v
                 taken["start_time"] = f"{v!r} (DefaultExperiment startTime of '{who}')"
         if kw.get("stop_time") is FROM_FMUS:
-            self._default_stop(kw, first, taken)
+            self._default_stop(kw, lambda attr: first(attr, "stop_time"), taken)
         if coupling is not None and "macro_step" not in coupling:
-            v, who = first("stepSize")
-            if v is not None and v > 0:
+            v, who = first("stepSize", "coupling.macro_step", positive=True)
+            if v is not None:
                 coupling["macro_step"] = v
                 taken["coupling.macro_step"] = f"{v!r} (DefaultExperiment stepSize of '{who}')"
         return taken
@@ -83,7 +96,7 @@ class Completion:
         v, who = first("stopTime")
         if v is None:
             kw["stop_time"] = None
-            if self.mds or not self.fmu_specs:          # FMUs unreadable: their problem is reported already
+            if who is not INVALID and (self.mds or not self.fmu_specs):   # FMUs unreadable: reported already
                 self.err(root, "top level: missing the required key 'stop_time' (no FMU declares a "
                                "DefaultExperiment stopTime to take it from); add 'stop_time: <seconds>'")
         elif kw.get("start_time") is not None and v <= kw["start_time"]:
