@@ -339,7 +339,7 @@ def _cmd_sweep(args) -> int:
     from orchestrator.sweep import default_out_dir, prepare
     from orchestrator.sweep.runner import run_sweep
 
-    spec, runs = prepare(args.file)
+    spec, runs = prepare(args.file, progress=False if args.no_progress else None)
     out = Path(args.out) if args.out else default_out_dir(args.file)
     print(f"sweep {args.file}: {len(runs)} runs of {spec.scenario.name} ({spec.mode}) -> {out}", flush=True)
     o = run_sweep(spec, runs, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,

@@ -29,11 +29,12 @@ def default_out_dir(path: str | Path) -> Path:
     return Path("runs") / f"sweep_{Path(path).stem}"
 
 
-def prepare(path: str | Path):
-    """(spec, runs): the checked sweep file and its runs, every run's scenario validated."""
+def prepare(path: str | Path, *, progress: bool | None = False):
+    """(spec, runs): the checked sweep file and its runs, every run's scenario validated
+    (``progress``: a bar while validating many runs, as :func:`~orchestrator.sweep.plan.plan_sweep`)."""
     from orchestrator.sweep.plan import plan_sweep
     spec = load_sweep(path)
-    return spec, plan_sweep(spec)
+    return spec, plan_sweep(spec, progress=progress)
 
 
 def sweep(path: str | Path, out_dir: str | Path | None = None, *, scheduler: str | None = None,

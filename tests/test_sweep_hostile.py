@@ -1,0 +1,105 @@
+"""Hostile sweep files and sweep folders: limits on runs, --resume records, the map's table.
+
+Each test feeds one hostile input and checks the refusal (or the warning) names the file,
+line or field, what was expected and the fix, without building anything in full first. No
+test here runs a simulation: the grids are expanded, the resume records read and the maps
+drawn from files written by the test.
+"""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import pytest
+
+from orchestrator.cli import main
+from orchestrator.sweep import SweepError, load_sweep
+from orchestrator.sweep import plan
+
+HEAD = "sweep: 1\nscenario: s.yaml\n"
+
+
+def sweep_file(tmp_path: Path, body: str, name: str = "sweep.yaml") -> Path:
+    (tmp_path / "s.yaml").write_text("name: s\n")     # load_sweep only checks that it is a file
+    path = tmp_path / name
+    path.write_text(HEAD + body)
+    return path
+
+
+def linspaces(*counts: int) -> str:
+    paths = ["stop_time", "coupling.macro_step", "output.interval", "start_time", "coupling.substeps",
+             "coupling.call_timeout"]
+    return "parameters:\n" + "".join(f"  - {{name: p{i}, set: {paths[i]}, linspace: [1, 2, {n}]}}\n"
+                                     for i, n in enumerate(counts))
+
+
+@pytest.fixture
+def no_grid(monkeypatch):
+    """Building the grid in full (itertools.product) is what these tests forbid."""
+    def product(*args, **kwargs):
+        raise AssertionError("the grid was built in full")
+    monkeypatch.setattr(plan.itertools, "product", product)
+
+
+# ------------------------------------------------------------------ 1. the number of runs
+def test_a_grid_of_1e12_runs_is_refused_from_the_counts(tmp_path, no_grid):
+    spec = load_sweep(sweep_file(tmp_path, linspaces(10000, 10000, 10000)))
+    with pytest.raises(SweepError) as info:
+        plan.expand(spec)
+    text = str(info.value)
+    assert f"{spec.source}:4: the grid of the parameters p0 (10000, line 4) x p1 (10000, line 5) x " \
+           "p2 (10000, line 6) makes about 10^12 runs" in text
+    assert f"the limit is {plan.MAX_RUNS}, orchestrator.sweep.plan.MAX_RUNS" in text
+    assert "fewer values" in text and "'mode: random' and 'samples: N'" in text
+
+
+def test_a_grid_just_over_the_limit_is_refused_and_the_cli_says_so(tmp_path, capsys):
+    path = sweep_file(tmp_path, linspaces(101, 100))
+    with pytest.raises(SweepError, match=r":4: the grid of the parameters p0 \(101, line 4\) x p1 \(100, line 5\) "
+                                         r"makes 10100 runs"):
+        plan.expand(load_sweep(path))
+    assert main(["sweep", str(path), "--out", str(tmp_path / "o"), "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert "makes 10100 runs" in err and "internal error" not in err
+    assert not (tmp_path / "o").exists()
+    assert plan.count_runs(load_sweep(sweep_file(tmp_path, linspaces(100, 100), "ok.yaml"))) == plan.MAX_RUNS
+
+
+def test_zip_and_random_counts_are_bounded_too(tmp_path, monkeypatch, no_grid):
+    monkeypatch.setattr(plan, "MAX_RUNS", 5)               # a module constant, read when used
+    spec = load_sweep(sweep_file(tmp_path, "mode: zip\n" + linspaces(6, 6)))
+    with pytest.raises(SweepError, match=r"mode zip over the parameters p0 \(6, line 5\) x p1 \(6, line 6\) "
+                                         r"makes 6 runs.*the limit is 5"):
+        plan.expand(spec)
+    spec = load_sweep(sweep_file(tmp_path, "mode: random\nsamples: 6\n" + linspaces(10, 10), "r.yaml"))
+    with pytest.raises(SweepError, match=r"'samples' is 6, more runs than a sweep may have \(the limit is 5"):
+        plan.expand(spec)
+
+
+def test_random_samples_of_a_huge_grid_are_drawn_without_building_it(tmp_path, no_grid):
+    spec = load_sweep(sweep_file(tmp_path, "mode: random\nsamples: 5\nseed: 7\n" + linspaces(10000, 10000, 10000)))
+    runs = plan.expand(spec)
+    assert len(runs) == 5 and len({r.run_id for r in runs}) == 5
+    lists = [p.values for p in spec.parameters]
+    for run in runs:
+        assert all(run.values[p.name] in p.values for p in spec.parameters)
+    positions = [sum(lists[k].index(run.values[f"p{k}"]) * 10000 ** (2 - k) for k in range(3)) for run in runs]
+    assert positions == sorted(positions)                        # grid order, as before
+    assert [r.run_id for r in plan.expand(spec)] == [r.run_id for r in runs]     # the same seed, the same runs
+    # beyond int64 (10^24 combinations): Python's generator draws from the range
+    big = load_sweep(sweep_file(tmp_path, "mode: random\nsamples: 3\n" + linspaces(*[10000] * 6), "big.yaml"))
+    assert len(plan.expand(big)) == 3
+    with pytest.raises(SweepError, match="'samples' is 3 but the grid of the parameters has only 2"):
+        plan.expand(load_sweep(sweep_file(tmp_path, "mode: random\nsamples: 3\n" + linspaces(2), "few.yaml")))
+
+
+def test_random_draw_of_a_small_grid_is_the_draw_of_earlier_versions(tmp_path):
+    import numpy as np
+    spec = load_sweep(sweep_file(tmp_path, "mode: random\nsamples: 7\nseed: 3\n" + linspaces(4, 5, 3)))
+    grid = list(itertools.product(*[p.values for p in spec.parameters]))
+    picks = np.random.default_rng(3).choice(len(grid), size=7, replace=False)
+    expected = [grid[i] for i in sorted(int(i) for i in picks)]  # what 5c8011d ran: resume keeps working
+    assert [tuple(r.values.values()) for r in plan.expand(spec)] == expected
+    lists = [(1, 2, 3), ("a", "b"), (True, False, None, 0)]
+    assert [plan._decode(i, lists) for i in range(24)] == list(itertools.product(*lists))
