@@ -103,3 +103,104 @@ def test_random_draw_of_a_small_grid_is_the_draw_of_earlier_versions(tmp_path):
     assert [tuple(r.values.values()) for r in plan.expand(spec)] == expected
     lists = [(1, 2, 3), ("a", "b"), (True, False, None, 0)]
     assert [plan._decode(i, lists) for i in range(24)] == list(itertools.product(*lists))
+
+
+# ------------------------------------------------------------------ 2. --resume reads run folders
+def _run(tmp_path: Path):
+    from orchestrator.sweep.plan import RunPlan, run_id_of
+    overrides = ("stop_time=0.1",)
+    run = RunPlan(run_id=run_id_of(overrides), index=0, values={"a": 0.1}, overrides=overrides)
+    run_dir = tmp_path / "runs" / run.run_id
+    run_dir.mkdir(parents=True)
+    return run, run_dir
+
+
+def _finished(run_dir: Path, run, summary: str | None = None, record: str | None = None) -> None:
+    import json
+    (run_dir / "summary.json").write_text(summary if summary is not None else
+                                          json.dumps({"status": "finished", "end_time": 0.1}))
+    (run_dir / "sweep_run.json").write_text(record if record is not None else json.dumps(
+        {"status": "finished", "message": "", "wall_time_s": 1.0, "overrides": list(run.overrides)}))
+
+
+DEEP = "[" * 100000 + "]" * 100000
+
+
+@pytest.mark.parametrize("case, why", [
+    ("record_devzero", "sweep_run.json is a character device, expected a regular file"),
+    ("record_deep", "sweep_run.json is nested too deeply to read"),
+    ("record_list", "sweep_run.json: expected a JSON object, got list"),
+    ("record_overrides_text", "sweep_run.json: 'overrides' is not a list of texts"),
+    ("record_wall_text", "sweep_run.json: 'wall_time_s' is not a number"),
+    ("record_not_utf8", "sweep_run.json is not UTF-8 text"),
+    ("summary_deep", "summary.json is nested too deeply to read"),
+    ("summary_nested_100", "summary.json: nested more than 64 levels deep"),
+    ("summary_dir", "summary.json is a directory, expected a regular file"),
+    ("summary_too_large", "summary.json is larger than 1000 bytes (the limit)"),
+    ("summary_fifo", "summary.json is a named pipe (FIFO), expected a regular file"),
+])
+def test_resume_redoes_a_run_whose_files_are_unreadable_with_a_warning(tmp_path, monkeypatch, case, why):
+    import os
+
+    from orchestrator.sweep.runner import resumable
+    run, run_dir = _run(tmp_path)
+    _finished(run_dir, run)
+    record, summary = run_dir / "sweep_run.json", run_dir / "summary.json"
+    if case == "record_devzero":
+        record.unlink()
+        record.symlink_to("/dev/zero")
+    elif case == "record_deep":
+        record.write_text(DEEP)
+    elif case == "record_list":
+        record.write_text("[1, 2]")
+    elif case == "record_overrides_text":
+        record.write_text('{"status": "finished", "overrides": "stop_time=0.1"}')
+    elif case == "record_wall_text":
+        record.write_text('{"status": "finished", "wall_time_s": "fast", "overrides": ["stop_time=0.1"]}')
+    elif case == "record_not_utf8":
+        record.write_bytes(b"\xff\xfe{}")
+    elif case == "summary_deep":
+        summary.write_text('{"status": "finished", "end_time": ' + DEEP + "}")
+    elif case == "summary_nested_100":
+        summary.write_text('{"status": "finished", "end_time": ' + "[" * 100 + "]" * 100 + "}")
+    elif case == "summary_dir":
+        summary.unlink()
+        summary.mkdir()
+    elif case == "summary_too_large":
+        monkeypatch.setattr("orchestrator.untrusted.MAX_TEXT_BYTES", 1000)
+        summary.write_text('{"status": "finished", "x": "' + "y" * 2000 + '"}')
+    elif case == "summary_fifo":
+        summary.unlink()
+        os.mkfifo(summary)
+    with pytest.warns(UserWarning) as caught:
+        assert resumable(run_dir, run) is None
+    text = " ".join(str(w.message) for w in caught)
+    assert f"--resume: {run_dir}/" in text and why in text and "running that run again" in text
+
+
+def test_resume_keeps_a_good_run_and_silently_redoes_unfinished_ones(tmp_path, recwarn):
+    import json
+
+    from orchestrator.sweep.runner import _recorded, resumable
+    run, run_dir = _run(tmp_path)
+    _finished(run_dir, run)
+    rec = resumable(run_dir, run)
+    assert rec["status"] == "finished" and rec["summary"]["end_time"] == 0.1 and rec["wall_time_s"] == 1.0
+    assert _recorded(run_dir, run)["summary"] == {"status": "finished", "end_time": 0.1}
+    (run_dir / "summary.json").write_text(json.dumps({"status": "failed"}))
+    assert resumable(run_dir, run) is None                    # not finished: no warning needed
+    (run_dir / "sweep_run.json").write_text(DEEP)             # after Ctrl-C: unreadable record, no record
+    assert _recorded(run_dir, run) is None
+    assert not recwarn.list
+
+
+def test_a_run_clears_a_directory_or_symlink_left_where_its_summary_goes(tmp_path):
+    from orchestrator.sweep.task import _clear_stale
+    (tmp_path / "summary.json").mkdir()
+    (tmp_path / "summary.json" / "x").write_text("x")
+    target = tmp_path / "keep.txt"
+    target.write_text("keep")
+    (tmp_path / "sweep_run.json").symlink_to(target)
+    _clear_stale(tmp_path)
+    assert not (tmp_path / "summary.json").exists() and not (tmp_path / "sweep_run.json").is_symlink()
+    assert target.read_text() == "keep"

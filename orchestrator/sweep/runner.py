@@ -11,7 +11,6 @@ A failed or crashed run is a row, never the end of the sweep.
 from __future__ import annotations
 
 import contextlib
-import json
 import logging
 import os
 import signal
@@ -44,18 +43,85 @@ class SweepOutcome:
     warnings: list[str] = field(default_factory=list)
 
 
+# Nesting of a run's summary.json or sweep_run.json: ours are 5-6 levels deep; deeper ones
+# (a hand-edited or planted file) are refused before anything walks or copies them.
+MAX_RECORD_DEPTH = 64
+
+
+def _nesting_over(value, limit: int) -> bool:
+    """Whether ``value`` (parsed JSON) nests more than ``limit`` lists/objects deep (iterative)."""
+    stack = [(value, 1)]
+    while stack:
+        node, depth = stack.pop()
+        if isinstance(node, (dict, list)):
+            if depth > limit:
+                return True
+            stack.extend((v, depth + 1) for v in (node.values() if isinstance(node, dict) else node))
+    return False
+
+
+def read_run_file(path: Path, what: str) -> tuple[dict | None, str | None]:
+    """(the JSON object in a run folder's ``summary.json`` / ``sweep_run.json``, None) or
+    (None, why it cannot be used); (None, None) when there is no such file.
+
+    Read with the bounded reader (a regular file of at most ``untrusted.MAX_TEXT_BYTES``, UTF-8,
+    nesting the parser can take; a symlink to /dev/zero or a directory is refused without
+    reading), then checked to be an object nested at most :data:`MAX_RECORD_DEPTH` levels.
+    """
+    from orchestrator.untrusted import InputError, load_json
+
+    if not path.exists() and not path.is_symlink():
+        return None, None
+    try:
+        doc = load_json(path, what=what)
+    except InputError as exc:
+        return None, str(exc)
+    if not isinstance(doc, dict):
+        return None, f"{path}: expected a JSON object, got {type(doc).__name__}"
+    if _nesting_over(doc, MAX_RECORD_DEPTH):
+        return None, f"{path}: nested more than {MAX_RECORD_DEPTH} levels deep (ours are a few)"
+    return doc, None
+
+
+def _record_problem(record: dict, run: RunPlan) -> str | None:
+    """Why a parsed sweep_run.json is ill-formed (None: it is well-formed)."""
+    overrides = record.get("overrides")
+    if overrides is not None and not (isinstance(overrides, list) and all(isinstance(o, str) for o in overrides)):
+        return "'overrides' is not a list of texts"
+    if not isinstance(record.get("status", ""), str) or not isinstance(record.get("message", ""), str):
+        return "'status' or 'message' is not a text"
+    wall = record.get("wall_time_s")
+    if wall is not None and (isinstance(wall, bool) or not isinstance(wall, (int, float))):
+        return "'wall_time_s' is not a number"
+    return None
+
+
+def _redo(problem: str) -> None:
+    warnings.warn(f"--resume: {problem}; running that run again (its summary.json and sweep_run.json are "
+                  "rewritten)", stacklevel=3)
+
+
 def resumable(run_dir: Path, run: RunPlan) -> dict | None:
-    """The record of a finished earlier run with the same overrides in ``run_dir``, or None."""
-    try:
-        summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    """The record of a finished earlier run with the same overrides in ``run_dir``, or None.
+
+    An unreadable or ill-formed ``summary.json`` or ``sweep_run.json`` (too large, not a regular
+    file, not UTF-8 or JSON, not an object, nested too deeply, fields of the wrong type) makes
+    the run not finished: it runs again, with a warning naming the file and why.
+    """
+    summary, problem = read_run_file(run_dir / "summary.json", "summary.json")
+    if problem is not None:
+        _redo(problem)
         return None
-    if not isinstance(summary, dict) or summary.get("status") != "finished":
+    if summary is None or summary.get("status") != "finished":
         return None
-    try:
-        record = json.loads((run_dir / RUN_RECORD).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        record = {}
+    record, problem = read_run_file(run_dir / RUN_RECORD, RUN_RECORD)
+    if problem is None and record is not None:
+        problem = _record_problem(record, run)
+        problem = f"{run_dir / RUN_RECORD}: {problem}" if problem else None
+    if problem is not None:
+        _redo(problem)
+        return None
+    record = record or {}
     if record.get("overrides") not in (None, list(run.overrides)):
         return None                                # a different run hashed to this folder: run it again
     return {"status": "finished", "message": record.get("message", ""),
@@ -65,17 +131,12 @@ def resumable(run_dir: Path, run: RunPlan) -> dict | None:
 def _recorded(run_dir: Path, run: RunPlan) -> dict | None:
     """The record a run wrote into ``run_dir`` (``sweep_run.json`` of the same overrides, with its
     summary), or None: after Ctrl-C, the runs that ended before their result reached the client."""
-    try:
-        record = json.loads((run_dir / RUN_RECORD).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    record, problem = read_run_file(run_dir / RUN_RECORD, RUN_RECORD)
+    if record is None or _record_problem(record, run) is not None or "status" not in record \
+            or record.get("overrides") != list(run.overrides):
         return None
-    if not isinstance(record, dict) or record.get("overrides") != list(run.overrides) or "status" not in record:
-        return None
-    try:
-        summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        summary = None
-    return {**record, "summary": summary if isinstance(summary, dict) else None}
+    summary, _ = read_run_file(run_dir / "summary.json", "summary.json")
+    return {**record, "summary": summary}
 
 
 # The local cluster's housekeeping at the pace of runs that take seconds to hours, not of
@@ -244,7 +305,7 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
     """Run ``runs`` (from :func:`orchestrator.sweep.plan.plan_sweep`) into ``out_dir/runs/<run_id>``.
 
     ``resume``: runs whose folder holds a finished summary.json of the same overrides are not
-    run again. ``warm``: each worker runs its runs in one long-lived run process
+    run again (an unreadable or ill-formed one is run again, with a warning: :func:`resumable`). ``warm``: each worker runs its runs in one long-lived run process
     (:mod:`orchestrator.sweep.warm`); False: a fresh process per run. On KeyboardInterrupt the pending tasks are cancelled, the table is written with
     the unfinished runs as status ``cancelled``, and the outcome says ``interrupted``.
     """
@@ -252,11 +313,17 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
     runs_dir = out_dir / "runs"
     runs_dir.mkdir(parents=True, exist_ok=True)
     records: dict[str, dict] = {}
+    resume_texts: list[str] = []
     if resume:
-        for run in runs:
-            rec = resumable(runs_dir / run.run_id, run)
-            if rec is not None:
-                records[run.run_id] = rec
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for run in runs:
+                rec = resumable(runs_dir / run.run_id, run)
+                if rec is not None:
+                    records[run.run_id] = rec
+        resume_texts = [str(w.message) for w in caught]
+        for text in resume_texts:                 # now, before the runs: the user sees why they run
+            warnings.warn(text, stacklevel=2)
     skipped = len(records)
     todo = [r for r in runs if r.run_id not in records]
     interrupted = False
@@ -303,4 +370,4 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
     for text in texts:
         warnings.warn(text, stacklevel=2)
     return SweepOutcome(rows=rows, out_dir=out_dir, table=table, interrupted=interrupted, skipped=skipped,
-                        warnings=texts)
+                        warnings=resume_texts + texts)

@@ -50,11 +50,26 @@ def _die_with_parent() -> None:          # pragma: no cover - runs in the child 
 
 
 def _read_summary(path: Path) -> dict | None:
+    """The run's summary.json with the bounded reader (None when missing or unusable)."""
+    from orchestrator.untrusted import InputError, load_json
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        data = load_json(path, what="summary.json")
+    except InputError:
         return None
     return data if isinstance(data, dict) else None
+
+
+def _clear_stale(out: Path) -> None:
+    """Remove an earlier run's summary.json and sweep_run.json from ``out`` (the run writes them
+    anew): files and symlinks are unlinked, a directory in their place (which the run could not
+    write over) is removed with its content; the folder is this sweep's own ``runs/<run_id>``."""
+    import shutil
+    for name in ("summary.json", RUN_RECORD):
+        path = out / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink(missing_ok=True)
 
 
 def _tail(text: str) -> str:
@@ -91,8 +106,7 @@ def execute_run(scenario: str, overrides: list[str], run_dir: str, *, timeout_s:
     """
     out = Path(run_dir)
     out.mkdir(parents=True, exist_ok=True)
-    for stale in ("summary.json", RUN_RECORD):
-        (out / stale).unlink(missing_ok=True)
+    _clear_stale(out)
     args = ["run", str(scenario), "--out", str(out), "--no-progress"]
     for text in overrides:
         args += ["--set", text]
