@@ -204,3 +204,131 @@ def test_a_run_clears_a_directory_or_symlink_left_where_its_summary_goes(tmp_pat
     _clear_stale(tmp_path)
     assert not (tmp_path / "summary.json").exists() and not (tmp_path / "sweep_run.json").is_symlink()
     assert target.read_text() == "keep"
+
+
+# ------------------------------------------------------------------ 3. rotorcosim plot SWEEP_FOLDER
+META = {"sweep": 1, "source": "s.yaml", "scenario": "base.yaml", "mode": "grid",
+        "parameters": [{"name": "a", "set": ["fmus.rotor.parameters.f_max"]},
+                       {"name": "b", "set": ["fmus.rotor.parameters.t_ramp"]}],
+        "collect": {"steps": "macro_steps", "endt": "end_time"}}
+HEADER = "run_id,a,b,steps,endt,status,message,wall_time_s,run_dir\n"
+ROWS = ["r1,700,1,20,0.502,finished,,1.275,runs/r1\n", "r2,700,2,20,0.502,finished,,0.294,runs/r2\n",
+        "r3,800,1,20,0.502,failed,\"FMU 'f' failed, at t=0.05\",0.386,runs/r3\n",
+        "r4,800,2,,,cancelled,not run,,runs/r4\n"]
+
+
+def sweep_folder(tmp_path: Path, csv_text: str | bytes | None = None, meta=None) -> Path:
+    import json
+    d = tmp_path / "sw"
+    d.mkdir(exist_ok=True)
+    data = HEADER + "".join(ROWS) if csv_text is None else csv_text
+    for name in ("sweep.csv", "sweep.json"):
+        (d / name).unlink(missing_ok=True)
+    (d / "sweep.csv").write_bytes(data if isinstance(data, bytes) else data.encode())
+    (d / "sweep.json").write_text(meta if isinstance(meta, str) else json.dumps(META if meta is None else meta))
+    return d
+
+
+def plot_fails(d: Path, capsys) -> str:
+    assert main(["plot", str(d)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "internal error" not in err and "Traceback" not in err, err
+    return err
+
+
+def test_plot_of_a_good_sweep_folder(tmp_path, capsys, recwarn):
+    d = sweep_folder(tmp_path)
+    assert main(["plot", str(d)]) == 0
+    assert (d / "plots" / "sweep_steps.png").is_file() and (d / "plots" / "sweep_endt.png").is_file()
+    assert not [w for w in recwarn.list if "sweep.csv" in str(w.message)]
+
+
+@pytest.mark.parametrize("csv_text, needle", [
+    (HEADER + ROWS[0] + ROWS[1].replace(",20,", ",abc,"),
+     "sweep.csv:3: column 'steps' must be a number (a collected value, or empty for none) (got 'abc'); rerun the "
+     "sweep (or fix the file)"),
+    (HEADER + ROWS[0] + ROWS[1].replace(",1.275,", ",fast,").replace(",0.294,", ",fast,"),
+     "sweep.csv:3: column 'wall_time_s' must be a number"),
+    (HEADER + ROWS[0].rstrip() + ",x,y\n", "sweep.csv:2: 11 fields, but the header names 9 columns"),
+    (HEADER + ROWS[0] + "r2,700\n", "sweep.csv:3: 2 fields, but the header names 9 columns"),
+    (bytes(range(256)) * 4, "sweep.csv:2:118: the sweep table is not UTF-8 text (byte 0x80"),
+    (HEADER + ROWS[0].replace("runs/r1", "runs/" + "9" * 200_000), "sweep.csv:2: not a readable CSV row "
+                                                                     "(field larger than field limit"),
+    ("", "sweep.csv:1: empty; expected the header run_id,a,b,steps,endt,status,..."),
+    (HEADER.replace(",b,", ",c,") + ROWS[0], "sweep.csv:1: no column 'b' (a parameter in sweep.json); sweep.csv and "
+                                             "sweep.json are not from the same sweep"),
+    (HEADER.replace("steps,endt", "steps,steps") + ROWS[0], "sweep.csv:1: the column 'steps' appears twice"),
+    (HEADER + ROWS[0].replace(",700,", ",,"), "sweep.csv:2: parameter 'a' has no value"),
+    (HEADER + "".join(ROWS) + ROWS[1], "sweep.csv:6: a second row for the run a=700, b=2 (first on line 3); a sweep "
+                                       "has one row per run: remove the repeated row"),
+])
+def test_plot_refuses_a_broken_sweep_csv_naming_its_line(tmp_path, capsys, csv_text, needle):
+    err = plot_fails(sweep_folder(tmp_path, csv_text), capsys)
+    assert needle in err, err
+    assert not (tmp_path / "sw" / "plots").exists()
+
+
+@pytest.mark.parametrize("meta, needle", [
+    ("[1]", "sweep.json: expected a JSON object with 'parameters' and 'collect' (got a list)"),
+    (DEEP, "sweep.json: the sweep.json is nested too deeply to read; rerun the sweep"),
+    ('{"sweep": 1,', "sweep.json: the sweep.json is not valid JSON"),
+    ({**META, "collect": ["x"]}, "'collect' must be an object {column: summary.json path} (got a list)"),
+    ({**META, "collect": {"nope": "x"}}, "sweep.csv:1: no column 'nope' (a collected value in sweep.json)"),
+    ({**META, "collect": {"../../evil": "x"}}, "'collect' must map column names (letters, digits, '_')"),
+    ({**META, "parameters": "abc"}, "'parameters' must be a non-empty list of {\"name\": ...} objects (got 'abc', "
+                                    "a text)"),
+    ({**META, "parameters": [{"name": 5}]}, "'parameters[0]' must be an object whose 'name' is a sweep.csv column "
+                                            "name (letters, digits, '_') (got 5, an integer)"),
+    ({**META, "parameters": [{"name": "zz", "set": ["x"]}]}, "sweep.csv:1: no column 'zz' (a parameter in "
+                                                              "sweep.json)"),
+    ({**META, "collect": {"a": "x"}}, "the column 'a' is named twice"),
+])
+def test_plot_refuses_a_broken_sweep_json(tmp_path, capsys, meta, needle):
+    err = plot_fails(sweep_folder(tmp_path, meta=meta), capsys)
+    assert needle in err, err
+    assert not list(tmp_path.rglob("evil*"))
+
+
+def test_plot_without_sweep_json_or_over_the_limits(tmp_path, capsys, monkeypatch):
+    d = sweep_folder(tmp_path)
+    (d / "sweep.json").unlink()
+    assert "sweep.json: not found; `rotorcosim sweep` writes it next to sweep.csv" in plot_fails(d, capsys)
+    (d / "sweep.json").symlink_to("/dev/zero")
+    assert "sweep.json: the sweep.json is a character device" in plot_fails(d, capsys)
+    d = sweep_folder(tmp_path, HEADER + "".join(f"r{k},{k},{k},1,1,finished,,1,runs/x\n" for k in range(10)))
+    monkeypatch.setattr(plan, "MAX_RUNS", 5)
+    assert ("sweep.csv:7: more than 5 rows, more than a sweep has runs (the limit, "
+            "orchestrator.sweep.plan.MAX_RUNS)") in plot_fails(d, capsys)
+    monkeypatch.setattr("orchestrator.sweep.table.MAX_TABLE_BYTES", 300)
+    assert "sweep.csv: the sweep table is larger than 300 bytes (the limit)" in plot_fails(d, capsys)
+
+
+def test_plot_warns_with_the_line_for_odd_values_it_can_draw(tmp_path, capsys):
+    text = (HEADER + ROWS[0].replace(",700,", ",seven,") + ROWS[1].replace(",20,", ",nan,")
+            + ROWS[2].replace(",failed,", ",<script>,") + ROWS[3])
+    d = sweep_folder(tmp_path, text)
+    with pytest.warns(UserWarning) as caught:
+        assert main(["plot", str(d)]) == 0
+    texts = [str(w.message) for w in caught]
+    assert any(f"{d}/sweep.csv:2: parameter 'a' is 'seven', a text, where other rows have numbers" in t for t in texts)
+    assert any(f"{d}/sweep.csv:3: column 'steps' holds 1 non-finite value(s) (nan or inf)" in t for t in texts)
+    assert any(f"{d}/sweep.csv:4: status '<script>' is none of finished, failed, crashed, cancelled" in t
+               for t in texts)
+
+
+def _png_size(path: Path) -> tuple[int, int]:
+    data = path.read_bytes()[16:24]
+    return int.from_bytes(data[:4], "big"), int.from_bytes(data[4:], "big")
+
+
+def test_large_maps_are_drawn_at_a_bounded_size(tmp_path):
+    from orchestrator.sweep.plot import plot_sweep
+    grid = "".join(f"r{i}_{j},{i},{j},{i * j},1,{'failed' if (i + j) % 7 == 0 else 'finished'},,1,runs/x\n"
+                   for i in range(40) for j in range(40))
+    d = sweep_folder(tmp_path, HEADER + grid)
+    width, height = _png_size(plot_sweep(d)[0])
+    assert width <= 1200 and height <= 1000                      # not 1.15 inch per column
+    diag = "".join(f"r{k},{k},{k},{k},1,finished,,1,runs/x\n" for k in range(600))   # 360 000 cells, 600 runs
+    (d / "sweep.csv").write_text(HEADER + diag)
+    width, height = _png_size(plot_sweep(d)[0])
+    assert width <= 1200 and height <= 1000

@@ -21,6 +21,9 @@ from orchestrator.sweep.table import read_table
 __all__ = ["plot_sweep", "is_sweep_dir"]
 
 DPI = 110
+MAX_LABELLED_CELLS = 400      # heat maps with more cells get no numbers in them and a fixed size
+MAX_MAP_CELLS = 250_000       # a larger grid of the first two parameters is drawn as points, one per run
+MAX_TICKS = 30                # tick labels per axis (every k-th value beyond)
 
 
 def is_sweep_dir(path: str | Path) -> bool:
@@ -47,7 +50,7 @@ def _line(rows, p: str, col: str, path: Path) -> None:
     fig = _figure()
     ax = fig.add_subplot()
     pts = sorted(((r[p], r[col]) for r in rows if r["status"] == "finished" and r[col] is not None),
-                 key=lambda t: t[0])
+                 key=lambda t: _order(t[0]))
     if pts:
         ax.plot([x for x, _ in pts], [y for _, y in pts], "o-", color="C0", label=f"{col} (finished runs)")
     bad = [r[p] for r in rows if r["status"] != "finished" or r[col] is None]
@@ -64,36 +67,95 @@ def _line(rows, p: str, col: str, path: Path) -> None:
     fig.savefig(path)
 
 
+def _order(v):
+    """Sort key of parameter values: numbers (and booleans) first, then texts."""
+    return (isinstance(v, str), v if isinstance(v, str) else float(v), str(v))
+
+
+def _ticks(values) -> tuple[list[int], list[str]]:
+    """Tick positions and labels, at most :data:`MAX_TICKS` of them (every k-th value)."""
+    step = max(1, math.ceil(len(values) / MAX_TICKS))
+    at = list(range(0, len(values), step))
+    return at, [_fmt(values[k]) for k in at]
+
+
 def _heat(rows, p: str, q: str, col: str, path: Path) -> None:
     import numpy as np
-    xs = sorted({r[p] for r in rows}, key=lambda v: (isinstance(v, str), v))
-    ys = sorted({r[q] for r in rows}, key=lambda v: (isinstance(v, str), v))
+    xs = sorted({r[p] for r in rows}, key=_order)
+    ys = sorted({r[q] for r in rows}, key=_order)
+    xi = {v: j for j, v in enumerate(xs)}
+    yi = {v: i for i, v in enumerate(ys)}
+    if len(xs) * len(ys) > MAX_MAP_CELLS:         # sparse (a random draw of a large grid): points
+        _scatter(rows, p, q, col, xs, ys, xi, yi, path)
+        return
     z = np.full((len(ys), len(xs)), np.nan)
     status = {}
     for r in rows:
-        i, j = ys.index(r[q]), xs.index(r[p])
+        i, j = yi[r[q]], xi[r[p]]
         status[(i, j)] = r["status"]
         if r["status"] == "finished" and r[col] is not None:
             z[i, j] = r[col]
-    fig = _figure((1.6 + 1.15 * len(xs), 1.4 + 0.75 * len(ys)) if len(xs) > 4 else (6.4, 4.6))
+    # a cell per value pair with its number printed in it up to MAX_LABELLED_CELLS cells; a larger
+    # map (up to plan.MAX_RUNS runs) is drawn at a bounded size, unfinished runs as red crosses
+    labelled = len(xs) * len(ys) <= MAX_LABELLED_CELLS
+    if labelled:
+        size = (1.6 + 1.15 * len(xs), 1.4 + 0.75 * len(ys)) if len(xs) > 4 else (6.4, 4.6)
+    else:
+        size = (10.0, 8.0)
+    fig = _figure(size)
     ax = fig.add_subplot()
     im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
     fig.colorbar(im, ax=ax, label=col)
     finite = z[np.isfinite(z)]
     mid = 0.5 * (finite.min() + finite.max()) if finite.size else 0.0
-    for (i, j), st in status.items():
-        if np.isfinite(z[i, j]):
-            ax.text(j, i, _fmt(float(z[i, j])), ha="center", va="center", fontsize=8,
-                    color="black" if z[i, j] > mid else "white")
-        else:
-            ax.add_patch(_hatch(j, i))
-            ax.text(j, i, st if st != "finished" else "no value", ha="center", va="center", fontsize=8,
-                    color="C3", fontweight="bold", bbox={"facecolor": "white", "edgecolor": "none", "pad": 1.5})
-    ax.set_xticks(range(len(xs)), [_fmt(v) for v in xs])
-    ax.set_yticks(range(len(ys)), [_fmt(v) for v in ys])
+    if labelled:
+        for (i, j), st in status.items():
+            if np.isfinite(z[i, j]):
+                ax.text(j, i, _fmt(float(z[i, j])), ha="center", va="center", fontsize=8,
+                        color="black" if z[i, j] > mid else "white")
+            else:
+                ax.add_patch(_hatch(j, i))
+                ax.text(j, i, st if st != "finished" else "no value", ha="center", va="center", fontsize=8,
+                        color="C3", fontweight="bold", bbox={"facecolor": "white", "edgecolor": "none", "pad": 1.5})
+    else:
+        bad = [(j, i) for (i, j) in status if not np.isfinite(z[i, j])]
+        if bad:
+            ax.plot([j for j, _ in bad], [i for _, i in bad], "x", color="C3", ms=4, mew=1,
+                    label="not finished / no value")
+            ax.legend(fontsize=8, loc="upper right")
+    ax.set_xticks(*_ticks(xs))
+    ax.set_yticks(*_ticks(ys))
+    if len(xs) > MAX_TICKS // 2:
+        ax.tick_params(axis="x", labelrotation=60)
     ax.set_xlabel(p)
     ax.set_ylabel(q)
     ax.set_title(f"{col} over {p} and {q}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path) -> None:
+    """The map of runs that cover a small part of a large grid: one coloured point per run with a
+    value, a red cross per run without (memory per run, not per grid cell)."""
+    fig = _figure((10.0, 8.0))
+    ax = fig.add_subplot()
+    good = [r for r in rows if r["status"] == "finished" and r[col] is not None]
+    bad = [r for r in rows if not (r["status"] == "finished" and r[col] is not None)]
+    if good:
+        sc = ax.scatter([xi[r[p]] for r in good], [yi[r[q]] for r in good], c=[r[col] for r in good],
+                        cmap="viridis", s=16)
+        fig.colorbar(sc, ax=ax, label=col)
+    if bad:
+        ax.plot([xi[r[p]] for r in bad], [yi[r[q]] for r in bad], "x", color="C3", ms=5, mew=1,
+                label="not finished / no value")
+        ax.legend(fontsize=8, loc="upper right")
+    ax.set_xticks(*_ticks(xs))
+    ax.set_yticks(*_ticks(ys))
+    if len(xs) > MAX_TICKS // 2:
+        ax.tick_params(axis="x", labelrotation=60)
+    ax.set_xlabel(p)
+    ax.set_ylabel(q)
+    ax.set_title(f"{col} over {p} and {q} ({len(rows)} runs)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
 
@@ -108,11 +170,11 @@ def plot_sweep(out_dir: str | Path) -> list[Path]:
     out_dir = Path(out_dir)
     if not is_sweep_dir(out_dir):
         raise CosimError(f"{out_dir}: no sweep.csv here; give the --out folder of `rotorcosim sweep`")
-    rows, meta = read_table(out_dir)
-    params = [p["name"] for p in meta.get("parameters", [])]
+    rows, meta = read_table(out_dir)              # bounded and checked: raises InputError naming file:line
+    params = [p["name"] for p in meta["parameters"]]
     values = list(meta.get("collect", {}))
-    if not rows or not params:
-        raise CosimError(f"{out_dir}/sweep.csv: no runs or no parameters (sweep.json missing?); rerun the sweep")
+    if not rows:
+        raise CosimError(f"{out_dir}/sweep.csv: no runs (only the header); rerun the sweep")
     if not values:
         raise CosimError(f"{out_dir}: the sweep collects no values, so there is no map to draw; add a 'collect:' "
                          "section to the sweep file and rerun it with --resume")

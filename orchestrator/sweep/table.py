@@ -10,6 +10,7 @@ value that is null there (the run computed none, e.g. no onset), with its own wa
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import warnings
@@ -115,21 +116,166 @@ def write_table(rows: list[dict], spec: SweepSpec, out_dir: Path) -> Path:
     return path
 
 
-def read_table(out_dir: str | Path):
-    """(rows as dicts with numbers parsed, meta dict) of a sweep folder; for the plots."""
-    out_dir = Path(out_dir)
-    with (out_dir / "sweep.csv").open(newline="", encoding="utf-8") as fh:
-        rows = list(csv.DictReader(fh))
-    for row in rows:
-        for k, v in row.items():
-            if k in ("run_id", "status", "message", "run_dir"):
-                continue
-            try:
-                row[k] = float(v) if v != "" else None
-            except ValueError:
-                pass
+# sweep.csv as `rotorcosim plot` reads it: one row per run (at most plan.MAX_RUNS rows), each row
+# a few hundred bytes (a failed run's message is cut to 600 characters by the task).
+MAX_TABLE_BYTES = 64 * 2**20
+STATUSES = ("finished", "failed", "crashed", "cancelled")
+_FIX = "rerun the sweep (or fix the file)"
+
+
+def _meta_problem(meta) -> str | None:
+    """Why a parsed sweep.json cannot describe the map (None: it can)."""
+    from orchestrator.sweep.spec import _NAME_RE
+
+    def got(v) -> str:
+        kind = {str: "a text", int: "an integer", float: "a number", bool: "a boolean", list: "a list",
+                dict: "an object", type(None): "null"}.get(type(v), type(v).__name__)
+        return f"{v!r:.60}, {kind}" if isinstance(v, (str, int, float, bool)) else kind
+
+    if not isinstance(meta, dict):
+        return f"expected a JSON object with 'parameters' and 'collect' (got {got(meta)})"
+    params = meta.get("parameters")
+    if not isinstance(params, list) or not params:
+        return f"'parameters' must be a non-empty list of {{\"name\": ...}} objects (got {got(params)})"
+    for i, entry in enumerate(params):
+        name = entry.get("name") if isinstance(entry, dict) else None
+        if not isinstance(name, str) or not _NAME_RE.match(name):
+            return (f"'parameters[{i}]' must be an object whose 'name' is a sweep.csv column name (letters, "
+                    f"digits, '_') (got {got(name if isinstance(entry, dict) else entry)})")
+    collect = meta.get("collect", {})
+    if not isinstance(collect, dict):
+        return f"'collect' must be an object {{column: summary.json path}} (got {got(collect)})"
+    for name, path in collect.items():
+        if not _NAME_RE.match(name) or not isinstance(path, str):
+            return (f"'collect' must map column names (letters, digits, '_') to summary.json paths (got "
+                    f"{name!r:.60}: {got(path)})")
+    names = [e["name"] for e in params] + list(collect)
+    dup = next((n for n in names if names.count(n) > 1), None)
+    if dup is not None:
+        return f"the column '{dup}' is named twice in 'parameters' and 'collect'"
+    return None
+
+
+def _number(text: str):
+    """A cell as a float (True/False as 1/0), or None when it is no number."""
+    if text in ("True", "False"):
+        return float(text == "True")
     try:
-        meta = json.loads((out_dir / META_FILE).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        meta = {}
+        return float(text)
+    except ValueError:
+        return None
+
+
+def read_table(out_dir: str | Path):
+    """(rows as dicts with numbers parsed, meta dict) of a sweep folder, for the map.
+
+    Both files are untrusted (a sweep folder may come from anyone): ``sweep.json`` through
+    ``untrusted.load_json`` and checked (parameters and collect columns named as the sweep file
+    names them), ``sweep.csv`` a regular UTF-8 file of at most :data:`MAX_TABLE_BYTES` and
+    ``orchestrator.sweep.plan.MAX_RUNS`` rows, every row as many fields as the header, the
+    columns sweep.json names present, collected values and ``wall_time_s`` numbers (or empty),
+    parameter values present and no two rows with the same ones. Raises
+    :class:`orchestrator.untrusted.InputError` naming the file and line, what was expected,
+    what came and the fix. Warns (``file:line``) for an unknown status (drawn as not
+    finished), a non-finite collected value (drawn as no value) and a parameter column that
+    mixes numbers and texts (the texts drawn after the numbers).
+    """
+    from orchestrator.sweep import plan
+    from orchestrator.untrusted import InputError, decode_utf8, load_json, read_bytes
+
+    out_dir = Path(out_dir)
+    meta_path, path = out_dir / META_FILE, out_dir / "sweep.csv"
+    if not meta_path.exists():
+        raise InputError(f"{meta_path}: not found; `rotorcosim sweep` writes it next to sweep.csv (the "
+                         "parameters and collected columns the map needs): rerun the sweep (--resume reruns "
+                         "only what did not finish)")
+    meta = load_json(meta_path, what="sweep.json", fix=_FIX)
+    problem = _meta_problem(meta)
+    if problem is not None:
+        raise InputError(f"{meta_path}: {problem}; {_FIX}")
+    params = [e["name"] for e in meta["parameters"]]
+    collect = list(meta.get("collect", {}))
+    text = decode_utf8(read_bytes(path, what="sweep table", limit=MAX_TABLE_BYTES,
+                                  limit_name="orchestrator.sweep.table.MAX_TABLE_BYTES"), str(path), "sweep table")
+    reader = csv.reader(io.StringIO(text, newline=""))
+    rows: list[dict] = []
+    seen: dict[tuple, int] = {}
+    mixed: dict[str, int] = {}
+    odd_status: list[tuple[int, str]] = []
+    nonfinite: dict[str, tuple[int, int]] = {}
+    try:
+        header = next(reader, None)
+        if not header:
+            raise InputError(f"{path}:1: empty; expected the header run_id,{','.join(params + collect)},status,... "
+                             f"and one row per run; {_FIX}")
+        dup = next((h for h in header if header.count(h) > 1), None)
+        if dup is not None:
+            raise InputError(f"{path}:1: the column '{dup:.60}' appears twice in the header; {_FIX}")
+        for name in ["status"] + params + collect:
+            if name not in header:
+                role = ("a parameter" if name in params else "a collected value" if name in collect
+                        else "the runs' status")
+                raise InputError(f"{path}:1: no column '{name}' ({role} in {META_FILE}); sweep.csv and "
+                                 f"{META_FILE} are not from the same sweep: {_FIX}")
+        for fields in reader:
+            line = reader.line_num
+            if not fields:
+                continue
+            if len(rows) >= plan.MAX_RUNS:
+                raise InputError(f"{path}:{line}: more than {plan.MAX_RUNS} rows, more than a sweep has runs (the "
+                                 f"limit, orchestrator.sweep.plan.MAX_RUNS); a sweep writes one row per run: check "
+                                 "the file, or read it with pandas for other views")
+            if len(fields) != len(header):
+                raise InputError(f"{path}:{line}: {len(fields)} fields, but the header names {len(header)} "
+                                 f"columns; {_FIX}")
+            row = dict(zip(header, fields))
+            raw = dict(row)
+            for name in params:
+                v = row[name]
+                if v == "":
+                    raise InputError(f"{path}:{line}: parameter '{name}' has no value; every run has one: {_FIX}")
+                x = _number(v)
+                row[name] = x if x is not None and math.isfinite(x) and v not in ("True", "False") else v
+                if isinstance(row[name], str):
+                    mixed.setdefault(name, line)
+            for name in collect + ["wall_time_s"]:
+                v = row.get(name, "")
+                if v == "":
+                    row[name] = None
+                    continue
+                x = _number(v)
+                if x is None:
+                    what = "the run's wall time" if name == "wall_time_s" else "a collected value"
+                    raise InputError(f"{path}:{line}: column '{name}' must be a number ({what}, or empty for "
+                                     f"none) (got {v!r:.60}); {_FIX}")
+                if not math.isfinite(x):
+                    first, n = nonfinite.get(name, (line, 0))
+                    nonfinite[name] = (first, n + 1)
+                    x = None
+                row[name] = x
+            if row["status"] not in STATUSES:
+                odd_status.append((line, row["status"]))
+            key = tuple((type(row[n]).__name__, row[n]) for n in params)
+            if key in seen:
+                values = ", ".join(f"{n}={raw[n]:.40}" for n in params)
+                raise InputError(f"{path}:{line}: a second row for the run {values} (first on line {seen[key]}); "
+                                 "a sweep has one row per run: remove the repeated row, or rerun the sweep")
+            seen[key] = line
+            rows.append(row)
+    except csv.Error as exc:
+        raise InputError(f"{path}:{reader.line_num}: not a readable CSV row ({exc}); {_FIX}") from None
+    for name, line in mixed.items():
+        kinds = {type(r[name]) for r in rows}
+        if len(kinds) > 1:
+            first = next(r[name] for r in rows if isinstance(r[name], str))
+            warnings.warn(f"{path}:{line}: parameter '{name}' is {first!r:.60}, a text, where other rows have "
+                          f"numbers; the map draws the texts after the numbers (rerun the sweep or fix the "
+                          f"row if it is a typo)", stacklevel=2)
+    for name, (line, n) in nonfinite.items():
+        warnings.warn(f"{path}:{line}: column '{name}' holds {n} non-finite value(s) (nan or inf), which a "
+                      "sweep never writes; drawn as no value", stacklevel=2)
+    if odd_status:
+        line, st = odd_status[0]
+        warnings.warn(f"{path}:{line}: status {st!r:.60} is none of {', '.join(STATUSES)} ({len(odd_status)} "
+                      "row(s)); drawn as runs that did not finish", stacklevel=2)
     return rows, meta
