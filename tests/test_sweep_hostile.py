@@ -332,3 +332,13 @@ def test_large_maps_are_drawn_at_a_bounded_size(tmp_path):
     (d / "sweep.csv").write_text(HEADER + diag)
     width, height = _png_size(plot_sweep(d)[0])
     assert width <= 1200 and height <= 1000
+
+
+def test_a_one_parameter_map_of_numbers_and_texts_places_each_value(tmp_path):
+    from orchestrator.sweep.plot import plot_sweep
+    d = sweep_folder(tmp_path, "run_id,a,v,status,message,wall_time_s,run_dir\n" + "".join(
+        f"r{k},{a},{k},{st},,1,runs/x\n" for k, (a, st) in enumerate([("1", "finished"), ("seven", "finished"),
+                                                                      ("3", "failed"), ("True", "finished")])),
+        meta={"parameters": [{"name": "a"}], "collect": {"v": "x"}})
+    with pytest.warns(UserWarning, match=r"sweep.csv:3: parameter 'a' is 'seven'"):
+        assert [p.name for p in plot_sweep(d)] == ["sweep_v.png"]

@@ -49,8 +49,15 @@ def _fmt(v) -> str:
 def _line(rows, p: str, col: str, path: Path) -> None:
     fig = _figure()
     ax = fig.add_subplot()
+    xs = sorted({r[p] for r in rows}, key=_order)
+    at = None
+    if any(isinstance(v, str) for v in xs):       # texts (or texts and numbers): one place per value, in order
+        at = {v: k for k, v in enumerate(xs)}
+        rows = [{**r, p: at[r[p]]} for r in rows]
     pts = sorted(((r[p], r[col]) for r in rows if r["status"] == "finished" and r[col] is not None),
                  key=lambda t: _order(t[0]))
+    if at is not None:
+        ax.set_xticks(*_ticks(xs))
     if pts:
         ax.plot([x for x, _ in pts], [y for _, y in pts], "o-", color="C0", label=f"{col} (finished runs)")
     bad = [r[p] for r in rows if r["status"] != "finished" or r[col] is None]
