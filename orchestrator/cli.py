@@ -336,10 +336,16 @@ def _add_sweep(sub) -> None:
 
 
 def _cmd_sweep(args) -> int:
-    from orchestrator.sweep import default_out_dir, prepare
+    from orchestrator.sweep import default_out_dir, load_sweep
+    from orchestrator.sweep.plan import PROGRESS_FROM_RUNS, count_runs, plan_sweep
     from orchestrator.sweep.runner import run_sweep
 
-    spec, runs = prepare(args.file, progress=False if args.no_progress else None)
+    spec = load_sweep(args.file)
+    n = count_runs(spec)                               # refuses too many runs before expanding any
+    if n >= PROGRESS_FROM_RUNS:                        # 5-12 ms per run: say why nothing runs yet
+        print(f"sweep {args.file}: validating the scenario of each of its {n} runs before the first starts",
+              file=sys.stderr, flush=True)
+    runs = plan_sweep(spec, progress=False if args.no_progress else None)
     out = Path(args.out) if args.out else default_out_dir(args.file)
     print(f"sweep {args.file}: {len(runs)} runs of {spec.scenario.name} ({spec.mode}) -> {out}", flush=True)
     o = run_sweep(spec, runs, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,

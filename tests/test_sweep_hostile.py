@@ -342,3 +342,12 @@ def test_a_one_parameter_map_of_numbers_and_texts_places_each_value(tmp_path):
         meta={"parameters": [{"name": "a"}], "collect": {"v": "x"}})
     with pytest.warns(UserWarning, match=r"sweep.csv:3: parameter 'a' is 'seven'"):
         assert [p.name for p in plot_sweep(d)] == ["sweep_v.png"]
+
+
+def test_the_cli_says_it_validates_many_runs_before_the_first_starts(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(plan, "PROGRESS_FROM_RUNS", 3)       # 200 in use; each run is validated
+    path = sweep_file(tmp_path, linspaces(3))
+    assert main(["sweep", str(path), "--out", str(tmp_path / "o"), "--no-progress"]) == 1    # s.yaml is no scenario
+    err = capsys.readouterr().err
+    assert f"sweep {path}: validating the scenario of each of its 3 runs before the first starts" in err
+    assert "invalid sweep" in err and "internal error" not in err

@@ -31,7 +31,8 @@ def default_out_dir(path: str | Path) -> Path:
 
 def prepare(path: str | Path, *, progress: bool | None = False):
     """(spec, runs): the checked sweep file and its runs, every run's scenario validated
-    (``progress``: a bar while validating many runs, as :func:`~orchestrator.sweep.plan.plan_sweep`)."""
+    (``progress``: a bar while validating many runs, as :func:`~orchestrator.sweep.plan.plan_sweep`;
+    more than :data:`~orchestrator.sweep.plan.MAX_RUNS` runs raise :class:`SweepError` first)."""
     from orchestrator.sweep.plan import plan_sweep
     spec = load_sweep(path)
     return spec, plan_sweep(spec, progress=progress)
