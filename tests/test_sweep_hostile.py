@@ -351,3 +351,16 @@ def test_the_cli_says_it_validates_many_runs_before_the_first_starts(tmp_path, m
     err = capsys.readouterr().err
     assert f"sweep {path}: validating the scenario of each of its 3 runs before the first starts" in err
     assert "invalid sweep" in err and "internal error" not in err
+
+
+def test_a_planted_run_log_symlink_is_removed_and_a_long_log_read_from_its_end(tmp_path):
+    from orchestrator.sweep.task import _clear_stale, _log_tail
+    target = tmp_path / "victim.txt"
+    target.write_text("keep")
+    (tmp_path / "run.log").symlink_to(target)
+    _clear_stale(tmp_path)
+    assert not (tmp_path / "run.log").is_symlink() and target.read_text() == "keep"
+    (tmp_path / "run.log").write_text("x" * 5_000_000 + "\nthe end: FMU 'f' failed\n")
+    tail = _log_tail(tmp_path / "run.log")
+    assert tail.endswith("the end: FMU 'f' failed\n") and len(tail) == 2400
+    assert _log_tail(tmp_path / "missing.log") == ""

@@ -60,11 +60,12 @@ def _read_summary(path: Path) -> dict | None:
 
 
 def _clear_stale(out: Path) -> None:
-    """Remove an earlier run's summary.json and sweep_run.json from ``out`` (the run writes them
-    anew): files and symlinks are unlinked, a directory in their place (which the run could not
-    write over) is removed with its content; the folder is this sweep's own ``runs/<run_id>``."""
+    """Remove an earlier run's summary.json, sweep_run.json and run.log from ``out`` (the run
+    writes them anew): files and symlinks are unlinked (a planted symlink is never written
+    through), a directory in their place (which the run could not write over) is removed with
+    its content; the folder is this sweep's own ``runs/<run_id>``."""
     import shutil
-    for name in ("summary.json", RUN_RECORD):
+    for name in ("summary.json", RUN_RECORD, "run.log"):
         path = out / name
         if path.is_dir() and not path.is_symlink():
             shutil.rmtree(path)
@@ -147,11 +148,20 @@ def _warm(args: list[str], out: Path, timeout_s: float | None) -> tuple[int, str
     rc, timed_out = warm_run(args, str(log), label=str(out.parent), timeout_s=timeout_s)
     if timed_out:
         return rc, f"timed out after {timeout_s:g} s"
+    return rc, _log_tail(log) if rc else ""
+
+
+def _log_tail(log: Path) -> str:
+    """The last ``4 * _STDERR_TAIL`` characters of ``log``, reading only its end (a run may
+    print a lot); '' when it is missing or not a regular file."""
+    from orchestrator.untrusted import InputError, open_regular
     try:
-        text = log.read_text(encoding="utf-8", errors="replace")[-4 * _STDERR_TAIL:] if rc else ""
-    except OSError:
-        text = ""
-    return rc, text
+        with open_regular(log, what="run log") as fh:
+            size = fh.seek(0, 2)
+            fh.seek(max(0, size - 16 * _STDERR_TAIL))
+            return fh.read().decode("utf-8", errors="replace")[-4 * _STDERR_TAIL:]
+    except (InputError, OSError):
+        return ""
 
 
 def trivial_run(seconds: float = 0.0) -> dict:

@@ -66,7 +66,8 @@ def _run_one(main, argv: list[str], log_path: str) -> int:
     sys.stderr.flush()
     modules_before, path_before = set(sys.modules), list(sys.path)
     saved = os.dup(1), os.dup(2)
-    log_fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    # never through a symlink planted in a run folder (task._clear_stale removes it first)
+    log_fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0), 0o644)
     try:
         os.dup2(log_fd, 1)
         os.dup2(log_fd, 2)
