@@ -192,3 +192,23 @@ def test_unusable_default_experiment_values_do_not_matter_when_the_scenario_give
     p.write_text("start_time: 0.0\n" + p.read_text())
     sc = load_scenario(p)
     assert sc.start_time == 0.0 and sc.stop_time == 0.01 and sc.coupling.macro_step == 1e-3
+
+
+# --------------------------------------------------------------------------- composed-tree cache
+def test_loads_of_one_file_do_not_share_changes(tmp_path):
+    """The composed YAML tree of a file is kept for the next load (a sweep loads one scenario
+    per run); each load gets its own copy: an override or a merge key of one load is not seen
+    by the next, an aliased value stays shared within a load, and a changed file is read anew."""
+    from orchestrator import load_scenario
+    from orchestrator.untrusted import _COMPOSED
+    p = md_scenario(tmp_path)
+    p.write_text(p.read_text().replace("  a: {path: m.fmu}", "  a: {path: m.fmu, parameters: &k {k: 2.0}}\n"
+                                       "  b: {path: m.fmu, parameters: *k}"))
+    first = load_scenario(p, ["fmus.a.parameters.k=5.0"])
+    assert any(text == p.read_text() for text, *_ in _COMPOSED)     # kept for the next load
+    second = load_scenario(p)
+    third = load_scenario(p, ["fmus.b.parameters.k=7.0"])
+    par = {sc_i: {f.name: f.parameters["k"] for f in sc.fmus} for sc_i, sc in enumerate((first, second, third))}
+    assert par == {0: {"a": 5.0, "b": 2.0}, 1: {"a": 2.0, "b": 2.0}, 2: {"a": 2.0, "b": 7.0}}
+    p.write_text(p.read_text().replace("{k: 2.0}", "{k: 3.0}"))
+    assert {f.parameters["k"] for f in load_scenario(p).fmus} == {3.0}
