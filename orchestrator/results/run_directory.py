@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import csv
 import logging
-import warnings
+import os
 from pathlib import Path
 from typing import Any
 
@@ -21,39 +21,217 @@ SUMMARY = "summary.json"
 log = logging.getLogger(__name__)
 
 
+MAX_LINE_BYTES = 2**20     # one line of results.csv (the header or one row); 1 MiB is ~40 000 columns
+_CHUNK_BYTES = 4 * 2**20   # read and parsed by numpy at once (a chunk with a bad row is read again row by row)
+
+
 def read_results(path: str | Path) -> dict[str, np.ndarray]:
     """Read ``results.csv`` into ``{column: array}`` (the header names the columns).
 
-    Tolerates a truncated last line (runs stream the file): rows with the wrong
-    number of fields are skipped. Raises ``ValueError`` / ``OSError`` with the
-    file name on an empty or unreadable file.
+    A run folder may come from anyone: the file must be regular (no FIFO, device or
+    directory behind the name), every line at most :data:`MAX_LINE_BYTES` bytes and
+    strict UTF-8, the header must name ``time`` and no column twice, every row must
+    have one value per column, a column is numbers (``nan``/``inf`` included) or text
+    in every row (a String signal, read as NaN), and time must be finite and never run
+    backwards. Tolerates a truncated last line without its newline (runs stream the
+    file; it is dropped with a log message) and trailing empty lines. Raises
+    ``ValueError`` whose message names the file and line, what was expected, what
+    came and the fix.
     """
     from orchestrator.untrusted import InputError, open_regular
 
     path = Path(path)
     try:                    # a run folder may come from anyone: no FIFO or device behind the name
-        open_regular(path, what="results file").close()
+        fh = open_regular(path, what="results file")
     except InputError as exc:
         raise ValueError(str(exc)) from None
-    with path.open(newline="") as fh:
-        header = next(csv.reader(fh), None)
-    if not header:
-        raise ValueError(f"{path}: empty file, expected a header 'time,<instance>.<variable>,...'")
-    header = [h.strip() for h in header]
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with fh:
+        return _ResultsReader(fh, path).read()
+
+
+class _ResultsReader:
+    """One pass over an open results.csv (see :func:`read_results`): chunks of whole lines,
+    parsed by numpy a chunk at once; a chunk with a bad row is read again row by row to name it."""
+
+    def __init__(self, fh, path: Path):
+        self.fh, self.path = fh, path
+        self.lineno = 0            # lines handed out so far
+        self._rest = b""
+        self._eof = False
+
+    def fail(self, line: int, what: str) -> ValueError:
+        return ValueError(f"{self.path}:{line}: {what}")
+
+    def too_long(self, line: int) -> ValueError:
+        return self.fail(line, f"the line is longer than {MAX_LINE_BYTES} bytes (the limit); a line of results.csv "
+                         "is one row of numbers: this is not a results file of a run (or raise "
+                         "orchestrator.results.run_directory.MAX_LINE_BYTES if you trust it)")
+
+    def next_lines(self) -> tuple[int, list[str], bool] | None:
+        """``(number of the first line, lines as text without line breaks, last line complete)``
+        for the next chunk of whole lines; None at the end. No line is longer than MAX_LINE_BYTES."""
+        while not self._eof:
+            chunk = self.fh.read(_CHUNK_BYTES)
+            self._eof = not chunk
+            buf = self._rest + chunk
+            cut = buf.rfind(b"\n")
+            body, self._rest = (buf[:cut], buf[cut + 1:]) if cut >= 0 else (b"", buf)
+            if len(self._rest) > MAX_LINE_BYTES:
+                raise self.too_long(self.lineno + body.count(b"\n") + 1 + (cut >= 0))
+            if self._eof and self._rest:             # the last line, without its line break
+                return self.lines(self._rest if cut < 0 else body + b"\n" + self._rest, complete=False)
+            if cut >= 0:
+                return self.lines(body, complete=True)
+        return None
+
+    def lines(self, data: bytes, complete: bool) -> tuple[int, list[str], bool]:
+        first = self.lineno + 1
         try:
-            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-        except ValueError:
-            data = np.genfromtxt(path, delimiter=",", skip_header=1, invalid_raise=False)
-            data = np.atleast_2d(data) if data.size else np.empty((0, len(header)))
-    for w in caught:   # skipped malformed rows (a truncated last line of a streamed file)
-        log.info("%s: %s", path, str(w.message).strip().replace("\n", " "))
-    if data.size == 0:
-        data = np.empty((0, len(header)))
-    if data.shape[1] != len(header):
-        raise ValueError(f"{path}: {data.shape[1]} columns of data, header names {len(header)}")
-    return {h: data[:, j] for j, h in enumerate(header)}
+            text = data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            line = first + data.count(b"\n", 0, exc.start)
+            col = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+            raise ValueError(f"{self.path}:{line}:{col}: results.csv is not UTF-8 text (byte "
+                             f"0x{data[exc.start]:02x}: {exc.reason}); a run writes it as UTF-8: the file is "
+                             "damaged or not a results file, rerun the scenario") from None
+        if first == 1 and text.startswith("\ufeff"):
+            text = text[1:]
+        if "\r" in text:
+            text = text.replace("\r\n", "\n")
+        out = text.split("\n")
+        if max(map(len, out)) > MAX_LINE_BYTES // 4:        # a character is 1 to 4 bytes: count the long ones
+            for k, line in enumerate(out):
+                if len(line.encode("utf-8")) > MAX_LINE_BYTES:
+                    raise self.too_long(first + k)
+        self.lineno += len(out)
+        return first, out, complete
+
+    def header(self) -> tuple[list[str], tuple[int, list[str], bool] | None]:
+        """The column names and the rest of the first chunk."""
+        got = self.next_lines()
+        if got is None or not got[1][0].strip():
+            raise ValueError(f"{self.path}: empty file, expected a header 'time,<instance>.<variable>,...'")
+        first, lines, complete = got
+        try:
+            names = [h.strip() for h in next(csv.reader([lines[0]], strict=True))]
+        except csv.Error as exc:
+            raise self.fail(1, f"the header is not valid CSV ({exc}); expected 'time,<instance>.<variable>,...'") \
+                from None
+        if "time" not in names:
+            shown = ", ".join(repr(n[:40]) for n in names[:4]) + (", ..." if len(names) > 4 else "")
+            raise self.fail(1, f"the header has no 'time' column (got {shown}); a run writes "
+                            "'time,<instance>.<variable>,...': give the results.csv of a run (or add the time "
+                            "column)")
+        seen: dict[str, int] = {}
+        for j, name in enumerate(names):
+            if name in seen:
+                raise self.fail(1, f"column '{name[:80]}' appears twice in the header (columns {seen[name] + 1} "
+                                f"and {j + 1}); each column is one signal: remove or rename one")
+            seen[name] = j
+        rest = (2, lines[1:], complete) if len(lines) > 1 else None
+        return names, rest
+
+    def read(self) -> dict[str, np.ndarray]:
+        names, got = self.header()
+        n = len(names)
+        self.numeric_seen = np.zeros(n, bool)          # a column with a number somewhere
+        self.text_seen: dict[int, tuple[int, str]] = {}  # column -> (line, value) of its first text value
+        blocks: list[np.ndarray] = []
+        blank = 0                                       # an empty line not yet followed by a row
+        while True:
+            if got is None:
+                got = self.next_lines()
+                if got is None:
+                    break
+            first, lines, complete = got
+            got = None
+            empty = [i for i, line in enumerate(lines) if not line] if "" in lines else []
+            if empty:
+                rows = [i for i in range(len(lines)) if i not in set(empty)]
+                if rows and (blank or empty[0] < rows[-1]):
+                    raise self.fail(blank or first + empty[0], "empty line between rows; every line after the "
+                                    "header is one row: the file is damaged or edited, rerun the scenario (or "
+                                    "delete the line)")
+                blank = blank or first + empty[0]
+                lines = [lines[i] for i in rows]
+            elif blank and lines:
+                raise self.fail(blank, "empty line between rows; every line after the header is one row: the "
+                                "file is damaged or edited, rerun the scenario (or delete the line)")
+            if lines:
+                blocks.append(self.parse(first, lines, complete, names))
+        for j, (line, value) in sorted(self.text_seen.items(), key=lambda kv: kv[1][0]):
+            if self.numeric_seen[j] or names[j] == "time":
+                raise self.fail(line, f"column '{names[j]}' has {value[:40]!r}, expected a number"
+                                f"{' as in its other rows' if self.numeric_seen[j] else ''}; the file is damaged "
+                                "or edited: rerun the scenario (or fix that line)")
+        data = np.concatenate(blocks) if blocks else np.empty((0, n))
+        self.check_time(data[:, names.index("time")])
+        return {h: data[:, j] for j, h in enumerate(names)}
+
+    def parse(self, first: int, lines: list[str], complete: bool, names: list[str]) -> np.ndarray:
+        """The rows of ``lines`` (the first is line ``first``; no empty lines) as floats: numpy at
+        once, else row by row with the line of a problem. ``complete``: the last line had its
+        line break (a truncated last line of a streamed file is dropped)."""
+        n = len(names)
+        if not self.text_seen:
+            try:
+                arr = np.loadtxt(lines, delimiter=",", ndmin=2, dtype=float, comments=None)
+                if arr.shape == (len(lines), n):
+                    self.numeric_seen[:] = True
+                    return arr
+            except ValueError:
+                pass
+        rows = []
+        last = len(lines) - 1
+        for k, text in enumerate(lines):
+            line, truncated = first + k, k == last and not complete
+            try:
+                fields = next(csv.reader([text], strict=True))
+            except csv.Error as exc:
+                if truncated:
+                    log.info("%s:%d: dropped the truncated last line (%s)", self.path, line, exc)
+                    continue
+                raise self.fail(line, f"the row is not valid CSV ({exc}); the file is damaged or edited: rerun "
+                                "the scenario (or fix that line)") from None
+            if len(fields) != n:
+                if truncated:
+                    log.info("%s:%d: dropped the truncated last line (%d of %d values)", self.path, line,
+                             len(fields), n)
+                    continue
+                raise self.fail(line, f"{len(fields)} values, but the header names {n} columns; every row has one "
+                                "value per column: the file is damaged or edited, rerun the scenario (or fix that "
+                                "line)")
+            row = np.empty(n)
+            bad = []
+            for j, f in enumerate(fields):
+                try:
+                    row[j] = float(f)
+                except ValueError:
+                    row[j] = np.nan
+                    bad.append((j, f))
+            if bad and truncated:
+                log.info("%s:%d: dropped the truncated last line (%r is no number)", self.path, line, bad[0][1])
+                continue
+            for j, f in bad:
+                self.text_seen.setdefault(j, (line, f))
+            mask = np.ones(n, bool)
+            mask[[j for j, _ in bad]] = False
+            self.numeric_seen |= mask
+            rows.append(row)
+        return np.array(rows).reshape(-1, n)
+
+    def check_time(self, t: np.ndarray) -> None:
+        """Rows are lines 2, 3, ... (empty lines only at the end, a truncated one only last)."""
+        bad = np.flatnonzero(~np.isfinite(t))
+        if bad.size:
+            raise self.fail(int(bad[0]) + 2, f"time is {float(t[bad[0]])!r}, expected a finite number ({bad.size} "
+                            "row(s) without a valid time); the file is damaged or edited: rerun the scenario")
+        back = np.flatnonzero(np.diff(t) < 0)
+        if back.size:
+            i = int(back[0])
+            raise self.fail(i + 3, f"time runs backwards ({float(t[i + 1])!r} after {float(t[i])!r} on line "
+                            f"{i + 2}; {back.size} place(s)); rows must be in time order: the file is damaged or "
+                            "edited, rerun the scenario")
 
 
 def read_results_parquet(path: str | Path) -> dict[str, np.ndarray]:
@@ -107,20 +285,22 @@ class RunDirectory:
         """results.csv, or results.parquet when only that was written (``output.format:
         parquet``); results.csv when neither exists (for messages)."""
         csv_path, pq_path = self.path / RESULTS, self.path / RESULTS_PARQUET
-        return pq_path if pq_path.is_file() and not csv_path.is_file() else csv_path
+        return pq_path if os.path.lexists(pq_path) and not os.path.lexists(csv_path) else csv_path
 
     @property
     def summary_json(self) -> Path:
         return self.path / SUMMARY
 
     def has_results(self) -> bool:
-        return self.results_file.is_file()
+        """Something is there under the results name (a FIFO, device, directory or dangling link
+        too: :meth:`columns` then says what it is instead of "not found")."""
+        return os.path.lexists(self.results_file)
 
     def has_summary(self) -> bool:
         return self.summary_json.is_file()
 
     def columns(self) -> dict[str, np.ndarray]:
-        """results.csv or results.parquet (raises OSError / ValueError naming the file)."""
+        """results.csv or results.parquet (raises ValueError naming the file, line and fix)."""
         path = self.results_file
         return read_results_parquet(path) if path.suffix == ".parquet" else read_results(path)
 

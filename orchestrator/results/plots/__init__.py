@@ -32,7 +32,7 @@ import numpy as np
 from orchestrator.errors import CosimError
 from orchestrator.results.plots import eccentricity, fields, orbit, waterfall
 from orchestrator.results.plots.common import PlotContext, infer_spec, logger
-from orchestrator.results.plots.signals import plot_signals
+from orchestrator.results.plots.signals import pick, plot_signals
 
 __all__ = ["plot_run", "plot_result", "draw_all", "infer_spec", "PlotContext"]
 
@@ -52,7 +52,16 @@ def plot_run(run_dir: str | Path, signals: list[str] | None = None) -> list[Path
     if not run_dir.is_dir():
         raise CosimError(f"{run_dir}: not a directory; give the output directory of a run "
                          "(the one holding results.csv and summary.json)")
-    return _finish(draw_all(PlotContext.from_run_dir(run_dir), signals=signals), run_dir)
+    ctx = PlotContext.from_run_dir(run_dir)
+    if signals:                      # a pattern that matches nothing is a typo: say so before drawing
+        names = [c for c in ctx.cols if c != "time"]
+        unmatched = pick(names, signals)[1]
+        if unmatched:
+            shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "") if names else "none"
+            raise CosimError(f"{run_dir}: --signals {' '.join(repr(p) for p in unmatched)}: no recorded signal "
+                             f"matches (recorded in results.csv: {shown}); give column names of results.csv or "
+                             "'*' patterns such as 'rotor.*'")
+    return _finish(draw_all(ctx, signals=signals), run_dir)
 
 
 def plot_result(res, out_dir: str | Path, *, name: str = "run", spec=None) -> list[Path]:
@@ -70,7 +79,16 @@ def _finish(ctx: PlotContext, where: Path) -> list[Path]:
 
 
 def draw_all(ctx: PlotContext, signals: list[str] | None = None) -> PlotContext:
-    """Every figure the context's data support (the rest is listed in ``ctx.skipped``)."""
+    """Every figure the context's data support (the rest is listed in ``ctx.skipped``).
+
+    NaN and infinite samples leave gaps; numpy's RuntimeWarnings about them are not passed on
+    (the rows without any finite value are named by :meth:`PlotContext.drop_nonfinite_rows`)."""
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return _draw_all(ctx, signals)
+
+
+def _draw_all(ctx: PlotContext, signals: list[str] | None) -> PlotContext:
     if ctx.cols.get("time", np.empty(0)).size >= 2:
         ctx.spec, src = ctx.load_spec()
         logger.info("plot signals from %s: %s", src, ctx.spec)
@@ -87,6 +105,7 @@ def draw_all(ctx: PlotContext, signals: list[str] | None = None) -> PlotContext:
                 orbit.draw(ctx, jn)
                 waterfall.draw(ctx, jn)
     elif "time" in ctx.cols:
-        ctx.skipped.append(f"time histories: results.csv has {ctx.cols['time'].size} row(s), need 2")
+        ctx.skipped.append(f"time histories: results.csv has {ctx.cols['time'].size} row(s) with a finite "
+                           "signal, need 2 (did the run stop before its second output row?)")
     fields.draw(ctx)
     return ctx

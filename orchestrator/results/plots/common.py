@@ -14,6 +14,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from orchestrator.errors import CosimError
 from orchestrator.results.plots.checks import checked_result, checked_spec
 from orchestrator.results.run_directory import RunDirectory
 from orchestrator.untrusted import InputError, load_yaml, read_text
@@ -62,14 +63,31 @@ class PlotContext:
                   summary=summary, run_dir=Path(run_dir))
         ctx.skipped += skipped
         if run.has_results():
-            try:
+            try:           # there but unreadable (a FIFO, text in a number column, ...): no plot is right
                 ctx.cols = run.columns()
             except (OSError, ValueError) as exc:
-                ctx.skipped.append(f"time histories: {exc}")
+                raise CosimError(f"{exc}") from None
+            ctx.drop_nonfinite_rows(run.results_file.name)
         else:
-            ctx.skipped.append(f"time histories: {run.results_file} not found")
+            ctx.skipped.append(f"time histories: {run.results_file} not found (the run wrote no results)")
         ctx.field_files = run.field_files()
         return ctx
+
+    def drop_nonfinite_rows(self, fname: str) -> None:
+        """Leave out the rows in which every numeric signal is NaN or infinite (a diverged run or
+        an edited file would draw nothing there but numpy warnings), naming their lines."""
+        numeric = [v for k, v in self.cols.items() if k != "time" and v.dtype.kind == "f"
+                   and not np.all(np.isnan(v))]           # an all-NaN column is a String signal
+        if not numeric or not self.cols.get("time", np.empty(0)).size:
+            return
+        empty = ~np.any(np.isfinite(np.column_stack(numeric)), axis=1)
+        if not empty.any():
+            return
+        rows = np.flatnonzero(empty)
+        self.skipped.append(f"{fname} {line_ranges(rows + 2)} ({rows.size} of {empty.size} rows): every signal "
+                            "is NaN or infinite there (the run diverged, or the file was edited); those rows are "
+                            "left out of the figures")
+        self.cols = {k: v[~empty] for k, v in self.cols.items()}
 
     @classmethod
     def from_result(cls, res, out_dir: Path, *, name: str = "run",
@@ -160,6 +178,15 @@ def trace(ax, xv, yv, color, label) -> None:
     hi = np.fmax.reduceat(yv, edges[:-1])
     xc = xv[(edges[:-1] + edges[1:]) // 2]
     ax.fill_between(xc, lo, hi, color=color, lw=0.3, alpha=0.8, label=label + " (min-max envelope)")
+
+
+def line_ranges(lines: np.ndarray, most: int = 5) -> str:
+    """``line 4`` / ``lines 2-21, 30, ...`` for increasing line numbers (at most ``most`` ranges)."""
+    lines = np.asarray(lines, int)
+    cuts = np.flatnonzero(np.diff(lines) != 1) + 1
+    parts = [f"{g[0]}-{g[-1]}" if g.size > 1 else f"{g[0]}" for g in np.split(lines, cuts)]
+    text = ", ".join(parts[:most]) + (", ..." if len(parts) > most else "")
+    return ("line " if lines.size == 1 else "lines ") + text
 
 
 def edges(c: np.ndarray) -> np.ndarray:
