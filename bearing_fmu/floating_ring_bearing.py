@@ -175,7 +175,10 @@ class FloatingRingBearing(Fmi2Slave):
     def to_xml(self, model_options: dict[str, str] = dict()):  # noqa: B006 (PythonFMU's signature)
         units = {v[1] for v in REAL_PARAMETERS.values()}
         units |= {v[0] for v in {**INPUTS, **OUTPUTS, **LINEARIZATION_OUTPUTS}.values()} | {"s"}
-        return finish_model_description(super().to_xml(model_options), units, _UNITS)
+        ranges = {f"{n}_{side}": _jb.PARAMETER_RANGES[n] for n in (*_FILM_REAL, *_FILM_INT)
+                  if n in _jb.PARAMETER_RANGES for side in ("inner", "outer")}
+        ranges["p0"] = _jb.PARAMETER_RANGES["p0"]
+        return finish_model_description(super().to_xml(model_options), units, _UNITS, ranges)
 
     # -- model --------------------------------------------------------------------
     def _ring_params(self):

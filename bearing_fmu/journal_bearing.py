@@ -56,7 +56,7 @@ from fmu_common.slave import (
     RealU, check_shipped_layout, check_step_start, fast_get_real, fast_set_real, exit_initialization_mode, finish_model_description,
     get_slave_state, guard_callbacks, input_setter, journal_kinematics, output_getter, param_setter,
     refresh_coefficients, set_slave_state,
-    scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
+    POSITIVE, scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
 
 log = logging.getLogger(__name__)
 
@@ -111,6 +111,32 @@ LINEARIZATION_OUTPUTS: dict[str, tuple[str, str]] = {
     f"{kind}{i}{j}": (unit, f"film {what} -dF{i}/d{var}{j} [{unit}] (interface-Jacobian coupling)")
     for kind, unit, what, var in (("k", "N/m", "stiffness", ""), ("c", "N.s/m", "damping", "v"))
     for i in "xy" for j in "xy"}
+# Declared ranges of the parameters (modelDescription.xml min/max, inclusive; FMI 2.0 sec.
+# 2.2.7), so that an importer refuses a bad value when it loads a scenario, with its file and
+# line, instead of the model failing in initialization. BearingParams checks the same and the
+# relations between parameters (p_feed >= p0, h_min <= h_init <= h_max, the film's cells).
+# The film grid is bounded: a film of n_phi x n_z cells takes memory and time in proportion
+# (n_phi: 10^9 took 23 GB before failing); the largest grids we use are 1536 x 40 (issue 16
+# phi refinement), 40 x 320 (its axial one) and 160 x 160. Keep MAX_N_PHI / MAX_N_Z equal
+# to bearing_fmu.model's (tests/test_fmu_param_bounds.py checks it; model.py is not imported
+# here: the FMU loads its code in __init__, see use_stable_code_copy).
+MAX_N_PHI, MAX_N_Z = 8192, 2048
+POS = POSITIVE
+PARAMETER_RANGES: dict[str, tuple[Any, Any]] = {
+    "R": (POS, None), "B": (POS, None), "psi": (POS, 0.1), "eta0": (POS, None), "p0": (0.0, None),
+    "p_feed": (0.0, None), "groove_width": (0.0, 2 * math.pi), "sigma_rough": (POS, None),
+    "contact_KE": (0.0, None), "mu_contact": (0.0, None), "contact_h_limit": (-6.0, 0.0),
+    "n_phi": (8, MAX_N_PHI), "n_z": (2, MAX_N_Z), "cavitation": (0, 1), "axial_bc": (0, 1),
+    "theta_transport": (0, 1), "contact": (0, 1),
+    "cav_width": (POS, None), "cav_smoothing": (POS, None), "penalty_a": (0.0, None), "penalty_b": (POS, None),
+    "penalty_smoothing": (POS, None), "theta_atol": (POS, None), "newton_atol": (POS, None),
+    "newton_max_iter": (2, None), "krylov_tol": (POS, 1.0), "krylov_refactor": (0, None),
+    "solver_h_init": (POS, None), "solver_h_min": (POS, None), "solver_h_max": (POS, None),
+}
+# String parameters and their values (FMI 2.0 cannot declare them; checked when the model is made)
+STRING_CHOICES: dict[str, tuple[str, ...]] = {"linear_solver": ("band", "lapack", "splu"),
+                                              "init": ("flooded", "stationary")}
+
 # Model parameters whose names collide with FMU variables: FMU name -> model field.
 RENAMED = {"solver_h_init": "h_init", "solver_h_min": "h_min", "solver_h_max": "h_max"}
 _FMU_NAME = {v: k for k, v in RENAMED.items()}
@@ -125,6 +151,20 @@ UNITS = {
     "N.m": dict(kg="1", m="2", s="-2"), "m3/s": dict(m="3", s="-1"), "1": {},
     "N/m": dict(kg="1", s="-2"), "N.s/m": dict(kg="1", s="-1"),
 }
+
+
+def fmu_parameter_message(line: str) -> str:
+    """A line of BearingParams' ValueError (``  BearingParams.h_init must be ...``) in the FMU's
+    parameter names (``parameter 'solver_h_init' must be ...``)."""
+    text = line.strip()
+    if text.startswith("BearingParams: "):
+        return text[len("BearingParams: "):]
+    if text.startswith("BearingParams."):
+        field, _, rest = text[len("BearingParams."):].partition(" ")
+        for model_name, fmu_name in _FMU_NAME.items():      # h_min <= h_init <= h_max
+            rest = rest.replace(f"{model_name} <=", f"{fmu_name} <=").replace(f"<= {model_name}", f"<= {fmu_name}")
+        return f"parameter '{_FMU_NAME.get(field, field)}' {rest}"
+    return text
 
 
 def _tree_digest(folder: Path) -> str:
@@ -351,7 +391,7 @@ class JournalBearing(Fmi2Slave):
         self.fields_file = str(value)
 
     def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006 (PythonFMU's signature)
-        return finish_model_description(super().to_xml(model_options), self._units, UNITS)
+        return finish_model_description(super().to_xml(model_options), self._units, UNITS, PARAMETER_RANGES)
 
     def _extra_model_parameters(self) -> list[tuple[str, Any, type]]:
         """Fields of ``BearingParams`` beyond the issue-5 ones, with their defaults.
@@ -397,9 +437,19 @@ class JournalBearing(Fmi2Slave):
             return
         from bearing_fmu.model import BearingParams
         from bearing_fmu.model import BearingModel as Model
-        model = Model(BearingParams(**self._params()))
-        if self._values["init"] not in ("flooded", "stationary"):
-            raise ValueError(f"parameter 'init' must be 'flooded' or 'stationary' (got {self._values['init']!r})")
+        problems = [f"parameter '{name}' must be one of {', '.join(map(repr, choices))} (got {self._values[name]!r})"
+                    for name, choices in STRING_CHOICES.items()
+                    if name in self._values and self._values[name] not in choices]
+        try:
+            params = BearingParams(**self._params())
+        except ValueError as exc:       # the model's message in the FMU's parameter names
+            problems += [m for m in map(fmu_parameter_message, str(exc).splitlines()[1:])
+                         if not any(m.startswith(f"parameter '{name}' ") for name in STRING_CHOICES)]
+        if problems:
+            raise ValueError(f"invalid parameters of the JournalBearing FMU instance "
+                             f"'{getattr(self, 'instance_name', '?')}': " + "; ".join(problems)
+                             + "; set them in the scenario (fmus.<instance>.parameters)")
+        model = Model(params)
         model.initialize(*self._inputs(), init=self._values["init"])
         self._model = model
         self._init_key = key

@@ -49,6 +49,16 @@ from .solver import StepFailed, TransientFilm
 __all__ = ["BearingParams", "BearingModel", "StepFailed", "solve_stationary"]
 
 
+# Bounds of the film grid (checked before anything is allocated): memory and time grow with the
+# cells, n_phi = 10^9 took 23 GB before failing. The finest grids we use are 1536 x 40 (the
+# phi refinement of docs/bearing-validation.md), 40 x 320 (its axial one) and 160 x 160; the
+# bounds leave at least 4 times that. bearing_fmu.journal_bearing declares MAX_N_PHI / MAX_N_Z
+# as the FMU parameters' max (keep them equal).
+MAX_N_PHI = 8192
+MAX_N_Z = 2048
+MAX_FILM_CELLS = 2**18       # n_phi * n_z (262 144 cells; 1536 x 40 is 61 440)
+
+
 @dataclass(frozen=True, kw_only=True)
 class BearingParams:
     """Bearing geometry, lubricant, grid and solver settings (SI units).
@@ -175,8 +185,13 @@ class BearingParams:
         need("penalty_smoothing", 0 < self.penalty_smoothing < self.cav_width,
              f"in (0, cav_width = {self.cav_width:g}) [Pa], so that the cavity edge flux "
              "is exactly penalty_a (p - p0)")
-        need("n_phi", isinstance(self.n_phi, int) and self.n_phi >= 8, "an integer >= 8")
-        need("n_z", isinstance(self.n_z, int) and self.n_z >= 2, "an integer >= 2")
+        need("n_phi", isinstance(self.n_phi, int) and 8 <= self.n_phi <= MAX_N_PHI,
+             f"an integer in [8, {MAX_N_PHI}] (MAX_N_PHI)")
+        need("n_z", isinstance(self.n_z, int) and 2 <= self.n_z <= MAX_N_Z, f"an integer in [2, {MAX_N_Z}] (MAX_N_Z)")
+        if isinstance(self.n_phi, int) and isinstance(self.n_z, int) and self.n_phi * self.n_z > MAX_FILM_CELLS:
+            problems.append(f"BearingParams: the film grid n_phi x n_z must have at most {MAX_FILM_CELLS} cells "
+                            f"(MAX_FILM_CELLS) (got {self.n_phi} x {self.n_z} = {self.n_phi * self.n_z}); use a "
+                            "coarser grid (the finest we use: 1536 x 40, 160 x 160)")
         need("cavitation", self.cavitation in (0, 1),
              "0 (half-Sommerfeld) or 1 (mass-conserving)")
         need("axial_bc", self.axial_bc in (0, 1), "0 (oil bath) or 1 (free to air)")

@@ -49,7 +49,28 @@ class RealU(Real):
         return node
 
 
-def finish_model_description(root: Element, units: set[str], table: dict[str, dict[str, str]]) -> Element:
+# FMI 2.0 min/max are inclusive: "greater than 0" is declared as min = the smallest positive double
+POSITIVE = 5e-324
+
+
+def declare_ranges(root: Element, ranges: dict[str, tuple[Any, Any]]) -> Element:
+    """Write ``min``/``max`` (FMI 2.0 sec. 2.2.7) on the Real and Integer type elements of the
+    variables named in ``ranges`` (name -> (min or None, max or None)), so that an importer can
+    refuse a value before it instantiates the FMU (rotorcosim does when it loads a scenario:
+    ``orchestrator.fmi.values.check_value``). Names the FMU lacks are ignored."""
+    for sv in root.iter("ScalarVariable"):
+        bounds = ranges.get(sv.get("name"))
+        el = next((c for c in sv if c.tag in ("Real", "Integer")), None)
+        if bounds is None or el is None:
+            continue
+        for attr, value in zip(("min", "max"), bounds):
+            if value is not None:
+                el.set(attr, repr(float(value)) if el.tag == "Real" else str(int(value)))
+    return root
+
+
+def finish_model_description(root: Element, units: set[str], table: dict[str, dict[str, str]],
+                             ranges: dict[str, tuple[Any, Any]] | None = None) -> Element:
     """Complete PythonFMU's ``modelDescription.xml`` tree.
 
     * ``<UnitDefinitions>`` right after ``<CoSimulation>`` (schema order), so the
@@ -60,8 +81,12 @@ def finish_model_description(root: Element, units: set[str], table: dict[str, di
       (unknown) dependencies: in initialization mode outputs are computed from
       the parameters and inputs.
 
+    * ``min``/``max`` of the parameters in ``ranges`` (:func:`declare_ranges`).
+
     ``table``: unit name -> base-unit exponents (the slave's ``UNITS``).
     """
+    if ranges:
+        declare_ranges(root, ranges)
     if units:
         defs = Element("UnitDefinitions")
         for name in sorted(units):

@@ -35,7 +35,8 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from pythonfmu.variables import Boolean
 
 from fmu_common.slave import (
-    RealU, check_shipped_layout, fast_get_real, fast_set_real, check_step_start, exit_initialization_mode, finish_model_description,
+    POSITIVE, RealU, check_shipped_layout, fast_get_real, fast_set_real, check_step_start, exit_initialization_mode,
+    finish_model_description,
     get_slave_state, guard_callbacks, input_setter, journal_kinematics, output_getter, param_setter, set_slave_state,
     scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
 
@@ -226,8 +227,18 @@ def rotor_ring_inputs(self):
         Co=np.array([[[v[f"c{a}{b}_outer_{i}"] for b in "xy"] for a in "xy"] for i in st]))
 
 
+# Declared ranges of the parameters of both rotor FMUs (modelDescription.xml min/max, inclusive):
+# an importer refuses a bad value when it loads a scenario; JeffcottParams / TurbochargerParams
+# .validate check the same when the model is made. Names a rotor lacks are skipped.
+PARAMETER_RANGES: dict[str, tuple[Any, Any]] = {
+    **{n: (POSITIVE, None) for n in ("m_disc", "m_journal", "k_shaft", "max_phase_per_substep")},
+    **{n: (0.0, None) for n in ("unbalance", "d_internal", "d_external", "g", "f_max", "t_ramp")},
+    "n_modes": (0, None),
+}
+
+
 def rotor_to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006
-    return finish_model_description(Fmi2Slave.to_xml(self, model_options), self._units, UNITS)
+    return finish_model_description(Fmi2Slave.to_xml(self, model_options), self._units, UNITS, PARAMETER_RANGES)
 
 
 def rotor_output_names(self) -> list[str]:

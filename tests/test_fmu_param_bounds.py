@@ -1,0 +1,135 @@
+"""Our FMUs declare the ranges of their parameters (modelDescription.xml min/max), so a bad
+value in a scenario is refused when the scenario is loaded, with its file and line, before
+anything is instantiated or allocated; the film grid is bounded; what FMI 2.0 cannot declare
+(String choices, relations between parameters) is refused by the FMU in its parameter names."""
+
+from __future__ import annotations
+
+import zipfile
+
+import pytest
+
+from hostile_builders import cli
+from orchestrator.errors import ScenarioError
+from orchestrator.fmi.build import FMU_DIR
+from orchestrator.fmi.model_description import parse_model_description
+from orchestrator.scenario import load_scenario
+
+SCENARIO = """\
+name: bounds
+start_time: 0.5
+stop_time: 0.502
+fmus:
+  rotor:
+    fmu: JeffcottRotor
+    parameters: {{f_max: 800.0, t_ramp: {t_ramp}}}
+  bearing1:
+    fmu: JournalBearing
+    parameters:
+      {bearing}
+connections:
+  - {{from: rotor.x_1, to: bearing1.x}}
+  - {{from: bearing1.Fx, to: rotor.Fx_1}}
+coupling: {{scheme: gauss-seidel, macro_step: 1.0e-4}}
+"""
+GOOD = "{R: 4.9e-3, B: 7.84e-3, psi: 2.8e-3, eta0: 0.012, n_phi: 24, n_z: 12, cavitation: 0}"
+
+
+def scenario(tmp_path, bearing=GOOD, t_ramp="2.0"):
+    p = tmp_path / "s.yaml"
+    p.write_text(SCENARIO.format(bearing=bearing, t_ramp=t_ramp))
+    return p
+
+
+def variables(name):
+    with zipfile.ZipFile(FMU_DIR / f"{name}.fmu") as z:
+        return parse_model_description(z.read("modelDescription.xml")).variables
+
+
+def test_our_fmus_declare_parameter_ranges():
+    from bearing_fmu import journal_bearing, model
+    jb = variables("JournalBearing")
+    assert (jb["n_phi"].min, jb["n_phi"].max) == (8, model.MAX_N_PHI)
+    assert (jb["n_z"].min, jb["n_z"].max) == (2, model.MAX_N_Z)
+    assert (journal_bearing.MAX_N_PHI, journal_bearing.MAX_N_Z) == (model.MAX_N_PHI, model.MAX_N_Z)
+    assert (jb["cavitation"].min, jb["cavitation"].max) == (0, 1)
+    assert 0 < jb["psi"].min < 1e-300 and jb["psi"].max == 0.1
+    assert jb["R"].min > 0 and jb["solver_h_min"].min > 0 and jb["contact_h_limit"].min == -6.0
+    for name, var in jb.items():                       # every default inside its declared range
+        if var.causality == "parameter" and var.min is not None:
+            assert var.min <= var.start <= (var.max if var.max is not None else var.start), name
+    fr = variables("FloatingRingBearing")
+    assert (fr["n_phi_inner"].max, fr["n_z_outer"].max) == (model.MAX_N_PHI, model.MAX_N_Z)
+    rotor = variables("JeffcottRotor")
+    assert rotor["t_ramp"].min == 0.0 and rotor["m_disc"].min > 0
+    assert variables("TurbochargerRotor")["t_ramp"].min == 0.0
+
+
+def test_the_largest_grids_we_use_are_inside_the_bounds():
+    from bearing_fmu.model import MAX_FILM_CELLS, BearingParams
+    for n_phi, n_z in ((1536, 40), (40, 320), (160, 160), (360, 120)):
+        assert n_phi * n_z <= MAX_FILM_CELLS / 4
+        BearingParams(n_phi=n_phi, n_z=n_z)
+
+
+@pytest.mark.parametrize("n_phi, n_z, words", [
+    (10**9, 12, ["n_phi must be an integer in [8, 8192]"]),
+    (24, 10**6, ["n_z must be an integer in [2, 2048]"]),
+    (4000, 2000, ["4000 x 2000 = 8000000", "at most 262144 cells", "coarser grid"]),
+])
+def test_bearing_params_refuse_a_huge_film_before_allocating(n_phi, n_z, words):
+    from bearing_fmu.model import BearingParams
+    with pytest.raises(ValueError) as exc:
+        BearingParams(n_phi=n_phi, n_z=n_z)
+    for w in words:
+        assert w in str(exc.value)
+
+
+@pytest.mark.parametrize("bearing, t_ramp, line, words", [
+    (GOOD.replace("n_phi: 24", "n_phi: 1000000000"), "2.0", 11, ["bearing1.n_phi", "1000000000", "[8, 8192]"]),
+    (GOOD.replace("n_z: 12", "n_z: 4000"), "2.0", 11, ["bearing1.n_z", "[2, 2048]"]),
+    (GOOD.replace("n_phi: 24", "n_phi: 0"), "2.0", 11, ["bearing1.n_phi", "= 0"]),
+    (GOOD.replace("psi: 2.8e-3", "psi: -2.8e-3"), "2.0", 11, ["bearing1.psi", "-0.0028"]),
+    (GOOD.replace("R: 4.9e-3", "R: 0"), "2.0", 11, ["bearing1.R", "0.0"]),
+    (GOOD.replace("cavitation: 0", "cavitation: 9"), "2.0", 11, ["bearing1.cavitation", "[0, 1]"]),
+    (GOOD, "-2", 7, ["rotor.t_ramp", "-2"]),
+])
+def test_scenario_values_outside_the_declared_range_are_refused_at_load(tmp_path, bearing, t_ramp, line, words):
+    path = scenario(tmp_path, bearing, t_ramp)
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(path)
+    msg = str(exc.value)
+    assert f"s.yaml:{line}:" in msg and "outside its declared range" in msg, msg
+    for w in words:
+        assert w in msg, msg
+
+
+def test_validate_cli_refuses_a_large_grid_without_instantiating(tmp_path, capsys):
+    # just above the bound (a film the old code could still afford: 9000 x 12 cells)
+    path = scenario(tmp_path, GOOD.replace("n_phi: 24", "n_phi: 9000"))
+    rc, out = cli(capsys, "validate", path, "--no-build")
+    assert rc == 1 and "s.yaml:11:" in out and "[8, 8192]" in out
+    assert "initialization failed" not in out and "MemoryError" not in out
+
+
+def test_fmu_messages_use_the_fmu_parameter_names():
+    from bearing_fmu.journal_bearing import fmu_parameter_message
+    assert fmu_parameter_message("  BearingParams.h_min must be h_min <= h_init <= h_max (got 2.0)") == \
+        "parameter 'solver_h_min' must be solver_h_min <= solver_h_init <= solver_h_max (got 2.0)"
+    assert fmu_parameter_message("  BearingParams.psi must be a positive finite number (got 0.0)") == \
+        "parameter 'psi' must be a positive finite number (got 0.0)"
+    assert fmu_parameter_message("BearingParams: the film grid n_phi x n_z must ...") == \
+        "the film grid n_phi x n_z must ..."
+
+
+def test_string_choices_and_relations_are_refused_in_fmu_terms(tmp_path, capsys):
+    """FMI 2.0 declares no String choices: the FMU refuses them when the model is made (validate)."""
+    bad = GOOD.replace("cavitation: 0", "cavitation: 0, linear_solver: magic, init: /etc/passwd, "
+                                        "solver_h_min: 2.0")
+    rc, out = cli(capsys, "validate", scenario(tmp_path, bad))
+    assert rc == 1
+    assert "parameter 'linear_solver' must be one of 'band', 'lapack', 'splu' (got 'magic')" in out
+    assert "parameter 'init' must be one of 'flooded', 'stationary' (got '/etc/passwd')" in out
+    assert "parameter 'solver_h_min' must be solver_h_min <= solver_h_init <= solver_h_max (got 2.0)" in out
+    assert "BearingParams." not in out
+    assert out.count("linear_solver") == out.count("'magic')")     # said once per message, not twice
