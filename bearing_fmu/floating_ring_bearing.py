@@ -185,10 +185,21 @@ class FloatingRingBearing(Fmi2Slave):
         from bearing_fmu.floating_ring import RingParams
         from bearing_fmu.model import BearingParams
         v = self._values
-        films = {}
+        films, problems = {}, []
         for side in ("inner", "outer"):
             kw = {n: v[f"{n}_{side}"] for n in (*_FILM_REAL, *_FILM_INT)}
-            films[side] = BearingParams(p0=v["p0"], **kw)
+            try:
+                films[side] = BearingParams(p0=v["p0"], **kw)
+            except ValueError as exc:     # the model's message in the FMU's parameter names
+                for line in str(exc).splitlines()[1:]:
+                    msg = _jb.fmu_parameter_message(line)
+                    name = msg.partition("'")[2].partition("'")[0] if msg.startswith("parameter '") else ""
+                    problems.append(msg.replace(f"'{name}'", f"'{name}_{side}'", 1) if name in kw
+                                    else f"{side} film: {msg}")
+        if problems:
+            raise ValueError(f"invalid parameters of the FloatingRingBearing FMU instance "
+                             f"'{getattr(self, 'instance_name', '?')}': " + "; ".join(problems)
+                             + "; set them in the scenario (fmus.<instance>.parameters)")
         return RingParams(**films, m_ring=v["m_ring"], J_ring=v["J_ring"], floating=v["floating"],
                           gravity=v["gravity"], h_ring=v["h_ring"], jacobian_every=v["jacobian_every"],
                           input_hold=v["input_hold"], ring_integrator=v["ring_integrator"])

@@ -133,3 +133,14 @@ def test_string_choices_and_relations_are_refused_in_fmu_terms(tmp_path, capsys)
     assert "parameter 'solver_h_min' must be solver_h_min <= solver_h_init <= solver_h_max (got 2.0)" in out
     assert "BearingParams." not in out
     assert out.count("linear_solver") == out.count("'magic')")     # said once per message, not twice
+
+
+def test_floating_ring_films_are_named_by_side(capsys):
+    from orchestrator.shipped import resolve
+    path = resolve("jeffcott_runup_floating_ring_free_to_air")
+    rc, out = cli(capsys, "validate", path, "--set", "fmus.bearing1.parameters.n_phi_inner=4000",
+                  "--set", "fmus.bearing1.parameters.n_z_inner=100",
+                  "--set", "fmus.bearing1.parameters.cav_width_outer=2e5")
+    assert rc == 1
+    assert "inner film: the film grid n_phi x n_z must have at most 262144 cells" in out
+    assert "parameter 'cav_width_outer' must be below p0" in out and "BearingParams." not in out
