@@ -178,7 +178,8 @@ class FloatingRingBearing(Fmi2Slave):
         ranges = {f"{n}_{side}": _jb.PARAMETER_RANGES[n] for n in (*_FILM_REAL, *_FILM_INT)
                   if n in _jb.PARAMETER_RANGES for side in ("inner", "outer")}
         ranges["p0"] = _jb.PARAMETER_RANGES["p0"]
-        return finish_model_description(super().to_xml(model_options), units, _UNITS, ranges)
+        choices = {"init": _jb.STRING_CHOICES["init"], "ring_init": ("equilibrium", "given")}
+        return finish_model_description(super().to_xml(model_options), units, _UNITS, ranges, choices)
 
     # -- model --------------------------------------------------------------------
     def _ring_params(self):

@@ -133,7 +133,9 @@ PARAMETER_RANGES: dict[str, tuple[Any, Any]] = {
     "newton_max_iter": (2, None), "krylov_tol": (POS, 1.0), "krylov_refactor": (0, None),
     "solver_h_init": (POS, None), "solver_h_min": (POS, None), "solver_h_max": (POS, None),
 }
-# String parameters and their values (FMI 2.0 cannot declare them; checked when the model is made)
+# String parameters and their values: FMI 2.0 cannot declare them, so they go into a rotorcosim
+# annotation of the variable (fmu_common.slave.declare_choices; checked at load by rotorcosim) and
+# are checked again when the model is made
 STRING_CHOICES: dict[str, tuple[str, ...]] = {"linear_solver": ("band", "lapack", "splu"),
                                               "init": ("flooded", "stationary")}
 
@@ -391,7 +393,8 @@ class JournalBearing(Fmi2Slave):
         self.fields_file = str(value)
 
     def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006 (PythonFMU's signature)
-        return finish_model_description(super().to_xml(model_options), self._units, UNITS, PARAMETER_RANGES)
+        return finish_model_description(super().to_xml(model_options), self._units, UNITS, PARAMETER_RANGES,
+                                        STRING_CHOICES)
 
     def _extra_model_parameters(self) -> list[tuple[str, Any, type]]:
         """Fields of ``BearingParams`` beyond the issue-5 ones, with their defaults.

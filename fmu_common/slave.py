@@ -69,8 +69,26 @@ def declare_ranges(root: Element, ranges: dict[str, tuple[Any, Any]]) -> Element
     return root
 
 
+def declare_choices(root: Element, choices: dict[str, tuple[str, ...]]) -> Element:
+    """Declare the values the String variables named in ``choices`` accept, in a ``rotorcosim``
+    tool annotation of the ScalarVariable (FMI 2.0 cannot declare them; other importers ignore
+    it; rotorcosim checks a scenario's value against them when it loads the scenario)."""
+    for sv in root.iter("ScalarVariable"):
+        values = choices.get(sv.get("name"))
+        if values is None or sv.find("String") is None:
+            continue
+        ann = sv.find("Annotations")
+        if ann is None:
+            ann = SubElement(sv, "Annotations")
+        lst = SubElement(SubElement(ann, "Tool", attrib={"name": "rotorcosim"}), "Choices")
+        for v in values:
+            SubElement(lst, "Choice", attrib={"value": v})
+    return root
+
+
 def finish_model_description(root: Element, units: set[str], table: dict[str, dict[str, str]],
-                             ranges: dict[str, tuple[Any, Any]] | None = None) -> Element:
+                             ranges: dict[str, tuple[Any, Any]] | None = None,
+                             choices: dict[str, tuple[str, ...]] | None = None) -> Element:
     """Complete PythonFMU's ``modelDescription.xml`` tree.
 
     * ``<UnitDefinitions>`` right after ``<CoSimulation>`` (schema order), so the
@@ -81,12 +99,15 @@ def finish_model_description(root: Element, units: set[str], table: dict[str, di
       (unknown) dependencies: in initialization mode outputs are computed from
       the parameters and inputs.
 
-    * ``min``/``max`` of the parameters in ``ranges`` (:func:`declare_ranges`).
+    * ``min``/``max`` of the parameters in ``ranges`` (:func:`declare_ranges`), the values of
+      the String parameters in ``choices`` (:func:`declare_choices`).
 
     ``table``: unit name -> base-unit exponents (the slave's ``UNITS``).
     """
     if ranges:
         declare_ranges(root, ranges)
+    if choices:
+        declare_choices(root, choices)
     if units:
         defs = Element("UnitDefinitions")
         for name in sorted(units):

@@ -122,17 +122,53 @@ def test_fmu_messages_use_the_fmu_parameter_names():
         "the film grid n_phi x n_z must ..."
 
 
-def test_string_choices_and_relations_are_refused_in_fmu_terms(tmp_path, capsys):
-    """FMI 2.0 declares no String choices: the FMU refuses them when the model is made (validate)."""
-    bad = GOOD.replace("cavitation: 0", "cavitation: 0, linear_solver: magic, init: /etc/passwd, "
-                                        "solver_h_min: 2.0")
+def test_string_choices_are_refused_at_load(tmp_path):
+    """FMI 2.0 cannot declare the values of a String: our FMUs declare them in a rotorcosim tool
+    annotation of the variable, and the scenario check reads it (file:line, before instantiating)."""
+    assert variables("JournalBearing")["linear_solver"].choices == ("band", "lapack", "splu")
+    assert variables("FloatingRingBearing")["ring_init"].choices == ("equilibrium", "given")
+    bad = GOOD.replace("cavitation: 0", "cavitation: 0, linear_solver: magic, init: /etc/passwd")
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(scenario(tmp_path, bad))
+    msg = str(exc.value)
+    assert "s.yaml:11: parameter 'bearing1.linear_solver' must be one of 'band', 'lapack', 'splu'" in msg
+    assert "got 'magic'" in msg and "got '/etc/passwd'" in msg
+
+
+def test_choices_annotation_of_any_fmu():
+    from orchestrator.fmi.values import check_value
+    xml = b"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName="m" guid="g">
+  <CoSimulation modelIdentifier="m"/>
+  <ModelVariables>
+    <ScalarVariable name="mode" valueReference="0" causality="parameter" variability="fixed">
+      <String start="a"/>
+      <Annotations><Tool name="other"><Choices><Choice value="zzz"/></Choices></Tool>
+        <Tool name="rotorcosim"><Choices><Choice value="a"/><Choice value="b"/></Choices></Tool></Annotations>
+    </ScalarVariable>
+    <ScalarVariable name="free" valueReference="1" causality="parameter" variability="fixed">
+      <String start="x"/>
+    </ScalarVariable>
+  </ModelVariables>
+</fmiModelDescription>"""
+    md = parse_model_description(xml)
+    mode, free = md.variables["mode"], md.variables["free"]
+    assert mode.choices == ("a", "b") and free.choices == ()
+    assert check_value(mode, "b", "m.mode") == ("b", None)
+    value, problem = check_value(mode, "c", "m.mode")
+    assert value is None and "'m.mode' must be one of 'a', 'b'" in problem and "got 'c'" in problem
+    assert check_value(free, "anything", "m.free") == ("anything", None)
+
+
+def test_relations_are_refused_in_fmu_terms(tmp_path, capsys):
+    """A rule across parameters (no declared range can say it): the FMU refuses it when the
+    model is made (validate initializes the FMUs), in its own parameter names."""
+    bad = GOOD.replace("cavitation: 0", "cavitation: 0, solver_h_min: 2.0")
     rc, out = cli(capsys, "validate", scenario(tmp_path, bad))
     assert rc == 1
-    assert "parameter 'linear_solver' must be one of 'band', 'lapack', 'splu' (got 'magic')" in out
-    assert "parameter 'init' must be one of 'flooded', 'stationary' (got '/etc/passwd')" in out
+    assert "invalid parameters of the JournalBearing FMU instance 'bearing1'" in out
     assert "parameter 'solver_h_min' must be solver_h_min <= solver_h_init <= solver_h_max (got 2.0)" in out
-    assert "BearingParams." not in out
-    assert out.count("linear_solver") == out.count("'magic')")     # said once per message, not twice
+    assert "BearingParams." not in out and "set them in the scenario" in out
 
 
 def test_floating_ring_films_are_named_by_side(capsys):

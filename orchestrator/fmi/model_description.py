@@ -45,6 +45,7 @@ class Variable:
     max: Any = None
     nominal: float | None = None
     items: tuple = ()              # Enumeration: ((name, value, description), ...) of the declared type
+    choices: tuple = ()            # String: the values the FMU accepts, from its rotorcosim annotation
 
 
 @dataclass(frozen=True)
@@ -233,4 +234,25 @@ def _variable(sv, types, path: Path) -> Variable:
         description=sv.get("description", "") or "", unit=attrs.get("unit", "") or "",
         initial=sv.get("initial", "") or "", declared_type=declared,
         min=_number(type_el.tag, attrs.get("min")), max=_number(type_el.tag, attrs.get("max")),
-        nominal=_number("Real", attrs.get("nominal")), items=types.get(declared, ({}, ()))[1])
+        nominal=_number("Real", attrs.get("nominal")), items=types.get(declared, ({}, ()))[1],
+        choices=_choices(sv) if type_el.tag == "String" else ())
+
+
+MAX_CHOICES = 1000
+
+
+def _choices(sv) -> tuple[str, ...]:
+    """The values a String variable accepts, when its FMU declares them in a tool annotation
+    (FMI 2.0 sec. 2.2.7 allows ``<Annotations>`` in a ScalarVariable; FMI 2.0 itself cannot
+    declare them)::
+
+        <Annotations><Tool name="rotorcosim"><Choices>
+          <Choice value="band"/><Choice value="lapack"/></Choices></Tool></Annotations>
+
+    Other importers ignore it. () when there is none (any text is accepted)."""
+    ann = sv.find("Annotations")
+    tool = next((t for t in (ann if ann is not None else []) if t.tag == "Tool" and t.get("name") == "rotorcosim"),
+                None)
+    if tool is None:
+        return ()
+    return tuple(c.get("value") for c in tool.iter("Choice") if c.get("value") is not None)[:MAX_CHOICES]

@@ -15,8 +15,10 @@ co-simulation state machine of sec. 4.2.4):
 * :func:`check_value` converts a scenario value to the variable's Python type
   and checks it against the declared type: ``min``/``max`` (of the variable,
   else of its ``declaredType``), the items of an Enumeration type, the 32-bit
-  range of ``fmi2Integer`` (C ``int``), and a finite Real. A problem is
-  returned as text naming the variable, the declared range and the value.
+  range of ``fmi2Integer`` (C ``int``), a finite Real, and the values a String accepts
+  when the FMU declares them (a ``rotorcosim`` tool annotation, see
+  :func:`orchestrator.fmi.model_description._choices`). A problem is returned as text
+  naming the variable, the declared range and the value.
 
 :class:`TypedBatch` holds value references and a ctypes value buffer for one
 FMI type (Real, Integer/Enumeration, Boolean, String), made once at setup so
@@ -123,6 +125,10 @@ def check_value(var, value: Any, qualified: str) -> tuple[Any, str | None]:
     if conv is None:
         return None, (f"'{qualified}' is {t} (got {value!r}, {type(value).__name__}); give a {t} value "
                       f"such as {_EXAMPLE.get(t, 'a value')}")
+    if t == "String" and getattr(var, "choices", ()) and conv not in var.choices:
+        shown = ", ".join(repr(c) for c in var.choices[:20]) + (", ..." if len(var.choices) > 20 else "")
+        return None, (f"'{qualified}' must be one of {shown} (the values the FMU declares); got {conv[:80]!r}: "
+                      "give one of them")
     if t == "Real" and not math.isfinite(conv):
         return None, f"'{qualified}' is Real and must be finite (got {conv!r}); give a finite number"
     if t in ("Integer", "Enumeration") and not INT32_MIN <= conv <= INT32_MAX:
