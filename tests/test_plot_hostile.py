@@ -224,3 +224,16 @@ def test_cli_text_in_numbers_exits_non_zero(tmp_path, capsys):
     run = run_folder(tmp_path, HEADER + "0,1,2\n0.001,hello,2\n0.002,3,4\n")
     rc, out = cli(capsys, "plot", run)
     assert rc == 1 and "results.csv:3:" in out and "'hello'" in out
+
+
+def test_parquet_time_is_checked_too(tmp_path):
+    pa = pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+    run = tmp_path / "run"
+    run.mkdir()
+    pq.write_table(pa.table({"time": [0.0, 0.2, 0.1], "osc.x": [1.0, 2.0, 3.0]}), run / "results.parquet")
+    with pytest.raises(ValueError, match=r"results.parquet: row 3: time runs backwards \(0.1 after 0.2 on row 2"):
+        RunDirectory(run).columns()
+    pq.write_table(pa.table({"time": ["a", "b"], "osc.x": [1.0, 2.0]}), run / "results.parquet")
+    with pytest.raises(ValueError, match="'time' column holds string, expected numbers"):
+        RunDirectory(run).columns()

@@ -222,16 +222,25 @@ class _ResultsReader:
 
     def check_time(self, t: np.ndarray) -> None:
         """Rows are lines 2, 3, ... (empty lines only at the end, a truncated one only last)."""
-        bad = np.flatnonzero(~np.isfinite(t))
-        if bad.size:
-            raise self.fail(int(bad[0]) + 2, f"time is {float(t[bad[0]])!r}, expected a finite number ({bad.size} "
-                            "row(s) without a valid time); the file is damaged or edited: rerun the scenario")
-        back = np.flatnonzero(np.diff(t) < 0)
-        if back.size:
-            i = int(back[0])
-            raise self.fail(i + 3, f"time runs backwards ({float(t[i + 1])!r} after {float(t[i])!r} on line "
-                            f"{i + 2}; {back.size} place(s)); rows must be in time order: the file is damaged or "
-                            "edited, rerun the scenario")
+        bad = time_problem(t, lambda i: f"line {i + 2}")
+        if bad is not None:
+            raise self.fail(bad[0] + 2, bad[1])
+
+
+def time_problem(t: np.ndarray, where) -> tuple[int, str] | None:
+    """``(row, what is wrong)`` of the first row whose time is not finite or runs backwards
+    (``where(row)`` names a row in the text), else None."""
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        return int(bad[0]), (f"time is {float(t[bad[0]])!r}, expected a finite number ({bad.size} row(s) without "
+                             "a valid time); the file is damaged or edited: rerun the scenario")
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        i = int(back[0])
+        return i + 1, (f"time runs backwards ({float(t[i + 1])!r} after {float(t[i])!r} on {where(i)}; "
+                       f"{back.size} place(s)); rows must be in time order: the file is damaged or edited, "
+                       "rerun the scenario")
+    return None
 
 
 def read_results_parquet(path: str | Path) -> dict[str, np.ndarray]:
@@ -265,6 +274,12 @@ def read_results_parquet(path: str | Path) -> dict[str, np.ndarray]:
             out[name] = np.asarray(col.cast(pa.float64()).to_numpy(zero_copy_only=False), dtype=float)
         else:
             out[name] = np.asarray(col.to_pylist(), dtype=object)
+    if out["time"].dtype == object:
+        raise ValueError(f"{path}: the 'time' column holds {table.column('time').type}, expected numbers; give the "
+                         "results.parquet of a run")
+    bad = time_problem(out["time"], lambda i: f"row {i + 1}")
+    if bad is not None:
+        raise ValueError(f"{path}: row {bad[0] + 1}: {bad[1]}")
     return out
 
 
