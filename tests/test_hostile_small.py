@@ -212,3 +212,21 @@ def test_loads_of_one_file_do_not_share_changes(tmp_path):
     assert par == {0: {"a": 5.0, "b": 2.0}, 1: {"a": 2.0, "b": 2.0}, 2: {"a": 2.0, "b": 7.0}}
     p.write_text(p.read_text().replace("{k: 2.0}", "{k: 3.0}"))
     assert {f.parameters["k"] for f in load_scenario(p).fmus} == {3.0}
+
+
+# --------------------------------------------------------------------------- FMU log messages
+def test_python_exceptions_pythonfmu_reports_are_shown_as_their_message():
+    from orchestrator.fmi.subsystem import log_message_text
+    raw = ("[fatal] Fatal py exception encountered: [getReal] PyObject_CallMethod\n"
+           "ValueError('invalid bearing parameters:\\n  BearingParams.psi must be a positive finite number "
+           "(got -0.0028)')")
+    assert log_message_text(raw) == ("ValueError in the FMU's getReal: invalid bearing parameters: / "
+                                     "BearingParams.psi must be a positive finite number (got -0.0028)")
+    raw = 'Fatal py exception encountered: [doStep] PyObject_CallMethod RuntimeError("it\'s broken")'
+    assert log_message_text(raw) == "RuntimeError in the FMU's doStep: it's broken"
+
+
+def test_a_long_log_message_keeps_its_start_and_its_end():
+    from orchestrator.fmi.subsystem import log_message_text
+    text = log_message_text("START " + "x" * 5000 + " END")
+    assert text.startswith("START ") and text.endswith(" END") and " ... " in text and len(text) < 1700

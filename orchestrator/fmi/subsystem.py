@@ -31,9 +31,11 @@ status handling; above ~400 lines for that reason.
 
 from __future__ import annotations
 
+import ast
 import collections
 import ctypes
 import logging
+import re
 from abc import ABC, abstractmethod
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -91,6 +93,34 @@ class RealBatch:
             self.orders = None
 
 
+#: PythonFMU's report of a Python exception in the slave: "[fatal] Fatal py exception
+#: encountered: [getReal] PyObject_CallMethod\nValueError('invalid bearing parameters: ...')"
+_PY_EXCEPTION = re.compile(r"Fatal py exception encountered: \[(\w+)\] PyObject_CallMethod\s*"
+                           r"([A-Za-z_][\w.]*)\((.*)\)\s*$", re.S)
+_LOG_HEAD, _LOG_TAIL = 1200, 400       # characters kept of a long log message: its start and its end
+
+
+def log_message_text(message: str) -> str:
+    """One FMU log message on one line, for an error: a Python exception that PythonFMU
+    reports is shown as ``ValueError in getReal: <its message>`` (the repr unquoted, its
+    line breaks kept as ' / '), and a long message keeps its start and its end (the start says
+    what is wrong, the end where)."""
+    text = message.strip()
+    m = _PY_EXCEPTION.search(text)
+    if m:
+        where, kind, args = m.groups()
+        try:
+            value = ast.literal_eval(args)
+        except (ValueError, SyntaxError, MemoryError, RecursionError):
+            value = args
+        if isinstance(value, str):
+            text = f"{kind} in the FMU's {where}: {value}"
+    text = " / ".join(line.strip() for line in text.splitlines() if line.strip())
+    if len(text) > _LOG_HEAD + _LOG_TAIL + 5:
+        text = f"{text[:_LOG_HEAD]} ... {text[-_LOG_TAIL:]}"
+    return text
+
+
 # FMU log messages. fmpy's logger proxy (which formats the printf arguments)
 # keeps one Python logger for the process, so one callback serves every
 # instance and dispatches on the instance name to that instance's recent
@@ -109,7 +139,10 @@ def _fmu_logger(env, instance_name, status, category, message):
     for key, sink in list(_LOG_SINKS.items()):
         if key.rsplit("#", 1)[0] == inst:
             sink.append(f"[{label}] {text}")
-    log.log(logging.WARNING if status >= 1 else logging.DEBUG, "%s: [%s] %s", inst, label, text)
+    if status >= 1:
+        log.warning("%s: [%s] %s", inst, label, log_message_text(text))
+    else:
+        log.debug("%s: [%s] %s", inst, label, text)
 
 
 def _callbacks():
@@ -324,7 +357,7 @@ class Subsystem(SubsystemBase):
 
     # -- the choke point -----------------------------------------------------
     def _detail(self, extra: str = "") -> str:
-        msgs = " | ".join(m.strip().replace("\n", " ")[-400:] for m in self._log_messages)
+        msgs = " | ".join(log_message_text(m) for m in self._log_messages)
         parts = [p for p in (extra, f"FMU log: {msgs}" if msgs else "") if p]
         return "; ".join(parts)
 

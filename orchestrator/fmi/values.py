@@ -79,12 +79,19 @@ def settable_problem(var) -> str | None:
             "inputs and variables with initial=\"exact\" or \"approx\"")
 
 
+#: below this a declared Real min is read as "greater than 0" (our FMUs declare 5e-324)
+POSITIVE_MIN = 1e-300
+
+
 def declared_range(var) -> str:
     """The declared value set of ``var`` as text, e.g. ``[0, 10]``, ``{Off=0, On=1}``, ``32-bit integers``."""
     if var.type == "Enumeration" and var.items:
         return "{" + ", ".join(f"{n}={v}" for n, v, _ in var.items) + "}"
     lo = var.min if var.min is not None else ("-inf" if var.type == "Real" else INT32_MIN)
     hi = var.max if var.max is not None else ("inf" if var.type == "Real" else INT32_MAX)
+    if var.type == "Real" and var.min is not None and 0.0 < var.min <= POSITIVE_MIN:
+        # min = the smallest positive double: how an FMU says "> 0" (FMI's min is inclusive)
+        return f"(0, {hi}]" if var.max is not None else "(0, inf)"
     if var.type in ("Real", "Integer", "Enumeration"):
         return f"[{lo}, {hi}]"
     return {"Boolean": "true/false", "String": "a string"}.get(var.type, "?")
