@@ -64,11 +64,19 @@ class HandoffChooser:
     sleeping first (neighbouring windows cost about the same whatever the run does), and the
     faster mode then runs for ``hold`` windows. The hold doubles, up to ``max_hold``, while
     probes keep choosing the same mode, and falls back to ``min_hold`` when the choice changes.
-    The price: on a quiet machine one window in about ``2 + hold`` sleeps (sleeping cost
-    about 9 % more per step there, so about 0.3 % in all); with every core busy one window
-    watches (2.5x the cost there, so a few % in all)."""
+    Which mode pays also changes within a run and from one run to the next, not only with
+    the machine's load (``benchmarks/bench_handoff_modes.py``: the oil-bath run-up to 1.2 s
+    recorded in both modes, three times on this 2-vCPU host with nothing else running; mean
+    period of a stage step in the quiet phase and at the end of the window, watching against
+    sleeping: 1.01 / 3.84 against 1.62 / 2.98 ms, then 1.15 / 3.28 against 1.40 / 3.92 ms, then
+    1.32 / 3.08 against 1.39 / 2.73 ms). The cost of the whirl grows over many windows, without a
+    jump, so the hold is kept short (at most 16 windows of 64 steps). Replayed on those
+    recordings, this chooser gave 21.5 / 23.1 / 21.1 s where the better fixed mode gave
+    23.3 / 22.8 / 21.4 s and the better mode of every window 20.3 / 22.3 / 20.3 s. Whole
+    runs (BENCHMARKS.md session 18): on the quiet host 0.99x the wall time of always
+    watching; beside one busy process 0.48x."""
 
-    def __init__(self, window: int = 128, min_hold: int = 4, max_hold: int = 64, jump: float = 1.3):
+    def __init__(self, window: int = 64, min_hold: int = 4, max_hold: int = 16, jump: float = 1.3):
         self.window, self.min_hold, self.max_hold, self.jump = window, min_hold, max_hold, jump
         self.hold = min_hold
         self.plan: list[bool] = [True, False]      # the modes of the probe windows still to come
