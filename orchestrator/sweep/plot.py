@@ -130,15 +130,7 @@ def _heat(rows, p: str, q: str, col: str, path: Path) -> None:
             ax.plot([j for j, _ in bad], [i for _, i in bad], "x", color="C3", ms=4, mew=1,
                     label="not finished / no value")
             ax.legend(fontsize=8, loc="upper right")
-    ax.set_xticks(*_ticks(xs))
-    ax.set_yticks(*_ticks(ys))
-    if len(xs) > MAX_TICKS // 2:
-        ax.tick_params(axis="x", labelrotation=60)
-    ax.set_xlabel(p)
-    ax.set_ylabel(q)
-    ax.set_title(f"{col} over {p} and {q}", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path)
+    _finish_map(fig, ax, p, q, xs, ys, f"{col} over {p} and {q}", path)
 
 
 def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path) -> None:
@@ -156,13 +148,18 @@ def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path) -> None
         ax.plot([xi[r[p]] for r in bad], [yi[r[q]] for r in bad], "x", color="C3", ms=5, mew=1,
                 label="not finished / no value")
         ax.legend(fontsize=8, loc="upper right")
+    _finish_map(fig, ax, p, q, xs, ys, f"{col} over {p} and {q} ({len(rows)} runs)", path)
+
+
+def _finish_map(fig, ax, p: str, q: str, xs, ys, title: str, path: Path) -> None:
+    """Ticks (turned when many), axis labels and title of a map over ``p`` and ``q``; saved."""
     ax.set_xticks(*_ticks(xs))
     ax.set_yticks(*_ticks(ys))
     if len(xs) > MAX_TICKS // 2:
         ax.tick_params(axis="x", labelrotation=60)
     ax.set_xlabel(p)
     ax.set_ylabel(q)
-    ax.set_title(f"{col} over {p} and {q} ({len(rows)} runs)", fontsize=10)
+    ax.set_title(title, fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
 
