@@ -211,7 +211,7 @@ def compose_yaml(text: str, *, display: str, loader_cls: type | None = None):
     """
     import yaml
 
-    key = (text, display, loader_cls or yaml.SafeLoader)
+    key = (text, display, loader_cls or yaml.SafeLoader, MAX_YAML_NODES, MAX_YAML_DEPTH, MAX_INT_DIGITS)
     if len(text) <= _COMPOSED_MAX_CHARS:
         known = _COMPOSED.get(key)
         if known is not None:
@@ -238,7 +238,7 @@ def compose_yaml(text: str, *, display: str, loader_cls: type | None = None):
     return root
 
 
-#: the last few YAML texts composed, by (text, display, loader class): a sweep loads the same
+#: the last few YAML texts composed, by (text, display, loader class, the bounds checked): a sweep loads the same
 #: scenario once per run (twice per load, plus once per ``--set``), and PyYAML's pure-Python
 #: composer took 80 % of that (about 10 ms of a 12 ms load of a shipped scenario); a copy of
 #: the node tree costs 0.2 ms. Callers change the tree they get (overrides, merge keys), so
