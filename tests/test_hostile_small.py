@@ -230,3 +230,36 @@ def test_a_long_log_message_keeps_its_start_and_its_end():
     from orchestrator.fmi.subsystem import log_message_text
     text = log_message_text("START " + "x" * 5000 + " END")
     assert text.startswith("START ") and text.endswith(" END") and " ... " in text and len(text) < 1700
+
+
+# --------------------------------------------------------------------------- model description values
+@pytest.mark.parametrize("var, words", [
+    ('<ScalarVariable name="b" valueReference="3" causality="parameter" variability="fixed">'
+     '<Boolean start="maybe"/></ScalarVariable>', "variable 'b': start 'maybe' is not a Boolean"),
+    ('<ScalarVariable name="i" valueReference="3" causality="parameter" variability="fixed">'
+     '<Integer start="99999999999999"/></ScalarVariable>', "variable 'i' (Integer): start 99999999999999 is outside"),
+    ('<ScalarVariable name="r" valueReference="3" causality="parameter" variability="fixed">'
+     '<Real start="1" min="abc"/></ScalarVariable>', "variable 'r' (Real): min 'abc' is not a number"),
+    ('<ScalarVariable name="r" valueReference="3" causality="parameter" variability="fixed">'
+     '<Real start="abc"/></ScalarVariable>', "variable 'r' (Real): start 'abc' is not a number"),
+    ('<ScalarVariable name="r" valueReference="3" causality="parameter" variability="fixed">'
+     '<Real start="1" min="10" max="1"/></ScalarVariable>', "variable 'r': min 10.0 is greater than max 1.0"),
+    ('<ScalarVariable name=" " valueReference="3" causality="output"><Real/></ScalarVariable>',
+     "a ScalarVariable (valueReference 3) has an empty name"),
+])
+def test_model_description_values_that_are_not_of_their_type(tmp_path, capsys, var, words):
+    from hostile_builders import VARS, md_xml
+    fmu = write_fmu(tmp_path / "m.fmu", md_xml(variables=VARS + var))
+    rc, out = cli(capsys, "info", fmu)
+    assert rc == 1 and f"{fmu}: {words}" in out and "re-export the FMU" in out
+
+
+def test_model_description_values_of_their_type_are_read(tmp_path, capsys):
+    from hostile_builders import VARS, md_xml
+    var = ('<ScalarVariable name="r" valueReference="3" causality="parameter" variability="fixed">'
+           '<Real start="INF" min="-1e3" max="INF" nominal="2"/></ScalarVariable>'
+           '<ScalarVariable name="b" valueReference="4" causality="parameter" variability="fixed">'
+           '<Boolean start="1"/></ScalarVariable>')
+    fmu = write_fmu(tmp_path / "m.fmu", md_xml(variables=VARS + var))
+    rc, out = cli(capsys, "info", fmu)
+    assert rc == 0, out

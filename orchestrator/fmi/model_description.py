@@ -226,8 +226,11 @@ def _variable(sv, types, path: Path) -> Variable:
         if value not in allowed:
             raise _fail(path, f"{what} {value[:40]!r} of variable {name!r} is not an FMI 2.0 {what} (one of "
                         f"{', '.join(allowed)})", "re-export the FMU with a valid model description")
+    if not name.strip():
+        raise _fail(path, f"a ScalarVariable (valueReference {vr_int}) has an empty name", "re-export the FMU")
     declared = type_el.get("declaredType", "") or ""
     attrs = {**types.get(declared, ({}, ()))[0], **type_el.attrib}
+    _check_attributes(path, name, type_el.tag, {**attrs, "start": type_el.get("start")})
     return Variable(
         name=name, value_reference=vr_int, type=type_el.tag, causality=causality,
         variability=variability, start=_start(type_el.tag, type_el.get("start")),
@@ -236,6 +239,39 @@ def _variable(sv, types, path: Path) -> Variable:
         min=_number(type_el.tag, attrs.get("min")), max=_number(type_el.tag, attrs.get("max")),
         nominal=_number("Real", attrs.get("nominal")), items=types.get(declared, ({}, ()))[1],
         choices=_choices(sv) if type_el.tag == "String" else ())
+
+
+_INT32 = (-2**31, 2**31 - 1)                # fmi2Integer: a C int (FMI 2.0 sec. 2.1.2)
+_BOOLEAN_TEXT = ("true", "false", "1", "0")  # xs:boolean
+
+
+def _check_attributes(path: Path, name: str, type_: str, attrs: dict) -> None:
+    """The start, min, max and nominal of variable ``name`` are values of its type (an
+    unreadable one was dropped, or shown as text, before), and min <= max: a model description
+    that breaks this is refused with the variable, the attribute and the value."""
+    fix = "re-export the FMU with a valid model description"
+    numeric = ("start", "min", "max", "nominal") if type_ == "Real" else ("start", "min", "max")
+    values = {}
+    for key in numeric if type_ in ("Real", "Integer", "Enumeration") else ("start",):
+        text = attrs.get(key)
+        if text is None or (key == "start" and type_ == "String"):
+            continue
+        shown = text if len(text) <= 40 else text[:40] + "..."
+        if type_ == "Boolean":
+            if text.strip().lower() not in _BOOLEAN_TEXT:
+                raise _fail(path, f"variable {name!r}: start {shown!r} is not a Boolean (true, false, 1 or 0)", fix)
+            continue
+        try:
+            value = float(text) if type_ == "Real" or key == "nominal" else int(text.strip())
+        except ValueError:
+            kind = "a number" if type_ == "Real" else "an integer"
+            raise _fail(path, f"variable {name!r} ({type_}): {key} {shown!r} is not {kind}", fix) from None
+        if type_ != "Real" and not _INT32[0] <= value <= _INT32[1]:
+            raise _fail(path, f"variable {name!r} ({type_}): {key} {shown} is outside the 32-bit integers of "
+                              f"FMI 2.0 [{_INT32[0]}, {_INT32[1]}]", fix)
+        values[key] = value
+    if "min" in values and "max" in values and values["min"] > values["max"]:
+        raise _fail(path, f"variable {name!r}: min {values['min']!r} is greater than max {values['max']!r}", fix)
 
 
 MAX_CHOICES = 1000
