@@ -57,7 +57,9 @@ class InputError(CosimError):
 
 
 # --------------------------------------------------------------------------- files
-def _kind(mode: int) -> str:
+def file_kind(mode: int) -> str:
+    """What a file of ``st_mode`` is, in words ("a named pipe (FIFO)"), for one wording in
+    every message about something that is not a regular file."""
     for test, word in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
                        (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
                        (stat.S_ISSOCK, "a socket")):
@@ -89,7 +91,7 @@ def open_regular(path: str | os.PathLike, *, what: str = "file") -> BinaryIO:
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
-            raise InputError(f"{path}: the {what} is {_kind(st.st_mode)}, expected a regular file; "
+            raise InputError(f"{path}: the {what} is {file_kind(st.st_mode)}, expected a regular file; "
                              "give a regular file (rotorcosim reads no pipes or devices)")
         if hasattr(os, "set_blocking"):
             os.set_blocking(fd, True)

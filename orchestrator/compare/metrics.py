@@ -236,7 +236,7 @@ def check_baseline_target(path: Path, where: str = "'compare.baseline'") -> Path
     ancestor is a folder). A directory, FIFO, device, socket or symbolic link at ``path`` is
     refused (:class:`orchestrator.untrusted.InputError`), so a long comparison never ends
     blocked on a pipe or failing to write. ``where`` names the file and field."""
-    from orchestrator.untrusted import InputError, _kind
+    from orchestrator.untrusted import InputError, file_kind
 
     path = Path(path)
     expected = "--update-baseline writes a regular JSON file there"
@@ -248,7 +248,7 @@ def check_baseline_target(path: Path, where: str = "'compare.baseline'") -> Path
         raise InputError(f"{where}: {path} is a symbolic link (to {os.readlink(path)}); {expected} and does not write "
                          "through a link: name the real file in 'compare.baseline' or remove the link")
     if st is not None and not stat.S_ISREG(st.st_mode):
-        raise InputError(f"{where}: {path} is {_kind(st.st_mode)}; {expected}: name a new or existing regular file, "
+        raise InputError(f"{where}: {path} is {file_kind(st.st_mode)}; {expected}: name a new or existing regular file, "
                          "e.g. baselines/NAME.json")
     folder = path.parent
     while not folder.exists() and folder != folder.parent:

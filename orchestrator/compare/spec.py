@@ -30,9 +30,8 @@ from orchestrator.errors import ScenarioError
 from orchestrator.scenario import SCHEMES, Scenario
 from orchestrator.scenario.limits import MAX_SUBSTEPS, limit_problems
 from orchestrator.scenario.nodes import YamlLoader as ScenarioYamlLoader   # same YAML number rules
-from orchestrator.untrusted import (InputError, check_name, construct_yaml, format_template, name_problem,
-                                   read_text, read_yaml_tree)
-from orchestrator.untrusted import _kind   # the one wording of file kinds ("a named pipe (FIFO)")
+from orchestrator.untrusted import (InputError, check_name, construct_yaml, file_kind, format_template,
+                                   name_problem, read_text, read_yaml_tree)
 
 log = logging.getLogger(__name__)
 
@@ -402,7 +401,7 @@ def _baseline(baseline, source, bad) -> Path | None:
     except OSError:                              # missing (reported when it is read) or unreadable
         return path
     if not stat.S_ISREG(mode):
-        bad("baseline", f"names {path}, which is {_kind(mode)}; the baseline is a regular JSON file (read by the "
+        bad("baseline", f"names {path}, which is {file_kind(mode)}; the baseline is a regular JSON file (read by the "
             "regression gate, written by --update-baseline): name a file, e.g. baselines/NAME.json")
         return None
     return path

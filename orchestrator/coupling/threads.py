@@ -178,7 +178,6 @@ class StageThreads:
         # watches on a shared core would take it from one that works
         if max(1, n) + 1 > usable_cores():
             mode = "sleep"
-        self.handoff = mode
         self._chooser = HandoffChooser() if mode == "auto" else None
         self.turns = 0 if mode == "sleep" else SPIN_TURNS
         self._workers = [_Worker(self._flags, k, self.turns) for k in range(max(1, n))]

@@ -86,21 +86,6 @@ def _bool(s: str | None, default: bool) -> bool:
     return s.strip().lower() in ("true", "1")
 
 
-def _start(type_: str, s: str | None):
-    if s is None:
-        return None
-    try:
-        if type_ == "Real":
-            return float(s)
-        if type_ in ("Integer", "Enumeration"):
-            return int(s)
-        if type_ == "Boolean":
-            return _bool(s, False)
-    except ValueError:
-        return s
-    return s
-
-
 def _value_reference(path: Path, name: str, vr: str) -> int:
     """``vr`` as an fmi2ValueReference (unsigned 32-bit): no truncation, no silent wrap-around."""
     text = vr.strip()
@@ -230,13 +215,18 @@ def _variable(sv, types, path: Path) -> Variable:
         raise _fail(path, f"a ScalarVariable (valueReference {vr_int}) has an empty name", "re-export the FMU")
     declared = type_el.get("declaredType", "") or ""
     attrs = {**types.get(declared, ({}, ()))[0], **type_el.attrib}
-    _check_attributes(path, name, type_el.tag, {**attrs, "start": type_el.get("start")})
+    start = type_el.get("start")
+    values = _check_attributes(path, name, type_el.tag, {**attrs, "start": start})
+    if type_el.tag == "Boolean":
+        values["start"] = None if start is None else _bool(start, False)
+    elif type_el.tag == "String":
+        values["start"] = start
     return Variable(
         name=name, value_reference=vr_int, type=type_el.tag, causality=causality,
-        variability=variability, start=_start(type_el.tag, type_el.get("start")),
+        variability=variability, start=values.get("start"),
         description=sv.get("description", "") or "", unit=attrs.get("unit", "") or "",
         initial=sv.get("initial", "") or "", declared_type=declared,
-        min=_number(type_el.tag, attrs.get("min")), max=_number(type_el.tag, attrs.get("max")),
+        min=values.get("min"), max=values.get("max"),
         nominal=_number("Real", attrs.get("nominal")), items=types.get(declared, ({}, ()))[1],
         choices=_choices(sv) if type_el.tag == "String" else ())
 
@@ -245,10 +235,11 @@ _INT32 = (-2**31, 2**31 - 1)                # fmi2Integer: a C int (FMI 2.0 sec.
 _BOOLEAN_TEXT = ("true", "false", "1", "0")  # xs:boolean
 
 
-def _check_attributes(path: Path, name: str, type_: str, attrs: dict) -> None:
+def _check_attributes(path: Path, name: str, type_: str, attrs: dict) -> dict:
     """The start, min, max and nominal of variable ``name`` are values of its type (an
     unreadable one was dropped, or shown as text, before), and min <= max: a model description
-    that breaks this is refused with the variable, the attribute and the value."""
+    that breaks this is refused with the variable, the attribute and the value. Returns the
+    numbers read (``{attribute: float or int}`` of a Real, Integer or Enumeration)."""
     fix = "re-export the FMU with a valid model description"
     numeric = ("start", "min", "max", "nominal") if type_ == "Real" else ("start", "min", "max")
     values = {}
@@ -272,6 +263,7 @@ def _check_attributes(path: Path, name: str, type_: str, attrs: dict) -> None:
         values[key] = value
     if "min" in values and "max" in values and values["min"] > values["max"]:
         raise _fail(path, f"variable {name!r}: min {values['min']!r} is greater than max {values['max']!r}", fix)
+    return values
 
 
 MAX_CHOICES = 1000

@@ -46,7 +46,7 @@ from orchestrator.errors import FmuCallError, FmuError, LifecycleError, Scenario
 from orchestrator.fmi.archive import ModelDescription, Variable, binary_path, read_model_description, safe_extract
 from orchestrator.fmi.bundled_python import own_imports
 from orchestrator.fmi.values import FAMILY, TypedBatch, settable_problem
-from orchestrator.untrusted import out_dir_escape
+from orchestrator.untrusted import OUT_DIR_FIELD, out_dir_escape
 
 
 #: True once this process has loaded an FMU's shared library in-process (read by
@@ -419,7 +419,7 @@ class Subsystem(SubsystemBase):
                         if why:          # (scenarios made in Python do not pass the loader's check)
                             raise ScenarioError(f"parameter '{self.name}.{pname}' is a path in the run "
                                                 f"folder, but {why}")
-                        value = value.replace("{out_dir}", str(Path(out_dir).resolve()))
+                        value = value.replace(OUT_DIR_FIELD, str(Path(out_dir).resolve()))
                     self._call("fmi2SetString", self._component, vr, 1, (fmi2String * 1)(value.encode("utf-8")))
             except TypeError:
                 raise ScenarioError(f"parameter '{self.name}.{pname}' is of type {v.type}, got {value!r} "

@@ -62,6 +62,10 @@ class _ResultsReader:
     def fail(self, line: int, what: str) -> ValueError:
         return ValueError(f"{self.path}:{line}: {what}")
 
+    def blank_line(self, line: int) -> ValueError:
+        return self.fail(line, "empty line between rows; every line after the header is one row: the file is "
+                         "damaged or edited, rerun the scenario (or delete the line)")
+
     def too_long(self, line: int) -> ValueError:
         return self.fail(line, f"the line is longer than {MAX_LINE_BYTES} bytes (the limit); a line of results.csv "
                          "is one row of numbers: this is not a results file of a run (or raise "
@@ -147,16 +151,13 @@ class _ResultsReader:
             got = None
             empty = [i for i, line in enumerate(lines) if not line] if "" in lines else []
             if empty:
-                rows = [i for i in range(len(lines)) if i not in set(empty)]
+                rows = [i for i, line in enumerate(lines) if line]
                 if rows and (blank or empty[0] < rows[-1]):
-                    raise self.fail(blank or first + empty[0], "empty line between rows; every line after the "
-                                    "header is one row: the file is damaged or edited, rerun the scenario (or "
-                                    "delete the line)")
+                    raise self.blank_line(blank or first + empty[0])
                 blank = blank or first + empty[0]
                 lines = [lines[i] for i in rows]
             elif blank and lines:
-                raise self.fail(blank, "empty line between rows; every line after the header is one row: the "
-                                "file is damaged or edited, rerun the scenario (or delete the line)")
+                raise self.blank_line(blank)
             if lines:
                 blocks.append(self.parse(first, lines, complete, names))
         for j, (line, value) in sorted(self.text_seen.items(), key=lambda kv: kv[1][0]):

@@ -46,8 +46,7 @@ from typing import Any
 from xml.etree import ElementTree as ET
 
 from orchestrator.errors import ScenarioError
-from orchestrator.untrusted import InputError, parse_xml, read_bytes
-from orchestrator.untrusted import _kind   # the one wording of file kinds ("a named pipe (FIFO)")
+from orchestrator.untrusted import InputError, file_kind, parse_xml, read_bytes
 
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
@@ -251,7 +250,7 @@ def check_output_path(out: Path | str) -> Path:
         if not stat.S_ISREG(st.st_mode):
             fix = f"name the file inside it, e.g. {out / 'system.ssp'}" if stat.S_ISDIR(st.st_mode) else \
                 "give another path (export-ssp writes no pipes or devices)"
-            raise InputError(f"{out}: is {_kind(st.st_mode)}; {expected}: {fix}")
+            raise InputError(f"{out}: is {file_kind(st.st_mode)}; {expected}: {fix}")
         return out
     parent = out.parent
     if not parent.is_dir():
