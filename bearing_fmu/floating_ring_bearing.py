@@ -21,6 +21,7 @@ made PythonFMU 0.7.0 crash (segfault) on the second instantiation in a process.
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, String
@@ -122,6 +123,14 @@ _UNITS = dict(_jb.UNITS, **{"kg": dict(kg="1"), "kg.m2": dict(kg="1", m="2"), "m
                             "W": dict(kg="1", m="2", s="-3"), "s": dict(s="1")})
 
 
+def _side_names(msg: str, names, side: str) -> str:
+    """A film's message with its parameter names as the FMU spells them: ``n_phi x n_z`` of the
+    inner film is ``n_phi_inner x n_z_inner`` (names of one letter are left alone: ``B/D``)."""
+    for n in sorted((n for n in names if len(n) > 1), key=len, reverse=True):
+        msg = re.sub(rf"(?<![\w.]){re.escape(n)}(?!\w)", f"{n}_{side}", msg)
+    return msg
+
+
 @guard_callbacks
 class FloatingRingBearing(Fmi2Slave):
     """Floating-ring bearing: ring with mass and inertia between two Reynolds films."""
@@ -196,7 +205,7 @@ class FloatingRingBearing(Fmi2Slave):
                     msg = _jb.fmu_parameter_message(line)
                     name = msg.partition("'")[2].partition("'")[0] if msg.startswith("parameter '") else ""
                     problems.append(msg.replace(f"'{name}'", f"'{name}_{side}'", 1) if name in kw
-                                    else f"{side} film: {msg}")
+                                    else f"{side} film: {_side_names(msg, kw, side)}")
         if problems:
             raise ValueError(f"invalid parameters of the FloatingRingBearing FMU instance "
                              f"'{getattr(self, 'instance_name', '?')}': " + "; ".join(problems)

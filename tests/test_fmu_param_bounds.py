@@ -178,5 +178,51 @@ def test_floating_ring_films_are_named_by_side(capsys):
                   "--set", "fmus.bearing1.parameters.n_z_inner=100",
                   "--set", "fmus.bearing1.parameters.cav_width_outer=2e5")
     assert rc == 1
-    assert "inner film: the film grid n_phi x n_z must have at most 262144 cells" in out
+    assert "inner film: the film grid n_phi_inner x n_z_inner must have at most 262144 cells" in out
     assert "parameter 'cav_width_outer' must be below p0" in out and "BearingParams." not in out
+
+
+def test_relations_name_the_scenario_lines_of_the_parameters(tmp_path, capsys):
+    """The FMU checks the relations between its parameters itself; the master traces its
+    refusal back to where the scenario sets the parameters the message names."""
+    bad = GOOD.replace("cavitation: 0", "cavitation: 1, axial_bc: 1, p0: 1.0e5,\n      p_feed: 0.5e5, "
+                                        "groove_width: 0.26")
+    path = scenario(tmp_path, bad)
+    rc, out = cli(capsys, "validate", path)
+    assert rc == 1 and "parameter 'p_feed' must be >= p0" in out, out
+    assert f"'bearing1' gets p_feed from {path}:12 and p0 from {path}:11" in out, out
+    rc, out = cli(capsys, "validate", scenario(tmp_path), "--set", "fmus.bearing1.parameters.n_phi=8192",
+                  "--set", "fmus.bearing1.parameters.n_z=2048")
+    assert rc == 1 and "at most 262144 cells" in out, out
+    assert ("'bearing1' gets n_phi from --set fmus.bearing1.parameters.n_phi=8192 and n_z from "
+            "--set fmus.bearing1.parameters.n_z=2048") in out, out
+
+
+def test_floating_ring_grid_limit_names_the_parameters_of_the_side(capsys):
+    from orchestrator.shipped import resolve
+    rc, out = cli(capsys, "validate", resolve("jeffcott_runup_floating_ring_free_to_air"),
+                  "--set", "fmus.bearing1.parameters.n_phi_outer=8192")
+    assert rc == 1 and "outer film: the film grid n_phi_outer x n_z_outer must have at most" in out, out
+    assert "'bearing1' gets n_phi_outer from --set fmus.bearing1.parameters.n_phi_outer=8192" in out, out
+
+
+@pytest.mark.parametrize("text, want", [
+    ("parameter 'p_feed' must be >= p0 (got 1)", [("p_feed", "f:2"), ("p0", "f:1")]),
+    ("n_z and n_phi", [("n_z", "f:4"), ("n_phi", "f:3")]),
+    ("the gap R/B is odd", []),                       # one-letter names only when quoted
+    ("'R' must be positive", [("R", "f:5")]),
+    ("p_feed_outer must be set; xp0 and p0x differ", []),   # whole words only
+    ("a.p0 and p0[1]", []),
+])
+def test_origins_named_in(text, want):
+    from orchestrator.scenario.model import FmuSpec
+    spec = FmuSpec(name="b", path=tmp_path_free(), parameter_origins={
+        "p0": "f:1", "p_feed": "f:2", "n_phi": "f:3", "n_z": "f:4", "R": "f:5"})
+    assert spec.origins_named_in(text) == want
+    assert len(FmuSpec(name="b", path=tmp_path_free(), parameter_origins={
+        f"q{i}": f"f:{i}" for i in range(9)}).origins_named_in(" ".join(f"q{i}" for i in range(9)))) == 4
+
+
+def tmp_path_free():
+    from pathlib import Path
+    return Path("/nonexistent/b.fmu")

@@ -161,7 +161,13 @@ class MasterAlgorithm:
                     if isinstance(sub, WorkerSubsystem):
                         sub.ready()
             for f in sc.fmus:
-                self.subsystems[f.name].set_parameters(dict(f.parameters), out_dir=self.out_dir)
+                try:
+                    self.subsystems[f.name].set_parameters(dict(f.parameters), out_dir=self.out_dir)
+                except FmuCallError as e:
+                    hint = self._origins_hint(e)
+                    if hint:
+                        e.args = (f"{e.args[0] if e.args else e}{hint}",) + tuple(e.args[1:])
+                    raise
             self._plan()
         except BaseException:
             self._release()
@@ -340,7 +346,8 @@ class MasterAlgorithm:
         except (FmuCallError, CouplingError) as e:
             if isinstance(e, FmuCrashError):
                 self.failure = e.report()
-            self._fail(f"initialization failed: {e}; check the FMU's parameters and start values", t0)
+            self._fail(f"initialization failed: {e}; check the FMU's parameters and start values"
+                       f"{self._origins_hint(e)}", t0)
             self._phase = "running"
             self.view.is_output = False        # observers start (results.csv gets its header), no row
             for o in self.observers:
@@ -500,7 +507,22 @@ class MasterAlgorithm:
                 f"t={t_next:.12g} s ({e}). Rows up to t={t:.12g} s are kept. Follow the fix the FMU's message "
                 "gives, if any; a numerically unstable coupling shows up the same way, so also try a smaller "
                 f"coupling.macro_step (now {self.scenario.coupling.macro_step:g}) or more substeps for "
-                f"'{e.instance}', and check the FMU's log above")
+                f"'{e.instance}', and check the FMU's log above{self._origins_hint(e)}")
+
+    def _origins_hint(self, e: Exception) -> str:
+        """``"; 'bearing1' gets p_feed from file:21 and p0 from file:20"`` for the parameters of the failing
+        instance that its message names (:meth:`FmuSpec.origins_named_in`), else ``""``."""
+        instance = getattr(e, "instance", None)
+        try:
+            spec = self.scenario.fmu(instance) if instance else None
+        except KeyError:
+            return ""
+        hits = spec.origins_named_in(str(e)) if spec is not None else []
+        if not hits:
+            return ""
+        where = [f"{name} from {origin}" for name, origin in hits]
+        listed = where[0] if len(where) == 1 else ", ".join(where[:-1]) + " and " + where[-1]
+        return f"; '{instance}' gets {listed}"
 
     def _fail_fmu(self, e: FmuCallError, t: float, t_next: float) -> None:
         if isinstance(e, FmuCrashError):

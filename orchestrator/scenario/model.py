@@ -6,6 +6,8 @@ The dataclasses are the contract between the loader, the master, the CLI,
 
 from __future__ import annotations
 
+import re
+
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -55,6 +57,25 @@ class FmuSpec:
     substeps: int | None = None              # per-FMU override of coupling.substeps
     line: int | None = None                  # line of the entry in the YAML file
     isolation: str | None = None             # "process" | "none"; None -> coupling.isolation
+    parameter_origins: Mapping[str, str] = field(default_factory=dict)  # name -> "file:line" or "--set ..."
+
+    def origins_named_in(self, text: str, limit: int = 4) -> list[tuple[str, str]]:
+        """Where the scenario sets the parameters that ``text`` (an FMU's message) names.
+
+        ``(name, "file:line")`` (or ``"--set ..."``) for each parameter of this instance that the text names,
+        in the order the text names them, at most ``limit``: quoted (``'p_feed'``) or, for
+        names of two or more characters, as a whole word (``p0``). The FMU checks its
+        parameters itself (relations such as ``p_feed >= p0``), so this is how its
+        refusal is traced back to the scenario's lines."""
+        found = []
+        for pname, origin in self.parameter_origins.items():
+            pat = re.escape(pname)
+            quoted = re.search(rf"['\"`]{pat}['\"`]", text)
+            word = len(pname) > 1 and re.search(rf"(?<![\w.\[\]]){pat}(?![\w\[])", text)
+            hit = quoted or word
+            if hit:
+                found.append((hit.start(), pname, origin))
+        return [(n, o) for _, n, o in sorted(found)[:limit]]
 
 
 @dataclass(frozen=True, kw_only=True)

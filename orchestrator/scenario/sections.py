@@ -73,7 +73,8 @@ class Draft:
             params = {f["name"]: {k: v for k, (v, _) in f["parameters"].items()} for f in fmus}
         return Scenario(
             fmus=tuple(FmuSpec(name=f["name"], path=f["path"], parameters=params[f["name"]],
-                               substeps=f["substeps"], line=f["line"], isolation=f["isolation"]) for f in fmus),
+                               substeps=f["substeps"], line=f["line"], isolation=f["isolation"],
+                               parameter_origins=dict(f.get("origins", {}))) for f in fmus),
             connections=tuple(ConnectionSpec(src=c["from"], dst=c["to"], gain=c["gain"], offset=c["offset"],
                                              line=c["line"]) for c in self.connections),
             coupling=CouplingSpec(**self.coupling),
@@ -211,7 +212,8 @@ class SectionReader(NodeReader):
                                 f"name: {', '.join(our_fmus())}) (got {'both' if 'path' in entry else 'neither'}); "
                                 f"write '{name}: {{path: X.fmu}}' or '{name}: {{fmu: JournalBearing}}'")
             spec = {"name": name, "line": knode.start_mark.line + 1 if knode.start_mark else None,
-                    "node": knode, "path": None, "parameters": {}, "substeps": None, "isolation": None}
+                    "node": knode, "path": None, "parameters": {}, "origins": {}, "substeps": None,
+                    "isolation": None}
             if "path" in entry:
                 p = self.string(entry["path"][1], f"fmus.{name}.path", "give the FMU file, relative to this file")
                 if p is not None and (any(ord(ch) < 32 for ch in p) or len(p) > 4096):
@@ -245,6 +247,7 @@ class SectionReader(NodeReader):
                                      f"text) (got {self.got(pv)}); write one value")
                     else:
                         spec["parameters"][pname] = (self.value(pv), pv)
+                        spec["origins"][pname] = self.loc(pv)
                         why = out_dir_escape(self.value(pv))
                         if why:
                             self.err(pv, f"parameter '{name}.{pname}' is a path in the run folder, but {why}")
