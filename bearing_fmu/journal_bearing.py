@@ -390,6 +390,8 @@ class JournalBearing(Fmi2Slave):
     _input_setter = input_setter
 
     def _set_fields_file(self, value: str) -> None:
+        if value and "{out_dir}" not in str(value):     # refused now, not after the run (write_fields)
+            fields_target(str(value))
         self.fields_file = str(value)
 
     def to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006 (PythonFMU's signature)
@@ -505,11 +507,9 @@ class JournalBearing(Fmi2Slave):
 
     def terminate(self):
         if self.fields_file and self._model is not None:
-            path = Path(self.fields_file)
-            path.parent.mkdir(parents=True, exist_ok=True)
             import numpy as np
             fields = self._model.fields()
-            np.savez(path, t=np.float64(self._time), **{k: np.asarray(v) for k, v in fields.items()})
+            write_fields(self.fields_file, t=np.float64(self._time), **{k: np.asarray(v) for k, v in fields.items()})
 
     # -- FMU state --------------------------------------------------------------
     def _get_fmu_state(self) -> dict[str, Any]:
@@ -520,6 +520,80 @@ class JournalBearing(Fmi2Slave):
 
     _fmu_state_to_bytes = staticmethod(state_to_bytes)
     _fmu_state_from_bytes = staticmethod(state_from_bytes)
+
+
+def fields_target(name: str):
+    """The path ``numpy.savez(name)`` writes (``.npz`` appended when missing) and its lstat (None
+    when it does not exist yet); ValueError naming ``fields_file`` when it must not be replaced:
+    an existing link, folder, device, or a file that is not a zip archive (an earlier .npz)."""
+    import stat
+    path = Path(name)
+    if path.suffix != ".npz":
+        path = path.with_name(path.name + ".npz")
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return path, None
+    except OSError as exc:
+        raise ValueError(f"fields_file {str(path)!r} cannot be checked ({exc}); choose another path") from None
+    why = ("a symbolic link" if stat.S_ISLNK(st.st_mode) else "a folder" if stat.S_ISDIR(st.st_mode)
+           else None if stat.S_ISREG(st.st_mode) else "not a regular file")
+    if why is None and st.st_size:
+        try:
+            with open(path, "rb") as f:
+                head = f.read(4)
+        except OSError as exc:
+            raise ValueError(f"fields_file {str(path)!r} cannot be read ({exc}); choose another path") from None
+        if head != b"PK\x03\x04":
+            why = "a file that is not a .npz archive"
+    if why is not None:
+        raise ValueError(f"fields_file {str(path)!r} exists and is {why}; it is not overwritten: "
+                         "give the name of a new file or of an earlier fields file (e.g. '{out_dir}/fields.npz')")
+    return path, st
+
+
+def write_fields(name: str, **arrays) -> Path:
+    """``numpy.savez(name, **arrays)`` that never destroys what it did not write; the path written.
+
+    As numpy.savez, ``.npz`` is appended to a name without it, and missing folders are made.
+    The file is written beside its target under a temporary name and renamed into place, so a
+    reader never sees half a file (and a link made at the target after the check is replaced,
+    not followed). An
+    existing target is replaced only when it is a regular file that holds a zip archive (an
+    earlier .npz); anything else is refused (:func:`fields_target`): the parameter is
+    untrusted scenario text, and ``/home/u/.bashrc`` must not be overwritten. The FMU checks
+    the target when the parameter is set too, so a refusal comes before the run, not after."""
+    import stat
+    import tempfile
+
+    import numpy as np
+    path, st = fields_target(name)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **arrays)
+        os.chmod(tmp, stat.S_IMODE(st.st_mode) if st is not None else 0o666 & ~_umask())   # as open() would
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
+def _umask() -> int:
+    """This process's umask, read without changing it (os.umask would, for every thread)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0o022
 
 
 def coefficients_moved(at, now, c: float) -> float:
