@@ -27,6 +27,7 @@ Errors list every problem: ``file: 'discs[1].z' ... (got ...); fix``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -37,11 +38,19 @@ from .beam import Disc, Element
 
 DATA_DIR = Path(__file__).parent / "data"
 
+#: bounds of a rotor file (it is untrusted input: a scenario names it, the FMU reads it)
+MAX_FILE_BYTES = 1 << 20          # the shipped file is 6 kB
+MAX_YAML_NODES = 100_000          # after aliases are expanded (an alias bomb is refused)
+MAX_LIST_ITEMS = 1000             # materials, sections, discs, bearings
+MAX_ELEMENTS = 2000               # beam elements in all (the shipped rotor has 33)
+MAX_MODES = 500                   # Craig-Bampton modes per plane
+
 
 class RotorFileError(ValueError):
     """A rotor file is invalid; ``problems`` lists every problem."""
 
     def __init__(self, source: str, problems: list[str]):
+        self.source = source
         self.problems = problems
         super().__init__(f"invalid rotor file {source}:\n  " + "\n  ".join(problems))
 
@@ -109,6 +118,32 @@ def _num(d, key, where, problems, *, positive=False, nonneg=False, default=None)
     return float(v)
 
 
+def _mapping(d, key, problems) -> dict:
+    v = d.get(key)
+    if v is None:
+        return {}
+    if not isinstance(v, dict):
+        problems.append(f"'{key}' must be a mapping of names to entries (got {type(v).__name__})")
+        return {}
+    if len(v) > MAX_LIST_ITEMS:
+        problems.append(f"'{key}' has {len(v)} entries, more than {MAX_LIST_ITEMS}")
+        return {}
+    return v
+
+
+def _list(d, key, problems) -> list:
+    v = d.get(key)
+    if v is None:
+        return []
+    if not isinstance(v, list):
+        problems.append(f"'{key}' must be a list of mappings (got {type(v).__name__})")
+        return []
+    if len(v) > MAX_LIST_ITEMS:
+        problems.append(f"'{key}' has {len(v)} entries, more than {MAX_LIST_ITEMS}")
+        return []
+    return v
+
+
 def _unknown(d, allowed, where, problems):
     for k in d:
         if k not in allowed:
@@ -123,7 +158,9 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
     _unknown(data, {"name", "materials", "shaft", "discs", "bearings", "internal_damping",
                     "reduction", "description", "sources"}, "<top>", p)
     mats = {}
-    for mname, m in (data.get("materials") or {}).items():
+    materials = _mapping(data, "materials", p)
+    discs_in, bearings_in = _list(data, "discs", p), _list(data, "bearings", p)
+    for mname, m in materials.items():
         if not isinstance(m, dict):
             p.append(f"'materials.{mname}' must be a mapping with E, nu, rho")
             continue
@@ -139,13 +176,16 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
     if not isinstance(shaft, dict) or not isinstance(shaft.get("sections"), list) or not shaft["sections"]:
         raise RotorFileError(source, p + ["'shaft.sections' must be a non-empty list of "
                                           "{length, d_outer, material} mappings"])
+    if len(shaft["sections"]) > MAX_LIST_ITEMS:
+        raise RotorFileError(source, p + [f"'shaft.sections' has {len(shaft['sections'])} entries, more than "
+                                          f"{MAX_LIST_ITEMS}; join sections of the same diameter"])
     _unknown(shaft, {"z_start", "max_element_length", "sections"}, "shaft", p)
     z0 = _num(shaft, "z_start", "shaft", p, default=0.0)
     hmax = _num(shaft, "max_element_length", "shaft", p, positive=True, default=np.inf)
 
     # point features that must be nodes
     discs, dz = [], []
-    for i, d in enumerate(data.get("discs") or []):
+    for i, d in enumerate(discs_in):
         w = f"discs[{i}]"
         if not isinstance(d, dict):
             p.append(f"'{w}' must be a mapping")
@@ -159,7 +199,7 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
         discs.append(spec)
         dz.append(spec.z)
     bnames, bz = [], []
-    for i, b in enumerate(data.get("bearings") or []):
+    for i, b in enumerate(bearings_in):
         w = f"bearings[{i}]"
         if not isinstance(b, dict):
             p.append(f"'{w}' must be a mapping")
@@ -189,13 +229,20 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
             p.append(f"'{w}.material' must be one of {sorted(mats)} (got {mat!r})")
             continue
         nel = s.get("n_elements")
+        if nel is not None and (isinstance(nel, bool) or not isinstance(nel, int) or not 1 <= nel <= MAX_ELEMENTS):
+            p.append(f"'{w}.n_elements' must be a whole number from 1 to {MAX_ELEMENTS} (got {nel!r})")
+            continue
         if not np.isfinite(L):
             continue
         E, G, rho, nu = mats[mat]
         # split at interior feature points, then into equal elements
         cuts = [z] + [q for q in points if z + 1e-12 < q < z + L - 1e-12] + [z + L]
         for a, b in zip(cuts[:-1], cuts[1:]):
-            n = int(nel) if nel else max(1, int(np.ceil((b - a) / hmax - 1e-9)))
+            n = nel if nel else max(1, math.ceil(min((b - a) / hmax - 1e-9, 2.0 * MAX_ELEMENTS)))
+            if len(elements) + n > MAX_ELEMENTS:
+                raise RotorFileError(source, p + [
+                    f"the shaft would have more than {MAX_ELEMENTS} beam elements (at '{w}'); use a larger "
+                    f"'shaft.max_element_length' (now {hmax:g} m) or fewer 'n_elements'"])
             for k in range(n):
                 elements.append(Element(z0=a + k * (b - a) / n, length=(b - a) / n, d_outer=do,
                                         d_inner=di, E=E, G=G, rho=rho, nu=nu))
@@ -217,9 +264,13 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
         p.append(f"'bearings' must be at distinct positions (got z={bz})")
     beta = _num(data, "internal_damping", "<top>", p, nonneg=True, default=0.0)
     red = data.get("reduction") or {}
-    n_modes = int(red.get("n_modes", 6)) if isinstance(red, dict) else 6
-    if n_modes < 0:
-        p.append(f"'reduction.n_modes' must be >= 0 (got {n_modes})")
+    if not isinstance(red, dict):
+        p.append(f"'reduction' must be a mapping such as {{n_modes: 6}} (got {red!r})")
+        red = {}
+    n_modes = red.get("n_modes", 6)
+    if isinstance(n_modes, bool) or not isinstance(n_modes, int) or not 0 <= n_modes <= MAX_MODES:
+        p.append(f"'reduction.n_modes' must be a whole number from 0 to {MAX_MODES} (got {n_modes!r})")
+        n_modes = 0
     if p:
         raise RotorFileError(source, p)
     return RotorDefinition(name=str(data.get("name", "rotor")), elements=elements, z_nodes=zn,
@@ -229,14 +280,72 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
 
 
 def load_rotor_file(path=None) -> RotorDefinition:
-    """Read and validate a rotor YAML file (default: the shipped turbocharger)."""
+    """Read and validate a rotor YAML file (default: the shipped turbocharger).
+
+    The file is untrusted: it must be a regular file (a link to one is followed) of at most
+    :data:`MAX_FILE_BYTES`, in UTF-8, and its YAML at most :data:`MAX_YAML_NODES` nodes with
+    aliases expanded; :func:`parse_rotor` bounds the lists and the elements."""
+    import stat
     path = DATA_DIR / "turbocharger.yaml" if path is None else Path(path)
     try:
-        text = path.read_text()
+        st = path.stat()
+        if not stat.S_ISREG(st.st_mode):
+            kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file (a device or a pipe)"
+            raise RotorFileError(str(path), [f"the rotor file is {kind}; give a YAML file"])
+        if st.st_size > MAX_FILE_BYTES:
+            raise RotorFileError(str(path), [f"the file has {st.st_size} bytes, more than a rotor file may "
+                                             f"have ({MAX_FILE_BYTES}); check the path"])
+        with open(path, "rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise RotorFileError(str(path), [f"cannot read the file ({exc}); check the path"]) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise RotorFileError(str(path), [f"the file has more than {MAX_FILE_BYTES} bytes; check the path"])
     try:
-        data = yaml.safe_load(text)
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise RotorFileError(str(path), [f"the file is not UTF-8 text (byte {exc.start}); save it as UTF-8"]) from None
+    try:
+        loader = yaml.SafeLoader(text)
+        try:
+            node = loader.get_single_node()
+            if node is not None and _expanded_nodes(node) > MAX_YAML_NODES:
+                raise RotorFileError(str(path), [f"the YAML has more than {MAX_YAML_NODES} values with its "
+                                                 "aliases expanded; write the rotor out plainly"])
+            data = loader.construct_document(node) if node is not None else None
+        finally:
+            loader.dispose()
     except yaml.YAMLError as exc:
         raise RotorFileError(str(path), [f"not valid YAML: {exc}"]) from None
+    except RecursionError:
+        raise RotorFileError(str(path), ["the YAML is nested too deeply; write the rotor out plainly"]) from None
     return parse_rotor(data, source=str(path))
+
+
+def _expanded_nodes(root) -> int:
+    """The number of YAML nodes of ``root`` with every alias expanded (memoised per node, so an
+    alias bomb is counted, not walked); a cycle counts as too many."""
+    sizes: dict[int, int] = {}
+    on_path: set[int] = set()
+    stack = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        key = id(node)
+        if isinstance(node, yaml.SequenceNode):
+            children = node.value
+        elif isinstance(node, yaml.MappingNode):
+            children = [x for kv in node.value for x in kv]
+        else:
+            children = []
+        if done:
+            on_path.discard(key)
+            sizes[key] = min(1 + sum(sizes[id(c)] for c in children), MAX_YAML_NODES + 1)
+            continue
+        if key in sizes:
+            continue
+        if key in on_path:                     # a recursive alias
+            return MAX_YAML_NODES + 1
+        on_path.add(key)
+        stack.append((node, True))
+        stack.extend((c, False) for c in children if id(c) not in sizes)
+    return sizes[id(root)]

@@ -100,4 +100,8 @@ class TurbochargerRotor(Fmi2Slave):
             bundled = Path(self.resources) / "rotor_fmu" / "data" / "turbocharger.yaml"
             if bundled.is_file():
                 params = {**params, "rotor_file": str(bundled)}
-        return _model(params, t0)
+        from rotor_fmu.rotor_file import RotorFileError
+        try:
+            return _model(params, t0)
+        except RotorFileError as exc:          # named as the FMU's parameter (the master traces it)
+            raise RotorFileError(f"{exc.source} (parameter 'rotor_file')", exc.problems) from None
