@@ -217,6 +217,8 @@ def _cmd_info(args) -> int:
     if md.default_experiment:
         print("default experiment: " + ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v!r} (not a number)"
                                                  for k, v in md.default_experiment.items()))
+    for line in _feedthrough_lines(md):
+        print(line)
     rank = {c: i for i, c in enumerate(_CAUSALITY_ORDER)}
     variables = sorted(md.variables.values(), key=lambda v: rank.get(v.causality, len(rank)))
     by_ref: dict = {}
@@ -236,6 +238,27 @@ def _cmd_info(args) -> int:
     for r in rows:
         print("  " + "  ".join(c.ljust(w) for c, w in zip(r[:n], widths, strict=True)) + "  " + r[n])
     return 0
+
+
+def _feedthrough_lines(md) -> list[str]:
+    """Which inputs each output depends on directly, as ``<ModelStructure><Outputs>`` declares
+    it (the dependencies on inputs; nothing when the FMU has no output)."""
+    feed = md.direct_feedthrough()
+    if not feed:
+        return []
+    if all(deps is None for deps in feed.values()):
+        return ["direct feedthrough: not declared (ModelStructure/Outputs gives no dependencies: an output may "
+                "depend on every input)"]
+    if all(deps == () for deps in feed.values()):
+        return ["direct feedthrough: none (ModelStructure/Outputs: no output depends directly on an input)"]
+    lines = ["direct feedthrough (ModelStructure/Outputs: output <- the inputs it depends on directly):"]
+    lines += [f"  {name} <- {', '.join(deps)}" for name, deps in feed.items() if deps]
+    for label, names in (("no input", [n for n, d in feed.items() if d == ()]),
+                         ("not declared (may depend on every input)", [n for n, d in feed.items() if d is None])):
+        if names:
+            more = f" and {len(names) - 12} more" if len(names) > 12 else ""
+            lines.append(f"  {label}: {', '.join(names[:12])}{more}")
+    return lines
 
 
 def _family(fmi_type: str) -> str:

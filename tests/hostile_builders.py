@@ -17,11 +17,13 @@ VARS = ('<ScalarVariable name="u" valueReference="0" causality="input"><Real sta
         '<Real start="1"/></ScalarVariable>')
 
 
-def md_xml(*, version: str = "2.0", variables: str = VARS, doctype: str = "", encoding: str = "UTF-8") -> str:
+def md_xml(*, version: str = "2.0", variables: str = VARS, doctype: str = "", encoding: str = "UTF-8",
+           structure: str = "") -> str:
+    """A model description; ``structure``: the ``<ModelStructure>`` element (none by default)."""
     return (f'<?xml version="1.0" encoding="{encoding}"?>\n{doctype}'
             f'<fmiModelDescription fmiVersion="{version}" modelName="M" guid="{{1}}">'
             '<CoSimulation modelIdentifier="M"/>'
-            f'<ModelVariables>{variables}</ModelVariables></fmiModelDescription>\n')
+            f'<ModelVariables>{variables}</ModelVariables>{structure}</fmiModelDescription>\n')
 
 
 def write_fmu(path: Path, md: bytes | str | None = None, members=(), *,

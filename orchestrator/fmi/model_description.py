@@ -6,7 +6,8 @@ member and calls it): at most :data:`MAX_XML_BYTES`, parsed by
 :func:`orchestrator.untrusted.parse_xml` (DOCTYPE and entities refused after decoding,
 whatever the encoding), ``fmiVersion`` exactly ``2.0`` (or ``2.0.x``), a ``CoSimulation``
 element, every variable with a valueReference in 0..2^32-1 (fmi2ValueReference is a 32-bit
-unsigned int) and an FMI 2.0 causality and variability (FMI 2.0 sec. 2.2). Every problem
+unsigned int) and an FMI 2.0 causality and variability (FMI 2.0 sec. 2.2), and a consistent
+``<ModelStructure>`` (:func:`_model_structure`, FMI 2.0 sec. 2.2.8). Every problem
 raises :class:`orchestrator.errors.FmuError` naming the file, what is wrong and the fix.
 """
 
@@ -22,6 +23,7 @@ from orchestrator.untrusted import InputError, parse_xml
 
 MAX_XML_BYTES = 32 * 2**20            # modelDescription.xml
 MAX_VALUE_REFERENCE = 2**32 - 1       # fmi2ValueReference is unsigned int
+MAX_DEPENDENCIES = 2_000_000          # <ModelStructure>: dependencies of all Unknowns together
 CAUSALITIES = ("parameter", "calculatedParameter", "input", "output", "local", "independent")
 VARIABILITIES = ("constant", "fixed", "tunable", "discrete", "continuous")
 _VERSION_RE = re.compile(r"^2\.0(\.[0-9]+)?$")
@@ -46,6 +48,28 @@ class Variable:
     nominal: float | None = None
     items: tuple = ()              # Enumeration: ((name, value, description), ...) of the declared type
     choices: tuple = ()            # String: the values the FMU accepts, from its rotorcosim annotation
+    derivative: int | None = None  # Real: index (1-based) of the variable this one is the derivative of
+
+
+@dataclass(frozen=True)
+class Unknown:
+    """One ``<Unknown>`` of ``<ModelStructure>`` (FMI 2.0 sec. 2.2.8): ScalarVariable ``index``
+    (1-based, in file order) and the indices of the Knowns it depends on."""
+
+    index: int
+    name: str
+    dependencies: tuple[int, ...] | None = None      # None: not declared (it may depend on every Known)
+    dependencies_kind: tuple[str, ...] | None = None  # None: not declared
+
+
+@dataclass(frozen=True)
+class ModelStructure:
+    """``<ModelStructure>``: its Outputs, Derivatives and InitialUnknowns, as declared (empty
+    when the file has none)."""
+
+    outputs: tuple[Unknown, ...] = ()
+    derivatives: tuple[Unknown, ...] = ()
+    initial_unknowns: tuple[Unknown, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -67,6 +91,7 @@ class ModelDescription:
     generation_tool: str = ""
     default_experiment: Mapping[str, float] = field(default_factory=dict)
     variables: Mapping[str, Variable] = field(default_factory=dict)   # name -> Variable, in file order
+    model_structure: ModelStructure = field(default_factory=ModelStructure)
 
     def inputs(self) -> list[Variable]:
         return [v for v in self.variables.values() if v.causality == "input"]
@@ -76,6 +101,22 @@ class ModelDescription:
 
     def parameters(self) -> list[Variable]:
         return [v for v in self.variables.values() if v.causality == "parameter"]
+
+    def direct_feedthrough(self) -> dict[str, tuple[str, ...] | None]:
+        """``{output name: names of the inputs it depends on directly}`` from
+        ``<ModelStructure><Outputs>`` (FMI 2.0 sec. 2.2.8: at a communication point an output
+        depends on these inputs without a step in between); ``()`` for an output that depends on
+        no input, None where the FMU does not declare its dependencies (then it may depend on
+        every input). Outputs the FMU does not list in ``<Outputs>`` are None too."""
+        by_index = list(self.variables.values())
+        declared = {u.name: u.dependencies for u in self.model_structure.outputs}
+        out = {}
+        for v in self.outputs():
+            deps = declared.get(v.name)
+            out[v.name] = None if deps is None else tuple(
+                by_index[i - 1].name for i in deps if by_index[i - 1].causality == "input")
+        return out
+
 
 def _fail(path, what: str, fix: str) -> FmuError:
     return FmuError(f"{path}: {what}; {fix}")
@@ -166,6 +207,7 @@ def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelD
         if var.name in variables:
             raise _fail(path, f"variable {var.name!r} is declared twice", "re-export the FMU")
         variables[var.name] = var
+    structure = _model_structure(root, path, list(variables.values()))
 
     de = root.find("DefaultExperiment")
     default_experiment = {}
@@ -190,7 +232,7 @@ def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelD
         needs_execution_tool=_bool(cs.get("needsExecutionTool"), False),
         can_be_instantiated_only_once_per_process=_bool(cs.get("canBeInstantiatedOnlyOncePerProcess"), False),
         description=root.get("description", "") or "", generation_tool=root.get("generationTool", "") or "",
-        default_experiment=default_experiment, variables=variables)
+        default_experiment=default_experiment, variables=variables, model_structure=structure)
 
 
 def _variable(sv, types, path: Path) -> Variable:
@@ -228,7 +270,31 @@ def _variable(sv, types, path: Path) -> Variable:
         initial=sv.get("initial", "") or "", declared_type=declared,
         min=values.get("min"), max=values.get("max"),
         nominal=_number("Real", attrs.get("nominal")), items=types.get(declared, ({}, ()))[1],
-        choices=_choices(sv) if type_el.tag == "String" else ())
+        choices=_choices(sv) if type_el.tag == "String" else (),
+        derivative=_derivative(path, name, type_el.get("derivative")) if type_el.tag == "Real" else None)
+
+
+def _shown(text: str) -> str:
+    return repr(text if len(text) <= 40 else text[:40] + "...")
+
+
+def _integer(text: str) -> int | None:
+    """An xs:unsignedInt (whitespace around it and a leading '+' allowed) as int, else None."""
+    t = text.strip()
+    t = t[1:] if t.startswith("+") else t
+    return int(t) if 0 < len(t) <= 10 and t.isascii() and t.isdigit() else None
+
+
+def _derivative(path: Path, name: str, text: str | None) -> int | None:
+    """The ``derivative`` attribute of a Real: the index of a ScalarVariable (its range is
+    checked with the ModelStructure, when the number of variables is known)."""
+    if text is None:
+        return None
+    value = _integer(text)
+    if value is None:
+        raise _fail(path, f"variable {name!r}: derivative {_shown(text)} is not a ScalarVariable index (a "
+                          "positive integer)", "re-export the FMU with a valid model description")
+    return value
 
 
 _INT32 = (-2**31, 2**31 - 1)                # fmi2Integer: a C int (FMI 2.0 sec. 2.1.2)
@@ -284,3 +350,165 @@ def _choices(sv) -> tuple[str, ...]:
     if tool is None:
         return ()
     return tuple(c.get("value") for c in tool.iter("Choice") if c.get("value") is not None)[:MAX_CHOICES]
+
+
+# --------------------------------------------------------------------------- ModelStructure
+DEPENDENCY_KINDS = ("dependent", "constant", "fixed", "tunable", "discrete")
+_KIND = {k: k for k in DEPENDENCY_KINDS}
+_INDEX_LIST = re.compile(r"[0-9 \t\r\n]*")       # digits and XML whitespace only (a character class: linear)
+_SPLIT_CHARS = 2**20                             # attributes up to this size are split at once
+_LISTS = ("Outputs", "Derivatives", "InitialUnknowns")
+_FIX = "re-export the FMU with a valid model description"
+
+
+def _model_structure(root, path: Path, variables: list[Variable]) -> ModelStructure:
+    """``<ModelStructure>`` (FMI 2.0 sec. 2.2.8), checked against the variables (``variables``
+    in file order: ScalarVariable index i is ``variables[i - 1]``).
+
+    Refused (the file is inconsistent, or its indices do not mean what they say):
+    an Unknown index or a dependency that is no integer or outside 1..number of variables, an
+    index listed twice in one list, a dependency listed twice in one Unknown, a
+    dependenciesKind whose number of entries differs from the dependencies' or with an entry
+    other than dependent/constant/fixed/tunable/discrete, an Outputs entry that is no output,
+    an output missing from a non-empty Outputs, a Derivatives entry that is no Real with a
+    ``derivative`` attribute, a ``derivative`` outside 1..number of variables, a list given
+    twice, more than :data:`MAX_DEPENDENCIES` dependencies in all.
+
+    Accepted as written (common in real FMUs, harmless here; the master does not use the
+    structure): no ModelStructure, no or an empty Outputs (every output may then depend on
+    every input), InitialUnknowns missing or not listing what FMI 2.0 asks, unsorted
+    dependencies, dependencies on variables that are not Knowns, an empty dependenciesKind
+    without dependencies, other elements (e.g. the ``<DiscreteStates>`` of old OpenModelica
+    exports). The work is linear in the size of the file."""
+    n = len(variables)
+    for v in variables:
+        if v.derivative is not None and not 1 <= v.derivative <= n:
+            raise _fail(path, f"variable {v.name!r}: derivative {v.derivative} is outside 1..{n} (it is the index "
+                              "of a ScalarVariable, counted from 1 in file order)", _FIX)
+    ms = root.find("ModelStructure")
+    lists: dict[str, tuple[Unknown, ...]] = {}
+    budget = [MAX_DEPENDENCIES]
+    ints = list(range(n + 1))         # one int object per index, shared by every dependency
+    for el in (ms if ms is not None else []):
+        if el.tag not in _LISTS:
+            continue
+        if el.tag in lists:
+            raise _fail(path, f"<ModelStructure> has more than one <{el.tag}> element", _FIX)
+        lists[el.tag] = _unknowns(el, path, variables, ints, budget)
+    outputs = lists.get("Outputs", ())
+    for u in outputs:
+        c = variables[u.index - 1].causality
+        if c != "output":
+            raise _fail(path, f"ModelStructure/Outputs: Unknown index {u.index} is variable {u.name!r} of causality "
+                              f"{c!r}; every Outputs entry must be a variable of causality 'output' (FMI 2.0 sec. "
+                              "2.2.8)", _FIX)
+    if outputs:
+        listed = {u.index for u in outputs}
+        missing = [(i, v.name) for i, v in enumerate(variables, 1) if v.causality == "output" and i not in listed]
+        if missing:
+            shown = ", ".join(f"{name!r} (index {i})" for i, name in missing[:5])
+            more = f" and {len(missing) - 5} more" if len(missing) > 5 else ""
+            raise _fail(path, f"ModelStructure/Outputs does not list the output{'s' if len(missing) > 1 else ''} "
+                              f"{shown}{more}; it must have one Unknown per variable of causality 'output' "
+                              "(FMI 2.0 sec. 2.2.8)", _FIX)
+    for u in lists.get("Derivatives", ()):
+        v = variables[u.index - 1]
+        if v.derivative is None:
+            raise _fail(path, f"ModelStructure/Derivatives: Unknown index {u.index} is variable {u.name!r}, which "
+                              "is no state derivative (expected a Real with a derivative attribute)", _FIX)
+    return ModelStructure(outputs=outputs, derivatives=lists.get("Derivatives", ()),
+                          initial_unknowns=lists.get("InitialUnknowns", ()))
+
+
+def _unknowns(el, path: Path, variables: list[Variable], ints: list[int], budget: list[int]) -> tuple[Unknown, ...]:
+    """The ``<Unknown>`` children of one ModelStructure list, each checked (see
+    :func:`_model_structure`); ``budget[0]``: dependencies still allowed."""
+    n = len(variables)
+    where = f"ModelStructure/{el.tag}"
+    seen: set[int] = set()
+    out = []
+    for u in el:
+        if u.tag != "Unknown":
+            continue
+        text = u.get("index")
+        if text is None:
+            raise _fail(path, f"{where}: an Unknown has no index attribute", _FIX)
+        index = _integer(text)
+        if index is None:
+            raise _fail(path, f"{where}: Unknown index {_shown(text)} is not a positive integer", _FIX)
+        if not 1 <= index <= n:
+            raise _fail(path, f"{where}: Unknown index {index} is outside 1..{n} (the ScalarVariables, counted from "
+                              "1 in file order)", _FIX)
+        name = variables[index - 1].name
+        if index in seen:
+            raise _fail(path, f"{where}: Unknown index {index} ({name!r}) is listed twice", _FIX)
+        seen.add(index)
+        what = f"{where}: Unknown index {index} ({name!r})"
+        deps = _dependencies(path, what, u.get("dependencies"), n, ints, budget)
+        kinds = _kinds(path, what, u.get("dependenciesKind"), deps)
+        out.append(Unknown(index=index, name=name, dependencies=deps, dependencies_kind=kinds))
+    return tuple(out)
+
+
+def _dependencies(path: Path, what: str, text: str | None, n: int, ints: list[int],
+                  budget: list[int]) -> tuple[int, ...] | None:
+    if text is None:
+        return None
+    if len(text) <= _SPLIT_CHARS and _INDEX_LIST.fullmatch(text):    # the usual case, at C speed
+        toks = text.split()
+        if not toks:
+            return ()
+        if len(toks) <= budget[0] and max(map(len, toks)) <= 10:
+            values = list(map(int, toks))
+            if 1 <= min(values) and max(values) <= n and len(set(values)) == len(values):
+                budget[0] -= len(values)
+                return tuple(map(ints.__getitem__, values))
+    deps = []                                       # else token by token, to say which one is wrong
+    seen = set()
+    for m in re.finditer(r"\S+", text):           # one token at a time: no list of a 30 MB attribute's words
+        budget[0] -= 1
+        if budget[0] < 0:
+            raise _fail(path, f"<ModelStructure> declares more than {MAX_DEPENDENCIES} dependencies",
+                        "raise orchestrator.fmi.model_description.MAX_DEPENDENCIES if you trust this FMU")
+        tok = m.group()
+        k = _integer(tok)
+        if k is None:
+            raise _fail(path, f"{what}: dependencies entry {_shown(tok)} is not a ScalarVariable index (a positive "
+                              "integer)", _FIX)
+        if not 1 <= k <= n:
+            raise _fail(path, f"{what}: dependencies entry {k} is outside 1..{n} (the ScalarVariables, counted from "
+                              "1 in file order)", _FIX)
+        if k in seen:
+            raise _fail(path, f"{what}: dependencies lists index {k} twice", _FIX)
+        seen.add(k)
+        deps.append(ints[k])
+    return tuple(deps)
+
+
+def _kinds(path: Path, what: str, text: str | None, deps: tuple[int, ...] | None) -> tuple[str, ...] | None:
+    if text is None:
+        return None
+    if deps is None:
+        if text.strip():
+            raise _fail(path, f"{what}: has a dependenciesKind but no dependencies (FMI 2.0: dependenciesKind "
+                              "needs dependencies with as many entries)", _FIX)
+        return None
+    if len(text) <= _SPLIT_CHARS:
+        toks = text.split()
+        if len(toks) == len(deps) and all(map(_KIND.__contains__, toks)):
+            return tuple(map(_KIND.__getitem__, toks))
+    kinds = []                                      # else token by token, to say which one is wrong
+    count = 0
+    for m in re.finditer(r"\S+", text):
+        count += 1
+        if count > len(deps):                       # only counted from here on (the attribute may be huge)
+            continue
+        kind = _KIND.get(m.group())                 # the shared constant, not one string per entry
+        if kind is None:
+            raise _fail(path, f"{what}: dependenciesKind entry {_shown(m.group())} is not one of "
+                              f"{', '.join(DEPENDENCY_KINDS)}", _FIX)
+        kinds.append(kind)
+    if count != len(deps):
+        raise _fail(path, f"{what}: dependenciesKind has {count} entries, dependencies {len(deps)}; they must "
+                          "have the same number (one kind per dependency)", _FIX)
+    return tuple(kinds)
