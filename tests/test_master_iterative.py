@@ -189,6 +189,31 @@ def test_loop_without_solution_fails_naming_the_loop():
     assert len(res.t) == 0
 
 
+def test_loop_message_follows_the_declared_dependencies():
+    """With a ModelStructure that declares y <- u, the loop is named variable by variable."""
+    from types import SimpleNamespace
+    sc, subs = gain_loop(1.0, 1.0)
+    subs["g"].md = SimpleNamespace(direct_feedthrough=lambda: {"y": ("u",)})
+    res = MasterAlgorithm(sc, subsystems=subs).run()
+    assert res.status is Status.FAILED
+    assert "g.y -> g.u (g: u -> y)" in res.message and "declared direct dependencies" in res.message
+
+
+def test_signal_loop():
+    from orchestrator.coupling.loops import signal_loop
+    cs = (ConnectionSpec(src="a.y1", dst="b.v"), ConnectionSpec(src="b.z", dst="a.u1"),
+          ConnectionSpec(src="a.y2", dst="b.w"), ConnectionSpec(src="c.q", dst="a.u2"))
+    feed = {"a": {"y1": ("u1",), "y2": ()}, "b": {"z": ("v",), "z2": ("w",)}, "c": {"q": ()}}
+    assert signal_loop(cs, "a.u1", feed) == ["a.y1 -> b.v (b: v -> z)", "b.z -> a.u1 (a: u1 -> y1)"]
+    assert signal_loop(cs, "b.z", feed) == signal_loop(cs, "a.u1", feed)
+    assert signal_loop(cs, "b.w", feed) == []              # a.y2 depends on no input: no cycle through it
+    assert signal_loop(cs, "c.q", feed) == []              # not on an instance-level loop either
+    cut = {"a": {"y1": (), "y2": ()}, "b": feed["b"], "c": feed["c"]}
+    assert signal_loop(cs, "a.u1", cut) == []              # a instance loop, but no variable cycle
+    assert signal_loop(cs, "a.u1", {**feed, "b": None}) is None                 # b declares nothing
+    assert signal_loop(cs, "a.u1", {**feed, "b": {"z": None, "z2": ()}}) is None
+
+
 def test_feedthrough_chain_settles_without_the_loop_solver():
     """A chain src -> g1 -> g2 (no loop) settles in plain passes: exactly the chain's values."""
     from test_master import Ramp

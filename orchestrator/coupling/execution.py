@@ -44,7 +44,7 @@ from orchestrator.coupling.plan import make_plan
 from orchestrator.coupling.schemes import CouplingScheme, scheme_from_spec
 from orchestrator.coupling.acceleration import IQNILS, solve_fixed_point
 from orchestrator.coupling.iterative import IterativeMacroStep
-from orchestrator.coupling.loops import loop_through
+from orchestrator.coupling.loops import loop_through, signal_loop
 from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
     RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController)
@@ -404,6 +404,13 @@ class MasterAlgorithm:
             return
         name = self.signal_names[res.worst] if self.signal_names else "?"
         loop = loop_through(self.scenario.connections, name.split(".", 1)[0])
+        feed = {u.name: _declared_feedthrough(u.sub) for u in self.units}
+        declared = signal_loop(self.scenario.connections, name, feed) if loop else None
+        if declared:
+            loop = declared + ["(the FMUs' declared direct dependencies, ModelStructure)"]
+        elif declared == []:
+            loop = loop + ["though the FMUs' declared direct dependencies (ModelStructure) close no cycle through "
+                           f"{name}: an output changes that should not depend on these inputs"]
         raise CouplingError(
             f"the initial exchange at t={t0:g} s has an algebraic loop that does not converge: after "
             f"{len(self.units) + 1 + res.iterations} passes (IQN-ILS) the input {name} still changes by "
@@ -648,3 +655,11 @@ class MasterAlgorithm:
         finally:
             self.terminate()
         return self.result()
+
+
+def _declared_feedthrough(sub) -> dict | None:
+    """``{output: inputs it depends on directly}`` as the FMU's ModelStructure declares it, or None
+    (a subsystem without a model description, or one that declares nothing)."""
+    md = getattr(sub, "md", None)
+    feed = md.direct_feedthrough() if md is not None and hasattr(md, "direct_feedthrough") else None
+    return feed if feed and all(d is not None for d in feed.values()) else None
