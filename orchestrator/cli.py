@@ -246,6 +246,8 @@ def _feedthrough_lines(md) -> list[str]:
     feed = md.direct_feedthrough()
     if not feed:
         return []
+    if not md.inputs():
+        return ["direct feedthrough: none (the FMU has no inputs)"]
     if all(deps is None for deps in feed.values()):
         return ["direct feedthrough: not declared (ModelStructure/Outputs gives no dependencies: an output may "
                 "depend on every input)"]

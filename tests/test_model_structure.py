@@ -235,6 +235,11 @@ def test_info_says_none_or_not_declared_in_one_line(tmp_path, capsys, structure,
     assert rc == 0 and _feedthrough(out) == [line], out
 
 
+def test_info_of_an_fmu_without_inputs_says_so(tmp_path, capsys):
+    rc, out = cli(capsys, "info", fmu_with(tmp_path, "", VARS.replace('causality="input"', 'causality="local"')))
+    assert rc == 0 and _feedthrough(out) == ["direct feedthrough: none (the FMU has no inputs)"], out
+
+
 def test_info_of_an_fmu_without_outputs_has_no_feedthrough_line(tmp_path, capsys):
     rc, out = cli(capsys, "info", fmu_with(tmp_path, "", VARS.replace('causality="output"', 'causality="local"')))
     assert rc == 0 and "direct feedthrough" not in out, out
