@@ -514,7 +514,7 @@ class MasterAlgorithm:
                 f"t={t_next:.12g} s ({e}). Rows up to t={t:.12g} s are kept. Follow the fix the FMU's message "
                 "gives, if any; a numerically unstable coupling shows up the same way, so also try a smaller "
                 f"coupling.macro_step (now {self.scenario.coupling.macro_step:g}) or more substeps for "
-                f"'{e.instance}', and check the FMU's log above{self._origins_hint(e)}")
+                f"'{e.instance}', and check the FMU's log above")
 
     def _origins_hint(self, e: Exception) -> str:
         """``"; 'bearing1' gets p_feed from file:21 and p0 from file:20"`` for the parameters of the failing
