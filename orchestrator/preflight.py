@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import tempfile
 import warnings
 
 from orchestrator.errors import CosimError
@@ -33,15 +34,19 @@ def preflight(scenario) -> tuple[list[str], list[str]]:
                 monolithic_preflight(scenario)
             else:
                 from orchestrator.coupling.execution import MasterAlgorithm
-                master = MasterAlgorithm(scenario)
-                try:
-                    master.setup()
-                    with _master_log_quiet():        # its failure comes back as the problem line
-                        master.initialize()
-                    if master.message and master.status.name == "FAILED":
-                        problems.append(master.message)
-                finally:
-                    master.terminate(preflight=True)
+                # '{out_dir}' in String parameters (a fields_file) points into a scratch folder that
+                # is removed afterwards: without one the FMU would get the literal text and write
+                # '{out_dir}/...' into the current folder at fmi2Terminate
+                with tempfile.TemporaryDirectory(prefix="rotorcosim-validate-") as scratch:
+                    master = MasterAlgorithm(scenario, out_dir=scratch)
+                    try:
+                        master.setup()
+                        with _master_log_quiet():        # its failure comes back as the problem line
+                            master.initialize()
+                        if master.message and master.status.name == "FAILED":
+                            problems.append(master.message)
+                    finally:
+                        master.terminate(preflight=True)
         except CosimError as e:
             problems.extend(getattr(e, "problems", None) or [str(e)])
     return problems, [f"warning: {w.message}" for w in caught]

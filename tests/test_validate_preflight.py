@@ -110,3 +110,15 @@ def test_a_parameter_the_fmu_refuses_at_initialization(tmp_path, capsys):
                            out_dir=tmp_path / "run", progress=False)
     assert res.status.name == "FAILED" and expected in res.message
     assert main(["validate", str(path)]) == 0       # the shipped values initialize
+
+
+def test_validate_writes_no_fields_file(tmp_path, monkeypatch, capsys):
+    """`validate` checks without running: a String parameter '{out_dir}/...' (the shipped stationary
+    scenarios' fields_file, written by the bearing at fmi2Terminate) must not leave a folder named
+    '{out_dir}' in the current folder (it did: preflight set the text unsubstituted)."""
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "stationary_oil_bath.yaml"
+    assert '"{out_dir}/' in path.read_text()
+    monkeypatch.chdir(tmp_path)
+    assert main(["validate", str(path)]) == 0
+    assert "valid" in capsys.readouterr().out
+    assert list(tmp_path.iterdir()) == []
