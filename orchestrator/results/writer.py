@@ -12,7 +12,11 @@ memory, so its memory use is flat in the number of rows:
   so ``0.1 * 3`` prints as ``0.3`` and joins on time with other tools work;
 * Real values are written with ``repr`` (shortest round-trip form), Integer
   and Enumeration as integers, Boolean as ``0``/``1``, String as text (quoted
-  by the csv module where needed);
+  by the csv module where needed) on one line: a line break in an FMU's String
+  value is written as ``\\n`` / ``\\r``, and a value longer than
+  :data:`MAX_STRING_CHARS` is cut (its start and ``...[N characters cut]``),
+  each announced by one warning per column, so every row is one line that
+  ``rotorcosim plot`` reads;
 * the file is flushed at least every ``flush_interval`` seconds of wall time
   (default 1 s) and at :meth:`close`, so a run that stops early keeps its rows.
 
@@ -24,12 +28,46 @@ pyarrow missing is reported with the fix.
 from __future__ import annotations
 
 import csv
+import logging
 import time as _time
 from pathlib import Path
 from typing import Any, Sequence
 
 KINDS = ("Real", "Integer", "Enumeration", "Boolean", "String")
 FORMATS = ("csv", "parquet")
+MAX_STRING_CHARS = 4096
+"""characters of one String value written to results.csv; the rest is cut (with a warning)"""
+_ONE_LINE = str.maketrans({"\n": "\\n", "\r": "\\r"})
+
+log = logging.getLogger(__name__)
+
+
+class _StringCell:
+    """A String value as one bounded line of results.csv (see the module docstring); warns
+    once per column when it changes a value."""
+
+    def __init__(self, column: str):
+        self.column = column
+        self.warned_break = self.warned_long = False
+
+    def __call__(self, v) -> str:
+        text = str(v)
+        if "\n" in text or "\r" in text:
+            text = text.translate(_ONE_LINE)
+            if not self.warned_break:
+                self.warned_break = True
+                log.warning("String signal '%s' holds a line break; results.csv writes it as \\n or \\r "
+                            "(one row per line); use output.format: parquet to keep the value as it is",
+                            self.column)
+        if len(text) > MAX_STRING_CHARS:
+            cut = len(text) - MAX_STRING_CHARS
+            if not self.warned_long:
+                self.warned_long = True
+                log.warning("String signal '%s' holds %d characters; results.csv keeps the first %d of a value "
+                            "(orchestrator.results.writer.MAX_STRING_CHARS) and marks the cut", self.column,
+                            len(text), MAX_STRING_CHARS)
+            text = f"{text[:MAX_STRING_CHARS]}...[{cut} characters cut]"
+        return text
 
 
 def _decimals(x: float) -> int | None:
@@ -70,7 +108,7 @@ class TimeGrid:
         return round(t, self.digits) if self.digits is not None else t
 
 
-def _formatter(kind: str):
+def _formatter(kind: str, column: str = ""):
     if kind == "Real":
         return lambda v: repr(float(v))
     if kind in ("Integer", "Enumeration"):
@@ -78,7 +116,7 @@ def _formatter(kind: str):
     if kind == "Boolean":
         return lambda v: "1" if v else "0"
     if kind == "String":
-        return str
+        return _StringCell(column)
     raise ValueError(f"unknown column kind {kind!r}; expected one of {list(KINDS)}")
 
 
@@ -105,7 +143,7 @@ class ResultsWriter:
         self.path = Path(path)
         self.flush_interval = flush_interval
         self.rows = 0
-        self._fmt = [_formatter(k) for k in self.kinds]
+        self._fmt = [_formatter(k, c) for k, c in zip(self.kinds, self.columns)]
         self._all_real = all(k == "Real" for k in self.kinds)
         self._f = None
         self._csv = None
