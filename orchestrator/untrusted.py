@@ -32,6 +32,7 @@ constants read at call time; ``docs/limits.md`` lists them.
 from __future__ import annotations
 
 import functools
+import math
 import os
 import re
 import stat
@@ -54,6 +55,34 @@ _CHUNK = 1 << 20
 
 class InputError(CosimError):
     """An input file (or a value in it) cannot be used; the message says why and the fix."""
+
+
+class SettingError(InputError, ValueError):
+    """An environment variable rotorcosim reads has a value it cannot use (also a ValueError,
+    as before it was one)."""
+
+
+# --------------------------------------------------------------------------- environment
+def env_number(name: str, default: float, *, minimum: float, maximum: float, integer: bool = False,
+               meaning: str = "") -> float:
+    """The number in environment variable ``name`` (``default`` when unset or empty), which must
+    be finite (an integer with ``integer=True``) and lie in ``minimum..maximum``; a
+    :class:`SettingError` naming the variable, what it expects, the value and the fix otherwise."""
+    raw = os.environ.get(name, "")
+    if not raw.strip():
+        return default
+    kind = "an integer" if integer else "a number"
+    shown_n = (lambda x: str(int(x))) if integer else "{:g}".format
+    expected = f"{kind} from {shown_n(minimum)} to {shown_n(maximum)}" + (f" ({meaning})" if meaning else "")
+    try:
+        value = int(raw.strip()) if integer else float(raw)
+    except ValueError:
+        value = None
+    if value is None or not math.isfinite(value) or not minimum <= value <= maximum:
+        shown = raw if len(raw) <= 40 else raw[:40] + "..."
+        raise SettingError(f"environment variable {name}={shown!r}: expected {expected}; "
+                           f"set it to such a value or unset it for the default {shown_n(default)}")
+    return value
 
 
 # --------------------------------------------------------------------------- files

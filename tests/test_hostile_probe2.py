@@ -37,3 +37,63 @@ def test_string_values_with_line_breaks_or_megabytes_stay_one_readable_line(tmp_
     t, out = read_back(path, ["a.y", "a.s", "a.t"], ["Real", "String", "String"])
     assert out["a.s"][0] == 'line1\\nline2,"q"\\r\\n'
     assert out["a.t"][0].startswith("AAAA") and out["a.t"][0].endswith(f"...[{3_000_000 - 4096} characters cut]")
+
+
+def _cli_subprocess(tmp_path, env_extra: dict, *args) -> tuple[int, str]:
+    """The CLI in a fresh interpreter (module constants read the environment at import)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, **env_extra, "PYTHONPATH": str(root)}
+    p = subprocess.run([sys.executable, "-m", "orchestrator", *map(str, args)], cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=120)
+    return p.returncode, p.stdout + p.stderr
+
+
+def test_garbage_in_a_numeric_environment_variable_is_named_not_an_internal_error(tmp_path):
+    """ROTORCOSIM_WORKER_SPIN=abc made every command end in "internal error: ValueError: could not
+    convert string to float" (the module reads it at import); -1 or nan were taken silently.
+    ROTORCOSIM_SWEEP_RUNS_PER_PROCESS likewise (0 or -3 gave a fresh process for every run)."""
+    from hostile_builders import md_scenario
+    s = md_scenario(tmp_path)
+    rc, text = _cli_subprocess(tmp_path, {"ROTORCOSIM_WORKER_SPIN": "0"}, "validate", s, "--no-build")
+    assert "ROTORCOSIM_WORKER_SPIN" not in text and "internal error" not in text, text
+    for value in ("abc", "-1", "nan"):
+        rc, text = _cli_subprocess(tmp_path, {"ROTORCOSIM_WORKER_SPIN": value}, "validate", s, "--no-build")
+        assert rc == 1 and "internal error" not in text and "Traceback" not in text, text
+        assert f"ROTORCOSIM_WORKER_SPIN='{value}': expected a number from 0 to 1" in text, text
+        assert "unset it for the default 0.002" in text, text
+
+
+def test_env_number_bounds(monkeypatch):
+    from orchestrator.errors import CosimError
+    from orchestrator.untrusted import SettingError, env_number
+    kw = dict(minimum=1, maximum=100, integer=True)
+    monkeypatch.delenv("RC_PROBE", raising=False)
+    assert env_number("RC_PROBE", 50, **kw) == 50
+    monkeypatch.setenv("RC_PROBE", " 7 ")
+    assert env_number("RC_PROBE", 50, **kw) == 7
+    for bad in ("0", "-3", "1e3", "x", "101"):
+        monkeypatch.setenv("RC_PROBE", bad)
+        try:
+            env_number("RC_PROBE", 50, **kw)
+        except SettingError as e:
+            assert isinstance(e, CosimError) and "expected an integer from 1 to 100" in str(e), e
+        else:
+            raise AssertionError(f"{bad!r} accepted")
+
+
+def test_stage_handoff_garbage_is_a_user_error(monkeypatch):
+    """ROTORCOSIM_STAGE_HANDOFF=xyz raised a plain ValueError, which the CLI reports as an internal error."""
+    from orchestrator.cli import _describe
+    from orchestrator.coupling.threads import StageThreads
+    monkeypatch.setenv("ROTORCOSIM_STAGE_HANDOFF", "xyz")
+    try:
+        StageThreads(1)
+    except Exception as e:      # noqa: BLE001 - the kind is what is tested
+        text = _describe(e)
+    else:
+        raise AssertionError("xyz accepted")
+    assert text.startswith("error: ") and "ROTORCOSIM_STAGE_HANDOFF must be one of" in text, text

@@ -172,8 +172,9 @@ class StageThreads:
         self._flags = new_flags(n)
         mode = (handoff or os.environ.get("ROTORCOSIM_STAGE_HANDOFF", "") or "auto").strip().lower()
         if mode not in HANDOFF_MODES:
-            raise ValueError(f"ROTORCOSIM_STAGE_HANDOFF must be one of {list(HANDOFF_MODES)} (got {mode!r}); "
-                             "unset it for the default 'auto'")
+            from orchestrator.untrusted import SettingError
+            raise SettingError(f"ROTORCOSIM_STAGE_HANDOFF must be one of {list(HANDOFF_MODES)} (got {mode!r}); "
+                               "unset it for the default 'auto'")
         # watch only while every thread of a stage has a core of its own: a thread that
         # watches on a shared core would take it from one that works
         if max(1, n) + 1 > usable_cores():

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from orchestrator.errors import CosimError, CouplingError, FmuCallError, FmuCrashError, FmuError, LifecycleError, ScenarioError
+from orchestrator.untrusted import env_number
 
 log = logging.getLogger(__name__)
 
@@ -82,7 +83,8 @@ def _worker_env() -> dict:
     return env
 
 
-SPIN_WAIT = float(os.environ.get("ROTORCOSIM_WORKER_SPIN", "0.002"))
+SPIN_WAIT = env_number("ROTORCOSIM_WORKER_SPIN", 0.002, minimum=0.0, maximum=1.0,
+                       meaning="seconds a pinned worker polls before it blocks; 0 = off")
 """s: how long a pinned channel and its worker poll before they block (WorkerChannel.spin);
 ``ROTORCOSIM_WORKER_SPIN=0`` switches polling off (for a/b measurements)."""
 FREE_TIMEOUT = 30.0       # s: longest wait for fmi2FreeInstance (and what is queued before it) in free()

@@ -33,6 +33,8 @@ import sys
 import threading
 from multiprocessing.connection import Connection
 
+from orchestrator.untrusted import env_number
+
 __all__ = ["WarmProcess", "WarmPlugin", "warm_run", "prestart", "close_warm", "warm_pids", "MAX_RUNS",
            "IDLE_EXIT_S"]
 
@@ -48,7 +50,8 @@ def run_env() -> dict[str, str]:
     return {**SINGLE_THREADED, **os.environ, "PYTHONUNBUFFERED": "1"}
 
 
-MAX_RUNS = int(os.environ.get("ROTORCOSIM_SWEEP_RUNS_PER_PROCESS", "50") or 50)
+MAX_RUNS = int(env_number("ROTORCOSIM_SWEEP_RUNS_PER_PROCESS", 50, minimum=1, maximum=10**6, integer=True,
+                          meaning="runs of a sweep one warm process serves"))
 IDLE_EXIT_S = 600.0
 
 
