@@ -97,3 +97,22 @@ def test_stage_handoff_garbage_is_a_user_error(monkeypatch):
     else:
         raise AssertionError("xyz accepted")
     assert text.startswith("error: ") and "ROTORCOSIM_STAGE_HANDOFF must be one of" in text, text
+
+
+def test_a_shared_library_that_does_not_load_is_reported_and_the_folder_kept(tmp_path, monkeypatch, capsys):
+    """binaries/linux64/M.so that is no shared library: fmpy changed into the extraction's
+    binaries folder to load it and stayed there, so a relative --out then pointed into it: the
+    run ended in "error: out/summary.json.tmp: No such file or directory", the load failure was
+    never shown and summary.json stayed at "running"."""
+    import json
+    import os
+    from hostile_builders import cli, scenario_text, write_fmu
+    write_fmu(tmp_path / "m.fmu", members=[("binaries/linux64/M.so", b"this is not an ELF file\n")])
+    (tmp_path / "s.yaml").write_text(scenario_text())
+    monkeypatch.chdir(tmp_path)
+    rc, text = cli(capsys, "run", "s.yaml", "--out", "out", "--no-progress")
+    assert rc == 1
+    assert "cannot load the FMU's shared library" in text and "summary.json.tmp" not in text, text
+    assert os.getcwd() == str(tmp_path)
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["status"] == "failed" and "cannot load the FMU's shared library" in summary["message"], summary

@@ -35,6 +35,7 @@ import ast
 import collections
 import ctypes
 import logging
+import os
 import re
 from abc import ABC, abstractmethod
 from pathlib import Path
@@ -330,12 +331,19 @@ class Subsystem(SubsystemBase):
 
         global native_fmu_loaded
         native_fmu_loaded = True     # the CLI then leaves without interpreter teardown (cli.console_main)
+        # fmpy changes into binaries/<platform> to load the library and, when loading fails, stays
+        # there: a relative --out then named a folder inside the extraction (summary.json.tmp: no
+        # such file) and the load failure itself was never reported
+        cwd = os.getcwd()
         try:
             self._slave = FMU2Slave(guid=self.md.guid, unzipDirectory=str(self.unzip_dir),
                                     modelIdentifier=self.md.model_identifier, instanceName=name)
         except Exception as e:   # library load failure
             raise FmuError(f"{self.fmu_path}: cannot load the FMU's shared library ({e}); "
                            "check that the FMU was built for this platform and its dependencies are installed") from e
+        finally:
+            if os.getcwd() != cwd:
+                os.chdir(cwd)
 
         cb = _callbacks()
         self._callbacks = cb
