@@ -103,13 +103,16 @@ def _execute(scenario, out_dir: Path, folder: RunFolder, progress, observers) ->
             raise                               # setup failed: RunFolder writes the failed summary
         # stopped by a signal (or failed unexpectedly) while stepping: keep where it stopped, then re-raise
         res = _read_back(master.result(), master, results_file)
+        note = res.message
         if isinstance(exc, KeyboardInterrupt):
             msg = folder.stop_message(res.end_time)
             stop = RunStopped(folder.stop_signal or getattr(exc, "signum", None) or signal.SIGINT)
+            if note and note.startswith("interrupted by the user"):
+                note = ""       # the master's note of this same stop: said again, or a SIGTERM called the user
         else:
             msg, stop = f"the run stopped at t={res.end_time:.12g} s: {type(exc).__name__}: {exc}", None
         summary = _summary(scenario, replace(res, status=Status.FAILED,
-                                             message=msg + ("; " + res.message if res.message else "")))
+                                             message=msg + ("; " + note if note else "")))
         if stop is not None:                    # machine-readable: a sweep counts such a run as cancelled
             summary["stopped_by"] = signal.Signals(stop.signum).name
         folder.finish(summary)

@@ -116,3 +116,29 @@ def test_a_shared_library_that_does_not_load_is_reported_and_the_folder_kept(tmp
     assert os.getcwd() == str(tmp_path)
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["status"] == "failed" and "cannot load the FMU's shared library" in summary["message"], summary
+
+
+def test_the_summary_of_an_interrupted_run_says_why_once(test_fmus, tmp_path, monkeypatch):
+    """summary.json of a run stopped by Ctrl-C said "interrupted by the user at t=0.03 s;
+    interrupted by the user at t=0.03 s", and of one stopped by SIGTERM "terminated by signal
+    SIGTERM at t=...; interrupted by the user at t=..." (the master's own note appended)."""
+    import json
+    import signal
+
+    import pytest
+    from test_master_fmus import chain
+
+    from orchestrator import run
+    with pytest.raises(KeyboardInterrupt):
+        run(chain(test_fmus, "gauss-seidel", mode=4, t_fail=0.025, H=0.01, T=0.1), out_dir=tmp_path / "int",
+            progress=False)
+    s = json.loads((tmp_path / "int" / "summary.json").read_text())
+    assert s["message"] == "interrupted by the user at t=0.03 s", s["message"]
+
+    real_kill = __import__("os").kill          # the FMU's SIGINT sent as SIGTERM instead
+    monkeypatch.setattr("os.kill", lambda pid, sig: real_kill(pid, signal.SIGTERM if sig == signal.SIGINT else sig))
+    with pytest.raises(BaseException):
+        run(chain(test_fmus, "gauss-seidel", mode=4, t_fail=0.025, H=0.01, T=0.1), out_dir=tmp_path / "term",
+            progress=False)
+    s = json.loads((tmp_path / "term" / "summary.json").read_text())
+    assert s["message"] == "terminated by signal SIGTERM at t=0.03 s", s["message"]
