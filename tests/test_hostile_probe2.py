@@ -142,3 +142,67 @@ def test_the_summary_of_an_interrupted_run_says_why_once(test_fmus, tmp_path, mo
             progress=False)
     s = json.loads((tmp_path / "term" / "summary.json").read_text())
     assert s["message"] == "terminated by signal SIGTERM at t=0.03 s", s["message"]
+
+
+def _npz_bomb(path, shape=(20000, 20000)):
+    """A field file whose 'p' declares ``shape`` in its header but holds only a few bytes."""
+    import io
+    import zipfile
+    hdr = io.BytesIO()
+    np.lib.format.write_array_header_1_0(hdr, {"descr": "<f8", "fortran_order": False, "shape": shape})
+    with zipfile.ZipFile(path, "w") as zf:
+        for key, n in (("phi", shape[1]), ("z", shape[0])):
+            b = io.BytesIO()
+            np.save(b, np.linspace(0, 1, n))
+            zf.writestr(f"{key}.npy", b.getvalue())
+        zf.writestr("p.npy", hdr.getvalue() + bytes(64))
+
+
+def test_hostile_field_files_are_skipped_with_a_reason(tmp_path):
+    """`rotorcosim plot` of a folder whose <bearing>_fields.npz is a FIFO blocked for ever; one whose
+    p declares 20000 x 20000 values (a few KB on disk) ended in "internal error: MemoryError"
+    (numpy allocates what the header says), and arrays of the wrong shape, empty or of text in
+    "internal error: TypeError". Now each is skipped with a warning that says what is wrong."""
+    import os
+    import threading
+    import warnings
+
+    from orchestrator.errors import CosimError
+    from orchestrator.results.plots import plot_run
+    cases = {
+        "bomb": _npz_bomb,
+        "shape": lambda p: np.savez(p, phi=np.zeros((2, 3)), z=np.zeros(2), p=np.zeros((2, 6))),
+        "empty": lambda p: np.savez(p, phi=np.zeros(0), z=np.zeros(0), p=np.zeros((0, 0))),
+        "text": lambda p: np.savez(p, phi=np.array(["a", "b"]), z=np.zeros(1), p=np.zeros((1, 2))),
+        "fifo": lambda p: os.mkfifo(p),
+    }
+    expected = {"bomb": "declares shape (20000, 20000)", "shape": "'phi' has shape (2, 3)",
+                "empty": "'phi' has shape (0,)", "text": "holds <U1 values, expected numbers",
+                "fifo": "is a named pipe (FIFO)"}
+    for name, make in cases.items():
+        run = tmp_path / name
+        run.mkdir()
+        make(run / "b_fields.npz")
+        result: dict = {}
+
+        def plot(run=run, result=result):
+            with warnings.catch_warnings(record=True) as rec:
+                warnings.simplefilter("always")
+                try:
+                    plot_run(run)
+                except CosimError as exc:       # nothing left to draw: fine
+                    result["error"] = str(exc)
+                except BaseException as exc:    # noqa: BLE001 - the old MemoryError / TypeError
+                    result["crash"] = repr(exc)
+            result["warnings"] = [str(w.message) for w in rec]
+
+        th = threading.Thread(target=plot, daemon=True)
+        th.start()
+        th.join(60)
+        if th.is_alive() and name == "fifo":    # unblock the old reader before failing
+            with open(run / "b_fields.npz", "wb"):
+                pass
+            th.join(10)
+            raise AssertionError("plot blocked on a FIFO named *_fields.npz")
+        assert "crash" not in result, (name, result)
+        assert any(expected[name] in w for w in result["warnings"]), (name, result)

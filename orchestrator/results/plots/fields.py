@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -23,13 +24,82 @@ def draw(ctx: PlotContext) -> None:
             ctx.skipped.append(f"fields {f.name}: {exc}; expected arrays phi (n_phi,), z (n_z,), "
                                 "p, theta (n_z, n_phi)")
 
+
+MAX_FIELD_FILE_BYTES = 256 * 2**20
+"""bytes of one ``*_fields.npz`` file (our bearings write well below 10 MiB)"""
+MAX_FIELD_VALUES = 2**20
+"""values of one array in it (our bearings refuse films of more than 262 144 cells)"""
+_FIELD_ARRAYS = ("phi", "z", "p", "theta")
+
+
+def read_fields(path: Path) -> dict[str, np.ndarray]:
+    """The arrays phi, z, p (and theta if present) of a field file, read as untrusted input: a
+    regular file (no FIFO or device) of at most :data:`MAX_FIELD_FILE_BYTES`, each array a
+    number array of at most :data:`MAX_FIELD_VALUES` values, as its header says (checked before
+    numpy allocates it: a small file may declare an array of gigabytes), phi and z 1-D with at
+    least 2 values and p, theta of shape (n_z, n_phi). ``ValueError`` saying what is wrong
+    otherwise."""
+    import zipfile
+
+    from orchestrator.untrusted import InputError, open_regular
+    try:
+        fh = open_regular(path, what="field file")
+    except InputError as exc:
+        raise ValueError(str(exc)) from None
+    with fh:
+        size = os.fstat(fh.fileno()).st_size
+        if size > MAX_FIELD_FILE_BYTES:
+            raise ValueError(f"{size} bytes, more than the {MAX_FIELD_FILE_BYTES} a field file may have "
+                             "(orchestrator.results.plots.fields.MAX_FIELD_FILE_BYTES)")
+        try:
+            zf = zipfile.ZipFile(fh)
+        except zipfile.BadZipFile:
+            raise ValueError("not a numpy .npz archive") from None
+        with zf:
+            names = set(zf.namelist())
+            out = {}
+            for key in _FIELD_ARRAYS:
+                if f"{key}.npy" not in names:
+                    if key == "theta":
+                        continue
+                    raise ValueError(f"no array '{key}' (it holds {sorted(n.removesuffix('.npy') for n in names)[:10]})")
+                out[key] = _read_array(zf, key)
+    phi, z, p = out["phi"], out["z"], out["p"]
+    for key, a in (("phi", phi), ("z", z)):
+        if a.ndim != 1 or a.size < 2:
+            raise ValueError(f"'{key}' has shape {a.shape}, expected a 1-D array of at least 2 values")
+    for key in ("p", "theta"):
+        if key in out and out[key].shape != (z.size, phi.size):
+            raise ValueError(f"{key} has shape {out[key].shape}, expected (n_z, n_phi) = ({z.size}, {phi.size})")
+        if key in out and not np.isfinite(out[key]).all():
+            raise ValueError(f"'{key}' holds NaN or infinite values (a diverged run?)")
+    return out
+
+
+def _read_array(zf, key: str) -> np.ndarray:
+    with zf.open(f"{key}.npy") as f:
+        try:
+            version = np.lib.format.read_magic(f)
+            shape, fortran, dtype = (np.lib.format.read_array_header_1_0(f) if version == (1, 0)
+                                     else np.lib.format.read_array_header_2_0(f))
+        except ValueError as exc:
+            raise ValueError(f"'{key}' is not a numpy array ({exc})") from None
+        count = int(np.prod(shape, dtype=object))
+        if dtype.kind not in "biuf":
+            raise ValueError(f"'{key}' holds {dtype} values, expected numbers")
+        if count > MAX_FIELD_VALUES:
+            raise ValueError(f"'{key}' declares shape {shape} ({count} values), more than the {MAX_FIELD_VALUES} "
+                             "an array of a field file may have (orchestrator.results.plots.fields.MAX_FIELD_VALUES)")
+        data = f.read(count * dtype.itemsize + 1)
+    if len(data) != count * dtype.itemsize:
+        raise ValueError(f"'{key}' declares {count} values of {dtype} but holds {len(data)} bytes")
+    a = np.frombuffer(data, dtype=dtype).reshape(shape, order="F" if fortran else "C")
+    return a.astype(float)
+
 def field_plot(ctx: PlotContext, path: Path) -> None:
     from matplotlib.figure import Figure
-    with np.load(path) as d:
-        phi, zz, p = np.asarray(d["phi"]), np.asarray(d["z"]), np.asarray(d["p"])
-        theta = np.asarray(d["theta"]) if "theta" in d else None
-    if p.shape != (zz.size, phi.size):
-        raise ValueError(f"p has shape {p.shape}, expected (n_z, n_phi) = ({zz.size}, {phi.size})")
+    d = read_fields(path)
+    phi, zz, p, theta = d["phi"], d["z"], d["p"], d.get("theta")
     n = 2 if theta is not None else 1
     fig = Figure(figsize=(7, 3.3 * n), layout="constrained")
     axes = fig.subplots(n, 1, squeeze=False)[:, 0]
