@@ -206,3 +206,54 @@ def test_hostile_field_files_are_skipped_with_a_reason(tmp_path):
             raise AssertionError("plot blocked on a FIFO named *_fields.npz")
         assert "crash" not in result, (name, result)
         assert any(expected[name] in w for w in result["warnings"]), (name, result)
+
+
+SSD = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+  xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+  xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="1.0" name="probe">
+<ssd:System name="sys"><ssd:Elements>{elements}</ssd:Elements>
+<ssd:Connections>{connections}</ssd:Connections></ssd:System>{experiment}
+</ssd:SystemStructureDescription>
+"""
+COMP = '<ssd:Component name="{name}" source="m.fmu"/>'
+
+
+def _param_comp(kind, value, name="a"):
+    return (f'<ssd:Component name="{name}" source="m.fmu"><ssd:ParameterBindings><ssd:ParameterBinding>'
+            '<ssd:ParameterValues><ssv:ParameterSet version="1.0" name="p"><ssv:Parameters>'
+            f'<ssv:Parameter name="k"><ssv:{kind} value="{value}"/></ssv:Parameter></ssv:Parameters>'
+            '</ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings></ssd:Component>')
+
+
+def test_ssp_values_that_are_not_of_their_type_and_twin_components(tmp_path, capsys):
+    """An SSD with ssv:Real value="abc", ssv:Integer value="1.5", a LinearTransformation
+    factor="abc" or DefaultExperiment startTime="x" ended in "internal error: ValueError";
+    ssv:Boolean value="maybe" was read as false; two components of one name: the second silently
+    replaced the first (and its parameters). Each is now a problem naming the SSD and the element."""
+    import os
+
+    from hostile_builders import cli, write_fmu
+    write_fmu(tmp_path / "m.fmu")
+    exp = '<ssd:DefaultExperiment startTime="0" stopTime="0.01"/>'
+    two = COMP.format(name="a") + COMP.format(name="b")
+    cases = {
+        "real": (dict(elements=_param_comp("Real", "abc")), "ssv:Real value is 'abc', not a number"),
+        "int": (dict(elements=_param_comp("Integer", "1.5")), "ssv:Integer value is '1.5', not an integer"),
+        "bool": (dict(elements=_param_comp("Boolean", "maybe")), "ssv:Boolean value is 'maybe'"),
+        "factor": (dict(elements=two, connections='<ssd:Connection startElement="a" startConnector="y" '
+                        'endElement="b" endConnector="u"><ssc:LinearTransformation factor="abc"/></ssd:Connection>'),
+                   "connection a.y -> b.u: LinearTransformation factor is 'abc', not a number"),
+        "start": (dict(elements=COMP.format(name="a"), experiment='<ssd:DefaultExperiment startTime="x"/>'),
+                  "DefaultExperiment startTime is 'x', not a number"),
+        "twins": (dict(elements=_param_comp("Real", "2") + COMP.format(name="a")), "two components are called 'a'"),
+    }
+    os.mkfifo(tmp_path / "pipe.ssv")
+    cases["fifo"] = (dict(elements='<ssd:Component name="a" source="m.fmu"><ssd:ParameterBindings>'
+                          '<ssd:ParameterBinding source="pipe.ssv"/></ssd:ParameterBindings></ssd:Component>'),
+                     "parameter values 'pipe.ssv' is a named pipe (FIFO)")
+    for name, (parts, words) in cases.items():
+        f = tmp_path / f"{name}.ssd"
+        f.write_text(SSD.format(**{"connections": "", "experiment": exp, **parts}))
+        rc, text = cli(capsys, "validate", f, "--no-build")
+        assert rc == 1 and f"{f}: " in text and words in text, (name, text)

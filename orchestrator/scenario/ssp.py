@@ -103,13 +103,28 @@ class _Source:
     def file(self, rel: str, what: str) -> Path:
         _safe_member(rel, f"{self.ssd} ({what})")
         p = (self.root / rel).resolve()
+        with contextlib.suppress(OSError):
+            mode = os.stat(p).st_mode
+            if not stat.S_ISREG(mode):
+                raise ScenarioError(f"{self.ssd}: {what} {rel!r} is {file_kind(mode)}, expected a regular file; "
+                                    "add the file to the SSP or fix the 'source'")
         if not p.is_file():
             raise ScenarioError(f"{self.ssd}: {what} {rel!r} not found (looked in {self.root}); "
                                 "add the file to the SSP or fix the 'source'")
         return p
 
 
-def _value(el: ET.Element) -> tuple[str, Any] | None:
+def _number(raw: str, what: str) -> float:
+    """``raw`` (an XML attribute) as a float; ScenarioError naming ``what`` if it is none."""
+    try:
+        return float(raw)
+    except (TypeError, ValueError):
+        raise ScenarioError(f"{what} is {raw!r}, not a number; write a decimal number such as 1.5") from None
+
+
+def _value(el: ET.Element, what: str) -> tuple[str, Any] | None:
+    """The (type, value) of a ssv:Parameter, None if it has none; ScenarioError naming ``what``
+    when the value is not of its type (xs:double, xs:int, xs:boolean)."""
     for t in TYPES:
         v = el.find(f"ssv:{t}", NS)
         if v is not None:
@@ -117,10 +132,16 @@ def _value(el: ET.Element) -> tuple[str, Any] | None:
             if raw is None:
                 return None
             if t == "Real":
-                return t, float(raw)
-            if t in ("Integer", "Enumeration"):
-                return t, int(raw) if t == "Integer" or raw.lstrip("-").isdigit() else raw
+                return t, _number(raw, f"{what}: ssv:Real value")
+            if t == "Integer" or (t == "Enumeration" and raw.strip().lstrip("-").isdigit()):
+                try:
+                    return t, int(raw.strip())
+                except ValueError:
+                    raise ScenarioError(f"{what}: ssv:{t} value is {raw!r}, not an integer; write a whole number "
+                                        "such as 3") from None
             if t == "Boolean":
+                if raw.strip().lower() not in ("true", "false", "1", "0"):
+                    raise ScenarioError(f"{what}: ssv:Boolean value is {raw!r}; write true, false, 1 or 0")
                 return t, raw.strip().lower() in ("true", "1")
             return t, raw
     return None
@@ -147,7 +168,11 @@ def _parameters(comp: ET.Element, src: _Source, problems: list[str]) -> dict[str
                 name = p.get("name", "")
                 if prefix and name.startswith(prefix):
                     name = name[len(prefix):]
-                v = _value(p)
+                try:
+                    v = _value(p, f"{src.ssd}: parameter {name!r} of {comp.get('name')!r}")
+                except ScenarioError as e:
+                    problems.extend(e.problems)
+                    continue
                 if v is None:
                     problems.append(f"{src.ssd}: parameter {name!r} of {comp.get('name')!r} has no value")
                 else:
@@ -180,6 +205,10 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
         if not name or not source:
             problems.append(f"{src.ssd}: a component lacks 'name' or 'source'")
             continue
+        if name in fmus:
+            problems.append(f"{src.ssd}: two components are called {name!r} (the second would replace the "
+                            "first); give each component its own name")
+            continue
         if comp.get("type") not in (None, "application/x-fmu-sharedlibrary"):
             problems.append(f"{src.ssd}: component {name!r} has type {comp.get('type')!r}; only FMUs "
                             "(application/x-fmu-sharedlibrary) are supported")
@@ -202,8 +231,13 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
         if lt is None:
             lt = c.find("ssd:LinearTransformation", NS)
         if lt is not None:
-            conn["gain"] = float(lt.get("factor", 1.0))
-            conn["offset"] = float(lt.get("offset", 0.0))
+            try:
+                for attr, key, default in (("factor", "gain", 1.0), ("offset", "offset", 0.0)):
+                    conn[key] = _number(lt.get(attr, default), f"{src.ssd}: connection {conn['from']} -> "
+                                        f"{conn['to']}: LinearTransformation {attr}")
+            except ScenarioError as e:
+                problems.extend(e.problems)
+                continue
         connections.append(conn)
     if problems:
         raise ScenarioError(problems)
@@ -214,10 +248,11 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
     if de is not None:
         for attr, key in (("startTime", "start_time"), ("stopTime", "stop_time")):
             if de.get(attr) is not None:
-                doc[key] = float(de.get(attr))
+                doc[key] = _number(de.get(attr), f"{src.ssd}: DefaultExperiment {attr}")
         fixed = de.find("ssd:Annotations/ssc:Annotation/osp:Algorithm/osp:FixedStepAlgorithm", NS)
         if fixed is not None and fixed.get("baseStepSize"):
-            doc["coupling"] = {"scheme": "jacobi", "macro_step": float(fixed.get("baseStepSize"))}
+            doc["coupling"] = {"scheme": "jacobi", "macro_step": _number(
+                fixed.get("baseStepSize"), f"{src.ssd}: osp:FixedStepAlgorithm baseStepSize")}
     return doc
 
 
