@@ -257,3 +257,14 @@ def test_ssp_values_that_are_not_of_their_type_and_twin_components(tmp_path, cap
         f.write_text(SSD.format(**{"connections": "", "experiment": exp, **parts}))
         rc, text = cli(capsys, "validate", f, "--no-build")
         assert rc == 1 and f"{f}: " in text and words in text, (name, text)
+
+
+def test_an_fmu_log_message_cannot_drive_the_terminal():
+    """An FMU's log message went to the terminal as it came: ESC [2J cleared the screen, ESC ]0;
+    retitled the window, ESC [8m hid what followed, a bare CR overwrote the line with a fake
+    'status: finished', U+202E showed the rest reversed. They are now shown escaped."""
+    from orchestrator.fmi.subsystem import log_message_text
+    raw = "\x1b[2J\x1b[Hbad k\rstatus: finished\x1b]0;owned\x07\x1b[8mhidden \u202eevil\x9b1m\ttab"
+    text = log_message_text(raw)
+    assert not any(c in text for c in "\x1b\x07\r\u202e\x9b"), repr(text)
+    assert text == ("\\x1b[2J\\x1b[Hbad k / status: finished\\x1b]0;owned\\x07\\x1b[8mhidden \\u202eevil\\x9b1m\ttab")

@@ -101,11 +101,23 @@ _PY_EXCEPTION = re.compile(r"Fatal py exception encountered: \[(\w+)\] PyObject_
 _LOG_HEAD, _LOG_TAIL = 1200, 400       # characters kept of a long log message: its start and its end
 
 
+# characters of an FMU's log message that a terminal would act on rather than show: C0/C1
+# controls (ESC starts sequences that clear the screen, retitle the window or hide text; a bare
+# CR overwrites the line) and the bidirectional overrides that show text reversed
+_UNSHOWN = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069]")
+
+
+def _shown(m: re.Match) -> str:
+    c = ord(m.group())
+    return f"\\x{c:02x}" if c < 0x100 else f"\\u{c:04x}"
+
+
 def log_message_text(message: str) -> str:
     """One FMU log message on one line, for an error: a Python exception that PythonFMU
     reports is shown as ``ValueError in getReal: <its message>`` (the repr unquoted, its
     line breaks kept as ' / '), and a long message keeps its start and its end (the start says
-    what is wrong, the end where)."""
+    what is wrong, the end where). Control characters and direction overrides are shown
+    escaped (``\\x1b``), so an FMU cannot clear or rewrite the terminal."""
     text = message.strip()
     m = _PY_EXCEPTION.search(text)
     if m:
@@ -117,6 +129,7 @@ def log_message_text(message: str) -> str:
         if isinstance(value, str):
             text = f"{kind} in the FMU's {where}: {value}"
     text = " / ".join(line.strip() for line in text.splitlines() if line.strip())
+    text = _UNSHOWN.sub(_shown, text)
     if len(text) > _LOG_HEAD + _LOG_TAIL + 5:
         text = f"{text[:_LOG_HEAD]} ... {text[-_LOG_TAIL:]}"
     return text
@@ -143,7 +156,7 @@ def _fmu_logger(env, instance_name, status, category, message):
     if status >= 1:
         log.warning("%s: [%s] %s", inst, label, log_message_text(text))
     else:
-        log.debug("%s: [%s] %s", inst, label, text)
+        log.debug("%s: [%s] %s", inst, label, _UNSHOWN.sub(_shown, text))
 
 
 def _callbacks():
