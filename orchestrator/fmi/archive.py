@@ -6,6 +6,8 @@ checks the archive and parses ``modelDescription.xml`` safely:
 * member names: no absolute paths, no drive letters, no backslashes, no ``..``
   components, no NUL, no duplicates;
 * no symbolic links or other special files;
+* no encrypted members, and only the compression methods Python reads (stored,
+  deflate, bzip2, lzma; not deflate64 or the AES of WinZip);
 * the file itself: a regular file (no FIFO or device), opened once;
 * sizes: each member at most :data:`MAX_MEMBER_BYTES`, all members together at
   most :data:`MAX_TOTAL_BYTES`, at most :data:`MAX_MEMBERS` members, no member
@@ -114,6 +116,10 @@ def _check_name(path: Path, name: str) -> PurePosixPath:
     return PurePosixPath(name)
 
 
+_METHODS = {zipfile.ZIP_STORED: "stored", zipfile.ZIP_DEFLATED: "deflate", zipfile.ZIP_BZIP2: "bzip2",
+            zipfile.ZIP_LZMA: "lzma"}
+
+
 def check_archive(path: Path | str, *, required: str = "modelDescription.xml") -> list[zipfile.ZipInfo]:
     """Check every member header of the FMU at ``path``; return the member list.
 
@@ -141,6 +147,13 @@ def check_archive(path: Path | str, *, required: str = "modelDescription.xml") -
             kind = "a symbolic link" if stat.S_ISLNK(mode) else "a special file"
             raise _fail(path, f"member {name!r} is {kind}",
                         "FMUs must contain regular files only; ask the author to rebuild it without links")
+        if info.flag_bits & 0x1:
+            raise _fail(path, f"member {name!r} is encrypted",
+                        "FMUs are not encrypted; export or zip it again without a password")
+        if info.compress_type not in _METHODS:
+            raise _fail(path, f"member {name!r} is compressed with zip method {info.compress_type}, which rotorcosim "
+                        f"cannot read (it reads {', '.join(_METHODS.values())})",
+                        "zip the FMU again with deflate (e.g. `zip -r` or Python's zipfile)")
         if info.file_size > MAX_MEMBER_BYTES:
             raise _fail(path, f"member {name!r} is {info.file_size} bytes uncompressed (limit {MAX_MEMBER_BYTES})",
                         "raise orchestrator.fmi.archive.MAX_MEMBER_BYTES if you trust this FMU")
