@@ -308,3 +308,18 @@ def test_encrypted_or_deflate64_fmu_is_refused_by_name(tmp_path, capsys):
         assert rc == 1 and "member 'modelDescription.xml' " + words in text, (kind, text)
         rc, text = cli(capsys, "validate", tmp_path / "s.yaml", "--no-build")
         assert rc == 1 and words in text and "RuntimeError" not in text and "NotImplementedError" not in text, text
+
+
+def test_variable_names_with_line_breaks_or_invisible_characters_are_refused(tmp_path, capsys):
+    """A variable called "y&#10;status: finished&#13;" was accepted: `rotorcosim info` printed a
+    fake line, and recording it ("a.*") gave results.csv a header over two lines that `rotorcosim
+    plot` then refused as damaged. Names with control or invisible characters are now refused
+    when the model description is read, as instance and run names are."""
+    from hostile_builders import VARS, cli, md_xml, write_fmu
+    for bad, code in (("y&#10;status: finished&#13;", "U+000A"), ("y&#x202e;x", "U+202E"), ("y&#9;", "U+0009")):
+        fmu = write_fmu(tmp_path / "m.fmu", md_xml(variables=VARS.replace('name="y"', f'name="{bad}"')))
+        rc, text = cli(capsys, "info", fmu)
+        assert rc == 1 and f"holds the control or invisible character {code}" in text, text
+    fmu = write_fmu(tmp_path / "m.fmu", md_xml(variables=VARS.replace('name="y"', 'name="Über-y [m/s²] ω"')))
+    rc, text = cli(capsys, "info", fmu)
+    assert rc == 0, text

@@ -14,6 +14,7 @@ raises :class:`orchestrator.errors.FmuError` naming the file, what is wrong and 
 from __future__ import annotations
 
 import re
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -235,6 +236,9 @@ def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelD
         default_experiment=default_experiment, variables=variables, model_structure=structure)
 
 
+_HIDDEN = ("Cc", "Cf", "Zl", "Zp", "Cs")   # as in untrusted.name_problem
+
+
 def _variable(sv, types, path: Path) -> Variable:
     """One ``ScalarVariable`` element: name, valueReference, one type element, an FMI 2.0
     causality and variability; unit and range from its declared type where it gives none."""
@@ -255,6 +259,10 @@ def _variable(sv, types, path: Path) -> Variable:
                         f"{', '.join(allowed)})", "re-export the FMU with a valid model description")
     if not name.strip():
         raise _fail(path, f"a ScalarVariable (valueReference {vr_int}) has an empty name", "re-export the FMU")
+    hidden = next((c for c in name if unicodedata.category(c) in _HIDDEN), None)
+    if hidden is not None:       # a line break made results.csv's header two lines, 'info' print a fake line
+        raise _fail(path, f"variable name {name[:80]!r} holds the control or invisible character "
+                    f"U+{ord(hidden):04X}", "re-export the FMU with printable variable names")
     declared = type_el.get("declaredType", "") or ""
     attrs = {**types.get(declared, ({}, ()))[0], **type_el.attrib}
     start = type_el.get("start")
