@@ -323,3 +323,18 @@ def test_variable_names_with_line_breaks_or_invisible_characters_are_refused(tmp
     fmu = write_fmu(tmp_path / "m.fmu", md_xml(variables=VARS.replace('name="y"', 'name="Über-y [m/s²] ω"')))
     rc, text = cli(capsys, "info", fmu)
     assert rc == 0, text
+
+
+def test_instance_names_are_bounded(tmp_path, capsys):
+    """An instance name of 300 letters was valid; with isolation: process the run then failed in
+    "fmi2Instantiate returned exception: OSError in the worker: [Errno 36] File name too long"
+    (the name becomes the worker's folder). Names are now at most 100 characters, like every
+    name that becomes a path."""
+    from hostile_builders import cli, write_fmu
+    write_fmu(tmp_path / "m.fmu")
+    for n, refused in ((101, True), (100, False)):
+        name = "a" * n
+        (tmp_path / "s.yaml").write_text(f"name: long\nstop_time: 0.01\nfmus:\n  {name}: {{path: m.fmu}}\n"
+                                         "coupling:\n  macro_step: 1.0e-3\n  isolation: process\n")
+        rc, text = cli(capsys, "validate", tmp_path / "s.yaml", "--no-build")
+        assert rc == 1 and (f"s.yaml:4: instance name is {n} characters long" in text) == refused, text

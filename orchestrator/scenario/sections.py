@@ -34,6 +34,7 @@ from orchestrator.untrusted import InputError, check_yaml_tree, name_problem, ou
 log = logging.getLogger("orchestrator.scenario")
 
 INSTANCE_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
+MAX_INSTANCE_NAME = 100     # characters, as untrusted.check_name allows for names that become paths
 FROM_FMUS = object()        # stop_time not written: taken from the FMUs' DefaultExperiment (checks.apply_defaults)
 
 
@@ -202,6 +203,10 @@ class SectionReader(NodeReader):
             if not INSTANCE_RE.match(name):
                 self.err(knode, f"instance name must start with a letter or '_' and contain only letters, digits, "
                                 f"'_' and '-' (got {name!r}); rename it (signals are written 'instance.variable')")
+                continue
+            if len(name) > MAX_INSTANCE_NAME:    # it names the worker's folder (isolation: process) and files
+                self.err(knode, f"instance name is {len(name)} characters long (got {name[:20]!r}...), more than "
+                                f"{MAX_INSTANCE_NAME}; give it a shorter name")
                 continue
             entry = self.mapping(vnode, f"fmus.{name}", FMU_KEYS, (),
                                  fix=f"write '{name}: {{path: X.fmu}}' or '{name}: {{fmu: JournalBearing}}'")
