@@ -338,3 +338,42 @@ def test_instance_names_are_bounded(tmp_path, capsys):
                                          "coupling:\n  macro_step: 1.0e-3\n  isolation: process\n")
         rc, text = cli(capsys, "validate", tmp_path / "s.yaml", "--no-build")
         assert rc == 1 and (f"s.yaml:4: instance name is {n} characters long" in text) == refused, text
+
+
+def test_plot_of_parquet_strings_nested_columns_undotted_names_and_many_columns(tmp_path, capsys, monkeypatch):
+    """`rotorcosim plot` ended in an internal error for a run with output.format: parquet and a
+    String signal (ValueError: could not convert string to float: 'hello': no hostile input
+    needed), a results.parquet with a list column (ValueError: setting an array element with a
+    sequence) and a column name without '.' (IndexError); a folder of 20 000 columns drew
+    20 000 figures (more than 2 minutes and counting). Now: text columns are skipped with the
+    usual note, nested columns refused naming the column, undotted names drawn, and at most
+    MAX_FIGURES figures with a note on the rest."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    import pytest
+
+    from hostile_builders import cli
+    from orchestrator.results.plots import signals
+    run = tmp_path / "strings"
+    run.mkdir()
+    pq.write_table(pa.table({"time": [0.0, 0.1, 0.2], "a.y": [0.0, 1.0, 2.0], "a.s": ["x", "y", "z"]}),
+                   run / "results.parquet")
+    with pytest.warns(UserWarning, match="'a.s' has no numeric values"):
+        rc, text = cli(capsys, "plot", run)
+    assert rc == 0 and (run / "plots" / "signals_a.png").is_file(), text
+
+    run = tmp_path / "nested"
+    run.mkdir()
+    pq.write_table(pa.table({"time": [0.0, 0.1], "a.x": [[1.0], [2.0, 3.0]]}), run / "results.parquet")
+    rc, text = cli(capsys, "plot", run)
+    assert rc == 1 and "column 'a.x' holds list<" in text and "expected numbers or text" in text, text
+
+    run = tmp_path / "wide"
+    run.mkdir()
+    (run / "results.csv").write_text("time," + ",".join(f"c{i}" for i in range(30)) + "\n"
+                                     + "".join(f"{t}," + ",".join(["1.5"] * 30) + "\n" for t in (0, 1, 2)))
+    monkeypatch.setattr(signals, "MAX_FIGURES", 3)
+    with pytest.warns(UserWarning, match="27 more signals not drawn"):
+        rc, text = cli(capsys, "plot", run)
+    assert rc == 0 and sorted(p.name for p in (run / "plots").glob("signals_*.png")) == [
+        "signals_c0.png", "signals_c1.png", "signals_c2.png"], text

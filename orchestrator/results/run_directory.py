@@ -273,6 +273,9 @@ def read_results_parquet(path: str | Path) -> dict[str, np.ndarray]:
         if pa.types.is_integer(col.type) or pa.types.is_floating(col.type) or pa.types.is_boolean(col.type):
             # whole columns at once (no Python list per row); nulls become NaN
             out[name] = np.asarray(col.cast(pa.float64()).to_numpy(zero_copy_only=False), dtype=float)
+        elif not (pa.types.is_string(col.type) or pa.types.is_large_string(col.type)):
+            raise ValueError(f"{path}: column {name!r} holds {col.type}, expected numbers or text (a String "
+                             "signal); give the results.parquet of a run")
         else:
             out[name] = np.asarray(col.to_pylist(), dtype=object)
     if out["time"].dtype == object:

@@ -7,7 +7,8 @@ cannot be drawn and are skipped with a note. ``signals`` picks columns by name o
 pattern (``*`` = any characters, see :mod:`orchestrator.names`: ``osc.x[*]``,
 ``bearing1.*``), default every column. Panels per figure are capped at
 :data:`MAX_PANELS`; more signals of one instance go to ``signals_<instance>_2.png``
-and so on.
+and so on, and at most :data:`MAX_FIGURES` figures are drawn (a note names how many signals
+were left out and how to pick them with ``--signals``).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from typing import Sequence
 import numpy as np
 
 MAX_PANELS = 8
+MAX_FIGURES = 100        # signal figures of one plot (800 panels); a folder of 20 000 columns took hours
 MAX_POINTS = 20000       # points per trace above which the trace is decimated by striding
 DPI = 110
 
@@ -59,29 +61,44 @@ def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
         return [], notes + [f"signal plots: {t.size} row(s) in results.csv, need 2"]
     groups: dict[str, list[str]] = {}
     for c in chosen:
-        y = np.asarray(cols[c], dtype=float)
-        if np.all(np.isnan(y)):
+        y = _numbers(cols[c])
+        if y is None or np.all(np.isnan(y)):
             notes.append(f"signal plots: '{c}' has no numeric values (a String signal?); not drawn")
             continue
-        groups.setdefault(c.split(".", 1)[0], []).append(c)
+        groups.setdefault(c.split(".", 1)[0], []).append(c)      # a name without '.': its own group
     out_dir.mkdir(parents=True, exist_ok=True)
     stride = max(1, t.size // MAX_POINTS)
     written = []
+    drawn = 0
     for inst, sigs in groups.items():
         for k in range(0, len(sigs), MAX_PANELS):
+            if len(written) >= MAX_FIGURES:
+                break
             part = sigs[k:k + MAX_PANELS]
+            drawn += len(part)
             fig = Figure(figsize=(8, 1.6 + 1.7 * len(part)), layout="constrained")
             FigureCanvasAgg(fig)
             axes = fig.subplots(len(part), 1, sharex=True, squeeze=False)[:, 0]
             for ax, c in zip(axes, part):
-                y = np.asarray(cols[c], dtype=float)
+                y = _numbers(cols[c])
                 whole = bool(np.all(np.isnan(y) | (y == np.round(y))))
                 ax.plot(t[::stride], y[::stride], lw=0.9, drawstyle="steps-post" if whole else "default")
-                ax.set_ylabel(c.split(".", 1)[1], rotation=0, ha="right", va="center")
+                ax.set_ylabel(c.split(".", 1)[-1], rotation=0, ha="right", va="center")
                 ax.grid(True, lw=0.3)
             axes[-1].set_xlabel("time [s]")
             fig.suptitle(f"{title}: {inst}")
             path = out_dir / f"signals_{_safe(inst)}{'' if k == 0 else f'_{k // MAX_PANELS + 1}'}.png"
             fig.savefig(path, dpi=DPI)
             written.append(path)
+    left = sum(len(sigs) for sigs in groups.values()) - drawn
+    if left:
+        notes.append(f"signal plots: {left} more signals not drawn (at most {MAX_FIGURES} figures of {MAX_PANELS} "
+                     "panels; orchestrator.results.plots.signals.MAX_FIGURES); pick them with --signals PATTERN")
     return written, notes
+
+
+def _numbers(column) -> np.ndarray | None:
+    """A column as float64, or None for text (a String signal of results.parquet comes as
+    an object array of str; results.csv gives NaN for it)."""
+    a = np.asarray(column)
+    return None if a.dtype == object else a.astype(float)
