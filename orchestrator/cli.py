@@ -228,8 +228,10 @@ def _cmd_info(args) -> int:
              "description")]
     for v in variables:
         start = "" if v.start is None else repr(v.start) if isinstance(v.start, str) else f"{v.start}"
-        aliases = [n for n in by_ref[(_family(v.type), v.value_reference)] if n != v.name]
-        desc = (v.description or "") + (f" [alias of {', '.join(aliases)}]" if aliases else "")
+        group = by_ref[(_family(v.type), v.value_reference)]     # at most a few names (150 000 aliases: MemoryError)
+        aliases = [n for n in group[:_ALIASES_SHOWN + 1] if n != v.name][:_ALIASES_SHOWN]
+        more = f" and {len(group) - 1 - len(aliases)} more" if len(group) - 1 > len(aliases) else ""
+        desc = (v.description or "") + (f" [alias of {', '.join(aliases)}{more}]" if aliases else "")
         rows.append((v.name, v.causality, v.variability, v.type, start, v.unit or "", str(v.value_reference),
                      v.declared_type, _range_text(v), "" if v.nominal is None else f"{v.nominal:g}", desc))
     print(f"variables ({len(variables)}):")
@@ -261,6 +263,9 @@ def _feedthrough_lines(md) -> list[str]:
             more = f" and {len(names) - 12} more" if len(names) > 12 else ""
             lines.append(f"  {label}: {', '.join(names[:12])}{more}")
     return lines
+
+
+_ALIASES_SHOWN = 5    # names listed after "[alias of" in `info`
 
 
 def _family(fmi_type: str) -> str:
