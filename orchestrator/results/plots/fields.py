@@ -62,7 +62,8 @@ def read_fields(path: Path) -> dict[str, np.ndarray]:
                 if f"{key}.npy" not in names:
                     if key == "theta":
                         continue
-                    raise ValueError(f"no array '{key}' (it holds {sorted(n.removesuffix('.npy') for n in names)[:10]})")
+                    held = sorted(n.removesuffix(".npy") for n in names)[:10]
+                    raise ValueError(f"no array '{key}' (it holds {held})")
                 out[key] = _read_array(zf, key)
     phi, z, p = out["phi"], out["z"], out["p"]
     for key, a in (("phi", phi), ("z", z)):
