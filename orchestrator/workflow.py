@@ -95,14 +95,27 @@ def _execute(scenario, out_dir: Path, folder: RunFolder, progress, observers) ->
     results_file = out_dir / ("results.parquet" if fmt == "parquet" else "results.csv")
     obs = [CsvWriter(results_file, format=fmt), Progress(progress), *observers]
     master = MasterAlgorithm(scenario, out_dir=out_dir, observers=obs, record_in_memory=False)
+    kept: dict = {}
+
+    def read_back(r: CoSimResult) -> CoSimResult:        # the rows once, however the run ends
+        if "rows" not in kept:
+            kept["rows"] = _read_back(r, master, results_file)
+        return replace(r, t=kept["rows"].t, outputs=kept["rows"].outputs)
+
+    def summary_before_release() -> None:
+        # the final summary before the FMUs are freed: one that crashes or hangs in
+        # fmi2FreeInstance after a complete run leaves summary.json complete (it said "running")
+        folder.finish(_summary(scenario, read_back(master.result())))
+
+    master.before_release = summary_before_release
     try:
         with folder.stop_signals(master):
-            res = _read_back(master.run(), master, results_file)
+            res = read_back(master.run())
     except BaseException as exc:
         if master.status is Status.NOT_STARTED:
             raise                               # setup failed: RunFolder writes the failed summary
         # stopped by a signal (or failed unexpectedly) while stepping: keep where it stopped, then re-raise
-        res = _read_back(master.result(), master, results_file)
+        res = read_back(master.result())
         note = res.message
         if isinstance(exc, KeyboardInterrupt):
             msg = folder.stop_message(res.end_time)

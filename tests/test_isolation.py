@@ -30,7 +30,7 @@ pytestmark = [pytest.mark.integration,
               pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")]
 
 HERE = Path(__file__).resolve().parent
-FAULTS = {"abort": 1, "segfault": 2, "exit": 3, "hang": 4, "nan": 5, "error": 6}
+FAULTS = {"abort": 1, "segfault": 2, "exit": 3, "hang": 4, "nan": 5, "error": 6, "free": 7}
 
 
 @pytest.fixture(scope="module")
@@ -174,6 +174,18 @@ def test_without_isolation_a_crash_never_leaves_a_stale_finished_summary(fmu_dir
                                                                      name="again")), str(out)],
                         capture_output=True, text=True, timeout=300)
     assert ok.returncode == 0 and _summary(out)["scenario"] == "again", ok.stderr
+
+
+def test_a_crash_while_freeing_after_a_complete_run_keeps_the_final_summary(fmu_dir, tmp_path):
+    """An FMU that segfaults in fmi2FreeInstance (fault 7), in the master's process: the run was
+    complete, and summary.json (written before the FMUs are freed) says so; it said "running"."""
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-c", _CHILD, str(_scenario(fmu_dir, fault="free", isolation="none")),
+                        str(out)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == -11, r                         # the crash itself is not hidden
+    s = _summary(out)
+    assert s["status"] == "finished" and s["end_time"] == pytest.approx(0.01), s
+    assert s["output"]["rows"] == 11 and len(_rows(out)) == 11 and s["finished_at"]
 
 
 def test_a_second_run_into_a_busy_folder_is_refused(fmu_dir, tmp_path):

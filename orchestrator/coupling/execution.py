@@ -123,6 +123,9 @@ class MasterAlgorithm:
         # set (e.g. by a SIGINT handler, see orchestrator.run) to stop cleanly between macro
         # steps: run() then raises KeyboardInterrupt from master code, never inside an FMU
         self.interrupt_requested = False
+        # called once by terminate() after fmi2Terminate and the observers, before fmi2FreeInstance
+        # (orchestrator.workflow writes the final summary.json there)
+        self.before_release = None
         self.n = 0
         self.t = float(scenario.start_time)
         self.end_time = float(scenario.start_time)
@@ -593,11 +596,18 @@ class MasterAlgorithm:
                 except FmuCallError as e:
                     log.warning("%s", e)
         finally:
-            self._release()
-            self._phase = "terminated"
+            # the observers (results file closed) and the caller's hook (the final summary.json) come
+            # before fmi2FreeInstance: an FMU that crashes or hangs while it is freed, after a run
+            # that is complete, leaves the run's record complete (it used to leave "running")
             self.wall_time = _time.perf_counter() - self._t_wall0
-            for o in self.observers:
-                o.on_terminated(self.view)
+            try:
+                for o in self.observers:
+                    o.on_terminated(self.view)
+                if self.before_release is not None:
+                    self.before_release()
+            finally:
+                self._release()
+                self._phase = "terminated"
 
     def _release(self) -> None:
         if self._pool is not None:          # no FMU steps in a thread once it is closed

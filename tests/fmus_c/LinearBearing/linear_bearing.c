@@ -21,7 +21,8 @@
  * rolled back by fmi2SetFMUstate) it misbehaves on purpose:
  *   fault 0 nothing, 1 abort(), 2 a segmentation fault (write through NULL),
  *   3 _exit(3), 4 hang (sleeps forever, ignores nothing but SIGKILL in effect),
- *   5 NaN in Fx from then on (returns fmi2OK), 6 returns fmi2Error.
+ *   5 NaN in Fx from then on (returns fmi2OK), 6 returns fmi2Error;
+ *   7 a segmentation fault in fmi2FreeInstance (after a complete run; fault_step unused).
  * It tests what a co-simulation master does when an FMU crashes or hangs.
  */
 
@@ -211,6 +212,12 @@ void fmi2FreeInstance(fmi2Component c)
     Instance *inst = (Instance *)c;
     fmi2CallbackFreeMemory freeMemory;
     if (!inst) return;
+#ifdef MISBEHAVING
+    if (inst->fault == 7) {
+        volatile int *nowhere = NULL;
+        *nowhere = 1;                                /* SIGSEGV while freeing */
+    }
+#endif
     freeMemory = inst->cb.freeMemory;
     freeMemory(inst->instanceName);
     freeMemory(inst);
