@@ -7,6 +7,7 @@ reference, a compare variant); analysis, plots and compare read runs through it 
 from __future__ import annotations
 
 import csv
+import io
 import logging
 import os
 from pathlib import Path
@@ -51,13 +52,19 @@ def read_results(path: str | Path) -> dict[str, np.ndarray]:
 
 class _ResultsReader:
     """One pass over an open results.csv (see :func:`read_results`): chunks of whole lines,
-    parsed by numpy a chunk at once; a chunk with a bad row is read again row by row to name it."""
+    parsed by numpy a chunk at once; a chunk with a bad row is read again row by row to name it.
+
+    A chunk that is plain ASCII without carriage returns or an overlong line (the usual case:
+    checked on its bytes, :meth:`clean`) goes to numpy as bytes, without becoming a list of
+    lines, and is taken when numpy finds one row of n numbers per line; any other chunk is
+    decoded and split into lines first (:meth:`lines`), which names the line of a problem."""
 
     def __init__(self, fh, path: Path):
         self.fh, self.path = fh, path
         self.lineno = 0            # lines handed out so far
         self._rest = b""
         self._eof = False
+        self._clean: tuple[bytes, bool] | None = None   # (rest of the first chunk, clean(rest))
 
     def fail(self, line: int, what: str) -> ValueError:
         return ValueError(f"{self.path}:{line}: {what}")
@@ -71,25 +78,38 @@ class _ResultsReader:
                          "is one row of numbers: this is not a results file of a run (or raise "
                          "orchestrator.results.run_directory.MAX_LINE_BYTES if you trust it)")
 
-    def next_lines(self) -> tuple[int, list[str], bool] | None:
-        """``(number of the first line, lines as text without line breaks, last line complete)``
-        for the next chunk of whole lines; None at the end. No line is longer than MAX_LINE_BYTES."""
+    def next_chunk(self) -> tuple[int, bytes, bool, int] | None:
+        """``(number of the first line, the lines as bytes without the last line break, last
+        line complete, number of lines)`` for the next chunk of whole lines; None at the end.
+        The line after the chunk (still being read) is no longer than MAX_LINE_BYTES."""
         while not self._eof:
             chunk = self.fh.read(_CHUNK_BYTES)
             self._eof = not chunk
-            buf = self._rest + chunk
-            cut = buf.rfind(b"\n")
-            body, self._rest = (buf[:cut], buf[cut + 1:]) if cut >= 0 else (b"", buf)
+            cut = chunk.rfind(b"\n")
+            if cut < 0:                              # (the last line of the file, or a long one)
+                self._rest += chunk
+                if len(self._rest) > MAX_LINE_BYTES:
+                    raise self.too_long(self.lineno + 1)
+                if self._eof and self._rest:         # the last line, without its line break
+                    return self.take(self._rest, complete=False)
+                continue
+            body = b"".join((self._rest, memoryview(chunk)[:cut])) if self._rest else chunk[:cut]
+            self._rest = chunk[cut + 1:]
+            count = body.count(b"\n") + 1
             if len(self._rest) > MAX_LINE_BYTES:
-                raise self.too_long(self.lineno + body.count(b"\n") + 1 + (cut >= 0))
-            if self._eof and self._rest:             # the last line, without its line break
-                return self.lines(self._rest if cut < 0 else body + b"\n" + self._rest, complete=False)
-            if cut >= 0:
-                return self.lines(body, complete=True)
+                raise self.too_long(self.lineno + count + 1)
+            return self.take(body, complete=True, count=count)
         return None
 
-    def lines(self, data: bytes, complete: bool) -> tuple[int, list[str], bool]:
+    def take(self, data: bytes, complete: bool, count: int | None = None) -> tuple[int, bytes, bool, int]:
         first = self.lineno + 1
+        count = data.count(b"\n") + 1 if count is None else count
+        self.lineno += count
+        return first, data, complete, count
+
+    def lines(self, first: int, data: bytes) -> list[str]:
+        """The lines of ``data`` (line ``first`` onwards) as text without line breaks: strict
+        UTF-8, none longer than MAX_LINE_BYTES."""
         try:
             text = data.decode("utf-8")
         except UnicodeDecodeError as exc:
@@ -107,17 +127,38 @@ class _ResultsReader:
             for k, line in enumerate(out):
                 if len(line.encode("utf-8")) > MAX_LINE_BYTES:
                     raise self.too_long(first + k)
-        self.lineno += len(out)
-        return first, out, complete
+        return out
 
-    def header(self) -> tuple[list[str], tuple[int, list[str], bool] | None]:
+    @staticmethod
+    def clean(data: bytes) -> bool:
+        """May numpy parse the bytes of ``data`` as they are: ASCII (so UTF-8), no carriage
+        return, no line longer than MAX_LINE_BYTES? Else the lines are decoded and checked one
+        by one (:meth:`lines`). An empty line is not looked for here: numpy skips it, and the
+        rows then fall short of the lines (:meth:`parse_clean`)."""
+        if not data or not data.isascii() or b"\r" in data:
+            return False
+        start, size = 0, len(data)
+        while size - start > MAX_LINE_BYTES:    # start is a line's first byte: its line ends within the limit
+            end = data.rfind(b"\n", start, start + MAX_LINE_BYTES + 1)
+            if end < 0:
+                return False
+            start = end + 1
+        return True
+
+    def header(self) -> tuple[list[str], tuple[int, bytes, bool] | None]:
         """The column names and the rest of the first chunk."""
-        got = self.next_lines()
-        if got is None or not got[1][0].strip():
+        got = self.next_chunk()
+        if got is not None:
+            _, data, complete, count = got
+            head, sep, rest = data.partition(b"\n")
+            self._clean = (rest, self.clean(rest))
+            # a chunk that is not clean is checked as text as a whole first (bad UTF-8 or an
+            # overlong line after the header is named before the header's problems)
+            line = self.lines(1, head if self._clean[1] else data)[0]
+        if got is None or not line.strip():
             raise ValueError(f"{self.path}: empty file, expected a header 'time,<instance>.<variable>,...'")
-        first, lines, complete = got
         try:
-            names = [h.strip() for h in next(csv.reader([lines[0]], strict=True))]
+            names = [h.strip() for h in next(csv.reader([line], strict=True))]
         except csv.Error as exc:
             raise self.fail(1, f"the header is not valid CSV ({exc}); expected 'time,<instance>.<variable>,...'") \
                 from None
@@ -132,8 +173,7 @@ class _ResultsReader:
                 raise self.fail(1, f"column '{name[:80]}' appears twice in the header (columns {seen[name] + 1} "
                                 f"and {j + 1}); each column is one signal: remove or rename one")
             seen[name] = j
-        rest = (2, lines[1:], complete) if len(lines) > 1 else None
-        return names, rest
+        return names, ((2, rest, complete, count - 1) if sep else None)
 
     def read(self) -> dict[str, np.ndarray]:
         names, got = self.header()
@@ -144,11 +184,17 @@ class _ResultsReader:
         blank = 0                                       # an empty line not yet followed by a row
         while True:
             if got is None:
-                got = self.next_lines()
+                got = self.next_chunk()
                 if got is None:
                     break
-            first, lines, complete = got
+            first, data, complete, count = got
             got = None
+            if not blank and not self.text_seen:
+                arr = self.parse_clean(data, count, n)
+                if arr is not None:
+                    blocks.append(arr)
+                    continue
+            lines = self.lines(first, data)
             empty = [i for i, line in enumerate(lines) if not line] if "" in lines else []
             if empty:
                 rows = [i for i, line in enumerate(lines) if line]
@@ -168,6 +214,22 @@ class _ResultsReader:
         data = np.concatenate(blocks) if blocks else np.empty((0, n))
         self.check_time(data[:, names.index("time")])
         return {h: data[:, j] for j, h in enumerate(names)}
+
+    def parse_clean(self, data: bytes, rows: int, n: int) -> np.ndarray | None:
+        """The ``rows`` lines of a chunk that :meth:`clean` passes, parsed by numpy from its bytes,
+        when each is n numbers; else None (then :meth:`parse` reads its lines)."""
+        ok = self._clean[1] if self._clean is not None and self._clean[0] is data else self.clean(data)
+        if not ok:
+            return None
+        try:
+            arr = np.loadtxt(io.BytesIO(data), delimiter=",", ndmin=2, dtype=float, comments=None,
+                             encoding="ascii")
+        except ValueError:
+            return None
+        if arr.shape != (rows, n):
+            return None
+        self.numeric_seen[:] = True
+        return arr
 
     def parse(self, first: int, lines: list[str], complete: bool, names: list[str]) -> np.ndarray:
         """The rows of ``lines`` (the first is line ``first``; no empty lines) as floats: numpy at
