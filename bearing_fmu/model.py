@@ -33,6 +33,7 @@ Conventions
 from __future__ import annotations
 
 import math
+import os
 import warnings
 from dataclasses import dataclass, fields as dc_fields
 
@@ -42,21 +43,79 @@ import numpy as np
 from .cavitation import CavitationLaw
 from .contact import average_gap, contact_force
 from .film import hs_force_pressure, integrals
-from .grid import make_grid
+from .grid import groove_columns, make_grid
 from .hs import HalfSommerfeld
 from .solver import StepFailed, TransientFilm
 
-__all__ = ["BearingParams", "BearingModel", "StepFailed", "solve_stationary"]
+__all__ = ["BearingParams", "BearingModel", "StepFailed", "film_memory_estimate", "solve_stationary"]
 
 
 # Bounds of the film grid (checked before anything is allocated): memory and time grow with the
 # cells, n_phi = 10^9 took 23 GB before failing. The finest grids we use are 1536 x 40 (the
 # phi refinement of docs/bearing-validation.md), 40 x 320 (its axial one) and 160 x 160; the
 # bounds leave at least 4 times that. bearing_fmu.journal_bearing declares MAX_N_PHI / MAX_N_Z
-# as the FMU parameters' max (keep them equal).
+# as the FMU parameters' max (keep them equal). At MAX_FILM_CELLS the mass-conserving film needs
+# 0.1-3.2 GiB (its band matrix; film_memory_estimate) and about a minute per internal step on a
+# square grid (BENCHMARKS.md session 19): time, not memory, is what limits it.
 MAX_N_PHI = 8192
 MAX_N_Z = 2048
 MAX_FILM_CELLS = 2**18       # n_phi * n_z (262 144 cells; 1536 x 40 is 61 440)
+
+
+def film_band(n_phi: int, n_z: int, cavitation: int, groove_width: float,
+              groove_angle: float, theta_transport: int = 0) -> tuple[int, int]:
+    """(unknowns n, band half width bw) of the mass-conserving film's Newton matrix from the
+    grid sizes (no field allocated): the bandwidth :func:`.grid.best_ordering` finds, or
+    more (z-fastest after the groove: rows; phi-fastest: n_phi; folded: 2 rows; the
+    7-point stencil of ``theta_transport = 1`` doubles the z-fastest ones, and its i +- 2
+    couplings jump a one-column groove)."""
+    rows = n_z // 2 if cavitation == 1 and n_z % 2 == 0 else n_z
+    wide = 2 if cavitation == 1 and theta_transport == 1 else 1
+    cands = [n_phi, 2 * wide * rows]
+    n_groove = int(groove_columns(n_phi, groove_width, groove_angle).sum())
+    if n_groove >= wide:
+        cands.append(wide * rows)
+    return n_phi * rows, max(1, min(cands))
+
+
+def film_memory_estimate(p: "BearingParams") -> int:
+    """Estimated peak memory [bytes] of a :class:`BearingModel` of ``p`` beyond the
+    interpreter and its compiled kernels: the Newton band matrix ((3 bw + 1) x n doubles,
+    solver.TransientFilm.ab) plus about FILM_VECTORS_PER_CELL vectors of n doubles (the
+    integrator's state, buffers and stencil Jacobians) and HS_ARRAYS_PER_CELL arrays of the
+    full grid (the half-Sommerfeld solver, the fields, and the candidate orderings while the
+    grid is built): 0-70 % above the peak measured over the process's base, the band matrix
+    90-96 % of it on square grids (benchmarks/bench_film_memory.py, BENCHMARKS.md session 19)."""
+    N = p.n_phi * p.n_z
+    est = HS_ARRAYS_PER_CELL * 8 * N
+    if p.cavitation == 1:
+        n, bw = film_band(p.n_phi, p.n_z, p.cavitation, p.groove_width, p.groove_angle,
+                          p.theta_transport)
+        est += (3 * bw + 1) * n * 8 + FILM_VECTORS_PER_CELL * 8 * n
+    return est
+
+
+FILM_VECTORS_PER_CELL = 80
+HS_ARRAYS_PER_CELL = 32
+# film_memory_estimate above which BearingParams compares it with the memory available (below
+# it /proc/meminfo is not read: 40 x 40 needs 2 MiB, 512 x 512 with a groove 0.9 GiB)
+MEMORY_CHECK_ABOVE = 2**28
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation: ``MemAvailable`` of /proc/meminfo (free
+    plus reclaimable cache; Linux), else the physical pages (os.sysconf), None if unknown."""
+    try:
+        with open("/proc/meminfo", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (OSError, ValueError, AttributeError):
+        return None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -213,6 +272,8 @@ class BearingParams:
         need("h_min", self.h_min <= self.h_init <= self.h_max, "h_min <= h_init <= h_max")
         need("linear_solver", self.linear_solver in ("band", "lapack", "splu"),
              "'band', 'lapack' or 'splu'")
+        if not problems:
+            self._check_memory(problems)
         if problems:
             raise ValueError("invalid bearing parameters:\n  " + "\n  ".join(problems))
         if self.cavitation == 1 and self.axial_bc == 1 and self.groove_width == 0:
@@ -222,6 +283,27 @@ class BearingParams:
                 "weak sub-ambient suction penalty_a, so the film drains over time. "
                 "Set groove_width > 0 (e.g. 15 deg = 0.2618 rad) to feed the bearing.",
                 stacklevel=3)
+
+    def _check_memory(self, problems: list[str]) -> None:
+        """Refuse a film whose estimated memory (:func:`film_memory_estimate`) exceeds what the
+        machine has available now: Linux would hand out the zeroed arrays anyway and the OOM
+        killer end the run (or another process) when the solver first fills them."""
+        est = film_memory_estimate(self)
+        if est <= MEMORY_CHECK_ABOVE:
+            return
+        avail = available_memory()
+        if avail is None or est <= avail:
+            return
+        n, bw = film_band(self.n_phi, self.n_z, self.cavitation, self.groove_width,
+                          self.groove_angle, self.theta_transport)
+        what = (f"its Newton band matrix is {n} unknowns x {3 * bw + 1} band rows"
+                if self.cavitation == 1 else "its arrays")
+        problems.append(
+            f"BearingParams: the film grid n_phi x n_z = {self.n_phi} x {self.n_z} needs about "
+            f"{est / 2**30:.1f} GiB ({what}), more than this machine has available "
+            f"({avail / 2**30:.1f} GiB, MemAvailable); use a coarser grid (memory grows as n_phi n_z "
+            "min(n_phi, n_z); an even n_z and a feed groove halve the band of the mass-conserving "
+            "film) or free memory")
 
     @property
     def c(self) -> float:

@@ -226,3 +226,48 @@ def test_origins_named_in(text, want):
 def tmp_path_free():
     from pathlib import Path
     return Path("/nonexistent/b.fmu")
+
+
+@pytest.mark.parametrize("n_phi, n_z, groove, theta_transport", [
+    (512, 512, 0.26, 0), (512, 512, 0.0, 0), (513, 511, 0.26, 0), (8192, 32, 0.0, 0), (8192, 32, 0.26, 1),
+    (128, 2048, 0.0, 0), (128, 2048, 0.26, 1), (40, 40, 0.26, 0), (8, 3, 0.26, 1), (9, 7, 0.0, 1)])
+def test_film_band_is_the_grid_band_or_more(n_phi, n_z, groove, theta_transport):
+    # film_memory_estimate's band width from the sizes alone (no grid built): the band the
+    # ordering finds, on the grids of benchmarks/bench_film_memory.py exactly
+    import math
+
+    from bearing_fmu.grid import make_grid
+    from bearing_fmu.model import film_band
+    g = make_grid(n_phi, n_z, groove, math.pi / 2, half=n_z % 2 == 0, wide=theta_transport == 1)
+    n, bw = film_band(n_phi, n_z, 1, groove, math.pi / 2, theta_transport)
+    assert n == g.n and bw >= g.bw
+    if n_phi * n_z >= 2**16:
+        assert bw == g.bw
+
+
+def test_a_film_larger_than_the_available_memory_is_refused(monkeypatch):
+    import bearing_fmu.model as model
+    from bearing_fmu.journal_bearing import fmu_parameter_message
+
+    def small():
+        return 2**29
+    monkeypatch.setattr(model, "available_memory", small)
+    with pytest.raises(ValueError) as exc:
+        model.BearingParams(n_phi=512, n_z=512, groove_width=0.26)
+    msg = str(exc.value)
+    for w in ("n_phi x n_z = 512 x 512 needs about 0.9 GiB", "131072 unknowns x 769 band rows",
+              "(0.5 GiB, MemAvailable)", "use a coarser grid"):
+        assert w in msg, msg
+    assert fmu_parameter_message(msg.splitlines()[1]).startswith("the film grid n_phi x n_z = 512 x 512 needs")
+    model.BearingParams(n_phi=512, n_z=512, cavitation=0)      # half-Sommerfeld: 64 MiB
+
+    def unread():
+        raise AssertionError("a small film must not read the available memory")
+    monkeypatch.setattr(model, "available_memory", unread)
+    model.BearingParams(n_phi=1536, n_z=40)
+    model.BearingParams(n_phi=160, n_z=160)
+
+
+def test_the_available_memory_is_read():
+    from bearing_fmu.model import available_memory
+    assert available_memory() > 2**26
