@@ -570,3 +570,21 @@ def out_dir_escape(value: str) -> str | None:
     if OUT_DIR_FIELD in rest:
         return f"'{OUT_DIR_FIELD}' may appear once, at the start (got {value!r})"
     return None
+
+
+# characters of FMU text (log messages, descriptions) that a terminal would act on rather than
+# show: C0/C1 controls (ESC starts sequences that clear the screen, retitle the window or hide
+# text; a bare CR overwrites the line) and the bidirectional overrides that show text reversed
+UNSHOWN = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069]")
+
+
+def shown_char(m: re.Match) -> str:
+    c = ord(m.group())
+    return f"\\x{c:02x}" if c < 0x100 else f"\\u{c:04x}"
+
+
+def terminal_text(text: str) -> str:
+    """``text`` (from an FMU or a file) with the characters a terminal would act on shown
+    escaped (``\\x1b``, ``\\u202e``), tabs and line breaks included (for one-line fields)."""
+    return re.sub("[\t\n]", lambda m: "\\t" if m.group() == "\t" else "\\n", UNSHOWN.sub(shown_char, text))
+

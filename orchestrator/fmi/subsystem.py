@@ -47,7 +47,7 @@ from orchestrator.errors import FmuCallError, FmuError, LifecycleError, Scenario
 from orchestrator.fmi.archive import ModelDescription, Variable, binary_path, read_model_description, safe_extract
 from orchestrator.fmi.bundled_python import own_imports
 from orchestrator.fmi.values import FAMILY, TypedBatch, settable_problem
-from orchestrator.untrusted import OUT_DIR_FIELD, out_dir_escape
+from orchestrator.untrusted import OUT_DIR_FIELD, UNSHOWN as _UNSHOWN, out_dir_escape, shown_char as _shown
 
 
 #: True once this process has loaded an FMU's shared library in-process (read by
@@ -99,17 +99,6 @@ class RealBatch:
 _PY_EXCEPTION = re.compile(r"Fatal py exception encountered: \[(\w+)\] PyObject_CallMethod\s*"
                            r"([A-Za-z_][\w.]*)\((.*)\)\s*$", re.S)
 _LOG_HEAD, _LOG_TAIL = 1200, 400       # characters kept of a long log message: its start and its end
-
-
-# characters of an FMU's log message that a terminal would act on rather than show: C0/C1
-# controls (ESC starts sequences that clear the screen, retitle the window or hide text; a bare
-# CR overwrites the line) and the bidirectional overrides that show text reversed
-_UNSHOWN = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069]")
-
-
-def _shown(m: re.Match) -> str:
-    c = ord(m.group())
-    return f"\\x{c:02x}" if c < 0x100 else f"\\u{c:04x}"
 
 
 def log_message_text(message: str) -> str:
