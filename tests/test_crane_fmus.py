@@ -14,13 +14,12 @@ without either they are skipped with the reason.
 from __future__ import annotations
 
 import importlib.util
-import subprocess
-import sys
-import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+import third_party
 
 pytestmark = pytest.mark.integration
 HERE = Path(__file__).resolve().parent
@@ -30,19 +29,7 @@ HERE = Path(__file__).resolve().parent
 def crane_fmus(tmp_path_factory) -> dict[str, Path]:
     pytest.importorskip("component_model", reason="the crane-fmu FMUs need the component-model package "
                                                   "(pip install component-model, in the test extra)")
-    d = tmp_path_factory.mktemp("crane_fmu")
-    proc = subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d", str(d),
-                           "crane-fmu==0.2.0"], capture_output=True, text=True, timeout=300)
-    wheels = list(d.glob("crane_fmu-*.whl"))
-    if proc.returncode != 0 or not wheels:
-        pytest.skip(f"cannot fetch the crane-fmu wheel from PyPI (offline?): {proc.stderr.strip()[-300:]}")
-    out = {}
-    with zipfile.ZipFile(wheels[0]) as zf:
-        for name in zf.namelist():
-            if name.startswith("examples/") and name.endswith(".fmu"):
-                target = d / Path(name).name
-                target.write_bytes(zf.read(name))
-                out[target.stem] = target
+    out = third_party.crane_fmus(tmp_path_factory.mktemp("crane_fmu"))
     assert {"DrivingForce", "HarmonicOscillator6D", "MobileCrane"} <= set(out), sorted(out)
     return out
 

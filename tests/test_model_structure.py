@@ -10,15 +10,13 @@ from __future__ import annotations
 
 import logging
 import re
-import subprocess
-import sys
 import time
 import warnings
-import zipfile
 from pathlib import Path
 
 import pytest
 
+import third_party
 from hostile_builders import VARS, cli, md_xml, write_fmu
 from orchestrator.errors import FmuError
 from orchestrator.fmi import model_description
@@ -280,19 +278,7 @@ def test_pythonfmu_fmus_load_without_a_warning(test_fmus, no_warnings):
 def crane_fmus(tmp_path_factory) -> dict[str, Path]:
     """The FMUs of the crane-fmu 0.2.0 wheel (PythonFMU 0.6.9 and 0.7.0); reading their model
     descriptions needs neither component_model nor running them."""
-    d = tmp_path_factory.mktemp("crane_md")
-    proc = subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d", str(d),
-                           "crane-fmu==0.2.0"], capture_output=True, text=True, timeout=300)
-    wheels = list(d.glob("crane_fmu-*.whl"))
-    if proc.returncode != 0 or not wheels:
-        pytest.skip(f"cannot fetch the crane-fmu wheel from PyPI (offline?): {proc.stderr.strip()[-300:]}")
-    out = {}
-    with zipfile.ZipFile(wheels[0]) as zf:
-        for name in zf.namelist():
-            if name.startswith("examples/") and name.endswith(".fmu"):
-                (d / Path(name).name).write_bytes(zf.read(name))
-                out[Path(name).stem] = d / Path(name).name
-    return out
+    return third_party.crane_fmus(tmp_path_factory.mktemp("crane_md"))
 
 
 def test_crane_fmu_fmus_load_without_a_warning(crane_fmus, no_warnings):
