@@ -188,6 +188,40 @@ def test_a_crash_while_freeing_after_a_complete_run_keeps_the_final_summary(fmu_
     assert s["output"]["rows"] == 11 and len(_rows(out)) == 11 and s["finished_at"]
 
 
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_second_signal_stops_a_run_whose_fmu_hangs_in_the_masters_process(fmu_dir, tmp_path, sig):
+    """An FMU hanging inside fmi2DoStep in the master's process (fault 4, isolation none): Python
+    runs no signal handler while the main thread is in the C call, so two Ctrl-C or SIGTERM did
+    nothing and only SIGKILL ended the run, summary.json at "running". The stop watchdog
+    (coupling/lifecycle.py) stops it STOP_GRACE_S after the second signal, rows and summary kept."""
+    out = tmp_path / "out"
+    child = subprocess.Popen([sys.executable, "-c", _CHILD, str(_scenario(fmu_dir, fault="hang", isolation="none",
+                                                                          fault_step=3)), str(out)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:             # rows of the first steps written: it hangs now
+            if (out / "results.csv").is_file() and len(_rows(out)) >= 1:
+                break
+            time.sleep(0.2)
+        time.sleep(1.0)
+        assert child.poll() is None, child.communicate()
+        child.send_signal(sig)
+        time.sleep(0.5)
+        child.send_signal(sig)
+        _, err = child.communicate(timeout=60)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.communicate()
+    assert child.returncode == 128 + int(sig), err
+    s = _summary(out)
+    assert s["status"] == "failed" and s["stopped_by"] == signal.Signals(sig).name, s
+    assert "stopped at once by a second" in s["message"] and "had not returned" in s["message"], s
+    assert "isolation: process" in err
+    assert len(_rows(out)) >= 1
+
+
 def test_a_second_run_into_a_busy_folder_is_refused(fmu_dir, tmp_path):
     from orchestrator import load_scenario, run
     from orchestrator.errors import LifecycleError

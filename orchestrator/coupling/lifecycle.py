@@ -221,8 +221,10 @@ class RunFolder:
         if threading.current_thread() is not threading.main_thread():
             yield
             return
+        handled = [0]                    # stop signals the Python handler has seen (main thread)
 
         def handler(signum, frame):
+            handled[0] += 1
             if master.interrupt_requested:
                 raise RunStopped(signum)
             self.stop_signal = signum
@@ -233,8 +235,93 @@ class RunFolder:
                   file=sys.stderr, flush=True)
 
         previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+        watchdog = _StopWatchdog(self, master, handled)
         try:
             yield
         finally:
+            watchdog.close()
             for s, h in previous.items():
                 signal.signal(s, h)
+
+
+class _StopWatchdog:
+    """The second stop signal while the main thread is stuck inside an FMU call.
+
+    Python runs signal handlers in the main thread between bytecodes, so while an FMU in the
+    master's process hangs inside a C call (or takes minutes for one step) neither Ctrl-C nor
+    SIGTERM does anything. The C-level handler still writes each signal's number to the wakeup
+    fd (:func:`signal.set_wakeup_fd`); this thread reads it. When a second SIGINT/SIGTERM has
+    arrived and the Python handler has not run for it within :data:`STOP_GRACE_S`, the run is
+    stopped from here: the results file flushed (its rows so far kept), summary.json written
+    ``failed`` with the reason and ``stopped_by``, and the process ended with 128 + the signal
+    (no clean-up can run: the main thread is in the FMU)."""
+
+    def __init__(self, folder: "RunFolder", master, handled: list):
+        self.folder, self.master, self.handled = folder, master, handled
+        self.done = threading.Event()
+        self._r = self._w = None
+        self._previous_fd = None
+        try:
+            self._r, self._w = os.pipe()
+            os.set_blocking(self._w, False)
+            self._previous_fd = signal.set_wakeup_fd(self._w, warn_on_full_buffer=False)
+        except (OSError, ValueError):            # no wakeup fd here: signals work as before
+            self._close_fds()
+            return
+        self._thread = threading.Thread(target=self._watch, name="rotorcosim-stop-watchdog", daemon=True)
+        self._thread.start()
+
+    def _watch(self) -> None:
+        seen = 0
+        while True:
+            try:
+                data = os.read(self._r, 64)
+            except OSError:
+                return
+            if not data or self.done.is_set():
+                return
+            stops = [b for b in data if b in (signal.SIGINT, signal.SIGTERM)]
+            seen += len(stops)
+            if seen >= 2 and not self.done.wait(STOP_GRACE_S) and self.handled[0] < seen:
+                self._stop_now(stops[-1] if stops else signal.SIGINT)
+
+    def _stop_now(self, signum: int) -> None:
+        name = signal.Signals(signum).name
+        t = getattr(self.master, "t", None)
+        at = f" at t={t:.12g} s" if isinstance(t, float) else ""
+        message = (f"stopped at once by a second {name}{at}: an FMU call in the master's process had not "
+                   f"returned {STOP_GRACE_S:g} s later (an FMU that hangs, or a very long step); the rows "
+                   "written so far are kept. Give such an FMU 'isolation: process' and coupling.call_timeout "
+                   "(docs/coupling.md)")
+        with contextlib.suppress(Exception):
+            print(f"\n{message}", file=sys.stderr, flush=True)
+        for o in getattr(self.master, "observers", ()):
+            with contextlib.suppress(Exception):
+                flush = getattr(o, "flush", None)
+                if callable(flush):
+                    flush()
+        with contextlib.suppress(Exception):
+            self.folder.fail(message, stopped_by=name, end_time=t, macro_steps=getattr(self.master, "n", None))
+        os._exit(128 + int(signum))
+
+    def close(self) -> None:
+        self.done.set()
+        if self._w is None:
+            return
+        with contextlib.suppress(ValueError, OSError):
+            signal.set_wakeup_fd(self._previous_fd if self._previous_fd is not None else -1)
+        with contextlib.suppress(OSError):
+            os.write(self._w, b"\0")             # wakes the reader, which sees done and ends
+        self._thread.join(timeout=1.0)
+        self._close_fds()
+
+    def _close_fds(self) -> None:
+        for fd in (self._r, self._w):
+            if fd is not None:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        self._r = self._w = None
+
+
+#: seconds the main thread has to act on a second stop signal before the watchdog stops the run
+STOP_GRACE_S = 3.0

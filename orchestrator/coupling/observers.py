@@ -156,6 +156,12 @@ class CsvWriter(Observer):
     def on_step_complete(self, view):
         self._write(view)
 
+    def flush(self) -> None:
+        """Write the buffered rows out now (the stop watchdog, coupling/lifecycle.py, calls it from
+        its thread while the main thread is stuck inside an FMU call)."""
+        if self._w is not None:
+            self._w.flush()
+
     def on_terminated(self, view):
         if self._w is not None:
             self._w.close()
