@@ -556,24 +556,26 @@ def write_fields(name: str, **arrays) -> Path:
     """``numpy.savez(name, **arrays)`` that never destroys what it did not write; the path written.
 
     As numpy.savez, ``.npz`` is appended to a name without it, and missing folders are made.
-    The file is written beside its target under a temporary name and renamed into place, so a
-    reader never sees half a file (and a link made at the target after the check is replaced,
-    not followed). An
+    The file is written beside its target under a new temporary name (created exclusively,
+    so with the mode ``open`` gives a new file) and renamed into place, so a reader never sees
+    half a file (and a link made at the target after the check is replaced, not followed). An
     existing target is replaced only when it is a regular file that holds a zip archive (an
-    earlier .npz); anything else is refused (:func:`fields_target`): the parameter is
-    untrusted scenario text, and ``/home/u/.bashrc`` must not be overwritten. The FMU checks
-    the target when the parameter is set too, so a refusal comes before the run, not after."""
+    earlier .npz; its mode is kept); anything else is refused (:func:`fields_target`): the
+    parameter is untrusted scenario text, and ``/home/u/.bashrc`` must not be overwritten. The
+    FMU checks the target when the parameter is set too, so a refusal comes before the run."""
+    import secrets
     import stat
-    import tempfile
 
     import numpy as np
     path, st = fields_target(name)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
+    tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.part")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o666)
     try:
         with os.fdopen(fd, "wb") as f:
             np.savez(f, **arrays)
-        os.chmod(tmp, stat.S_IMODE(st.st_mode) if st is not None else 0o666 & ~_umask())   # as open() would
+        if st is not None:
+            os.chmod(tmp, stat.S_IMODE(st.st_mode))
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -582,18 +584,6 @@ def write_fields(name: str, **arrays) -> Path:
             pass
         raise
     return path
-
-
-def _umask() -> int:
-    """This process's umask, read without changing it (os.umask would, for every thread)."""
-    try:
-        with open("/proc/self/status") as f:
-            for line in f:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    return 0o022
 
 
 def coefficients_moved(at, now, c: float) -> float:
