@@ -64,7 +64,6 @@ class _ResultsReader:
         self.lineno = 0            # lines handed out so far
         self._rest = b""
         self._eof = False
-        self._clean: tuple[bytes, bool] | None = None   # (rest of the first chunk, clean(rest))
 
     def fail(self, line: int, what: str) -> ValueError:
         return ValueError(f"{self.path}:{line}: {what}")
@@ -151,10 +150,9 @@ class _ResultsReader:
         if got is not None:
             _, data, complete, count = got
             head, sep, rest = data.partition(b"\n")
-            self._clean = (rest, self.clean(rest))
             # a chunk that is not clean is checked as text as a whole first (bad UTF-8 or an
             # overlong line after the header is named before the header's problems)
-            line = self.lines(1, head if self._clean[1] else data)[0]
+            line = self.lines(1, head if self.clean(rest) else data)[0]
         if got is None or not line.strip():
             raise ValueError(f"{self.path}: empty file, expected a header 'time,<instance>.<variable>,...'")
         try:
@@ -218,8 +216,7 @@ class _ResultsReader:
     def parse_clean(self, data: bytes, rows: int, n: int) -> np.ndarray | None:
         """The ``rows`` lines of a chunk that :meth:`clean` passes, parsed by numpy from its bytes,
         when each is n numbers; else None (then :meth:`parse` reads its lines)."""
-        ok = self._clean[1] if self._clean is not None and self._clean[0] is data else self.clean(data)
-        if not ok:
+        if not self.clean(data):
             return None
         try:
             arr = np.loadtxt(io.BytesIO(data), delimiter=",", ndmin=2, dtype=float, comments=None,
