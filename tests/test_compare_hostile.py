@@ -28,6 +28,15 @@ def compare_file(tmp, body: str, *, signals: str = "[left.x1]", reference: str =
     return p
 
 
+def refused(capsys, tmp, line: int, words: str, body: str = "", **parts) -> str:
+    """The compare file of :func:`compare_file` is refused (exit 2) with ``file:line: words``;
+    the whole output."""
+    p = compare_file(tmp, body, **parts)
+    rc, text = run_compare(capsys, p, tmp)
+    assert rc == 2 and f"{p}:{line}: {words}" in text, text
+    return text
+
+
 def run_compare(capsys, path, tmp, **kw) -> tuple[int, str]:
     """``main_compare`` with a runner that must not be called (every case fails before a run)."""
     calls = []
@@ -123,9 +132,7 @@ def test_write_baseline_refuses_a_link_planted_after_the_check(tmp_path):
     ("  tolerance: {rms: .inf}\n", "'compare.tolerance' value of 'rms' must be a positive number (got inf)"),
 ])
 def test_non_finite_numbers_are_refused_with_file_and_line(base, capsys, line, words):
-    p = compare_file(base, line)
-    rc, text = run_compare(capsys, p, base)
-    assert rc == 2 and f"{p}:6: {words}" in text and "(got " in text, text
+    assert "(got " in refused(capsys, base, 6, words, line)
 
 
 @pytest.mark.parametrize("variants, words", [
@@ -133,15 +140,12 @@ def test_non_finite_numbers_are_refused_with_file_and_line(base, capsys, line, w
     ("[{macro_step: 1.0e-3, expect_order: .nan}]", "'compare.variants[0].expect_order' must be a finite number"),
 ])
 def test_non_finite_variant_values_are_refused(base, capsys, variants, words):
-    p = compare_file(base, "", variants=variants)
-    rc, text = run_compare(capsys, p, base)
-    assert rc == 2 and f"{p}:5: {words}" in text, text
+    refused(capsys, base, 5, words, variants=variants)
 
 
 def test_non_finite_signal_scale_is_refused(base, capsys):
-    p = compare_file(base, "", signals="{left.x1: {scale: .nan}}")
-    rc, text = run_compare(capsys, p, base)
-    assert rc == 2 and f"{p}:3: 'compare.signals' scale of 'left.x1' must be a positive finite number" in text, text
+    refused(capsys, base, 3, "'compare.signals' scale of 'left.x1' must be a positive finite number",
+            signals="{left.x1: {scale: .nan}}")
 
 
 # --------------------------------------------------------------------------- reference step
@@ -152,9 +156,8 @@ def test_non_finite_signal_scale_is_refused(base, capsys):
     ("{set: {coupling.macro_step: 3.0e-4}}", "macro_step 0.0003 s does not divide the macro step 0.001 s"),
 ])
 def test_reference_must_be_finer_and_divide_every_variant_step(base, capsys, reference, words):
-    p = compare_file(base, "", reference=reference, variants="[{macro_step: [1.0e-3, 2.0e-3]}]")
-    rc, text = run_compare(capsys, p, base)
-    assert rc == 2 and f"{p}:4: 'compare.reference' {words}" in text, text
+    text = refused(capsys, base, 4, f"'compare.reference' {words}", reference=reference,
+                   variants="[{macro_step: [1.0e-3, 2.0e-3]}]")
     assert "e.g. 0.0001" in text and "scheme: monolithic" in text
 
 
@@ -182,9 +185,7 @@ def base_all_outputs(base):
     ("[x1]", "entry 'x1' must be 'instance.variable'"),
 ])
 def test_unknown_signal_is_refused_before_the_reference_runs(base_all_outputs, capsys, signals, words):
-    p = compare_file(base_all_outputs, "", signals=signals)
-    rc, text = run_compare(capsys, p, base_all_outputs)
-    assert rc == 2 and f"{p}:3: 'compare.signals' {words}" in text, text
+    refused(capsys, base_all_outputs, 3, f"'compare.signals' {words}", signals=signals)
 
 
 def test_output_of_the_base_is_accepted_as_a_signal(base_all_outputs):
