@@ -671,5 +671,5 @@ def _declared_feedthrough(sub) -> dict | None:
     """``{output: inputs it depends on directly}`` as the FMU's ModelStructure declares it, or None
     (a subsystem without a model description, or one that declares nothing)."""
     md = getattr(sub, "md", None)
-    feed = md.direct_feedthrough() if md is not None and hasattr(md, "direct_feedthrough") else None
+    feed = md.direct_feedthrough() if md is not None else None
     return feed if feed and all(d is not None for d in feed.values()) else None
