@@ -20,12 +20,19 @@ import logging
 import tempfile
 import warnings
 
-from orchestrator.errors import CosimError
+from orchestrator.errors import CosimError, FmuCrashError
 
 
 def preflight(scenario) -> tuple[list[str], list[str]]:
-    """``(problems, warnings)`` that running ``scenario`` would give before its first macro step."""
+    """``(problems, warnings)`` that running ``scenario`` would give before its first macro step.
+
+    Every FMU is loaded in a worker process of its own here (``isolation: process``,
+    docs/coupling.md), whatever the scenario says: an FMU whose binary crashes while it is
+    loaded, instantiated, initialized or freed then ends its worker, not ``validate``, and
+    comes back as a problem (a warning when it crashes in fmi2FreeInstance) naming the instance,
+    the FMI function and the signal, with what ``run`` would do with it."""
     problems: list[str] = []
+    freeing: list[str] = []
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -38,18 +45,69 @@ def preflight(scenario) -> tuple[list[str], list[str]]:
                 # is removed afterwards: without one the FMU would get the literal text and write
                 # '{out_dir}/...' into the current folder at fmi2Terminate
                 with tempfile.TemporaryDirectory(prefix="rotorcosim-validate-") as scratch:
-                    master = MasterAlgorithm(scenario, out_dir=scratch)
+                    master = MasterAlgorithm(_isolated(scenario), out_dir=scratch)
                     try:
                         master.setup()
                         with _master_log_quiet():        # its failure comes back as the problem line
                             master.initialize()
                         if master.message and master.status.name == "FAILED":
-                            problems.append(master.message)
+                            problems.append(master.message + _crash_hint(scenario, master.failure))
                     finally:
-                        master.terminate(preflight=True)
+                        with _collect_warnings(freeing):  # a crash while freeing: a warning line
+                            master.terminate(preflight=True)
+        except FmuCrashError as e:
+            problems.append(str(e) + _crash_hint(scenario, e.report()))
         except CosimError as e:
             problems.extend(getattr(e, "problems", None) or [str(e)])
-    return problems, [f"warning: {w.message}" for w in caught]
+    return problems, [f"warning: {w.message}" for w in caught] + [
+        f"warning: {text}; `run` writes results.csv and summary.json before it frees the FMUs, so a "
+        "run keeps its record, but its exit code shows the crash" for text in freeing]
+
+
+def _isolated(scenario):
+    """``scenario`` with every FMU in a worker process of its own (``isolation: process``)."""
+    from dataclasses import replace
+    return replace(scenario, fmus=tuple(replace(f, isolation="process") for f in scenario.fmus),
+                   coupling=replace(scenario.coupling, isolation="process"))
+
+
+def _crash_hint(scenario, failure: dict | None) -> str:
+    """What ``run`` does with an FMU that crashed in ``validate``'s worker: in the master's own
+    process (``isolation: none``) the crash ends the run without a report."""
+    if not failure or failure.get("timeout_s") is not None or not failure.get("instance"):
+        return ""
+    name = failure["instance"]
+    try:
+        spec = scenario.fmu(name)
+    except KeyError:
+        return ""
+    if (spec.isolation or scenario.coupling.isolation) == "process":
+        return ""
+    return (f"; `run` loads '{name}' into its own process (isolation: none), where this crash would end "
+            f"the run without a message or final summary: set fmus.{name}.isolation: process to have it "
+            "reported, or fix or replace the FMU")
+
+
+@contextlib.contextmanager
+def _collect_warnings(into: list[str]):
+    """Warnings the master and the worker adapters log meanwhile, collected as text, not shown."""
+    class _Collect(logging.Handler):
+        def emit(self, record):
+            if record.levelno >= logging.WARNING:
+                into.append(record.getMessage())
+
+    loggers = [logging.getLogger(n) for n in ("orchestrator.fmi.worker", "orchestrator.coupling.execution")]
+    handler = _Collect()
+    saved = [(lg.propagate, lg.handlers[:]) for lg in loggers]
+    for lg in loggers:
+        lg.addHandler(handler)
+        lg.propagate = False
+    try:
+        yield
+    finally:
+        for lg, (prop, _) in zip(loggers, saved):
+            lg.removeHandler(handler)
+            lg.propagate = prop
 
 
 @contextlib.contextmanager

@@ -30,7 +30,7 @@ pytestmark = [pytest.mark.integration,
               pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")]
 
 HERE = Path(__file__).resolve().parent
-FAULTS = {"abort": 1, "segfault": 2, "exit": 3, "hang": 4, "nan": 5, "error": 6, "free": 7}
+FAULTS = {"abort": 1, "segfault": 2, "exit": 3, "hang": 4, "nan": 5, "error": 6, "free": 7, "init": 8}
 
 
 @pytest.fixture(scope="module")
@@ -186,6 +186,62 @@ def test_a_crash_while_freeing_after_a_complete_run_keeps_the_final_summary(fmu_
     s = _summary(out)
     assert s["status"] == "finished" and s["end_time"] == pytest.approx(0.01), s
     assert s["output"]["rows"] == 11 and len(_rows(out)) == 11 and s["finished_at"]
+
+
+def _validate(scenario: Path) -> subprocess.CompletedProcess:
+    """``rotorcosim validate`` in a child process (on a validate that loads the FMUs into its own
+    process, a crashing FMU kills it: return code -11)."""
+    return subprocess.run([sys.executable, "-m", "orchestrator", "validate", str(scenario)],
+                          capture_output=True, text=True, timeout=300, cwd=scenario.parent)
+
+
+def test_validate_reports_an_fmu_that_crashes_while_initializing(fmu_dir):
+    """fault 8: SIGSEGV in fmi2ExitInitializationMode. validate loaded the FMUs into its own
+    process and died with it (-11, no message); now each FMU is checked in a worker process."""
+    r = _validate(_scenario(fmu_dir, fault="init", isolation="none"))
+    assert r.returncode == 1, r
+    assert ("FMU instance 'bearing1'" in r.stdout and "crashed in fmi2ExitInitializationMode" in r.stdout
+            and "SIGSEGV" in r.stdout and "set fmus.bearing1.isolation: process" in r.stdout), r.stdout
+    assert "1 problem found" in r.stderr, r.stderr
+    # with isolation: process the run reports it itself: no hint to set it
+    r = _validate(_scenario(fmu_dir, fault="init", isolation="process"))
+    assert r.returncode == 1 and "crashed in fmi2ExitInitializationMode" in r.stdout, r
+    assert "isolation: process to have it reported" not in r.stdout, r.stdout
+
+
+def test_validate_warns_of_an_fmu_that_crashes_while_it_is_freed(fmu_dir):
+    """fault 7: SIGSEGV in fmi2FreeInstance: the scenario is valid (a run keeps its record),
+    and validate says so with a warning line instead of dying at its end."""
+    r = _validate(_scenario(fmu_dir, fault="free", isolation="none"))
+    assert r.returncode == 0, r
+    lines = [ln for ln in r.stdout.splitlines() if ln.startswith("warning: ")]
+    assert any("'bearing1'" in ln and "crashed in fmi2FreeInstance" in ln and "SIGSEGV" in ln
+               and "exit code shows the crash" in ln for ln in lines), r.stdout
+    assert ": valid (" in r.stdout and "Traceback" not in r.stdout + r.stderr, r
+
+
+def test_validate_reports_an_fmu_library_that_crashes_when_loaded(fmu_dir, tmp_path):
+    """A shared library whose constructor segfaults (dlopen never returns): reported as a crash
+    in fmi2Instantiate naming the instance, not a dead validate."""
+    import zipfile
+    src = tmp_path / "ctor.c"
+    src.write_text("__attribute__((constructor)) static void boom(void) { volatile int *p = 0; *p = 1; }\n"
+                   "int fmi2GetVersion(void) { return 0; }\n")
+    so = tmp_path / "LinearBearing.so"
+    subprocess.run([shutil.which("gcc"), "-shared", "-fPIC", "-o", str(so), str(src)], check=True)
+    with zipfile.ZipFile(fmu_dir / "LinearBearing.fmu") as zin, \
+            zipfile.ZipFile(tmp_path / "LinearBearing.fmu", "w") as zout:
+        for item in zin.infolist():
+            data = so.read_bytes() if item.filename.endswith(".so") else zin.read(item)
+            zout.writestr(item.filename, data)
+    shutil.copy(fmu_dir / "MisbehavingBearing.fmu", tmp_path)
+    sc = _scenario(fmu_dir, fault=None, isolation="none")
+    target = tmp_path / sc.name
+    target.write_text(sc.read_text())
+    r = _validate(target)
+    assert r.returncode == 1, r
+    assert ("FMU instance 'bearing2'" in r.stdout and "crashed in fmi2Instantiate" in r.stdout
+            and "SIGSEGV" in r.stdout and "set fmus.bearing2.isolation: process" in r.stdout), r.stdout
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])

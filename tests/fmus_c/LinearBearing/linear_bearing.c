@@ -22,7 +22,9 @@
  *   fault 0 nothing, 1 abort(), 2 a segmentation fault (write through NULL),
  *   3 _exit(3), 4 hang (sleeps forever, ignores nothing but SIGKILL in effect),
  *   5 NaN in Fx from then on (returns fmi2OK), 6 returns fmi2Error;
- *   7 a segmentation fault in fmi2FreeInstance (after a complete run; fault_step unused).
+ *   7 a segmentation fault in fmi2FreeInstance (after a complete run; fault_step unused),
+ *   8 a segmentation fault in fmi2ExitInitializationMode (before the first step; fault_step
+ *     unused).
  * It tests what a co-simulation master does when an FMU crashes or hangs.
  */
 
@@ -247,6 +249,12 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c)
 fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 {
     if (bad(c, "fmi2ExitInitializationMode", ST_INITIALIZATION)) return fmi2Error;
+#ifdef MISBEHAVING
+    if (((Instance *)c)->fault == 8) {
+        volatile int *nowhere = NULL;
+        *nowhere = 1;                                /* SIGSEGV while initializing */
+    }
+#endif
     ((Instance *)c)->d.state = ST_STEP_COMPLETE;
     return fmi2OK;
 }
