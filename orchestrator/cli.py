@@ -478,7 +478,24 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser = add_parser
     for add in VERBS:
         add(sub)
+    for verb in sub.choices.values():            # a value option given twice is refused, not overwritten
+        for action in verb._actions:
+            if type(action) is argparse._StoreAction and action.option_strings:
+                action.__class__ = _StoreOnce
     return parser
+
+
+class _StoreOnce(argparse._StoreAction):
+    """An option that takes one value (``--out DIR``): given twice, argparse kept the last one
+    silently (``--out A --out B`` wrote to B); now it is a usage error naming both."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        seen = namespace.__dict__.setdefault("_given_once", {})
+        if self.dest in seen:
+            raise argparse.ArgumentError(
+                self, f"given twice ({seen[self.dest]!r}, then {values!r}); give it once")
+        seen[self.dest] = values
+        super().__call__(parser, namespace, values, option_string)
 
 
 def _version() -> str:
