@@ -430,3 +430,37 @@ def test_a_value_option_given_twice_is_refused_naming_both(argv, tmp_path, monke
     flag = argv[-2]
     assert exc.value.code == 2 and f"argument {flag}: given twice (" in err and "give it once" in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_ssp_problems_name_the_ssp_or_the_users_file_not_the_generated_one(tmp_path, capsys):
+    """A scenario made from an SSP was checked as a generated YAML file in a temporary folder, and
+    every problem named that file (`/tmp/rotorcosim-ssp-x/q.yaml:23: ...`), gone when the command
+    ended. Now a value from the archive is named by the .ssp and its place
+    (`q.ssp [fmus.bearing1.parameters.n_phi]`), and a value of the YAML file that names the SSP by
+    that file's line."""
+    import zipfile
+    from hostile_builders import cli
+    import orchestrator
+    from orchestrator.scenario.ssp import export_ssp
+    from orchestrator.shipped import resolve
+    with pytest.warns(UserWarning, match="SSP has no coupling scheme"):
+        good = export_ssp(orchestrator.load_scenario(resolve("quickstart")), tmp_path / "q.ssp")
+    bad = tmp_path / "bad.ssp"
+    with zipfile.ZipFile(good) as zin, zipfile.ZipFile(bad, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "SystemStructure.ssd":
+                data = data.replace(b'name="n_phi"><ssv:Integer value="24"', b'name="n_phi"><ssv:Integer value="3"', 1)
+            zout.writestr(item, data)
+    rc, text = cli(capsys, "validate", bad)
+    assert rc == 1 and f"{bad} [fmus.bearing1.parameters.n_phi]: parameter 'bearing1.n_phi' = 3" in text, text
+    assert "rotorcosim-ssp-" not in text, text
+    over = tmp_path / "over.yaml"
+    over.write_text("ssp: q.ssp\nstop_time: -1\nfmus:\n  bearing2:\n    parameters: {n_phi: 3}\n"
+                    "connections:\n  - {from: rotor.x_1, to: bearing1.x}\n")
+    rc, text = cli(capsys, "validate", over)
+    assert rc == 1 and "rotorcosim-ssp-" not in text, text
+    assert f"{over}:2: 'stop_time' must be greater than start_time" in text, text
+    assert f"{over}:5: parameter 'bearing2.n_phi' = 3 is outside" in text, text
+    assert (f"{over}:7: input 'bearing1.x' is connected twice (also {good.resolve()} [connections[0]])"
+            in text), text

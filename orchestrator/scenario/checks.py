@@ -144,7 +144,9 @@ class FmuChecks(Completion):
                 ends[side] = var
             if c.get("to") is not None:
                 if c["to"] in fed:
-                    self.err(c["to_node"], f"input '{c['to']}' is connected twice (also on line {fed[c['to']]}); "
+                    also = (self.line_origins.get(fed[c["to"]], self.display) if self.line_origins
+                            else f"on line {fed[c['to']]}")
+                    self.err(c["to_node"], f"input '{c['to']}' is connected twice (also {also}); "
                                            "an input takes exactly one source: remove one of the connections")
                 fed.setdefault(c["to"], c["line"])
             src, dst = ends.get("from"), ends.get("to")

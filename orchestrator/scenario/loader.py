@@ -16,6 +16,7 @@ from orchestrator.errors import ScenarioError
 from orchestrator.scenario.checks import FmuChecks
 from orchestrator.scenario.limits import check_overrides
 from orchestrator.scenario.model import Scenario
+from orchestrator.scenario.nodes import GENERATED, YamlLoader
 from orchestrator.scenario.sections import Draft, SectionReader
 
 
@@ -127,7 +128,65 @@ def from_ssp(path: Path) -> Path:
         else:
             doc[key] = value
     out = work / f"{ssp.stem}.yaml"
-    out.write_text(f"# generated from {ssp} by rotorcosim\n" + yaml.safe_dump(doc, sort_keys=False))
+    text = f"# generated from {ssp} by rotorcosim\n" + yaml.safe_dump(doc, sort_keys=False)
+    out.write_text(text)
+    n_ssp_connections = len(doc.get("connections", [])) - len(overlay.get("connections", []) or []) \
+        if isinstance(overlay.get("connections"), list) else len(doc.get("connections", []))
+    GENERATED[str(out)] = (str(ssp), _origins(text, ssp, path if overlay else None, n_ssp_connections))
+    return out
+
+
+def _key_lines(root) -> dict[tuple, int]:
+    """{path of keys and list indices: line} of every value in a composed YAML tree (1-based);
+    a node met again through an alias is not walked again (bounded by the tree's size)."""
+    lines: dict[tuple, int] = {}
+    seen: set[int] = set()
+    stack = [((), root)]
+    while stack:
+        prefix, node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.MappingNode):
+            for k, v in node.value:
+                if isinstance(k, yaml.ScalarNode):
+                    lines.setdefault(prefix + (k.value,), k.start_mark.line + 1)
+                    stack.append((prefix + (k.value,), v))
+        elif isinstance(node, yaml.SequenceNode):
+            for i, v in enumerate(node.value):
+                lines.setdefault(prefix + (i,), v.start_mark.line + 1)
+                stack.append((prefix + (i,), v))
+    return lines
+
+
+def _origins(text: str, ssp: Path, overlay_file: Path | None, n_ssp_connections: int) -> dict[int, str]:
+    """{line of the generated scenario: origin} for :data:`nodes.GENERATED`: ``FILE:LINE`` of the
+    user's YAML file for a value it sets (``fmus.<i>`` entries and ``coupling`` merged key by key,
+    ``connections`` appended, other keys replaced: :func:`from_ssp`), else ``SSP [dotted.path]``."""
+    from orchestrator.untrusted import read_text
+    generated = _key_lines(yaml.compose(text, Loader=YamlLoader))
+    user: dict[tuple, int] = {}
+    if overlay_file is not None:
+        try:
+            user = _key_lines(yaml.compose(read_text(overlay_file, what="scenario file"), Loader=YamlLoader))
+        except Exception:                     # noqa: BLE001 - read once already; names the SSP then
+            user = {}
+    out: dict[int, str] = {}
+    for key_path, line in generated.items():
+        mine = key_path
+        if key_path[:1] == ("connections",) and len(key_path) > 1 and isinstance(key_path[1], int):
+            mine = ("connections", key_path[1] - n_ssp_connections) + key_path[2:] \
+                if key_path[1] >= n_ssp_connections else None
+        elif key_path[:1] not in (("fmus",), ("coupling",)):
+            # a replaced key: everything under it is the user's
+            while mine and mine not in user:
+                mine = mine[:-1]
+        if mine and mine in user:
+            at = f"{overlay_file}:{user[mine]}"
+        else:
+            dotted = ".".join(str(k) if isinstance(k, str) else f"[{k}]" for k in key_path).replace(".[", "[")
+            at = f"{ssp} [{dotted}]"
+        out.setdefault(line, at)
     return out
 
 

@@ -61,12 +61,22 @@ def article(word: str) -> str:
     return f"an {word}" if word[:1].lower() in "aeiou" else f"a {word}"
 
 
+#: scenario files generated from an SSP (orchestrator.scenario.loader.from_ssp): generated file
+#: -> (what to call it, {line of the generated file: where that value came from}), so that a
+#: problem names the .ssp (and the value's place in it) or the user's YAML file and line, not
+#: the generated file, which is gone when the process ends
+GENERATED: dict[str, tuple[str, dict[int, str]]] = {}
+
+
 class NodeReader:
     """Typed reading of YAML nodes of one file; problems go to ``self.problems``."""
 
     def __init__(self, path, display: str):
         self.path = path
         self.display = display
+        self.line_origins: dict[int, str] = {}
+        if str(path) in GENERATED:
+            self.display, self.line_origins = GENERATED[str(path)]
         self.problems: list[str] = []
         self.origins: dict[int, str] = {}     # id(node) -> "--set k=v" for override nodes
         self.ctor = YamlLoader("")
@@ -78,6 +88,8 @@ class NodeReader:
         if id(node) in self.origins:
             return self.origins[id(node)]
         mark = getattr(node, "start_mark", None)
+        if self.line_origins:               # generated from an SSP: where the value came from
+            return self.line_origins.get(mark.line + 1, self.display) if mark is not None else self.display
         return f"{self.display}:{mark.line + 1}" if mark is not None else self.display
 
     def err(self, node, text: str) -> None:
