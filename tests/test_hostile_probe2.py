@@ -464,3 +464,9 @@ def test_ssp_problems_name_the_ssp_or_the_users_file_not_the_generated_one(tmp_p
     assert f"{over}:5: parameter 'bearing2.n_phi' = 3 is outside" in text, text
     assert (f"{over}:7: input 'bearing1.x' is connected twice (also {good.resolve()} [connections[0]])"
             in text), text
+    # a run of it: summary.json names the user's file, not the generated one
+    ok = tmp_path / "ok.yaml"
+    ok.write_text("ssp: q.ssp\nstop_time: 0.501\n")
+    rc, text = cli(capsys, "run", ok, "--out", tmp_path / "run", "--no-progress")
+    import json
+    assert rc == 0 and json.loads((tmp_path / "run" / "summary.json").read_text())["scenario_file"] == str(ok), text

@@ -64,14 +64,18 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
         listing every problem found, each as ``file:line: what is wrong (got X); fix``.
     """
     check_overrides(overrides)
-    path = from_ssp(Path(path))
+    given = Path(path)
+    path = from_ssp(given)
     loader = ScenarioLoader(Path(path), overrides)
     draft = loader.read_sections()
     if build_fmus and draft is not None and not loader.problems and draft.complete:
         loader.build(draft)
     scenario = loader.check(draft) if draft is not None else None
     if loader.problems or scenario is None:
-        raise ScenarioError(sorted(loader.problems, key=line_order) or [f"{path}: invalid scenario"])
+        raise ScenarioError(sorted(loader.problems, key=line_order) or [f"{given}: invalid scenario"])
+    if path != given:         # made from an SSP: summary.json names the user's file, not the generated one
+        from dataclasses import replace
+        scenario = replace(scenario, source=given.resolve())
     return scenario
 
 
