@@ -329,3 +329,21 @@ def test_memory_is_flat_in_rows_during_a_run(fmus, tmp_path):
     assert res.success and len(res.t) == 20001
     grown = probe.at[20000] - probe.at[2000]
     assert grown < 300_000, f"memory grew by {grown} bytes over 18000 rows"
+
+
+@pytest.mark.parametrize("isolation", ["none", "process"])
+def test_a_null_string_from_the_fmu_is_recorded_empty_and_reported_once(fmus, tmp_path, isolation, caplog):
+    """fmi2GetString giving a NULL pointer (AllTypes returns NULL for the value "<NULL>") was
+    recorded as "" without a word; now a warning names the instance and the variable, once."""
+    import logging
+    path = _yaml(fmus, "jacobi", extra=f", isolation: {isolation}")
+    text = path.read_text().replace("label: alpha", 'label: "<NULL>"')
+    text = text.replace("output: {signals: [", "output: {signals: [a.s_out, ")
+    path.write_text(text)
+    with caplog.at_level(logging.WARNING):
+        res = _run(path, tmp_path / isolation)
+    assert res.success, res.message
+    assert list(res.outputs["a.s_out"]) == [""] * (N + 1)
+    assert list(res.outputs["b.s_out"]) == ["beta"] * (N + 1)      # b got "": its own label
+    said = [r.getMessage() for r in caplog.records if "NULL pointer" in r.getMessage()]
+    assert len(said) == 1 and "FMU instance 'a'" in said[0] and "'s_out'" in said[0], said

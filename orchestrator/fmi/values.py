@@ -183,13 +183,16 @@ class TypedBatch:
         else:
             self.values = np.ctypeslib.as_array(self.c_values)[: self.n]
 
-    def strings(self) -> list[str]:
-        """The String values (after a get), decoded as UTF-8; a NULL pointer reads as ""."""
-        return [(b or b"").decode("utf-8", "replace") for b in self.c_values[: self.n]]
+    def strings(self, keep_null: bool = False) -> list[str | None]:
+        """The String values (after a get), decoded as UTF-8; a NULL pointer reads as "" (None
+        with ``keep_null``: the worker passes it on, so that the master can report it)."""
+        return [None if b is None and keep_null else (b or b"").decode("utf-8", "replace")
+                for b in self.c_values[: self.n]]
 
-    def set_strings(self, values: Sequence[str]) -> None:
-        """Put String values into the buffer (kept alive until the next call)."""
-        self._keep = [str(v).encode("utf-8") for v in values]
+    def set_strings(self, values: Sequence[str | None]) -> None:
+        """Put String values into the buffer (kept alive until the next call); None puts a NULL
+        pointer (what an FMU gave, see :meth:`strings`)."""
+        self._keep = [None if v is None else str(v).encode("utf-8") for v in values]
         for i, b in enumerate(self._keep):
             self.c_values[i] = b
 

@@ -155,7 +155,7 @@ def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) 
         from orchestrator.fmi.values import TypedBatch
         b = TypedBatch(cmd[1], cmd[2], cmd[3])
         sub.get_values(b)
-        return (b.strings() if cmd[1] == "String" else b.values.tolist()), False
+        return (b.strings(keep_null=True) if cmd[1] == "String" else b.values.tolist()), False
     elif op == "ended":
         return sub.terminated_by_fmu(), False
     elif op == "reg":
