@@ -64,28 +64,53 @@ def preflight(scenario) -> tuple[list[str], list[str]]:
         "run keeps its record, but its exit code shows the crash" for text in freeing]
 
 
+#: [s] the longest ``validate`` waits for one FMI call of an FMU when the scenario sets no
+#: ``coupling.call_timeout``: an FMU that hangs while it is instantiated, initialized or freed
+#: is then reported instead of holding ``validate`` forever (our mass-conserving bearings
+#: initialize in about a second; a 2^18-cell film in a few minutes)
+VALIDATE_CALL_TIMEOUT = 600.0
+
+
 def _isolated(scenario):
-    """``scenario`` with every FMU in a worker process of its own (``isolation: process``)."""
+    """``scenario`` with every FMU in a worker process of its own (``isolation: process``) and,
+    unless the scenario bounds it, :data:`VALIDATE_CALL_TIMEOUT` for each call."""
     from dataclasses import replace
+    timeout = scenario.coupling.call_timeout
     return replace(scenario, fmus=tuple(replace(f, isolation="process") for f in scenario.fmus),
-                   coupling=replace(scenario.coupling, isolation="process"))
+                   coupling=replace(scenario.coupling, isolation="process",
+                                    call_timeout=VALIDATE_CALL_TIMEOUT if timeout is None else timeout))
 
 
 def _crash_hint(scenario, failure: dict | None) -> str:
     """What ``run`` does with an FMU that crashed in ``validate``'s worker: in the master's own
     process (``isolation: none``) the crash ends the run without a report."""
-    if not failure or failure.get("timeout_s") is not None or not failure.get("instance"):
+    if not failure or not failure.get("instance"):
         return ""
+    if failure.get("timeout_s") is not None:
+        if scenario.coupling.call_timeout is not None:
+            return ""
+        name = failure["instance"]
+        isolated = _isolation(scenario, name) == "process"
+        return (f"; validate waits at most {VALIDATE_CALL_TIMEOUT:g} s for each FMI call when the scenario "
+                "sets no coupling.call_timeout; `run` waits without a limit (a second Ctrl-C or SIGTERM ends "
+                "it): set coupling.call_timeout"
+                + ("" if isolated else f" and fmus.{name}.isolation: process (the limit applies to FMUs in "
+                                       "worker processes)"))
     name = failure["instance"]
-    try:
-        spec = scenario.fmu(name)
-    except KeyError:
-        return ""
-    if (spec.isolation or scenario.coupling.isolation) == "process":
+    if _isolation(scenario, name) != "none":
         return ""
     return (f"; `run` loads '{name}' into its own process (isolation: none), where this crash would end "
             f"the run without a message or final summary: set fmus.{name}.isolation: process to have it "
             "reported, or fix or replace the FMU")
+
+
+def _isolation(scenario, name: str) -> str | None:
+    """The isolation ``run`` gives instance ``name`` ("none", "process"; None: not in the scenario)."""
+    try:
+        spec = scenario.fmu(name)
+    except KeyError:
+        return None
+    return spec.isolation or scenario.coupling.isolation
 
 
 @contextlib.contextmanager

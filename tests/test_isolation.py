@@ -30,7 +30,7 @@ pytestmark = [pytest.mark.integration,
               pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")]
 
 HERE = Path(__file__).resolve().parent
-FAULTS = {"abort": 1, "segfault": 2, "exit": 3, "hang": 4, "nan": 5, "error": 6, "free": 7, "init": 8}
+FAULTS = {"abort": 1, "segfault": 2, "exit": 3, "hang": 4, "nan": 5, "error": 6, "free": 7, "init": 8, "inithang": 9}
 
 
 @pytest.fixture(scope="module")
@@ -218,6 +218,22 @@ def test_validate_warns_of_an_fmu_that_crashes_while_it_is_freed(fmu_dir):
     assert any("'bearing1'" in ln and "crashed in fmi2FreeInstance" in ln and "SIGSEGV" in ln
                and "exit code shows the crash" in ln for ln in lines), r.stdout
     assert ": valid (" in r.stdout and "Traceback" not in r.stdout + r.stderr, r
+
+
+def test_validate_reports_an_fmu_that_hangs_while_initializing(fmu_dir, monkeypatch, capsys):
+    """fault 9: fmi2ExitInitializationMode never returns. validate waited forever; now, without a
+    coupling.call_timeout, it waits VALIDATE_CALL_TIMEOUT (600 s; 2 s here), kills the worker and
+    says so, with what to set for `run`."""
+    from orchestrator import preflight
+    from orchestrator.cli import main
+    monkeypatch.setattr(preflight, "VALIDATE_CALL_TIMEOUT", 2.0)
+    rc = main(["validate", str(_scenario(fmu_dir, fault="inithang", isolation="none"))])
+    out = capsys.readouterr().out
+    assert rc == 1, out
+    assert ("FMU instance 'bearing1'" in out and "did not answer in fmi2ExitInitializationMode" in out
+            and "validate waits at most 2 s" in out and "set coupling.call_timeout and "
+            "fmus.bearing1.isolation: process" in out), out
+    assert _worker_children() == []
 
 
 def test_validate_reports_an_fmu_library_that_crashes_when_loaded(fmu_dir, tmp_path):

@@ -24,7 +24,7 @@
  *   5 NaN in Fx from then on (returns fmi2OK), 6 returns fmi2Error;
  *   7 a segmentation fault in fmi2FreeInstance (after a complete run; fault_step unused),
  *   8 a segmentation fault in fmi2ExitInitializationMode (before the first step; fault_step
- *     unused).
+ *     unused), 9 a hang in fmi2ExitInitializationMode (fault_step unused).
  * It tests what a co-simulation master does when an FMU crashes or hangs.
  */
 
@@ -253,6 +253,10 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
     if (((Instance *)c)->fault == 8) {
         volatile int *nowhere = NULL;
         *nowhere = 1;                                /* SIGSEGV while initializing */
+    }
+    if (((Instance *)c)->fault == 9) {
+        struct timespec second = {1, 0};
+        for (;;) nanosleep(&second, NULL);           /* hang while initializing */
     }
 #endif
     ((Instance *)c)->d.state = ST_STEP_COMPLETE;
