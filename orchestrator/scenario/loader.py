@@ -66,11 +66,14 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
     check_overrides(overrides)
     given = Path(path)
     path = from_ssp(given)
-    loader = ScenarioLoader(Path(path), overrides)
-    draft = loader.read_sections()
-    if build_fmus and draft is not None and not loader.problems and draft.complete:
-        loader.build(draft)
-    scenario = loader.check(draft) if draft is not None else None
+    try:
+        loader = ScenarioLoader(Path(path), overrides)
+        draft = loader.read_sections()
+        if build_fmus and draft is not None and not loader.problems and draft.complete:
+            loader.build(draft)
+        scenario = loader.check(draft) if draft is not None else None
+    finally:
+        GENERATED.pop(str(path), None)        # its origins are in the messages and parameter origins now
     if loader.problems or scenario is None:
         raise ScenarioError(sorted(loader.problems, key=line_order) or [f"{given}: invalid scenario"])
     if path != given:         # made from an SSP: summary.json names the user's file, not the generated one
