@@ -176,6 +176,28 @@ def test_without_isolation_a_crash_never_leaves_a_stale_finished_summary(fmu_dir
     assert ok.returncode == 0 and _summary(out)["scenario"] == "again", ok.stderr
 
 
+@pytest.mark.parametrize("fault", ["abort", "segfault"])
+def test_an_in_process_crash_keeps_the_first_rows_and_plot_says_the_run_ended(fmu_dir, tmp_path, fault):
+    """An FMU in the master's process that crashes at its 5th step (t = 4 ms) took the rows of
+    t = 0 .. 3 ms with it (they were still in the writer's buffer: results.csv had the header
+    and at most the first row), and `plot` drew what was there without saying that the run had
+    died. Now the first rows are written out one by one, and `plot` says the run ended without a
+    final summary (its lock is free) and what to do."""
+    import warnings
+    from orchestrator.results.plots import plot_run
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-c", _CHILD, str(_scenario(fmu_dir, fault=fault, isolation="none")),
+                        str(out)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == {"abort": -6, "segfault": -11}[fault], r
+    rows = _rows(out)
+    assert [float(row[0]) for row in rows] == pytest.approx([0.0, 1e-3, 2e-3, 3e-3, 4e-3]), rows
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert plot_run(out)
+    said = [str(w.message) for w in caught if "ended without a final summary" in str(w.message)]
+    assert len(said) == 1 and "isolation: process" in said[0], [str(w.message) for w in caught]
+
+
 def test_a_crash_while_freeing_after_a_complete_run_keeps_the_final_summary(fmu_dir, tmp_path):
     """An FMU that segfaults in fmi2FreeInstance (fault 7), in the master's process: the run was
     complete, and summary.json (written before the FMUs are freed) says so; it said "running"."""

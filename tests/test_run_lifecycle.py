@@ -157,3 +157,23 @@ def test_the_process_imports_our_packages_after_a_run_removed_its_fmus(tmp_path)
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "imports ok after the run" in proc.stdout
+
+
+def test_folder_in_use_tells_a_live_run_from_a_dead_one(tmp_path):
+    """The lock of a run folder: held by a live run (True), left by a run that is gone (False),
+    none (None); plot uses it to say whether a "running" summary is a live or a dead run."""
+    import fcntl
+    import os
+    from orchestrator.coupling.lifecycle import LOCK_NAME, folder_in_use
+    assert folder_in_use(tmp_path) is None
+    fd = os.open(tmp_path / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        assert folder_in_use(tmp_path) is True
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        assert folder_in_use(tmp_path) is False
+    finally:
+        os.close(fd)
+    (tmp_path / "sub").mkdir()
+    os.symlink(tmp_path / LOCK_NAME, tmp_path / "sub" / LOCK_NAME)
+    assert folder_in_use(tmp_path / "sub") is None          # a link is not followed

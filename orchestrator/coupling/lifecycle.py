@@ -53,6 +53,31 @@ LOCK_NAME = ".rotorcosim.lock"
 PREVIOUS = "previous"
 
 
+def folder_in_use(out_dir: Path | str) -> bool | None:
+    """Is a run writing into ``out_dir`` now? True while a process holds the folder's lock,
+    False when the lock file is there and free (a run that wrote summary "running" and is gone
+    was killed or crashed), None without a lock file. Reads nothing; never blocks."""
+    path = Path(out_dir) / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_NONBLOCK", 0))
+    except OSError:
+        return None
+    try:
+        import stat as _stat
+        if not _stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        except OSError:
+            return None
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return False
+    finally:
+        os.close(fd)
+
+
 class RunStopped(KeyboardInterrupt):
     """The run was stopped by a signal; ``exit_code`` is 128 + the signal number."""
 

@@ -71,6 +71,8 @@ def plot_result(res, out_dir: str | Path, *, name: str = "run", spec=None) -> li
 
 
 def _finish(ctx: PlotContext, where: Path) -> list[Path]:
+    for msg in ctx.notes:
+        warnings.warn(f"plot {where}: {msg}", UserWarning, stacklevel=3)
     for msg in dict.fromkeys(ctx.skipped):     # each reason once, in order
         warnings.warn(f"plot {where}: skipped {msg}", UserWarning, stacklevel=3)
     if not ctx.written:

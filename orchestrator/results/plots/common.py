@@ -47,6 +47,7 @@ class PlotContext:
         self.field_files: list[Path] = []
         self.written: list[Path] = []
         self.skipped: list[str] = []
+        self.notes: list[str] = []           # about the run itself (e.g. it ended without a summary)
 
     @classmethod
     def from_run_dir(cls, run_dir: Path) -> "PlotContext":
@@ -62,6 +63,7 @@ class PlotContext:
         ctx = cls(name=str(summary.get("scenario") or Path(run_dir).name), out=Path(run_dir) / "plots",
                   summary=summary, run_dir=Path(run_dir))
         ctx.skipped += skipped
+        ctx.notes += _unfinished(summary, Path(run_dir))
         if run.has_results():
             try:           # there but unreadable (a FIFO, text in a number column, ...): no plot is right
                 ctx.cols = run.columns()
@@ -232,3 +234,22 @@ def infer_spec(cols: Mapping[str, Any]) -> dict:
     if speed:
         spec["speed"] = speed
     return spec
+
+
+def _unfinished(summary: Mapping[str, Any], run_dir: Path) -> list[str]:
+    """A note when summary.json still says "running": the run is going on (its rows so far are
+    drawn), or its process is gone without a final summary (killed, or crashed with an FMU in
+    its own process), which the figures alone would not tell."""
+    if summary.get("status") != "running":
+        return []
+    from orchestrator.coupling.lifecycle import folder_in_use
+    pid = summary.get("pid")
+    who = f"the run (pid {pid}, started {summary.get('started_at')})" if isinstance(pid, int) else "the run"
+    in_use = folder_in_use(run_dir)
+    if in_use:
+        return [f"{who} is still going on: these are the rows it has written so far"]
+    if in_use is False:
+        return [f"{who} ended without a final summary: it was killed, or it crashed (an FMU in the master's "
+                "process that crashes takes the run down with it: give it isolation: process, "
+                "docs/coupling.md); these are the rows it wrote before"]
+    return []
