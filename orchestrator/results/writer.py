@@ -20,8 +20,8 @@ memory, so its memory use is flat in the number of rows:
 * the file is flushed at least every ``flush_interval`` seconds of wall time
   (default 1 s) and at :meth:`close`, so a run that stops early keeps its rows;
   the first :data:`FLUSH_FIRST_ROWS` rows are flushed one by one, so a run whose process
-  dies at once (an FMU in it that crashes in its first steps) keeps those too (about
-  3 ms of write calls in all).
+  dies at once (an FMU in it that crashes in its first steps) keeps those too (1000 write
+  calls: 1.3 ms more for the first 1000 rows, measured against 15 ms for writing them).
 
 ``format="parquet"`` writes ``results.parquet`` with the same columns through
 pyarrow (row groups of ``parquet_rows`` rows, so memory stays bounded too);
