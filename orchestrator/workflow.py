@@ -108,6 +108,7 @@ def _execute(scenario, out_dir: Path, folder: RunFolder, progress, observers) ->
         folder.finish(_summary(scenario, read_back(master.result())))
 
     master.before_release = summary_before_release
+    master.call_record = folder.calls
     try:
         with folder.stop_signals(master):
             res = read_back(master.run())

@@ -196,6 +196,8 @@ def test_an_in_process_crash_keeps_the_first_rows_and_plot_says_the_run_ended(fm
         assert plot_run(out)
     said = [str(w.message) for w in caught if "ended without a final summary" in str(w.message)]
     assert len(said) == 1 and "isolation: process" in said[0], [str(w.message) for w in caught]
+    # and where it died: the FMI call that never returned, from the run folder's call record
+    assert "it died in an FMI call that never returned: 'bearing1' in fmi2DoStep at t=0.004 s" in said[0], said
 
 
 def test_a_crash_while_freeing_after_a_complete_run_keeps_the_final_summary(fmu_dir, tmp_path):

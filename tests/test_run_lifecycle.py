@@ -177,3 +177,33 @@ def test_folder_in_use_tells_a_live_run_from_a_dead_one(tmp_path):
     (tmp_path / "sub").mkdir()
     os.symlink(tmp_path / LOCK_NAME, tmp_path / "sub" / LOCK_NAME)
     assert folder_in_use(tmp_path / "sub") is None          # a link is not followed
+
+
+def test_the_call_record_tells_the_fmi_call_that_never_returned(tmp_path):
+    """orchestrator/fmi/call_record.py: what a crashed run's folder says about where it died;
+    a damaged or planted record file gives nothing, never an error."""
+    import math
+    from orchestrator.fmi.call_record import CODE, CallRecord, describe_calls, read_calls
+    path = tmp_path / ".rotorcosim.calls"
+    rec = CallRecord(path, ["rotor", "bearing1"], {"pid": 1})
+    a, k = rec.slot("bearing1")
+    a[k + 1], a[k] = 0.004, CODE["fmi2DoStep"]
+    assert read_calls(path) == [("bearing1", "fmi2DoStep", 0.004)]
+    assert describe_calls(read_calls(path)) == "'bearing1' in fmi2DoStep at t=0.004 s"
+    a[k] = 0.0
+    r, j = rec.slot("rotor")
+    r[j + 1], r[j] = math.nan, CODE["fmi2Instantiate"]
+    assert describe_calls(read_calls(path)) == "'rotor' in fmi2Instantiate"
+    rec.remove()
+    assert not path.exists() and read_calls(path) == []
+    a[k] = CODE["fmi2DoStep"]                  # an adapter that still holds its slot: no SIGBUS
+    for junk in (b"", b"\0" * 100, b'{"instances": ["x"], "calls_at": 99999999}', b'{"instances": 3}',
+                 b'{"instances": ["x"], "calls_at": 4096}' + b"\0" * 5000, b"\xff" * 9000):
+        path.write_bytes(junk)
+        assert read_calls(path) == []
+    path.unlink()
+    path.symlink_to(tmp_path / "elsewhere")
+    assert read_calls(path) == []
+    with pytest.raises(OSError):               # never written through a planted link
+        CallRecord(path, ["x"])
+    assert not (tmp_path / "elsewhere").exists()

@@ -298,6 +298,7 @@ def test_warm_process_that_crashes_or_hangs_is_a_crashed_row_and_is_replaced(sdi
     scen, runs = str(sdir / "ramp.yaml"), sdir / "runs"
     rec = execute_run(scen, ["fmus.f.parameters.t_fail=0.05", "fmus.f.parameters.mode=5"], str(runs / "abort"))
     assert rec["status"] == "crashed" and f"killed by signal {int(signal.SIGABRT)}" in rec["message"], rec
+    assert "in 'f' in fmi2DoStep at t=" in rec["message"], rec          # where it died (fmi/call_record.py)
     assert _child_pid(warm) is None
     ok = execute_run(scen, [], str(runs / "ok"))
     assert ok["status"] == "finished"

@@ -126,6 +126,9 @@ class MasterAlgorithm:
         # called once by terminate() after fmi2Terminate and the observers, before fmi2FreeInstance
         # (orchestrator.workflow writes the final summary.json there)
         self.before_release = None
+        # orchestrator.fmi.call_record.CallRecord of the run folder (set by orchestrator.workflow):
+        # which FMI call each FMU in this process is in, readable after a crash of the process
+        self.call_record = None
         self.n = 0
         self.t = float(scenario.start_time)
         self.end_time = float(scenario.start_time)
@@ -188,7 +191,9 @@ class MasterAlgorithm:
             return WorkerSubsystem(f.name, f.path, work_dir=self._work_dir.root / "workers",
                                    call_timeout=getattr(c, "call_timeout", None), wait=False, cpu=cpu,
                                    spin=None if cpu is None or self._cpu_left() else 0.0)
-        return Subsystem(f.name, f.path, extraction=self._work_dir)
+        rec = self.call_record
+        return Subsystem(f.name, f.path, extraction=self._work_dir,
+                         call_slot=rec.slot(f.name) if rec is not None else None)
 
     def _cpu_left(self) -> bool:
         """Is a CPU left for the master beside the pinned workers? Only then may they and the

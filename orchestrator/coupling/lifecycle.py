@@ -39,6 +39,7 @@ import contextlib
 import datetime
 import fcntl
 import json
+import logging
 import os
 import signal
 import sys
@@ -47,10 +48,20 @@ from pathlib import Path
 from typing import Any
 
 from orchestrator.errors import LifecycleError
+from orchestrator.fmi.call_record import CallRecord, read_calls
 
 RUN_FILES = ("results.csv", "results.parquet", "summary.json")
 LOCK_NAME = ".rotorcosim.lock"
 PREVIOUS = "previous"
+log = logging.getLogger(__name__)
+CALLS_NAME = ".rotorcosim.calls"   # which FMI call each FMU in the run's process is in (fmi/call_record.py)
+
+
+def open_calls(out_dir: Path | str) -> list[tuple[str, str, float]]:
+    """The FMI calls that a run in ``out_dir`` was in and that never returned
+    (:mod:`orchestrator.fmi.call_record`): meaningful when the run's process is gone without a
+    final summary (:func:`folder_in_use` False). Empty when there is no record."""
+    return read_calls(Path(out_dir) / CALLS_NAME)
 
 
 def folder_in_use(out_dir: Path | str) -> bool | None:
@@ -105,6 +116,7 @@ class RunFolder:
         self.finished = False
         self.stop_signal: int | None = None      # the signal that asked the run to stop
         self._lock_fd: int | None = None
+        self.calls = None                         # CallRecord of the FMUs in this process (after __enter__)
         self._term_handler = None
         if write_summary is None:
             from orchestrator.results.summary import write_summary
@@ -160,6 +172,12 @@ class RunFolder:
         self._lock_fd = fd
         os.ftruncate(fd, 0)
         os.pwrite(fd, json.dumps(self._holder()).encode(), 0)
+        names = [str(getattr(f, "name", "")) for f in getattr(self.scenario, "fmus", ())]
+        try:        # where each FMU in this process is, readable after a crash (plot, sweeps)
+            self.calls = CallRecord(self.out_dir / CALLS_NAME, names, {"pid": os.getpid()})
+        except (OSError, ValueError) as e:          # e.g. a file system without shared mappings
+            self.calls = None
+            log.debug("no FMI call record in %s: %s", self.out_dir, e)
 
     def _move_aside(self) -> None:
         present = [n for n in RUN_FILES if os.path.lexists(self.out_dir / n)]
@@ -226,6 +244,8 @@ class RunFolder:
 
     def _unlock(self) -> None:
         if self._lock_fd is not None:
+            if self.calls is not None:          # ended in order: no open call to tell about
+                self.calls.remove()
             with contextlib.suppress(OSError):
                 os.ftruncate(self._lock_fd, 0)
                 fcntl.flock(self._lock_fd, fcntl.LOCK_UN)

@@ -35,6 +35,7 @@ import ast
 import collections
 import ctypes
 import logging
+import math
 import os
 import re
 from abc import ABC, abstractmethod
@@ -46,6 +47,7 @@ import numpy as np
 from orchestrator.errors import FmuCallError, FmuError, LifecycleError, ScenarioError
 from orchestrator.fmi.archive import ModelDescription, Variable, binary_path, read_model_description, safe_extract
 from orchestrator.fmi.bundled_python import own_imports
+from orchestrator.fmi.call_record import CODE as CALL_CODE
 from orchestrator.fmi.values import FAMILY, TypedBatch, settable_problem
 from orchestrator.untrusted import OUT_DIR_FIELD, UNSHOWN as _UNSHOWN, out_dir_escape, shown_char as _shown
 
@@ -59,6 +61,7 @@ log = logging.getLogger(__name__)
 STATUS_NAMES = ("ok", "warning", "discard", "error", "fatal", "pending")
 
 # Statistics keys for the FMI functions (contracts.md: {"doStep", "set", "get", ...}).
+_SET_REAL, _GET_REAL, _DO_STEP = CALL_CODE["fmi2SetReal"], CALL_CODE["fmi2GetReal"], CALL_CODE["fmi2DoStep"]
 _STAT_KEY = {
     "fmi2SetReal": "set", "fmi2SetInteger": "set", "fmi2SetBoolean": "set", "fmi2SetString": "set",
     "fmi2GetReal": "get", "fmi2GetInteger": "get", "fmi2GetBoolean": "get", "fmi2GetString": "get",
@@ -311,8 +314,12 @@ class Subsystem(SubsystemBase):
     """
 
     def __init__(self, name: str, fmu_path: Path | str, *, work_dir: Path | str | None = None,
-                 extraction=None):
+                 extraction=None, call_slot: tuple[memoryview, int] | None = None):
         super().__init__(name)
+        # (array, k) of an orchestrator.fmi.call_record.CallRecord: the FMI function this instance
+        # is in (code at k, simulation time at k + 1), readable after a crash of this process
+        self._slot, self._k = call_slot if call_slot is not None else (None, 0)
+        self._now = math.nan                 # simulation time of the instance (NaN before the first step)
         self.fmu_path = Path(fmu_path)
         self.md: ModelDescription = read_model_description(self.fmu_path)
         self.can_interpolate_inputs = self.md.can_interpolate_inputs
@@ -357,11 +364,14 @@ class Subsystem(SubsystemBase):
         self._c_do_step = self._f["fmi2DoStep"]
         self.calls["instantiate"] += 1
         try:
+            self._enter("fmi2Instantiate")
             with own_imports(self.unzip_dir):   # a PythonFMU FMU imports the packages it bundles, not a cached copy
                 self._slave.instantiate(callbacks=cb, loggingOn=True)
         except Exception as e:
             self._free_library()
             raise FmuCallError(name, "fmi2Instantiate", "failed", self._detail(str(e))) from e
+        finally:
+            self._leave()
         self._component = self._slave.component
         self._state = "instantiated"
 
@@ -371,14 +381,32 @@ class Subsystem(SubsystemBase):
         parts = [p for p in (extra, f"FMU log: {msgs}" if msgs else "") if p]
         return "; ".join(parts)
 
+    def _enter(self, fname: str, t: float | None = None) -> None:
+        """Record that this instance is in FMI function ``fname`` (at ``t``, else its time now)."""
+        a = self._slot
+        if a is not None:
+            k = self._k
+            a[k + 1] = self._now if t is None else t
+            a[k] = CALL_CODE.get(fname, 0.0)
+
+    def _leave(self) -> None:
+        if self._slot is not None:
+            self._slot[self._k] = 0.0
+
     def _call(self, fname: str, *args) -> int:
         """Call FMI function ``fname``; raise FmuCallError unless OK/warning."""
         self.calls[_STAT_KEY.get(fname, fname)] += 1
+        a = self._slot
+        if a is not None:
+            self._enter(fname)
         try:
             res = self._f[fname](*args)
         except Exception as e:
             self._state = "error"
             raise FmuCallError(self.name, fname, "exception", self._detail(f"{type(e).__name__}: {e}")) from e
+        finally:
+            if a is not None:
+                a[self._k] = 0.0
         if res:
             self._status(fname, res)
         return res
@@ -436,6 +464,7 @@ class Subsystem(SubsystemBase):
                                     f"({type(value).__name__}); give a {v.type} value") from None
 
     def setup_experiment(self, start_time: float, stop_time: float | None) -> None:
+        self._now = float(start_time)
         self._call("fmi2SetupExperiment", self._component, 0, 0.0, float(start_time),
                    1 if stop_time is not None else 0, float(stop_time or 0.0))
 
@@ -477,34 +506,56 @@ class Subsystem(SubsystemBase):
     # -- hot path (no allocation) ------------------------------------------------
     def set_real(self, batch: RealBatch) -> None:
         self.calls["set"] += 1
+        a = self._slot
+        if a is not None:                   # the call record, inline (two stores; see _enter)
+            a[self._k + 1] = self._now
+            a[self._k] = _SET_REAL
         try:
             res = self._c_set_real(self._component, batch.c_vrs, batch.n, batch.c_values)
         except Exception as e:
             self._state = "error"
             raise FmuCallError(self.name, "fmi2SetReal", "exception", self._detail(str(e))) from e
+        finally:
+            if a is not None:
+                a[self._k] = 0.0
         if res:
             self._status("fmi2SetReal", res)
 
     def get_real(self, batch: RealBatch) -> np.ndarray:
         self.calls["get"] += 1
+        a = self._slot
+        if a is not None:
+            a[self._k + 1] = self._now
+            a[self._k] = _GET_REAL
         try:
             res = self._c_get_real(self._component, batch.c_vrs, batch.n, batch.c_values)
         except Exception as e:
             self._state = "error"
             raise FmuCallError(self.name, "fmi2GetReal", "exception", self._detail(str(e))) from e
+        finally:
+            if a is not None:
+                a[self._k] = 0.0
         if res:
             self._status("fmi2GetReal", res)
         return batch.values
 
     def do_step(self, t: float, h: float) -> None:
         self.calls["doStep"] += 1
+        a = self._slot
+        if a is not None:
+            a[self._k + 1] = t
+            a[self._k] = _DO_STEP
         try:
             res = self._c_do_step(self._component, t, h, 1 if self.no_set_prior_state else 0)
         except Exception as e:
             self._state = "error"
             raise FmuCallError(self.name, "fmi2DoStep", "exception", self._detail(str(e))) from e
+        finally:
+            if a is not None:
+                a[self._k] = 0.0
         if res:
             self._status("fmi2DoStep", res)
+        self._now = t + h
 
     def set_real_input_derivatives(self, batch: RealBatch) -> None:
         if not self.can_interpolate_inputs:
@@ -557,9 +608,12 @@ class Subsystem(SubsystemBase):
             return
         try:
             self.calls["freeInstance"] += 1
+            self._enter("fmi2FreeInstance")
             self._f["fmi2FreeInstance"](self._component)
         except Exception as e:   # pragma: no cover - defensive
             log.warning("%s: fmi2FreeInstance raised %s", self.name, e)
+        finally:
+            self._leave()
         self._state = "freed"
         _LOG_SINKS.pop(self._sink_key, None)
         self._free_library()

@@ -78,7 +78,7 @@ def _tail(text: str) -> str:
     return text if len(text) <= _STDERR_TAIL else "..." + text[-_STDERR_TAIL:]
 
 
-def _outcome(rc: int, summary: dict | None, stderr: str) -> tuple[str, str]:
+def _outcome(rc: int, summary: dict | None, stderr: str, run_dir: Path | None = None) -> tuple[str, str]:
     """(status, message) from the exit code and the summary.json the run left."""
     if summary is not None and summary.get("status") == "finished":
         if rc != 0:                        # a teardown crash after the results were written
@@ -93,6 +93,13 @@ def _outcome(rc: int, summary: dict | None, stderr: str) -> tuple[str, str]:
         return "failed", str(summary.get("message") or summary.get("status"))
     # no summary, or the one a run writes at its start ("running"): the process died mid-run
     why = f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}"
+    calls = []
+    if run_dir is not None:        # where it died: the FMI call that never returned (fmi/call_record.py)
+        from orchestrator.coupling.lifecycle import open_calls
+        calls = open_calls(run_dir)
+    if calls:
+        from orchestrator.fmi.call_record import describe_calls
+        why += f", in {describe_calls(calls)}"
     err = _tail(stderr)
     return "crashed", f"the run's process ended without a summary ({why})" + (f": {err}" if err else "")
 
@@ -118,7 +125,7 @@ def execute_run(scenario: str, overrides: list[str], run_dir: str, *, timeout_s:
         rc, stderr = _fresh(args, out, timeout_s)
     wall = time.perf_counter() - t0
     summary = _read_summary(out / "summary.json")
-    status, message = _outcome(rc, summary, stderr)
+    status, message = _outcome(rc, summary, stderr, out)
     record = {"status": status, "message": message, "wall_time_s": wall, "returncode": rc,
               "overrides": list(overrides)}
     (out / RUN_RECORD).write_text(json.dumps(record, indent=1), encoding="utf-8")

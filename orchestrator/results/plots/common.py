@@ -249,7 +249,11 @@ def _unfinished(summary: Mapping[str, Any], run_dir: Path) -> list[str]:
     if in_use:
         return [f"{who} is still going on: these are the rows it has written so far"]
     if in_use is False:
+        from orchestrator.coupling.lifecycle import open_calls
+        from orchestrator.fmi.call_record import describe_calls
+        calls = open_calls(run_dir)
+        where = (f"; it died in an FMI call that never returned: {describe_calls(calls)}" if calls else "")
         return [f"{who} ended without a final summary: it was killed, or it crashed (an FMU in the master's "
                 "process that crashes takes the run down with it: give it isolation: process, "
-                "docs/coupling.md); these are the rows it wrote before"]
+                f"docs/coupling.md){where}; these are the rows it wrote before"]
     return []
