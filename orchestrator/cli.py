@@ -437,8 +437,8 @@ def _cmd_init(args) -> int:
 def _add_export_ssp(sub) -> None:
     p = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive (runs in libcosim)")
     p.add_argument("file", metavar="SCENARIO", help="scenario YAML file (or a shipped scenario's name)")
-    p.add_argument("out", metavar="OUT.ssp", help="archive to write: a new file in an existing folder, or a "
-                                                  "regular file to replace")
+    p.add_argument("out", metavar="OUT.ssp", help="archive to write: a new file in an existing folder, or an "
+                                                  "earlier .ssp archive to replace")
     _add_set(p)
     p.set_defaults(func=_cmd_export_ssp)
 

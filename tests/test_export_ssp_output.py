@@ -1,6 +1,7 @@
 """Where `rotorcosim export-ssp SCENARIO OUT` may write (hostile output paths).
 
-OUT must be a regular file (replaced atomically) or a new name in an existing folder.
+OUT must be an earlier SSP archive or an empty file (replaced atomically) or a new name in an
+existing folder (any other existing file: tests/test_hostile_probe3.py).
 A FIFO, a directory, a symbolic link or a missing folder is refused with one message
 naming OUT, what it is and the fix (exit 1), and nothing is written: no stray ``.part``
 file, no folder created, nothing written through a link. (Device nodes are refused by
@@ -95,9 +96,15 @@ def test_link_planted_at_the_temporary_name_is_not_written_through(tmp_path, cap
     assert zipfile.ZipFile(out).namelist()[0] == "SystemStructure.ssd"
 
 
+def _old_ssp(out) -> bytes:
+    with zipfile.ZipFile(out, "w") as zf:
+        zf.writestr("SystemStructure.ssd", "<old/>")
+    return out.read_bytes()
+
+
 def test_regular_file_is_replaced_atomically(tmp_path, capsys, scenario):
     out = tmp_path / "x.ssp"
-    out.write_text("old")
+    _old_ssp(out)
     rc, text = cli(capsys, "export-ssp", scenario, out)
     assert rc == 0, text
     with zipfile.ZipFile(out) as zf:
@@ -108,14 +115,14 @@ def test_regular_file_is_replaced_atomically(tmp_path, capsys, scenario):
 
 def test_failed_write_leaves_the_old_file_and_no_part_file(tmp_path, capsys, scenario, monkeypatch):
     out = tmp_path / "x.ssp"
-    out.write_text("old")
+    old = _old_ssp(out)
 
     def broken(self, *args, **kwargs):
         raise OSError(28, "No space left on device")
     monkeypatch.setattr(zipfile.ZipFile, "write", broken)
     rc, text = cli(capsys, "export-ssp", scenario, out)
     assert rc == 1 and "No space left on device" in text, text
-    assert out.read_text() == "old" and _leftovers(tmp_path) == []
+    assert out.read_bytes() == old and _leftovers(tmp_path) == []
 
 
 def test_library_refuses_a_directory_before_writing(tmp_path, scenario):

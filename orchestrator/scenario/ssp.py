@@ -22,8 +22,9 @@ algorithm does: Jacobi with zero-order hold; our extrapolation and sub-step
 settings have no SSP equivalent and are not exported (a warning says so).
 
 The output is a regular ``.ssp`` file or a new name in an existing folder
-(:func:`check_output_path`): a directory, FIFO, device or socket at ``out``, a symbolic link
-or a missing folder is refused before anything is written. The archive is written to a
+(:func:`check_output_path`): a directory, FIFO, device or socket at ``out``, a symbolic link,
+an existing file that is not an SSP archive (the scenario itself, an FMU) or a missing folder
+is refused before anything is written. The archive is written to a
 temporary file created exclusively beside ``out`` (no link can be planted there) and renamed
 over ``out``, so an existing file is replaced atomically and nothing is left on failure.
 
@@ -267,9 +268,10 @@ def _type_el(parent: ET.Element, ns: str, fmi_type: str, value=None) -> None:
 
 
 def check_output_path(out: Path | str) -> Path:
-    """``out`` as a place to write the archive: an existing regular file (replaced) or a new
-    name in an existing folder. Raises :class:`InputError` for a directory, FIFO, device or
-    socket, a symbolic link (never written through) or a missing folder (not created)."""
+    """``out`` as a place to write the archive: an existing SSP archive or empty file (replaced) or a
+    new name in an existing folder. Raises :class:`InputError` for a directory, FIFO, device or
+    socket, a symbolic link (never written through), an existing file that is not an SSP archive
+    (a scenario YAML, an FMU: never replaced) or a missing folder (not created)."""
     out = Path(out)
     expected = "expected a new or existing regular .ssp file"
     try:
@@ -286,6 +288,12 @@ def check_output_path(out: Path | str) -> Path:
             fix = f"name the file inside it, e.g. {out / 'system.ssp'}" if stat.S_ISDIR(st.st_mode) else \
                 "give another path (export-ssp writes no pipes or devices)"
             raise InputError(f"{out}: is {file_kind(st.st_mode)}; {expected}: {fix}")
+        what = _not_an_ssp(out, st.st_size)
+        if what:       # `export-ssp s.yaml s.yaml` replaced the scenario itself with the archive
+            raise InputError(f"{out}: exists and is not an SSP archive ({what}); export-ssp replaces only an "
+                             "earlier .ssp file (or an empty file): give a new name, e.g. "
+                             f"{out.with_suffix('.ssp') if out.suffix != '.ssp' else out.with_name(out.stem + '-new.ssp')}"
+                             ", or remove the file first")
         return out
     parent = out.parent
     if not parent.is_dir():
@@ -293,6 +301,29 @@ def check_output_path(out: Path | str) -> Path:
         raise InputError(f"{out}: the folder {parent} {what}; export-ssp does not create folders: create it "
                          f"(mkdir -p {parent}) or give a path in an existing folder")
     return out
+
+
+def _not_an_ssp(out: Path, size: int) -> str | None:
+    """Why the existing regular file ``out`` is no SSP archive that export-ssp may replace (None: it is
+    one, or it is empty): a zip with ``SystemStructure.ssd`` at the top. Only the zip's central
+    directory is read (its size is bounded by the file's)."""
+    if size == 0:
+        return None
+    try:
+        with open(out, "rb") as f:
+            head = f.read(4)
+            if head != b"PK\x03\x04":
+                text = head.isascii() and all(32 <= b < 127 or b in (9, 10, 13) for b in head)
+                return "it holds text, e.g. a scenario" if text else "it is no zip archive"
+            f.seek(0)
+            with zipfile.ZipFile(f) as zf:
+                names = zf.namelist()
+    except (OSError, zipfile.BadZipFile, ValueError, EOFError) as e:
+        return f"it cannot be read as a zip archive: {e}"
+    if "SystemStructure.ssd" not in names:
+        kind = "an FMU" if "modelDescription.xml" in names else "a zip archive"
+        return f"it is {kind} without SystemStructure.ssd"
+    return None
 
 
 def _write_archive(out: Path, root: ET.Element, files: dict[str, Path]) -> None:
