@@ -59,6 +59,12 @@ class LifecycleError(CosimError):
     """A master or subsystem method was called out of order."""
 
 
+class OutputWriteError(LifecycleError):
+    """A run's own file (results.csv / results.parquet, summary.json) could not be written: the disk
+    is full, a quota is exceeded, the device failed. The message names the file, the operating
+    system's reason and, for results, the time the run stopped at and the rows kept."""
+
+
 class FmuCrashError(FmuCallError):
     """An FMU's worker process died or did not answer in time (``coupling.call_timeout``).
 

@@ -42,3 +42,102 @@ def test_export_ssp_never_replaces_a_file_that_is_not_an_ssp(tmp_path, capsys):
         rc, text = cli(capsys, "export-ssp", scenario, tmp_path / name)
         assert rc == 0, text
         assert "SystemStructure.ssd" in zipfile.ZipFile(tmp_path / name).namelist()
+
+
+def _disk_full_after(monkeypatch, rows: int):
+    """results.csv fails with ENOSPC after its header and ``rows`` rows, leaving half a row in it."""
+    import errno
+
+    from orchestrator.results import safe_write
+    real_open = safe_write.open_no_follow
+
+    class Full:
+        def __init__(self, f):
+            self.f, self.lines = f, 0
+
+        def write(self, text):
+            if self.lines > rows:
+                self.f.write("0.00")              # part of a row reached the disk
+                self.f.flush()
+                raise OSError(errno.ENOSPC, "No space left on device")
+            self.lines += text.count("\n")
+            return self.f.write(text)
+
+        def __getattr__(self, name):
+            return getattr(self.f, name)
+
+    def open_full(path, *a, **k):
+        f = real_open(path, *a, **k)
+        return Full(f) if str(path).endswith("results.csv") else f
+    monkeypatch.setattr(safe_write, "open_no_follow", open_full)
+
+
+def test_a_full_disk_mid_run_stops_it_keeping_the_complete_rows_and_saying_why(tmp_path, capsys, monkeypatch,
+                                                                              test_fmus):
+    """results.csv hitting a full disk mid-run ended in "error: No space left on device; the disk is
+    full" (no file, no time), or with a partly written last row in "internal error: ValueError: the
+    number of columns changed" while the rows were read back; summary.json said "running" and an
+    empty summary.json.tmp was left. Now the run stops there: the message names results.csv, the
+    time and the rows kept, the partial row is cut off (plot and CoSimResult.load read the file),
+    and the failed summary gives the same reason."""
+    import json
+
+    from hostile_builders import two_mass_dir
+    from orchestrator import CoSimResult
+    d = two_mass_dir(tmp_path, test_fmus)
+    _disk_full_after(monkeypatch, 6)
+    out = tmp_path / "out"
+    rc, text = cli(capsys, "run", d / "two_mass.yaml", "--out", out)
+    assert rc == 1, text
+    assert (f"error: cannot write {out / 'results.csv'} at t=0.006 s (No space left on device); the run "
+            "stopped there and the rows up to t=0.005 s are kept in it; free some space") in text, text
+    lines = (out / "results.csv").read_text().splitlines()
+    assert len(lines) == 7 and lines[-1].startswith("0.005,"), lines
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and "cannot write" in summary["message"], summary
+    assert summary["end_time"] == 0.006
+    assert not (out / "summary.json.tmp").exists()
+    assert len(CoSimResult.load(out).t) == 6
+
+
+def test_a_disk_too_full_for_the_summary_says_so_and_leaves_no_temporary_file(tmp_path, capsys, monkeypatch,
+                                                                             test_fmus, caplog):
+    """When summary.json could not be written at the end either, the OSError of that write replaced
+    the run's own reason ("error: No space left on device"). Now the run's reason is the error, and
+    an ERROR line says that summary.json still says 'running' and what the outcome was."""
+    import errno
+
+    from hostile_builders import two_mass_dir
+    from orchestrator.results import safe_write
+    d = two_mass_dir(tmp_path, test_fmus)
+    _disk_full_after(monkeypatch, 6)
+    real_fdopen = safe_write.os.fdopen
+    calls = {"n": 0}
+
+    class Full:
+        def __init__(self, f):
+            self.f = f
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *a):
+            self.f.close()
+
+        def write(self, text):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    def fdopen(fd, mode="r", *a, **k):
+        f = real_fdopen(fd, mode, *a, **k)
+        if mode != "w" or not str(safe_write.os.readlink(f"/proc/self/fd/{fd}")).endswith("summary.json.tmp"):
+            return f
+        calls["n"] += 1
+        return f if calls["n"] == 1 else Full(f)          # the "running" summary fits, no later one
+    monkeypatch.setattr(safe_write.os, "fdopen", fdopen)
+    out = tmp_path / "out"
+    rc, text = cli(capsys, "run", d / "two_mass.yaml", "--out", out)
+    assert rc == 1, text
+    assert f"error: cannot write {out / 'results.csv'} at t=0.006 s" in text, text
+    assert (f"cannot write {out / 'summary.json'} (No space left on device); free some space on that disk or "
+            "give another output folder (--out); it still says 'running'. The run's outcome (failed): ") in caplog.text
+    assert not (out / "summary.json.tmp").exists()

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime
+import errno
 import fcntl
 import json
 import logging
@@ -47,7 +48,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from orchestrator.errors import LifecycleError
+from orchestrator.errors import LifecycleError, OutputWriteError
 from orchestrator.fmi.call_record import CallRecord, read_calls
 
 RUN_FILES = ("results.csv", "results.parquet", "summary.json")
@@ -114,6 +115,7 @@ class RunFolder:
         self.scenario = scenario
         self.started_at: str | None = None
         self.finished = False
+        self.write_error: OutputWriteError | None = None    # the final summary.json could not be written
         self.stop_signal: int | None = None      # the signal that asked the run to stop
         self._lock_fd: int | None = None
         self.calls = None                         # CallRecord of the FMUs in this process (after __enter__)
@@ -201,14 +203,33 @@ class RunFolder:
                 "started_at": self.started_at, "pid": h["pid"]}
 
     def _write(self, summary: dict) -> None:
-        self._write_summary(self.out_dir / "summary.json", summary)
+        path = self.out_dir / "summary.json"
+        try:
+            self._write_summary(path, summary)
+        except OSError as e:
+            fix = ("free some space on that disk or give another output folder (--out)"
+                   if e.errno in (errno.ENOSPC, errno.EDQUOT) else "check that disk or give another output folder (--out)")
+            raise OutputWriteError(f"cannot write {path} ({e.strerror or e}); {fix}") from None
 
     def finish(self, summary: dict) -> None:
-        """Write the final summary.json (``started_at``, ``finished_at`` added)."""
+        """Write the final summary.json (``started_at``, ``finished_at`` added).
+
+        When it cannot be written (disk full) the run's outcome is logged as an error instead (the
+        file keeps saying "running") and kept in :attr:`write_error`; leaving the ``with`` block
+        without another exception then raises it."""
         full = dict(summary)
         full.setdefault("started_at", self.started_at)
         full["finished_at"] = _now()
-        self._write(full)
+        try:
+            self._write(full)
+        except OutputWriteError as e:
+            said = self.write_error is not None
+            self.write_error = OutputWriteError(
+                f"{e}; it still says 'running'. The run's outcome ({full.get('status')}): {full.get('message')}")
+            if not said:                          # once (the summary is written again after a failure)
+                log.error("%s", self.write_error)
+        else:
+            self.write_error = None
         self.finished = True
 
     def fail(self, message: str, **extra: Any) -> None:
@@ -236,6 +257,8 @@ class RunFolder:
                 else:
                     extra = {"failure": exc.report()} if callable(getattr(exc, "report", None)) else {}
                     self.fail(f"setup failed: {exc}", error=type(exc).__name__, **extra)
+            if exc is None and self.write_error is not None:
+                raise self.write_error            # the run ended, but its record could not be written
         finally:
             if self._term_handler is not None:
                 signal.signal(signal.SIGTERM, self._term_handler)

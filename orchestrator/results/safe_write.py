@@ -36,6 +36,11 @@ def write_text_no_follow(path: Path | str, text: str) -> None:
     with contextlib.suppress(FileNotFoundError):
         tmp.unlink()                          # removes a planted link itself, not its target
     fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0), 0o644)
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)                     # rename replaces a link at ``path``, never its target
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)                 # rename replaces a link at ``path``, never its target
+    except BaseException:                     # disk full: no empty or partial .tmp file left behind
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise

@@ -171,7 +171,17 @@ class ResultsWriter:
         self._last_flush = _time.monotonic()
 
     def write(self, t: float, values: Sequence[Any]) -> None:
-        """Append one row at time ``t`` (already on the grid: see :class:`TimeGrid`)."""
+        """Append one row at time ``t`` (already on the grid: see :class:`TimeGrid`).
+
+        An OSError (disk full, quota, I/O error) raises :class:`orchestrator.errors.OutputWriteError`
+        naming the file, ``t`` and the rows kept; a partly written last row is cut off, so the
+        file stays readable (``rotorcosim plot``) and the writer is closed."""
+        try:
+            self._write(t, values)
+        except OSError as e:
+            raise self._failed(e, t) from None
+
+    def _write(self, t: float, values: Sequence[Any]) -> None:
         if self.format == "csv":
             if self._csv is None:
                 raise RuntimeError(f"{self.path}: write() before open() or after close()")
@@ -197,24 +207,85 @@ class ResultsWriter:
             self._last_flush = now
 
     def flush(self) -> None:
-        if self._f is not None:
-            self._f.flush()
-        if self._pq is not None and self._buf:
-            self._pq.write(self._buf)
-            self._buf = []
-
-    def close(self) -> None:
-        if self._f is not None:
-            self._f.flush()
-            self._f.close()
-            self._f = None
-            self._csv = None
-        if self._pq is not None:
-            if self._buf:
+        try:
+            if self._f is not None:
+                self._f.flush()
+            if self._pq is not None and self._buf:
                 self._pq.write(self._buf)
                 self._buf = []
-            self._pq.close()
-            self._pq = None
+        except OSError as e:
+            raise self._failed(e, None) from None
+
+    def close(self) -> None:
+        try:
+            if self._f is not None:
+                self._f.flush()
+                self._f.close()
+                self._f = None
+                self._csv = None
+            if self._pq is not None:
+                if self._buf:
+                    self._pq.write(self._buf)
+                    self._buf = []
+                self._pq.close()
+                self._pq = None
+        except OSError as e:
+            raise self._failed(e, None) from None
+
+    def _failed(self, e: OSError, t: float | None):
+        """Close the file without its unwritten rows, cut a partly written last row off, and return
+        the :class:`OutputWriteError` that says so."""
+        import contextlib
+        import errno
+
+        from orchestrator.errors import OutputWriteError
+        f, pq = self._f, self._pq
+        self._f = self._csv = self._pq = None
+        self._buf = []
+        with contextlib.suppress(Exception):
+            if f is not None:
+                f.close()             # its buffer cannot be written either; the descriptor is closed
+        with contextlib.suppress(Exception):
+            if pq is not None:
+                pq.close()
+        at = f" at t={t:.12g} s" if t is not None else ""
+        why = e.strerror or str(e)
+        fix = {errno.ENOSPC: "free some space on that disk or give another output folder (--out)",
+               errno.EDQUOT: "free some of your disk quota or give another output folder (--out)",
+               errno.EFBIG: "the file is larger than that file system allows: record fewer signals or a coarser "
+                            "output.interval, or give another output folder (--out)"}.get(
+            e.errno, "check that disk or give another output folder (--out)")
+        if self.format != "csv":
+            kept = "the Parquet file is incomplete (no rows can be read from it)"
+        else:
+            last = _cut_partial_row(self.path)
+            kept = ("no rows are kept" if last is None else f"the rows up to t={last} s are kept in it")
+        return OutputWriteError(f"cannot write {self.path}{at} ({why}); the run stopped there and {kept}; {fix}")
+
+
+def _cut_partial_row(path: Path) -> str | None:
+    """Cut ``path`` after its last complete line (a write that failed may have left part of a row);
+    return the time of the last row kept (as written), or None (header only, or unreadable)."""
+    import os
+    try:
+        with open(path, "r+b") as f:
+            size = f.seek(0, os.SEEK_END)
+            start = max(0, size - (1 << 20))         # rows are far shorter than 1 MiB
+            f.seek(start)
+            tail = f.read()
+            end = tail.rfind(b"\n")
+            if end < 0:
+                return None
+            f.truncate(start + end + 1)
+            last = tail[:end].rsplit(b"\n", 1)[-1]
+    except OSError:
+        return None
+    first = last.split(b",", 1)[0].decode("ascii", "replace")
+    try:
+        float(first)
+    except ValueError:
+        return None                                  # the header: no rows
+    return first
 
 
 class _ParquetSink:
