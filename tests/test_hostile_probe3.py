@@ -5,7 +5,15 @@ its fix."""
 
 from __future__ import annotations
 
+import importlib.util
+import os
+import shutil
+import subprocess
+import sys
 import zipfile
+from pathlib import Path
+
+import pytest
 
 from hostile_builders import cli, md_scenario, write_fmu
 
@@ -141,3 +149,58 @@ def test_a_disk_too_full_for_the_summary_says_so_and_leaves_no_temporary_file(tm
     assert (f"cannot write {out / 'summary.json'} (No space left on device); free some space on that disk or "
             "give another output folder (--out); it still says 'running'. The run's outcome (failed): ") in caplog.text
     assert not (out / "summary.json.tmp").exists()
+
+
+# -- native C test FMU (tests/fmus_c: MisbehavingBearing faults 9-13) --------------------------
+
+HERE = Path(__file__).resolve().parent
+needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")
+FAULTS = {"log-flood": 9, "log-hostile": 10, "pending": 11, "status-42": 12, "no-state": 13}
+
+
+@pytest.fixture(scope="module")
+def c_fmus(tmp_path_factory):
+    spec = importlib.util.spec_from_file_location("build_c_fmu", HERE / "fmus_c" / "build_c_fmu.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    d = tmp_path_factory.mktemp("probe3_fmus")
+    mod.build_c_fmu(d, "LinearBearing")
+    mod.build_c_fmu(d, "MisbehavingBearing")
+    return d
+
+
+def _c_scenario(d, fault: str, isolation: str = "none", scheme: str = "jacobi"):
+    path = d / f"{fault}_{isolation}_{scheme}.yaml"
+    path.write_text("\n".join([
+        f"name: {fault}", "stop_time: 0.01", "fmus:",
+        f"  bearing1: {{path: MisbehavingBearing.fmu, parameters: {{fault: {FAULTS[fault]}, fault_step: 5}}}}",
+        "  bearing2: {path: LinearBearing.fmu}",
+        "connections:",
+        "  - {from: bearing1.Fx, to: bearing2.x, gain: 1.0e-9}",
+        "  - {from: bearing2.Fx, to: bearing1.x, gain: 1.0e-9, offset: 1.0e-6}",
+        f"coupling: {{scheme: {scheme}, macro_step: 1.0e-3, isolation: {isolation}}}",
+        "output: {interval: 1.0e-3, signals: [bearing1.Fx, bearing2.Fx]}", ""]))
+    return path
+
+
+def _run_cli(tmp_path, *args) -> tuple[int, str]:
+    env = {**os.environ, "PYTHONPATH": str(HERE.parent)}
+    p = subprocess.run([sys.executable, "-m", "orchestrator", *map(str, args)], cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=120)
+    return p.returncode, p.stdout + p.stderr
+
+
+@needs_gcc
+@pytest.mark.parametrize("isolation", ["none", "process"])
+def test_an_fmu_flooding_its_log_does_not_flood_the_terminal(tmp_path, c_fmus, isolation):
+    """An FMU logging 2000 warnings of 1000 characters per step printed every one: 12 MB on the
+    terminal for 6 steps (a long run: gigabytes; in a worker process all of a call's messages were
+    also held in memory and sent to the master). Now the first LOG_SHOWN (20) are shown, then one
+    line says the rest are not, and when the instance is freed one line gives their number and
+    the last message; an FMU error still gets its last messages in the error."""
+    rc, text = _run_cli(tmp_path, "run", _c_scenario(c_fmus, "log-flood", isolation), "--out", tmp_path / "out")
+    assert rc == 0, text[-2000:]
+    assert len(text) < 100_000, len(text)
+    assert text.count("[warning] fault 9: ") == 21          # 20 shown + the last one in the count line
+    assert "bearing1: the FMU's further log messages are not shown (20 shown)" in text
+    assert "bearing1: 11980 more log messages of the FMU were not shown (20 shown); the last: [warning] fault 9" in text

@@ -30,7 +30,7 @@ pytestmark = [pytest.mark.integration,
               pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")]
 
 HERE = Path(__file__).resolve().parent
-FAULTS = {"abort": 1, "segfault": 2, "exit": 3, "hang": 4, "nan": 5, "error": 6, "free": 7, "init": 8, "inithang": 9}
+FAULTS = {"abort": 1, "segfault": 2, "exit": 3, "hang": 4, "nan": 5, "error": 6, "free": 7, "init": 8, "inithang": 15}
 
 
 @pytest.fixture(scope="module")
@@ -245,7 +245,7 @@ def test_validate_warns_of_an_fmu_that_crashes_while_it_is_freed(fmu_dir):
 
 
 def test_validate_reports_an_fmu_that_hangs_while_initializing(fmu_dir, monkeypatch, capsys):
-    """fault 9: fmi2ExitInitializationMode never returns. validate waited forever; now, without a
+    """fault 15: fmi2ExitInitializationMode never returns. validate waited forever; now, without a
     coupling.call_timeout, it waits VALIDATE_CALL_TIMEOUT (600 s; 2 s here), kills the worker and
     says so, with what to set for `run`."""
     from orchestrator import preflight

@@ -133,6 +133,12 @@ def log_message_text(message: str) -> str:
 # messages (used in FmuCallError details).
 _LOG_SINKS: dict[str, collections.deque] = {}
 _CALLBACKS = None
+#: an instance's log messages of status warning or worse shown (logged at WARNING) per run; the
+#: rest are counted and summed up once when the instance is freed (an FMU that logs thousands of
+#: messages a step flooded the terminal with megabytes, and in a worker process its memory)
+LOG_SHOWN = 20
+#: sink key -> [shown, not shown, status label of the last not shown]
+_LOG_COUNTS: dict[str, list] = {}
 
 
 def _fmu_logger(env, instance_name, status, category, message):
@@ -142,13 +148,23 @@ def _fmu_logger(env, instance_name, status, category, message):
     except Exception:   # pragma: no cover - defensive
         inst, text = "?", "<undecodable message>"
     label = STATUS_NAMES[status] if 0 <= status < len(STATUS_NAMES) else str(status)
+    counts = None
     for key, sink in list(_LOG_SINKS.items()):
         if key.rsplit("#", 1)[0] == inst:
             sink.append(f"[{label}] {text}")
+            counts = _LOG_COUNTS.get(key, counts)
     if status >= 1:
+        if counts is not None:
+            if counts[0] >= LOG_SHOWN:
+                counts[1] += 1
+                return
+            counts[0] += 1
         log.warning("%s: [%s] %s", inst, label, log_message_text(text))
-    else:
-        log.debug("%s: [%s] %s", inst, label, _UNSHOWN.sub(_shown, text))
+        if counts is not None and counts[0] == LOG_SHOWN:
+            log.warning("%s: the FMU's further log messages are not shown (%d shown); their number is "
+                        "given when the run ends, and the last ones with an FMU error", inst, LOG_SHOWN)
+    elif log.isEnabledFor(logging.DEBUG):
+        log.debug("%s: [%s] %s", inst, label, log_message_text(text))
 
 
 def _callbacks():
@@ -358,6 +374,7 @@ class Subsystem(SubsystemBase):
         self._callbacks = cb
         self._sink_key = f"{name}#{id(self)}"
         _LOG_SINKS[self._sink_key] = self._log_messages
+        _LOG_COUNTS[self._sink_key] = [0, 0]
         self._f = self._slave._functions
         self._c_set_real = self._f["fmi2SetReal"]
         self._c_get_real = self._f["fmi2GetReal"]
@@ -604,7 +621,7 @@ class Subsystem(SubsystemBase):
             log.warning("%s: not freeing the instance after fmi2Fatal (FMI 2.0 forbids "
                         "any further call); its memory stays allocated until exit", self.name)
             self._state = "freed"
-            _LOG_SINKS.pop(self._sink_key, None)
+            self._forget_log()
             return
         try:
             self.calls["freeInstance"] += 1
@@ -615,8 +632,16 @@ class Subsystem(SubsystemBase):
         finally:
             self._leave()
         self._state = "freed"
-        _LOG_SINKS.pop(self._sink_key, None)
+        self._forget_log()
         self._free_library()
+
+    def _forget_log(self) -> None:
+        _LOG_SINKS.pop(self._sink_key, None)
+        counts = _LOG_COUNTS.pop(self._sink_key, None)
+        if counts and counts[1]:
+            last = log_message_text(self._log_messages[-1]) if self._log_messages else ""
+            log.warning("%s: %d more log messages of the FMU were not shown (%d shown); the last: %s",
+                        self.name, counts[1], counts[0], last[:300])
 
     def _free_library(self) -> None:
         try:

@@ -12,7 +12,9 @@ Run as a script to build into a folder: ``python tests/fmus_c/build_c_fmu.py OUT
 ``MisbehavingBearing`` is LinearBearing's source compiled with ``-DMISBEHAVING`` and its own
 ``MisbehavingBearing/modelDescription.xml``: a LinearBearing that aborts, segfaults,
 ``_exit``s, hangs, outputs NaN or returns fmi2Error at a chosen step (parameters
-``fault``, ``fault_step``), for the crash tests of FMUs in worker processes.
+``fault``, ``fault_step``), for the crash tests of FMUs in worker processes; or floods its
+log, logs a hostile message, returns fmi2Pending or status 42, or gives no FMU state
+(faults 9-13, tests/test_hostile_probe3.py).
 
 ``build_c_fmu(dest, "AllTypes", fixed_step=True)`` builds ``AllTypesFixed.fmu``: the same
 model compiled with ``-DFIXED_STEP`` (it refuses a step size other than its first one) and

@@ -24,7 +24,14 @@
  *   5 NaN in Fx from then on (returns fmi2OK), 6 returns fmi2Error;
  *   7 a segmentation fault in fmi2FreeInstance (after a complete run; fault_step unused),
  *   8 a segmentation fault in fmi2ExitInitializationMode (before the first step; fault_step
- *     unused), 9 a hang in fmi2ExitInitializationMode (fault_step unused).
+ *     unused),
+ *   9 log flooding: every fmi2DoStep from then on logs 2000 warnings of 1000 characters (returns fmi2OK),
+ *   10 logs one warning with '%' conversions (escaped: they reach the importer as text), bytes that are
+ *      not UTF-8 and terminal escape sequences, 100 000 characters long (returns fmi2OK),
+ *   11 returns fmi2Pending (an asynchronous step the FMU never declared),
+ *   12 returns the status code 42 (no fmi2Status),
+ *   13 fmi2GetFMUstate returns fmi2OK without giving a state (NULL; fault_step unused),
+ *   15 a hang in fmi2ExitInitializationMode (fault_step unused).
  * It tests what a co-simulation master does when an FMU crashes or hangs.
  */
 
@@ -127,6 +134,16 @@ static fmi2Status misbehave(Instance *inst)
 {
     struct timespec second = {1, 0};
     volatile int *nowhere = NULL;
+    if (inst->fault == 9 && inst->steps >= inst->fault_step) {
+        static char line[1001];
+        int i;
+        memset(line, 'w', sizeof line - 1);
+        line[sizeof line - 1] = '\0';
+        memcpy(line, "fault 9: ", 9);
+        for (i = 0; i < 2000; i++)
+            inst->cb.logger(inst->cb.componentEnvironment, inst->instanceName, fmi2Warning, "logEvents", line);
+        return fmi2OK;
+    }
     if (inst->steps != inst->fault_step) return fmi2OK;
     switch (inst->fault) {
     case 1: abort();
@@ -135,6 +152,18 @@ static fmi2Status misbehave(Instance *inst)
     case 4: for (;;) nanosleep(&second, NULL);      /* hang */
     case 5: inst->nan = 1; return fmi2OK;
     case 6: return fail(inst, "fmi2DoStep", "fault 6: fmi2Error on purpose (MisbehavingBearing test FMU)");
+    case 10: {
+        static char big[100001];
+        size_t i;
+        const char *head = "fault 10: %%s %%n %%x \xff\xfe \x1b[2J\x1b]0;title\x07 ";
+        for (i = 0; i < sizeof big - 1; i++) big[i] = (char)('a' + i % 26);
+        big[sizeof big - 1] = '\0';
+        memcpy(big, head, strlen(head));
+        inst->cb.logger(inst->cb.componentEnvironment, inst->instanceName, fmi2Warning, "logEvents", big);
+        return fmi2OK;
+    }
+    case 11: return (fmi2Status)5;                  /* fmi2Pending */
+    case 12: return (fmi2Status)42;
     default: return fmi2OK;
     }
 }
@@ -254,7 +283,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
         volatile int *nowhere = NULL;
         *nowhere = 1;                                /* SIGSEGV while initializing */
     }
-    if (((Instance *)c)->fault == 9) {
+    if (((Instance *)c)->fault == 15) {
         struct timespec second = {1, 0};
         for (;;) nanosleep(&second, NULL);           /* hang while initializing */
     }
@@ -393,6 +422,9 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
     Data *s;
     if (bad(c, "fmi2GetFMUstate", ALL_STATES)) return fmi2Error;
     if (!FMUstate) return fail(inst, "fmi2GetFMUstate", "NULL argument");
+#ifdef MISBEHAVING
+    if (inst->fault == 13) return fmi2OK;            /* no state given, *FMUstate left as it is */
+#endif
     s = (Data *)*FMUstate;
     if (!s) {
         s = (Data *)inst->cb.allocateMemory(1, sizeof(Data));
