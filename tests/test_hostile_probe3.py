@@ -204,3 +204,32 @@ def test_an_fmu_flooding_its_log_does_not_flood_the_terminal(tmp_path, c_fmus, i
     assert text.count("[warning] fault 9: ") == 21          # 20 shown + the last one in the count line
     assert "bearing1: the FMU's further log messages are not shown (20 shown)" in text
     assert "bearing1: 11980 more log messages of the FMU were not shown (20 shown); the last: [warning] fault 9" in text
+
+
+@needs_gcc
+@pytest.mark.parametrize("isolation", ["none", "process"])
+def test_an_fmu_that_gives_no_state_is_stopped_at_once(tmp_path, c_fmus, isolation):
+    """fmi2GetFMUstate returning fmi2OK without a state (NULL) was taken: the iterative scheme
+    finished "successfully" with NULL states, which it would hand back to fmi2SetFMUstate (a crash
+    in most FMUs, a silent no-op in others). Now the first such call stops the run naming the
+    instance, the function and a coupling that saves no states."""
+    out = tmp_path / "out"
+    rc, text = _run_cli(tmp_path, "run", _c_scenario(c_fmus, "no-state", isolation, "iterative"), "--out", out)
+    assert rc == 1, text[-2000:]
+    assert ("FMU instance 'bearing1' returned no state in fmi2GetFMUstate during the macro step from t=0 s" in text
+            and "gave no FMU state (NULL), although the FMU declares canGetAndSetFMUstate" in text), text[-2000:]
+    assert "This breaks the FMI 2.0 standard" in text and "smaller coupling.macro_step" not in text
+
+
+@needs_gcc
+@pytest.mark.parametrize("fault, said", [
+    ("pending", "returned fmi2Pending (an asynchronous step) in fmi2DoStep"),
+    ("status-42", "returned illegal status 42 in fmi2DoStep")])
+def test_pending_or_an_unknown_status_is_not_blamed_on_the_macro_step(tmp_path, c_fmus, fault, said):
+    """fmi2DoStep returning fmi2Pending or 42 ended in "... also try a smaller coupling.macro_step
+    or more substeps", advice that cannot help; now the message says what the FMU did and that
+    no macro step changes it."""
+    rc, text = _run_cli(tmp_path, "run", _c_scenario(c_fmus, fault), "--out", tmp_path / "out")
+    assert rc == 1, text[-2000:]
+    assert f"FMU instance 'bearing1' {said} during the macro step from t=0.004 s to t=0.005 s" in text, text[-2000:]
+    assert "whatever the macro step" in text and "smaller coupling.macro_step" not in text, text[-2000:]

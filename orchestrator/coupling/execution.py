@@ -517,12 +517,22 @@ class MasterAlgorithm:
         what = {"discard": "could not complete the step (fmi2Discard)",
                 "error": "reported an error (fmi2Error)",
                 "fatal": "reported a fatal error (fmi2Fatal; PythonFMU reports Python exceptions this way)",
-                "exception": "raised an exception"}.get(e.status, f"returned {e.status}")
-        return (f"FMU instance '{e.instance}' {what} in {e.function} during the macro step from t={t:.12g} s to "
-                f"t={t_next:.12g} s ({e}). Rows up to t={t:.12g} s are kept. Follow the fix the FMU's message "
-                "gives, if any; a numerically unstable coupling shows up the same way, so also try a smaller "
-                f"coupling.macro_step (now {self.scenario.coupling.macro_step:g}) or more substeps for "
-                f"'{e.instance}', and check the FMU's log above")
+                "exception": "raised an exception",
+                "pending": "returned fmi2Pending (an asynchronous step)"}.get(e.status, f"returned {e.status}")
+        head = (f"FMU instance '{e.instance}' {what} in {e.function} during the macro step from t={t:.12g} s to "
+                f"t={t_next:.12g} s ({e}). Rows up to t={t:.12g} s are kept. ")
+        if e.status == "pending":      # not numerics: whatever the macro step
+            return head + ("rotorcosim does not run asynchronous steps (fmi2Pending, FMI 2.0 sec. 4.2.3), whatever "
+                           "the macro step: ask the FMU's maker for an FMU whose fmi2DoStep completes before it "
+                           "returns, or replace the FMU")
+        if e.status == "no state" or e.status.startswith("illegal status"):
+            # a status code FMI 2.0 does not have, or no state although fmi2OK
+            return head + ("This breaks the FMI 2.0 standard (sec. 2.1.3, 2.1.8), whatever the macro step: "
+                           "report it to the FMU's maker with the FMU's log above, or replace the FMU")
+        return head + ("Follow the fix the FMU's message gives, if any; a numerically unstable coupling shows up "
+                       f"the same way, so also try a smaller coupling.macro_step (now "
+                       f"{self.scenario.coupling.macro_step:g}) or more substeps for '{e.instance}', and check the "
+                       "FMU's log above")
 
     def _origins_hint(self, e: Exception) -> str:
         """``"; 'bearing1' gets p_feed from file:21 and p0 from file:20"`` for the parameters of the failing

@@ -434,6 +434,8 @@ class Subsystem(SubsystemBase):
                         (": " + self._log_messages[-1]) if self._log_messages else "")
             return
         label = STATUS_NAMES[res] if 0 <= res < len(STATUS_NAMES) else f"illegal status {res}"
+        if res == 5 and fname != "fmi2DoStep":
+            label = "illegal status 5 (fmi2Pending, which only fmi2DoStep may return)"
         if res in (3, 4) or label.startswith("illegal"):
             self._state = "fatal" if res == 4 else "error"
         raise FmuCallError(self.name, fname, label, self._detail())
@@ -587,6 +589,12 @@ class Subsystem(SubsystemBase):
         from fmpy.fmi2 import fmi2FMUstate
         s = fmi2FMUstate()
         self._call("fmi2GetFMUstate", self._component, ctypes.byref(s))
+        if not s.value:        # a NULL state handed back later to fmi2SetFMUstate: a crash or a silent no-op
+            raise FmuCallError(self.name, "fmi2GetFMUstate", "no state",
+                               self._detail("it returned fmi2OK but gave no FMU state (NULL), although the "
+                                            "FMU declares canGetAndSetFMUstate; a coupling that saves no states "
+                                            "runs it (scheme gauss-seidel or jacobi, step_control constant, "
+                                            "discard_retries 0)"))
         return s
 
     def set_state(self, state) -> None:
