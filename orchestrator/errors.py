@@ -14,6 +14,24 @@ class CosimError(Exception):
     """Base of every error rotorcosim raises on purpose."""
 
 
+def path_arg(value, call: str, example: str):
+    """``value`` as a :class:`pathlib.Path` for the Python API: a str or os.PathLike, else a
+    TypeError that names the call and argument (``call``, e.g. ``"run(out_dir=...)"``) and shows
+    ``example`` (``None``, a number or bytes used to end in pathlib's "expected str, bytes or
+    os.PathLike object, not NoneType")."""
+    import os
+    from pathlib import Path
+    if isinstance(value, (str, os.PathLike)) and not isinstance(value, bytes):
+        try:
+            return Path(value)
+        except TypeError:        # an os.PathLike whose __fspath__ gives bytes
+            pass
+    got = f"{type(value).__name__} {value!r}"[:120]
+    fix = ("; decode it first (os.fsdecode(...))" if isinstance(value, bytes) else "")
+    raise TypeError(f"{call} takes a file or folder name as str or pathlib.Path (got {got}){fix}; "
+                    f"e.g. {example}")
+
+
 class ScenarioError(CosimError):
     """A scenario file (or its FMUs) is invalid.
 

@@ -233,3 +233,55 @@ def test_pending_or_an_unknown_status_is_not_blamed_on_the_macro_step(tmp_path, 
     assert rc == 1, text[-2000:]
     assert f"FMU instance 'bearing1' {said} during the macro step from t=0.004 s to t=0.005 s" in text, text[-2000:]
     assert "whatever the macro step" in text and "smaller coupling.macro_step" not in text, text[-2000:]
+
+
+def test_the_python_api_names_a_wrong_argument_and_the_fix(tmp_path):
+    """From a script, None, a number or bytes for a path ended in pathlib's "expected str, bytes or
+    os.PathLike object, not NoneType" (no function, no argument); overrides given as a dict were
+    read as its keys ("--set coupling.macro_step: expected KEY.PATH=VALUE"); an int among
+    run()'s observers failed mid-run ("'int' object has no attribute 'on_initialized'") after the
+    output folder was set up; run(progress='no') was taken as True; CoSimResult.load of a missing
+    folder, a file or an empty folder returned a 'failed' result with no message; MasterAlgorithm(None)
+    raised AttributeError. Each now raises a TypeError (a CosimError for the folder) naming the call,
+    the argument, what came and an example."""
+    import orchestrator as o
+    from orchestrator.compare.runner import main_compare
+    from orchestrator.errors import CosimError
+    from orchestrator.results.plots import plot_run
+    from orchestrator.sweep import prepare, sweep
+    from orchestrator.sweep.plot import plot_sweep
+    scenario = md_scenario(tmp_path)
+    sc = o.load_scenario(scenario)
+    cases = [
+        (lambda: o.load_scenario(None), "load_scenario(path) takes a file or folder name as str or pathlib.Path "
+                                        "(got NoneType None); e.g. load_scenario("),
+        (lambda: o.load_scenario(str(scenario).encode()), "(got bytes b'"),
+        (lambda: o.validate_scenario(3), "validate_scenario(path) takes a file or folder name"),
+        (lambda: o.load_scenario(scenario, overrides={"coupling.macro_step": 1e-5}),
+         "load_scenario(overrides=...) takes a list of 'key.path=value' texts (got a dict); write "
+         "overrides=['coupling.macro_step=1e-05']"),
+        (lambda: o.run(sc, out_dir=None), "run(out_dir=...) takes a file or folder name"),
+        (lambda: o.run(sc, out_dir=tmp_path / "r", progress="no"), "run(progress=...) takes True, False or None"),
+        (lambda: o.run(sc, out_dir=tmp_path / "r", observers=object()),
+         "run(observers=...) takes a list of Observer objects (got object)"),
+        (lambda: o.run(sc, out_dir=tmp_path / "r", observers=[1]),
+         "run(observers=...): item 0 (int 1) is no observer: it has no on_initialized() method"),
+        (lambda: o.CoSimResult.load(None), "CoSimResult.load(out_dir) takes a file or folder name"),
+        (lambda: o.MasterAlgorithm(None), "MasterAlgorithm() takes a Scenario from load_scenario() (got NoneType"),
+        (lambda: sweep(None), "sweep(path) takes a file or folder name"),
+        (lambda: prepare(3), "prepare(path) takes a file or folder name"),
+        (lambda: main_compare(None), "main_compare(path) takes a file or folder name"),
+        (lambda: plot_sweep(None), "plot_sweep(out_dir) takes a file or folder name"),
+        (lambda: plot_run(None), "plot_run(run_dir) takes a file or folder name"),
+    ]
+    for call, said in cases:
+        with pytest.raises(TypeError) as info:
+            call()
+        assert said in str(info.value), str(info.value)
+    assert not (tmp_path / "r").exists()                       # refused before the folder was made
+    (tmp_path / "empty").mkdir()
+    for folder, what in [(tmp_path / "nothing", "no such folder"), (scenario, "not a folder"),
+                         (tmp_path / "empty", "no results.csv, results.parquet or summary.json in it")]:
+        with pytest.raises(CosimError) as info:
+            o.CoSimResult.load(folder)
+        assert f"{folder}: no run folder ({what}); give the out_dir of a run" in str(info.value)

@@ -40,7 +40,7 @@ from orchestrator.compare.report import write_report
 from orchestrator.compare.spec import (
     CompareSpec, CompareSpecError, ReferenceSpec, VariantSpec, apply_changes, expand_variants, load_compare,
     parse_compare)
-from orchestrator.errors import CosimError, ScenarioError
+from orchestrator.errors import CosimError, ScenarioError, path_arg
 from orchestrator.reference.models import load_model_file
 from orchestrator.scenario import Scenario
 
@@ -265,6 +265,9 @@ def main_compare(path: str | os.PathLike, out_dir: str | os.PathLike | None = No
     With ``update_baseline`` the baseline file is rewritten from this run and
     regressions are not checked (tolerances still are).
     """
+    path_arg(path, "main_compare(path)", "main_compare('compare.yaml')")
+    if out_dir is not None:
+        path_arg(out_dir, "main_compare(out_dir=...)", "main_compare('compare.yaml', out_dir='runs/compare')")
     try:
         spec = load_compare(path)
     except ScenarioError as exc:

@@ -100,6 +100,10 @@ class MasterAlgorithm:
                  subsystems: Mapping[str, SubsystemBase] | None = None, scheme: CouplingScheme | None = None,
                  step_size: StepSizeController | None = None, predictor: LagrangePredictor | None = None,
                  record_in_memory: bool = True):
+        from orchestrator.scenario.model import Scenario
+        if not isinstance(scenario, Scenario):
+            raise TypeError(f"MasterAlgorithm() takes a Scenario from load_scenario() (got {type(scenario).__name__} "
+                            f"{scenario!r:.60}); write MasterAlgorithm(load_scenario('file.yaml'))")
         self.scenario = scenario
         c = scenario.coupling
         self.out_dir = Path(out_dir) if out_dir is not None else None

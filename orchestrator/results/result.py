@@ -55,8 +55,14 @@ class CoSimResult:
     def load(cls, out_dir: str | Path) -> "CoSimResult":
         """The result of a finished (or failed) run read back from its folder (results.csv and
         summary.json, through :class:`orchestrator.results.run_directory.RunDirectory`)."""
+        from orchestrator.errors import CosimError, path_arg
         from orchestrator.results.run_directory import RunDirectory
-        run = RunDirectory(out_dir)
+        run = RunDirectory(path_arg(out_dir, "CoSimResult.load(out_dir)", "CoSimResult.load('runs/quickstart')"))
+        if not run.has_summary() and not run.has_results():
+            what = "no such folder" if not run.path.exists() else (
+                "not a folder" if not run.path.is_dir() else "no results.csv, results.parquet or summary.json in it")
+            raise CosimError(f"{run.path}: no run folder ({what}); give the out_dir of a run (it holds "
+                             "results.csv and summary.json)")
         summary = run.summary() if run.has_summary() else {}
         cols = run.columns() if run.has_results() else {"time": np.zeros(0)}
         t = cols.pop("time", np.zeros(0))

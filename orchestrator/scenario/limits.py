@@ -52,6 +52,10 @@ def check_overrides(overrides) -> None:
     if isinstance(overrides, (str, bytes)):
         raise TypeError(f"load_scenario(overrides=...) takes a list of 'key.path=value' texts (got the text "
                         f"{overrides!r}); write overrides=[{overrides!r}]")
+    if hasattr(overrides, "keys") and hasattr(overrides, "items"):     # a mapping: its keys alone were read
+        shown = [f"{k}={v}" for k, v in list(overrides.items())[:2]]
+        raise TypeError(f"load_scenario(overrides=...) takes a list of 'key.path=value' texts (got a "
+                        f"{type(overrides).__name__}); write overrides={shown!r}")
     try:
         items = list(overrides)
     except TypeError:

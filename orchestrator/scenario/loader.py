@@ -12,7 +12,7 @@ from typing import Sequence
 
 import yaml
 
-from orchestrator.errors import ScenarioError
+from orchestrator.errors import ScenarioError, path_arg
 from orchestrator.scenario.checks import FmuChecks
 from orchestrator.scenario.limits import check_overrides
 from orchestrator.scenario.model import Scenario
@@ -64,7 +64,7 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
         listing every problem found, each as ``file:line: what is wrong (got X); fix``.
     """
     check_overrides(overrides)
-    given = Path(path)
+    given = path_arg(path, "load_scenario(path)", "load_scenario('scenarios/quickstart.yaml')")
     path = from_ssp(given)
     try:
         loader = ScenarioLoader(Path(path), overrides)
@@ -213,6 +213,7 @@ def validate_scenario(path: str | Path, overrides: Sequence[str] = (), *,
     our own FMUs that are missing or stale (``build_fmus=False``: only check, and
     report a missing FMU with the command that builds it).
     """
+    path_arg(path, "validate_scenario(path)", "validate_scenario('scenarios/quickstart.yaml')")
     try:
         load_scenario(path, overrides, build_fmus=build_fmus)
     except ScenarioError as exc:

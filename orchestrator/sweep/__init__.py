@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from orchestrator.errors import CosimError
+from orchestrator.errors import CosimError, path_arg
 from orchestrator.sweep.spec import SweepError, SweepSpec, load_sweep
 
 __all__ = ["sweep", "load_sweep", "prepare", "SweepError", "SweepSpec", "default_out_dir"]
@@ -34,7 +34,7 @@ def prepare(path: str | Path, *, progress: bool | None = False):
     (``progress``: a bar while validating many runs, as :func:`~orchestrator.sweep.plan.plan_sweep`;
     more than :data:`~orchestrator.sweep.plan.MAX_RUNS` runs raise :class:`SweepError` first)."""
     from orchestrator.sweep.plan import plan_sweep
-    spec = load_sweep(path)
+    spec = load_sweep(path_arg(path, "prepare(path)", "prepare('scenarios/sweeps/x.yaml')"))
     return spec, plan_sweep(spec, progress=progress)
 
 
@@ -58,6 +58,9 @@ def sweep(path: str | Path, out_dir: str | Path | None = None, *, scheduler: str
     from orchestrator.sweep.runner import run_sweep
     from orchestrator.sweep.table import columns
 
+    path = path_arg(path, "sweep(path)", "sweep('scenarios/sweeps/x.yaml')")
+    if out_dir is not None:
+        out_dir = path_arg(out_dir, "sweep(out_dir=...)", "sweep('scenarios/sweeps/x.yaml', out_dir='runs/x')")
     spec, runs = prepare(path)
     outcome = run_sweep(spec, runs, out_dir or default_out_dir(path), scheduler=scheduler, workers=workers,
                         resume=resume, progress=progress, warm=warm)

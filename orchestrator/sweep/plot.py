@@ -15,7 +15,7 @@ import math
 import warnings
 from pathlib import Path
 
-from orchestrator.errors import CosimError
+from orchestrator.errors import CosimError, path_arg
 from orchestrator.sweep.table import read_table
 
 __all__ = ["plot_sweep", "is_sweep_dir"]
@@ -171,7 +171,7 @@ def _hatch(j, i):
 
 def plot_sweep(out_dir: str | Path) -> list[Path]:
     """Draw the map of every collected value of the sweep in ``out_dir``; return the PNGs."""
-    out_dir = Path(out_dir)
+    out_dir = path_arg(out_dir, "plot_sweep(out_dir)", "plot_sweep('runs/sweep_x')")
     if not is_sweep_dir(out_dir):
         raise CosimError(f"{out_dir}: no sweep.csv here; give the --out folder of `rotorcosim sweep`")
     rows, meta = read_table(out_dir)              # bounded and checked: raises InputError naming file:line

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.errors import CosimError
+from orchestrator.errors import CosimError, path_arg
 from orchestrator.results.plots import eccentricity, fields, orbit, waterfall
 from orchestrator.results.plots.common import PlotContext, infer_spec, logger
 from orchestrator.results.plots.signals import pick, plot_signals
@@ -48,7 +48,7 @@ def plot_run(run_dir: str | Path, signals: list[str] | None = None) -> list[Path
     files do not support. Raises :class:`CosimError` when ``run_dir`` is not a
     directory or nothing at all could be plotted.
     """
-    run_dir = Path(run_dir)
+    run_dir = path_arg(run_dir, "plot_run(run_dir)", "plot_run('runs/quickstart')")
     if not run_dir.is_dir():
         raise CosimError(f"{run_dir}: not a directory; give the output directory of a run "
                          "(the one holding results.csv and summary.json)")
