@@ -420,7 +420,7 @@ def _cmd_scenarios(args) -> int:
 
 def _add_init(sub) -> None:
     p = sub.add_parser("init", help="copy the shipped scenarios into a folder for editing")
-    p.add_argument("dir", metavar="DIR", help="folder to create (or fill)")
+    p.add_argument("dir", metavar="DIR", type=_init_folder, help="folder to create (or fill)")
     p.add_argument("--force", action="store_true", help="overwrite scenario files that exist already")
     p.set_defaults(func=_cmd_init)
 
@@ -529,6 +529,15 @@ def _folder(value: str) -> str:
     if not value.strip():
         raise argparse.ArgumentTypeError("an empty folder name: give a folder, or leave --out out "
                                          "for the default")
+    return value
+
+
+def _init_folder(value: str) -> str:
+    """argparse type of ``init DIR``: not empty (an empty one filled the current folder and
+    suggested `rotorcosim run /X.yaml`)."""
+    if not value.strip():
+        raise argparse.ArgumentTypeError("an empty folder name: give the folder to copy the scenarios into, "
+                                         "e.g. `rotorcosim init my-scenarios` (or `.` for this folder)")
     return value
 
 

@@ -285,3 +285,17 @@ def test_the_python_api_names_a_wrong_argument_and_the_fix(tmp_path):
         with pytest.raises(CosimError) as info:
             o.CoSimResult.load(folder)
         assert f"{folder}: no run folder ({what}); give the out_dir of a run" in str(info.value)
+
+
+def test_init_with_an_empty_folder_name_is_refused(tmp_path, capsys, monkeypatch):
+    """`rotorcosim init ""` (an unset shell variable) copied every shipped scenario into the current
+    folder and suggested `rotorcosim run /jeffcott_....yaml`, a path at the root; now it is a usage
+    error (exit 2) and nothing is copied."""
+    monkeypatch.chdir(tmp_path)
+    for empty in ("", " "):
+        with pytest.raises(SystemExit) as e:
+            cli(capsys, "init", empty)
+        assert e.value.code == 2
+        assert "argument DIR: an empty folder name: give the folder to copy the scenarios into" in \
+            capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
