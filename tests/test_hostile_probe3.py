@@ -299,3 +299,48 @@ def test_init_with_an_empty_folder_name_is_refused(tmp_path, capsys, monkeypatch
         assert "argument DIR: an empty folder name: give the folder to copy the scenarios into" in \
             capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def _liar_fmu(c_fmus: Path) -> Path:
+    """LinearBearing whose model description also declares a parameter 'extra' (vr 20) and a local
+    'ghost' (vr 21), which its binary does not know ("unknown value reference")."""
+    liar = c_fmus / "Liar.fmu"
+    if not liar.exists():
+        extra = ('<ScalarVariable name="extra" valueReference="20" causality="parameter" variability="fixed" '
+                 'initial="exact"><Real start="1"/></ScalarVariable>'
+                 '<ScalarVariable name="ghost" valueReference="21" causality="local" variability="continuous" '
+                 'initial="calculated"><Real/></ScalarVariable></ModelVariables>')
+        with zipfile.ZipFile(c_fmus / "LinearBearing.fmu") as src, zipfile.ZipFile(liar, "w") as dst:
+            for info in src.infolist():
+                data = src.read(info.filename)
+                if info.filename == "modelDescription.xml":
+                    data = data.decode().replace("</ModelVariables>", extra, 1).encode()
+                dst.writestr(info, data)
+    return liar
+
+
+@needs_gcc
+@pytest.mark.parametrize("isolation", ["none", "process"])
+def test_an_fmu_refusing_a_variable_it_declares_is_traced_to_the_variable(tmp_path, c_fmus, isolation):
+    """An FMU whose model description declares variables its binary then refuses failed with
+    "FMU instance 'b': fmi2SetReal returned error: FMU log: ... unknown value reference 20": no
+    parameter, no value, no scenario line (and for a recorded variable no name). Now the refused
+    parameter is named with its value, type, value reference and the scenario line that sets
+    it, and a failed get/set names the variables the call passed."""
+    _liar_fmu(c_fmus)
+    coupling = f"coupling: {{macro_step: 1.0e-3, isolation: {isolation}}}"
+    (c_fmus / f"liar_p_{isolation}.yaml").write_text(
+        f"name: liar\nstop_time: 0.01\nfmus:\n  b: {{path: Liar.fmu, parameters: {{extra: 2.0}}}}\n{coupling}\n"
+        "output: {signals: [b.Fx]}\n")
+    rc, text = _run_cli(tmp_path, "run", c_fmus / f"liar_p_{isolation}.yaml", "--out", tmp_path / "p")
+    assert rc == 1, text[-2000:]
+    assert ("error: FMU instance 'b': fmi2SetReal returned error: the FMU refused parameter 'extra' = 2.0 "
+            "(Real, value reference 20), which its model description declares") in text, text[-2000:]
+    assert f"'b' gets extra from {c_fmus / f'liar_p_{isolation}.yaml'}:4" in text, text[-2000:]
+    (c_fmus / f"liar_g_{isolation}.yaml").write_text(
+        f"name: liar\nstop_time: 0.01\nfmus:\n  b: {{path: Liar.fmu}}\n{coupling}\n"
+        "output: {signals: [b.Fx, b.ghost]}\n")
+    rc, text = _run_cli(tmp_path, "run", c_fmus / f"liar_g_{isolation}.yaml", "--out", tmp_path / "g")
+    assert rc == 1, text[-2000:]
+    assert ("FMU instance 'b': fmi2GetReal returned error: the call read Fx (value reference 7), ghost (value "
+            "reference 21); FMU log: ") in text, text[-2000:]

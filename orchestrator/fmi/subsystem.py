@@ -104,6 +104,27 @@ _PY_EXCEPTION = re.compile(r"Fatal py exception encountered: \[(\w+)\] PyObject_
 _LOG_HEAD, _LOG_TAIL = 1200, 400       # characters kept of a long log message: its start and its end
 
 
+def _batch_text(fname: str, batch, md=None) -> str:
+    """``"the call read Fx (value reference 7), ghost (value reference 21)"``: the variables of a failed
+    get/set call (the FMU's "unknown value reference 21" named no variable); "" without a batch.
+    Names that are only the value reference (batches made in a worker) are looked up in ``md``."""
+    names = getattr(batch, "names", None)
+    if not names:
+        return ""
+    n = min(len(names), 8)
+    vrs = [int(batch.c_vrs[i]) for i in range(n)]
+    family = fname.replace("fmi2Get", "").replace("fmi2Set", "")
+    by_vr = {}
+    if md is not None and any(str(nm) == str(v) for nm, v in zip(names, vrs)):
+        kinds = ("Integer", "Enumeration") if family == "Integer" else (family,)
+        by_vr = {v.value_reference: v.name for v in md.variables.values() if v.type in kinds}
+    shown = [f"{by_vr.get(v, nm) if str(nm) == str(v) else nm} (value reference {v})"
+             for nm, v in zip(names[:n], vrs)]
+    more = f" and {len(names) - n} more" if len(names) > n else ""
+    verb = "read" if "Get" in fname else "set"
+    return f"the call {verb} {', '.join(shown)}{more}"
+
+
 def log_message_text(message: str) -> str:
     """One FMU log message on one line, for an error: a Python exception that PythonFMU
     reports is shown as ``ValueError in getReal: <its message>`` (the repr unquoted, its
@@ -410,8 +431,9 @@ class Subsystem(SubsystemBase):
         if self._slot is not None:
             self._slot[self._k] = 0.0
 
-    def _call(self, fname: str, *args) -> int:
-        """Call FMI function ``fname``; raise FmuCallError unless OK/warning."""
+    def _call(self, fname: str, *args, batch=None) -> int:
+        """Call FMI function ``fname``; raise FmuCallError unless OK/warning (``batch``: the variables
+        a get/set call passed, named in the error)."""
         self.calls[_STAT_KEY.get(fname, fname)] += 1
         a = self._slot
         if a is not None:
@@ -425,10 +447,10 @@ class Subsystem(SubsystemBase):
             if a is not None:
                 a[self._k] = 0.0
         if res:
-            self._status(fname, res)
+            self._status(fname, res, batch)
         return res
 
-    def _status(self, fname: str, res: int) -> None:
+    def _status(self, fname: str, res: int, batch=None) -> None:
         if res == 1:
             log.warning("%s: %s returned warning%s", self.name, fname,
                         (": " + self._log_messages[-1]) if self._log_messages else "")
@@ -438,7 +460,7 @@ class Subsystem(SubsystemBase):
             label = "illegal status 5 (fmi2Pending, which only fmi2DoStep may return)"
         if res in (3, 4) or label.startswith("illegal"):
             self._state = "fatal" if res == 4 else "error"
-        raise FmuCallError(self.name, fname, label, self._detail())
+        raise FmuCallError(self.name, fname, label, self._detail(_batch_text(fname, batch, self.md)))
 
     # -- description ------------------------------------------------------------
     def variable(self, name: str) -> Variable:
@@ -481,6 +503,18 @@ class Subsystem(SubsystemBase):
             except TypeError:
                 raise ScenarioError(f"parameter '{self.name}.{pname}' is of type {v.type}, got {value!r} "
                                     f"({type(value).__name__}); give a {v.type} value") from None
+            except FmuCallError as e:
+                # "fmi2SetReal returned error" named neither the parameter nor its value: an FMU that
+                # declares a parameter and then refuses it (or refuses the value) was untraceable
+                head = f"FMU instance '{e.instance}': {e.function} returned {e.status}"
+                text = str(e)
+                detail = text[len(head) + 2:] if text.startswith(head + ": ") else ""
+                shown = repr(value) if len(repr(value)) <= 60 else repr(value)[:57] + "..."
+                raise FmuCallError(e.instance, e.function, e.status,
+                                   f"the FMU refused parameter '{pname}' = {shown} ({v.type}, value reference "
+                                   f"{v.value_reference}), which its model description declares; check the "
+                                   "value against the FMU's documentation, or remove the parameter from "
+                                   "'parameters:' to keep its start value" + (f"; {detail}" if detail else "")) from None
 
     def setup_experiment(self, start_time: float, stop_time: float | None) -> None:
         self._now = float(start_time)
@@ -497,11 +531,11 @@ class Subsystem(SubsystemBase):
 
     def set_values(self, batch: TypedBatch) -> None:
         if batch.n:
-            self._call(f"fmi2Set{batch.family}", self._component, batch.c_vrs, batch.n, batch.c_values)
+            self._call(f"fmi2Set{batch.family}", self._component, batch.c_vrs, batch.n, batch.c_values, batch=batch)
 
     def get_values(self, batch: TypedBatch) -> None:
         if batch.n:
-            self._call(f"fmi2Get{batch.family}", self._component, batch.c_vrs, batch.n, batch.c_values)
+            self._call(f"fmi2Get{batch.family}", self._component, batch.c_vrs, batch.n, batch.c_values, batch=batch)
 
     def terminated_by_fmu(self) -> bool:
         """fmi2GetBooleanStatus(fmi2Terminated) (FMI 2.0 sec. 4.2.3); False if the FMU cannot answer.
@@ -538,7 +572,7 @@ class Subsystem(SubsystemBase):
             if a is not None:
                 a[self._k] = 0.0
         if res:
-            self._status("fmi2SetReal", res)
+            self._status("fmi2SetReal", res, batch)
 
     def get_real(self, batch: RealBatch) -> np.ndarray:
         self.calls["get"] += 1
@@ -555,7 +589,7 @@ class Subsystem(SubsystemBase):
             if a is not None:
                 a[self._k] = 0.0
         if res:
-            self._status("fmi2GetReal", res)
+            self._status("fmi2GetReal", res, batch)
         return batch.values
 
     def do_step(self, t: float, h: float) -> None:
