@@ -344,3 +344,80 @@ def test_an_fmu_refusing_a_variable_it_declares_is_traced_to_the_variable(tmp_pa
     assert rc == 1, text[-2000:]
     assert ("FMU instance 'b': fmi2GetReal returned error: the call read Fx (value reference 7), ghost (value "
             "reference 21); FMU log: ") in text, text[-2000:]
+
+
+def _enospc():
+    import errno
+    return OSError(errno.ENOSPC, "No space left on device")
+
+
+def test_a_full_disk_while_writing_plots_fmus_or_an_ssp_names_the_file_and_leaves_no_debris(
+        tmp_path, capsys, monkeypatch):
+    """A full disk under `rotorcosim plot` left an empty signals_*.png and said "error: No space left
+    on device" (no file); under `build-fmus --out` it left an empty .JournalBearing.fmu.<pid>.tmp and
+    named the build's temporary FMU in /tmp instead of the target; under `export-ssp` the message
+    named no file. Each now names the file it could not write, says what to do, and leaves no
+    partial file."""
+    import subprocess
+    from types import SimpleNamespace
+
+    from matplotlib.figure import Figure
+
+    from orchestrator.fmi import build
+
+    # plot: the figure is written to a temporary name, removed when the disk is full
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "results.csv").write_text("time,a.y\n0.0,1.0\n0.1,2.0\n")
+    real_savefig = Figure.savefig
+
+    def full_savefig(self, f, *a, **k):
+        if isinstance(f, (str, Path)):             # (the old code gave savefig the file name)
+            with open(f, "wb") as fh:
+                fh.write(b"\x89PNG")
+        else:
+            f.write(b"\x89PNG")
+        raise _enospc()
+    monkeypatch.setattr(Figure, "savefig", full_savefig)
+    rc, text = cli(capsys, "plot", run)
+    assert rc == 1 and (f"error: cannot write {run / 'plots' / 'signals_a.png'} (No space left on device); free "
+                        "some space on that disk, then run the command again") in text, text
+    assert [p.name for p in (run / "plots").iterdir()] == []
+    monkeypatch.setattr(Figure, "savefig", real_savefig)
+
+    # build-fmus --out: the PythonFMU build itself is faked (fast); copying the result fails
+    def fake_build(cmd, **kw):
+        import json
+        dest = json.loads(cmd[-1])["dest"]
+        with zipfile.ZipFile(dest, "w") as zf:
+            zf.writestr("modelDescription.xml", "<x/>")
+        return SimpleNamespace(returncode=0, stderr="", stdout=dest)
+
+    real_copy = build.shutil.copyfile
+
+    def full_copy(src, dst, **kw):
+        if not str(dst).endswith(".tmp"):          # staging the sources still works
+            return real_copy(src, dst, **kw)
+        Path(dst).write_bytes(b"PK")
+        raise _enospc()
+    monkeypatch.setattr(build.subprocess, "run", fake_build)
+    monkeypatch.setattr(build.shutil, "copyfile", full_copy)
+    out = tmp_path / "fmus"
+    with pytest.raises(build.FmuError) as info:
+        build.build_one(build.RECIPES["JeffcottRotor"], out)
+    assert str(info.value).startswith(f"cannot write {out / 'JeffcottRotor.fmu'} (No space left on device); "
+                                      "free some space on that disk"), str(info.value)
+    assert list(out.iterdir()) == []
+    monkeypatch.setattr(build.subprocess, "run", subprocess.run)
+    monkeypatch.setattr(build.shutil, "copyfile", real_copy)
+
+    # export-ssp
+    scenario = md_scenario(tmp_path)
+
+    def full_write(self, *a, **k):
+        raise _enospc()
+    monkeypatch.setattr(zipfile.ZipFile, "write", full_write)
+    rc, text = cli(capsys, "export-ssp", scenario, tmp_path / "x.ssp")
+    assert rc == 1 and (f"error: {tmp_path / 'x.ssp'}: cannot write the archive (No space left on device); free "
+                        "some space on that disk") in text, text
+    assert not any(p.name.startswith(".x.ssp") for p in tmp_path.iterdir())

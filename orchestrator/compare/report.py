@@ -12,6 +12,7 @@ import math
 from pathlib import Path
 
 from orchestrator.results.jsonsafe import plain
+from orchestrator.results.safe_write import save_figure
 
 
 def _fmt(x, spec="{:.3g}") -> str:
@@ -120,6 +121,6 @@ def _plot(report, spec, path: Path) -> Path | None:
         ax.grid(True, which="both", alpha=0.3)
     axes[0].legend(fontsize=7)
     fig.suptitle(f"{spec.name}: error vs cost (stable variants)")
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path

@@ -29,6 +29,8 @@ calling process (and the FMU loader would pick that one up).
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import hashlib
 import json
 import logging
@@ -203,11 +205,21 @@ def build_one(recipe: FmuRecipe, out_dir: Path) -> Path:
         with zipfile.ZipFile(built, "a") as zf:
             zf.writestr("resources/rotorcosim_build.json", json.dumps(info, indent=1))
         tmp_target = out_dir / f".{recipe.name}.fmu.{os.getpid()}.tmp"
-        shutil.copyfile(built, tmp_target)
-        os.replace(tmp_target, target)
-    stamp_tmp = out_dir / f".{recipe.name}.stamp.{os.getpid()}.tmp"
-    stamp_tmp.write_text(json.dumps(info, indent=1) + "\n")
-    os.replace(stamp_tmp, _stamp_path(target))          # atomic: concurrent runs may check it
+        stamp_tmp = out_dir / f".{recipe.name}.stamp.{os.getpid()}.tmp"
+        try:
+            shutil.copyfile(built, tmp_target)
+            os.replace(tmp_target, target)
+            stamp_tmp.write_text(json.dumps(info, indent=1) + "\n")
+            os.replace(stamp_tmp, _stamp_path(target))  # atomic: concurrent runs may check it
+        except OSError as e:
+            # a full disk left an empty .tmp file and named the build's temporary FMU, not the target
+            for p in (tmp_target, stamp_tmp):
+                with contextlib.suppress(OSError):
+                    p.unlink()
+            fix = ("free some space on that disk" if e.errno in (errno.ENOSPC, errno.EDQUOT)
+                   else "check that folder (it must be writable)")
+            raise FmuError(f"cannot write {target} ({e.strerror or e}); {fix} or give build-fmus --out another "
+                           "folder, then build again") from None
     log.info("built %s in %.1f s", target, time.perf_counter() - t0)
     return target
 

@@ -44,3 +44,31 @@ def write_text_no_follow(path: Path | str, text: str) -> None:
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+
+
+def save_figure(fig, path: Path | str, **kwargs) -> Path:
+    """``fig.savefig(path, **kwargs)`` atomically: into a temporary file created exclusively beside
+    ``path``, then renamed over it (never written through a link). On an OSError (disk full) the
+    temporary file is removed and :class:`orchestrator.errors.OutputWriteError` names ``path``; a
+    full disk used to leave an empty or truncated PNG and "error: No space left on device" without
+    a file name."""
+    import tempfile
+
+    from orchestrator.errors import OutputWriteError
+    path = Path(path)
+    kwargs.setdefault("format", path.suffix.lstrip(".") or "png")
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+        with os.fdopen(fd, "wb") as f:
+            fig.savefig(f, **kwargs)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except OSError as e:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        fix = ("free some space on that disk" if e.errno in (errno.ENOSPC, errno.EDQUOT)
+               else "check that folder (it must be writable)")
+        raise OutputWriteError(f"cannot write {path} ({e.strerror or e}); {fix}, then run the command again") from None
+    return path

@@ -16,6 +16,7 @@ import warnings
 from pathlib import Path
 
 from orchestrator.errors import CosimError, path_arg
+from orchestrator.results.safe_write import save_figure
 from orchestrator.sweep.table import read_table
 
 __all__ = ["plot_sweep", "is_sweep_dir"]
@@ -71,7 +72,7 @@ def _line(rows, p: str, col: str, path: Path) -> None:
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path)
+    save_figure(fig, path)
 
 
 def _order(v):
@@ -161,7 +162,7 @@ def _finish_map(fig, ax, p: str, q: str, xs, ys, title: str, path: Path) -> None
     ax.set_ylabel(q)
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path)
+    save_figure(fig, path)
 
 
 def _hatch(j, i):

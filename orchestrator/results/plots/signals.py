@@ -19,6 +19,8 @@ from typing import Sequence
 
 import numpy as np
 
+from orchestrator.results.safe_write import save_figure
+
 MAX_PANELS = 8
 MAX_FIGURES = 100        # signal figures of one plot (800 panels); a folder of 20 000 columns took hours
 MAX_POINTS = 20000       # points per trace above which the trace is decimated by striding
@@ -88,7 +90,7 @@ def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
             axes[-1].set_xlabel("time [s]")
             fig.suptitle(f"{title}: {inst}")
             path = out_dir / f"signals_{_safe(inst)}{'' if k == 0 else f'_{k // MAX_PANELS + 1}'}.png"
-            fig.savefig(path, dpi=DPI)
+            save_figure(fig, path, dpi=DPI)
             written.append(path)
     left = sum(len(sigs) for sigs in groups.values()) - drawn
     if left:
