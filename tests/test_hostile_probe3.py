@@ -421,3 +421,20 @@ def test_a_full_disk_while_writing_plots_fmus_or_an_ssp_names_the_file_and_leave
     assert rc == 1 and (f"error: {tmp_path / 'x.ssp'}: cannot write the archive (No space left on device); free "
                         "some space on that disk") in text, text
     assert not any(p.name.startswith(".x.ssp") for p in tmp_path.iterdir())
+
+
+def test_plot_of_a_signal_spanning_more_than_the_largest_float(tmp_path, capsys):
+    """A recorded signal from -1e308 to 1e308 (an FMU's DBL_MAX 'no value' marker, or a blown-up
+    output) ended `rotorcosim plot` in "internal error: ValueError: arange: cannot compute length"
+    (matplotlib's ticks). Now that signal is skipped with a warning naming it and its range, and
+    the others are drawn."""
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "results.csv").write_text("time,a.y,a.z\n0.0,1e308,1.0\n0.1,-1e308,2.0\n0.2,0.0,3.0\n")
+    with pytest.warns(UserWarning) as warned:
+        rc, text = cli(capsys, "plot", run)
+    assert rc == 0, text
+    said = " ".join(str(w.message) for w in warned)
+    assert ("signal plots: 'a.y' spans more than the largest floating-point number (from -1e+308 to 1e+308; "
+            "an FMU's 'no value' marker such as DBL_MAX?); not drawn") in said, said
+    assert [p.name for p in (run / "plots").iterdir()] == ["signals_a.png"]

@@ -143,6 +143,10 @@ class PlotContext:
 
     def signal(self, name: Any, what: str) -> np.ndarray | None:
         if isinstance(name, str) and name in self.cols:
+            why = span_problem(self.cols[name])
+            if why:
+                self.skipped.append(f"{what}: results.csv column '{name}' {why}; not drawn")
+                return None
             return self.cols[name]
         self.skipped.append(f"{what}: results.csv has no column '{name}'; columns: "
                             f"{sorted(self.cols)[:10]}; fix the analysis spec or output.signals")
@@ -166,6 +170,25 @@ class PlotContext:
         path = self.out / fname
         save_figure(fig, path, dpi=DPI)
         self.written.append(path)
+
+
+def span_problem(values) -> str | None:
+    """Why a column cannot be drawn although it has numbers: its finite values span more than the
+    largest float (matplotlib's ticks then fail with "arange: cannot compute length", which ended
+    `rotorcosim plot` in an internal error); None when it can be drawn."""
+    a = np.asarray(values)
+    if a.dtype == object or a.size == 0:
+        return None
+    a = a.astype(float)
+    finite = a[np.isfinite(a)]
+    if finite.size == 0:
+        return None
+    lo, hi = float(finite.min()), float(finite.max())
+    with np.errstate(over="ignore"):
+        if np.isfinite(hi - lo):
+            return None
+    return (f"spans more than the largest floating-point number (from {lo:.4g} to {hi:.4g}; an FMU's 'no value' "
+            "marker such as DBL_MAX?)")
 
 
 def trace(ax, xv, yv, color, label) -> None:

@@ -19,6 +19,7 @@ from typing import Sequence
 
 import numpy as np
 
+from orchestrator.results.plots.common import span_problem
 from orchestrator.results.safe_write import save_figure
 
 MAX_PANELS = 8
@@ -66,6 +67,10 @@ def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
         y = _numbers(cols[c])
         if y is None or np.all(np.isnan(y)):
             notes.append(f"signal plots: '{c}' has no numeric values (a String signal?); not drawn")
+            continue
+        why = span_problem(y)
+        if why:
+            notes.append(f"signal plots: '{c}' {why}; not drawn")
             continue
         groups.setdefault(c.split(".", 1)[0], []).append(c)      # a name without '.': its own group
     out_dir.mkdir(parents=True, exist_ok=True)
