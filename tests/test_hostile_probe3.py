@@ -438,3 +438,18 @@ def test_plot_of_a_signal_spanning_more_than_the_largest_float(tmp_path, capsys)
     assert ("signal plots: 'a.y' spans more than the largest floating-point number (from -1e+308 to 1e+308; "
             "an FMU's 'no value' marker such as DBL_MAX?); not drawn") in said, said
     assert [p.name for p in (run / "plots").iterdir()] == ["signals_a.png"]
+
+
+def test_sweep_api_workers_and_scheduler_of_the_wrong_type(tmp_path):
+    """sweep(path, workers="4") ended in "'<' not supported between instances of 'str' and 'int'"
+    after every run's scenario was validated, workers=2.5 reached Dask, scheduler=3 was taken for
+    an address. Now each is a TypeError naming the argument and an example, before anything else."""
+    from orchestrator.sweep import sweep
+    path = tmp_path / "never_read.yaml"
+    for kw, said in [({"workers": "4"}, "sweep(workers=...) takes a whole number of at least 1, or None for one "
+                                        "per core (got '4'); e.g. workers=4"),
+                     ({"workers": 2.5}, "(got 2.5)"), ({"workers": True}, "(got True)"),
+                     ({"scheduler": 3}, "sweep(scheduler=...) takes the address of a Dask scheduler as a text")]:
+        with pytest.raises(TypeError) as info:
+            sweep(path, **kw)
+        assert said in str(info.value), str(info.value)

@@ -59,6 +59,14 @@ def sweep(path: str | Path, out_dir: str | Path | None = None, *, scheduler: str
     from orchestrator.sweep.table import columns
 
     path = path_arg(path, "sweep(path)", "sweep('scenarios/sweeps/x.yaml')")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)):
+        # "4" ended in "'<' not supported between instances of 'str' and 'int'", 2.5 reached Dask
+        raise TypeError(f"sweep(workers=...) takes a whole number of at least 1, or None for one per core "
+                        f"(got {workers!r}); e.g. workers=4")
+    if scheduler is not None and not isinstance(scheduler, str):
+        raise TypeError(f"sweep(scheduler=...) takes the address of a Dask scheduler as a text, or None for a "
+                        f"local cluster (got {type(scheduler).__name__} {scheduler!r:.60}); e.g. "
+                        "scheduler='tcp://10.0.0.5:8786'")
     if out_dir is not None:
         out_dir = path_arg(out_dir, "sweep(out_dir=...)", "sweep('scenarios/sweeps/x.yaml', out_dir='runs/x')")
     spec, runs = prepare(path)
