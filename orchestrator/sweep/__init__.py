@@ -50,14 +50,6 @@ def sweep(path: str | Path, out_dir: str | Path | None = None, *, scheduler: str
     KeyboardInterrupt the table of what finished is written, then the interrupt propagates.
     pandas is imported only here (the CLI does not need it).
     """
-    try:
-        import pandas as pd
-    except ModuleNotFoundError:
-        raise CosimError("orchestrator.sweep.sweep() returns a pandas DataFrame and pandas is not installed; "
-                         "install it (pip install pandas), or use `rotorcosim sweep` and read sweep.csv") from None
-    from orchestrator.sweep.runner import run_sweep
-    from orchestrator.sweep.table import columns
-
     path = path_arg(path, "sweep(path)", "sweep('scenarios/sweeps/x.yaml')")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)):
         # "4" ended in "'<' not supported between instances of 'str' and 'int'", 2.5 reached Dask
@@ -69,6 +61,14 @@ def sweep(path: str | Path, out_dir: str | Path | None = None, *, scheduler: str
                         "scheduler='tcp://10.0.0.5:8786'")
     if out_dir is not None:
         out_dir = path_arg(out_dir, "sweep(out_dir=...)", "sweep('scenarios/sweeps/x.yaml', out_dir='runs/x')")
+    try:
+        import pandas as pd
+    except ModuleNotFoundError:
+        raise CosimError("orchestrator.sweep.sweep() returns a pandas DataFrame and pandas is not installed; "
+                         "install it (pip install pandas), or use `rotorcosim sweep` and read sweep.csv") from None
+    from orchestrator.sweep.runner import run_sweep
+    from orchestrator.sweep.table import columns
+
     spec, runs = prepare(path)
     outcome = run_sweep(spec, runs, out_dir or default_out_dir(path), scheduler=scheduler, workers=workers,
                         resume=resume, progress=progress, warm=warm)
