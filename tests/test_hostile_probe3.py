@@ -453,3 +453,35 @@ def test_sweep_api_workers_and_scheduler_of_the_wrong_type(tmp_path):
         with pytest.raises(TypeError) as info:
             sweep(path, **kw)
         assert said in str(info.value), str(info.value)
+
+
+def test_files_no_run_wrote_are_never_moved_aside_or_deleted(tmp_path):
+    """`--out` a folder holding someone's own results.csv: the first run moved it into previous/
+    without a word, the second deleted it. Now a folder whose run files no rotorcosim run wrote
+    (no .rotorcosim.lock, no summary.json of a run) is refused before anything is written, so a
+    second try is refused the same way; a run folder (lock file, or a run's summary.json from
+    before lock files) still has its files moved aside."""
+    import json
+
+    from orchestrator.coupling.lifecycle import RunFolder
+    from orchestrator.errors import LifecycleError
+    sc = type("Sc", (), {"name": "s", "source": None})()
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "results.csv").write_text("precious lab data\n")
+    for _ in range(2):
+        with pytest.raises(LifecycleError) as info:
+            with RunFolder(mine, sc):
+                pass
+        assert (f"output folder {mine} holds results.csv, which no rotorcosim run wrote (no .rotorcosim.lock, no "
+                "summary.json of a run); a run would move it into previous/") in str(info.value)
+    assert sorted(p.name for p in mine.iterdir()) == ["results.csv"]
+    assert (mine / "results.csv").read_text() == "precious lab data\n"
+
+    old = tmp_path / "old_run"                       # a run's folder from before lock files
+    old.mkdir()
+    (old / "results.csv").write_text("time,a.y\n0.0,1.0\n")
+    (old / "summary.json").write_text(json.dumps({"scenario": "s", "status": "finished"}))
+    with RunFolder(old, sc) as f:
+        f.finish({"status": "finished"})
+    assert (old / "previous" / "results.csv").read_text() == "time,a.y\n0.0,1.0\n"

@@ -88,6 +88,7 @@ def test_results_are_never_written_through_a_symlink(tmp_path):
     target.write_text("keep me")
     out = tmp_path / "run"
     out.mkdir()
+    (out / ".rotorcosim.lock").touch()     # a run folder (files no run wrote: tests/test_hostile_probe3.py)
     (out / "results.csv").symlink_to(target)
     with RunFolder(out, _sc()) as f:
         assert (out / "previous" / "results.csv").is_symlink()   # the link moved aside, not followed

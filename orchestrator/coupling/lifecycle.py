@@ -48,7 +48,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from orchestrator.errors import LifecycleError, OutputWriteError
+from orchestrator.errors import CosimError, LifecycleError, OutputWriteError
 from orchestrator.fmi.call_record import CallRecord, read_calls
 
 RUN_FILES = ("results.csv", "results.parquet", "summary.json")
@@ -132,6 +132,8 @@ class RunFolder:
                              "give --out a new folder (or a run folder of rotorcosim, whose results "
                              "are moved aside)")
         self.out_dir.mkdir(parents=True, exist_ok=True)
+        if not os.path.lexists(self.out_dir / LOCK_NAME):   # every run leaves its lock file
+            self._refuse_foreign()                   # before the lock: a refused folder stays as it was
         self._lock()
         try:
             self.started_at = _now()
@@ -180,6 +182,25 @@ class RunFolder:
         except (OSError, ValueError) as e:          # e.g. a file system without shared mappings
             self.calls = None
             log.debug("no FMI call record in %s: %s", self.out_dir, e)
+
+    def _refuse_foreign(self) -> None:
+        """Refuse a folder holding results.csv / results.parquet / summary.json that no run wrote
+        (no lock file, no summary.json of a run): the first run moved such a file (someone's
+        own results.csv) into previous/ without a word, the second one deleted it."""
+        present = [n for n in RUN_FILES if os.path.lexists(self.out_dir / n)]
+        if not present:
+            return
+        try:
+            from orchestrator.results.run_directory import RunDirectory
+            summary = RunDirectory(self.out_dir).summary() if "summary.json" in present else {}
+        except (OSError, ValueError, CosimError):   # unreadable (InputError): not a run's
+            summary = {}
+        if "status" in summary and "scenario" in summary:
+            return                                  # a run's summary (from before lock files)
+        raise LifecycleError(f"output folder {self.out_dir} holds {' and '.join(present)}, which no rotorcosim "
+                             f"run wrote (no {LOCK_NAME}, no summary.json of a run); a run would move "
+                             f"{'it' if len(present) == 1 else 'them'} into previous/ and the next run would "
+                             "delete it: give --out a new or empty folder, or move those files away")
 
     def _move_aside(self) -> None:
         present = [n for n in RUN_FILES if os.path.lexists(self.out_dir / n)]
