@@ -271,6 +271,9 @@ def test_the_python_api_names_a_wrong_argument_and_the_fix(tmp_path):
         (lambda: sweep(None), "sweep(path) takes a file or folder name"),
         (lambda: prepare(3), "prepare(path) takes a file or folder name"),
         (lambda: main_compare(None), "main_compare(path) takes a file or folder name"),
+        (lambda: main_compare(tmp_path / "c.yaml", workers="2"),
+         "main_compare(workers=...) takes a whole number of at least 1, or None"),
+        (lambda: main_compare(tmp_path / "c.yaml", runner="run"), "main_compare(runner=...) takes a function"),
         (lambda: plot_sweep(None), "plot_sweep(out_dir) takes a file or folder name"),
         (lambda: plot_run(None), "plot_run(run_dir) takes a file or folder name"),
     ]

@@ -268,6 +268,13 @@ def main_compare(path: str | os.PathLike, out_dir: str | os.PathLike | None = No
     path_arg(path, "main_compare(path)", "main_compare('compare.yaml')")
     if out_dir is not None:
         path_arg(out_dir, "main_compare(out_dir=...)", "main_compare('compare.yaml', out_dir='runs/compare')")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        # "2" ended in "'<=' not supported between instances of 'str' and 'int'" after the FMUs were copied
+        raise TypeError(f"main_compare(workers=...) takes a whole number of at least 1, or None for the "
+                        f"comparison file's 'workers' (got {workers!r}); e.g. workers=2")
+    if not callable(runner):
+        raise TypeError(f"main_compare(runner=...) takes a function runner(scenario, out_dir) (got "
+                        f"{type(runner).__name__}); leave it out to run each scenario with orchestrator.run")
     try:
         spec = load_compare(path)
     except ScenarioError as exc:
