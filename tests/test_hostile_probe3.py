@@ -155,7 +155,7 @@ def test_a_disk_too_full_for_the_summary_says_so_and_leaves_no_temporary_file(tm
 
 HERE = Path(__file__).resolve().parent
 needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")
-FAULTS = {"log-flood": 9, "log-hostile": 10, "pending": 11, "status-42": 12, "no-state": 13}
+FAULTS = {"log-flood": 9, "log-hostile": 10, "pending": 11, "status-42": 12, "no-state": 13, "other-name": 14}
 
 
 @pytest.fixture(scope="module")
@@ -488,3 +488,17 @@ def test_files_no_run_wrote_are_never_moved_aside_or_deleted(tmp_path):
     with RunFolder(old, sc) as f:
         f.finish({"status": "finished"})
     assert (old / "previous" / "results.csv").read_text() == "time,a.y\n0.0,1.0\n"
+
+
+@needs_gcc
+def test_an_fmu_logging_under_another_instance_name_is_capped_and_escaped(tmp_path, c_fmus):
+    """The cap on shown log messages keyed on the instance name the FMU passes; an FMU logging
+    under a name of its own (or after it was freed) printed every message (500 a step here), and
+    that name reached the terminal raw: "other\\x1b[2J" cleared the screen. Now such names are
+    capped the same way, per name, and shown escaped."""
+    rc, text = _run_cli(tmp_path, "run", _c_scenario(c_fmus, "other-name"), "--out", tmp_path / "out")
+    assert rc == 0, text[-2000:]
+    assert "\x1b" not in text
+    assert text.count("other\\x1b[2J: [warning] fault 14: a message under another instance name") == 20, text[-3000:]
+    assert ("other\\x1b[2J: the FMU's further log messages are not shown (20 shown) (no instance of the run has "
+            "this name: the FMU logs under a name of its own)") in text

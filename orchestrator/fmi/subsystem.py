@@ -158,8 +158,12 @@ _CALLBACKS = None
 #: rest are counted and summed up once when the instance is freed (an FMU that logs thousands of
 #: messages a step flooded the terminal with megabytes, and in a worker process its memory)
 LOG_SHOWN = 20
-#: sink key -> [shown, not shown, status label of the last not shown]
+#: sink key -> [shown, not shown]
 _LOG_COUNTS: dict[str, list] = {}
+#: the same for instance names no live instance has (an FMU logging under another name, or
+#: after it was freed), at most _MAX_OTHER_NAMES of them (the rest share "*")
+_LOG_OTHERS: dict[str, list] = {}
+_MAX_OTHER_NAMES = 64
 
 
 def _fmu_logger(env, instance_name, status, category, message):
@@ -174,18 +178,24 @@ def _fmu_logger(env, instance_name, status, category, message):
         if key.rsplit("#", 1)[0] == inst:
             sink.append(f"[{label}] {text}")
             counts = _LOG_COUNTS.get(key, counts)
+    # the FMU chooses the name it logs under: shown escaped and cut like the message
+    shown_inst = log_message_text(inst)[:80] or "?"
     if status >= 1:
-        if counts is not None:
-            if counts[0] >= LOG_SHOWN:
-                counts[1] += 1
-                return
-            counts[0] += 1
-        log.warning("%s: [%s] %s", inst, label, log_message_text(text))
-        if counts is not None and counts[0] == LOG_SHOWN:
-            log.warning("%s: the FMU's further log messages are not shown (%d shown); their number is "
-                        "given when the run ends, and the last ones with an FMU error", inst, LOG_SHOWN)
+        own = counts is not None
+        if not own:      # a name no live instance has: capped the same way, per name
+            name = inst if inst in _LOG_OTHERS or len(_LOG_OTHERS) < _MAX_OTHER_NAMES else "*"
+            counts = _LOG_OTHERS.setdefault(name, [0, 0])
+        if counts[0] >= LOG_SHOWN:
+            counts[1] += 1
+            return
+        counts[0] += 1
+        log.warning("%s: [%s] %s", shown_inst, label, log_message_text(text))
+        if counts[0] == LOG_SHOWN:
+            log.warning("%s: the FMU's further log messages are not shown (%d shown)%s", shown_inst, LOG_SHOWN,
+                        "; their number is given when the run ends, and the last ones with an FMU error" if own
+                        else " (no instance of the run has this name: the FMU logs under a name of its own)")
     elif log.isEnabledFor(logging.DEBUG):
-        log.debug("%s: [%s] %s", inst, label, log_message_text(text))
+        log.debug("%s: [%s] %s", shown_inst, label, log_message_text(text))
 
 
 def _callbacks():
@@ -679,6 +689,8 @@ class Subsystem(SubsystemBase):
 
     def _forget_log(self) -> None:
         _LOG_SINKS.pop(self._sink_key, None)
+        if not _LOG_SINKS:
+            _LOG_OTHERS.clear()          # the next run (a script, a warm sweep process) starts afresh
         counts = _LOG_COUNTS.pop(self._sink_key, None)
         if counts and counts[1]:
             last = log_message_text(self._log_messages[-1]) if self._log_messages else ""

@@ -13,8 +13,8 @@ Run as a script to build into a folder: ``python tests/fmus_c/build_c_fmu.py OUT
 ``MisbehavingBearing/modelDescription.xml``: a LinearBearing that aborts, segfaults,
 ``_exit``s, hangs, outputs NaN or returns fmi2Error at a chosen step (parameters
 ``fault``, ``fault_step``), for the crash tests of FMUs in worker processes; or floods its
-log, logs a hostile message, returns fmi2Pending or status 42, or gives no FMU state
-(faults 9-13, tests/test_hostile_probe3.py).
+log, logs a hostile message, returns fmi2Pending or status 42, gives no FMU state, or floods its log under
+another instance name (faults 9-14, tests/test_hostile_probe3.py).
 
 ``build_c_fmu(dest, "AllTypes", fixed_step=True)`` builds ``AllTypesFixed.fmu``: the same
 model compiled with ``-DFIXED_STEP`` (it refuses a step size other than its first one) and

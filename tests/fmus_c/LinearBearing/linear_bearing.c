@@ -31,6 +31,8 @@
  *   11 returns fmi2Pending (an asynchronous step the FMU never declared),
  *   12 returns the status code 42 (no fmi2Status),
  *   13 fmi2GetFMUstate returns fmi2OK without giving a state (NULL; fault_step unused),
+ *   14 every fmi2DoStep from then on logs 500 warnings under another instance name, one that
+ *      holds a terminal escape sequence ("other\x1b[2J"), as a confused or hostile FMU might,
  *   15 a hang in fmi2ExitInitializationMode (fault_step unused).
  * It tests what a co-simulation master does when an FMU crashes or hangs.
  */
@@ -142,6 +144,13 @@ static fmi2Status misbehave(Instance *inst)
         memcpy(line, "fault 9: ", 9);
         for (i = 0; i < 2000; i++)
             inst->cb.logger(inst->cb.componentEnvironment, inst->instanceName, fmi2Warning, "logEvents", line);
+        return fmi2OK;
+    }
+    if (inst->fault == 14 && inst->steps >= inst->fault_step) {
+        int i;
+        for (i = 0; i < 500; i++)
+            inst->cb.logger(inst->cb.componentEnvironment, "other\x1b[2J", fmi2Warning, "logEvents",
+                            "fault 14: a message under another instance name");
         return fmi2OK;
     }
     if (inst->steps != inst->fault_step) return fmi2OK;
