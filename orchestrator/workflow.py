@@ -14,7 +14,7 @@ from pathlib import Path
 
 from orchestrator.coupling.execution import MasterAlgorithm
 from orchestrator.coupling.lifecycle import RunFolder, RunStopped
-from orchestrator.coupling.observers import CsvWriter, Progress
+from orchestrator.coupling.observers import CsvWriter, Progress, check_observers
 from orchestrator.errors import path_arg
 from orchestrator.fmi import build
 from orchestrator.results.result import CoSimResult, Status
@@ -55,27 +55,6 @@ def _check_scenario(scenario) -> None:
                     "run(load_scenario('file.yaml'), out_dir=...)")
 
 
-_HOOKS = ("on_initialized", "on_step_complete", "on_step_rejected", "on_terminated")
-
-
-def _check_observers(observers) -> tuple:
-    """``observers`` as a tuple of objects with every observer hook, or a TypeError naming the
-    first that is not one (an int among them used to fail mid-run, "'int' object has no attribute
-    'on_initialized'", after the output folder was set up)."""
-    if isinstance(observers, (str, bytes)) or not hasattr(observers, "__iter__"):
-        raise TypeError(f"run(observers=...) takes a list of Observer objects (got {type(observers).__name__}); "
-                        "e.g. observers=[MyObserver()], with MyObserver a subclass of "
-                        "orchestrator.coupling.observers.Observer")
-    observers = tuple(observers)
-    for i, o in enumerate(observers):
-        missing = [h for h in _HOOKS if not callable(getattr(o, h, None))]
-        if missing:
-            raise TypeError(f"run(observers=...): item {i} ({type(o).__name__} {o!r:.60}) is no observer: it has no "
-                            f"{missing[0]}() method; subclass orchestrator.coupling.observers.Observer (its hooks "
-                            "do nothing until you override them)")
-    return observers
-
-
 def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, observers=()) -> CoSimResult:
     """Run ``scenario`` and write ``out_dir/results.csv`` and ``out_dir/summary.json``.
 
@@ -101,7 +80,7 @@ def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, 
     if progress is not None and not isinstance(progress, bool):
         raise TypeError(f"run(progress=...) takes True, False or None (got {progress!r}); None: a progress bar "
                         "when stderr is a terminal and the run lasts more than a few seconds")
-    observers = _check_observers(observers)
+    observers = check_observers(observers, "run(observers=...)")
     with RunFolder(out_dir, scenario) as folder:       # lock, earlier files aside, summary "running"
         res = _execute(scenario, out_dir, folder, progress, observers)
         if scenario.analysis:

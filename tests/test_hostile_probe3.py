@@ -268,6 +268,8 @@ def test_the_python_api_names_a_wrong_argument_and_the_fix(tmp_path):
          "run(observers=...): item 0 (int 1) is no observer: it has no on_initialized() method"),
         (lambda: o.CoSimResult.load(None), "CoSimResult.load(out_dir) takes a file or folder name"),
         (lambda: o.MasterAlgorithm(None), "MasterAlgorithm() takes a Scenario from load_scenario() (got NoneType"),
+        (lambda: o.MasterAlgorithm(sc, observers=[None]),
+         "MasterAlgorithm(observers=...): item 0 (NoneType None) is no observer"),
         (lambda: sweep(None), "sweep(path) takes a file or folder name"),
         (lambda: prepare(3), "prepare(path) takes a file or folder name"),
         (lambda: main_compare(None), "main_compare(path) takes a file or folder name"),

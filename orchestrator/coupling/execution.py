@@ -39,7 +39,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from orchestrator.coupling.macro_step import MacroStep
-from orchestrator.coupling.observers import Observer, Recorder, RunView
+from orchestrator.coupling.observers import Observer, Recorder, RunView, check_observers
 from orchestrator.coupling.plan import make_plan
 from orchestrator.coupling.schemes import CouplingScheme, scheme_from_spec
 from orchestrator.coupling.acceleration import IQNILS, solve_fixed_point
@@ -119,7 +119,7 @@ class MasterAlgorithm:
         self.predictor = predictor or LagrangePredictor(extrapolation_order=c.extrapolation_order,
                                                         interpolation_order=c.interpolation_order)
         self.recorder = Recorder(keep=record_in_memory)
-        self.observers = [self.recorder, *observers]
+        self.observers = [self.recorder, *check_observers(observers, "MasterAlgorithm(observers=...)")]
         self._given = dict(subsystems) if subsystems is not None else None
         self.subsystems: dict[str, SubsystemBase] = {}
         self.status = Status.NOT_STARTED

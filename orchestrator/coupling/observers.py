@@ -50,6 +50,27 @@ class RunView:
         self.rejected = None        # (t_a, t_b, reason) during on_step_rejected
 
 
+HOOKS = ("on_initialized", "on_step_complete", "on_step_rejected", "on_terminated")
+
+
+def check_observers(observers, call: str) -> tuple:
+    """``observers`` as a tuple of objects with every observer hook, or a TypeError naming ``call``
+    and the first that is not one (an int among them used to fail mid-run, "'int' object has no
+    attribute 'on_initialized'", after the output folder was set up)."""
+    if isinstance(observers, (str, bytes)) or not hasattr(observers, "__iter__"):
+        raise TypeError(f"{call} takes a list of Observer objects (got {type(observers).__name__}); "
+                        "e.g. observers=[MyObserver()], with MyObserver a subclass of "
+                        "orchestrator.coupling.observers.Observer")
+    observers = tuple(observers)
+    for i, o in enumerate(observers):
+        missing = [h for h in HOOKS if not callable(getattr(o, h, None))]
+        if missing:
+            raise TypeError(f"{call}: item {i} ({type(o).__name__} {o!r:.60}) is no observer: it has no "
+                            f"{missing[0]}() method; subclass orchestrator.coupling.observers.Observer (its hooks "
+                            "do nothing until you override them)")
+    return observers
+
+
 class Observer:
     """Base class with no-op hooks."""
 
