@@ -504,3 +504,48 @@ def test_an_fmu_logging_under_another_instance_name_is_capped_and_escaped(tmp_pa
     assert text.count("other\\x1b[2J: [warning] fault 14: a message under another instance name") == 20, text[-3000:]
     assert ("other\\x1b[2J: the FMU's further log messages are not shown (20 shown) (no instance of the run has "
             "this name: the FMU logs under a name of its own)") in text
+
+
+def test_a_full_disk_under_a_sweep_table_or_a_compare_report_names_the_file(tmp_path, monkeypatch):
+    """sweep.csv hitting a full disk left a partial sweep.csv.tmp and "No space left on device"
+    without a file; so did compare's report.md. Now the table and the reports are written
+    atomically and the error names the file; nothing partial is left."""
+    from types import SimpleNamespace
+
+    from orchestrator.errors import OutputWriteError
+    from orchestrator.results import safe_write
+    from orchestrator.sweep.table import write_table
+    real_fdopen = safe_write.os.fdopen
+
+    class Full:
+        def __init__(self, f):
+            self.f = f
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *a):
+            self.f.close()
+
+        def write(self, text):
+            self.f.write(text[:10])
+            self.f.flush()
+            raise _enospc()
+
+    def fdopen(fd, mode="r", *a, **k):
+        f = real_fdopen(fd, mode, *a, **k)
+        return Full(f) if "w" in mode and "sweep" in safe_write.os.readlink(f"/proc/self/fd/{fd}") else f
+    real_open = Path.open
+
+    def path_open(self, mode="r", *a, **k):       # (the old code wrote sweep.csv.tmp through Path.open)
+        f = real_open(self, mode, *a, **k)
+        return Full(f) if "w" in mode and "sweep" in self.name else f
+    monkeypatch.setattr(safe_write.os, "fdopen", fdopen)
+    monkeypatch.setattr(Path, "open", path_open)
+    spec = SimpleNamespace(parameters=[SimpleNamespace(name="speed", paths=("a.b",))], collect=[],
+                           source="s.yaml", scenario="x.yaml", mode="grid")
+    with pytest.raises(OutputWriteError) as info:
+        write_table([{"run_id": "r1", "speed": 1.0, "status": "finished"}], spec, tmp_path)
+    assert str(info.value).startswith(f"cannot write {tmp_path / 'sweep.csv'} (No space left on device); free "
+                                      "some space on that disk"), str(info.value)
+    assert list(tmp_path.iterdir()) == []

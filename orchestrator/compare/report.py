@@ -12,7 +12,7 @@ import math
 from pathlib import Path
 
 from orchestrator.results.jsonsafe import plain
-from orchestrator.results.safe_write import save_figure
+from orchestrator.results.safe_write import save_figure, write_report_file
 
 
 def _fmt(x, spec="{:.3g}") -> str:
@@ -89,11 +89,11 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
     lines += [f"- FAIL {f}" for f in failures] or ["All checks passed."]
     lines += ["", f"Total wall time {report.wall_time_s:.1f} s."]
     paths = [out_dir / "report.md", out_dir / "report.json"]
-    paths[0].write_text("\n".join(lines) + "\n")
+    write_report_file(paths[0], "\n".join(lines) + "\n")
     doc = {"name": report.name, "reference": report.reference, "variants": report.variants,
            "orders": report.orders, "failures": failures, "wall_time_s": report.wall_time_s,
            "passed": not failures}
-    paths[1].write_text(json.dumps(plain(doc, "null-nan"), indent=1) + "\n")
+    write_report_file(paths[1], json.dumps(plain(doc, "null-nan"), indent=1) + "\n")
     png = _plot(report, spec, out_dir / "error_vs_cost.png")
     return paths + ([png] if png else [])
 

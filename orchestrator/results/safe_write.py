@@ -29,7 +29,7 @@ def open_no_follow(path: Path | str, mode: str = "w", *, newline: str | None = "
     return os.fdopen(fd, mode, newline=newline, encoding=encoding)
 
 
-def write_text_no_follow(path: Path | str, text: str) -> None:
+def write_text_no_follow(path: Path | str, text: str, *, encoding: str | None = None) -> None:
     """Write ``path`` atomically (temporary file + rename) without following links at either name."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
@@ -37,13 +37,29 @@ def write_text_no_follow(path: Path | str, text: str) -> None:
         tmp.unlink()                          # removes a planted link itself, not its target
     fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0), 0o644)
     try:
-        with os.fdopen(fd, "w") as f:
+        with os.fdopen(fd, "w", encoding=encoding) as f:
             f.write(text)
         os.replace(tmp, path)                 # rename replaces a link at ``path``, never its target
     except BaseException:                     # disk full: no empty or partial .tmp file left behind
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+
+
+def write_report_file(path: Path | str, text: str) -> Path:
+    """A report or table file (compare's report.md/.json, a sweep's sweep.csv/.json) written as UTF-8,
+    atomically and never through a link; an OSError (disk full) becomes
+    :class:`orchestrator.errors.OutputWriteError` naming ``path`` (it was "error: No space left on
+    device" without a file, beside a partial sweep.csv.tmp)."""
+    from orchestrator.errors import OutputWriteError
+    path = Path(path)
+    try:
+        write_text_no_follow(path, text, encoding="utf-8")
+    except OSError as e:
+        fix = ("free some space on that disk" if e.errno in (errno.ENOSPC, errno.EDQUOT)
+               else "check that folder (it must be writable)")
+        raise OutputWriteError(f"cannot write {path} ({e.strerror or e}); {fix}, then run the command again") from None
+    return path
 
 
 def save_figure(fig, path: Path | str, **kwargs) -> Path:

@@ -17,6 +17,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from orchestrator.results.safe_write import write_report_file
 from orchestrator.sweep.plan import RunPlan
 from orchestrator.sweep.spec import SweepSpec
 
@@ -91,17 +92,16 @@ def write_table(rows: list[dict], spec: SweepSpec, out_dir: Path) -> Path:
     ``sweep.json`` (the parameter and collect names, which ``rotorcosim plot`` reads)."""
     cols = columns(spec)
     path = out_dir / "sweep.csv"
-    tmp = path.with_suffix(".csv.tmp")
-    with tmp.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=cols)
-        w.writeheader()
-        for row in rows:
-            w.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in cols})
-    tmp.replace(path)
+    fh = io.StringIO(newline="")
+    w = csv.DictWriter(fh, fieldnames=cols)
+    w.writeheader()
+    for row in rows:
+        w.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in cols})
+    write_report_file(path, fh.getvalue())
     meta = {"sweep": 1, "source": str(spec.source), "scenario": str(spec.scenario), "mode": spec.mode,
             "parameters": [{"name": p.name, "set": list(p.paths)} for p in spec.parameters],
             "collect": dict(spec.collect)}
-    (out_dir / META_FILE).write_text(json.dumps(meta, indent=1), encoding="utf-8")
+    write_report_file(out_dir / META_FILE, json.dumps(meta, indent=1))
     try:
         import pyarrow as pa
         import pyarrow.parquet as pq
