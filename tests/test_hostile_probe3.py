@@ -290,6 +290,9 @@ def test_the_python_api_names_a_wrong_argument_and_the_fix(tmp_path):
         with pytest.raises(CosimError) as info:
             o.CoSimResult.load(folder)
         assert f"{folder}: no run folder ({what}); give the out_dir of a run" in str(info.value)
+    (tmp_path / "empty" / "results.csv").write_text("time,a.y\n0.0,1.0\n")
+    res = o.CoSimResult.load(tmp_path / "empty")                # rows but no summary: said, not ''
+    assert res.message.startswith(f"{tmp_path / 'empty' / 'summary.json'} is missing: the run was killed"), res
 
 
 def test_init_with_an_empty_folder_name_is_refused(tmp_path, capsys, monkeypatch):

@@ -70,7 +70,10 @@ class CoSimResult:
             summary.get("status", "")).upper() in Status.__members__ else Status.FAILED
         stats = {k: summary[k] for k in ("macro_steps", "rejected_steps", "retried_steps", "retry_substeps",
                                          "wall_time_s", "fmu_calls") if k in summary}
-        return cls(status=status, message=str(summary.get("message", "")), t=t, outputs=cols, stats=stats,
+        message = str(summary.get("message", "")) if summary else (
+            f"{run.summary_json} is missing: the run was killed before its summary was written, or is "
+            "still running; the rows of its results file are loaded")
+        return cls(status=status, message=message, t=t, outputs=cols, stats=stats,
                    out_dir=run.path, end_time=summary.get("end_time"), analysis=summary.get("analysis"))
 
     def __repr__(self) -> str:
