@@ -38,7 +38,15 @@ def _read_back(res: CoSimResult, master, path: Path) -> CoSimResult:
         return res
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)        # a file with a header only: no rows
-        t, outputs = read_back(path, master.columns, master.kinds)
+        try:
+            t, outputs = read_back(path, master.columns, master.kinds)
+        except (OSError, ValueError) as e:
+            # a results.parquet the disk filled before its footer: the run's own reason must not be
+            # replaced by "internal error: ArrowInvalid: Parquet magic bytes not found"
+            if res.status is Status.FINISHED:
+                raise
+            log.warning("the rows of %s cannot be read back (%s); the result holds none", path, e)
+            return res
     return replace(res, t=t, outputs=outputs)
 
 

@@ -552,3 +552,24 @@ def test_a_full_disk_under_a_sweep_table_or_a_compare_report_names_the_file(tmp_
     assert str(info.value).startswith(f"cannot write {tmp_path / 'sweep.csv'} (No space left on device); free "
                                       "some space on that disk"), str(info.value)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_full_disk_under_a_parquet_results_file_keeps_the_runs_reason(tmp_path, capsys, monkeypatch, test_fmus):
+    """With output.format parquet a full disk left results.parquet without its footer, and reading
+    the rows back ended the run in "internal error: ArrowInvalid: ... Parquet magic bytes not
+    found", hiding why it stopped. Now the error names the file and the time; the rows that cannot
+    be read back are a warning."""
+    pytest.importorskip("pyarrow")
+    from hostile_builders import two_mass_dir
+    from orchestrator.results import writer
+    d = two_mass_dir(tmp_path, test_fmus)
+
+    def full(self, rows):
+        raise _enospc()
+    monkeypatch.setattr(writer._ParquetSink, "write", full)
+    monkeypatch.setattr(writer._ParquetSink, "close", lambda self: (_ for _ in ()).throw(_enospc()))  # no footer
+    out = tmp_path / "out"
+    rc, text = cli(capsys, "run", d / "two_mass.yaml", "--out", out, "--set", "output.format=parquet")
+    assert rc == 1, text
+    assert (f"error: cannot write {out / 'results.parquet'} at t=0 s (No space left on device); the run stopped "
+            "there and the Parquet file is incomplete") in text, text

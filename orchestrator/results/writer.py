@@ -156,6 +156,7 @@ class ResultsWriter:
         self._buf: list[list[Any]] = []
         self._parquet_rows = parquet_rows
         self._last_flush = 0.0
+        self._t: float | None = None      # time of the last row offered (named when writing fails)
 
     # -- life cycle -------------------------------------------------------------------
     def open(self) -> None:
@@ -176,6 +177,7 @@ class ResultsWriter:
         An OSError (disk full, quota, I/O error) raises :class:`orchestrator.errors.OutputWriteError`
         naming the file, ``t`` and the rows kept; a partly written last row is cut off, so the
         file stays readable (``rotorcosim plot``) and the writer is closed."""
+        self._t = t
         try:
             self._write(t, values)
         except OSError as e:
@@ -248,6 +250,7 @@ class ResultsWriter:
         with contextlib.suppress(Exception):
             if pq is not None:
                 pq.close()
+        t = t if t is not None else self._t            # a flush or close: the last row offered
         at = f" at t={t:.12g} s" if t is not None else ""
         why = e.strerror or str(e)
         fix = {errno.ENOSPC: "free some space on that disk or give another output folder (--out)",
