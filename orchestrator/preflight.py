@@ -44,8 +44,17 @@ def preflight(scenario) -> tuple[list[str], list[str]]:
                 # '{out_dir}' in String parameters (a fields_file) points into a scratch folder that
                 # is removed afterwards: without one the FMU would get the literal text and write
                 # '{out_dir}/...' into the current folder at fmi2Terminate
+                from orchestrator.scenario.limits import max_worker_processes
+                limit = max_worker_processes()
+                if len(scenario.fmus) > limit:      # a worker process each (~35 MB): load them as run does
+                    warnings.warn(f"validate loads the {len(scenario.fmus)} FMU instances as `run` does, not each in "
+                                  f"a worker process of its own (more than ROTORCOSIM_MAX_WORKERS = {limit}); an FMU "
+                                  "that crashes while loading then ends validate without a message")
+                    checked = scenario
+                else:
+                    checked = _isolated(scenario)
                 with tempfile.TemporaryDirectory(prefix="rotorcosim-validate-") as scratch:
-                    master = MasterAlgorithm(_isolated(scenario), out_dir=scratch)
+                    master = MasterAlgorithm(checked, out_dir=scratch)
                     try:
                         master.setup()
                         with _master_log_quiet():        # its failure comes back as the problem line

@@ -573,3 +573,30 @@ def test_a_full_disk_under_a_parquet_results_file_keeps_the_runs_reason(tmp_path
     assert rc == 1, text
     assert (f"error: cannot write {out / 'results.parquet'} at t=0 s (No space left on device); the run stopped "
             "there and the Parquet file is incomplete") in text, text
+
+
+def test_the_number_of_fmu_instances_and_of_worker_processes_is_bounded(tmp_path, capsys, monkeypatch, test_fmus):
+    """A 10 kB scenario listing 2000 instances of one FMU made `rotorcosim validate` (which loads
+    every FMU in a worker process of its own) start 2000 Python processes of ~35 MB at once, and
+    `run` with isolation: process the same. Now 'fmus' holds at most MAX_FMU_INSTANCES (256)
+    entries, a run puts at most ROTORCOSIM_MAX_WORKERS (32) instances into worker processes, and
+    validate loads more than that as run does, with a warning."""
+    from hostile_builders import two_mass_dir
+    from orchestrator.scenario.limits import MAX_FMU_INSTANCES
+    write_fmu(tmp_path / "m.fmu")
+    many = tmp_path / "many.yaml"
+    many.write_text("name: many\nstop_time: 0.01\nfmus:\n" + "".join(
+        f"  a{i}: {{path: m.fmu}}\n" for i in range(MAX_FMU_INSTANCES + 1)) + "coupling: {macro_step: 1.0e-3}\n")
+    rc, text = cli(capsys, "validate", many)
+    assert rc == 1 and (f"many.yaml:4: 'fmus' lists {MAX_FMU_INSTANCES + 1} FMU instances, more than "
+                        f"{MAX_FMU_INSTANCES}") in text, text[-2000:]
+
+    (tmp_path / "two").mkdir()
+    d = two_mass_dir(tmp_path / "two", test_fmus)
+    monkeypatch.setenv("ROTORCOSIM_MAX_WORKERS", "1")
+    rc, text = cli(capsys, "validate", d / "two_mass.yaml")
+    assert rc == 0, text
+    assert ("warning: validate loads the 2 FMU instances as `run` does, not each in a worker process of its own "
+            "(more than ROTORCOSIM_MAX_WORKERS = 1)") in text, text
+    rc, text = cli(capsys, "run", d / "two_mass.yaml", "--out", tmp_path / "out", "--set", "coupling.isolation=process")
+    assert rc == 1 and ("2 FMU instances run in worker processes (isolation: process), more than 1 at once" in text), text

@@ -164,6 +164,15 @@ class MasterAlgorithm:
                     raise ScenarioError(f"no subsystem given for FMU instances {missing}")
                 self.subsystems = {n: self._given[n] for n in names}
             else:
+                from orchestrator.scenario.limits import max_worker_processes
+                in_workers = [f.name for f in sc.fmus
+                              if (getattr(f, "isolation", None) or getattr(sc.coupling, "isolation", "none")) == "process"]
+                limit = max_worker_processes()
+                if len(in_workers) > limit:
+                    raise ScenarioError(f"{self._where()}{len(in_workers)} FMU instances run in worker processes "
+                                        f"(isolation: process), more than {limit} at once (each is a Python process "
+                                        "of about 35 MB); run fewer in processes (fmus.<name>.isolation: none) or "
+                                        "raise the limit with the environment variable ROTORCOSIM_MAX_WORKERS=N")
                 self._work_dir = ExtractionPool()      # one extraction per FMU file, shared
                 for f in sc.fmus:
                     self.subsystems[f.name] = self._load(f)

@@ -16,6 +16,18 @@ MAX_MACRO_STEPS = 10**8           # (stop_time - start_time) / macro_step
 MAX_OUTPUT_ROWS = 10**7           # (stop_time - start_time) / output.interval: rows of results.csv
 MAX_SUBSTEPS = 10**4              # coupling.substeps and fmus.<name>.substeps
 MIN_RELATIVE_STEP = 1e-10         # macro_step / max(|start_time|, |stop_time|): t0 + n*h stays resolvable
+MAX_FMU_INSTANCES = 256           # entries of 'fmus' (a 10 kB file listed thousands, each an FMU loaded)
+MAX_WORKER_PROCESSES = 32         # default of ROTORCOSIM_MAX_WORKERS: FMU instances in worker processes
+
+
+def max_worker_processes() -> int:
+    """How many FMU instances may run in worker processes at once (``isolation: process``, and
+    ``validate``, which loads every FMU in one): ``ROTORCOSIM_MAX_WORKERS`` or
+    :data:`MAX_WORKER_PROCESSES`. Each worker is a Python process of about 35 MB; a scenario of
+    2000 instances made ``validate`` start 2000 of them at once."""
+    from orchestrator.untrusted import env_number
+    return int(env_number("ROTORCOSIM_MAX_WORKERS", MAX_WORKER_PROCESSES, minimum=1, maximum=4096, integer=True,
+                          meaning="FMU instances in worker processes at once"))
 
 
 def limit_problems(sc: Scenario) -> list[str]:

@@ -27,7 +27,8 @@ from orchestrator.scenario.model import (
     SCENARIO_VERSION,
     SCHEMES, TOP_KEYS, ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario)
 from orchestrator.scenario.nodes import NodeReader, YamlLoader, did_you_mean, flatten_merges
-from orchestrator.scenario.limits import MAX_MACRO_STEPS, MAX_OUTPUT_ROWS, MAX_SUBSTEPS, MIN_RELATIVE_STEP
+from orchestrator.scenario.limits import (MAX_FMU_INSTANCES, MAX_MACRO_STEPS, MAX_OUTPUT_ROWS, MAX_SUBSTEPS,
+                                          MIN_RELATIVE_STEP)
 from orchestrator.scenario.overrides import apply_override
 from orchestrator.untrusted import InputError, check_yaml_tree, name_problem, out_dir_escape, read_yaml_tree
 
@@ -198,6 +199,11 @@ class SectionReader(NodeReader):
         self.instances = list(section)
         if not section:
             self.err(node, "'fmus' must list at least one FMU instance (got none); add 'name: {path: X.fmu}'")
+        if len(section) > MAX_FMU_INSTANCES:
+            self.err(node, f"'fmus' lists {len(section)} FMU instances, more than {MAX_FMU_INSTANCES} (each is an FMU "
+                           "loaded, instantiated and stepped; orchestrator.scenario.limits.MAX_FMU_INSTANCES); "
+                           "split the system into scenarios of fewer instances")
+            return []
         out = []
         for name, (knode, vnode) in section.items():
             if not INSTANCE_RE.match(name):
