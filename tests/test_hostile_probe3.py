@@ -600,3 +600,27 @@ def test_the_number_of_fmu_instances_and_of_worker_processes_is_bounded(tmp_path
             "(more than ROTORCOSIM_MAX_WORKERS = 1)") in text, text
     rc, text = cli(capsys, "run", d / "two_mass.yaml", "--out", tmp_path / "out", "--set", "coupling.isolation=process")
     assert rc == 1 and ("2 FMU instances run in worker processes (isolation: process), more than 1 at once" in text), text
+
+
+def test_a_results_file_too_wide_for_its_readers_is_refused_when_loading(tmp_path):
+    """An FMU with 45 000 outputs, recorded by default (every output of every FMU), made a run that
+    finished but wrote rows longer than the 1 MiB line limit of results.csv's reader: `plot`,
+    `compare`, CoSimResult.load and the analysis then refused the file. Now loading the scenario
+    says so, with the numbers and the fix (fewer signals, or Parquet)."""
+    from orchestrator import load_scenario
+    from orchestrator.errors import ScenarioError
+    from hostile_builders import md_xml
+    n = 45_000
+    variables = "".join(f'<ScalarVariable name="y{i}" valueReference="{i}" causality="output"><Real/>'
+                        "</ScalarVariable>" for i in range(n))
+    structure = ("<ModelStructure><Outputs>" + "".join(f'<Unknown index="{i + 1}" dependencies=""/>' for i in range(n))
+                 + "</Outputs></ModelStructure>")
+    write_fmu(tmp_path / "wide.fmu", md_xml(variables=variables, structure=structure))
+    path = tmp_path / "wide.yaml"
+    path.write_text("name: wide\nstop_time: 0.01\nfmus:\n  a: {path: wide.fmu}\ncoupling: {macro_step: 1.0e-3}\n")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    assert ("results.csv would have 45000 columns (output.signals not given: every output of every FMU): a row can "
+            "be 1125025 bytes long, more than the 1048576 bytes") in str(info.value), str(info.value)
+    path.write_text(path.read_text() + "output: {signals: ['a.y1*'], format: parquet}\n")
+    assert load_scenario(path).output.signals[0] == "a.y1"       # fewer signals (or Parquet): loads

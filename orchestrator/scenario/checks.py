@@ -45,6 +45,8 @@ class FmuChecks(Completion):
             check_capabilities(self, draft.coupling_node, draft.coupling, self.fmu_caps)
         draft.signals = self.expand_patterns(draft.signals)
         self.check_signals(draft.signals, "output.signals")
+        if getattr(draft, "output_format", "csv") == "csv":
+            self.check_row_width(draft)
         if draft.analysis_node is not None and isinstance(draft.kw.get("analysis"), dict):
             self.check_analysis(draft.analysis_node, draft.signals)
         return params
@@ -181,6 +183,35 @@ class FmuChecks(Completion):
                            f"{ranked(var, pool)}")
             return None
         return variables[var]
+
+    def check_row_width(self, draft) -> None:
+        """The header and the widest row of results.csv within the line limit of its reader
+        (``MAX_LINE_BYTES``, 1 MiB: ``plot``, ``compare``, ``CoSimResult.load`` and the run-up
+        analysis read it): a run recording 50 000 outputs (every output of an FMU that has them,
+        the default) finished, but wrote a file none of them reads. A Real, Integer or Boolean
+        value takes at most 25 bytes (repr and comma); String values are not counted."""
+        from orchestrator.results.run_directory import MAX_LINE_BYTES
+        if draft.signals is None:
+            cols = [(f"{inst}.{v.name}", v.type) for inst, md in self.mds.items() for v in md.values()
+                    if v.causality == "output"]
+            node = None
+        else:
+            cols = []
+            for s, _ in draft.signals:
+                inst, _, var = s.partition(".")
+                v = self.mds.get(inst, {}).get(var)
+                cols.append((s, v.type if v is not None else "Real"))
+            node = draft.signals[0][1] if draft.signals else None
+        header = len("time") + sum(len(name.encode("utf-8")) + 1 for name, _ in cols)
+        row = 25 + sum(3 if kind == "String" else 25 for _, kind in cols)
+        if max(header, row) > MAX_LINE_BYTES:
+            what = "the header" if header > row else "a row"
+            default = " (output.signals not given: every output of every FMU)" if draft.signals is None else ""
+            self.err(node, f"results.csv would have {len(cols)} columns{default}: {what} can be {max(header, row)} bytes "
+                           f"long, more than the {MAX_LINE_BYTES} bytes a line of results.csv may have for plot, "
+                           "compare, CoSimResult.load and the analysis to read it (orchestrator.results."
+                           "run_directory.MAX_LINE_BYTES); record fewer signals ('output.signals', e.g. "
+                           "'bearing1.*' patterns) or write 'output.format: parquet'")
 
     def check_signals(self, signals, what: str) -> None:
         for s, node in signals or ():
