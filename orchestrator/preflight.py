@@ -41,9 +41,6 @@ def preflight(scenario) -> tuple[list[str], list[str]]:
                 monolithic_preflight(scenario)
             else:
                 from orchestrator.coupling.execution import MasterAlgorithm
-                # '{out_dir}' in String parameters (a fields_file) points into a scratch folder that
-                # is removed afterwards: without one the FMU would get the literal text and write
-                # '{out_dir}/...' into the current folder at fmi2Terminate
                 from orchestrator.scenario.limits import max_worker_processes
                 limit = max_worker_processes()
                 if len(scenario.fmus) > limit:      # a worker process each (~35 MB): load them as run does
@@ -53,6 +50,9 @@ def preflight(scenario) -> tuple[list[str], list[str]]:
                     checked = scenario
                 else:
                     checked = _isolated(scenario)
+                # '{out_dir}' in String parameters (a fields_file) points into a scratch folder that
+                # is removed afterwards: without one the FMU would get the literal text and write
+                # '{out_dir}/...' into the current folder at fmi2Terminate
                 with tempfile.TemporaryDirectory(prefix="rotorcosim-validate-") as scratch:
                     master = MasterAlgorithm(checked, out_dir=scratch)
                     try:
