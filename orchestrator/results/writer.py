@@ -21,7 +21,7 @@ memory, so its memory use is flat in the number of rows:
   (default 1 s) and at :meth:`close`, so a run that stops early keeps its rows;
   the first :data:`FLUSH_FIRST_ROWS` rows are flushed one by one, so a run whose process
   dies at once (an FMU in it that crashes in its first steps) keeps those too (1000 write
-  calls: 1.3 ms more for the first 1000 rows, measured against 15 ms for writing them).
+  calls: 1.3 ms for the writer alone, up to about 10 ms inside a run; BENCHMARKS.md).
 
 ``format="parquet"`` writes ``results.parquet`` with the same columns through
 pyarrow (row groups of ``parquet_rows`` rows, so memory stays bounded too);
