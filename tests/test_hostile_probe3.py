@@ -52,6 +52,26 @@ def test_export_ssp_never_replaces_a_file_that_is_not_an_ssp(tmp_path, capsys):
         assert "SystemStructure.ssd" in zipfile.ZipFile(tmp_path / name).namelist()
 
 
+class _FullFile:
+    """A file object whose every write fails with ENOSPC, after ``keep`` characters of it reached
+    the disk (a write that filled the disk part way)."""
+
+    def __init__(self, f, keep: int = 0):
+        self.f, self.keep = f, keep
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *a):
+        self.f.close()
+
+    def write(self, text):
+        if self.keep:
+            self.f.write(text[:self.keep])
+            self.f.flush()
+        raise _enospc()
+
+
 def _disk_full_after(monkeypatch, rows: int):
     """results.csv fails with ENOSPC after its header and ``rows`` rows, leaving half a row in it."""
     import errno
@@ -122,25 +142,12 @@ def test_a_disk_too_full_for_the_summary_says_so_and_leaves_no_temporary_file(tm
     real_fdopen = safe_write.os.fdopen
     calls = {"n": 0}
 
-    class Full:
-        def __init__(self, f):
-            self.f = f
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *a):
-            self.f.close()
-
-        def write(self, text):
-            raise OSError(errno.ENOSPC, "No space left on device")
-
     def fdopen(fd, mode="r", *a, **k):
         f = real_fdopen(fd, mode, *a, **k)
         if mode != "w" or not str(safe_write.os.readlink(f"/proc/self/fd/{fd}")).endswith("summary.json.tmp"):
             return f
         calls["n"] += 1
-        return f if calls["n"] == 1 else Full(f)          # the "running" summary fits, no later one
+        return f if calls["n"] == 1 else _FullFile(f)     # the "running" summary fits, no later one
     monkeypatch.setattr(safe_write.os, "fdopen", fdopen)
     out = tmp_path / "out"
     rc, text = cli(capsys, "run", d / "two_mass.yaml", "--out", out)
@@ -520,29 +527,14 @@ def test_a_full_disk_under_a_sweep_table_or_a_compare_report_names_the_file(tmp_
     from orchestrator.sweep.table import write_table
     real_fdopen = safe_write.os.fdopen
 
-    class Full:
-        def __init__(self, f):
-            self.f = f
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *a):
-            self.f.close()
-
-        def write(self, text):
-            self.f.write(text[:10])
-            self.f.flush()
-            raise _enospc()
-
     def fdopen(fd, mode="r", *a, **k):
         f = real_fdopen(fd, mode, *a, **k)
-        return Full(f) if "w" in mode and "sweep" in safe_write.os.readlink(f"/proc/self/fd/{fd}") else f
+        return _FullFile(f, 10) if "w" in mode and "sweep" in safe_write.os.readlink(f"/proc/self/fd/{fd}") else f
     real_open = Path.open
 
     def path_open(self, mode="r", *a, **k):       # (the old code wrote sweep.csv.tmp through Path.open)
         f = real_open(self, mode, *a, **k)
-        return Full(f) if "w" in mode and "sweep" in self.name else f
+        return _FullFile(f, 10) if "w" in mode and "sweep" in self.name else f
     monkeypatch.setattr(safe_write.os, "fdopen", fdopen)
     monkeypatch.setattr(Path, "open", path_open)
     spec = SimpleNamespace(parameters=[SimpleNamespace(name="speed", paths=("a.b",))], collect=[],
