@@ -616,3 +616,29 @@ def test_a_results_file_too_wide_for_its_readers_is_refused_when_loading(tmp_pat
             "be 1125025 bytes long, more than the 1048576 bytes") in str(info.value), str(info.value)
     path.write_text(path.read_text() + "output: {signals: ['a.y1*'], format: parquet}\n")
     assert load_scenario(path).output.signals[0] == "a.y1"       # fewer signals (or Parquet): loads
+
+
+def test_string_values_too_long_together_for_a_line_are_cut_to_fit_and_said_once(tmp_path, caplog):
+    """Each String value is cut at 4096 characters, but 300 of them in a row made a line longer than
+    the 1 MiB a line of results.csv may have: the run finished with a file plot, compare and
+    CoSimResult.load refuse (the row-width check at load counts String values as empty). Now
+    such a row's String values are cut to fit, with one warning; and the per-column warnings of
+    cut values stop after a few columns (300 columns gave 300 lines)."""
+    import logging
+
+    from orchestrator.results.run_directory import MAX_LINE_BYTES, read_results
+    from orchestrator.results.writer import SAID_COLUMNS, ResultsWriter
+    n = 300
+    path = tmp_path / "results.csv"
+    w = ResultsWriter(path, [f"s{i}" for i in range(n)] + ["x"], ["String"] * n + ["Real"])
+    w.open()
+    with caplog.at_level(logging.WARNING):
+        w.write(0.0, ['é"' * 3000] * n + [1.5])
+        w.write(0.1, ["short"] * n + [2.5])
+    w.close()
+    assert max(len(line) for line in path.read_bytes().split(b"\n")) <= MAX_LINE_BYTES
+    assert list(read_results(path)["x"]) == [1.5, 2.5]
+    said = [r.getMessage() for r in caplog.records]
+    assert len([m for m in said if "holds 6000 characters" in m]) == SAID_COLUMNS, said[:8]
+    assert sum("would be longer than a line of results.csv may be" in m for m in said) == 1, said[-3:]
+    assert len(said) <= SAID_COLUMNS + 2, len(said)

@@ -39,9 +39,14 @@ from typing import Any, Sequence
 KINDS = ("Real", "Integer", "Enumeration", "Boolean", "String")
 FORMATS = ("csv", "parquet")
 MAX_STRING_CHARS = 4096
+"""characters of one String value written to results.csv; the rest is cut (with a warning)"""
+SAID_COLUMNS = 5
+"""String columns of a file whose change (a line break escaped, a long value cut) is each said in a warning"""
 FLUSH_FIRST_ROWS = 1000
 """rows of results.csv written out one by one at the start of a run (then every flush_interval)"""
-"""characters of one String value written to results.csv; the rest is cut (with a warning)"""
+_STRING_ROOM = 2**20 - 4096
+"""bytes a row of results.csv may take (the reader's MAX_LINE_BYTES, 1 MiB, less a margin); the String
+values of a longer row are cut to fit (ResultsWriter._fit)"""
 _ONE_LINE = str.maketrans({"\n": "\\n", "\r": "\\r"})
 
 log = logging.getLogger(__name__)
@@ -51,9 +56,20 @@ class _StringCell:
     """A String value as one bounded line of results.csv (see the module docstring); warns
     once per column when it changes a value."""
 
-    def __init__(self, column: str):
+    def __init__(self, column: str, said: dict | None = None):
         self.column = column
         self.warned_break = self.warned_long = False
+        self.said = said if said is not None else {}      # shared by a writer's String columns
+
+    def _say(self, kind: str, text: str, *args) -> None:
+        """One warning per column, for the first SAID_COLUMNS columns of a file; then one line."""
+        n = self.said.get(kind, 0)
+        self.said[kind] = n + 1
+        if n < SAID_COLUMNS:
+            log.warning(text, *args)
+        elif n == SAID_COLUMNS:
+            log.warning("more String signals are changed the same way in results.csv (%s); not each said",
+                        "line breaks written as \\n" if kind == "break" else "long values cut")
 
     def __call__(self, v) -> str:
         text = str(v)
@@ -61,16 +77,15 @@ class _StringCell:
             text = text.translate(_ONE_LINE)
             if not self.warned_break:
                 self.warned_break = True
-                log.warning("String signal '%s' holds a line break; results.csv writes it as \\n or \\r "
-                            "(one row per line); use output.format: parquet to keep the value as it is",
-                            self.column)
+                self._say("break", "String signal '%s' holds a line break; results.csv writes it as \\n or \\r "
+                          "(one row per line); use output.format: parquet to keep the value as it is", self.column)
         if len(text) > MAX_STRING_CHARS:
             cut = len(text) - MAX_STRING_CHARS
             if not self.warned_long:
                 self.warned_long = True
-                log.warning("String signal '%s' holds %d characters; results.csv keeps the first %d of a value "
-                            "(orchestrator.results.writer.MAX_STRING_CHARS) and marks the cut", self.column,
-                            len(text), MAX_STRING_CHARS)
+                self._say("long", "String signal '%s' holds %d characters; results.csv keeps the first %d of a "
+                          "value (orchestrator.results.writer.MAX_STRING_CHARS) and marks the cut", self.column,
+                          len(text), MAX_STRING_CHARS)
             text = f"{text[:MAX_STRING_CHARS]}...[{cut} characters cut]"
         return text
 
@@ -113,7 +128,7 @@ class TimeGrid:
         return round(t, self.digits) if self.digits is not None else t
 
 
-def _formatter(kind: str, column: str = ""):
+def _formatter(kind: str, column: str = "", said: dict | None = None):
     if kind == "Real":
         return lambda v: repr(float(v))
     if kind in ("Integer", "Enumeration"):
@@ -121,7 +136,7 @@ def _formatter(kind: str, column: str = ""):
     if kind == "Boolean":
         return lambda v: "1" if v else "0"
     if kind == "String":
-        return _StringCell(column)
+        return _StringCell(column, said)
     raise ValueError(f"unknown column kind {kind!r}; expected one of {list(KINDS)}")
 
 
@@ -148,8 +163,11 @@ class ResultsWriter:
         self.path = Path(path)
         self.flush_interval = flush_interval
         self.rows = 0
-        self._fmt = [_formatter(k, c) for k, c in zip(self.kinds, self.columns)]
+        said: dict = {}                   # the String columns' warnings, counted per file
+        self._fmt = [_formatter(k, c, said) for k, c in zip(self.kinds, self.columns)]
         self._all_real = all(k == "Real" for k in self.kinds)
+        self._strings = [j + 1 for j, k in enumerate(self.kinds) if k == "String"]   # cell index (time first)
+        self._warned_fit = False
         self._f = None
         self._csv = None
         self._pq = None
@@ -191,7 +209,10 @@ class ResultsWriter:
                 vals = values.tolist() if hasattr(values, "tolist") else map(float, values)
                 self._csv.writerow((repr(float(t)), *map(repr, vals)))
             else:
-                self._csv.writerow((repr(float(t)), *[f(v) for f, v in zip(self._fmt, values)]))
+                cells = [repr(float(t)), *[f(v) for f, v in zip(self._fmt, values)]]
+                if self._strings and sum(len(cells[j]) for j in self._strings) * 2 > _STRING_ROOM:
+                    cells = self._fit(cells)
+                self._csv.writerow(cells)
         else:
             if self._pq is None:
                 raise RuntimeError(f"{self.path}: write() before open() or after close()")
@@ -207,6 +228,31 @@ class ResultsWriter:
         if now - self._last_flush >= self.flush_interval:
             self.flush()
             self._last_flush = now
+
+    def _fit(self, cells: list[str]) -> list[str]:
+        """Cut the String cells of a row whose line would be longer than a line of results.csv may
+        be (``run_directory.MAX_LINE_BYTES``, for plot, compare and CoSimResult.load), each to an
+        equal share of what the other cells leave, marking the cut; warns once."""
+        def size(c: str) -> int:          # bytes in the file: UTF-8, quotes doubled, quoted, a comma
+            return len(c.encode("utf-8")) + c.count('"') + 3
+        strings = set(self._strings)
+        budget = _STRING_ROOM - sum(size(c) for j, c in enumerate(cells) if j not in strings)
+        if sum(size(cells[j]) for j in self._strings) <= budget:
+            return cells
+        share = max(budget // max(len(self._strings), 1) - 40, 0)      # room for the cut's note
+        out = list(cells)
+        for j in self._strings:
+            c = out[j]
+            if size(c) > share + 40:
+                keep = c.encode("utf-8")[: share // 2].decode("utf-8", "ignore")  # each byte may double
+                out[j] = f"{keep}...[{len(c) - len(keep)} characters cut]"
+        if not self._warned_fit:
+            self._warned_fit = True
+            log.warning("a row of %s would be longer than a line of results.csv may be (%d bytes, "
+                        "orchestrator.results.run_directory.MAX_LINE_BYTES): its %d String values are cut to "
+                        "about %d bytes each, the cut marked; record fewer String signals or use output.format: "
+                        "parquet to keep them whole", self.path, _STRING_ROOM, len(self._strings), share // 2)
+        return out
 
     def flush(self) -> None:
         try:
