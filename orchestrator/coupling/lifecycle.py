@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import contextlib
 import datetime
-import errno
 import fcntl
 import json
 import logging
@@ -228,9 +227,9 @@ class RunFolder:
         try:
             self._write_summary(path, summary)
         except OSError as e:
-            fix = ("free some space on that disk or give another output folder (--out)"
-                   if e.errno in (errno.ENOSPC, errno.EDQUOT) else "check that disk or give another output folder (--out)")
-            raise OutputWriteError(f"cannot write {path} ({e.strerror or e}); {fix}") from None
+            from orchestrator.results.safe_write import space_fix
+            raise OutputWriteError(f"cannot write {path} ({e.strerror or e}); {space_fix(e, 'check that disk')} or "
+                                   "give another output folder (--out)") from None
 
     def finish(self, summary: dict) -> None:
         """Write the final summary.json (``started_at``, ``finished_at`` added).

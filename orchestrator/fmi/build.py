@@ -30,7 +30,6 @@ calling process (and the FMU loader would pick that one up).
 from __future__ import annotations
 
 import contextlib
-import errno
 import hashlib
 import json
 import logging
@@ -216,9 +215,8 @@ def build_one(recipe: FmuRecipe, out_dir: Path) -> Path:
             for p in (tmp_target, stamp_tmp):
                 with contextlib.suppress(OSError):
                     p.unlink()
-            fix = ("free some space on that disk" if e.errno in (errno.ENOSPC, errno.EDQUOT)
-                   else "check that folder (it must be writable)")
-            raise FmuError(f"cannot write {target} ({e.strerror or e}); {fix} or give build-fmus --out another "
+            from orchestrator.results.safe_write import space_fix
+            raise FmuError(f"cannot write {target} ({e.strerror or e}); {space_fix(e)} or give build-fmus --out another "
                            "folder, then build again") from None
     log.info("built %s in %.1f s", target, time.perf_counter() - t0)
     return target

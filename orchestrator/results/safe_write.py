@@ -46,6 +46,12 @@ def write_text_no_follow(path: Path | str, text: str, *, encoding: str | None = 
         raise
 
 
+def space_fix(e: OSError, otherwise: str = "check that folder (it must be writable)") -> str:
+    """What to do about ``e``, an OSError of a write: free space for a full disk or quota
+    (ENOSPC, EDQUOT), else ``otherwise``."""
+    return "free some space on that disk" if e.errno in (errno.ENOSPC, errno.EDQUOT) else otherwise
+
+
 def write_report_file(path: Path | str, text: str) -> Path:
     """A report or table file (compare's report.md/.json, a sweep's sweep.csv/.json) written as UTF-8,
     atomically and never through a link; an OSError (disk full) becomes
@@ -56,9 +62,8 @@ def write_report_file(path: Path | str, text: str) -> Path:
     try:
         write_text_no_follow(path, text, encoding="utf-8")
     except OSError as e:
-        fix = ("free some space on that disk" if e.errno in (errno.ENOSPC, errno.EDQUOT)
-               else "check that folder (it must be writable)")
-        raise OutputWriteError(f"cannot write {path} ({e.strerror or e}); {fix}, then run the command again") from None
+        raise OutputWriteError(f"cannot write {path} ({e.strerror or e}); {space_fix(e)}, then run the command "
+                               "again") from None
     return path
 
 
@@ -84,7 +89,6 @@ def save_figure(fig, path: Path | str, **kwargs) -> Path:
         if tmp is not None:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
-        fix = ("free some space on that disk" if e.errno in (errno.ENOSPC, errno.EDQUOT)
-               else "check that folder (it must be writable)")
-        raise OutputWriteError(f"cannot write {path} ({e.strerror or e}); {fix}, then run the command again") from None
+        raise OutputWriteError(f"cannot write {path} ({e.strerror or e}); {space_fix(e)}, then run the command "
+                               "again") from None
     return path

@@ -37,7 +37,6 @@ files are read by the bounded reader and parsed by :func:`orchestrator.untrusted
 from __future__ import annotations
 
 import contextlib
-import errno
 import os
 import stat
 import tempfile
@@ -347,9 +346,9 @@ def _write_archive(out: Path, root: ET.Element, files: dict[str, Path]) -> None:
             os.unlink(tmp)
         if isinstance(e, OSError) and (not e.filename or str(e.filename) == str(tmp)):
             # a write error (disk full) named no file: "error: No space left on device"
-            fix = ("free some space on that disk" if e.errno in (errno.ENOSPC, errno.EDQUOT)
-                   else "check that folder")
-            raise InputError(f"{out}: cannot write the archive ({e.strerror or e}); {fix} or give a path on another "
+            from orchestrator.results.safe_write import space_fix
+            raise InputError(f"{out}: cannot write the archive ({e.strerror or e}); {space_fix(e, 'check that folder')} "
+                             "or give a path on another "
                              "disk (nothing was written; an earlier file there is left as it was)") from None
         raise
 
