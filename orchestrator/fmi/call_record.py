@@ -79,22 +79,12 @@ class CallRecord:
 
 def read_calls(path) -> list[tuple[str, str, float]]:
     """``(instance, FMI function, t)`` of every call recorded as open in the record file ``path``
-    (not following a link; a missing, short or odd file gives what it holds, or nothing)."""
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_NONBLOCK", 0))
-    except OSError:
-        return []
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return []
-        raw = os.pread(fd, 1 << 20, 0)
-    except OSError:
-        return []
-    finally:
-        os.close(fd)
-    try:
-        head = json.loads(raw[:ALIGN * 256].split(b"\0", 1)[0].decode() or "{}")
-    except ValueError:
+    (a missing, large, short or odd file gives what it holds, or nothing)."""
+    from orchestrator.untrusted import InputError, read_bytes
+    try:                                # bounded: 256 instances need far less than 1 MiB
+        raw = read_bytes(path, what="FMI call record", limit=1 << 20)
+        head = json.loads(raw.split(b"\0", 1)[0].decode() or "{}")
+    except (InputError, ValueError):
         return []
     names = head.get("instances") if isinstance(head, dict) else None
     offset = head.get("calls_at") if isinstance(head, dict) else None
