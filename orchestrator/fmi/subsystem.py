@@ -445,17 +445,14 @@ class Subsystem(SubsystemBase):
         """Call FMI function ``fname``; raise FmuCallError unless OK/warning (``batch``: the variables
         a get/set call passed, named in the error)."""
         self.calls[_STAT_KEY.get(fname, fname)] += 1
-        a = self._slot
-        if a is not None:
-            self._enter(fname)
+        self._enter(fname)
         try:
             res = self._f[fname](*args)
         except Exception as e:
             self._state = "error"
             raise FmuCallError(self.name, fname, "exception", self._detail(f"{type(e).__name__}: {e}")) from e
         finally:
-            if a is not None:
-                a[self._k] = 0.0
+            self._leave()
         if res:
             self._status(fname, res, batch)
         return res
