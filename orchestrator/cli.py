@@ -559,8 +559,11 @@ def _clean_warnings(debug: bool):
     """Format warnings as one line, ``warning: message`` (with ``--debug``: also where from);
     returns the previous ``warnings.formatwarning``. (Only the format is replaced, so
     recording warnings, as ``pytest.warns`` does, still works.)"""
+    from orchestrator.untrusted import terminal_text
+
     def one_line(message, category, filename, lineno, line=None):
-        text = " ".join(str(message).split())
+        # warnings quote files and FMUs (a summary.json, a signal name): nothing in them drives the terminal
+        text = terminal_text(" ".join(str(message).split()))
         where = f" ({filename}:{lineno}, {category.__name__})" if debug else ""
         return f"warning: {text}{where}\n"
 

@@ -237,3 +237,20 @@ def test_parquet_time_is_checked_too(tmp_path):
     pq.write_table(pa.table({"time": ["a", "b"], "osc.x": [1.0, 2.0]}), run / "results.parquet")
     with pytest.raises(ValueError, match="'time' column holds string, expected numbers"):
         RunDirectory(run).columns()
+
+
+def test_a_warning_quoting_a_crafted_summary_cannot_drive_the_terminal(tmp_path):
+    """The note on a run that ended without a final summary quotes summary.json's started_at; a
+    crafted one holding ESC[2J cleared the terminal. Every warning the CLI prints now shows such
+    characters escaped."""
+    d = run_folder(tmp_path, HEADER + rows())
+    (d / "summary.json").write_text('{"scenario": "x", "status": "running", "pid": 5, '
+                                    '"started_at": "\\u001b[2Jboom"}')
+    (d / ".rotorcosim.lock").write_text("")
+    import subprocess
+    import sys
+    r = subprocess.run([sys.executable, "-m", "orchestrator", "plot", str(d)], capture_output=True, text=True,
+                       timeout=120)    # in a process of its own: pytest records warnings instead of printing them
+    rc, text = r.returncode, r.stdout + r.stderr
+    assert rc == 0 and "\x1b" not in text, text
+    assert "started \\x1b[2Jboom) ended without a final summary" in text, text
