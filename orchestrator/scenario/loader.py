@@ -97,12 +97,14 @@ def from_ssp(path: Path) -> Path:
 
     from orchestrator.scenario.ssp import scenario_from_ssp
     overlay: dict = {}
+    overlay_lines: dict[tuple, int] = {}
     ssp = path
     if path.suffix.lower() in (".yaml", ".yml") and path.is_file():
         try:              # bounded like every scenario read (size, UTF-8, depth, aliases)
             from orchestrator.scenario.nodes import YamlLoader
-            from orchestrator.untrusted import InputError, load_yaml, read_text
-            doc = load_yaml(read_text(path, what="scenario file"), display=str(path), loader_cls=YamlLoader)
+            from orchestrator.untrusted import InputError, compose_yaml, construct_yaml, read_text
+            root = compose_yaml(read_text(path, what="scenario file"), display=str(path), loader_cls=YamlLoader)
+            doc = None if root is None else construct_yaml(root, display=str(path), loader_cls=YamlLoader)
         except (InputError, yaml.YAMLError):
             return path                                  # the loader reports it with line numbers
         if not isinstance(doc, dict) or "ssp" not in doc:
@@ -111,6 +113,7 @@ def from_ssp(path: Path) -> Path:
             raise ScenarioError(f"{path}: 'ssp' must name an .ssp or .ssd file (got {doc['ssp']!r})")
         ssp = (path.parent / doc.pop("ssp")).resolve()
         overlay = doc
+        overlay_lines = _key_lines(root)             # where the user's values are, for the problems
     elif path.suffix.lower() not in (".ssp", ".ssd"):
         return path
     if not ssp.is_file():
@@ -139,7 +142,7 @@ def from_ssp(path: Path) -> Path:
     out.write_text(text)
     n_ssp_connections = len(doc.get("connections", [])) - len(overlay.get("connections", []) or []) \
         if isinstance(overlay.get("connections"), list) else len(doc.get("connections", []))
-    GENERATED[str(out)] = (str(ssp), _origins(text, ssp, path if overlay else None, n_ssp_connections))
+    GENERATED[str(out)] = (str(ssp), _origins(text, ssp, path, overlay_lines, n_ssp_connections))
     return out
 
 
@@ -166,18 +169,13 @@ def _key_lines(root) -> dict[tuple, int]:
     return lines
 
 
-def _origins(text: str, ssp: Path, overlay_file: Path | None, n_ssp_connections: int) -> dict[int, str]:
+def _origins(text: str, ssp: Path, overlay_file: Path, user: dict[tuple, int],
+             n_ssp_connections: int) -> dict[int, str]:
     """{line of the generated scenario: origin} for :data:`nodes.GENERATED`: ``FILE:LINE`` of the
-    user's YAML file for a value it sets (``fmus.<i>`` entries and ``coupling`` merged key by key,
-    ``connections`` appended, other keys replaced: :func:`from_ssp`), else ``SSP [dotted.path]``."""
-    from orchestrator.untrusted import read_text
+    user's YAML file ``overlay_file`` for a value it sets (``user``: its :func:`_key_lines`;
+    ``fmus.<i>`` entries and ``coupling`` merged key by key, ``connections`` appended, other keys
+    replaced: :func:`from_ssp`), else ``SSP [dotted.path]``."""
     generated = _key_lines(yaml.compose(text, Loader=YamlLoader))
-    user: dict[tuple, int] = {}
-    if overlay_file is not None:
-        try:
-            user = _key_lines(yaml.compose(read_text(overlay_file, what="scenario file"), Loader=YamlLoader))
-        except Exception:                     # noqa: BLE001 - read once already; names the SSP then
-            user = {}
     out: dict[int, str] = {}
     for key_path, line in generated.items():
         mine = key_path
