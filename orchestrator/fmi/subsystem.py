@@ -148,12 +148,13 @@ def log_message_text(message: str) -> str:
     return text
 
 
-# FMU log messages. fmpy's logger proxy (which formats the printf arguments)
+# FMU log messages. The logger that formats the printf arguments (ours, or fmpy's proxy)
 # keeps one Python logger for the process, so one callback serves every
 # instance and dispatches on the instance name to that instance's recent
 # messages (used in FmuCallError details).
 _LOG_SINKS: dict[str, collections.deque] = {}
 _CALLBACKS = None
+_KEEP: list = []        # the Python logger the C logger calls: alive as long as the module
 #: an instance's log messages of status warning or worse shown (logged at WARNING) per run; the
 #: rest are counted and summed up once when the instance is freed (an FMU that logs thousands of
 #: messages a step flooded the terminal with megabytes, and in a worker process its memory)
@@ -204,15 +205,24 @@ def _callbacks():
         from fmpy import calloc, free
         from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
                                fmi2CallbackLoggerTYPE)
+        from orchestrator.fmi.safe_log import safe_logger
         cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(_fmu_logger)
+        target = fmi2CallbackLoggerTYPE(_fmu_logger)
         cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        try:
-            from fmpy.logging import addLoggerProxy
-            addLoggerProxy(ctypes.byref(cb))
-        except Exception:   # pragma: no cover - the proxy only formats printf arguments
-            pass
+        # the message is a printf format: formatted by our C logger, which does not trust the
+        # FMU's arguments (orchestrator/fmi/safe_log.py), else by fmpy's proxy
+        address = safe_logger(target)
+        if address:
+            cb.logger = fmi2CallbackLoggerTYPE(address)
+        else:
+            cb.logger = target
+            try:
+                from fmpy.logging import addLoggerProxy
+                addLoggerProxy(ctypes.byref(cb))
+            except Exception:   # pragma: no cover - the proxy only formats printf arguments
+                pass
+        _KEEP.append(target)
         _CALLBACKS = cb     # module lifetime: FMUs may log until freed
     return _CALLBACKS
 

@@ -4,7 +4,9 @@ mode 0: do_step returns False (fmi2Discard); mode 1: do_step raises
 (fmi2Error); mode 2: the output becomes NaN; mode 3: the output becomes +inf;
 mode 4: the first step past t_fail sends SIGINT to its own process (a Ctrl-C that
 arrives while FMU code runs) and then completes normally; mode 5: the process aborts
-(SIGABRT, as a crashing native library would).
+(SIGABRT, as a crashing native library would); mode 6: do_step raises an exception whose
+text holds printf conversions (PythonFMU passes the text to the FMI logger as its format,
+without arguments).
 """
 
 import os
@@ -29,7 +31,8 @@ class Faulty(Fmi2Slave):
                                     variability=Fmi2Variability.tunable, description="failure time [s]"))
         self.register_variable(Integer("mode", causality=Fmi2Causality.parameter,
                                        variability=Fmi2Variability.tunable,
-                                       description="0 discard, 1 raise, 2 NaN output, 3 inf output, 4 SIGINT once, 5 abort"))
+                                       description="0 discard, 1 raise, 2 NaN output, 3 inf output, 4 SIGINT once, 5 abort, "
+                                                   "6 raise with printf conversions in the text"))
         self.register_variable(Real("u", causality=Fmi2Causality.input, description="ignored input [-]"))
         self.register_variable(Real("y", causality=Fmi2Causality.output, description="ramp output [-]"))
 
@@ -51,5 +54,8 @@ class Faulty(Fmi2Slave):
                 os.kill(os.getpid(), signal.SIGINT)
             if self.mode == 5:
                 os.abort()
+            if self.mode == 6:
+                raise RuntimeError("Faulty FMU: 100%s of %s done, %n%n%s%s%s%s%s%s%s%s%s%s%s%s%n"
+                                   " at t=" + repr(t_end))
         self.y = t_end
         return True
