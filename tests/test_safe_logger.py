@@ -47,6 +47,8 @@ WELL_FORMED = [
     (b"%hhd %hd %lu %#x %#o", C.c_int(300), C.c_int(70000), C.c_ulong(2 ** 40), C.c_int(31), C.c_int(8)),
     (b"Variable reference %u of instance %s out of range [%d, %d]", C.c_uint(42), b"bearing1", C.c_int(0),
      C.c_int(17)),
+    (b"%Ld %Lu %jd %td %Lg", C.c_longlong(-7), C.c_ulonglong(9), C.c_longlong(-8), C.c_ssize_t(-9),
+     C.c_longdouble(0.25)),
 ]
 
 

@@ -28,6 +28,7 @@
 #if defined(__linux__) && !defined(_GNU_SOURCE)
 #define _GNU_SOURCE      /* pipe2 */
 #endif
+#include <errno.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -58,11 +59,13 @@ static long copy_string(const int fds[2], const char *p, char *dst, size_t cap) 
         uintptr_t at = (uintptr_t)(p + n);
         size_t chunk = 4096 - (size_t)(at % 4096);
         if (chunk > cap - 1 - n) chunk = cap - 1 - n;
-        ssize_t put = write(fds[1], (const void *)at, chunk);
+        ssize_t put;
+        do put = write(fds[1], (const void *)at, chunk); while (put < 0 && errno == EINTR);
         if (put <= 0) break;
         ssize_t got = 0;
         while (got < put) {
             ssize_t r = read(fds[0], dst + n + (size_t)got, (size_t)(put - got));
+            if (r < 0 && errno == EINTR) continue;
             if (r <= 0) break;
             got += r;
         }
@@ -161,7 +164,7 @@ static void format_message(const int fds[2], const char *fmt, va_list ap, char *
         args += conv != 'm';
         switch (conv) {
         case 'd': case 'i':
-            if (lm[0] == 'l' && lm[1] == 'l') put_formatted(out, &len, snprintf(at, room, spec, va_arg(ap, long long)));
+            if ((lm[0] == 'l' && lm[1] == 'l') || lm[0] == 'L') put_formatted(out, &len, snprintf(at, room, spec, va_arg(ap, long long)));
             else if (lm[0] == 'l') put_formatted(out, &len, snprintf(at, room, spec, va_arg(ap, long)));
             else if (lm[0] == 'j') put_formatted(out, &len, snprintf(at, room, spec, va_arg(ap, intmax_t)));
             else if (lm[0] == 'z' || lm[0] == 't') put_formatted(out, &len, snprintf(at, room, spec, va_arg(ap, ptrdiff_t)));
@@ -169,7 +172,7 @@ static void format_message(const int fds[2], const char *fmt, va_list ap, char *
             else put_formatted(out, &len, snprintf(at, room, spec, va_arg(ap, int)));
             break;
         case 'o': case 'u': case 'x': case 'X':
-            if (lm[0] == 'l' && lm[1] == 'l') put_formatted(out, &len, snprintf(at, room, spec, va_arg(ap, unsigned long long)));
+            if ((lm[0] == 'l' && lm[1] == 'l') || lm[0] == 'L') put_formatted(out, &len, snprintf(at, room, spec, va_arg(ap, unsigned long long)));
             else if (lm[0] == 'l') put_formatted(out, &len, snprintf(at, room, spec, va_arg(ap, unsigned long)));
             else if (lm[0] == 'j') put_formatted(out, &len, snprintf(at, room, spec, va_arg(ap, uintmax_t)));
             else if (lm[0] == 'z' || lm[0] == 't') put_formatted(out, &len, snprintf(at, room, spec, va_arg(ap, size_t)));
