@@ -25,6 +25,10 @@ from orchestrator.errors import CouplingError, FmuCallError
 
 log = logging.getLogger(__name__)
 
+#: a step within this fraction of the macro step is a whole macro step whose size only rounding
+#: of the grid times changed (:meth:`MacroStep.advance`)
+STEP_ROUNDING = 1e-9
+
 
 @dataclass
 class Checkpoint:
@@ -158,8 +162,15 @@ class MacroStep:
                     log.warning("%s", e)
 
     def advance(self, t: float, t_next: float, *, commit: bool = True, startup_q: int | None = None) -> None:
-        """Every unit over [t, t_next]; the new level T(n+1) is committed unless ``commit=False``."""
+        """Every unit over [t, t_next]; the new level T(n+1) is committed unless ``commit=False``.
+
+        A whole macro step is passed to the FMUs as ``macro_step`` itself, not as ``t_next - t``:
+        the grid times t0 + n*H differ by H only up to rounding (0.3 - 0.2 = 0.09999999999999998;
+        at t0 = 1e6 by 1e-9 H), and an FMU that cannot vary its step size compares every
+        communicationStepSize with its first one (FMPy and libcosim pass H too)."""
         h = t_next - t
+        if h != self.macro_step and abs(h - self.macro_step) <= STEP_ROUNDING * self.macro_step:
+            h = self.macro_step
         hist = self.history
         hist.times[0] = t_next
         predictor = self.predictor
