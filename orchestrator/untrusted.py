@@ -176,11 +176,22 @@ def load_json(path: str | os.PathLike, *, what: str = "JSON file", limit: int | 
 
     text = read_text(path, what=what, limit=limit)
     try:
-        return json.loads(text)
+        value = json.loads(text)
     except ValueError as exc:
         raise InputError(f"{path}: the {what} is not valid JSON ({exc}); {fix}") from None
     except RecursionError:
         raise InputError(f"{path}: the {what} is nested too deeply to read; {fix}") from None
+    todo = [value]                    # a lone "\ud800" escape is valid JSON but no character
+    while todo:
+        v = todo.pop()
+        if isinstance(v, dict):
+            todo.extend(v)
+            todo.extend(v.values())
+        elif isinstance(v, list):
+            todo.extend(v)
+        elif isinstance(v, str) and (why := surrogate_problem(v, yaml_fix=False)) is not None:
+            raise InputError(f"{path}: the {what} cannot be used: a text in it {why}; {fix}")
+    return value
 
 
 # --------------------------------------------------------------------------- YAML
@@ -383,11 +394,38 @@ def check_yaml_tree(root, *, display: str) -> None:
             if node.tag == "tag:yaml.org,2002:int" and len(node.value) > MAX_INT_DIGITS:
                 raise InputError(f"{_where(display, node)}: an integer of {len(node.value)} characters (the limit is "
                                  f"{MAX_INT_DIGITS} digits); write a number in range, e.g. 1.0e40")
+            why = surrogate_problem(node.value)
+            if why is not None:
+                raise InputError(f"{_where(display, node)}: the text {why}")
             size[key], depth[key] = 1, 1
             continue
         on_stack.add(key)
         stack.append((node, True))
         stack.extend((k, False) for k in kids if id(k) not in size)
+
+
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def surrogate_problem(text: str, *, yaml_fix: bool = True) -> str | None:
+    """Why ``text`` cannot be written as UTF-8, or None: it holds a UTF-16 surrogate (U+D800 to
+    U+DFFF), which is no character. A '\\u' escape in a double-quoted YAML string or in JSON
+    makes one (YAML does not join a pair of them into one character, and no '\\u' escape of a
+    lone one is a character); anything that later writes, prints or hands the text to an FMU
+    then failed (``UnicodeEncodeError``). The words fit after "the text"; ``yaml_fix``: end with
+    how to write the character in YAML."""
+    m = _SURROGATE.search(text) if isinstance(text, str) else None
+    if m is None:
+        return None
+    i = m.start()
+    pair = text[i:i + 2]
+    if len(pair) == 2 and "\ud800" <= pair[0] <= "\udbff" and "\udc00" <= pair[1] <= "\udfff":
+        cp = 0x10000 + ((ord(pair[0]) - 0xD800) << 10) + (ord(pair[1]) - 0xDC00)
+        fix = f"write the character itself, or the pair as one escape of its code point: \\U{cp:08X}"
+    else:
+        fix = "write the character itself, or its code point as an escape: \\U and 8 hex digits"
+    return (f"holds \\u{ord(text[i]):04x} (character {i + 1}), half of a UTF-16 surrogate pair written as a "
+            f"'\\u' escape, which is no character and cannot be written as UTF-8" + (f"; {fix}" if yaml_fix else ""))
 
 
 def _children(node) -> list:

@@ -59,3 +59,58 @@ def test_every_macro_step_is_passed_as_the_macro_step_itself(tmp_path, test_fmus
     assert len(calls) == 60
     assert {h for _, h in calls} == {0.05}
     assert [t for t, _ in calls[::2]] == [n * 0.1 for n in range(30)]
+
+
+def test_a_surrogate_escape_in_any_yaml_text_is_named_with_its_line(tmp_path, capsys):
+    """A "\\ud83d\\ude00" escape in a double-quoted YAML string (how JSON writes an emoji) gives two
+    lone UTF-16 surrogates: PyYAML does not join them, and no UTF-8 text can hold one. In an FMU
+    path or a recorded signal `rotorcosim validate` / `run` ended in "internal error:
+    UnicodeEncodeError", in a String parameter `run` did; in the description the run passed. Now
+    the bounded YAML reader (untrusted.check_yaml_tree, under every scenario, --set value, sweep
+    and comparison file) refuses such text with its line and the escape to write instead."""
+    from hostile_builders import cli, md_scenario
+    from orchestrator.errors import ScenarioError
+    from orchestrator.scenario import load_scenario
+
+    p = md_scenario(tmp_path, top='description: "rotor \\ud83d\\ude00 test"\n')
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(p)
+    msg = str(exc.value)
+    assert f"{p}:3: the text holds \\ud83d (character 7), half of a UTF-16 surrogate pair" in msg, msg
+    assert "one escape of its code point: \\U0001F600" in msg, msg
+
+    p = md_scenario(tmp_path)
+    for setting, part in [('fmus.a.path="m\\ud800.fmu"', "holds \\ud800 (character 2)"),
+                          ('output.signals=["a.y\\udc00"]', "holds \\udc00 (character 4)"),
+                          ('fmus.a.parameters.k="\\ud800"', "holds \\ud800 (character 1)")]:
+        rc, text = cli(capsys, "validate", p, "--no-build", "--set", setting)
+        assert rc == 1 and f"--set {setting}:1: the text {part}" in text, text
+        assert "\\U and 8 hex digits" in text and "Traceback" not in text, text
+
+    from orchestrator.sweep import SweepError, load_sweep
+    (tmp_path / "w.yaml").write_text('sweep: 1\nscenario: s.yaml\nparameters:\n'
+                                     '  - {name: "k\\ud800", set: stop_time, values: [1, 2]}\n')
+    with pytest.raises(SweepError, match=r"w.yaml:4: the text holds \\ud800"):
+        load_sweep(tmp_path / "w.yaml")
+
+
+def test_a_summary_json_with_a_lone_surrogate_is_skipped_not_an_internal_error(tmp_path, capsys):
+    """summary.json is untrusted (a run folder from someone else): a JSON string with a lone "\\ud800"
+    escape is valid JSON, and `rotorcosim plot` ended in "internal error: TypeError: set_text()"
+    drawing the scenario name as a title. Now untrusted.load_json (under plot, CoSimResult.load,
+    sweep --resume and compare baselines) refuses it as it refuses bad JSON, naming the file, and
+    plot draws from results.csv alone with a warning."""
+    import json
+
+    from hostile_builders import cli
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "results.csv").write_text("time,osc.x\n" + "".join(f"{i * 0.1!r},{i * 0.5!r}\n" for i in range(10)))
+    (run / "summary.json").write_text(json.dumps({"scenario": "s\ud800", "status": "finished"}))
+    with pytest.warns(UserWarning) as seen:
+        rc, text = cli(capsys, "plot", run)
+    assert rc == 0, text
+    warned = " ".join(str(w.message) for w in seen)
+    assert (f"{run / 'summary.json'}: the summary.json cannot be used: a text in it holds \\ud800 (character 2), "
+            "half of a UTF-16 surrogate pair") in warned, warned
+    assert (run / "plots").is_dir() and list((run / "plots").glob("*.png"))
