@@ -94,6 +94,31 @@ def test_a_surrogate_escape_in_any_yaml_text_is_named_with_its_line(tmp_path, ca
         load_sweep(tmp_path / "w.yaml")
 
 
+def test_a_string_parameter_holding_nul_is_refused_not_cut(tmp_path, capsys):
+    """A String parameter written with a "\\0" escape (prefix: "ab\\0cd") was accepted and the FMU got
+    "ab" (fmi2SetString takes a C string): a run finished with the wrong value and no word. Now
+    check_value refuses it at load, naming the parameter, the character and what the FMU would get;
+    a lone surrogate from a Python scenario is refused there too (was UnicodeEncodeError at run)."""
+    from hostile_builders import cli, md_scenario, md_xml, write_fmu
+    from orchestrator.fmi.values import check_value
+
+    write_fmu(tmp_path / "m.fmu", md_xml(variables=(
+        '<ScalarVariable name="label" valueReference="0" causality="parameter" variability="fixed">'
+        '<String start="x"/></ScalarVariable>')))
+    p = tmp_path / "s.yaml"
+    p.write_text('name: strings\nstop_time: 1\nfmus:\n  a: {path: m.fmu, parameters: {label: "ab\\0cd"}}\n')
+    rc, text = cli(capsys, "validate", p, "--no-build")
+    assert rc == 1, text
+    assert (f"{p}:4: parameter 'a.label' is String and holds a NUL character (\\0, character 3), which ends "
+            "the text for the FMU (fmi2SetString takes a C string: it would get 'ab'); remove it") in text, text
+
+    class Var:
+        type, choices, min, max = "String", (), None, None
+    assert check_value(Var, "fine", "a.label") == ("fine", None)
+    value, why = check_value(Var, "a\ud800", "a.label")
+    assert value is None and "'a.label' is String and the text holds \\ud800 (character 2)" in why
+
+
 def test_a_summary_json_with_a_lone_surrogate_is_skipped_not_an_internal_error(tmp_path, capsys):
     """summary.json is untrusted (a run folder from someone else): a JSON string with a lone "\\ud800"
     escape is valid JSON, and `rotorcosim plot` ended in "internal error: TypeError: set_text()"

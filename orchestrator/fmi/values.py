@@ -34,6 +34,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from orchestrator.untrusted import surrogate_problem
+
 INT32_MIN, INT32_MAX = -2**31, 2**31 - 1      # fmi2Integer is a C int (FMI 2.0 sec. 2.1.2, fmi2TypesPlatform.h)
 
 FMI_TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
@@ -132,6 +134,13 @@ def check_value(var, value: Any, qualified: str) -> tuple[Any, str | None]:
     if conv is None:
         return None, (f"'{qualified}' is {t} (got {value!r}, {type(value).__name__}); give a {t} value "
                       f"such as {_EXAMPLE.get(t, 'a value')}")
+    if t == "String" and "\0" in conv:
+        i = conv.index("\0")
+        return None, (f"'{qualified}' is String and holds a NUL character (\\0, character {i + 1}), which ends "
+                      f"the text for the FMU (fmi2SetString takes a C string: it would get "
+                      f"{_short(conv[:i])}); remove it")
+    if t == "String" and (why := surrogate_problem(conv, yaml_fix=False)) is not None:
+        return None, f"'{qualified}' is String and the text {why}; write the character itself"
     if t == "String" and getattr(var, "choices", ()) and conv not in var.choices:
         shown = ", ".join(repr(c) for c in var.choices[:20]) + (", ..." if len(var.choices) > 20 else "")
         return None, (f"'{qualified}' must be one of {shown} (the values the FMU declares); got {conv[:80]!r}: "
@@ -151,6 +160,10 @@ def check_value(var, value: Any, qualified: str) -> tuple[Any, str | None]:
                           f"(min/max{' of type ' + var.declared_type if var.declared_type else ''}); "
                           "give a value inside the range")
     return conv, None
+
+
+def _short(text: str, n: int = 40) -> str:
+    return repr(text) if len(text) <= n else repr(text[:n]) + "..."
 
 
 class TypedBatch:
