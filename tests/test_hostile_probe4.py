@@ -139,3 +139,33 @@ def test_a_summary_json_with_a_lone_surrogate_is_skipped_not_an_internal_error(t
     assert (f"{run / 'summary.json'}: the summary.json cannot be used: a text in it holds \\ud800 (character 2), "
             "half of a UTF-16 surrogate pair") in warned, warned
     assert (run / "plots").is_dir() and list((run / "plots").glob("*.png"))
+
+
+def _enum_fmu(path: Path, type_name: str, items, causality: str) -> Path:
+    from hostile_builders import md_xml, write_fmu
+    types = (f'<TypeDefinitions><SimpleType name="{type_name}"><Enumeration>'
+             + "".join(f'<Item name="{n}" value="{v}"/>' for n, v in items) + "</Enumeration></SimpleType></TypeDefinitions>")
+    start = f' start="{items[0][1]}"' if causality == "input" else ""
+    xml = md_xml(variables=f'<ScalarVariable name="e" valueReference="0" causality="{causality}" variability="discrete">'
+                           f'<Enumeration declaredType="{type_name}"{start}/></ScalarVariable>')
+    return write_fmu(path, xml.replace("<ModelVariables>", types + "<ModelVariables>"))
+
+
+def test_an_enumeration_output_connected_to_an_input_of_another_enumeration_type(tmp_path, capsys):
+    """Both ends of a connection must have the same type, but two Enumeration ends of different
+    enumeration types passed: Mode {Off=1, Slow=2, Fast=3} -> Level {Low=0, High=1} loaded and ran,
+    handing the input FMU the values 2 and 3 its model description does not declare (FMUs index
+    tables with them). Now such a connection is a load error naming both types and the values the
+    input lacks; an input type that has every value of the output's type is still accepted."""
+    from hostile_builders import cli
+    _enum_fmu(tmp_path / "src.fmu", "Mode", [("Off", 1), ("Slow", 2), ("Fast", 3)], "output")
+    _enum_fmu(tmp_path / "level.fmu", "Level", [("Low", 0), ("High", 1)], "input")
+    _enum_fmu(tmp_path / "wide.fmu", "Gear", [("N", 0), ("G1", 1), ("G2", 2), ("G3", 3)], "input")
+    p = tmp_path / "s.yaml"
+    p.write_text("name: enums\nstop_time: 1\nfmus:\n  a: {path: src.fmu}\n  b: {path: level.fmu}\n"
+                 "  c: {path: wide.fmu}\nconnections:\n  - a.e -> b.e\n  - a.e -> c.e\n")
+    rc, text = cli(capsys, "validate", p, "--no-build")
+    assert rc == 1, text
+    assert (f"{p}:8: enumeration mismatch: 'a.e' is of type Mode {{Off=1, Slow=2, Fast=3}} but 'b.e' is of type "
+            "Level {Low=0, High=1}: the values 2 (Slow), 3 (Fast) that 'a.e' may give are no items of 'b.e'") in text
+    assert ":9:" not in text and "1 problem found" in text, text

@@ -7,12 +7,14 @@ of the right causality and type in a readable FMU.
 
 from __future__ import annotations
 
+import math
+
 import yaml
 
 from orchestrator.errors import CosimError
 from orchestrator.fmi.archive import cached_model_description
 from orchestrator.scenario.coupling_sections import check_atol_patterns, check_capabilities
-from orchestrator.fmi.values import check_value, settable_problem
+from orchestrator.fmi.values import check_value, declared_range, settable_problem
 from orchestrator.scenario.completion import Completion
 from orchestrator.scenario.model import ANALYSIS_KEYS, JOURNAL_KEYS
 from orchestrator.scenario.nodes import FLOAT_RE, article, did_you_mean, ranked
@@ -157,6 +159,13 @@ class FmuChecks(Completion):
             if src.type != dst.type:
                 self.err(c["node"], f"type mismatch: '{c['from']}' is {src.type} but '{c['to']}' is {dst.type}; "
                                     "connect variables of the same type (Real to Real, Integer to Integer, ...)")
+            elif src.type == "Enumeration" and (foreign := foreign_items(src, dst)):
+                shown = ", ".join(f"{v} ({n})" for n, v in foreign[:10]) + (", ..." if len(foreign) > 10 else "")
+                self.err(c["node"], f"enumeration mismatch: '{c['from']}' is of type {src.declared_type or '?'} "
+                                    f"{declared_range(src)} but '{c['to']}' is of type {dst.declared_type or '?'} "
+                                    f"{declared_range(dst)}: the values {shown} that '{c['from']}' may give are no "
+                                    f"items of '{c['to']}', whose FMU would get values it does not declare; connect "
+                                    "an output of an enumeration type whose items the input has (or the same type)")
             elif src.type != "Real":
                 for key in ("gain", "offset"):
                     if key + "_node" in c:
@@ -297,6 +306,22 @@ class FmuChecks(Completion):
                 WhirlParams.from_mapping(values)
             except ValueError as exc:
                 self.err(node, f"{exc}; fix the values (docs/analysis.md, 'Method')")
+
+
+def _item_values(var) -> dict[int, str]:
+    """The values an Enumeration variable takes: its type's items within its own min/max."""
+    lo = var.min if var.min is not None else -math.inf
+    hi = var.max if var.max is not None else math.inf
+    return {v: n for n, v, _ in var.items if lo <= v <= hi}
+
+
+def foreign_items(src, dst) -> list[tuple[str, int]]:
+    """The (name, value) items output ``src`` may give that input ``dst`` does not declare (two
+    Enumeration variables of different types); empty when either declares no items."""
+    if not src.items or not dst.items:
+        return []
+    have = _item_values(dst)
+    return [(n, v) for v, n in sorted(_item_values(src).items()) if v not in have]
 
 
 def convert(value, fmi_type: str):
