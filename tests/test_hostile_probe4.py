@@ -169,3 +169,39 @@ def test_an_enumeration_output_connected_to_an_input_of_another_enumeration_type
     assert (f"{p}:8: enumeration mismatch: 'a.e' is of type Mode {{Off=1, Slow=2, Fast=3}} but 'b.e' is of type "
             "Level {Low=0, High=1}: the values 2 (Slow), 3 (Fast) that 'a.e' may give are no items of 'b.e'") in text
     assert ":9:" not in text and "1 problem found" in text, text
+
+
+@needs_gcc
+def test_a_run_starting_at_a_large_time_steps_to_its_stop_time(tmp_path, test_fmus):
+    """At start_time 31536000 s (one year in seconds, where building and grid FMUs start) and a
+    macro step of 0.1 s, rounding makes (t0 + 3h - t0) / h = 3.0000000447, above the 1e-9 steps
+    the grid absorbed: the run planned a fourth step of length 0 and ended in "internal error:
+    ZeroDivisionError" after its last row (run() raised it); with step_control: error the output
+    grid gave a zero step at t0 + 0.2 the same way; and a fixed-step FMU was refused with "stop_time
+    31536000.4 is not on the macro-step grid ... use stop_time 31536000.3 or 31536000.4". Now the
+    remainder rounding alone can make is absorbed everywhere (scenario.limits.step_slack: 16 units
+    in the last place of the time, over the step), and each macro step reaches the FMUs as 0.1."""
+    for name in ("Integrator",):
+        shutil.copy(test_fmus[name], tmp_path / f"{name}.fmu")
+    _c_fmu(tmp_path, "AllTypes", fixed_step=True)
+    p = tmp_path / "year.yaml"
+    p.write_text("name: year\nstart_time: 31536000\nstop_time: 31536000.3\nfmus:\n"
+                 "  i1: {path: Integrator.fmu, parameters: {u: 1.0}}\n  i2: {path: Integrator.fmu}\n"
+                 "connections: [i1.y -> i2.u]\ncoupling: {macro_step: 0.1}\n")
+    res = _run(p, tmp_path / "constant")
+    assert res.success, res.message
+    assert list(res.t) == [31536000.0, 31536000.1, 31536000.2, 31536000.3]
+    assert list(res.outputs["i1.y"]) == [0.0, 0.1, 0.2, 0.1 + 0.1 + 0.1]
+
+    res = _run(p, tmp_path / "error", ["stop_time=31536000.5", "output.interval=0.1",
+                                       "coupling.step_control={type: error, rtol: 1.0e-3}"])
+    assert res.success, res.message
+    assert len(res.t) == 6 and res.t[-1] == 31536000.5
+
+    q = tmp_path / "fixed.yaml"
+    q.write_text("name: fixed\nstart_time: 31536000\nstop_time: 31536000.4\nfmus:\n"
+                 "  a: {path: AllTypesFixed.fmu, parameters: {u: 1.0}}\ncoupling: {macro_step: 0.1}\n"
+                 "output: {signals: [a.count]}\n")
+    res = _run(q, tmp_path / "fixed")
+    assert res.success, res.message
+    assert list(res.outputs["a.count"]) == [0, 1, 2, 3, 4]

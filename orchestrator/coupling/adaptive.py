@@ -57,6 +57,7 @@ from orchestrator.coupling.signals import lagrange_weights
 from orchestrator.coupling.step_control import ConstantStep, DiscardHalving, StepSizeController
 from orchestrator.errors import CouplingError
 from orchestrator.errors import ScenarioError
+from orchestrator.scenario.limits import step_slack
 from orchestrator.scenario.model import StepControlSpec
 
 log = logging.getLogger(__name__)
@@ -71,9 +72,10 @@ class OutputGrid:
 
     def __init__(self, t0: float, t_stop: float, interval: float):
         self.t0, self.t_stop, self.interval = float(t0), float(t_stop), float(interval)
+        self.slack = step_slack(self.t0, self.t_stop, self.interval)   # rounding of the times alone
 
     def after(self, t: float) -> float:
-        j = math.floor((t - self.t0) / self.interval + 1e-9) + 1
+        j = math.floor((t - self.t0) / self.interval + self.slack) + 1
         return min(self.t0 + j * self.interval, self.t_stop)
 
 
@@ -99,7 +101,7 @@ class ErrorControlled(StepSizeController):
         self.ij_order = None if ij_order is None else ij_order + self.impulse   # (bind), if other
         self.t0, self.t_stop = float(t0), float(t_stop)
         self.grid = OutputGrid(t0, t_stop, interval)
-        self.n_steps = max(1, math.ceil((t_stop - t0) / h0 - 1e-9))
+        self.n_steps = max(1, math.ceil((t_stop - t0) / h0 - step_slack(t0, t_stop, h0)))
         min_step = spec.min_step if spec.min_step is not None else h0 * MIN_STEP_FRACTION
         max_step = spec.max_step if spec.max_step is not None else interval
         self.pi = PIController(order=order, min_step=min(min_step, max_step), max_step=max_step)

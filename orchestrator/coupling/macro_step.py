@@ -25,8 +25,8 @@ from orchestrator.errors import CouplingError, FmuCallError
 
 log = logging.getLogger(__name__)
 
-#: a step within this fraction of the macro step is a whole macro step whose size only rounding
-#: of the grid times changed (:meth:`MacroStep.advance`)
+#: a step within this fraction of the macro step (or 16 units in the last place of the time) is a
+#: whole macro step whose size only rounding of the grid times changed (:meth:`MacroStep.advance`)
 STEP_ROUNDING = 1e-9
 
 
@@ -169,8 +169,9 @@ class MacroStep:
         at t0 = 1e6 by 1e-9 H), and an FMU that cannot vary its step size compares every
         communicationStepSize with its first one (FMPy and libcosim pass H too)."""
         h = t_next - t
-        if h != self.macro_step and abs(h - self.macro_step) <= STEP_ROUNDING * self.macro_step:
-            h = self.macro_step
+        H = self.macro_step
+        if h != H and abs(h - H) <= max(STEP_ROUNDING * H, 16 * math.ulp(t_next)):
+            h = H
         hist = self.history
         hist.times[0] = t_next
         predictor = self.predictor

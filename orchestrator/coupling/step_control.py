@@ -29,6 +29,7 @@ import logging
 import math
 
 from orchestrator.errors import FmuCallError, ScenarioError
+from orchestrator.scenario.limits import step_slack
 
 log = logging.getLogger(__name__)
 
@@ -65,7 +66,8 @@ class StepSizeController:
 
 class ConstantStep(StepSizeController):
     """T(n) = t0 + n*H; the last step is shortened to end exactly at stop_time
-    (a remainder below 1e-9*H is absorbed, not stepped). Accepts every step."""
+    (a remainder that rounding of the times alone can make, 1e-9*H or more at large times,
+    :func:`~orchestrator.scenario.limits.step_slack`, is absorbed, not stepped). Accepts every step."""
 
     def __init__(self, t0: float, t_stop: float, h: float):
         if not (h > 0 and math.isfinite(h)):
@@ -73,7 +75,8 @@ class ConstantStep(StepSizeController):
         if not t_stop > t0:
             raise ScenarioError(f"stop_time ({t_stop}) must be greater than start_time ({t0})")
         self.t0, self.t_stop, self.h = float(t0), float(t_stop), float(h)
-        self.n_steps = max(1, math.ceil((self.t_stop - self.t0) / self.h - 1e-9))
+        slack = step_slack(self.t0, self.t_stop, self.h)
+        self.n_steps = max(1, math.ceil((self.t_stop - self.t0) / self.h - slack))
 
     def time(self, n: int) -> float:
         if n >= self.n_steps:

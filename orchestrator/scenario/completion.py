@@ -19,6 +19,7 @@ import math
 from typing import Sequence
 
 from orchestrator.names import array_elements, index_of, is_pattern, match
+from orchestrator.scenario.limits import step_slack
 from orchestrator.scenario.model import CouplingSpec
 from orchestrator.scenario.sections import FROM_FMUS
 
@@ -40,7 +41,7 @@ def fixed_step_problem(t0: float, t_stop: float, h: float, fixed: Sequence[str],
     why = (f"FMU instance{'s' if len(fixed) > 1 else ''} {who} cannot vary the communication step size "
            "(canHandleVariableCommunicationStepSize=\"false\")")
     steps = (t_stop - t0) / h
-    if abs(steps - round(steps)) > 1e-9 * max(1.0, steps):
+    if abs(steps - round(steps)) > max(1e-9 * max(1.0, steps), step_slack(t0, t_stop, h)):
         lo, hi = t0 + math.floor(steps) * h, t0 + math.ceil(steps) * h
         return (f"stop_time {t_stop!r} is not on the macro-step grid start_time + n*{h!r}, so the last step would "
                 f"be shortened, but {why}; use stop_time {lo:.12g} or {hi:.12g}, or a macro_step that divides "

@@ -20,6 +20,15 @@ MAX_FMU_INSTANCES = 256           # entries of 'fmus' (a 10 kB file listed thous
 MAX_WORKER_PROCESSES = 32         # default of ROTORCOSIM_MAX_WORKERS: FMU instances in worker processes
 
 
+def step_slack(t0: float, t_stop: float, h: float) -> float:
+    """By how much (in macro steps) the grid ``t0 + n*h`` may miss a time between ``t0`` and
+    ``t_stop`` through rounding alone: 1e-9, or more when the times are large against the step
+    (16 units in the last place of the larger time, over ``h``: up to 3.5e-6 at the limit
+    :data:`MIN_RELATIVE_STEP`). At start_time 31536000 s (a year) and h = 0.1 s,
+    ``(t0 + 3*h - t0) / h`` is 3.0000000447: a remainder of 1e-9 steps was not absorbed there."""
+    return max(1e-9, 16 * math.ulp(max(abs(t0), abs(t_stop))) / h)
+
+
 def max_worker_processes() -> int:
     """How many FMU instances may run in worker processes at once (``isolation: process``, and
     ``validate``, which loads every FMU in one): ``ROTORCOSIM_MAX_WORKERS`` or
