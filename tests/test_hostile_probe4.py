@@ -205,3 +205,25 @@ def test_a_run_starting_at_a_large_time_steps_to_its_stop_time(tmp_path, test_fm
     res = _run(q, tmp_path / "fixed")
     assert res.success, res.message
     assert list(res.outputs["a.count"]) == [0, 1, 2, 3, 4]
+
+
+def test_a_macro_step_below_a_femtosecond_is_refused_with_its_line(tmp_path, test_fmus):
+    """stop_time 1e-300, macro_step 1e-301: the master's input weights take 1/h up to the third
+    power, and run ended in "internal error: OverflowError". Now the loader refuses a macro step,
+    and a step_control min_step or max_step, below 1 fs (scenario.limits.MIN_MACRO_STEP), naming
+    the line."""
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    shutil.copy(test_fmus["Integrator"], tmp_path / "Integrator.fmu")
+    p = tmp_path / "tiny.yaml"
+    p.write_text("name: tiny\nstop_time: 1.0e-300\nfmus:\n  i: {path: Integrator.fmu}\n"
+                 "coupling: {macro_step: 1.0e-301}\n")
+    with pytest.raises(ScenarioError, match=r"tiny\.yaml:5: 'coupling\.macro_step' 1e-301 s is below the "
+                                            r"smallest macro step, 1e-15 s"):
+        orchestrator.load_scenario(p)
+    p.write_text("name: tiny\nstop_time: 1.0e-12\nfmus:\n  i: {path: Integrator.fmu}\n"
+                 "coupling: {macro_step: 1.0e-13, step_control: {type: error, min_step: 1.0e-300}}\n")
+    with pytest.raises(ScenarioError, match=r"'coupling\.step_control\.min_step' 1e-300 s is below"):
+        orchestrator.load_scenario(p)
+    p.write_text("name: tiny\nstop_time: 1.0e-12\nfmus:\n  i: {path: Integrator.fmu}\ncoupling: {macro_step: 1.0e-13}\n")
+    assert _run(p, tmp_path / "ok").success            # 0.1 ps steps still run

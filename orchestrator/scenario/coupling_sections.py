@@ -20,6 +20,7 @@ import logging
 
 import yaml
 
+from orchestrator.scenario.limits import MIN_MACRO_STEP
 from orchestrator.scenario.nodes import did_you_mean
 from orchestrator.scenario.model import (
     ACCELERATIONS, ERROR_MEASURES, STEP_CONTROL_TYPES, IterationSpec, StepControlSpec)
@@ -105,6 +106,10 @@ def load_step_control(ld, node) -> StepControlSpec | None:
             continue
         if key in section:
             v = ld.number(section[key][1], f"coupling.step_control.{key}", positive=True, fix=f"give a number {fix}")
+            if v is not None and key in ("min_step", "max_step") and v < MIN_MACRO_STEP:
+                ld.err(section[key][1], f"'coupling.step_control.{key}' {v!r} s is below the smallest macro step, "
+                                        f"{MIN_MACRO_STEP:g} s (1 fs); give a number {fix}")
+                v = None
             ok &= v is not None
             kw[key] = v
     if ok and kw.get("min_step") is not None and kw.get("max_step") is not None and kw["min_step"] > kw["max_step"]:

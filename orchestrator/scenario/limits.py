@@ -16,6 +16,8 @@ MAX_MACRO_STEPS = 10**8           # (stop_time - start_time) / macro_step
 MAX_OUTPUT_ROWS = 10**7           # (stop_time - start_time) / output.interval: rows of results.csv
 MAX_SUBSTEPS = 10**4              # coupling.substeps and fmus.<name>.substeps
 MIN_RELATIVE_STEP = 1e-10         # macro_step / max(|start_time|, |stop_time|): t0 + n*h stays resolvable
+MIN_MACRO_STEP = 1e-15            # s: the master's weights take powers of 1/h up to the third
+                                  # (input derivatives; a 1e-301 s step overflowed); 1 fs is far below any step
 MAX_FMU_INSTANCES = 256           # entries of 'fmus' (a 10 kB file listed thousands, each an FMU loaded)
 MAX_WORKER_PROCESSES = 32         # default of ROTORCOSIM_MAX_WORKERS: FMU instances in worker processes
 
@@ -50,6 +52,8 @@ def limit_problems(sc: Scenario) -> list[str]:
         return bad
     if stop <= start or h <= 0:
         return [f"needs stop_time > start_time and macro_step > 0 (got {start!r}, {stop!r}, {h!r})"]
+    if h < MIN_MACRO_STEP:
+        return [f"macro_step {h!r} s is below the smallest macro step, {MIN_MACRO_STEP:g} s"]
     scale = max(abs(start), abs(stop))
     if h < MIN_RELATIVE_STEP * scale:
         return [f"macro_step {h!r} is too small for the time {scale:g} s (the limit is macro_step >= "

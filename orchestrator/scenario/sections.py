@@ -28,7 +28,7 @@ from orchestrator.scenario.model import (
     SCHEMES, TOP_KEYS, ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario)
 from orchestrator.scenario.nodes import NodeReader, YamlLoader, did_you_mean, flatten_merges
 from orchestrator.scenario.limits import (MAX_FMU_INSTANCES, MAX_MACRO_STEPS, MAX_OUTPUT_ROWS, MAX_SUBSTEPS,
-                                          MIN_RELATIVE_STEP)
+                                          MIN_MACRO_STEP, MIN_RELATIVE_STEP)
 from orchestrator.scenario.overrides import apply_override
 from orchestrator.untrusted import InputError, check_yaml_tree, name_problem, out_dir_escape, read_yaml_tree
 
@@ -369,6 +369,11 @@ class SectionReader(NodeReader):
     def check_step_count(self, node, h: float, start: float, stop: float) -> float | None:
         """``h`` if the run's macro steps stay within MAX_MACRO_STEPS and the time grid
         resolves them (MIN_RELATIVE_STEP), else None (problem reported)."""
+        if h < MIN_MACRO_STEP:
+            self.err(node, f"'coupling.macro_step' {h!r} s is below the smallest macro step, {MIN_MACRO_STEP:g} s "
+                           "(1 fs; the master's input weights take 1/macro_step to the third power); use a "
+                           "larger step, or express the times in a larger unit")
+            return None
         scale = max(abs(start), abs(stop))
         if h < MIN_RELATIVE_STEP * scale:
             self.err(node, f"'coupling.macro_step' {h!r} is too small for the time {scale:g} s: t = start_time + n * "
