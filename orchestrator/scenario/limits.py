@@ -52,12 +52,12 @@ def limit_problems(sc: Scenario) -> list[str]:
         return bad
     if stop <= start or h <= 0:
         return [f"needs stop_time > start_time and macro_step > 0 (got {start!r}, {stop!r}, {h!r})"]
-    if h < MIN_MACRO_STEP:
-        return [f"macro_step {h!r} s is below the smallest macro step, {MIN_MACRO_STEP:g} s"]
     scale = max(abs(start), abs(stop))
     if h < MIN_RELATIVE_STEP * scale:
         return [f"macro_step {h!r} is too small for the time {scale:g} s (the limit is macro_step >= "
                 f"{MIN_RELATIVE_STEP:g} * max(|start_time|, |stop_time|))"]
+    if h < MIN_MACRO_STEP:
+        return [f"macro_step {h!r} s is below the smallest macro step, {MIN_MACRO_STEP:g} s"]
     out = []
     if (stop - start) / h > MAX_MACRO_STEPS:
         out.append(f"(stop_time - start_time) / macro_step = {(stop - start) / h:.3g} macro steps (the limit is "

@@ -369,16 +369,16 @@ class SectionReader(NodeReader):
     def check_step_count(self, node, h: float, start: float, stop: float) -> float | None:
         """``h`` if the run's macro steps stay within MAX_MACRO_STEPS and the time grid
         resolves them (MIN_RELATIVE_STEP), else None (problem reported)."""
-        if h < MIN_MACRO_STEP:
-            self.err(node, f"'coupling.macro_step' {h!r} s is below the smallest macro step, {MIN_MACRO_STEP:g} s "
-                           "(1 fs; the master's input weights take 1/macro_step to the third power); use a "
-                           "larger step, or express the times in a larger unit")
-            return None
         scale = max(abs(start), abs(stop))
         if h < MIN_RELATIVE_STEP * scale:
             self.err(node, f"'coupling.macro_step' {h!r} is too small for the time {scale:g} s: t = start_time + n * "
                            f"macro_step cannot resolve it (the limit is macro_step >= {MIN_RELATIVE_STEP:g} * "
                            "max(|start_time|, |stop_time|)); use a larger step or shift the times towards 0")
+            return None
+        if h < MIN_MACRO_STEP:
+            self.err(node, f"'coupling.macro_step' {h!r} s is below the smallest macro step, {MIN_MACRO_STEP:g} s "
+                           "(1 fs; the master's input weights take 1/macro_step to the third power); use a "
+                           "larger step, or express the times in a larger unit")
             return None
         n = (stop - start) / h
         if n > MAX_MACRO_STEPS:
