@@ -117,8 +117,12 @@ def _execute(scenario, out_dir: Path, folder: RunFolder, progress, observers) ->
 
     def summary_before_release() -> None:
         # the final summary before the FMUs are freed: one that crashes or hangs in
-        # fmi2FreeInstance after a complete run leaves summary.json complete (it said "running")
-        folder.finish(_summary(scenario, read_back(master.result())))
+        # fmi2FreeInstance after a complete run leaves summary.json complete (it said "running").
+        # Not for a master that never started: initialize() raised (an error that is no FMU call's,
+        # or a second Ctrl-C / SIGTERM while an FMU initializes) and RunFolder writes the failed
+        # summary with the reason; this one said "not_started" with no message, in its place
+        if master.status is not Status.NOT_STARTED:
+            folder.finish(_summary(scenario, read_back(master.result())))
 
     master.before_release = summary_before_release
     master.call_record = folder.calls

@@ -1,0 +1,80 @@
+"""Fifth hostile and any-FMU probe (after tests/test_hostile_probe4.py and the other catalogues): the
+FMU log formatter, worker processes and run folders. One test per finding, each failing on the
+code before its fix."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import shutil
+import signal
+from pathlib import Path
+
+import pytest
+
+HERE = Path(__file__).resolve().parent
+needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")
+
+
+def _build_c_fmu(dest: Path, name: str) -> Path:
+    spec = importlib.util.spec_from_file_location("build_c_fmu", HERE / "fmus_c" / "build_c_fmu.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.build_c_fmu(dest, name)
+
+
+@pytest.fixture(scope="module")
+def c_fmus(tmp_path_factory) -> Path:
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc not installed (native test FMU)")
+    d = tmp_path_factory.mktemp("probe5_fmus")
+    _build_c_fmu(d, "LinearBearing")
+    _build_c_fmu(d, "MisbehavingBearing")
+    return d
+
+
+def _bearing_scenario(d: Path, tmp_path: Path, *, fault: int = 0, isolation: str = "none", extra: str = "") -> Path:
+    path = tmp_path / "s.yaml"
+    path.write_text("\n".join([
+        "name: probe5", "stop_time: 0.01", "fmus:",
+        f"  bearing1: {{path: {d / 'MisbehavingBearing.fmu'}, parameters: {{fault: {fault}, fault_step: 5}}}}",
+        f"  bearing2: {{path: {d / 'LinearBearing.fmu'}}}",
+        "connections:",
+        "  - {from: bearing1.Fx, to: bearing2.x, gain: 1.0e-9}",
+        "  - {from: bearing2.Fx, to: bearing1.x, gain: 1.0e-9, offset: 1.0e-6}",
+        f"coupling: {{macro_step: 1.0e-3, isolation: {isolation}}}",
+        "output: {interval: 1.0e-3, signals: [bearing1.Fx, bearing2.Fx]}", extra]))
+    return path
+
+
+@pytest.mark.parametrize("raised, status, words", [
+    ("signal", "failed", "terminated by signal SIGTERM before the co-simulation started"),
+    ("error", "failed", "setup failed: FMU instance 'bearing1': no room"),
+])
+def test_a_run_that_never_started_says_why_in_its_summary(tmp_path, c_fmus, monkeypatch, raised, status, words):
+    """A run whose initialization raised something other than an FMU call's error (a second
+    Ctrl-C or SIGTERM while an FMU initializes, e.g. one that hangs there; an FmuError of the
+    worker's shared memory) left summary.json at status "not_started" with an empty message:
+    the master's release hook wrote the summary of a master that never started, and RunFolder
+    then took the run as finished and did not write the failed summary with the reason (nor
+    ``stopped_by``, by which a sweep counts a run as cancelled). Reproduced with the CLI:
+    MisbehavingBearing fault 15 (hangs in fmi2ExitInitializationMode) in a worker, SIGTERM twice."""
+    import orchestrator
+    from orchestrator.coupling.lifecycle import RunStopped
+    from orchestrator.errors import FmuError
+    from orchestrator.fmi.subsystem import Subsystem
+
+    def stop(self):
+        if raised == "signal":
+            raise RunStopped(signal.SIGTERM)
+        raise FmuError(f"FMU instance '{self.name}': no room")
+
+    monkeypatch.setattr(Subsystem, "exit_initialization_mode", stop)
+    out = tmp_path / "out"
+    sc = orchestrator.load_scenario(_bearing_scenario(c_fmus, tmp_path))
+    with pytest.raises(RunStopped if raised == "signal" else FmuError):
+        orchestrator.run(sc, out_dir=out, progress=False)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == status and words in summary["message"], summary
+    if raised == "signal":
+        assert summary["stopped_by"] == "SIGTERM"
