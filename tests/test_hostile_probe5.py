@@ -78,3 +78,43 @@ def test_a_run_that_never_started_says_why_in_its_summary(tmp_path, c_fmus, monk
     assert summary["status"] == status and words in summary["message"], summary
     if raised == "signal":
         assert summary["stopped_by"] == "SIGTERM"
+
+
+def _wide_fmu(c_fmus: Path, tmp_path: Path, n: int) -> Path:
+    """LinearBearing with ``n`` more Real variables: locals F0.. that alias its output Fx."""
+    import zipfile
+    with zipfile.ZipFile(c_fmus / "LinearBearing.fmu") as z:
+        md = z.read("modelDescription.xml").decode()
+        so = z.read("binaries/linux64/LinearBearing.so")
+    extra = "".join(f'<ScalarVariable name="F{i}" valueReference="7" causality="local" variability="continuous" '
+                    'initial="calculated"><Real/></ScalarVariable>' for i in range(n))
+    path = tmp_path / "Wide.fmu"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("modelDescription.xml", md.replace("</ModelVariables>", extra + "</ModelVariables>"))
+        z.writestr("binaries/linux64/LinearBearing.so", so)
+    return path
+
+
+def test_an_fmu_recording_many_signals_runs_and_validates_in_a_worker(tmp_path, c_fmus, capsys):
+    """A worker's shared memory was a fixed 1 MiB: an FMU recording more than about 16 000 Real
+    signals (17 000 here) in a worker failed with "the value buffers exceed the worker's shared
+    memory (1048576 bytes); record fewer signals or run it with isolation: none", and, since
+    `validate` loads every FMU in a worker, validate refused the same scenario with
+    isolation: none with that advice, while `run` finished it. Now the shared memory is sized
+    from the Real variables of the FMU's model description (orchestrator.fmi.channel.arena_bytes)."""
+    from hostile_builders import cli
+    n = 17_000
+    fmu = _wide_fmu(c_fmus, tmp_path, n)
+    signals = ", ".join(f"b.F{i}" for i in range(n))
+    for isolation in ("none", "process"):
+        (tmp_path / f"{isolation}.yaml").write_text(
+            f"name: wide\nstop_time: 0.002\nfmus:\n  b: {{path: {fmu}}}\n"
+            f"coupling: {{macro_step: 1.0e-3, isolation: {isolation}}}\n"
+            f"output: {{interval: 1.0e-3, signals: [{signals}]}}\n")
+    rc, text = cli(capsys, "validate", tmp_path / "none.yaml")
+    assert rc == 0 and "valid" in text and "shared memory" not in text, text[-2000:]
+    out = tmp_path / "out"
+    rc, text = cli(capsys, "run", tmp_path / "process.yaml", "--out", out, "--no-progress")
+    assert rc == 0 and "shared memory" not in text, text[-2000:]
+    rows = (out / "results.csv").read_text().splitlines()
+    assert len(rows) == 4 and rows[0].count(",") == n

@@ -33,7 +33,7 @@ from orchestrator.untrusted import env_number
 
 log = logging.getLogger(__name__)
 
-ARENA_BYTES = 1 << 20            # value buffers of one worker: 131 056 doubles after the call register
+ARENA_BYTES = 1 << 20            # least shared memory of one worker: 131 056 doubles after the call register
 REGISTER_BYTES = 16                    # call register: int64 function code, float64 simulation time
 # command -> FMI function (for the call register and error messages)
 FUNCTIONS = ("idle", "fmi2Instantiate", "fmi2Set* (parameters)", "fmi2SetupExperiment",
@@ -56,11 +56,24 @@ def signal_name(exit_code: int | None) -> str | None:
         return f"signal {-exit_code}"
 
 
-def _arena() -> tuple[int, mmap.mmap]:
-    """A shared memory block for the value buffers: (file descriptor, mapping).
+def arena_bytes(n_real: int, slots: int, max_order: int) -> int:
+    """Bytes of shared memory a worker needs for an FMU with ``n_real`` Real variables (names):
+    a batch of inputs, one of their derivatives (``max_order`` each) and one of outputs and
+    recorded signals, each at most that long, ``slots`` copies of each; at least
+    :data:`ARENA_BYTES`, whole pages. The memory is taken as it is touched: what no batch
+    uses costs nothing. (A fixed 1 MiB refused an FMU with more than about 16 000 recorded
+    signals in a worker, and so ``validate``, which loads every FMU in one, refused scenarios
+    that run.)"""
+    need = REGISTER_BYTES + slots * 8 * ((2 + max_order) * max(int(n_real), 0) + 3)
+    return max(ARENA_BYTES, -(-need // mmap.PAGESIZE) * mmap.PAGESIZE)
+
+
+def _arena(size: int = ARENA_BYTES) -> tuple[int, mmap.mmap]:
+    """A shared memory block of ``size`` bytes for the value buffers: (file descriptor, mapping).
 
     A memfd on Linux (no name, nothing to clean up, gone when both processes close it),
-    else an unlinked temporary file. The worker inherits the descriptor and maps it too.
+    else an unlinked temporary file. The worker inherits the descriptor and maps it too
+    (as long as the file is).
     """
     if hasattr(os, "memfd_create"):
         fd = os.memfd_create("rotorcosim-fmu-values", 0)     # not close-on-exec: the worker inherits it
@@ -68,8 +81,8 @@ def _arena() -> tuple[int, mmap.mmap]:
         fd, path = tempfile.mkstemp(prefix="rotorcosim-fmu-values-")
         os.unlink(path)
     try:
-        os.ftruncate(fd, ARENA_BYTES)
-        return fd, mmap.mmap(fd, ARENA_BYTES)
+        os.ftruncate(fd, size)
+        return fd, mmap.mmap(fd, size)
     except BaseException:
         os.close(fd)
         raise
@@ -111,14 +124,14 @@ class WorkerChannel:
     """
 
     def __init__(self, name: str, fmu_path: Path, work_dir: Path | str, call_timeout: float | None,
-                 cpu: int | None = None, spin: float | None = None):
+                 cpu: int | None = None, spin: float | None = None, arena_bytes: int = ARENA_BYTES):
         self.name, self.fmu_path, self.call_timeout = name, fmu_path, call_timeout
         self.time: float | None = None
         self.crash: FmuCrashError | None = None
         self.outstanding: tuple | None = None    # (message, function) sent, reply not yet read
         self._closed = False
         self.spin = (SPIN_WAIT if cpu is not None else 0.0) if spin is None else float(spin)
-        self._arena_fd, self.arena = _arena()
+        self._arena_fd, self.arena = _arena(arena_bytes)
         self._register = np.ndarray((2,), dtype=np.float64, buffer=self.arena)
         self._code = np.ndarray((1,), dtype=np.int64, buffer=self.arena)
         mine, theirs = socket.socketpair()

@@ -65,7 +65,8 @@ import numpy as np
 from orchestrator.errors import CosimError, FmuCrashError, FmuError
 from orchestrator.fmi.subsystem import RealBatch, SubsystemBase, md_variable
 from orchestrator.fmi.archive import ModelDescription, Variable, read_model_description
-from .channel import ARENA_BYTES, FREE_TIMEOUT, FUNCTIONS, REGISTER_BYTES, WorkerChannel, signal_name
+from orchestrator.scenario.model import MAX_ORDER
+from .channel import ARENA_BYTES, FREE_TIMEOUT, FUNCTIONS, REGISTER_BYTES, WorkerChannel, arena_bytes, signal_name
 
 log = logging.getLogger(__name__)
 
@@ -113,7 +114,10 @@ class WorkerSubsystem(SubsystemBase):
         self._used = REGISTER_BYTES
         self._next_state = 0
         self._freed = False
-        self._chan = WorkerChannel(name, self.fmu_path, work_dir, call_timeout, cpu, spin)
+        n_real = sum(1 for v in self.md.variables.values() if v.type == "Real")
+        self._arena_bytes = arena_bytes(n_real, SLOTS, MAX_ORDER)     # room for every batch of this FMU
+        self._chan = WorkerChannel(name, self.fmu_path, work_dir, call_timeout, cpu, spin,
+                                   arena_bytes=self._arena_bytes)
         self._starting = True
         try:
             self._chan.send([("init",)], "fmi2Instantiate")
@@ -175,9 +179,10 @@ class WorkerSubsystem(SubsystemBase):
         if entry is not None:
             return entry[1]
         nbytes = 8 * max(batch.n, 1)
-        if self._used + SLOTS * nbytes > ARENA_BYTES:
+        if self._used + SLOTS * nbytes > self._arena_bytes:
             raise FmuError(f"FMU instance '{self.name}': the value buffers exceed the worker's shared memory "
-                           f"({ARENA_BYTES} bytes); record fewer signals or run it with isolation: none")
+                           f"({self._arena_bytes} bytes, made for the Real variables its model description "
+                           "declares); record fewer signals or run it with isolation: none")
         views = [np.ndarray((batch.n,), dtype=np.float64, buffer=self._chan.arena, offset=self._used + k * nbytes)
                  for k in range(SLOTS)]
         slot = _Slot(len(self._slots), views)

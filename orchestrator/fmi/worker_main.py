@@ -24,7 +24,7 @@ import numpy as np
 
 from orchestrator.errors import FmuCallError, ScenarioError
 from orchestrator.fmi.subsystem import RealBatch
-from .channel import ARENA_BYTES, CODES, spin_poll
+from .channel import CODES, spin_poll
 from .worker import SLOTS
 
 class _Collect(logging.Handler):
@@ -79,7 +79,7 @@ def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str,
     logs = _worker_setup()
     conn = mp_connection.Connection(conn_fd)
     conn.send(("hello",))
-    arena = mmap.mmap(arena_fd, ARENA_BYTES)
+    arena = mmap.mmap(arena_fd, os.fstat(arena_fd).st_size)     # as large as the master made it
     os.close(arena_fd)
     reg = np.ndarray((2,), dtype=np.float64, buffer=arena)
     code = np.ndarray((1,), dtype=np.int64, buffer=arena)
