@@ -118,3 +118,31 @@ def test_an_fmu_recording_many_signals_runs_and_validates_in_a_worker(tmp_path, 
     assert rc == 0 and "shared memory" not in text, text[-2000:]
     rows = (out / "results.csv").read_text().splitlines()
     assert len(rows) == 4 and rows[0].count(",") == n
+
+
+@pytest.mark.parametrize("var, value, said", [
+    ("ROTORCOSIM_SAFE_LOGGER", "yes", "ROTORCOSIM_SAFE_LOGGER must be 1 (our logger formats FMU log messages, the "
+                                      "default) or 0 (fmpy's proxy does) (got 'yes'); unset it for the default"),
+    ("CC", 'gcc "-O2', "CC, the C compiler the FMU log formatter is built with (orchestrator/fmi/safe_log.py), cannot "
+                       "be split into words as a shell would (No closing quotation; got 'gcc \"-O2'); close its "
+                       "quotes, or unset CC to use cc, gcc or clang"),
+])
+def test_a_setting_the_fmu_loader_reads_is_named_not_blamed_on_the_fmu(tmp_path, c_fmus, capsys, monkeypatch,
+                                                                        var, value, said):
+    """An environment variable read where FMUs are loaded: a bad value was reported in a worker
+    process (`isolation: process`, and always in `validate`) as the FMU's failure, "FMU instance
+    'bearing1': fmi2Instantiate returned exception: SettingError in the worker: ...", and a CC
+    with an unclosed quote ended every run in "internal error: ValueError: No closing quotation"
+    (in a worker: "... returned exception: ValueError in the worker"). Now both are the setting's
+    error, in the master's process and in a worker alike."""
+    from hostile_builders import cli
+    from orchestrator.fmi import safe_log, subsystem
+    monkeypatch.setenv(var, value)
+    monkeypatch.setattr(safe_log, "_tried", False)     # this process reads the setting afresh
+    monkeypatch.setattr(safe_log, "_lib", None)
+    monkeypatch.setattr(subsystem, "_CALLBACKS", None)
+    scenario = _bearing_scenario(c_fmus, tmp_path)
+    for args in (("validate", scenario), ("run", scenario, "--out", tmp_path / "out", "--no-progress")):
+        rc, text = cli(capsys, *args)
+        assert rc != 0 and said in text, text[-2000:]
+        assert "returned exception" not in text and "in the worker" not in text, text[-2000:]

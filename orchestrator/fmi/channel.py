@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from orchestrator.errors import CosimError, CouplingError, FmuCallError, FmuCrashError, FmuError, LifecycleError, ScenarioError
-from orchestrator.untrusted import env_number
+from orchestrator.untrusted import InputError, SettingError, env_number
 
 log = logging.getLogger(__name__)
 
@@ -43,7 +43,10 @@ FUNCTIONS = ("idle", "fmi2Instantiate", "fmi2Set* (parameters)", "fmi2SetupExper
              "fmi2SetInteger/Boolean/String", "fmi2GetInteger/Boolean/String", "fmi2GetBooleanStatus")
 CODES = {"params": 2, "setup": 3, "enter": 4, "exit": 5, "set": 6, "get": 7, "der": 8, "step": 9,
          "gs": 10, "ss": 11, "fs": 12, "term": 13, "free": 14, "reg": 15, "setv": 16, "getv": 17, "ended": 18}
-_ERRORS = {c.__name__: c for c in (ScenarioError, FmuError, LifecycleError, CouplingError)}
+# errors of the worker rebuilt as themselves in the master (any other is the FMU's: "exception");
+# a SettingError (an environment variable the worker reads, e.g. ROTORCOSIM_SAFE_LOGGER or CC)
+# was reported as "fmi2Instantiate returned exception: SettingError in the worker"
+_ERRORS = {c.__name__: c for c in (ScenarioError, FmuError, LifecycleError, CouplingError, InputError, SettingError)}
 
 
 def signal_name(exit_code: int | None) -> str | None:

@@ -53,8 +53,16 @@ def cache_root() -> Path:
 
 
 def _compiler() -> list[str] | None:
-    """``$CC`` (split as a shell would), else the first of cc, gcc, clang on PATH."""
-    cc = shlex.split(os.environ.get("CC", ""))
+    """``$CC`` (split as a shell would), else the first of cc, gcc, clang on PATH; a SettingError
+    when ``$CC`` cannot be split (an unclosed quote)."""
+    raw = os.environ.get("CC", "")
+    try:
+        cc = shlex.split(raw)
+    except ValueError as e:          # "No closing quotation": was an internal error of every run
+        from orchestrator.untrusted import SettingError
+        raise SettingError(f"CC, the C compiler the FMU log formatter is built with (orchestrator/fmi/safe_log.py), "
+                           f"cannot be split into words as a shell would ({e}; got {raw!r}); close its quotes, "
+                           "or unset CC to use cc, gcc or clang") from None
     if cc:
         found = shutil.which(cc[0])
         return [found, *cc[1:]] if found else None

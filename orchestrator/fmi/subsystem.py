@@ -395,6 +395,8 @@ class Subsystem(SubsystemBase):
 
         from fmpy.fmi2 import FMU2Slave
 
+        # the logger first: a SettingError there (ROTORCOSIM_SAFE_LOGGER, CC) leaves no library loaded
+        cb = _callbacks()
         global native_fmu_loaded
         native_fmu_loaded = True     # the CLI then leaves without interpreter teardown (cli.console_main)
         # fmpy changes into binaries/<platform> to load the library and, when loading fails, stays
@@ -411,7 +413,6 @@ class Subsystem(SubsystemBase):
             if os.getcwd() != cwd:
                 os.chdir(cwd)
 
-        cb = _callbacks()
         self._callbacks = cb
         self._sink_key = f"{name}#{id(self)}"
         _LOG_SINKS[self._sink_key] = self._log_messages
