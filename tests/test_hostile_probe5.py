@@ -146,3 +146,37 @@ def test_a_setting_the_fmu_loader_reads_is_named_not_blamed_on_the_fmu(tmp_path,
         rc, text = cli(capsys, *args)
         assert rc != 0 and said in text, text[-2000:]
         assert "returned exception" not in text and "in the worker" not in text, text[-2000:]
+
+
+@pytest.mark.parametrize("isolation", ["none", "process"])
+def test_a_long_percent_s_argument_of_an_fmu_log_message_keeps_its_end(tmp_path, c_fmus, isolation):
+    """The FMU log formatter (orchestrator/fmi/safe_logger.c) read a %s argument up to 1023 bytes:
+    a message the FMU formatted itself and passed as "%s" (a common way to log) lost everything
+    after that, so the log line, which keeps a long message's start and its end ("the end says
+    where"), showed neither the end nor any sign of the cut; fmpy's proxy before it kept 2047
+    bytes, and docs/limits.md promised the message's 4096. "%.2000s" printed 512 characters (the
+    cap on widths and on the precisions of numbers, which a string's precision, only shortening
+    it, does not need). MisbehavingBearing fault 16 logs "%s" with 3000 characters ending in END."""
+    import ctypes
+    import subprocess
+    import sys
+    from orchestrator.fmi import safe_log
+    lib = safe_log.library()
+    if lib is None:
+        pytest.skip("no C compiler: the safe logger cannot be built here")
+    arg = b"a" * 2996 + b"END"
+    for fmt, want in ((b"long: %s", b"long: " + arg), (b"%.2000s|", arg[:2000] + b"|"),
+                      (b"%5.3s|", b"  aaa|")):
+        buf = ctypes.create_string_buffer(4096)
+        lib.rotorcosim_format(buf, fmt, arg)
+        assert buf.value == want, (fmt, len(buf.value))
+    env = {**__import__("os").environ, "PYTHONPATH": str(HERE.parent)}
+    done = subprocess.run([sys.executable, "-m", "orchestrator", "run",
+                           str(_bearing_scenario(c_fmus, tmp_path, fault=16, isolation=isolation)),
+                           "--out", str(tmp_path / "out"), "--no-progress"],
+                          capture_output=True, text=True, cwd=tmp_path, env=env, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    long_line = next(line for line in done.stderr.splitlines() if "fault 16 long: " in line)
+    assert long_line.endswith("aaaEND") and " ... " in long_line, long_line[-200:]
+    assert "fault 16 star: [3.250000    ] [42    ] [whole]" in done.stderr
+    assert "fault 16 missing: (null) " in done.stderr and " end" in done.stderr

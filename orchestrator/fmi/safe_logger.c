@@ -19,8 +19,9 @@
  *   - %n writes nothing (its argument is consumed);
  *   - at most MAX_ARGS arguments are read (va_arg past the arguments the FMU gave reads
  *     registers and the caller's stack, which are readable, but no further than that), field
- *     widths and precisions are capped at MAX_FIELD, and a format using positional arguments
- *     ("%1$s") is shown from there on as it is;
+ *     widths and the precisions of numbers are capped at MAX_FIELD (the precision of %s only
+ *     shortens the string: not capped), and a format using positional arguments ("%1$s") is
+ *     shown from there on as it is;
  *   - the message, after formatting, is cut at OUT_CAP bytes.
  * Every other conversion is formatted by snprintf with its single argument, so a well-formed
  * message reads exactly as vsnprintf would print it.
@@ -39,7 +40,7 @@
 
 #define OUT_CAP 4096     /* bytes of a formatted message */
 #define FMT_CAP 4096     /* bytes of a format read */
-#define STR_CAP 1024     /* bytes of a %s argument read */
+#define STR_CAP OUT_CAP  /* bytes of a %s argument read: as many as the message may hold */
 #define NAME_CAP 256     /* bytes of the instance name and the category read */
 #define MAX_ARGS 64      /* arguments read from the variable argument list */
 #define MAX_FIELD 512    /* largest field width and precision */
@@ -153,7 +154,8 @@ static void format_message(const int fds[2], const char *fmt, va_list ap, char *
         /* spec: '%', the flags, the width and the precision as numbers (capped), then the
            length modifier and the conversion; %c, %s and %p take no length modifier here */
         if (width != -1 || star_w) s += (size_t)snprintf(spec + s, sizeof spec - s, "%d", field(width));
-        if (precision >= 0) s += (size_t)snprintf(spec + s, sizeof spec - s, ".%d", field(precision));
+        if (precision >= 0)
+            s += (size_t)snprintf(spec + s, sizeof spec - s, ".%d", conv == 's' ? precision : field(precision));
         if (conv != 'c' && conv != 's' && conv != 'p')
             for (int k = 0; k < 2 && lm[k]; k++) spec[s++] = lm[k];
         spec[s++] = conv;

@@ -14,7 +14,9 @@ Run as a script to build into a folder: ``python tests/fmus_c/build_c_fmu.py OUT
 ``_exit``s, hangs, outputs NaN or returns fmi2Error at a chosen step (parameters
 ``fault``, ``fault_step``), for the crash tests of FMUs in worker processes; or floods its
 log, logs a hostile message, returns fmi2Pending or status 42, gives no FMU state, or floods its log under
-another instance name (faults 9-14, tests/test_hostile_probe3.py).
+another instance name (faults 9-14, tests/test_hostile_probe3.py); or logs with printf arguments, from a
+thread of its own, or after it freed its instance (faults 16-18, tests/test_hostile_probe5.py and
+tests/test_safe_logger.py). Compiled with ``-pthread``.
 
 ``build_c_fmu(dest, "AllTypes", fixed_step=True)`` builds ``AllTypesFixed.fmu``: the same
 model compiled with ``-DFIXED_STEP`` (it refuses a step size other than its first one) and
@@ -74,7 +76,7 @@ def build_c_fmu(dest_dir: str | Path, name: str = MODEL, *, fixed_step: bool = F
     dest_dir.mkdir(parents=True, exist_ok=True)
     sources = sorted((HERE / SOURCES.get(name, name)).glob("*.c"))
     flags = ["-Wno-unused-parameter"] if name == "AllTypes" else []
-    flags += ["-DMISBEHAVING"] if name == "MisbehavingBearing" else []
+    flags += ["-DMISBEHAVING", "-pthread"] if name == "MisbehavingBearing" else []
     flags += ["-DFIXED_STEP"] if fixed_step else []
     with tempfile.TemporaryDirectory(prefix=f"{name}-build-") as tmp:
         so = Path(tmp) / f"{name}.so"

@@ -33,7 +33,13 @@
  *   13 fmi2GetFMUstate returns fmi2OK without giving a state (NULL; fault_step unused),
  *   14 every fmi2DoStep from then on logs 500 warnings under another instance name, one that
  *      holds a terminal escape sequence ("other\x1b[2J"), as a confused or hostile FMU might,
- *   15 a hang in fmi2ExitInitializationMode (fault_step unused).
+ *   15 a hang in fmi2ExitInitializationMode (fault_step unused),
+ *   16 logs three warnings with printf arguments: "%s" of a 3000-character string ending in
+ *      "END", "%*.*f", "%-*d" and "%.*s" with negative widths and precisions, and conversions
+ *      without their arguments ("%s %d %f %n"; tests/test_hostile_probe5.py),
+ *   17 starts a thread of its own that logs 200 warnings with arguments while the importer
+ *      goes on stepping; fmi2FreeInstance joins it (fault_step: the step that starts it),
+ *   18 fmi2FreeInstance frees the instance, then logs one warning (fault_step unused).
  * It tests what a co-simulation master does when an FMU crashes or hangs.
  */
 
@@ -41,6 +47,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdlib.h>
+#include <pthread.h>
 #include <time.h>
 #include <unistd.h>
 #endif
@@ -79,6 +86,8 @@ typedef struct {
     fmi2Boolean loggingOn;
 #ifdef MISBEHAVING
     int fault, fault_step, steps, nan;   /* steps: fmi2DoStep calls so far (not part of the FMU state) */
+    int thread_started;                   /* fault 17: its logging thread runs (joined when freed) */
+    pthread_t thread;
 #endif
 } Instance;
 
@@ -131,6 +140,17 @@ static void compute_outputs(Data *d)
 }
 
 #ifdef MISBEHAVING
+/* fault 17: a thread of the FMU's own that logs while the importer steps it */
+static void *log_thread(void *arg)
+{
+    Instance *inst = (Instance *)arg;
+    int i;
+    for (i = 0; i < 200; i++)
+        inst->cb.logger(inst->cb.componentEnvironment, inst->instanceName, fmi2Warning, "logEvents",
+                        "fault 17: message %d of %s from a thread of the FMU", i, "200");
+    return NULL;
+}
+
 /* the fault of fmi2DoStep number inst->steps; returns fmi2Error for fault 6, else fmi2OK */
 static fmi2Status misbehave(Instance *inst)
 {
@@ -171,6 +191,23 @@ static fmi2Status misbehave(Instance *inst)
         inst->cb.logger(inst->cb.componentEnvironment, inst->instanceName, fmi2Warning, "logEvents", big);
         return fmi2OK;
     }
+    case 16: {
+        static char arg[3001];
+        memset(arg, 'a', sizeof arg - 1);
+        arg[sizeof arg - 1] = '\0';
+        memcpy(arg + sizeof arg - 5, "END", 4);
+        inst->cb.logger(inst->cb.componentEnvironment, inst->instanceName, fmi2Warning, "logEvents",
+                        "fault 16 long: %s", arg);
+        inst->cb.logger(inst->cb.componentEnvironment, inst->instanceName, fmi2Warning, "logEvents",
+                        "fault 16 star: [%*.*f] [%-*d] [%.*s]", -12, -3, 3.25, 6, 42, -1, "whole");
+        inst->cb.logger(inst->cb.componentEnvironment, inst->instanceName, fmi2Warning, "logEvents",
+                        "fault 16 missing: %s %d %f %n end");
+        return fmi2OK;
+    }
+    case 17:
+        if (!inst->thread_started && pthread_create(&inst->thread, NULL, log_thread, inst) == 0)
+            inst->thread_started = 1;
+        return fmi2OK;
     case 11: return (fmi2Status)5;                  /* fmi2Pending */
     case 12: return (fmi2Status)42;
     default: return fmi2OK;
@@ -241,6 +278,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     inst->fault_step = 5;
     inst->steps = 0;
     inst->nan = 0;
+    inst->thread_started = 0;
 #endif
     logf_(inst, fmi2OK, "logEvents", "fmi2Instantiate: k = %g N/m, c = %g N s/m", inst->d.v[VR_K],
           inst->d.v[VR_C]);
@@ -257,8 +295,21 @@ void fmi2FreeInstance(fmi2Component c)
         volatile int *nowhere = NULL;
         *nowhere = 1;                                /* SIGSEGV while freeing */
     }
+    if (inst->thread_started) pthread_join(inst->thread, NULL);
 #endif
     freeMemory = inst->cb.freeMemory;
+#ifdef MISBEHAVING
+    if (inst->fault == 18) {                         /* logs after its name was freed */
+        char *name = inst->instanceName;
+        fmi2CallbackLogger logger = inst->cb.logger;
+        void *env = inst->cb.componentEnvironment;
+        freeMemory(name);
+        freeMemory(inst);
+        logger(env, "bearing1", fmi2Warning, "logEvents", "fault 18: logged in fmi2FreeInstance after freeing %s",
+               "its memory");
+        return;
+    }
+#endif
     freeMemory(inst->instanceName);
     freeMemory(inst);
 }
