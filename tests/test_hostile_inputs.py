@@ -107,7 +107,7 @@ def test_huge_scenario_file(tmp_path, capsys, monkeypatch):
 # --------------------------------------------------------------------------- numeric limits
 @pytest.mark.parametrize("top, coupling, step, words", [
     ("", "", "1.0e-3", None),
-    ("stop_time: 1.0e300\n", "", "1.0e-300", "too small for the time 1e+300 s"),
+    ("stop_time: 1.0e300\n", "", "1.0e-3", "too small for the time 1e+300 s"),    # 1e-300: below 1 fs, refused first
     ("stop_time: 1.0e5\n", "", "1.0e-4", "1e+09 macro steps (the limit is 1e+08)"),
     ("stop_time: 1.0e5\n", "", None, "1e+09 macro steps (the limit is 1e+08)"),     # the default step
     ("", "  substeps: 1.0e9\n", "1.0e-3", "'coupling.substeps' must be between 1 and 10000"),
