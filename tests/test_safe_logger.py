@@ -189,3 +189,11 @@ def test_an_fmu_logging_from_its_own_thread_or_while_it_is_freed(tmp_path, isola
                               cwd=ROOT, timeout=120)
         assert done.returncode == 0, done.stderr[-2000:]
         assert said in done.stderr, done.stderr[-2000:]
+
+
+@needs_library
+def test_a_percent_s_argument_with_colour_codes_is_text():
+    """ANSI colour codes (ESC [ ... m) in a %s argument are text: shown (escaped by the log line),
+    not replaced by "(not text)"; other control characters are what random memory holds."""
+    assert _format(b"[%s]", b"\x1b[31mred\x1b[0m\ttab") == b"[\x1b[31mred\x1b[0m\ttab]"
+    assert _format(b"[%s]", b"a\x01b") == b"[(not text)]"

@@ -15,7 +15,7 @@
  *   - every string the FMU hands over (instance name, category, message, each %s argument) is
  *     copied through a pipe first: write(2) from an address that is not readable fails with
  *     EFAULT instead of faulting, so an unreadable string becomes "(unreadable)", and a %s
- *     argument holding control characters (other than tab and line ends) "(not text)";
+ *     argument holding control characters (other than tab, line ends and escape) "(not text)";
  *   - %n writes nothing (its argument is consumed);
  *   - at most MAX_ARGS arguments are read (va_arg past the arguments the FMU gave reads
  *     registers and the caller's stack, which are readable, but no further than that), field
@@ -81,12 +81,13 @@ static long copy_string(const int fds[2], const char *p, char *dst, size_t cap) 
     return (long)n;
 }
 
-/* Text has no control characters but tab, newline and carriage return. A %s whose argument
+/* Text has no control characters but tab, newline, carriage return and escape (colour codes;
+   shown escaped like the rest of the message, orchestrator/fmi/subsystem.py). A %s whose argument
    the FMU did not pass reads a pointer from a register or the stack; where that happens to
    point at readable memory, what is there is almost never text, and is not shown. */
 static int is_text(const char *p) {
     for (const unsigned char *c = (const unsigned char *)p; *c; c++)
-        if ((*c < 0x20 && *c != '\t' && *c != '\n' && *c != '\r') || *c == 0x7f) return 0;
+        if ((*c < 0x20 && *c != '\t' && *c != '\n' && *c != '\r' && *c != 0x1b) || *c == 0x7f) return 0;
     return 1;
 }
 
