@@ -70,6 +70,19 @@ def _add_run(sub) -> None:
     p.set_defaults(func=_cmd_run)
 
 
+def _first_compile_note(scenario) -> None:
+    """Say so when our FMUs' numba kernels are compiled first (a silent pause otherwise)."""
+    from orchestrator.fmi.build import uncompiled_kernels
+    try:
+        missing = uncompiled_kernels(scenario)
+    except OSError:                 # a note only: never the reason a run does not start
+        return
+    if missing:
+        their = "its" if len(missing) == 1 else "their"
+        print(f"note: first run of these {' and '.join(missing)} sources on this machine: numba compiles {their} "
+              "kernels before the first step (about 15-60 s, once; later runs load them from the cache)", flush=True)
+
+
 def _cmd_run(args) -> int:
     from orchestrator.results.run_directory import RunDirectory
     from orchestrator.scenario import load_scenario
@@ -83,6 +96,7 @@ def _cmd_run(args) -> int:
           f"{scenario.coupling.scheme}, macro step {scenario.coupling.macro_step:g} s", flush=True)
     for key, text in scenario.defaults.items():
         print(f"{key} = {text}")
+    _first_compile_note(scenario)
     t0 = time.perf_counter()
     result = run(scenario, out_dir=out_dir, progress=args.progress)
     wall = time.perf_counter() - t0

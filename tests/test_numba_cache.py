@@ -202,3 +202,32 @@ def test_run_after_a_freed_rotor_fmu_whose_folder_is_gone(tmp_path):
                          text=True, timeout=600, cwd=tmp_path)
     assert out.returncode == 0, out.stderr[-3000:]
     assert out.stdout.startswith("True"), out.stdout[-3000:]
+
+
+def test_run_says_when_our_kernels_are_compiled_first(tmp_path, monkeypatch):
+    """A first run (or the first after an update) spends 15-60 s compiling the film kernels
+    before its first step, silently: it looked like a hang. `run` now says so, and only then."""
+    from orchestrator import load_scenario
+    from orchestrator.fmi.build import uncompiled_kernels
+    from bearing_fmu._numba_cache import _package_hash
+    sc = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "quickstart.yaml")
+    monkeypatch.setenv("ROTORCOSIM_NUMBA_CACHE", str(tmp_path))
+    assert sorted(uncompiled_kernels(sc)) == ["bearing_fmu", "rotor_fmu"]
+    for pkg in ("bearing_fmu", "rotor_fmu"):
+        first = sorted((PKG.parent / pkg).glob("*.py"))[0]
+        d = tmp_path / f"somemodule-{_package_hash(str(first))[:20]}"
+        d.mkdir()
+        (d / "kernel.nbi").write_bytes(b"")
+    assert uncompiled_kernels(sc) == []
+    monkeypatch.setenv("ROTORCOSIM_NUMBA_CACHE", "off")
+    assert uncompiled_kernels(sc) == []
+    # the note in the CLI's words
+    monkeypatch.setenv("ROTORCOSIM_NUMBA_CACHE", str(tmp_path / "empty"))
+    (tmp_path / "empty").mkdir()
+    from orchestrator import cli
+    import io
+    import contextlib
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        cli._first_compile_note(sc)
+    assert buf.getvalue().startswith("note: first run of these ") and "numba compiles their kernels" in buf.getvalue()

@@ -256,6 +256,46 @@ def build_fmus(out_dir: str | Path = "fmus", force: bool = False,
     return paths
 
 
+def _our_recipes(scenario) -> list[FmuRecipe]:
+    """The recipes of our FMUs that ``scenario`` uses (built here or in the per-user cache)."""
+    out = []
+    for spec in scenario.fmus:
+        try:
+            resolved = Path(spec.path).resolve()
+        except OSError:
+            continue
+        name = resolved.stem
+        if (name in RECIPES and resolved.suffix == ".fmu" and RECIPES[name] not in out
+                and (resolved.parent == FMU_DIR.resolve() or resolved == fmu_location(name).resolve())):
+            out.append(RECIPES[name])
+    return out
+
+
+def uncompiled_kernels(scenario) -> list[str]:
+    """The packages of our FMUs in ``scenario`` (``bearing_fmu``, ``rotor_fmu``) whose numba
+    kernels of this source version are not in the on-disk cache yet
+    (:mod:`bearing_fmu._numba_cache`): their first run compiles them before its first step,
+    15-60 s that a new user would otherwise take for a hang. [] when the cache is off."""
+    from bearing_fmu._numba_cache import _package_hash, cache_root
+    root = cache_root()
+    if root is None:
+        return []
+    missing = []
+    for recipe in _our_recipes(scenario):
+        for pkg in recipe.packages:
+            files = sorted(pkg.glob("*.py"))
+            if pkg.name in missing or not files:
+                continue
+            suffix = f"-{_package_hash(str(files[0]))[:20]}"
+            try:
+                cached = any(d.name.endswith(suffix) and any(d.glob("*.nbi")) for d in Path(root).iterdir())
+            except OSError:
+                cached = False
+            if not cached and any("numba" in f.read_text(errors="replace") for f in files):
+                missing.append(pkg.name)
+    return missing
+
+
 def ensure_fmus(scenario) -> list[Path]:
     """Build the repository FMUs that ``scenario`` uses and that are missing or stale.
 
