@@ -21,6 +21,16 @@ def _c_fmu(dest: Path, name: str, **kw) -> Path:
     return mod.build_c_fmu(dest, name, **kw)
 
 
+def _run_fixed_step(tmp_path: Path, start: str, stop: str):
+    """AllTypesFixed (built in tmp_path; it cannot vary its step) from ``start`` to ``stop`` in
+    macro steps of 0.1 s, a.x and a.count recorded."""
+    p = tmp_path / "fixed.yaml"
+    p.write_text(f"name: fixed\nstart_time: {start}\nstop_time: {stop}\nfmus:\n"
+                 "  a: {path: AllTypesFixed.fmu, parameters: {u: 1.0}}\ncoupling: {macro_step: 0.1}\n"
+                 "output: {signals: [a.x, a.count]}\n")
+    return _run(p, tmp_path / f"fixed-{start}")
+
+
 def _run(path: Path, out: Path, overrides=()):
     import orchestrator
     return orchestrator.run(orchestrator.load_scenario(path, overrides=list(overrides)), out_dir=out, progress=False)
@@ -35,11 +45,7 @@ def test_every_macro_step_is_passed_as_the_macro_step_itself(tmp_path, test_fmus
     fmi2Error and the run failed. Now every whole macro step is passed as coupling.macro_step
     exactly (sub-steps as macro_step / substeps), from the grid time T(n) = t0 + n*H."""
     _c_fmu(tmp_path, "AllTypes", fixed_step=True)
-    p = tmp_path / "fixed.yaml"
-    p.write_text("name: fixed\nstart_time: 1000000.1\nstop_time: 1000001.1\nfmus:\n"
-                 "  a: {path: AllTypesFixed.fmu, parameters: {u: 1.0}}\ncoupling: {macro_step: 0.1}\n"
-                 "output: {signals: [a.x, a.count]}\n")
-    res = _run(p, tmp_path / "out")
+    res = _run_fixed_step(tmp_path, "1000000.1", "1000001.1")
     assert res.success, res.message
     assert list(res.outputs["a.count"]) == list(range(11))
 
@@ -198,11 +204,7 @@ def test_a_run_starting_at_a_large_time_steps_to_its_stop_time(tmp_path, test_fm
     assert res.success, res.message
     assert len(res.t) == 6 and res.t[-1] == 31536000.5
 
-    q = tmp_path / "fixed.yaml"
-    q.write_text("name: fixed\nstart_time: 31536000\nstop_time: 31536000.4\nfmus:\n"
-                 "  a: {path: AllTypesFixed.fmu, parameters: {u: 1.0}}\ncoupling: {macro_step: 0.1}\n"
-                 "output: {signals: [a.count]}\n")
-    res = _run(q, tmp_path / "fixed")
+    res = _run_fixed_step(tmp_path, "31536000", "31536000.4")
     assert res.success, res.message
     assert list(res.outputs["a.count"]) == [0, 1, 2, 3, 4]
 
