@@ -197,3 +197,27 @@ def test_a_percent_s_argument_with_colour_codes_is_text():
     not replaced by "(not text)"; other control characters are what random memory holds."""
     assert _format(b"[%s]", b"\x1b[31mred\x1b[0m\ttab") == b"[\x1b[31mred\x1b[0m\ttab]"
     assert _format(b"[%s]", b"a\x01b") == b"[(not text)]"
+
+
+def test_a_failed_build_is_not_tried_again_by_every_process(tmp_path, monkeypatch, caplog):
+    """A compiler that cannot build the library (here: one that always fails) made every process
+    and every worker of a sweep compile again and warn again. The first says why and leaves a
+    marker; the next ones within RETRY_AFTER fall back to fmpy's proxy quietly."""
+    fake = tmp_path / "bin" / "cc"
+    fake.parent.mkdir()
+    fake.write_text("#!/bin/sh\necho 'fatal error: stdio.h: No such file or directory' >&2\nexit 1\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("CC", str(fake))
+    monkeypatch.setenv("ROTORCOSIM_CACHE", str(tmp_path / "cache"))
+    for attempt in range(2):
+        monkeypatch.setattr(safe_log, "_tried", False)
+        monkeypatch.setattr(safe_log, "_lib", None)
+        caplog.clear()
+        with caplog.at_level("DEBUG", logger="orchestrator.fmi.safe_log"):
+            assert safe_log.library() is None
+        warned = [r for r in caplog.records if r.levelname == "WARNING"]
+        if attempt == 0:
+            assert len(warned) == 1 and "stdio.h" in warned[0].getMessage()
+            assert list((tmp_path / "cache" / "native").glob("*.failed"))
+        else:
+            assert warned == [] and "failed to build less than" in caplog.text

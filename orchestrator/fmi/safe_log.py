@@ -12,7 +12,9 @@ The library is compiled once per source version with the C compiler of the machi
 else cc, gcc or clang) into the per-user cache (``ROTORCOSIM_CACHE`` or ``platformdirs``, folder
 ``native/``), about 0.2 s, and loaded from there by every process that loads FMUs (the master
 and its worker processes). Without a C compiler, or on Windows, fmpy's proxy formats the
-messages as before; ``ROTORCOSIM_SAFE_LOGGER=0`` chooses it on purpose (``1``, the default,
+messages as before (a build that fails is tried again by the next process an hour later, not by
+every worker of a sweep at once: ``native/safe_logger-*.failed`` holds why); ``ROTORCOSIM_SAFE_LOGGER=0``
+chooses it on purpose (``1``, the default,
 ours; any other value is a SettingError).
 """
 
@@ -106,6 +108,18 @@ def _build(cc: list[str], out: Path) -> None:
             os.unlink(tmp)
 
 
+#: seconds after a failed build before the next process tries again (a compiler fixed meanwhile)
+RETRY_AFTER = 3600
+
+
+def _recent(marker: Path) -> bool:
+    try:
+        import time
+        return time.time() - marker.stat().st_mtime < RETRY_AFTER
+    except OSError:
+        return False
+
+
 def library() -> ctypes.CDLL | None:
     """The loaded library, built first if needed; None where it cannot be (see the module doc)."""
     global _lib, _tried
@@ -124,9 +138,17 @@ def library() -> ctypes.CDLL | None:
         log.debug("no C compiler (cc, or $CC): FMU log messages are formatted by fmpy's logger proxy")
         return None
     path = SOURCE
+    failed = None
     try:
         path = library_path(cc)
+        failed = path.with_suffix(".failed")
         if not _ours(path):
+            if _recent(failed):
+                # another process failed to build it a moment ago and said why: not every
+                # worker process of a sweep compiles and warns again
+                log.debug("the FMU logger %s failed to build less than %d s ago (%s): fmpy's proxy formats "
+                          "FMU log messages", path, RETRY_AFTER, failed)
+                return None
             _build(cc, path)
         if not _ours(path):
             raise OSError(f"{path} is not a file of this user that only it may write")
@@ -135,6 +157,11 @@ def library() -> ctypes.CDLL | None:
         log.warning("could not build the FMU logger %s (%s): FMU log messages are formatted by fmpy's "
                     "logger proxy, which an FMU whose message holds %%s or %%n without its argument can crash",
                     path, e)
+        if failed is not None:
+            try:
+                failed.write_text(f"{e}\n")
+            except OSError:
+                pass
         return None
     lib.rotorcosim_safe_logger.argtypes = [_TARGET_TYPE]
     lib.rotorcosim_safe_logger.restype = ctypes.c_void_p
