@@ -54,6 +54,34 @@ def test_an_earlier_run_is_moved_aside(tmp_path):
     # but an exception inside writes a failed summary (next test)
 
 
+def test_an_earlier_runs_figures_and_fields_are_moved_aside_with_it(tmp_path):
+    # found by running stationary_oil_bath and then quickstart into one folder: `rotorcosim plot`
+    # drew the stationary run's bearing_fields.npz as "quickstart: bearing_fields", and plots/
+    # kept the earlier run's figures beside the new results
+    (tmp_path / "results.csv").write_text("time,x\n0,1\n")
+    (tmp_path / "summary.json").write_text(json.dumps({"scenario": "old", "status": "finished"}))
+    (tmp_path / "bearing_fields.npz").write_bytes(b"old fields")
+    (tmp_path / "plots").mkdir()
+    (tmp_path / "plots" / "signals_a.png").write_bytes(b"old figure")
+    prev = tmp_path / "previous"
+    prev.mkdir()
+    (prev / "plots").mkdir()                                   # an even older run's, replaced
+    (prev / "plots" / "stale.png").write_bytes(b"older")
+    (prev / "other_fields.npz").write_bytes(b"older fields")
+    with RunFolder(tmp_path, _sc("new")) as f:
+        assert not (tmp_path / "plots").exists() and not list(tmp_path.glob("*_fields.npz"))
+        assert (prev / "bearing_fields.npz").read_bytes() == b"old fields"
+        assert sorted(p.name for p in (prev / "plots").iterdir()) == ["signals_a.png"]
+        assert not (prev / "other_fields.npz").exists()
+        f.finish({"status": "finished"})
+    # a folder with no earlier run: figures that are not a run's are left alone
+    other = tmp_path / "fresh"
+    (other / "plots").mkdir(parents=True)
+    with RunFolder(other, _sc()) as f:
+        f.finish({"status": "finished"})
+    assert (other / "plots").is_dir() and not (other / "previous").exists()
+
+
 def test_a_failure_inside_writes_a_failed_summary_and_unlocks(tmp_path):
     with pytest.raises(ValueError):
         with RunFolder(tmp_path, _sc()):

@@ -16,7 +16,8 @@ Rules:
   refused with a :class:`~orchestrator.errors.LifecycleError` that names the first
   (scenario, pid, start time). The lock file stays; it holds the current holder.
 * **Earlier runs**: ``results.csv`` and ``summary.json`` left by an earlier run are moved
-  into ``out_dir/previous/`` (replacing what was there) before anything is written, so a
+  into ``out_dir/previous/`` (replacing what was there) before anything is written, with its
+  figures (``plots/``) and film fields (``*_fields.npz``), so a
   run that fails early never sits beside another run's results, and a run killed hard
   leaves a summary that says ``running``, never another run's ``finished``.
 * **summary.json** is written at the start (``status: running``, the scenario, its file,
@@ -51,6 +52,8 @@ from orchestrator.errors import CosimError, LifecycleError, OutputWriteError
 from orchestrator.fmi.call_record import CallRecord, read_calls
 
 RUN_FILES = ("results.csv", "results.parquet", "summary.json")
+PLOTS = "plots"                   # rotorcosim plot's figures of the run (moved aside with it)
+FIELDS_GLOB = "*_fields.npz"      # film fields a bearing wrote into the run folder (moved aside with it)
 LOCK_NAME = ".rotorcosim.lock"
 PREVIOUS = "previous"
 log = logging.getLogger(__name__)
@@ -96,6 +99,16 @@ class RunStopped(KeyboardInterrupt):
         super().__init__(signal.Signals(signum).name)
         self.signum = signum
         self.exit_code = 128 + int(signum)
+
+
+def _remove(path: Path) -> None:
+    """Remove ``path`` (a file, a link - never what it points to - or a folder), if it is there."""
+    import shutil
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
 
 
 def _raise_stopped(signum, frame):
@@ -210,10 +223,13 @@ class RunFolder:
             raise LifecycleError(f"{prev} is not a folder; rotorcosim moves an earlier run's files there before a "
                                  "new run. Remove or rename it")
         prev.mkdir(exist_ok=True)
-        for n in RUN_FILES:
-            with contextlib.suppress(FileNotFoundError):
-                (prev / n).unlink()
-        for n in present:
+        # the earlier run's figures (`rotorcosim plot`) and film fields (`<instance>_fields.npz`, which
+        # plot draws) go with it: left behind, they sat beside the new run's results as if they were its own
+        extra = [p.name for p in sorted(self.out_dir.glob(FIELDS_GLOB))]
+        extra += [PLOTS] if os.path.lexists(self.out_dir / PLOTS) else []
+        for n in (*RUN_FILES, *(p.name for p in prev.glob(FIELDS_GLOB)), PLOTS):
+            _remove(prev / n)
+        for n in (*present, *extra):
             os.replace(self.out_dir / n, prev / n)     # moves a link itself, never its target
 
     # -- summaries --------------------------------------------------------------
