@@ -375,3 +375,30 @@ def test_reference_check_covers_derived_tolerances(tmp_path):
     md = (tmp_path / "b" / "report.md").read_text()
     assert f"onset {change:.3g}" in md and ", on onset 0.1" in md
     assert f"| reference | {ref_on:.6g} |" in md and "| jac-e0i0-h0.1 | " in md
+
+
+def test_error_vs_cost_plots_fmu_calls_along_the_step_refinement(tmp_path, monkeypatch):
+    # found with compare/two_mass.yaml: the right panel's cost was the macro steps, so the family
+    # with 16 sub-steps (16 doSteps per FMU and macro step) looked the cheapest for its error, and
+    # the points were joined in the order of their wall times, which zig-zagged between the steps
+    from types import SimpleNamespace
+    from orchestrator.compare import report as rep
+
+    def variant(fam, h, wall, calls, err):
+        return {"family": fam, "macro_step": h, "wall_time_s": wall, "macro_steps": int(round(0.5 / h)),
+                "fmu_calls": calls, "errors": {"max": err}, "stable": True}
+    variants = [variant("gs", 4e-3, 0.31, 786, 3e-2), variant("gs", 2e-3, 0.49, 1536, 1.4e-2),
+                variant("gs", 1e-3, 0.28, 3036, 7e-3),                # the finest step ran fastest
+                variant("gs-s16", 8e-3, 0.58, 4463, 3.3e-4), variant("gs-s16", 4e-3, 0.57, 8679, 4.4e-5),
+                {**variant("gs-s16", 2e-3, 0.30, 17179, 5.7e-6), "stable": False}]
+    figs = []
+    monkeypatch.setattr(rep, "save_figure", lambda fig, path, dpi: figs.append(fig))
+    rep._plot(SimpleNamespace(variants=variants), SimpleNamespace(order_metric="max", name="x"), tmp_path / "e.png")
+    wall_ax, cost_ax = figs[0].axes
+    assert cost_ax.get_xlabel().startswith("FMU calls")
+    lines = {ln.get_label(): ln for ln in cost_ax.get_lines()}
+    assert list(lines["gs"].get_xdata()) == [786, 1536, 3036]         # calls, coarse to fine
+    assert list(lines["gs-s16"].get_xdata()) == [4463, 8679]           # unstable variants left out
+    assert list(lines["gs"].get_ydata()) == [3e-2, 1.4e-2, 7e-3]
+    walls = {ln.get_label(): list(ln.get_xdata()) for ln in wall_ax.get_lines()}
+    assert walls["gs"] == [0.31, 0.49, 0.28]                           # joined by step, not by wall time
