@@ -168,3 +168,29 @@ def test_in_memory_result_gives_the_same_figures(run_dir, tmp_path):
     for f in files:
         assert f.parent == tmp_path / "mem"
         check_png(f)
+
+
+def test_signal_panels_are_labelled_with_the_fmus_units(tmp_path, monkeypatch):
+    # found plotting the quickstart run: the panels said 'Fx', 'p_max', 'h_min' with no unit (N, Pa,
+    # m), though our FMUs declare one for every variable; summary.json now records the recorded
+    # columns' units (output.units) and plot labels the panels with them
+    from orchestrator import load_scenario, run
+    from orchestrator.results.plots import signals as sig
+    from pathlib import Path
+    quickstart = Path(__file__).resolve().parents[1] / "scenarios" / "quickstart.yaml"
+    sc = load_scenario(quickstart, overrides=["stop_time=0.5004"], build_fmus=True)
+    out = tmp_path / "run"
+    run(sc, out_dir=out)
+    units = json.loads((out / "summary.json").read_text())["output"]["units"]
+    assert units["rotor.omega"] == "rad/s" and units["bearing1.Fx"] == "N" and units["bearing1.p_max"] == "Pa"
+    assert units["bearing1.eps"] == "1" and list(units) == [c for c in units if c in sc.output.signals]
+    figs = []
+    monkeypatch.setattr(sig, "save_figure", lambda fig, path, dpi: figs.append(fig))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)          # 3 rows: no journal figures
+        plot_run(out, signals=["bearing1.*"])
+    labels = [ax.get_ylabel() for ax in figs[0].axes]
+    assert labels == ["eps [-]", "Fx [N]", "Fy [N]", "p_max [Pa]", "h_min [m]"]
+    # a summary from elsewhere: units that are not short text are not used, '$' is no mathtext
+    assert sig.unit_labels({"a.x": "m$^2$", "a.y": 3, "a.z": "x" * 41, "a.w": "N\n"}) == {"a.x": r"m\$^2\$"}
+    assert sig.unit_labels(["m"]) == {}

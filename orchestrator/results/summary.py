@@ -2,7 +2,7 @@
 
 Keys, in order: ``scenario``, ``scenario_file``, ``status``, ``message``, ``start_time``,
 ``stop_time``, ``end_time``, the run's statistics (``macro_steps``, ...; see
-docs/scenario-format.md), ``coupling``, ``output`` (columns, rows), ``versions``; a run
+docs/scenario-format.md), ``coupling``, ``output`` (columns, rows, units), ``versions``; a run
 with an ``analysis:`` section adds ``analysis`` and ``analysis_wall_time_s``.
 """
 
@@ -33,9 +33,35 @@ def make_summary(scenario, res, *, stats: Mapping[str, Any], coupling: Mapping[s
         "end_time": res.end_time,
         **stats,
         "coupling": coupling,
-        "output": {"columns": list(res.outputs), "rows": int(len(res.t))},
+        "output": {"columns": list(res.outputs), "rows": int(len(res.t)),
+                   "units": column_units(scenario, list(res.outputs))},
         "versions": versions(),
     }
+
+
+def column_units(scenario, columns) -> dict[str, str]:
+    """``{column: unit}`` of the recorded columns whose variable declares a unit (its own or its
+    declared type's) in its FMU's model description; ``rotorcosim plot`` labels the signals with it.
+    A model description that cannot be read leaves its columns out (the summary never fails on it)."""
+    by_instance: dict[str, list[str]] = {}
+    for c in columns:
+        inst, _, var = c.partition(".")
+        by_instance.setdefault(inst, []).append(var)
+    units: dict[str, str] = {}
+    for spec in getattr(scenario, "fmus", ()):
+        names = by_instance.get(getattr(spec, "name", None))
+        if not names:
+            continue
+        try:
+            from orchestrator.fmi.archive import read_model_description
+            variables = read_model_description(spec.path).variables
+        except Exception:                        # noqa: BLE001 - a label is not worth a failed summary
+            continue
+        for var in names:
+            v = variables.get(var)
+            if v is not None and getattr(v, "unit", ""):
+                units[f"{spec.name}.{var}"] = v.unit
+    return {c: units[c] for c in columns if c in units}
 
 
 def cosim_stats(stats: Mapping[str, Any]) -> dict:

@@ -95,7 +95,9 @@ def _draw_all(ctx: PlotContext, signals: list[str] | None) -> PlotContext:
         ctx.spec, src = ctx.load_spec()
         logger.info("plot signals from %s: %s", src, ctx.spec)
         if not ctx.spec.get("journals") or signals:
-            files, notes = plot_signals(ctx.cols, ctx.out, ctx.name, signals)
+            output = ctx.summary.get("output")
+            files, notes = plot_signals(ctx.cols, ctx.out, ctx.name, signals,
+                                        units=output.get("units") if isinstance(output, dict) else None)
             ctx.written += files
             ctx.skipped += notes
         if not ctx.spec.get("journals"):

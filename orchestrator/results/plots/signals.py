@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -26,6 +26,7 @@ MAX_PANELS = 8
 MAX_FIGURES = 100        # signal figures of one plot (800 panels); a folder of 20 000 columns took hours
 MAX_POINTS = 20000       # points per trace above which the trace is decimated by striding
 DPI = 110
+MAX_UNIT_CHARS = 40      # a longer "unit" in summary.json is not used as a label
 
 
 def pick(columns: Sequence[str], patterns: Sequence[str] | None) -> tuple[list[str], list[str]]:
@@ -47,11 +48,15 @@ def _safe(name: str) -> str:
 
 
 def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
-                 patterns: Sequence[str] | None = None) -> tuple[list[Path], list[str]]:
+                 patterns: Sequence[str] | None = None,
+                 units: Mapping[str, Any] | None = None) -> tuple[list[Path], list[str]]:
     """Draw the signals of ``cols`` (``{"time": t, "inst.var": values}``) into ``out_dir``.
 
+    ``units``: ``{column: unit}`` (summary.json's ``output.units``, from the FMUs' model
+    descriptions); a panel is labelled ``var [unit]``, ``var`` alone without one.
     Returns ``(written files, notes on what was skipped)``.
     """
+    units = unit_labels(units)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -90,7 +95,9 @@ def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
                 y = _numbers(cols[c])
                 whole = bool(np.all(np.isnan(y) | (y == np.round(y))))
                 ax.plot(t[::stride], y[::stride], lw=0.9, drawstyle="steps-post" if whole else "default")
-                ax.set_ylabel(c.split(".", 1)[-1], rotation=0, ha="right", va="center")
+                unit = units.get(c)
+                ax.set_ylabel(c.split(".", 1)[-1] + (f" [{unit}]" if unit else ""), rotation=0, ha="right",
+                              va="center")
                 ax.grid(True, lw=0.3)
             axes[-1].set_xlabel("time [s]")
             fig.suptitle(f"{title}: {inst}")
@@ -102,6 +109,18 @@ def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
         notes.append(f"signal plots: {left} more signals not drawn (at most {MAX_FIGURES} figures of {MAX_PANELS} "
                      "panels; orchestrator.results.plots.signals.MAX_FIGURES); pick them with --signals PATTERN")
     return written, notes
+
+
+def unit_labels(units: Any) -> dict[str, str]:
+    """The usable entries of ``units`` (read from a summary.json, which may come from anyone): text
+    of at most :data:`MAX_UNIT_CHARS` printable characters; ``$`` escaped (no mathtext); ``1`` shown as ``-``."""
+    if not isinstance(units, Mapping):
+        return {}
+    out = {}
+    for col, unit in units.items():
+        if isinstance(col, str) and isinstance(unit, str) and 0 < len(unit) <= MAX_UNIT_CHARS and unit.isprintable():
+            out[col] = "-" if unit == "1" else unit.replace("$", r"\$")     # FMI's "1": dimensionless
+    return out
 
 
 def _numbers(column) -> np.ndarray | None:
