@@ -443,8 +443,12 @@ def _cmd_init(args) -> int:
     from orchestrator.shipped import init
 
     files = init(args.dir, force=args.force)
-    print(f"{args.dir}: {len(files)} scenarios copied; edit one and run it with `{PROG} run {args.dir}/"
-          f"{files[0].name if files else 'X.yaml'}`")
+    # the example is the quick start (seconds), not the first file by name: that was a full
+    # floating-ring run-up (jeffcott_runup_floating_ring_free_to_air, minutes of wall time)
+    names = [f.name for f in files]
+    first = "quickstart.yaml" if "quickstart.yaml" in names else (names[0] if names else "X.yaml")
+    print(f"{args.dir}: {len(files)} scenarios copied; edit one and run it with `{PROG} run {args.dir}/{first}`"
+          + (" (a few seconds; the paper's run-ups take a minute or more)" if first == "quickstart.yaml" else ""))
     return 0
 
 

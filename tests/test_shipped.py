@@ -37,6 +37,8 @@ def test_shipped_scenarios_name_our_fmus_without_paths():
 @pytest.mark.integration
 def test_init_copies_scenarios_that_load_anywhere(tmp_path, capsys):
     assert main(["init", str(tmp_path / "mine")]) == 0
+    # the command it suggests is the quick start, not the first file by name (a long run-up)
+    assert f"run it with `rotorcosim run {tmp_path / 'mine'}/quickstart.yaml` (a few seconds" in capsys.readouterr().out
     copied = sorted(p.name for p in (tmp_path / "mine").glob("*.yaml"))
     assert copied == sorted(p.name for p in shipped().values())
     sc = load_scenario(tmp_path / "mine" / "quickstart.yaml", build_fmus=True)
