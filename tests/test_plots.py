@@ -194,3 +194,21 @@ def test_signal_panels_are_labelled_with_the_fmus_units(tmp_path, monkeypatch):
     # a summary from elsewhere: units that are not short text are not used, '$' is no mathtext
     assert sig.unit_labels({"a.x": "m$^2$", "a.y": 3, "a.z": "x" * 41, "a.w": "N\n"}) == {"a.x": r"m\$^2\$"}
     assert sig.unit_labels(["m"]) == {}
+
+
+def test_a_signal_constant_up_to_rounding_is_drawn_flat(tmp_path):
+    """A stationary bearing's force varies by 1e-10 of itself (rounding); matplotlib filled the
+    panel with that noise under an offset, so a constant looked like a wandering signal. Such a
+    signal is now drawn flat around its value; a real variation is left to matplotlib."""
+    import numpy as np
+    from orchestrator.results.plots.signals import plot_signals, steady_limits
+    rng = np.random.default_rng(1)
+    flat = 26.2 * (1 + 1e-11 * rng.standard_normal(200))
+    lo, hi = steady_limits(flat)
+    assert lo < flat.min() and hi > flat.max() and hi - lo == pytest.approx(2 * 26.2e-3, rel=1e-6)
+    assert steady_limits(np.zeros(5)) == (-1.0, 1.0)
+    assert steady_limits(np.array([np.nan, np.nan])) is None
+    assert steady_limits(26.2 + 1e-6 * np.sin(np.linspace(0, 6, 50))) is None
+    files, notes = plot_signals({"time": np.linspace(0, 1, 200), "b.Fx": flat,
+                                 "b.Fy": np.linspace(0, 1, 200)}, tmp_path, "t")
+    assert [f.name for f in files] == ["signals_b.png"] and notes == []

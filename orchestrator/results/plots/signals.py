@@ -95,6 +95,10 @@ def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
                 y = _numbers(cols[c])
                 whole = bool(np.all(np.isnan(y) | (y == np.round(y))))
                 ax.plot(t[::stride], y[::stride], lw=0.9, drawstyle="steps-post" if whole else "default")
+                steady = steady_limits(y)
+                if steady is not None:          # rounding noise, not a signal: a flat line, plain ticks
+                    ax.set_ylim(*steady)
+                    ax.ticklabel_format(axis="y", useOffset=False)
                 unit = units.get(c)
                 ax.set_ylabel(c.split(".", 1)[-1] + (f" [{unit}]" if unit else ""), rotation=0, ha="right",
                               va="center")
@@ -109,6 +113,26 @@ def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
         notes.append(f"signal plots: {left} more signals not drawn (at most {MAX_FIGURES} figures of {MAX_PANELS} "
                      "panels; orchestrator.results.plots.signals.MAX_FIGURES); pick them with --signals PATTERN")
     return written, notes
+
+
+#: a signal whose values differ by at most this fraction of their size is drawn as constant
+STEADY_SPAN = 1e-9
+
+
+def steady_limits(y: np.ndarray) -> tuple[float, float] | None:
+    """y-limits for a signal that is constant up to rounding (its finite values within
+    :data:`STEADY_SPAN` of their size): the value +- 0.1 %. Left to matplotlib, such a signal
+    filled its panel with the rounding noise under an offset (a stationary bearing's Fx, which
+    varies by 1e-10 of itself, looked like a wandering signal). None for any other signal."""
+    v = y[np.isfinite(y)]
+    if v.size == 0:
+        return None
+    lo, hi = float(v.min()), float(v.max())
+    size = max(abs(lo), abs(hi))
+    if hi - lo > STEADY_SPAN * size:
+        return None
+    pad = 1e-3 * size if size > 0 else 1.0
+    return lo - pad, hi + pad
 
 
 def unit_labels(units: Any) -> dict[str, str]:
