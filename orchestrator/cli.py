@@ -105,7 +105,11 @@ def _cmd_run(args) -> int:
     where = result.out_dir or out_dir
     steps = stats.get("macro_steps", "?")
     rows = RunDirectory(where).results_file.name
-    print(f"results: {where} ({rows}, summary.json)")
+    try:
+        fields = sorted(p.name for p in Path(where).glob("*_fields.npz"))[:4]     # stationary scenarios
+    except OSError:
+        fields = []
+    print(f"results: {where} ({', '.join([rows, 'summary.json', *fields])})")
     print(f"status: {status_text}")
     wall_s = stats.get("wall_time_s")
     print(f"macro steps: {steps}, wall time: {wall_s if isinstance(wall_s, (int, float)) else wall:.2f} s")

@@ -323,3 +323,14 @@ def test_pytest_session_with_an_fmu_leaves_through_exit_process_with_its_status(
     assert proc.returncode == code, proc.stdout[-2000:] + proc.stderr[-2000:]
     assert ("1 passed" if ok else "1 failed") in proc.stdout
     assert marker.read_text() == f"exit_process({code}) atexit"
+
+
+def test_run_names_the_pressure_fields_a_stationary_scenario_writes(tmp_path):
+    """`run` listed results.csv and summary.json only; a stationary scenario also writes
+    bearing_fields.npz (what `plot` draws the pressure fields from)."""
+    import subprocess
+    import sys
+    done = subprocess.run([sys.executable, "-m", "orchestrator", "run", "stationary_oil_bath", "--out",
+                           str(tmp_path / "s"), "--no-progress"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert f"results: {tmp_path / 's'} (results.csv, summary.json, bearing_fields.npz)" in done.stdout
