@@ -229,3 +229,60 @@ def test_a_macro_step_below_a_femtosecond_is_refused_with_its_line(tmp_path, tes
         orchestrator.load_scenario(p)
     p.write_text("name: tiny\nstop_time: 1.0e-12\nfmus:\n  i: {path: Integrator.fmu}\ncoupling: {macro_step: 1.0e-13}\n")
     assert _run(p, tmp_path / "ok").success            # 0.1 ps steps still run
+
+
+def _with_units(src: Path, dst: Path, u_unit: str, y_unit: str, defs: str) -> Path:
+    """A copy of the Integrator test FMU whose input u and output y declare units (its model
+    description only: the loader reads nothing else)."""
+    import zipfile
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                xml = data.decode()
+                xml = xml.replace('causality="input">\n\t\t\t<Real start="0"/>',
+                                  f'causality="input">\n\t\t\t<Real start="0" unit="{u_unit}"/>')
+                xml = xml.replace('description="integral [-]" causality="output">\n\t\t\t<Real/>',
+                                  f'description="integral [-]" causality="output">\n\t\t\t<Real unit="{y_unit}"/>')
+                xml = xml.replace("\t<ModelVariables>", f"\t<UnitDefinitions>{defs}</UnitDefinitions>\n\t<ModelVariables>")
+                assert f'unit="{u_unit}"' in xml and f'unit="{y_unit}"' in xml
+                data = xml.encode()
+            zout.writestr(item, data)
+    return dst
+
+
+def test_a_connection_between_different_units_is_named_with_the_gain_to_write(tmp_path, test_fmus, caplog):
+    """An output in mm connected to an input in m (no gain) loaded silently, and the input got
+    the number in mm. Now the loader warns, and from the FMUs' unit definitions gives the gain
+    (or says the dimensions differ); the same unit under two names, or a connection with a gain,
+    is left alone."""
+    import orchestrator
+    defs = ('<Unit name="m"><BaseUnit m="1"/></Unit><Unit name="mm"><BaseUnit m="1" factor="0.001"/></Unit>'
+            '<Unit name="metre"><BaseUnit m="1"/></Unit><Unit name="s"><BaseUnit s="1"/></Unit>'
+            '<Unit name="degC"><BaseUnit K="1" offset="273.15"/></Unit><Unit name="K"><BaseUnit K="1"/></Unit>')
+    cases = {("mm", "m"): "write {gain: 0.001} in the connection",
+             ("degC", "K"): "write {gain: 1, offset: 273.15} in the connection",
+             ("m", "s"): "the units have different dimensions",
+             ("m", "furlong"): "the units differ and the FMUs do not define both",
+             ("m", "metre"): None}
+    for k, ((y_unit, u_unit), expected) in enumerate(cases.items()):
+        _with_units(test_fmus["Integrator"], tmp_path / f"a{k}.fmu", "m", y_unit, defs)
+        _with_units(test_fmus["Integrator"], tmp_path / f"b{k}.fmu", u_unit, "m", defs)
+        p = tmp_path / f"s{k}.yaml"
+        p.write_text(f"name: units\nstop_time: 1.0\nfmus:\n  a: {{path: a{k}.fmu}}\n  b: {{path: b{k}.fmu}}\n"
+                     f"connections:\n  - {{from: a.y, to: b.u}}\n")
+        caplog.clear()
+        with caplog.at_level("WARNING"):
+            orchestrator.load_scenario(p)
+        said = [r.getMessage() for r in caplog.records if "connection 'a.y'" in r.getMessage()]
+        if expected is None:
+            assert said == []
+        else:
+            assert len(said) == 1 and f"s{k}.yaml:7: connection 'a.y' [{y_unit}] -> 'b.u' [{u_unit}]" in said[0]
+            assert expected in said[0], said[0]
+    p.write_text("name: units\nstop_time: 1.0\nfmus:\n  a: {path: a0.fmu}\n  b: {path: b0.fmu}\n"
+                 "connections:\n  - {from: a.y, to: b.u, gain: 0.001}\n")
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        orchestrator.load_scenario(p)
+    assert not [r for r in caplog.records if "connection 'a.y'" in r.getMessage()]

@@ -13,6 +13,7 @@ raises :class:`orchestrator.errors.FmuError` naming the file, what is wrong and 
 
 from __future__ import annotations
 
+import math
 import re
 import unicodedata
 from dataclasses import dataclass, field
@@ -50,6 +51,20 @@ class Variable:
     items: tuple = ()              # Enumeration: ((name, value, description), ...) of the declared type
     choices: tuple = ()            # String: the values the FMU accepts, from its rotorcosim annotation
     derivative: int | None = None  # Real: index (1-based) of the variable this one is the derivative of
+
+
+#: the SI base units of an FMI 2.0 ``<BaseUnit>`` (sec. 2.2.2), in order
+BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+
+
+@dataclass(frozen=True)
+class UnitDef:
+    """One ``<Unit>`` of ``<UnitDefinitions>`` with its ``<BaseUnit>``: a value v of this unit is
+    ``factor * v + offset`` in the SI unit of exponents ``exponents`` (:data:`BASE_UNITS`)."""
+
+    exponents: tuple[int, ...]
+    factor: float = 1.0
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -93,6 +108,7 @@ class ModelDescription:
     default_experiment: Mapping[str, float] = field(default_factory=dict)
     variables: Mapping[str, Variable] = field(default_factory=dict)   # name -> Variable, in file order
     model_structure: ModelStructure = field(default_factory=ModelStructure)
+    units: Mapping[str, UnitDef] = field(default_factory=dict)   # <UnitDefinitions> with a valid <BaseUnit>
 
     def inputs(self) -> list[Variable]:
         return [v for v in self.variables.values() if v.causality == "input"]
@@ -150,6 +166,27 @@ def _number(type_: str, s: str | None):
         return float(s) if type_ == "Real" else int(s)
     except ValueError:
         return None
+
+
+def _unit_definitions(root) -> dict[str, UnitDef]:
+    """``{unit name: UnitDef}`` of ``<UnitDefinitions>`` (FMI 2.0 sec. 2.2.2); a unit without a
+    ``<BaseUnit>``, or with one whose numbers do not read, is left out (its relation to other
+    units is unknown)."""
+    out = {}
+    ud = root.find("UnitDefinitions")
+    for unit in (ud if ud is not None else []):
+        name = unit.get("name")
+        base = unit.find("BaseUnit") if unit.tag == "Unit" else None
+        if not name or base is None:
+            continue
+        try:
+            exps = tuple(int(base.get(k, "0")) for k in BASE_UNITS)
+            factor, offset = float(base.get("factor", "1")), float(base.get("offset", "0"))
+        except ValueError:
+            continue
+        if math.isfinite(factor) and math.isfinite(offset) and factor != 0.0:
+            out[name] = UnitDef(exps, factor, offset)
+    return out
 
 
 def _type_definitions(root) -> dict[str, tuple[dict, tuple]]:
@@ -233,7 +270,8 @@ def parse_model_description(xml: bytes, path: Path | str = "<memory>") -> ModelD
         needs_execution_tool=_bool(cs.get("needsExecutionTool"), False),
         can_be_instantiated_only_once_per_process=_bool(cs.get("canBeInstantiatedOnlyOncePerProcess"), False),
         description=root.get("description", "") or "", generation_tool=root.get("generationTool", "") or "",
-        default_experiment=default_experiment, variables=variables, model_structure=structure)
+        default_experiment=default_experiment, variables=variables, model_structure=structure,
+        units=_unit_definitions(root))
 
 
 _HIDDEN = ("Cc", "Cf", "Zl", "Zp", "Cs")   # as in untrusted.name_problem

@@ -7,6 +7,7 @@ of the right causality and type in a readable FMU.
 
 from __future__ import annotations
 
+import logging
 import math
 
 import yaml
@@ -18,6 +19,18 @@ from orchestrator.fmi.values import check_value, declared_range, settable_proble
 from orchestrator.scenario.completion import Completion
 from orchestrator.scenario.model import ANALYSIS_KEYS, JOURNAL_KEYS
 from orchestrator.scenario.nodes import FLOAT_RE, article, did_you_mean, ranked
+
+log = logging.getLogger(__name__)
+
+
+_WARNED: set[str] = set()
+
+
+def warn_once(text: str) -> None:
+    """A loader warning, once per process (a sweep loads its scenario once per run)."""
+    if text not in _WARNED and len(_WARNED) < 10_000:
+        _WARNED.add(text)
+        log.warning("%s", text)
 
 
 class FmuChecks(Completion):
@@ -166,12 +179,46 @@ class FmuChecks(Completion):
                                     f"{declared_range(dst)}: the values {shown} that '{c['from']}' may give are no "
                                     f"items of '{c['to']}', whose FMU would get values it does not declare; connect "
                                     "an output of an enumeration type whose items the input has (or the same type)")
-            elif src.type != "Real":
+            elif src.type == "Real":
+                if "gain_node" not in c and "offset_node" not in c:
+                    self.check_units(c, src, dst)
+            else:
                 for key in ("gain", "offset"):
                     if key + "_node" in c:
                         self.err(c[key + "_node"], f"'{key}' of the connection '{c['from']}' -> '{c['to']}': gain "
                                                    f"and offset apply to Real connections only (this one is "
                                                    f"{src.type}, held over the macro step); remove '{key}'")
+
+    def check_units(self, c: dict, src, dst) -> None:
+        """Warn (not refuse: the FMUs may mean the same) when a Real connection without gain or
+        offset joins variables of different declared units: the input gets the output's number
+        as it is. From the FMUs' ``<UnitDefinitions>``: the same unit under two names is fine,
+        different dimensions are said so, a scale or offset gives the gain and offset to write."""
+        su, du = src.unit, dst.unit
+        if not su or not du or su == du:
+            return
+        mds = getattr(self, "fmu_caps", {})
+        md_s, md_d = mds.get(c["from"].split(".", 1)[0]), mds.get(c["to"].split(".", 1)[0])
+        us = md_s.units.get(su) if md_s is not None else None
+        ud = md_d.units.get(du) if md_d is not None else None
+        head = f"connection '{c['from']}' [{su}] -> '{c['to']}' [{du}]"
+        if us is not None and ud is not None:
+            if us.exponents != ud.exponents:
+                text = (f"{head}: the units have different dimensions (from the FMUs' unit definitions), yet "
+                        "the input gets the output's number as it is; check that these are the variables to "
+                        "connect")
+            elif us.factor == ud.factor and us.offset == ud.offset:
+                return                                  # one unit, two names
+            else:
+                gain = us.factor / ud.factor
+                offset = (us.offset - ud.offset) / ud.factor
+                fix = f"gain: {gain:.12g}" + (f", offset: {offset:.12g}" if offset else "")
+                text = (f"{head}: the input gets the output's number unconverted; to convert {su} to {du} "
+                        f"write {{{fix}}} in the connection (from the FMUs' unit definitions)")
+        else:
+            text = (f"{head}: the units differ and the FMUs do not define both, so the input gets the output's "
+                    "number as it is; add gain/offset to the connection if it needs a conversion")
+        warn_once(f"{self.loc(c['node'])}: {text}")
 
     def variable(self, signal: str, node, what: str, want: str | None = None):
         """The model variable named by ``instance.variable`` or None (problem reported)."""
