@@ -143,3 +143,23 @@ def test_step_weights_reuse_the_previous_step_until_the_steps_change():
     b = p.step_weights(h, 0.5, 0.05, 2)
     assert b is not a and b.extrap.shape == a.extrap.shape
     assert p.step_weights(h, 0.5, 0.05, 2, q=1) is not b    # the start-up iteration keys apart
+
+
+def test_derivative_weights_follow_the_step_size_not_only_the_normalised_nodes():
+    """Constant steps of H, later constant steps of 2H: the normalised nodes (0, -1, -2) are the
+    same, the derivative weights (scaled by h**-d) are not. The weight cache reused those of the
+    first step size for the second, so an FMU with canInterpolateInputs received derivatives
+    off by 2**-d after the step changed (order 1 instead of k + 1,
+    test_master.py::test_input_derivatives_keep_the_order_when_the_step_size_changes)."""
+    c = [0.3, -1.0, 2.0]
+    pred = LagrangePredictor(extrapolation_order=2, interpolation_order=2)
+    for H in (0.1, 0.2):
+        times = [1.0 - j * H for j in range(3)]
+        h, b = make_history([poly(c, t) for t in times], times)
+        h.times[0] = 1.0 + H
+        b[0, 0] = poly(c, 1.0 + H)
+        w = pred.step_weights(h, 1.0, H, 1)
+        for d in (1, 2):
+            expect = np.polynomial.polynomial.polyval(1.0, np.polynomial.polynomial.polyder(c, d))
+            assert w.extrap_der[0][d - 1] @ b[w.e0:w.e1, 0] == pytest.approx(expect, rel=1e-9), (H, d)
+            assert w.interp_der[0][d - 1] @ b[: w.q + 1, 0] == pytest.approx(expect, rel=1e-9), (H, d)

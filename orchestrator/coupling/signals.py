@@ -200,7 +200,10 @@ class LagrangePredictor:
         p = min(self.k, count - 1)
         q = min(self.q if q is None else q, count)
         past = (history.times[1:count + 1] - t_n) / h          # 0, -1, -2, ... for constant steps
-        key = (p, q, substeps, all_interp, tuple(np.round(past[:max(p + 1, q)], 9)))
+        # h belongs to the key: the value weights depend only on the normalised nodes, but the
+        # derivative weights are scaled by h**-d (a later step of another size with the same
+        # normalised nodes, e.g. constant steps of 2H after constant steps of H, must not reuse them)
+        key = (p, q, substeps, all_interp, h, tuple(np.round(past[:max(p + 1, q)], 9)))
         w = self._cache.get(key)
         if w is not None:
             return w
