@@ -4,12 +4,14 @@ Import (:func:`scenario_from_ssp`): an ``.ssp`` archive (``SystemStructure.ssd``
 the top, FMUs and ``.ssv`` files inside) or a bare ``.ssd`` file (sources relative
 to its folder) becomes a scenario document: the top-level system's components
 (FMU instances; ``source`` resolved to the extracted file), its connections
-(with ``LinearTransformation`` factor/offset as gain/offset), the parameter
-bindings of each component (inline ``ssv:ParameterSet`` or a ``source`` ``.ssv``,
-values of every SSP type, ``prefix`` honoured) and the system's
+(with ``LinearTransformation`` factor/offset as gain/offset, composed with the unit
+conversion SSP implies between Real connectors of different units unless
+``suppressUnitConversion``), the parameter bindings of each component and of the system
+(``component.variable``; the system's take precedence) (inline ``ssv:ParameterSet`` or a
+``source`` ``.ssv``, values of every SSP type, ``prefix`` prepended to the names) and the system's
 ``DefaultExperiment`` (start/stop time). The document goes through the ordinary
 scenario loader, so every check and message of a YAML scenario applies. Nested
-systems, signal dictionaries and parameter mappings (``.ssm``) are reported as
+systems, signal dictionaries, parameter mappings (``.ssm``) and mapping transformations are reported as
 unsupported rather than dropped.
 
 Export (:func:`export_ssp`): a loaded scenario as an ``.ssp`` archive that libcosim
@@ -37,6 +39,7 @@ files are read by the bounded reader and parsed by :func:`orchestrator.untrusted
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import stat
 import tempfile
@@ -148,37 +151,135 @@ def _value(el: ET.Element, what: str) -> tuple[str, Any] | None:
     return None
 
 
-def _parameters(comp: ET.Element, src: _Source, problems: list[str]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for b in comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
+def _binding_values(owner: ET.Element, what: str, src: _Source, problems: list[str]) -> list[tuple[str, Any]]:
+    """The (name, value) pairs of the parameter bindings of ``owner`` (a component or a system), in
+    document order (a later binding wins). SSP 1.0: a binding's ``prefix`` is *prepended* to the
+    names of its parameter source ("supplying the name of the element plus a dot as a prefix on the
+    binding" at a system level targets one element)."""
+    out: list[tuple[str, Any]] = []
+    for b in owner.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
         prefix = b.get("prefix", "") or ""
         sets = []
         if b.get("source"):
             if b.get("source").startswith("#"):
-                problems.append(f"{src.ssd}: component {comp.get('name')!r}: parameter binding source "
+                problems.append(f"{src.ssd}: {what}: parameter binding source "
                                 f"{b.get('source')!r} (a reference into the SSD) is not supported; use an .ssv file "
                                 "or inline ParameterValues")
+                continue
+            if (b.get("sourceBase") or "SSD") != "SSD":
+                problems.append(f"{src.ssd}: {what}: parameter binding source {b.get('source')!r} with "
+                                f"sourceBase={b.get('sourceBase')!r} (a file inside the component) is not supported; "
+                                "put the .ssv file into the SSP beside SystemStructure.ssd")
                 continue
             sets.append(_parse(_read(src.file(b.get("source"), "parameter values")), b.get("source")))
         sets += b.findall("ssd:ParameterValues/ssv:ParameterSet", NS)
         if b.find("ssd:ParameterMapping", NS) is not None:
-            problems.append(f"{src.ssd}: component {comp.get('name')!r}: parameter mappings (.ssm) are not "
+            problems.append(f"{src.ssd}: {what}: parameter mappings (.ssm) are not "
                             "supported; write the values under the variables' own names")
         for ps in sets:
             for p in ps.findall("ssv:Parameters/ssv:Parameter", NS):
-                name = p.get("name", "")
-                if prefix and name.startswith(prefix):
-                    name = name[len(prefix):]
+                name = prefix + p.get("name", "")
                 try:
-                    v = _value(p, f"{src.ssd}: parameter {name!r} of {comp.get('name')!r}")
+                    v = _value(p, f"{src.ssd}: parameter {name!r} of {what}")
                 except ScenarioError as e:
                     problems.extend(e.problems)
                     continue
                 if v is None:
-                    problems.append(f"{src.ssd}: parameter {name!r} of {comp.get('name')!r} has no value")
+                    problems.append(f"{src.ssd}: parameter {name!r} of {what} has no value")
                 else:
-                    out[name] = v[1]
+                    out.append((name, v[1]))
     return out
+
+
+def _parameters(comp: ET.Element, src: _Source, problems: list[str]) -> dict[str, Any]:
+    return dict(_binding_values(comp, f"component {comp.get('name')!r}", src, problems))
+
+
+def _system_parameters(system: ET.Element, fmus: dict[str, dict], src: _Source, problems: list[str]) -> None:
+    """The system's own parameter bindings into ``fmus``: a hierarchical name ``element.variable``
+    (prefix prepended) sets that component's variable, over a value of the component's own
+    bindings (SSP 1.0: bindings at a system level take precedence). A name of a connector of the
+    system, or of no component, is reported (system connectors are not supported)."""
+    for name, value in _binding_values(system, f"system {system.get('name')!r}", src, problems):
+        inst, dot, var = name.partition(".")
+        if dot and var and inst in fmus:
+            fmus[inst].setdefault("parameters", {})[var] = value
+        else:
+            problems.append(f"{src.ssd}: parameter {name!r} of the system's parameter bindings names no component "
+                            f"variable (components: {', '.join(fmus) or 'none'}); write it as 'component.variable' "
+                            "(or give the binding prefix=\"component.\"): parameters of the system's own connectors "
+                            "are not supported")
+
+
+def _ssd_units(root: ET.Element) -> dict:
+    """``{unit name: UnitDef}`` of the SSD's ``<ssd:Units>`` (ssc:Unit with ssc:BaseUnit, as FMI's)."""
+    from orchestrator.fmi.model_description import BASE_UNITS, UnitDef
+    out = {}
+    for u in root.findall("ssd:Units/ssc:Unit", NS):
+        base = u.find("ssc:BaseUnit", NS)
+        if not u.get("name") or base is None:
+            continue
+        try:
+            exps = tuple(int(base.get(k, "0")) for k in BASE_UNITS)
+            factor, offset = float(base.get("factor", "1")), float(base.get("offset", "0"))
+        except ValueError:
+            continue
+        if math.isfinite(factor) and math.isfinite(offset) and factor != 0.0:
+            out[u.get("name")] = UnitDef(exps, factor, offset)
+    return out
+
+
+def _end_unit(comps: dict, fmus: dict, inst: str, var: str):
+    """(type, unit, unit definitions) of the connection end ``inst.var``: the unit the FMU declares for
+    the variable, else the one the component's connector declares (``ssc:Real unit``); None when the
+    FMU cannot be read (the loader reports that)."""
+    from orchestrator.fmi.archive import read_model_description
+    try:
+        md = read_model_description(fmus[inst]["path"])
+    except Exception:      # noqa: BLE001 - unreadable FMU: reported by the scenario checks
+        return None
+    v = md.variables.get(var)
+    if v is None:
+        return None
+    unit = v.unit
+    if not unit:
+        for con in comps[inst].findall("ssd:Connectors/ssd:Connector", NS):
+            real = con.find("ssc:Real", NS) if con.get("name") == var else None
+            if real is not None and real.get("unit"):
+                unit = real.get("unit")
+    return v.type, unit, md.units
+
+
+def _unit_conversion(conn: dict, c: ET.Element, comps: dict, fmus: dict, units: dict, where: str,
+                     problems: list[str]) -> tuple[float, float] | None:
+    """The (factor, offset) SSP 1.0 applies to a Real connection between connectors of different
+    units before its LinearTransformation (``suppressUnitConversion`` absent or false; with it true
+    ``(1, 0)``), None when the units agree or are not both known; a problem when the units differ
+    and cannot be converted."""
+    ends = [_end_unit(comps, fmus, *conn[k].split(".", 1)) for k in ("from", "to")]
+    if None in ends or ends[0][0] != "Real" or ends[1][0] != "Real":
+        return None
+    (_, su, sdefs), (_, du, ddefs) = ends
+    if not su or not du or su == du:
+        return None
+    if (c.get("suppressUnitConversion") or "").strip().lower() in ("true", "1"):
+        return 1.0, 0.0           # the number as it is, by the SSP's choice (an explicit gain: no unit warning)
+    us, ud = units.get(su) or sdefs.get(su), units.get(du) or ddefs.get(du)
+    head = f"{where}: connection {conn['from']} [{su}] -> {conn['to']} [{du}]"
+    fix = ("or set suppressUnitConversion=\"true\" on the connection to pass the number as it is (then its "
+           "LinearTransformation, if any, is the whole conversion)")
+    if us is None or ud is None:
+        missing = " and ".join(repr(u) for u, d in ((su, us), (du, ud)) if d is None)
+        problems.append(f"{head}: SSP converts between the connectors' units, but {missing} is defined neither in "
+                        f"the SSD's <ssd:Units> nor in the FMU's <UnitDefinitions>; define it, {fix}")
+        return None
+    if us.exponents != ud.exponents:
+        problems.append(f"{head}: SSP converts between the connectors' units, but they have different dimensions; "
+                        f"connect variables of the same dimension, {fix}")
+        return None
+    if us.factor == ud.factor and us.offset == ud.offset:
+        return None                                   # one unit, two names
+    return us.factor / ud.factor, (us.offset - ud.offset) / ud.factor
 
 
 def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
@@ -200,7 +301,13 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
     problems: list[str] = []
     if system.find("ssd:Elements/ssd:System", NS) is not None:
         problems.append(f"{src.ssd}: nested systems are not supported; flatten the system into one level")
+    if system.find("ssd:Elements/ssd:SignalDictionaryReference", NS) is not None or \
+            system.find("ssd:SignalDictionaries", NS) is not None:
+        problems.append(f"{src.ssd}: signal dictionaries are not supported; connect the components' connectors "
+                        "directly")
     fmus: dict[str, dict] = {}
+    comps: dict[str, ET.Element] = {}
+    units = _ssd_units(root)
     for comp in system.findall("ssd:Elements/ssd:Component", NS):
         name, source = comp.get("name"), comp.get("source")
         if not name or not source:
@@ -219,6 +326,8 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
         if params:
             entry["parameters"] = params
         fmus[name] = entry
+        comps[name] = comp
+    _system_parameters(system, fmus, src, problems)
     connections = []
     for c in system.findall("ssd:Connections/ssd:Connection", NS):
         s_el, s_con, d_el, d_con = (c.get(k) for k in ("startElement", "startConnector", "endElement",
@@ -228,6 +337,12 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
                             "only component-to-component connections are supported")
             continue
         conn: dict[str, Any] = {"from": f"{s_el}.{s_con}", "to": f"{d_el}.{d_con}"}
+        for kind in ("BooleanMappingTransformation", "IntegerMappingTransformation",
+                     "EnumerationMappingTransformation"):
+            if c.find(f"ssc:{kind}", NS) is not None or c.find(f"ssd:{kind}", NS) is not None:
+                problems.append(f"{src.ssd}: connection {conn['from']} -> {conn['to']}: a {kind} is not supported "
+                                "(the input would get the output's value unmapped); map the values in an FMU, or "
+                                "connect variables that need no mapping")
         lt = c.find("ssc:LinearTransformation", NS)
         if lt is None:
             lt = c.find("ssd:LinearTransformation", NS)
@@ -239,6 +354,13 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
             except ScenarioError as e:
                 problems.extend(e.problems)
                 continue
+        if s_el in fmus and d_el in fmus:
+            # SSP 1.0: a Real connection between different units converts them, then applies its
+            # LinearTransformation: target = factor * convert(source) + offset
+            conv = _unit_conversion(conn, c, comps, fmus, units, str(src.ssd), problems)
+            if conv is not None:
+                factor, off = conn.get("gain", 1.0), conn.get("offset", 0.0)
+                conn["gain"], conn["offset"] = factor * conv[0], factor * conv[1] + off
         connections.append(conn)
     if problems:
         raise ScenarioError(problems)
@@ -409,7 +531,10 @@ def export_ssp(scenario, out: Path | str) -> Path:
     for cn in scenario.connections:
         el = ET.SubElement(cel, f"{{{NS['ssd']}}}Connection", {
             "startElement": cn.src_instance, "startConnector": cn.src_variable,
-            "endElement": cn.dst_instance, "endConnector": cn.dst_variable})
+            "endElement": cn.dst_instance, "endConnector": cn.dst_variable,
+            # our connection is exactly gain * value + offset: no unit conversion on top (SSP 1.0
+            # converts between different units unless told not to)
+            "suppressUnitConversion": "true"})
         if cn.gain != 1.0 or cn.offset != 0.0:
             ET.SubElement(el, f"{{{NS['ssc']}}}LinearTransformation",
                           {"factor": repr(float(cn.gain)), "offset": repr(float(cn.offset))})

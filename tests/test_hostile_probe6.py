@@ -1,0 +1,135 @@
+"""Sixth probe (after tests/test_hostile_probe5.py): SSP archives written by other tools, sweeps
+resumed into the same folder, and the regression gate of `rotorcosim compare`. One test per
+finding, each failing on the code before its fix."""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from tests.test_hostile_probe4 import _with_units
+
+NS = ('xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
+      'xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" '
+      'xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"')
+
+
+def _ssp(path: Path, system: str, fmus: dict[str, Path], *, head: str = "") -> Path:
+    """A hand-written SSP 1.0 archive: ``system`` is the content of the ssd:System element, ``head``
+    what goes before it (e.g. ssd:Units is after the System: SSP 1.0 order), ``fmus`` member -> file."""
+    ssd = (f'<?xml version="1.0" encoding="UTF-8"?>\n<ssd:SystemStructureDescription {NS} version="1.0" '
+           f'name="probe6"><ssd:System name="top">{system}</ssd:System>{head}'
+           '<ssd:DefaultExperiment startTime="0" stopTime="1"/></ssd:SystemStructureDescription>')
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("SystemStructure.ssd", ssd)
+        for member, src in fmus.items():
+            zf.write(src, member)
+    return path
+
+
+def _pset(*params: tuple[str, float]) -> str:
+    body = "".join(f'<ssv:Parameter name="{n}"><ssv:Real value="{v}"/></ssv:Parameter>' for n, v in params)
+    return (f'<ssd:ParameterValues><ssv:ParameterSet version="1.0" name="p"><ssv:Parameters>{body}'
+            '</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues>')
+
+
+def test_ssp_parameter_bindings_of_the_system_are_applied_not_dropped(tmp_path, test_fmus):
+    """An SSP whose *system* carries the parameter bindings (SSP 1.0: hierarchical names
+    ``element.variable``, or the binding's ``prefix="element."`` prepended to bare names; the
+    usual way to apply one parameter file to one component) loaded with every such value
+    silently dropped: the gain a.k stayed at the FMU's start value 1 instead of 5 and the run
+    computed another system. Now they set the component's variables, over the component's own
+    bindings (bindings at a higher level take precedence), and a name that reaches no component
+    is reported instead of ignored."""
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    comps = ('<ssd:Elements><ssd:Component name="a" source="resources/Gain.fmu">'
+             f'<ssd:ParameterBindings><ssd:ParameterBinding>{_pset(("k", 3.0))}</ssd:ParameterBinding>'
+             '</ssd:ParameterBindings></ssd:Component>'
+             '<ssd:Component name="b" source="resources/Integrator.fmu"/></ssd:Elements>'
+             '<ssd:Connections><ssd:Connection startElement="a" startConnector="y" endElement="b" '
+             'endConnector="u"/></ssd:Connections>')
+    fmus = {"resources/Gain.fmu": test_fmus["Gain"], "resources/Integrator.fmu": test_fmus["Integrator"]}
+    system = ('<ssd:ParameterBindings>'
+              f'<ssd:ParameterBinding prefix="a.">{_pset(("k", 5.0))}</ssd:ParameterBinding>'
+              f'<ssd:ParameterBinding>{_pset(("b.y0", 0.5))}</ssd:ParameterBinding>'
+              '</ssd:ParameterBindings>')
+    sc = orchestrator.load_scenario(_ssp(tmp_path / "s.ssp", system + comps, fmus))
+    assert dict(sc.fmu("a").parameters) == {"k": 5.0} and dict(sc.fmu("b").parameters) == {"y0": 0.5}
+    bad = system.replace('name="b.y0"', 'name="nobody.y0"')
+    with pytest.raises(ScenarioError, match="parameter 'nobody.y0' of the system's parameter bindings names no "
+                                            "component variable"):
+        orchestrator.load_scenario(_ssp(tmp_path / "bad.ssp", bad + comps, fmus))
+
+
+def test_ssp_mapping_transformations_and_signal_dictionaries_are_refused_by_name(tmp_path, test_fmus):
+    """A connection carrying an ssc:BooleanMappingTransformation (or Integer/Enumeration mapping)
+    loaded with the mapping silently dropped: the input got the unmapped value. A signal
+    dictionary, documented as refused by name, was not checked at all (its connections then
+    failed as connections to an unknown instance). Now both are reported by name."""
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    tp = {"resources/TypedPorts.fmu": test_fmus["TypedPorts"]}
+    system = ('<ssd:Elements><ssd:Component name="a" source="resources/TypedPorts.fmu"/>'
+              '<ssd:Component name="b" source="resources/TypedPorts.fmu"/></ssd:Elements>'
+              '<ssd:Connections><ssd:Connection startElement="a" startConnector="b_out" endElement="b" '
+              'endConnector="b_in"><ssc:BooleanMappingTransformation><ssc:MapEntry source="true" target="false"/>'
+              '<ssc:MapEntry source="false" target="true"/></ssc:BooleanMappingTransformation></ssd:Connection>'
+              '</ssd:Connections>')
+    with pytest.raises(ScenarioError, match="connection a.b_out -> b.b_in: a BooleanMappingTransformation is "
+                                            "not supported"):
+        orchestrator.load_scenario(_ssp(tmp_path / "m.ssp", system, tp))
+    system = ('<ssd:Elements><ssd:Component name="a" source="resources/TypedPorts.fmu"/>'
+              '<ssd:SignalDictionaryReference name="bus" dictionary="d"/></ssd:Elements>')
+    with pytest.raises(ScenarioError, match="signal dictionaries are not supported"):
+        orchestrator.load_scenario(_ssp(tmp_path / "d.ssp", system, tp))
+
+
+def test_ssp_connections_between_different_units_are_converted_as_ssp_says(tmp_path, test_fmus):
+    """SSP 1.0: a connection between connectors of different units converts the value (then
+    applies its LinearTransformation) unless ``suppressUnitConversion="true"``. The importer
+    dropped the conversion: an output in mm into an input in m with a LinearTransformation
+    factor 2 gave b.u = 2 * y[mm] (1000x too large), silently, because a gain switches the
+    loader's unit warning off. Now the conversion is composed with the transformation (2 * 0.001),
+    suppressUnitConversion passes the number as it is, units that cannot be converted are
+    reported, and export-ssp writes suppressUnitConversion="true" (our gain/offset is the whole
+    conversion), so a scenario's connection comes back unchanged."""
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    from orchestrator.scenario.ssp import export_ssp
+    defs = ('<Unit name="m"><BaseUnit m="1"/></Unit><Unit name="mm"><BaseUnit m="1" factor="0.001"/></Unit>'
+            '<Unit name="s"><BaseUnit s="1"/></Unit>')
+    _with_units(test_fmus["Integrator"], tmp_path / "A.fmu", "m", "mm", defs)    # a.y in mm
+    _with_units(test_fmus["Integrator"], tmp_path / "B.fmu", "m", "m", defs)     # b.u in m
+    _with_units(test_fmus["Integrator"], tmp_path / "C.fmu", "s", "m", defs)     # c.u in s
+    fmus = {"resources/A.fmu": tmp_path / "A.fmu", "resources/B.fmu": tmp_path / "B.fmu",
+            "resources/C.fmu": tmp_path / "C.fmu"}
+
+    def system(attrs: str = "", lt: str = "", to: str = "b") -> str:
+        return ('<ssd:Elements><ssd:Component name="a" source="resources/A.fmu"/>'
+                '<ssd:Component name="b" source="resources/B.fmu"/><ssd:Component name="c" source="resources/C.fmu"/>'
+                '</ssd:Elements><ssd:Connections>'
+                f'<ssd:Connection startElement="a" startConnector="y" endElement="{to}" endConnector="u" {attrs}>'
+                f'{lt}</ssd:Connection></ssd:Connections>')
+
+    def conn(name: str, text: str):
+        c = orchestrator.load_scenario(_ssp(tmp_path / name, text, fmus)).connections[0]
+        return pytest.approx(c.gain, rel=1e-15), pytest.approx(c.offset, abs=1e-15)
+
+    lt = '<ssc:LinearTransformation factor="2" offset="0.5"/>'
+    assert conn("lt.ssp", system(lt=lt)) == (0.002, 0.5)                  # 2 * (0.001 * y) + 0.5
+    assert conn("plain.ssp", system()) == (0.001, 0.0)
+    assert conn("off.ssp", system('suppressUnitConversion="true"', lt)) == (2.0, 0.5)
+    with pytest.raises(ScenarioError, match=r"connection a.y \[mm\] -> c.u \[s\]: SSP converts between the "
+                                            "connectors' units, but they have different dimensions"):
+        conn("dim.ssp", system(to="c"))
+    # round trip: a scenario's gain is the whole conversion and comes back as it was
+    y = tmp_path / "s.yaml"
+    y.write_text("name: units\nstop_time: 1.0\nfmus:\n  a: {path: A.fmu}\n  b: {path: B.fmu}\n"
+                 "connections:\n  - {from: a.y, to: b.u, gain: 0.001}\n")
+    with pytest.warns(UserWarning):
+        out = export_ssp(orchestrator.load_scenario(y), tmp_path / "rt.ssp")
+    c = orchestrator.load_scenario(out).connections[0]
+    assert (c.gain, c.offset) == (0.001, 0.0)
