@@ -133,3 +133,37 @@ def test_ssp_connections_between_different_units_are_converted_as_ssp_says(tmp_p
         out = export_ssp(orchestrator.load_scenario(y), tmp_path / "rt.ssp")
     c = orchestrator.load_scenario(out).connections[0]
     assert (c.gain, c.offset) == (0.001, 0.0)
+
+
+def test_resume_after_the_scenario_changed_runs_again_instead_of_keeping_stale_rows(tmp_path, test_fmus):
+    """`rotorcosim sweep --resume` kept every run whose folder held a finished summary of the same
+    overrides, whatever the scenario file or FMU were then: a user who fixed the scenario (here
+    stop_time 0.1 -> 0.2) and resumed got "2 runs resumed" and the old results in sweep.csv
+    (end 0.1), a map of the system before the fix. Now each run records the SHA-256 of its
+    scenario file and FMUs in sweep_run.json, and --resume runs again a finished run whose inputs
+    changed, with a warning naming what changed; unchanged runs are still skipped."""
+    import shutil
+
+    from orchestrator.sweep import load_sweep
+    from orchestrator.sweep.plan import plan_sweep
+    from orchestrator.sweep.runner import run_sweep
+    shutil.copy(test_fmus["Integrator"], tmp_path / "Integrator.fmu")
+    sc = tmp_path / "sc.yaml"
+    sc.write_text("name: integ\nstop_time: 0.1\nfmus:\n  i: {path: Integrator.fmu}\ncoupling: {macro_step: 0.01}\n")
+    sw = tmp_path / "sw.yaml"
+    sw.write_text("sweep: 1\nscenario: sc.yaml\nparameters:\n  - name: y0\n    set: fmus.i.parameters.y0\n"
+                  "    values: [0.0, 1.0]\ncollect:\n  end: end_time\n")
+
+    def sweep(resume: bool):
+        spec = load_sweep(sw)
+        return run_sweep(spec, plan_sweep(spec), tmp_path / "out", workers=1, resume=resume, progress=False,
+                         warm=False)
+
+    first = sweep(False)
+    assert [r["end"] for r in first.rows] == [0.1, 0.1]
+    again = sweep(True)                                           # nothing changed: both kept
+    assert again.skipped == 2 and not again.warnings
+    sc.write_text(sc.read_text().replace("stop_time: 0.1", "stop_time: 0.2"))
+    with pytest.warns(UserWarning, match="the scenario file changed since this run finished"):
+        fixed = sweep(True)
+    assert fixed.skipped == 0 and [r["end"] for r in fixed.rows] == [0.2, 0.2]

@@ -370,7 +370,7 @@ def _processes_using(path: Path) -> list[str]:
     return found
 
 
-def _sleeping_run(scenario, overrides, run_dir, *, warm=True):     # stands in for task.execute_run
+def _sleeping_run(scenario, overrides, run_dir, *, warm=True, inputs=None):   # stands in for task.execute_run
     time.sleep(0.05 if any(o.endswith("t_fail=0.05") for o in overrides) else 30.0)
     return {"status": "finished", "message": "", "wall_time_s": 0.0, "summary": {"status": "finished"}}
 

@@ -19,8 +19,10 @@ import hashlib
 import itertools
 import json
 import math
+import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from orchestrator.errors import ScenarioError
@@ -43,6 +45,9 @@ class RunPlan:
     index: int                                   # position in the sweep (0-based)
     values: dict[str, Any]                       # parameter name -> value
     overrides: tuple[str, ...]                   # "key.path=value", the sweep's 'set' first
+    # what the run computes from besides its overrides: SHA-256 of the scenario file and of each
+    # instance's FMU file (filled by plan_sweep; --resume redoes a run recorded with other inputs)
+    inputs: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
 
 
 def override_text(path: str, value: Any) -> str:
@@ -169,6 +174,31 @@ def _where(spec: SweepSpec, problem: str, run: RunPlan) -> str:
     return f"{spec.source}: run {label}: scenario {spec.scenario.name}: {problem}"
 
 
+def _digest(path: Path, cache: dict) -> str:
+    """SHA-256 of the file ``path`` (cached by path, size and modification time: one read per sweep)."""
+    st = os.stat(path)
+    key = (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
+    if key not in cache:
+        h = hashlib.sha256()
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+        cache[key] = h.hexdigest()
+    return cache[key]
+
+
+def run_inputs(scenario_file: Path, scenario, cache: dict) -> dict[str, Any]:
+    """The files a run computes from besides its overrides, as SHA-256 digests: the scenario file
+    and each instance's FMU (``{"scenario": ..., "fmus": {instance: ...}}``). Recorded in the run's
+    sweep_run.json; ``--resume`` runs again a finished run whose inputs have changed since (an
+    edited scenario, a rebuilt FMU), where the overrides alone would reuse its stale results."""
+    try:
+        return {"scenario": _digest(Path(scenario_file), cache),
+                "fmus": {f.name: _digest(Path(f.path), cache) for f in scenario.fmus}}
+    except OSError:
+        return {}
+
+
 def plan_sweep(spec: SweepSpec, *, build_fmus: bool = True, progress: bool | None = False) -> list[RunPlan]:
     """Expand ``spec`` and validate every run's scenario; raises :class:`SweepError` with every
     problem (each once, placed at its sweep-file line where an override caused it).
@@ -186,9 +216,11 @@ def plan_sweep(spec: SweepSpec, *, build_fmus: bool = True, progress: bool | Non
     problems: list[str] = []
     bar = tqdm(runs, unit="run", desc="validating", leave=False, dynamic_ncols=True,
                disable=len(runs) < PROGRESS_FROM_RUNS or (not progress if progress is not None else None))
+    digests: dict = {}
     for k, run in enumerate(bar):
         try:
-            load_scenario(spec.scenario, list(run.overrides), build_fmus=build_fmus and k == 0)
+            sc = load_scenario(spec.scenario, list(run.overrides), build_fmus=build_fmus and k == 0)
+            run.inputs.update(run_inputs(spec.scenario, sc, digests))
         except ScenarioError as exc:
             for p in exc.problems:
                 text = _where(spec, p, run)

@@ -93,7 +93,24 @@ def _record_problem(record: dict, run: RunPlan) -> str | None:
     wall = record.get("wall_time_s")
     if wall is not None and (isinstance(wall, bool) or not isinstance(wall, (int, float))):
         return "'wall_time_s' is not a number"
+    if not isinstance(record.get("inputs", {}), dict):
+        return "'inputs' is not an object"
     return None
+
+
+def _changed_inputs(recorded: dict, now: dict) -> str | None:
+    """What changed between the files a run was recorded with and the sweep's now (None: nothing,
+    or a record written before inputs were recorded)."""
+    if not recorded or not now:
+        return None
+    what = []
+    if recorded.get("scenario") != now.get("scenario"):
+        what.append("the scenario file")
+    old, new = recorded.get("fmus") or {}, now.get("fmus") or {}
+    changed = sorted(i for i in set(old) | set(new) if old.get(i) != new.get(i))
+    if changed:
+        what.append("the FMU of " + ", ".join(repr(i) for i in changed[:5]) + (", ..." if len(changed) > 5 else ""))
+    return " and ".join(what) or None
 
 
 def _redo(problem: str) -> None:
@@ -124,6 +141,10 @@ def resumable(run_dir: Path, run: RunPlan) -> dict | None:
     record = record or {}
     if record.get("overrides") not in (None, list(run.overrides)):
         return None                                # a different run hashed to this folder: run it again
+    changed = _changed_inputs(record.get("inputs") or {}, run.inputs)
+    if changed:
+        _redo(f"{run_dir}: {changed} changed since this run finished (its results are of the earlier one)")
+        return None
     return {"status": "finished", "message": record.get("message", ""),
             "wall_time_s": record.get("wall_time_s"), "summary": summary}
 
@@ -221,7 +242,8 @@ def _submit(client, spec: SweepSpec, todo: list[RunPlan], runs_dir: Path, warm: 
     futures = {}
     for run in todo:
         fut = client.submit(execute_run, str(spec.scenario), list(run.overrides), str(runs_dir / run.run_id),
-                            warm=warm, key=f"rotorcosim-run-{run.run_id}", pure=False, retries=0)
+                            warm=warm, inputs=run.inputs or None, key=f"rotorcosim-run-{run.run_id}",
+                            pure=False, retries=0)
         futures[fut] = run
     return futures
 

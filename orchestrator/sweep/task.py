@@ -105,11 +105,13 @@ def _outcome(rc: int, summary: dict | None, stderr: str, run_dir: Path | None = 
 
 
 def execute_run(scenario: str, overrides: list[str], run_dir: str, *, timeout_s: float | None = None,
-                warm: bool = True) -> dict:
+                warm: bool = True, inputs: dict | None = None) -> dict:
     """Run one scenario with ``overrides`` into ``run_dir`` in a separate Python process.
 
     ``warm`` (default): in this worker's warm run process (:mod:`orchestrator.sweep.warm`),
     started on the first run and reused; otherwise a fresh process for this run only.
+    ``inputs``: the digests of the files the run computes from (``plan.run_inputs``), kept in
+    the record for ``--resume``.
     Returns the run's record (see the module docstring); never raises for a failed run.
     """
     out = Path(run_dir)
@@ -128,6 +130,8 @@ def execute_run(scenario: str, overrides: list[str], run_dir: str, *, timeout_s:
     status, message = _outcome(rc, summary, stderr, out)
     record = {"status": status, "message": message, "wall_time_s": wall, "returncode": rc,
               "overrides": list(overrides)}
+    if inputs:
+        record["inputs"] = inputs
     (out / RUN_RECORD).write_text(json.dumps(record, indent=1), encoding="utf-8")
     record["summary"] = summary
     return record
