@@ -167,3 +167,28 @@ def test_resume_after_the_scenario_changed_runs_again_instead_of_keeping_stale_r
     with pytest.warns(UserWarning, match="the scenario file changed since this run finished"):
         fixed = sweep(True)
     assert fixed.skipped == 0 and [r["end"] for r in fixed.rows] == [0.2, 0.2]
+
+
+def test_compare_variants_the_baseline_does_not_know_are_not_passed_silently(tmp_path, test_fmus, capsys):
+    """The regression gate of `rotorcosim compare` skipped every variant missing from the baseline:
+    after a change of the comparison file that renames its variants (a new macro step list: the
+    names carry the step), no variant was compared with the baseline and the gate printed "all
+    checks passed" with exit 0 - switched off without a word. Now a variant not in the baseline, or
+    a baseline variant that was not run, fails the check by name, with the fix (--update-baseline
+    and review the diff); after that the gate passes again."""
+    from orchestrator.compare import main_compare
+    from tests.test_compare import compare_files, fake_runner
+    write = compare_files.__wrapped__(tmp_path, test_fmus)
+    path = write("", baseline=True)
+    out = tmp_path / "out"
+    assert main_compare(path, out_dir=out, update_baseline=True, runner=fake_runner, workers=1) == 0
+    path.write_text(path.read_text().replace("macro_step: [0.2, 0.1, 0.05]", "macro_step: [0.2, 0.1, 0.04]"))
+    capsys.readouterr()
+    assert main_compare(path, out_dir=out, runner=fake_runner, workers=1) == 1
+    err = capsys.readouterr().err
+    assert "FAIL variant 'gs-e1i0-h0.04': not in the baseline (12 variants); the regression gate cannot check it" \
+        in err, err
+    assert "FAIL variant 'gs-e1i0-h0.05': in the baseline but not run" in err
+    assert "variant 'gs-e1i0-h0.1'" not in err                    # a variant in both is checked as before
+    assert main_compare(path, out_dir=out, update_baseline=True, runner=fake_runner, workers=1) == 0
+    assert main_compare(path, out_dir=out, runner=fake_runner, workers=1) == 0

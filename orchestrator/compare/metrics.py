@@ -206,9 +206,16 @@ def check_report(report, spec, baseline: Mapping[str, Any] | None) -> list[str]:
     if baseline:
         base_vars = baseline.get("variants", {})
         m_, f_ = spec.regression_margin, spec.regression_floor
+        fix = ("the regression gate cannot check it: if the comparison file changed on purpose, rewrite the "
+               "baseline with `rotorcosim compare FILE --update-baseline` and review its diff")
+        ran = {v["name"] for v in report.variants}
+        for name in sorted(set(base_vars) - ran):
+            fails.append(f"variant '{name}': in the baseline but not run (renamed or removed from the comparison "
+                         f"file?); {fix}")
         for v in report.variants:
             b = base_vars.get(v["name"])
             if b is None:
+                fails.append(f"variant '{v['name']}': not in the baseline ({len(base_vars)} variants); {fix}")
                 continue
             if b.get("stable") and not v["stable"]:
                 fails.append(f"variant '{v['name']}': stable in the baseline, unstable now "
