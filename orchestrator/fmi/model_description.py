@@ -176,17 +176,25 @@ def _unit_definitions(root) -> dict[str, UnitDef]:
     ud = root.find("UnitDefinitions")
     for unit in (ud if ud is not None else []):
         name = unit.get("name")
-        base = unit.find("BaseUnit") if unit.tag == "Unit" else None
-        if not name or base is None:
-            continue
-        try:
-            exps = tuple(int(base.get(k, "0")) for k in BASE_UNITS)
-            factor, offset = float(base.get("factor", "1")), float(base.get("offset", "0"))
-        except ValueError:
-            continue
-        if math.isfinite(factor) and math.isfinite(offset) and factor != 0.0:
-            out[name] = UnitDef(exps, factor, offset)
+        found = base_unit(unit.find("BaseUnit")) if unit.tag == "Unit" and name else None
+        if found is not None:
+            out[name] = found
     return out
+
+
+def base_unit(base) -> UnitDef | None:
+    """The UnitDef of a ``BaseUnit`` element (FMI 2.0's, or SSP's ``ssc:BaseUnit``, which has the
+    same attributes); None without one, or when its numbers do not read or the factor is 0."""
+    if base is None:
+        return None
+    try:
+        exps = tuple(int(base.get(k, "0")) for k in BASE_UNITS)
+        factor, offset = float(base.get("factor", "1")), float(base.get("offset", "0"))
+    except ValueError:
+        return None
+    if math.isfinite(factor) and math.isfinite(offset) and factor != 0.0:
+        return UnitDef(exps, factor, offset)
+    return None
 
 
 def _type_definitions(root) -> dict[str, tuple[dict, tuple]]:

@@ -39,7 +39,6 @@ files are read by the bounded reader and parsed by :func:`orchestrator.untrusted
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import stat
 import tempfile
@@ -213,19 +212,12 @@ def _system_parameters(system: ET.Element, fmus: dict[str, dict], src: _Source, 
 
 def _ssd_units(root: ET.Element) -> dict:
     """``{unit name: UnitDef}`` of the SSD's ``<ssd:Units>`` (ssc:Unit with ssc:BaseUnit, as FMI's)."""
-    from orchestrator.fmi.model_description import BASE_UNITS, UnitDef
+    from orchestrator.fmi.model_description import base_unit
     out = {}
     for u in root.findall("ssd:Units/ssc:Unit", NS):
-        base = u.find("ssc:BaseUnit", NS)
-        if not u.get("name") or base is None:
-            continue
-        try:
-            exps = tuple(int(base.get(k, "0")) for k in BASE_UNITS)
-            factor, offset = float(base.get("factor", "1")), float(base.get("offset", "0"))
-        except ValueError:
-            continue
-        if math.isfinite(factor) and math.isfinite(offset) and factor != 0.0:
-            out[u.get("name")] = UnitDef(exps, factor, offset)
+        found = base_unit(u.find("ssc:BaseUnit", NS)) if u.get("name") else None
+        if found is not None:
+            out[u.get("name")] = found
     return out
 
 
