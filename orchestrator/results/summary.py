@@ -53,8 +53,8 @@ def column_units(scenario, columns) -> dict[str, str]:
         if not names:
             continue
         try:
-            from orchestrator.fmi.archive import read_model_description
-            variables = read_model_description(spec.path).variables
+            from orchestrator.fmi.archive import cached_model_description     # read at load already
+            variables = cached_model_description(spec.path).variables
         except Exception:                        # noqa: BLE001 - a label is not worth a failed summary
             continue
         for var in names:
