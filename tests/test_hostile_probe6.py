@@ -192,3 +192,51 @@ def test_compare_variants_the_baseline_does_not_know_are_not_passed_silently(tmp
     assert "variant 'gs-e1i0-h0.1'" not in err                    # a variant in both is checked as before
     assert main_compare(path, out_dir=out, update_baseline=True, runner=fake_runner, workers=1) == 0
     assert main_compare(path, out_dir=out, runner=fake_runner, workers=1) == 0
+
+
+def test_ssp_parameter_values_with_a_unit_are_converted_to_the_variables_unit(tmp_path, test_fmus):
+    """An ssv:Real value with a unit (SSP 1.0: converted to the variable's unit) was applied as the
+    bare number: y0 = 5 mm set an integrator whose y0 is in m to 5 m. Now it is converted from the
+    parameter set's, the SSD's or the FMU's unit definitions (5 mm -> 0.005 m, 20 degC -> 293.15 K),
+    and a unit that cannot be converted is reported with the parameter."""
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    defs = ('<Unit name="m"><BaseUnit m="1"/></Unit><Unit name="K"><BaseUnit K="1"/></Unit>')
+    fmu = tmp_path / "I.fmu"
+    import shutil
+    src = tmp_path / "I0.fmu"
+    shutil.copy(test_fmus["Integrator"], src)
+    xml_fmu = _with_units(src, tmp_path / "Iu.fmu", "m", "m", defs)
+    # y0 declares no unit in the test FMU: give it one through its model description
+    with zipfile.ZipFile(xml_fmu) as zin, zipfile.ZipFile(fmu, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                data = data.decode().replace('causality="parameter" variability="tunable">\n\t\t\t<Real start="0"/>',
+                                             'causality="parameter" variability="tunable">\n\t\t\t'
+                                             '<Real start="0" unit="m"/>').encode()
+                assert b'<Real start="0" unit="m"/>' in data
+            zout.writestr(item, data)
+
+    def pset(value: str, unit: str, units: str = "") -> str:
+        return (f'<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>'
+                f'<ssv:ParameterSet version="1.0" name="p"><ssv:Parameters><ssv:Parameter name="y0">'
+                f'<ssv:Real value="{value}" unit="{unit}"/></ssv:Parameter></ssv:Parameters>{units}'
+                '</ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>')
+
+    mm = '<ssv:Units><ssc:Unit name="mm"><ssc:BaseUnit m="1" factor="0.001"/></ssc:Unit></ssv:Units>'
+    system = (f'<ssd:Elements><ssd:Component name="a" source="resources/I.fmu">{pset("5", "mm", mm)}'
+              '</ssd:Component></ssd:Elements>')
+    sc = orchestrator.load_scenario(_ssp(tmp_path / "mm.ssp", system, {"resources/I.fmu": fmu}))
+    assert sc.fmu("a").parameters["y0"] == pytest.approx(0.005)
+    # the unit defined in the SSD instead of the parameter set; the same unit: unchanged
+    head = '<ssd:Units><ssc:Unit name="cm"><ssc:BaseUnit m="1" factor="0.01"/></ssc:Unit></ssd:Units>'
+    system = f'<ssd:Elements><ssd:Component name="a" source="resources/I.fmu">{pset("5", "cm")}</ssd:Component></ssd:Elements>'
+    sc = orchestrator.load_scenario(_ssp(tmp_path / "cm.ssp", system, {"resources/I.fmu": fmu}, head=head))
+    assert sc.fmu("a").parameters["y0"] == pytest.approx(0.05)
+    system = f'<ssd:Elements><ssd:Component name="a" source="resources/I.fmu">{pset("5", "m")}</ssd:Component></ssd:Elements>'
+    assert orchestrator.load_scenario(_ssp(tmp_path / "m.ssp", system, {"resources/I.fmu": fmu})).fmu("a").parameters["y0"] == 5.0
+    system = f'<ssd:Elements><ssd:Component name="a" source="resources/I.fmu">{pset("5", "furlong")}</ssd:Component></ssd:Elements>'
+    with pytest.raises(ScenarioError, match=r"parameter 'y0' = 5.0 furlong, for a variable in m: 'furlong' is "
+                                            r"defined neither"):
+        orchestrator.load_scenario(_ssp(tmp_path / "f.ssp", system, {"resources/I.fmu": fmu}))

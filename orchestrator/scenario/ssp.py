@@ -150,12 +150,13 @@ def _value(el: ET.Element, what: str) -> tuple[str, Any] | None:
     return None
 
 
-def _binding_values(owner: ET.Element, what: str, src: _Source, problems: list[str]) -> list[tuple[str, Any]]:
-    """The (name, value) pairs of the parameter bindings of ``owner`` (a component or a system), in
-    document order (a later binding wins). SSP 1.0: a binding's ``prefix`` is *prepended* to the
-    names of its parameter source ("supplying the name of the element plus a dot as a prefix on the
-    binding" at a system level targets one element)."""
-    out: list[tuple[str, Any]] = []
+def _binding_values(owner: ET.Element, what: str, src: _Source, problems: list[str]) -> list[tuple]:
+    """The (name, value, unit, units of its parameter set) of the parameter bindings of ``owner`` (a
+    component or a system), in document order (a later binding wins); ``unit`` is the ``ssv:Real``
+    value's unit attribute or None (:func:`_in_fmu_unit` converts). SSP 1.0: a binding's ``prefix``
+    is *prepended* to the names of its parameter source ("supplying the name of the element plus a
+    dot as a prefix on the binding" at a system level targets one element)."""
+    out: list[tuple] = []
     for b in owner.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
         prefix = b.get("prefix", "") or ""
         sets = []
@@ -176,6 +177,7 @@ def _binding_values(owner: ET.Element, what: str, src: _Source, problems: list[s
             problems.append(f"{src.ssd}: {what}: parameter mappings (.ssm) are not "
                             "supported; write the values under the variables' own names")
         for ps in sets:
+            set_units = _units_of(ps, "ssv:Units/ssc:Unit")
             for p in ps.findall("ssv:Parameters/ssv:Parameter", NS):
                 name = prefix + p.get("name", "")
                 try:
@@ -186,23 +188,61 @@ def _binding_values(owner: ET.Element, what: str, src: _Source, problems: list[s
                 if v is None:
                     problems.append(f"{src.ssd}: parameter {name!r} of {what} has no value")
                 else:
-                    out.append((name, v[1]))
+                    real = p.find("ssv:Real", NS)
+                    out.append((name, v[1], real.get("unit") if real is not None else None, set_units))
     return out
 
 
-def _parameters(comp: ET.Element, src: _Source, problems: list[str]) -> dict[str, Any]:
-    return dict(_binding_values(comp, f"component {comp.get('name')!r}", src, problems))
+def _in_fmu_unit(value: Any, unit: str | None, set_units: dict, ssd_units: dict, path: str, var: str,
+                 where: str, problems: list[str]) -> Any:
+    """``value`` given in ``unit`` (an ssv:Real's) in the unit the FMU at ``path`` declares for
+    ``var`` (SSP 1.0: a parameter value with a unit is converted to the variable's unit): from the
+    parameter set's, the SSD's or the FMU's unit definitions. Unchanged without a unit, when the units
+    agree or the FMU declares none; a problem when they cannot be converted. (Before, the number was
+    applied as it is: 5 mm set a variable in m to 5 m.)"""
+    if not unit or not isinstance(value, float):
+        return value
+    from orchestrator.fmi.archive import cached_model_description
+    try:
+        md = cached_model_description(path)
+    except Exception:      # noqa: BLE001 - unreadable FMU: reported by the scenario checks
+        return value
+    v = md.variables.get(var)
+    if v is None or not v.unit or v.unit == unit:
+        return value
+    us = set_units.get(unit) or ssd_units.get(unit) or md.units.get(unit)
+    ud = md.units.get(v.unit) or ssd_units.get(v.unit)
+    head = f"{where}: parameter {var!r} = {value!r} {unit}, for a variable in {v.unit}"
+    if us is None or ud is None:
+        missing = " and ".join(repr(u) for u, d in ((unit, us), (v.unit, ud)) if d is None)
+        problems.append(f"{head}: {missing} is defined neither in the parameter set's <ssv:Units>, the SSD's "
+                        "<ssd:Units> nor the FMU's <UnitDefinitions>; define it, or give the value in the "
+                        "variable's unit")
+        return value
+    if us.exponents != ud.exponents:
+        problems.append(f"{head}: the units have different dimensions; give the value in the variable's unit")
+        return value
+    return (us.factor * value + us.offset - ud.offset) / ud.factor
 
 
-def _system_parameters(system: ET.Element, fmus: dict[str, dict], src: _Source, problems: list[str]) -> None:
+def _parameters(comp: ET.Element, path: str, ssd_units: dict, src: _Source, problems: list[str]) -> dict[str, Any]:
+    what = f"component {comp.get('name')!r}"
+    return {name: _in_fmu_unit(value, unit, set_units, ssd_units, path, name, f"{src.ssd}: {what}", problems)
+            for name, value, unit, set_units in _binding_values(comp, what, src, problems)}
+
+
+def _system_parameters(system: ET.Element, fmus: dict[str, dict], ssd_units: dict, src: _Source,
+                       problems: list[str]) -> None:
     """The system's own parameter bindings into ``fmus``: a hierarchical name ``element.variable``
     (prefix prepended) sets that component's variable, over a value of the component's own
     bindings (SSP 1.0: bindings at a system level take precedence). A name of a connector of the
     system, or of no component, is reported (system connectors are not supported)."""
-    for name, value in _binding_values(system, f"system {system.get('name')!r}", src, problems):
+    what = f"system {system.get('name')!r}"
+    for name, value, unit, set_units in _binding_values(system, what, src, problems):
         inst, dot, var = name.partition(".")
         if dot and var and inst in fmus:
-            fmus[inst].setdefault("parameters", {})[var] = value
+            fmus[inst].setdefault("parameters", {})[var] = _in_fmu_unit(
+                value, unit, set_units, ssd_units, fmus[inst]["path"], var, f"{src.ssd}: {what}", problems)
         else:
             problems.append(f"{src.ssd}: parameter {name!r} of the system's parameter bindings names no component "
                             f"variable (components: {', '.join(fmus) or 'none'}); write it as 'component.variable' "
@@ -212,9 +252,15 @@ def _system_parameters(system: ET.Element, fmus: dict[str, dict], src: _Source, 
 
 def _ssd_units(root: ET.Element) -> dict:
     """``{unit name: UnitDef}`` of the SSD's ``<ssd:Units>`` (ssc:Unit with ssc:BaseUnit, as FMI's)."""
+    return _units_of(root, "ssd:Units/ssc:Unit")
+
+
+def _units_of(el: ET.Element, where: str) -> dict:
+    """``{unit name: UnitDef}`` of the ssc:Unit elements at ``where`` under ``el`` (an SSD's
+    ``ssd:Units``, a parameter set's ``ssv:Units``)."""
     from orchestrator.fmi.model_description import base_unit
     out = {}
-    for u in root.findall("ssd:Units/ssc:Unit", NS):
+    for u in el.findall(where, NS):
         found = base_unit(u.find("ssc:BaseUnit", NS)) if u.get("name") else None
         if found is not None:
             out[u.get("name")] = found
@@ -314,12 +360,12 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
                             "(application/x-fmu-sharedlibrary) are supported")
             continue
         entry: dict[str, Any] = {"path": str(src.file(source, f"FMU of component {name!r}"))}
-        params = _parameters(comp, src, problems)
+        params = _parameters(comp, entry["path"], units, src, problems)
         if params:
             entry["parameters"] = params
         fmus[name] = entry
         comps[name] = comp
-    _system_parameters(system, fmus, src, problems)
+    _system_parameters(system, fmus, units, src, problems)
     connections = []
     for c in system.findall("ssd:Connections/ssd:Connection", NS):
         s_el, s_con, d_el, d_con = (c.get(k) for k in ("startElement", "startConnector", "endElement",
