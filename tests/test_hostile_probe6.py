@@ -240,3 +240,21 @@ def test_ssp_parameter_values_with_a_unit_are_converted_to_the_variables_unit(tm
     with pytest.raises(ScenarioError, match=r"parameter 'y0' = 5.0 furlong, for a variable in m: 'furlong' is "
                                             r"defined neither"):
         orchestrator.load_scenario(_ssp(tmp_path / "f.ssp", system, {"resources/I.fmu": fmu}))
+
+
+def test_ssp_connector_unit_contradicting_the_fmu_is_said(tmp_path, test_fmus, caplog):
+    """An SSD connector declaring a unit (mm) other than the one its FMU declares for the variable
+    (m) was ignored without a word (the FMU's unit is what its numbers are in). Now a warning names
+    the connector and both units."""
+    import orchestrator
+    defs = '<Unit name="m"><BaseUnit m="1"/></Unit>'
+    a = _with_units(test_fmus["Integrator"], tmp_path / "A.fmu", "m", "m", defs)
+    system = ('<ssd:Elements><ssd:Component name="a" source="resources/A.fmu"><ssd:Connectors>'
+              '<ssd:Connector name="y" kind="output"><ssc:Real unit="mm"/></ssd:Connector></ssd:Connectors>'
+              '</ssd:Component><ssd:Component name="b" source="resources/B.fmu"/></ssd:Elements>'
+              '<ssd:Connections><ssd:Connection startElement="a" startConnector="y" endElement="b" '
+              'endConnector="u"/></ssd:Connections>')
+    with caplog.at_level("WARNING"):
+        orchestrator.load_scenario(_ssp(tmp_path / "c.ssp", system, {"resources/A.fmu": a, "resources/B.fmu": a}))
+    said = [r.getMessage() for r in caplog.records if "connector a.y declares unit 'mm'" in r.getMessage()]
+    assert len(said) == 1 and "its FMU declares 'm'" in said[0]

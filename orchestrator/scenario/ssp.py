@@ -39,6 +39,7 @@ files are read by the bounded reader and parsed by :func:`orchestrator.untrusted
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import stat
 import tempfile
@@ -50,6 +51,8 @@ from xml.etree import ElementTree as ET
 
 from orchestrator.errors import ScenarioError
 from orchestrator.untrusted import InputError, file_kind, parse_xml, read_bytes
+
+log = logging.getLogger(__name__)
 
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
@@ -267,7 +270,7 @@ def _units_of(el: ET.Element, where: str) -> dict:
     return out
 
 
-def _end_unit(comps: dict, fmus: dict, inst: str, var: str):
+def _end_unit(comps: dict, fmus: dict, inst: str, var: str, ssd: str = "the SSD"):
     """(type, unit, unit definitions) of the connection end ``inst.var``: the unit the FMU declares for
     the variable, else the one the component's connector declares (``ssc:Real unit``); None when the
     FMU cannot be read (the loader reports that)."""
@@ -280,11 +283,15 @@ def _end_unit(comps: dict, fmus: dict, inst: str, var: str):
     if v is None:
         return None
     unit = v.unit
-    if not unit:
-        for con in comps[inst].findall("ssd:Connectors/ssd:Connector", NS):
-            real = con.find("ssc:Real", NS) if con.get("name") == var else None
-            if real is not None and real.get("unit"):
-                unit = real.get("unit")
+    for con in comps[inst].findall("ssd:Connectors/ssd:Connector", NS):
+        real = con.find("ssc:Real", NS) if con.get("name") == var else None
+        declared = real.get("unit") if real is not None else None
+        if declared and not unit:
+            unit = declared
+        elif declared and declared != unit:
+            # the FMU's own unit is what its numbers are in; the SSD contradicting it is said, once
+            log.warning("%s: connector %s.%s declares unit %r, but its FMU declares %r for the variable; the "
+                        "FMU's unit is used (correct the connector's unit in the SSD)", ssd, inst, var, declared, unit)
     return v.type, unit, md.units
 
 
@@ -294,7 +301,7 @@ def _unit_conversion(conn: dict, c: ET.Element, comps: dict, fmus: dict, units: 
     units before its LinearTransformation (``suppressUnitConversion`` absent or false; with it true
     ``(1, 0)``), None when the units agree or are not both known; a problem when the units differ
     and cannot be converted."""
-    ends = [_end_unit(comps, fmus, *conn[k].split(".", 1)) for k in ("from", "to")]
+    ends = [_end_unit(comps, fmus, *conn[k].split(".", 1), where) for k in ("from", "to")]
     if None in ends or ends[0][0] != "Real" or ends[1][0] != "Real":
         return None
     (_, su, sdefs), (_, du, ddefs) = ends
