@@ -347,3 +347,25 @@ def test_a_null_string_from_the_fmu_is_recorded_empty_and_reported_once(fmus, tm
     assert list(res.outputs["b.s_out"]) == ["beta"] * (N + 1)      # b got "": its own label
     said = [r.getMessage() for r in caplog.records if "NULL pointer" in r.getMessage()]
     assert len(said) == 1 and "FMU instance 'a'" in said[0] and "'s_out'" in said[0], said
+
+
+@pytest.mark.parametrize("isolation", ["none", "process"])
+def test_an_unreadable_string_pointer_from_the_fmu_is_recorded_empty_not_a_crash(fmus, tmp_path, isolation, caplog):
+    """fmi2GetString giving a pointer that cannot be read (AllTypes gives the address 16 for the
+    value "<BADPTR>"): the master read it with strlen and died by SIGSEGV (in process; in a worker
+    process the run stopped with a crash report). Now the value is read through the safe library,
+    recorded and passed on as "", and a warning names the instance and variable once."""
+    import logging
+    from orchestrator.fmi import safe_log
+    if safe_log.library() is None:
+        pytest.skip("no C compiler: the safe string reader cannot be built here")
+    path = _yaml(fmus, "jacobi", extra=f", isolation: {isolation}")
+    text = path.read_text().replace("label: alpha", 'label: "<BADPTR>"')
+    text = text.replace("output: {signals: [", "output: {signals: [a.s_out, ")
+    path.write_text(text)
+    with caplog.at_level(logging.WARNING):
+        res = _run(path, tmp_path / isolation)
+    assert res.success, res.message
+    assert list(res.outputs["a.s_out"]) == [""] * (N + 1)
+    said = [r.getMessage() for r in caplog.records if "an address that cannot be read" in r.getMessage()]
+    assert len(said) == 1 and "FMU instance 'a'" in said[0] and "'s_out'" in said[0], said

@@ -31,6 +31,7 @@ import stat
 import subprocess
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 log = logging.getLogger(__name__)
@@ -166,8 +167,39 @@ def library() -> ctypes.CDLL | None:
     lib.rotorcosim_safe_logger.argtypes = [_TARGET_TYPE]
     lib.rotorcosim_safe_logger.restype = ctypes.c_void_p
     lib.rotorcosim_format.restype = ctypes.c_int
+    lib.rotorcosim_copy_string.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t]
+    lib.rotorcosim_copy_string.restype = ctypes.c_long
     _lib = lib
     return lib
+
+
+#: longest String value read from an FMU (bytes); a longer one is cut there, with a warning
+MAX_STRING_BYTES = 1 << 20
+_local = threading.local()
+
+
+def copy_string(address: int) -> tuple[bytes | None, str]:
+    """The bytes of the NUL-terminated string an FMU handed over at ``address`` (fmi2GetString),
+    read without trusting the pointer (through a pipe: an unreadable address is EFAULT, not a
+    crash), and what went wrong: ``(bytes, "")``; ``(None, "")`` without the library (the caller
+    reads the pointer itself, as before); ``(b"", why)`` for an unreadable pointer; the bytes read
+    and why when the string was cut (longer than :data:`MAX_STRING_BYTES`, or running into memory
+    that cannot be read)."""
+    lib = library()
+    if lib is None:
+        return None, ""
+    buf = getattr(_local, "buf", None)
+    if buf is None:                 # one buffer per thread (stage threads read at the same time)
+        buf = _local.buf = ctypes.create_string_buffer(MAX_STRING_BYTES + 1)
+    n = lib.rotorcosim_copy_string(address, buf, MAX_STRING_BYTES + 1)
+    if n == -2:
+        return None, ""
+    if n < 0:
+        return b"", "an address that cannot be read"
+    data = buf.raw[:n]
+    if n >= MAX_STRING_BYTES:
+        return data, f"a string longer than {MAX_STRING_BYTES} bytes (cut there)"
+    return data, ""
 
 
 def safe_logger(target) -> int | None:

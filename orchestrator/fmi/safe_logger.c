@@ -261,3 +261,22 @@ int rotorcosim_format(char *out, const char *message, ...) {
     close(fds[1]);
     return (int)strlen(out);
 }
+
+/* Copy the NUL-terminated string an FMU handed over at p (fmi2GetString) into out (at most
+   cap - 1 bytes, NUL-terminated), reading it through a pipe as the logger does. Returns its
+   length, -1 when p cannot be read at all, or -2 when no pipe could be made. A string longer
+   than cap - 1 bytes, or one running into unreadable memory, is cut there (the length returned
+   is then cap - 1 or what could be read). */
+long rotorcosim_copy_string(const char *p, char *out, size_t cap) {
+    int fds[2] = {-1, -1};
+    if (cap == 0) return -1;
+#if defined(__linux__)
+    if (pipe2(fds, O_CLOEXEC) != 0) return -2;
+#else
+    if (pipe(fds) != 0) return -2;
+#endif
+    long n = copy_string(fds, p, out, cap);
+    close(fds[0]);
+    close(fds[1]);
+    return n;
+}

@@ -554,6 +554,14 @@ class Subsystem(SubsystemBase):
     def get_values(self, batch: TypedBatch) -> None:
         if batch.n:
             self._call(f"fmi2Get{batch.family}", self._component, batch.c_vrs, batch.n, batch.c_values, batch=batch)
+            if batch.family == "String":
+                for name, why in batch.own_strings():
+                    said = self.__dict__.setdefault("_bad_strings_said", set())
+                    if name not in said:
+                        said.add(name)
+                        log.warning("FMU instance '%s' gave %s for the String '%s' in fmi2GetString; what could "
+                                    "be read is recorded and passed on (\"\" for nothing); only its first such "
+                                    "value is reported", self.name, why, name)
 
     def terminated_by_fmu(self) -> bool:
         """fmi2GetBooleanStatus(fmi2Terminated) (FMI 2.0 sec. 4.2.3); False if the FMU cannot answer.

@@ -196,6 +196,27 @@ class TypedBatch:
         else:
             self.values = np.ctypeslib.as_array(self.c_values)[: self.n]
 
+    def own_strings(self) -> list[tuple[str, str]]:
+        """After fmi2GetString: replace every char* the FMU handed over by a copy of our own, read
+        without trusting the pointer (:func:`orchestrator.fmi.safe_log.copy_string`), so that no
+        later read dereferences it (an unreadable pointer crashed the process that read it). NULL
+        stays NULL. Returns ``[(variable, what was wrong)]`` for the values that could not be read
+        whole; without the safe library nothing is done (the pointers are read as before)."""
+        from orchestrator.fmi.safe_log import copy_string
+        raw = ctypes.cast(self.c_values, ctypes.POINTER(ctypes.c_void_p))
+        wrong = []
+        for k in range(self.n):
+            address = raw[k]
+            if not address:
+                continue
+            data, why = copy_string(address)
+            if data is None:
+                return wrong
+            self.c_values[k] = data          # ctypes keeps the bytes alive with the array
+            if why:
+                wrong.append((self.names[k], why))
+        return wrong
+
     def strings(self, keep_null: bool = False) -> list[str | None]:
         """The String values (after a get), decoded as UTF-8; a NULL pointer reads as "" (None
         with ``keep_null``: the worker passes it on, so that the master can report it)."""

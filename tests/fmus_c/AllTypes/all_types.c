@@ -9,8 +9,9 @@
  * Boolean:     b_in (input), b_out = b_in XOR (count is odd) (output)
  * Enumeration: mode (parameter, Mode: Off=1, Slow=2, Fast=3), e_in (input), e_out = e_in (output)
  * String:      label (parameter), s_in (input), s_out = s_in, or label when s_in is empty (output);
- *              a String whose value is "<NULL>" is returned by fmi2GetString as a NULL pointer
- *              (an FMU that breaks FMI 2.0: the master's test of what it records then)
+ *              a String whose value is "<NULL>" is returned by fmi2GetString as a NULL pointer,
+ *              one whose value is "<BADPTR>" as the address 16, which cannot be read
+ *              (an FMU that breaks FMI 2.0: the master's tests of what it records then)
  *
  * The FMU enforces the FMI 2.0 co-simulation state machine (sec. 4.2.4) and answers every
  * illegal call with fmi2Error and a log message "<function>: illegal call sequence ...", as the
@@ -20,6 +21,7 @@
  */
 #include <math.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -243,7 +245,8 @@ static int check_get(Instance *inst, const char *fn, fmi2ValueReference r, int t
 GETTER(fmi2GetReal, fmi2Real, 0, inst->d.r[vr[k]])
 GETTER(fmi2GetInteger, fmi2Integer, 1, inst->d.i[vr[k]])
 GETTER(fmi2GetBoolean, fmi2Boolean, 2, inst->d.i[vr[k]])
-GETTER(fmi2GetString, fmi2String, 3, strcmp(inst->d.s[vr[k]], "<NULL>") == 0 ? NULL : inst->d.s[vr[k]])
+GETTER(fmi2GetString, fmi2String, 3, strcmp(inst->d.s[vr[k]], "<NULL>") == 0 ? NULL :
+       strcmp(inst->d.s[vr[k]], "<BADPTR>") == 0 ? (fmi2String)(uintptr_t)16 : inst->d.s[vr[k]])
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[])
 {
