@@ -196,7 +196,7 @@ def copy_string(address: int) -> tuple[bytes | None, str]:
         return None, ""
     if n < 0:
         return b"", "an address that cannot be read"
-    data = buf.raw[:n]
+    data = ctypes.string_at(buf, n)         # n bytes (buf.raw would copy the whole MiB first)
     if n >= MAX_STRING_BYTES:
         return data, f"a string longer than {MAX_STRING_BYTES} bytes (cut there)"
     return data, ""
