@@ -331,17 +331,23 @@ def test_memory_is_flat_in_rows_during_a_run(fmus, tmp_path):
     assert grown < 300_000, f"memory grew by {grown} bytes over 18000 rows"
 
 
+def _run_with_label(fmus, tmp_path, isolation: str, label: str, caplog):
+    """The Jacobi run of a and b with a's String parameter ``label`` (which its s_out echoes), a.s_out
+    recorded, warnings captured."""
+    import logging
+    path = _yaml(fmus, "jacobi", extra=f", isolation: {isolation}")
+    text = path.read_text().replace("label: alpha", f'label: "{label}"')
+    text = text.replace("output: {signals: [", "output: {signals: [a.s_out, ")
+    path.write_text(text)
+    with caplog.at_level(logging.WARNING):
+        return _run(path, tmp_path / isolation)
+
+
 @pytest.mark.parametrize("isolation", ["none", "process"])
 def test_a_null_string_from_the_fmu_is_recorded_empty_and_reported_once(fmus, tmp_path, isolation, caplog):
     """fmi2GetString giving a NULL pointer (AllTypes returns NULL for the value "<NULL>") was
     recorded as "" without a word; now a warning names the instance and the variable, once."""
-    import logging
-    path = _yaml(fmus, "jacobi", extra=f", isolation: {isolation}")
-    text = path.read_text().replace("label: alpha", 'label: "<NULL>"')
-    text = text.replace("output: {signals: [", "output: {signals: [a.s_out, ")
-    path.write_text(text)
-    with caplog.at_level(logging.WARNING):
-        res = _run(path, tmp_path / isolation)
+    res = _run_with_label(fmus, tmp_path, isolation, "<NULL>", caplog)
     assert res.success, res.message
     assert list(res.outputs["a.s_out"]) == [""] * (N + 1)
     assert list(res.outputs["b.s_out"]) == ["beta"] * (N + 1)      # b got "": its own label
@@ -355,16 +361,10 @@ def test_an_unreadable_string_pointer_from_the_fmu_is_recorded_empty_not_a_crash
     value "<BADPTR>"): the master read it with strlen and died by SIGSEGV (in process; in a worker
     process the run stopped with a crash report). Now the value is read through the safe library,
     recorded and passed on as "", and a warning names the instance and variable once."""
-    import logging
     from orchestrator.fmi import safe_log
     if safe_log.library() is None:
         pytest.skip("no C compiler: the safe string reader cannot be built here")
-    path = _yaml(fmus, "jacobi", extra=f", isolation: {isolation}")
-    text = path.read_text().replace("label: alpha", 'label: "<BADPTR>"')
-    text = text.replace("output: {signals: [", "output: {signals: [a.s_out, ")
-    path.write_text(text)
-    with caplog.at_level(logging.WARNING):
-        res = _run(path, tmp_path / isolation)
+    res = _run_with_label(fmus, tmp_path, isolation, "<BADPTR>", caplog)
     assert res.success, res.message
     assert list(res.outputs["a.s_out"]) == [""] * (N + 1)
     said = [r.getMessage() for r in caplog.records if "an address that cannot be read" in r.getMessage()]
