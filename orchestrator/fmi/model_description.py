@@ -66,6 +66,13 @@ class UnitDef:
     factor: float = 1.0
     offset: float = 0.0
 
+    def to(self, other: "UnitDef") -> tuple[float, float] | None:
+        """(gain, offset) that turn a value of this unit into one of ``other``
+        (``gain * v + offset``); None when the dimensions differ."""
+        if self.exponents != other.exponents:
+            return None
+        return self.factor / other.factor, (self.offset - other.offset) / other.factor
+
 
 @dataclass(frozen=True)
 class Unknown:

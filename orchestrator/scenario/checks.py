@@ -203,15 +203,15 @@ class FmuChecks(Completion):
         ud = md_d.units.get(du) if md_d is not None else None
         head = f"connection '{c['from']}' [{su}] -> '{c['to']}' [{du}]"
         if us is not None and ud is not None:
-            if us.exponents != ud.exponents:
+            conv = us.to(ud)
+            if conv is None:
                 text = (f"{head}: the units have different dimensions (from the FMUs' unit definitions), yet "
                         "the input gets the output's number as it is; check that these are the variables to "
                         "connect")
-            elif us.factor == ud.factor and us.offset == ud.offset:
+            elif conv == (1.0, 0.0):
                 return                                  # one unit, two names
             else:
-                gain = us.factor / ud.factor
-                offset = (us.offset - ud.offset) / ud.factor
+                gain, offset = conv
                 fix = f"gain: {gain:.12g}" + (f", offset: {offset:.12g}" if offset else "")
                 text = (f"{head}: the input gets the output's number unconverted; to convert {su} to {du} "
                         f"write {{{fix}}} in the connection (from the FMUs' unit definitions)")

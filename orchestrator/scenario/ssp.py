@@ -222,10 +222,11 @@ def _in_fmu_unit(value: Any, unit: str | None, set_units: dict, ssd_units: dict,
                         "<ssd:Units> nor the FMU's <UnitDefinitions>; define it, or give the value in the "
                         "variable's unit")
         return value
-    if us.exponents != ud.exponents:
+    conv = us.to(ud)
+    if conv is None:
         problems.append(f"{head}: the units have different dimensions; give the value in the variable's unit")
         return value
-    return (us.factor * value + us.offset - ud.offset) / ud.factor
+    return conv[0] * value + conv[1]
 
 
 def _parameters(comp: ET.Element, path: str, ssd_units: dict, src: _Source, problems: list[str]) -> dict[str, Any]:
@@ -274,9 +275,9 @@ def _end_unit(comps: dict, fmus: dict, inst: str, var: str, ssd: str = "the SSD"
     """(type, unit, unit definitions) of the connection end ``inst.var``: the unit the FMU declares for
     the variable, else the one the component's connector declares (``ssc:Real unit``); None when the
     FMU cannot be read (the loader reports that)."""
-    from orchestrator.fmi.archive import read_model_description
+    from orchestrator.fmi.archive import cached_model_description     # read once per FMU, not per end
     try:
-        md = read_model_description(fmus[inst]["path"])
+        md = cached_model_description(fmus[inst]["path"])
     except Exception:      # noqa: BLE001 - unreadable FMU: reported by the scenario checks
         return None
     v = md.variables.get(var)
@@ -318,13 +319,12 @@ def _unit_conversion(conn: dict, c: ET.Element, comps: dict, fmus: dict, units: 
         problems.append(f"{head}: SSP converts between the connectors' units, but {missing} is defined neither in "
                         f"the SSD's <ssd:Units> nor in the FMU's <UnitDefinitions>; define it, {fix}")
         return None
-    if us.exponents != ud.exponents:
+    conv = us.to(ud)
+    if conv is None:
         problems.append(f"{head}: SSP converts between the connectors' units, but they have different dimensions; "
                         f"connect variables of the same dimension, {fix}")
         return None
-    if us.factor == ud.factor and us.offset == ud.offset:
-        return None                                   # one unit, two names
-    return us.factor / ud.factor, (us.offset - ud.offset) / ud.factor
+    return None if conv == (1.0, 0.0) else conv      # None: one unit, two names
 
 
 def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
