@@ -22,12 +22,9 @@ from dataclasses import dataclass
 from orchestrator.coupling.plan import Link, Plan, Unit
 from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.errors import CouplingError, FmuCallError
+from orchestrator.scenario.limits import step_slack
 
 log = logging.getLogger(__name__)
-
-#: a step within this fraction of the macro step (or 16 units in the last place of the time) is a
-#: whole macro step whose size only rounding of the grid times changed (:meth:`MacroStep.advance`)
-STEP_ROUNDING = 1e-9
 
 
 @dataclass
@@ -170,7 +167,7 @@ class MacroStep:
         communicationStepSize with its first one (FMPy and libcosim pass H too)."""
         h = t_next - t
         H = self.macro_step
-        if h != H and abs(h - H) <= max(STEP_ROUNDING * H, 16 * math.ulp(t_next)):
+        if h != H and abs(h - H) <= step_slack(t, t_next, H) * H:   # only rounding made it differ
             h = H
         hist = self.history
         hist.times[0] = t_next

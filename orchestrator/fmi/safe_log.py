@@ -131,10 +131,11 @@ def library() -> ctypes.CDLL | None:
         from orchestrator.untrusted import SettingError
         raise SettingError(f"ROTORCOSIM_SAFE_LOGGER must be 1 (our logger formats FMU log messages, the "
                            f"default) or 0 (fmpy's proxy does) (got {choice!r}); unset it for the default")
-    cc = None if choice == "0" or sys.platform == "win32" else _compiler()    # a bad CC raises, every time
-    _tried = True
     if choice == "0" or sys.platform == "win32":
+        _tried = True
         return None
+    cc = _compiler()            # a CC that cannot be split raises, on every call
+    _tried = True
     if cc is None:
         log.debug("no C compiler (cc, or $CC): FMU log messages are formatted by fmpy's logger proxy")
         return None
