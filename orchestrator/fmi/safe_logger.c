@@ -214,16 +214,43 @@ static void format_message(const int fds[2], const char *fmt, va_list ap, char *
     }
 }
 
+/* The pipe every string of an FMU is read through: one per thread, kept open (a pipe made and
+   closed per value cost 8 us of the 9 a String value took), made again in a child after fork
+   and whenever a read left bytes in it. */
+static __thread int tl_fds[2] = {-1, -1};
+static __thread pid_t tl_pid = 0;
+
+/* This thread's pipe; {-1, -1} when none can be made (copy_string then reads nothing). */
+static const int *thread_pipe(void) {
+    if (tl_fds[0] >= 0 && tl_pid != getpid()) {      /* inherited through fork: this process's copies */
+        close(tl_fds[0]); close(tl_fds[1]);
+        tl_fds[0] = tl_fds[1] = -1;
+    }
+    if (tl_fds[0] < 0) {
+#if defined(__linux__)
+        if (pipe2(tl_fds, O_CLOEXEC) != 0) tl_fds[0] = tl_fds[1] = -1;
+#else
+        if (pipe(tl_fds) != 0) tl_fds[0] = tl_fds[1] = -1;
+#endif
+        tl_pid = getpid();
+    }
+    return tl_fds;
+}
+
+/* After a use of thread_pipe(): a pipe that still holds bytes is closed (never read stale bytes). */
+static void done_with_pipe(void) {
+    int left = 0;
+    if (tl_fds[0] >= 0 && (ioctl(tl_fds[0], FIONREAD, &left) != 0 || left != 0)) {
+        close(tl_fds[0]); close(tl_fds[1]);
+        tl_fds[0] = tl_fds[1] = -1;
+    }
+}
+
 static void safe_logger(void *env, const char *instance, int status, const char *category,
                         const char *message, ...) {
     if (target == NULL) return;
-    int fds[2] = {-1, -1};
+    const int *fds = thread_pipe();
     char name[NAME_CAP], cat[NAME_CAP], fmt[FMT_CAP], out[OUT_CAP];
-#if defined(__linux__)
-    if (pipe2(fds, O_CLOEXEC) != 0) fds[0] = fds[1] = -1;
-#else
-    if (pipe(fds) != 0) fds[0] = fds[1] = -1;
-#endif
     if (copy_string(fds, instance, name, sizeof name) < 0) strcpy(name, "?");
     if (copy_string(fds, category, cat, sizeof cat) < 0) strcpy(cat, "");
     if (copy_string(fds, message, fmt, sizeof fmt) < 0) {
@@ -234,7 +261,7 @@ static void safe_logger(void *env, const char *instance, int status, const char 
         format_message(fds, fmt, ap, out);
         va_end(ap);
     }
-    if (fds[0] >= 0) { close(fds[0]); close(fds[1]); }
+    done_with_pipe();
     target(env, name, status, cat, out);
 }
 
@@ -246,9 +273,9 @@ void *rotorcosim_safe_logger(target_logger logger) {
 
 /* Format `message` with the arguments given (tests: the formatting alone, without an FMU). */
 int rotorcosim_format(char *out, const char *message, ...) {
-    int fds[2] = {-1, -1};
+    const int *fds = thread_pipe();
     char fmt[FMT_CAP];
-    if (pipe(fds) != 0) return -1;
+    if (fds[0] < 0) return -1;
     long n = copy_string(fds, message, fmt, sizeof fmt);
     if (n >= 0) {
         va_list ap;
@@ -258,20 +285,8 @@ int rotorcosim_format(char *out, const char *message, ...) {
     } else {
         strcpy(out, "(unreadable message)");
     }
-    close(fds[0]);
-    close(fds[1]);
+    done_with_pipe();
     return (int)strlen(out);
-}
-
-/* The pipe rotorcosim_copy_string reads through: one per thread, kept open (a pipe made and
-   closed per value cost 8 us of the 9 a value took), made again in a child after fork and
-   whenever a read left bytes in it. */
-static __thread int tl_fds[2] = {-1, -1};
-static __thread pid_t tl_pid = 0;
-
-static void drop_pipe(void) {
-    if (tl_fds[0] >= 0) { close(tl_fds[0]); close(tl_fds[1]); }
-    tl_fds[0] = tl_fds[1] = -1;
 }
 
 /* Copy the NUL-terminated string an FMU handed over at p (fmi2GetString) into out (at most
@@ -281,20 +296,9 @@ static void drop_pipe(void) {
    is then cap - 1 or what could be read). */
 long rotorcosim_copy_string(const char *p, char *out, size_t cap) {
     if (cap == 0) return -1;
-    if (tl_fds[0] >= 0 && tl_pid != getpid()) {      /* inherited through fork: this process's copies */
-        close(tl_fds[0]); close(tl_fds[1]);
-        tl_fds[0] = tl_fds[1] = -1;
-    }
-    if (tl_fds[0] < 0) {
-#if defined(__linux__)
-        if (pipe2(tl_fds, O_CLOEXEC) != 0) { tl_fds[0] = tl_fds[1] = -1; return -2; }
-#else
-        if (pipe(tl_fds) != 0) { tl_fds[0] = tl_fds[1] = -1; return -2; }
-#endif
-        tl_pid = getpid();
-    }
-    long n = copy_string(tl_fds, p, out, cap);
-    int left = 0;
-    if (ioctl(tl_fds[0], FIONREAD, &left) != 0 || left != 0) drop_pipe();   /* never read stale bytes */
+    const int *fds = thread_pipe();
+    if (fds[0] < 0) return -2;
+    long n = copy_string(fds, p, out, cap);
+    done_with_pipe();
     return n;
 }
