@@ -21,12 +21,10 @@ around steps it may redo.
 
 from __future__ import annotations
 
-import logging
 from typing import Callable, Mapping, Sequence
 
 from orchestrator.fmi.values import FAMILY, TypedBatch
 
-log = logging.getLogger(__name__)
 
 FAMILIES = ("Integer", "Boolean", "String")
 
@@ -61,12 +59,9 @@ def _null_string(sub, name: str) -> None:
     """A NULL from fmi2GetString (FMI 2.0 wants a string, "" when empty): recorded and passed on
     as "", said once per variable of the run (a warning, not a failure: the value is unusable,
     the run is not)."""
-    said = sub.__dict__.setdefault("_null_strings_said", set())
-    if name not in said:
-        said.add(name)
-        log.warning("FMU instance '%s' gave a NULL pointer for the String '%s' in fmi2GetString (FMI 2.0 "
-                    "asks for a string, \"\" when empty); it is recorded and passed on as \"\"; only its "
-                    "first NULL is reported", sub.name, name)
+    sub.warn_once(("NULL string", name), "FMU instance '%s' gave a NULL pointer for the String '%s' in "
+                  "fmi2GetString (FMI 2.0 asks for a string, \"\" when empty); it is recorded and passed on as "
+                  "\"\"; only its first NULL is reported", sub.name, name)
 
 
 class DiscreteSignals:

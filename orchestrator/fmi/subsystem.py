@@ -250,6 +250,14 @@ class SubsystemBase(ABC):
 
     name: str
     can_interpolate_inputs: bool = False
+
+    def warn_once(self, key: tuple, text: str, *args) -> None:
+        """``log.warning(text, *args)`` the first time ``key`` (e.g. (what, variable)) is met for
+        this instance in the run: a flaw of a value the FMU repeats every step is said once."""
+        said = self.__dict__.setdefault("_said", set())
+        if key not in said:
+            said.add(key)
+            log.warning(text, *args)
     can_get_set_state: bool = False
     # passed to fmi2DoStep as noSetFMUStatePriorToCurrentPoint; the master sets
     # it False while it may still restore an earlier state (start-up iteration)
@@ -556,12 +564,9 @@ class Subsystem(SubsystemBase):
             self._call(f"fmi2Get{batch.family}", self._component, batch.c_vrs, batch.n, batch.c_values, batch=batch)
             if batch.family == "String":
                 for name, why in batch.own_strings():
-                    said = self.__dict__.setdefault("_bad_strings_said", set())
-                    if name not in said:
-                        said.add(name)
-                        log.warning("FMU instance '%s' gave %s for the String '%s' in fmi2GetString; what could "
-                                    "be read is recorded and passed on (\"\" for nothing); only its first such "
-                                    "value is reported", self.name, why, name)
+                    self.warn_once(("bad string", name), "FMU instance '%s' gave %s for the String '%s' in "
+                                   "fmi2GetString; what could be read is recorded and passed on (\"\" for "
+                                   "nothing); only its first such value is reported", self.name, why, name)
 
     def terminated_by_fmu(self) -> bool:
         """fmi2GetBooleanStatus(fmi2Terminated) (FMI 2.0 sec. 4.2.3); False if the FMU cannot answer.
