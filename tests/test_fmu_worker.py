@@ -9,7 +9,6 @@ that names the instance, the FMU file, the FMI function, the simulation time and
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import shutil
 import signal
@@ -18,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.fmus_c.build_c_fmu import build_c_fmu
+
 from orchestrator.errors import FmuCallError, FmuCrashError, ScenarioError
 from orchestrator.fmi.worker import WorkerSubsystem, signal_name
 from orchestrator.fmi.subsystem import Subsystem
@@ -25,18 +26,14 @@ from orchestrator.fmi.subsystem import Subsystem
 pytestmark = [pytest.mark.integration,
               pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")]
 
-HERE = Path(__file__).resolve().parent
 H = 1.0e-3
 
 
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory) -> Path:
-    spec = importlib.util.spec_from_file_location("build_c_fmu", HERE / "fmus_c" / "build_c_fmu.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
     d = tmp_path_factory.mktemp("worker_fmus")
-    mod.build_c_fmu(d, "LinearBearing")
-    mod.build_c_fmu(d, "MisbehavingBearing")
+    build_c_fmu(d, "LinearBearing")
+    build_c_fmu(d, "MisbehavingBearing")
     return d
 
 

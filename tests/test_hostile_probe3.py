@@ -5,7 +5,6 @@ its fix."""
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import shutil
 import subprocess
@@ -14,6 +13,8 @@ import zipfile
 from pathlib import Path
 
 import pytest
+
+from tests.fmus_c.build_c_fmu import build_c_fmu
 
 from hostile_builders import cli, md_scenario, write_fmu
 
@@ -167,12 +168,9 @@ FAULTS = {"log-flood": 9, "log-hostile": 10, "pending": 11, "status-42": 12, "no
 
 @pytest.fixture(scope="module")
 def c_fmus(tmp_path_factory):
-    spec = importlib.util.spec_from_file_location("build_c_fmu", HERE / "fmus_c" / "build_c_fmu.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
     d = tmp_path_factory.mktemp("probe3_fmus")
-    mod.build_c_fmu(d, "LinearBearing")
-    mod.build_c_fmu(d, "MisbehavingBearing")
+    build_c_fmu(d, "LinearBearing")
+    build_c_fmu(d, "MisbehavingBearing")
     return d
 
 

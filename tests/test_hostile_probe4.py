@@ -4,21 +4,14 @@ can hold. One test per finding, each failing on the code before its fix."""
 
 from __future__ import annotations
 
-import importlib.util
 import shutil
 from pathlib import Path
 
 import pytest
 
-HERE = Path(__file__).resolve().parent
+from tests.fmus_c.build_c_fmu import build_c_fmu
+
 needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")
-
-
-def _c_fmu(dest: Path, name: str, **kw) -> Path:
-    spec = importlib.util.spec_from_file_location("build_c_fmu", HERE / "fmus_c" / "build_c_fmu.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod.build_c_fmu(dest, name, **kw)
 
 
 def _run_fixed_step(tmp_path: Path, start: str, stop: str):
@@ -44,7 +37,7 @@ def test_every_macro_step_is_passed_as_the_macro_step_itself(tmp_path, test_fmus
     (canHandleVariableCommunicationStepSize="false", AllTypesFixed) refused the third step with
     fmi2Error and the run failed. Now every whole macro step is passed as coupling.macro_step
     exactly (sub-steps as macro_step / substeps), from the grid time T(n) = t0 + n*H."""
-    _c_fmu(tmp_path, "AllTypes", fixed_step=True)
+    build_c_fmu(tmp_path, "AllTypes", fixed_step=True)
     res = _run_fixed_step(tmp_path, "1000000.1", "1000001.1")
     assert res.success, res.message
     assert list(res.outputs["a.count"]) == list(range(11))
@@ -189,7 +182,7 @@ def test_a_run_starting_at_a_large_time_steps_to_its_stop_time(tmp_path, test_fm
     in the last place of the time, over the step), and each macro step reaches the FMUs as 0.1."""
     for name in ("Integrator",):
         shutil.copy(test_fmus[name], tmp_path / f"{name}.fmu")
-    _c_fmu(tmp_path, "AllTypes", fixed_step=True)
+    build_c_fmu(tmp_path, "AllTypes", fixed_step=True)
     p = tmp_path / "year.yaml"
     p.write_text("name: year\nstart_time: 31536000\nstop_time: 31536000.3\nfmus:\n"
                  "  i1: {path: Integrator.fmu, parameters: {u: 1.0}}\n  i2: {path: Integrator.fmu}\n"

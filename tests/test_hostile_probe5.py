@@ -4,7 +4,6 @@ code before its fix."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 import signal
@@ -12,15 +11,10 @@ from pathlib import Path
 
 import pytest
 
+from tests.fmus_c.build_c_fmu import build_c_fmu
+
 HERE = Path(__file__).resolve().parent
 needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")
-
-
-def _build_c_fmu(dest: Path, name: str) -> Path:
-    spec = importlib.util.spec_from_file_location("build_c_fmu", HERE / "fmus_c" / "build_c_fmu.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod.build_c_fmu(dest, name)
 
 
 @pytest.fixture(scope="module")
@@ -28,8 +22,8 @@ def c_fmus(tmp_path_factory) -> Path:
     if shutil.which("gcc") is None:
         pytest.skip("gcc not installed (native test FMU)")
     d = tmp_path_factory.mktemp("probe5_fmus")
-    _build_c_fmu(d, "LinearBearing")
-    _build_c_fmu(d, "MisbehavingBearing")
+    build_c_fmu(d, "LinearBearing")
+    build_c_fmu(d, "MisbehavingBearing")
     return d
 
 

@@ -12,7 +12,6 @@ run, never the "finished" summary of an earlier one.
 from __future__ import annotations
 
 import csv
-import importlib.util
 import json
 import os
 import shutil
@@ -26,21 +25,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.fmus_c.build_c_fmu import build_c_fmu
+
 pytestmark = [pytest.mark.integration,
               pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")]
 
-HERE = Path(__file__).resolve().parent
 FAULTS = {"abort": 1, "segfault": 2, "exit": 3, "hang": 4, "nan": 5, "error": 6, "free": 7, "init": 8, "inithang": 15}
 
 
 @pytest.fixture(scope="module")
 def fmu_dir(tmp_path_factory) -> Path:
-    spec = importlib.util.spec_from_file_location("build_c_fmu", HERE / "fmus_c" / "build_c_fmu.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
     d = tmp_path_factory.mktemp("isolation_fmus")
-    mod.build_c_fmu(d, "LinearBearing")
-    mod.build_c_fmu(d, "MisbehavingBearing")
+    build_c_fmu(d, "LinearBearing")
+    build_c_fmu(d, "MisbehavingBearing")
     return d
 
 
