@@ -139,14 +139,12 @@ def test_library_file_others_may_write_is_not_loaded_but_built_anew(tmp_path, mo
 
 
 def test_fmpy_proxy_when_asked_or_without_a_compiler(monkeypatch):
-    for env, cc in (({"ROTORCOSIM_SAFE_LOGGER": "0"}, None), ({"CC": "/nonexistent/cc"}, None)):
+    for key, value in (("ROTORCOSIM_SAFE_LOGGER", "0"), ("CC", "/nonexistent/cc")):
         monkeypatch.setattr(safe_log, "_tried", False)
         monkeypatch.setattr(safe_log, "_lib", None)
-        for k, v in env.items():
-            monkeypatch.setenv(k, v)
+        monkeypatch.setenv(key, value)
         assert safe_log.library() is None
-        for k in env:
-            monkeypatch.delenv(k)
+        monkeypatch.delenv(key)
 
 
 def test_a_value_other_than_0_or_1_is_a_setting_error(monkeypatch):
