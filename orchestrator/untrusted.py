@@ -41,6 +41,7 @@ import unicodedata
 from pathlib import Path
 from typing import Any, BinaryIO, Mapping
 
+from orchestrator import read_log
 from orchestrator.errors import CosimError
 
 MAX_TEXT_BYTES = 8 * 2**20          # a scenario, compare spec or summary.json
@@ -101,7 +102,8 @@ def open_regular(path: str | os.PathLike, *, what: str = "file") -> BinaryIO:
     """Open ``path`` for binary reading if it is a regular file (symlinks followed).
 
     Opens with ``O_NONBLOCK`` so that a FIFO does not block, then checks the
-    opened file itself (no race between check and open). Raises
+    opened file itself (no race between check and open). A scenario load that
+    is recording (:mod:`orchestrator.read_log`) notes the file. Raises
     :class:`InputError` for a missing file, a directory, a FIFO, a device or a
     socket, or a permission problem.
     """
@@ -124,6 +126,7 @@ def open_regular(path: str | os.PathLike, *, what: str = "file") -> BinaryIO:
                              "give a regular file (rotorcosim reads no pipes or devices)")
         if hasattr(os, "set_blocking"):
             os.set_blocking(fd, True)
+        read_log.note(path)            # a scenario load records the files it reads (sweep --resume)
         return os.fdopen(fd, "rb")
     except BaseException:
         os.close(fd)

@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import pytest
@@ -429,6 +430,73 @@ def test_interrupted_sweep_keeps_finished_runs_and_resumes(sdir):
     assert f"({finished} runs resumed)" in proc.stdout
     rows = (sdir / "o" / "sweep.csv").read_text().splitlines()[1:]
     assert len(rows) == 6 and all(",finished," in r for r in rows)
+
+
+SSV = ('<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet version="1.0" name="p" '
+       'xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"><ssv:Parameters>'
+       '<ssv:Parameter name="y0"><ssv:Real value="{y0}"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>\n')
+SSD = ('<?xml version="1.0" encoding="UTF-8"?>\n<ssd:SystemStructureDescription version="1.0" name="s" '
+       'xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"><ssd:System name="top">'
+       '<ssd:Elements><ssd:Component name="i" source="fmus/Integrator.fmu"><ssd:ParameterBindings>'
+       '<ssd:ParameterBinding source="p.ssv"/></ssd:ParameterBindings></ssd:Component>'
+       '<ssd:Component name="t" source="fmus/TypedPorts.fmu"/></ssd:Elements></ssd:System>'
+       '<ssd:DefaultExperiment startTime="0" stopTime="1"/></ssd:SystemStructureDescription>\n')
+
+
+@pytest.mark.filterwarnings("ignore:collect")
+def test_resume_reruns_the_runs_whose_ssp_parameter_file_or_named_file_changed(tmp_path, test_fmus):
+    """`sweep --resume` compared only the scenario file and the FMUs with what a run was recorded
+    with: a scenario that takes its values from an SSP (``ssp: sys.ssd``, its parameter file
+    p.ssv) or names a file in a String parameter (a rotor file) kept every run after that file
+    was edited, and sweep.csv held the results of the old values. Now the loader records every
+    file it reads (and every existing file a String parameter names), each run's sweep_run.json
+    keeps their digests, and --resume runs again exactly the runs whose files changed."""
+    from orchestrator.results.result import CoSimResult
+    from orchestrator.sweep.runner import run_sweep
+    (tmp_path / "fmus").mkdir()
+    for name in ("Integrator", "TypedPorts"):
+        shutil.copy(test_fmus[name], tmp_path / "fmus" / f"{name}.fmu")
+    (tmp_path / "sys.ssd").write_text(SSD)
+    (tmp_path / "p.ssv").write_text(SSV.format(y0=1.0))
+    (tmp_path / "sc.yaml").write_text("ssp: sys.ssd\nname: ssp_inputs\nstop_time: 0.03\ncoupling: {macro_step: 0.01}\n")
+    named = {k: tmp_path / f"{k}.txt" for k in ("a", "b")}
+    for k, f in named.items():
+        f.write_text(f"file {k}\n")
+    (tmp_path / "sw.yaml").write_text(
+        "sweep: 1\nscenario: sc.yaml\nparameters:\n  - name: prefix\n    set: fmus.t.parameters.prefix\n"
+        f"    values: [{json.dumps(str(named['a']))}, {json.dumps(str(named['b']))}]\ncollect:\n  end: end_time\n")
+    out = tmp_path / "out"
+
+    def sweep(resume: bool):
+        spec = load_sweep(tmp_path / "sw.yaml")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            outcome = run_sweep(spec, plan_sweep(spec, build_fmus=False), out, workers=1, resume=resume,
+                                progress=False, warm=False)
+        texts = [str(w.message) for w in caught if "--resume" in str(w.message)]
+        return outcome, texts
+
+    def y0_of(run_id: str) -> float:
+        return float(CoSimResult.load(out / "runs" / run_id).outputs["i.y"][0])
+
+    first, _ = sweep(False)
+    ids = [r["run_id"] for r in first.rows]
+    assert [r["status"] for r in first.rows] == ["finished", "finished"]
+    assert [y0_of(i) for i in ids] == [1.0, 1.0]
+    inputs = json.loads((out / "runs" / ids[0] / "sweep_run.json").read_text())["inputs"]
+    assert sorted(inputs["files"]) == sorted([str((tmp_path / "sys.ssd").resolve()),
+                                              str((tmp_path / "p.ssv").resolve()), str(named["a"].resolve())])
+    again, texts = sweep(True)                                    # nothing changed: both kept
+    assert again.skipped == 2 and not texts
+    named["a"].write_text("file a, edited\n")                    # only the first run names a.txt
+    edited, texts = sweep(True)
+    assert edited.skipped == 1 and len(texts) == 1, texts
+    assert f"runs/{ids[0]}: the file {named['a'].resolve()} changed since this run finished" in texts[0]
+    (tmp_path / "p.ssv").write_text(SSV.format(y0=2.0))          # every run reads the SSP's parameters
+    fixed, texts = sweep(True)
+    assert fixed.skipped == 0 and len(texts) == 2, texts
+    assert all(f"the file {(tmp_path / 'p.ssv').resolve()} changed since this run finished" in t for t in texts)
+    assert [y0_of(i) for i in ids] == [2.0, 2.0]                  # the new value, not the stale results
 
 
 @pytest.mark.timeout(600)

@@ -364,3 +364,39 @@ def test_a_planted_run_log_symlink_is_removed_and_a_long_log_read_from_its_end(t
     tail = _log_tail(tmp_path / "run.log")
     assert tail.endswith("the end: FMU 'f' failed\n") and len(tail) == 2400
     assert _log_tail(tmp_path / "missing.log") == ""
+
+
+# ------------------------------------------------------------------ 4. the inputs --resume compares
+def test_run_inputs_of_an_ssp_archive_name_the_archive_not_its_extraction(tmp_path, test_fmus):
+    """The loader records the files it reads (orchestrator.read_log) for --resume. An .ssp archive is
+    extracted into a new temporary folder at every load: recording the extracted .ssd and FMUs by
+    path would make every run look changed on every resume. The archive is the input; the folder
+    made while loading is not, and two loads record the same files with the same digests."""
+    import orchestrator
+    from tests.test_hostile_probe6 import _ssp
+    comps = ('<ssd:Elements><ssd:Component name="b" source="resources/Integrator.fmu"/></ssd:Elements>')
+    ssp = _ssp(tmp_path / "s.ssp", comps, {"resources/Integrator.fmu": test_fmus["Integrator"]})
+    (tmp_path / "s.yaml").write_text("ssp: s.ssp\nname: s\nstop_time: 0.1\n")
+    first, second = (orchestrator.load_scenario(tmp_path / "s.yaml") for _ in range(2))
+    assert first.inputs == second.inputs == (str((tmp_path / "s.yaml").resolve()), str(ssp.resolve()))
+    cache: dict = {}
+    a, b = plan.run_inputs(tmp_path / "s.yaml", first, cache), plan.run_inputs(tmp_path / "s.yaml", second, cache)
+    assert a == b and list(a["files"]) == [str(ssp.resolve())] and a["fmus"]["b"] != "unreadable"
+
+
+def test_fingerprint_reads_no_fifo_and_stops_at_its_size_limit(tmp_path, monkeypatch):
+    """A recorded input replaced by a FIFO before the digest is taken must not block the sweep; a
+    file above read_log.MAX_DIGEST_BYTES is fingerprinted by size and time, not read."""
+    import os
+
+    from orchestrator import read_log
+    fifo = tmp_path / "p.ssv"
+    os.mkfifo(fifo)
+    with pytest.raises(OSError, match="not a regular file"):
+        read_log.fingerprint(fifo)
+    big = tmp_path / "big.bin"
+    big.write_bytes(b"x" * 2000)
+    monkeypatch.setattr(read_log, "MAX_DIGEST_BYTES", 1000)
+    assert read_log.fingerprint(big) == f"size:2000 mtime_ns:{os.stat(big).st_mtime_ns}"
+    monkeypatch.setattr(read_log, "MAX_DIGEST_BYTES", 4000)
+    assert len(read_log.fingerprint(big)) == 64

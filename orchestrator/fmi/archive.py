@@ -40,6 +40,7 @@ import zipfile
 import zlib
 from pathlib import Path, PurePosixPath
 
+from orchestrator import read_log
 from orchestrator.errors import FmuError
 from orchestrator.fmi.model_description import ModelDescription, Variable, _fail, parse_model_description
 from orchestrator.untrusted import InputError, open_regular
@@ -304,7 +305,9 @@ def cached_model_description(path: Path | str) -> ModelDescription:
         st = path.stat()
     except OSError:
         return read_model_description(path)          # raises FmuError naming the missing file
-    return _read_cached(str(path), st.st_mtime_ns, st.st_size)
+    md = _read_cached(str(path), st.st_mtime_ns, st.st_size)
+    read_log.note(path)              # read now or before: a recording scenario load depends on it
+    return md
 
 
 @functools.lru_cache(maxsize=64)

@@ -63,23 +63,51 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
     ScenarioError
         listing every problem found, each as ``file:line: what is wrong (got X); fix``.
     """
+    from dataclasses import replace
+
+    from orchestrator import read_log
     check_overrides(overrides)
     given = path_arg(path, "load_scenario(path)", "load_scenario('scenarios/quickstart.yaml')")
-    path = from_ssp(given)
-    try:
-        loader = ScenarioLoader(Path(path), overrides)
-        draft = loader.read_sections()
-        if build_fmus and draft is not None and not loader.problems and draft.complete:
-            loader.build(draft)
-        scenario = loader.check(draft) if draft is not None else None
-    finally:
-        GENERATED.pop(str(path), None)        # its origins are in the messages and parameter origins now
-    if loader.problems or scenario is None:
-        raise ScenarioError(sorted(loader.problems, key=line_order) or [f"{given}: invalid scenario"])
+    with read_log.recording() as reads:     # every file read below is an input of the scenario
+        path = from_ssp(given)
+        try:
+            loader = ScenarioLoader(Path(path), overrides)
+            draft = loader.read_sections()
+            if build_fmus and draft is not None and not loader.problems and draft.complete:
+                loader.build(draft)
+            scenario = loader.check(draft) if draft is not None else None
+        finally:
+            GENERATED.pop(str(path), None)        # its origins are in the messages and parameter origins now
+        if loader.problems or scenario is None:
+            raise ScenarioError(sorted(loader.problems, key=line_order) or [f"{given}: invalid scenario"])
+        for named in _named_files(scenario, getattr(loader, "mds", {})):
+            reads.add(named)
+    scenario = replace(scenario, inputs=tuple(reads.files))
     if path != given:         # made from an SSP: summary.json names the user's file, not the generated one
-        from dataclasses import replace
         scenario = replace(scenario, source=given.resolve())
     return scenario
+
+
+def _named_files(scenario: Scenario, variables: dict) -> list[Path]:
+    """The existing regular files the scenario's String parameters name (a rotor file): the FMU
+    reads them when the run starts, so they are inputs of the run as much as the YAML is. A path
+    is resolved as the FMU resolves it (relative to the working directory); ``{out_dir}`` paths are
+    the run's own outputs and are left out."""
+    from orchestrator.untrusted import OUT_DIR_FIELD
+    found = []
+    for spec in scenario.fmus:
+        for name, value in spec.parameters.items():
+            var = variables.get(spec.name, {}).get(name)
+            if var is None or var.type != "String" or not isinstance(value, str) or not value.strip() \
+                    or OUT_DIR_FIELD in value:
+                continue
+            try:
+                candidate = Path(value).expanduser()
+                if candidate.is_file():
+                    found.append(candidate)
+            except (OSError, ValueError, RuntimeError):  # a name too long, a NUL: not a file
+                continue
+    return found
 
 
 def from_ssp(path: Path) -> Path:
@@ -120,6 +148,8 @@ def from_ssp(path: Path) -> Path:
         raise ScenarioError(f"{path}: SSP file {ssp} not found; check the path")
     work = Path(tempfile.mkdtemp(prefix="rotorcosim-ssp-"))
     atexit.register(shutil.rmtree, work, True)
+    from orchestrator import read_log
+    read_log.made_here(work)                  # extracted and generated here: the SSP itself is the input
     doc = scenario_from_ssp(ssp, work / "ssp")
     for key, value in overlay.items():
         if key == "fmus" and isinstance(value, dict):

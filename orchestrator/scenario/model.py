@@ -186,6 +186,9 @@ class Scenario:
     analysis: Mapping[str, Any] | None = None  # optional run-up analysis section (see docs/scenario-format.md)
     compare: Mapping[str, Any] | None = None   # optional compare section (see docs/compare.md)
     defaults: Mapping[str, str] = field(default_factory=dict)  # values taken from the FMUs' DefaultExperiment
+    # the files loading read (the YAML, an SSP and its .ssd/.ssv, every FMU) and the existing files
+    # String parameters name (a rotor file): absolute paths, for sweep --resume (orchestrator.read_log)
+    inputs: tuple[str, ...] = field(default=(), compare=False)
 
     def fmu(self, name: str) -> FmuSpec:
         for f in self.fmus:

@@ -19,7 +19,6 @@ import hashlib
 import itertools
 import json
 import math
-import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,8 +44,9 @@ class RunPlan:
     index: int                                   # position in the sweep (0-based)
     values: dict[str, Any]                       # parameter name -> value
     overrides: tuple[str, ...]                   # "key.path=value", the sweep's 'set' first
-    # what the run computes from besides its overrides: SHA-256 of the scenario file and of each
-    # instance's FMU file (filled by plan_sweep; --resume redoes a run recorded with other inputs)
+    # what the run computes from besides its overrides: digests of the scenario file, each instance's
+    # FMU and every other file its loading read (plan.run_inputs; --resume redoes a run recorded with
+    # other inputs)
     inputs: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
 
 
@@ -174,29 +174,30 @@ def _where(spec: SweepSpec, problem: str, run: RunPlan) -> str:
     return f"{spec.source}: run {label}: scenario {spec.scenario.name}: {problem}"
 
 
-def _digest(path: Path, cache: dict) -> str:
-    """SHA-256 of the file ``path`` (cached by path, size and modification time: one read per sweep)."""
-    st = os.stat(path)
-    key = (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
-    if key not in cache:
-        h = hashlib.sha256()
-        with open(path, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                h.update(block)
-        cache[key] = h.hexdigest()
-    return cache[key]
-
-
 def run_inputs(scenario_file: Path, scenario, cache: dict) -> dict[str, Any]:
-    """The files a run computes from besides its overrides, as SHA-256 digests: the scenario file
-    and each instance's FMU (``{"scenario": ..., "fmus": {instance: ...}}``). Recorded in the run's
-    sweep_run.json; ``--resume`` runs again a finished run whose inputs have changed since (an
-    edited scenario, a rebuilt FMU), where the overrides alone would reuse its stale results."""
+    """The files a run computes from besides its overrides, as digests
+    (:func:`orchestrator.read_log.fingerprint`: SHA-256, or size and time of a file above its
+    limit): ``{"scenario": ..., "fmus": {instance: ...}, "files": {path: ...}}``, where ``files``
+    holds every other file loading the run's scenario read (``Scenario.inputs``, recorded by the
+    loader: an SSP and its .ssd/.ssv files, a file a String parameter names such as a rotor file).
+    Recorded in the run's sweep_run.json; ``--resume`` runs again a finished run whose inputs have
+    changed since (an edited scenario, a rebuilt FMU, an edited .ssv), where the overrides alone
+    would reuse its stale results. A file that cannot be read now is recorded as ``"unreadable"``."""
+    from orchestrator.read_log import fingerprint
+
+    def digest(path) -> str:
+        try:
+            return fingerprint(path, cache)
+        except OSError:
+            return "unreadable"
     try:
-        return {"scenario": _digest(Path(scenario_file), cache),
-                "fmus": {f.name: _digest(Path(f.path), cache) for f in scenario.fmus}}
-    except OSError:
+        main = str(Path(scenario_file).resolve())
+        fmu_paths = {str(Path(f.path).resolve()) for f in scenario.fmus}
+    except (OSError, RuntimeError):
         return {}
+    return {"scenario": digest(scenario_file),
+            "fmus": {f.name: digest(f.path) for f in scenario.fmus},
+            "files": {p: digest(p) for p in getattr(scenario, "inputs", ()) if p != main and p not in fmu_paths}}
 
 
 def plan_sweep(spec: SweepSpec, *, build_fmus: bool = True, progress: bool | None = False) -> list[RunPlan]:

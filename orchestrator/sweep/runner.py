@@ -100,7 +100,8 @@ def _record_problem(record: dict, run: RunPlan) -> str | None:
 
 def _changed_inputs(recorded: dict, now: dict) -> str | None:
     """What changed between the files a run was recorded with and the sweep's now (None: nothing,
-    or a record written before inputs were recorded)."""
+    or a record written before inputs were recorded; ``files`` are compared when the record has
+    them: a file edited, no longer read or newly read)."""
     if not recorded or not now:
         return None
     what = []
@@ -110,6 +111,14 @@ def _changed_inputs(recorded: dict, now: dict) -> str | None:
     changed = sorted(i for i in set(old) | set(new) if old.get(i) != new.get(i))
     if changed:
         what.append("the FMU of " + ", ".join(repr(i) for i in changed[:5]) + (", ..." if len(changed) > 5 else ""))
+    if isinstance(recorded.get("files"), dict):      # absent in records written before files were recorded
+        old, new = recorded["files"], now.get("files") or {}
+        edited = sorted(p for p in set(old) & set(new) if old[p] != new[p])
+        gone, added = sorted(set(old) - set(new)), sorted(set(new) - set(old))
+        for paths, note in ((edited, ""), (gone, " (no longer read)"), (added, " (read now, not by this run)")):
+            if paths:
+                what.append(("the file " if len(paths) == 1 else "the files ") + ", ".join(paths[:5])
+                            + (f", ... ({len(paths)} in all)" if len(paths) > 5 else "") + note)
     return " and ".join(what) or None
 
 
