@@ -111,6 +111,87 @@ def test_a_second_run_into_a_locked_folder_is_refused(tmp_path):
     assert (tmp_path / LOCK_NAME).read_text() == ""
 
 
+# a lock holder in another process: takes the lock, says so, then (after a pause) writes its details,
+# or lets go, or never writes them; it holds the lock until its stdin closes
+HOLDER = """
+import fcntl, json, os, sys, time
+fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT, 0o644)
+fcntl.flock(fd, fcntl.LOCK_EX)
+print("locked", flush=True)
+time.sleep(float(sys.argv[3]))
+if sys.argv[2] == "write":
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, json.dumps({"scenario": "late", "scenario_file": None, "pid": os.getpid(),
+                              "started_at": "2026-12-06T19:50:00+00:00"}).encode(), 0)
+elif sys.argv[2] == "leave":
+    sys.exit(0)
+sys.stdin.read()
+"""
+
+
+def _holder(tmp_path: Path, what: str, pause: float) -> subprocess.Popen:
+    proc = subprocess.Popen([sys.executable, "-c", HOLDER, str(tmp_path / LOCK_NAME), what, str(pause)],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "locked"
+    return proc
+
+
+@pytest.mark.parametrize("left_before", ["nothing", "details of a run that was killed"])
+def test_a_refused_run_waits_for_the_details_the_holder_has_not_written_yet(tmp_path, left_before):
+    """A run refused within microseconds of the holder's start read the lock file before the holder
+    had written its details into it and said "another run (details unreadable)"; if a run killed
+    hard had left its details there, it named that dead run instead. Now the refused run waits
+    (at most lifecycle.HOLDER_WAIT_S) until the details are there and are not those of a process
+    that has ended, and names the holder."""
+    if left_before != "nothing":
+        dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                              text=True, check=True)
+        (tmp_path / LOCK_NAME).write_text(json.dumps({"scenario": "killed", "scenario_file": None,
+                                                      "pid": int(dead.stdout), "started_at": "earlier"}))
+    holder = _holder(tmp_path, "write", 0.15)           # writes its details 0.15 s after taking the lock
+    try:
+        with pytest.raises(LifecycleError) as info:
+            RunFolder(tmp_path, _sc("second")).__enter__()
+    finally:
+        holder.communicate("", timeout=60)
+    msg = str(info.value)
+    assert f"output folder {tmp_path} is in use by another run: scenario 'late' (None), pid {holder.pid}, " \
+           "started 2026-12-06T19:50:00+00:00 UTC; wait until it ends" in msg, msg
+    assert "unreadable" not in msg and "killed" not in msg
+
+
+def test_a_holder_that_never_says_who_it_is_is_named_after_a_bounded_wait(tmp_path, monkeypatch):
+    import time
+
+    from orchestrator.coupling import lifecycle
+    monkeypatch.setattr(lifecycle, "HOLDER_WAIT_S", 0.3)
+    holder = _holder(tmp_path, "silent", 0.0)
+    try:
+        t0 = time.monotonic()
+        with pytest.raises(LifecycleError) as info:
+            RunFolder(tmp_path, _sc("second")).__enter__()
+        waited = time.monotonic() - t0
+    finally:
+        holder.communicate("", timeout=60)
+    msg = str(info.value)
+    assert 0.3 <= waited < 5, waited
+    assert f"output folder {tmp_path} is in use by another process: it holds {tmp_path / LOCK_NAME} but had not " \
+           "written which run it is after 0.3 s (a run writes its scenario, pid and start time there right after " \
+           "it takes the lock and clears them as it ends, so it is starting or ending, or it is not a rotorcosim " \
+           f"run; `fuser -v {tmp_path / LOCK_NAME}` names it); wait until it ends or stop it, or choose another " \
+           "output folder (--out)" == msg
+
+
+def test_a_holder_that_lets_go_while_the_run_waits_leaves_the_folder_to_it(tmp_path):
+    holder = _holder(tmp_path, "leave", 0.1)            # a run ending: no details, then the lock freed
+    try:
+        with RunFolder(tmp_path, _sc("second")) as f:
+            assert json.loads((tmp_path / LOCK_NAME).read_text())["scenario"] == "second"
+            f.finish({"status": "finished"})
+    finally:
+        holder.communicate("", timeout=60)
+
+
 def test_results_are_never_written_through_a_symlink(tmp_path):
     target = tmp_path / "precious.csv"
     target.write_text("keep me")

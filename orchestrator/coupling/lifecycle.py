@@ -14,7 +14,10 @@ Rules:
 * **Lock**: ``out_dir/.rotorcosim.lock`` is held with ``flock`` for the whole run (the
   kernel drops it when the process dies, however it dies). A second run into the folder is
   refused with a :class:`~orchestrator.errors.LifecycleError` that names the first
-  (scenario, pid, start time). The lock file stays; it holds the current holder.
+  (scenario, pid, start time). The lock file stays; it holds the current holder. The holder
+  writes its details right after it takes the lock and clears them before it lets go, so the
+  refused run waits up to :data:`HOLDER_WAIT_S` for them (and takes the lock if it is freed
+  meanwhile); a holder that never writes them is named as "another process".
 * **Earlier runs**: ``results.csv`` and ``summary.json`` left by an earlier run are moved
   into ``out_dir/previous/`` (replacing what was there) before anything is written, with its
   figures (``plots/``) and film fields (``*_fields.npz``), so a
@@ -43,6 +46,7 @@ import json
 import logging
 import os
 import signal
+import socket
 import sys
 import threading
 from pathlib import Path
@@ -55,6 +59,7 @@ RUN_FILES = ("results.csv", "results.parquet", "summary.json")
 PLOTS = "plots"                   # rotorcosim plot's figures of the run (moved aside with it)
 FIELDS_GLOB = "*_fields.npz"      # film fields a bearing wrote into the run folder (moved aside with it)
 LOCK_NAME = ".rotorcosim.lock"
+HOLDER_WAIT_S = 0.5               # a refused run waits this long for the lock holder's details
 PREVIOUS = "previous"
 log = logging.getLogger(__name__)
 CALLS_NAME = ".rotorcosim.calls"   # which FMI call each FMU in the run's process is in (fmi/call_record.py)
@@ -119,6 +124,69 @@ def _now() -> str:
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
 
+def _read_holder(fd: int) -> dict | None:
+    """The details a lock holder wrote into the lock file (scenario, pid, start time, host), or
+    None while there are none: empty (a run between taking the lock and writing them, or one
+    ending: it clears them before it unlocks), half written, or not a run's."""
+    try:
+        holder = json.loads(os.pread(fd, 4096, 0).decode())
+    except (OSError, ValueError):
+        return None
+    return holder if isinstance(holder, dict) and isinstance(holder.get("pid"), int) else None
+
+
+def _ended(holder: dict) -> bool:
+    """Are ``holder``'s details those of a run on this machine whose process is gone? A run
+    killed hard leaves its details in the lock file; the next run overwrites them right after
+    taking the lock. Details from another machine (a shared folder) are taken as they are."""
+    if holder.get("host", socket.gethostname()) != socket.gethostname():
+        return False
+    try:
+        os.kill(holder["pid"], 0)
+    except ProcessLookupError:
+        return True
+    except (OSError, OverflowError, ValueError):     # alive but another user's (EPERM), or no pid
+        return False
+    return False
+
+
+def _wait_for_holder(fd: int) -> tuple[dict | None, bool]:
+    """After the lock on ``fd`` was refused: ``(details, False)`` once the holder's details can be
+    read, ``(None, True)`` when the holder let go meanwhile (then ``fd`` holds the lock), or
+    ``(None, False)`` after :data:`HOLDER_WAIT_S` without them. A run writes its details
+    microseconds after it takes the lock (and clears them as it ends), so a refusal that reads
+    them at once may find the file empty, half written, or still naming a run that ended."""
+    import time
+    deadline = time.monotonic() + HOLDER_WAIT_S
+    pause = 0.001
+    while True:
+        holder = _read_holder(fd)
+        if holder is not None and not _ended(holder):
+            return holder, False
+        if time.monotonic() >= deadline:
+            return None, False
+        time.sleep(pause)
+        pause = min(2 * pause, 0.05)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            continue
+        return None, True
+
+
+def _in_use_message(out_dir: Path, holder: dict | None) -> str:
+    fix = "wait until it ends or stop it, or choose another output folder (--out)"
+    if holder is not None:
+        return (f"output folder {out_dir} is in use by another run: scenario '{holder.get('scenario')}' "
+                f"({holder.get('scenario_file')}), pid {holder.get('pid')}, started {holder.get('started_at')} UTC; "
+                f"{fix}")
+    lock = out_dir / LOCK_NAME
+    return (f"output folder {out_dir} is in use by another process: it holds {lock} but had not written "
+            f"which run it is after {HOLDER_WAIT_S:g} s (a run writes its scenario, pid and start time there "
+            "right after it takes the lock and clears them as it ends, so it is starting or ending, or it "
+            f"is not a rotorcosim run; `fuser -v {lock}` names it); {fix}")
+
+
 class RunFolder:
     """One run's hold on its output folder (see the module docstring for the rules)."""
 
@@ -177,17 +245,16 @@ class RunFolder:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             try:
-                holder = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
-            except ValueError:
-                holder = {}
-            os.close(fd)
-            who = (f"scenario '{holder.get('scenario')}' ({holder.get('scenario_file')}), pid {holder.get('pid')}, "
-                   f"started {holder.get('started_at')} UTC") if holder else "another run (details unreadable)"
-            raise LifecycleError(f"output folder {self.out_dir} is in use by another run: {who}; wait until it "
-                                 "ends or stop it, or choose another output folder (--out)") from None
+                holder, got_lock = _wait_for_holder(fd)
+            except BaseException:
+                os.close(fd)
+                raise
+            if not got_lock:
+                os.close(fd)
+                raise LifecycleError(_in_use_message(self.out_dir, holder)) from None
         self._lock_fd = fd
         os.ftruncate(fd, 0)
-        os.pwrite(fd, json.dumps(self._holder()).encode(), 0)
+        os.pwrite(fd, json.dumps({**self._holder(), "host": socket.gethostname()}).encode(), 0)
         names = [str(getattr(f, "name", "")) for f in getattr(self.scenario, "fmus", ())]
         try:        # where each FMU in this process is, readable after a crash (plot, sweeps)
             self.calls = CallRecord(self.out_dir / CALLS_NAME, names, {"pid": os.getpid()})
