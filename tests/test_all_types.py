@@ -369,3 +369,24 @@ def test_an_unreadable_string_pointer_from_the_fmu_is_recorded_empty_not_a_crash
     assert list(res.outputs["a.s_out"]) == [""] * (N + 1)
     said = [r.getMessage() for r in caplog.records if "an address that cannot be read" in r.getMessage()]
     assert len(said) == 1 and "FMU instance 'a'" in said[0] and "'s_out'" in said[0], said
+
+
+@pytest.mark.parametrize("isolation", ["none", "process"])
+def test_a_string_running_into_unreadable_memory_is_kept_to_there_and_reported_once(fmus, tmp_path, isolation,
+                                                                                   caplog):
+    """fmi2GetString giving text without its NUL that ends where readable memory ends (AllTypes
+    gives "ends at an unreadable page" at the end of a page followed by a PROT_NONE page for the
+    value "<EDGE>"): the safe reader kept the 26 readable bytes and said nothing, so the recorded
+    value looked like a good one. Now it is kept as before and a warning names the instance, the
+    variable and the bytes kept, once per variable."""
+    from orchestrator.fmi import safe_log
+    if safe_log.library() is None:
+        pytest.skip("no C compiler: the safe string reader cannot be built here")
+    res = _run_with_label(fmus, tmp_path, isolation, "<EDGE>", caplog)
+    assert res.success, res.message
+    assert list(res.outputs["a.s_out"]) == ["ends at an unreadable page"] * (N + 1)
+    said = [r.getMessage() for r in caplog.records if "cannot be read before its end" in r.getMessage()]
+    assert len(said) == 1, said
+    assert said[0].startswith("FMU instance 'a' gave a string that runs into memory that cannot be read before its "
+                              "end (no NUL byte; 26 bytes kept, cut there) for the String 's_out' in "
+                              "fmi2GetString"), said[0]

@@ -168,7 +168,8 @@ def library() -> ctypes.CDLL | None:
     lib.rotorcosim_safe_logger.argtypes = [_TARGET_TYPE]
     lib.rotorcosim_safe_logger.restype = ctypes.c_void_p
     lib.rotorcosim_format.restype = ctypes.c_int
-    lib.rotorcosim_copy_string.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t]
+    lib.rotorcosim_copy_string.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t,
+                                           ctypes.POINTER(ctypes.c_int)]
     lib.rotorcosim_copy_string.restype = ctypes.c_long
     _lib = lib
     return lib
@@ -185,19 +186,24 @@ def copy_string(address: int) -> tuple[bytes | None, str]:
     crash), and what went wrong: ``(bytes, "")``; ``(None, "")`` without the library (the caller
     reads the pointer itself, as before); ``(b"", why)`` for an unreadable pointer; the bytes read
     and why when the string was cut (longer than :data:`MAX_STRING_BYTES`, or running into memory
-    that cannot be read)."""
+    that cannot be read before its NUL: ``why`` then says how many bytes were kept)."""
     lib = library()
     if lib is None:
         return None, ""
     buf = getattr(_local, "buf", None)
     if buf is None:                 # one buffer per thread (stage threads read at the same time)
         buf = _local.buf = ctypes.create_string_buffer(MAX_STRING_BYTES + 1)
-    n = lib.rotorcosim_copy_string(address, buf, MAX_STRING_BYTES + 1)
+        _local.cut = ctypes.c_int(0)
+    cut = _local.cut
+    n = lib.rotorcosim_copy_string(address, buf, MAX_STRING_BYTES + 1, ctypes.byref(cut))
     if n == -2:
         return None, ""
     if n < 0:
         return b"", "an address that cannot be read"
     data = ctypes.string_at(buf, n)         # n bytes (buf.raw would copy the whole MiB first)
+    if cut.value:
+        return data, (f"a string that runs into memory that cannot be read before its end (no NUL "
+                      f"byte; {n} bytes kept, cut there)")
     if n >= MAX_STRING_BYTES:
         return data, f"a string longer than {MAX_STRING_BYTES} bytes (cut there)"
     return data, ""

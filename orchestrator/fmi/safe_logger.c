@@ -53,8 +53,9 @@ static target_logger target = NULL;
 
 /* Copy the NUL-terminated string at p (at most cap - 1 bytes) into dst through the pipe fds.
    Returns its length, or -1 when p is NULL or its first byte cannot be read. Reads go page by
-   page, so a string that runs into an unreadable page is cut there. */
-static long copy_string(const int fds[2], const char *p, char *dst, size_t cap) {
+   page, so a string that runs into an unreadable page is cut there; then *cut (when not NULL)
+   is set to 1 (it is left alone otherwise: a string found whole, or one cut at cap - 1 bytes). */
+static long copy_string(const int fds[2], const char *p, char *dst, size_t cap, int *cut) {
     size_t n = 0;
     if (p == NULL || cap == 0 || fds[0] < 0) return -1;
     while (n + 1 < cap) {
@@ -78,6 +79,7 @@ static long copy_string(const int fds[2], const char *p, char *dst, size_t cap) 
         if ((size_t)put < chunk) break;
     }
     if (n == 0) return -1;
+    if (n + 1 < cap && cut != NULL) *cut = 1;      /* stopped before its NUL and before cap */
     dst[n] = 0;
     return (long)n;
 }
@@ -204,7 +206,7 @@ static void format_message(const int fds[2], const char *fmt, va_list ap, char *
             if (lm[0] == 'l') { put(out, &len, "(wide string)", 13); break; }
             size_t cap = STR_CAP;
             if (precision >= 0 && (size_t)precision + 1 < cap) cap = (size_t)precision + 1;
-            long n = copy_string(fds, p, arg, cap);
+            long n = copy_string(fds, p, arg, cap, NULL);
             if (n < 0) strcpy(arg, p == NULL ? "(null)" : "(unreadable)");
             else if (!is_text(arg)) strcpy(arg, "(not text)");
             put_formatted(out, &len, snprintf(at, room, spec, arg));
@@ -251,9 +253,9 @@ static void safe_logger(void *env, const char *instance, int status, const char 
     if (target == NULL) return;
     const int *fds = thread_pipe();
     char name[NAME_CAP], cat[NAME_CAP], fmt[FMT_CAP], out[OUT_CAP];
-    if (copy_string(fds, instance, name, sizeof name) < 0) strcpy(name, "?");
-    if (copy_string(fds, category, cat, sizeof cat) < 0) strcpy(cat, "");
-    if (copy_string(fds, message, fmt, sizeof fmt) < 0) {
+    if (copy_string(fds, instance, name, sizeof name, NULL) < 0) strcpy(name, "?");
+    if (copy_string(fds, category, cat, sizeof cat, NULL) < 0) strcpy(cat, "");
+    if (copy_string(fds, message, fmt, sizeof fmt, NULL) < 0) {
         strcpy(out, message == NULL ? "" : "(unreadable message)");
     } else {
         va_list ap;
@@ -276,7 +278,7 @@ int rotorcosim_format(char *out, const char *message, ...) {
     const int *fds = thread_pipe();
     char fmt[FMT_CAP];
     if (fds[0] < 0) return -1;
-    long n = copy_string(fds, message, fmt, sizeof fmt);
+    long n = copy_string(fds, message, fmt, sizeof fmt, NULL);
     if (n >= 0) {
         va_list ap;
         va_start(ap, message);
@@ -293,12 +295,13 @@ int rotorcosim_format(char *out, const char *message, ...) {
    cap - 1 bytes, NUL-terminated), reading it through a pipe as the logger does. Returns its
    length, -1 when p cannot be read at all, or -2 when no pipe could be made. A string longer
    than cap - 1 bytes, or one running into unreadable memory, is cut there (the length returned
-   is then cap - 1 or what could be read). */
-long rotorcosim_copy_string(const char *p, char *out, size_t cap) {
+   is then cap - 1 or what could be read); *cut is 1 in the second case, else 0. */
+long rotorcosim_copy_string(const char *p, char *out, size_t cap, int *cut) {
+    if (cut != NULL) *cut = 0;
     if (cap == 0) return -1;
     const int *fds = thread_pipe();
     if (fds[0] < 0) return -2;
-    long n = copy_string(fds, p, out, cap);
+    long n = copy_string(fds, p, out, cap, cut);
     done_with_pipe();
     return n;
 }

@@ -10,7 +10,9 @@
  * Enumeration: mode (parameter, Mode: Off=1, Slow=2, Fast=3), e_in (input), e_out = e_in (output)
  * String:      label (parameter), s_in (input), s_out = s_in, or label when s_in is empty (output);
  *              a String whose value is "<NULL>" is returned by fmi2GetString as a NULL pointer,
- *              one whose value is "<BADPTR>" as the address 16, which cannot be read
+ *              one whose value is "<BADPTR>" as the address 16, which cannot be read, and one
+ *              whose value is "<EDGE>" as the text "ends at an unreadable page" without its NUL,
+ *              placed at the very end of a readable page followed by one that cannot be read
  *              (an FMU that breaks FMI 2.0: the master's tests of what it records then)
  *
  * The FMU enforces the FMI 2.0 co-simulation state machine (sec. 4.2.4) and answers every
@@ -19,12 +21,16 @@
  * that differs from the first one (its model description then says
  * canHandleVariableCommunicationStepSize="false").
  */
+#define _DEFAULT_SOURCE      /* MAP_ANONYMOUS under -std=c99 */
 #include <math.h>
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include "fmi2Functions.h"
 
@@ -245,8 +251,25 @@ static int check_get(Instance *inst, const char *fn, fmi2ValueReference r, int t
 GETTER(fmi2GetReal, fmi2Real, 0, inst->d.r[vr[k]])
 GETTER(fmi2GetInteger, fmi2Integer, 1, inst->d.i[vr[k]])
 GETTER(fmi2GetBoolean, fmi2Boolean, 2, inst->d.i[vr[k]])
+/* "<EDGE>": EDGE_TEXT without its NUL, ending at the last byte of a readable page whose next page
+   cannot be read (mapped once per process, PROT_NONE behind it); NULL if the mapping failed */
+#define EDGE_TEXT "ends at an unreadable page"
+static fmi2String edge_string(void)
+{
+    static char *at = NULL;
+    if (at == NULL) {
+        long page = sysconf(_SC_PAGESIZE);
+        char *p = mmap(NULL, 2 * (size_t)page, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+        if (p == MAP_FAILED || mprotect(p + page, (size_t)page, PROT_NONE) != 0) return NULL;
+        at = p + page - (sizeof EDGE_TEXT - 1);
+        memcpy(at, EDGE_TEXT, sizeof EDGE_TEXT - 1);
+    }
+    return at;
+}
+
 GETTER(fmi2GetString, fmi2String, 3, strcmp(inst->d.s[vr[k]], "<NULL>") == 0 ? NULL :
-       strcmp(inst->d.s[vr[k]], "<BADPTR>") == 0 ? (fmi2String)(uintptr_t)16 : inst->d.s[vr[k]])
+       strcmp(inst->d.s[vr[k]], "<BADPTR>") == 0 ? (fmi2String)(uintptr_t)16 :
+       strcmp(inst->d.s[vr[k]], "<EDGE>") == 0 ? edge_string() : inst->d.s[vr[k]])
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[])
 {
