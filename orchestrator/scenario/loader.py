@@ -58,6 +58,10 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
         rebuilds stale ones before it runs). Building is a step between reading and
         checking, not part of loading.
 
+    The scenario's ``inputs`` are the files loading read (the YAML, an SSP and its .ssd/.ssv
+    files, every FMU; :mod:`orchestrator.read_log`) and the existing files its String
+    parameters name: what ``sweep --resume`` compares.
+
     Raises
     ------
     ScenarioError
