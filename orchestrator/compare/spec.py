@@ -25,6 +25,7 @@ from typing import Any, Callable, Mapping
 
 import yaml
 
+from orchestrator.compare.capabilities import check_run_capabilities
 from orchestrator.compare.metrics import METRICS
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario import SCHEMES, Scenario
@@ -166,6 +167,17 @@ def _construct_mapping(loader, node, deep=False):
 _LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
+def _group_at(sec, key: str) -> tuple:
+    """``(mapping, key)`` whose line ``bad`` should give for ``key``: for ``variants[i]`` the
+    group's first key (its line), else the top-level key."""
+    groups = sec.get("variants")
+    if key.startswith("variants[") and isinstance(groups, list):
+        i = int(key[len("variants["):].split("]")[0])
+        if i < len(groups) and isinstance(groups[i], dict) and groups[i]:
+            return groups[i], next(iter(groups[i]))
+    return sec, None
+
+
 def _line(mapping, key) -> str:
     ln = getattr(mapping, "lines", {}).get(key)
     return f":{ln}" if ln else ""
@@ -295,7 +307,8 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     derived = _derived(sec.get("derived") or {}, bad)
     known = set(metrics) | set(derived)
     default_tol = _tolerance(sec.get("tolerance") or {}, known, "tolerance", bad)
-    variants = _variants(sec, base, default_tol, known, bad)
+    group_of: dict[str, int] = {}
+    variants = _variants(sec, base, default_tol, known, bad, group_of)
     reference = _reference(sec.get("reference") or {"scheme": "monolithic"}, bad)
     order_metric = sec.get("order_metric", "rms")
     if order_metric not in metrics:
@@ -308,6 +321,8 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     _check_reference_step(reference, base, variants, bad)
     if not problems:        # every run of the comparison within the loader's numeric limits
         _check_run_limits(base, reference, variants, interval, bad)
+    if not problems:        # ... and one its FMUs can take (state saving, variable steps)
+        check_run_capabilities(base, reference, variants, group_of, lambda key, msg: bad(key, msg, *_group_at(sec, key)))
     if problems:
         raise CompareSpecError(problems)
     return CompareSpec(name=name, base=base, variants=tuple(variants), reference=reference,
@@ -345,16 +360,20 @@ def _derived(derived_sec, bad) -> dict[str, dict]:
     return derived
 
 
-def _variants(sec, base, default_tol, known, bad) -> list[VariantSpec]:
-    """``compare.variants``: every group expanded, at most MAX_VARIANTS, names distinct."""
+def _variants(sec, base, default_tol, known, bad, group_of: dict[str, int]) -> list[VariantSpec]:
+    """``compare.variants``: every group expanded, at most MAX_VARIANTS, names distinct;
+    ``group_of`` gets each variant's group index (for the line of a later problem)."""
     variants: list[VariantSpec] = []
     groups = sec.get("variants")
     if not isinstance(groups, list) or not groups:
         bad("variants", "must be a non-empty list of variant groups")
         groups = []
     for i, g in enumerate(groups):
-        variants.extend(expand_variants(g, base, default_tol, known, where=f"variants[{i}]",
-                                        bad=lambda k, msg, m=g, i=i: bad(f"variants[{i}].{k}", msg, m, k)))
+        group = expand_variants(g, base, default_tol, known, where=f"variants[{i}]",
+                                bad=lambda k, msg, m=g, i=i: bad(f"variants[{i}].{k}", msg, m, k))
+        variants.extend(group)
+        for v in group:
+            group_of.setdefault(v.name, i)
     if len(variants) > MAX_VARIANTS:
         bad("variants", f"make {len(variants)} variants (the limit is {MAX_VARIANTS}, each is a run); use fewer")
         variants = variants[:MAX_VARIANTS]

@@ -1,0 +1,111 @@
+"""``rotorcosim compare``: a variant (or a co-simulation reference) that the FMUs cannot run is
+refused when the file is loaded (exit 2, the variant group's line), before any run.
+
+Found with third-party FMUs (crane-fmu's HarmonicOscillator6D, PythonFMU without
+canGetAndSetFMUstate): an ``iterative`` variant ran after the reference and was reported as
+*unstable* with infinite error, a verdict on the coupling scheme where the FMUs simply cannot
+save their state. The master's own checks (coupling/execution.py) are the same; the scenario
+loader's (scenario/coupling_sections.py) never saw the variants' couplings.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from orchestrator.compare import load_compare, main_compare
+
+pytestmark = pytest.mark.integration
+
+
+def _never_runs(scenario, out_dir: Path) -> None:       # the comparison must stop before any run
+    raise AssertionError(f"a run was started ({scenario.coupling.scheme}) although the file is invalid")
+
+
+def _two_mass(tmp_path: Path, left: Path, right: Path) -> None:
+    (tmp_path / "two_mass.yaml").write_text(f"""
+name: two-mass
+stop_time: 1.0
+fmus:
+  left: {{path: {left}}}
+  right: {{path: {right}}}
+connections:
+  - {{from: left.x1, to: right.x1}}
+  - {{from: left.v1, to: right.v1}}
+  - {{from: right.F, to: left.F}}
+coupling: {{scheme: gauss-seidel, macro_step: 0.1}}
+output: {{interval: 0.2}}
+""")
+
+
+def _compare(tmp_path: Path, reference: str, groups: str) -> Path:
+    p = tmp_path / "cmp.yaml"
+    p.write_text(f"""compare:
+  scenario: two_mass.yaml
+  signals: [left.x1]
+  reference: {reference}
+  variants:
+{groups}""")
+    return p
+
+
+def test_variants_the_fmus_cannot_save_state_for_are_refused_at_load(test_fmus, tmp_path, capsys):
+    # StepLimitedMass is LeftMass built without canGetAndSetFMUstate (tests/conftest.py)
+    _two_mass(tmp_path, test_fmus["StepLimitedMass"], test_fmus["RightMass"])
+    path = _compare(tmp_path, "{scheme: iterative, macro_step: 0.01}",
+                    "    - {scheme: gauss-seidel, extrapolation_order: 1, macro_step: [0.2, 0.1]}\n"
+                    "    - {scheme: iterative, macro_step: 0.1}\n"
+                    "    - {name: gs-retry, scheme: gauss-seidel, macro_step: 0.1,\n"
+                    "       set: {coupling.discard_retries: 2}}\n")
+    assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
+    err = capsys.readouterr().err
+    assert "cmp.yaml:4: 'compare.reference' cannot run with these FMUs: coupling.scheme iterative" in err
+    assert ("cmp.yaml:7: 'compare.variants[1]' variant 'it-e0i0-h0.1' cannot run with these FMUs: "
+            "coupling.scheme iterative repeats every macro step from saved FMU states, but 'left' cannot "
+            "save them (canGetAndSetFMUstate=\"false\")") in err
+    assert ("cmp.yaml:8: 'compare.variants[2]' variant 'gs-retry' cannot run with these FMUs: "
+            "coupling.discard_retries = 2") in err
+    assert "gs-e1i0" not in err                          # the explicit variants are fine
+    assert not (tmp_path / "out" / "runs").exists()
+
+
+def test_the_same_variants_load_when_every_fmu_can_save_state(test_fmus, tmp_path):
+    _two_mass(tmp_path, test_fmus["LeftMass"], test_fmus["RightMass"])      # both canGetAndSetFMUstate
+    spec = load_compare(_compare(tmp_path, "{scheme: iterative, macro_step: 0.01}",
+                                 "    - {scheme: iterative, macro_step: 0.1}\n"
+                                 "    - {name: gs-retry, scheme: gauss-seidel, macro_step: 0.1,\n"
+                                 "       set: {coupling.discard_retries: 2}}\n"))
+    assert [v.name for v in spec.variants] == ["it-e0i0-h0.1", "gs-retry"]
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")
+def test_variants_a_fixed_step_fmu_cannot_take_are_refused_at_load(tmp_path, capsys):
+    from tests.fmus_c.build_c_fmu import build_c_fmu
+    fixed = build_c_fmu(tmp_path, "AllTypes", fixed_step=True)     # canHandleVariableCommunicationStepSize false
+    (tmp_path / "fixed.yaml").write_text(f"""
+name: fixed
+stop_time: 1.0
+fmus:
+  a: {{path: {fixed}}}
+coupling: {{macro_step: 0.1}}
+output: {{signals: [a.x]}}
+""")
+    path = tmp_path / "cmp.yaml"
+    path.write_text("""compare:
+  scenario: fixed.yaml
+  signals: [a.x]
+  reference: {macro_step: 0.05}
+  variants:
+    - {scheme: jacobi, macro_step: [0.2, 0.1]}
+    - {name: err, scheme: jacobi, macro_step: 0.1, set: {coupling.step_control.type: error}}
+    - {name: off-grid, scheme: jacobi, macro_step: 0.1, set: {stop_time: 1.05}}
+""")
+    assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
+    err = capsys.readouterr().err
+    assert ("cmp.yaml:7: 'compare.variants[1]' variant 'err' cannot run with these FMUs: coupling.step_control "
+            "type error varies the macro step, but 'a' cannot take varying steps") in err
+    assert ("cmp.yaml:8: 'compare.variants[2]' variant 'off-grid' cannot run with these FMUs: stop_time 1.05 is "
+            "not on the macro-step grid") in err
+    assert "'jac-e0i0-h0.2'" not in err and "compare.reference" not in err
