@@ -402,3 +402,60 @@ def test_error_vs_cost_plots_fmu_calls_along_the_step_refinement(tmp_path, monke
     assert list(lines["gs"].get_ydata()) == [3e-2, 1.4e-2, 7e-3]
     walls = {ln.get_label(): list(ln.get_xdata()) for ln in wall_ax.get_lines()}
     assert walls["gs"] == [0.31, 0.49, 0.28]                           # joined by step, not by wall time
+
+
+def test_orders_through_errors_at_the_reference_accuracy_are_flagged(tmp_path):
+    """A co-simulation reference of a third-party FMU (crane-fmu's HarmonicOscillator6D, Gauss-Seidel
+    at 5 ms) changed by 5e-4 when halved, and Jacobi k = 2's errors (1e-3) sat on that floor: the
+    report gave 'order 0.14' with no word that the reference cannot resolve it, and an
+    expect_order: 3 failed as if the scheme were wrong. Here the fake reference is off by rtol."""
+    sec = dict(SECTION, reference={"scheme": "monolithic", "set": {"coupling.options.rtol": 1e-3}},
+               variants=[{"scheme": ["jacobi", "gauss-seidel"], "extrapolation_order": [0, 1],
+                          "macro_step": [0.2, 0.1, 0.05]},
+                         {"name": "g3-h{macro_step:g}", "scheme": "gauss-seidel", "extrapolation_order": 1,
+                          "macro_step": [0.2, 0.1, 0.05], "expect_order": 1}])
+    spec = parse_compare(sec, base_scenario())
+    rep = run_comparison(spec, tmp_path / "loose", runner=fake_runner, workers=1)
+    near = {o["family"]: o["near_reference"] for o in rep.orders}
+    floor = 10 * rep.reference["check"]["errors"]["rms"]
+    by = {v["name"]: v for v in rep.variants}
+    assert by["gs-e1i0-h0.2"]["errors"]["rms"] < floor           # order 3: every point below the floor
+    assert near["gs-e1i0"] == [0.2, 0.1, 0.05]
+    assert by["jac-e0i0-h0.2"]["errors"]["rms"] > floor          # order 1: the coarse point resolved
+    assert 0.2 not in near["jac-e0i0"]
+    fails = check_report(rep, spec, None)
+    order_fail = [f for f in fails if f.startswith("family 'g3'")]
+    assert len(order_fail) == 1 and "within the reference's own accuracy" in order_fail[0], fails
+    from orchestrator.compare.report import write_report
+    write_report(rep, spec, tmp_path / "loose", fails)
+    md = (tmp_path / "loose" / "report.md").read_text()
+    assert "**At the reference's accuracy:**" in md and "- `gs-e1i0`: h = 0.2, 0.1, 0.05 s" in md
+    # a reference accurate enough: nothing flagged, nothing said
+    tight = parse_compare(dict(sec, reference={"scheme": "monolithic", "set": {"coupling.options.rtol": 1e-12}}),
+                          base_scenario())
+    rep = run_comparison(tight, tmp_path / "tight", runner=fake_runner, workers=1)
+    assert all(o["near_reference"] == [] for o in rep.orders)
+    fails = check_report(rep, tight, None)
+    assert not any("reference's own accuracy" in f for f in fails)
+
+
+def test_a_forward_only_error_controlled_variant_is_said_so_in_the_report(tmp_path):
+    """An error-controlled step over FMUs that cannot save their state adapts forward only (no
+    rejections); the run warned on stderr, the report did not say it, so its error read as one
+    held to rtol."""
+    def runner(scenario, out_dir):
+        fake_runner(scenario, out_dir)
+        if scenario.coupling.step_control.type == "error":
+            s = json.loads((out_dir / "summary.json").read_text())
+            s["step_control"] = {"type": "error", "can_reject": False, "rejected_steps": 0}
+            (out_dir / "summary.json").write_text(json.dumps(s))
+    sec = dict(SECTION, variants=[{"scheme": "gauss-seidel", "macro_step": 0.1},
+                                  {"name": "gs-err", "scheme": "gauss-seidel", "macro_step": 0.1,
+                                   "set": {"coupling.step_control.type": "error"}}])
+    spec = parse_compare(sec, base_scenario())
+    rep = run_comparison(spec, tmp_path, runner=runner, workers=1)
+    assert [v["forward_only"] for v in rep.variants] == [False, True]
+    from orchestrator.compare.report import write_report
+    write_report(rep, spec, tmp_path, [])
+    md = (tmp_path / "report.md").read_text()
+    assert "adapting **forward only** in `gs-err`:" in md and "`gs-e0i0-h0.1`" not in md.split("forward only")[1]

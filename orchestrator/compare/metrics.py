@@ -200,9 +200,12 @@ def check_report(report, spec, baseline: Mapping[str, Any] | None) -> list[str]:
                 fails.append(f"variant '{v['name']}': {m} error {val:.3g} exceeds tolerance {tol:.3g}{why}")
     for o in report.orders:
         if o["expected"] is not None and not abs(o["order"] - o["expected"]) <= spec.order_tolerance:
+            near = o.get("near_reference") or []
+            why = (f" (the errors at h = {', '.join(f'{h:g}' for h in near)} s are within the reference's own "
+                   "accuracy, see report.md: tighten the reference)" if near else "")
             fails.append(f"family '{o['family']}': observed order {o['order']:.2f} of the "
                          f"{o['metric']} error differs from the expected {o['expected']:g} by more "
-                         f"than {spec.order_tolerance:g}")
+                         f"than {spec.order_tolerance:g}{why}")
     if baseline:
         base_vars = baseline.get("variants", {})
         m_, f_ = spec.regression_margin, spec.regression_floor

@@ -85,6 +85,13 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
             lines.append(f"| {o['family']} | {_fmt(o['order'], '{:.2f}')} | "
                          f"{_fmt(o['order_finest'], '{:.2f}')} | {o['points']} | "
                          f"{_fmt(o['expected'], '{:g}')} |")
+        lines += _floor_notes(report, spec)
+    forward = [v["name"] for v in report.variants if v.get("forward_only")]
+    if forward:
+        lines += ["", f"Error-controlled step adapting **forward only** in {', '.join(f'`{n}`' for n in forward)}: "
+                  "an FMU cannot save its state (canGetAndSetFMUstate false), so no step was rejected and "
+                  "redone; each step follows the error of the one before, and the error reached is not held "
+                  "to `rtol`/`atol` step by step (docs/coupling.md, \"Error-controlled macro step\")."]
     lines += ["", "## Result", ""]
     lines += [f"- FAIL {f}" for f in failures] or ["All checks passed."]
     lines += ["", f"Total wall time {report.wall_time_s:.1f} s."]
@@ -96,6 +103,23 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
     write_report_file(paths[1], json.dumps(plain(doc, "null-nan"), indent=1) + "\n")
     png = _plot(report, spec, out_dir / "error_vs_cost.png")
     return paths + ([png] if png else [])
+
+
+def _floor_notes(report, spec) -> list[str]:
+    """Lines saying which families' orders rest on errors within the reference's accuracy."""
+    from orchestrator.compare.runner import REFERENCE_FLOOR_FACTOR
+    near = [o for o in report.orders if o.get("near_reference")]
+    if not near:
+        return []
+    change = report.reference["check"]["errors"][spec.order_metric]
+    out = ["", f"**At the reference's accuracy:** the reference changes by {_fmt(change)} ({spec.order_metric}) "
+           f"when its step or tolerance is halved, so errors below {REFERENCE_FLOOR_FACTOR:g}x that "
+           f"({_fmt(REFERENCE_FLOOR_FACTOR * change)}) are not resolved by it, and an order fitted through them "
+           "is not the scheme's. Tighten the reference (a finer macro step or a higher-order scheme; for an "
+           "FMU with its own solver, its tolerance) or compare coarser steps. Points affected:", ""]
+    for o in near:
+        out.append(f"- `{o['family']}`: h = {', '.join(f'{h:g}' for h in o['near_reference'])} s")
+    return out
 
 
 def cost_points(report, metric: str) -> dict[str, list[tuple]]:
