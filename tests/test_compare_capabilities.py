@@ -109,3 +109,32 @@ output: {{signals: [a.x]}}
     assert ("cmp.yaml:8: 'compare.variants[2]' variant 'off-grid' cannot run with these FMUs: stop_time 1.05 is "
             "not on the macro-step grid") in err
     assert "'jac-e0i0-h0.2'" not in err and "compare.reference" not in err
+
+
+def test_a_monolithic_reference_of_models_it_does_not_know_is_refused_at_load(test_fmus, tmp_path, capsys):
+    """``reference`` left out means the monolithic reference, which knows our rotor and bearing
+    models (and the two-mass test FMUs, registered by tests/conftest.py) only. Over the Gain FMU
+    (or crane-fmu's oscillators) every variant ran, and then the comparison ended with "the
+    reference run failed"."""
+    (tmp_path / "gains.yaml").write_text(f"""
+name: gains
+stop_time: 1.0
+fmus:
+  g1: {{path: {test_fmus['Gain']}}}
+  g2: {{path: {test_fmus['Gain']}}}
+connections:
+  - {{from: g1.y, to: g2.u}}
+coupling: {{macro_step: 0.1}}
+""")
+    path = tmp_path / "cmp.yaml"
+    path.write_text("compare:\n  scenario: gains.yaml\n  signals: [g2.y]\n"
+                    "  variants:\n    - {scheme: jacobi, macro_step: [0.2, 0.1]}\n")
+    assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
+    err = capsys.readouterr().err
+    assert ("'compare.reference' is the monolithic reference (the default when 'reference' is left out), which "
+            "has no model of 'g1' (modelName 'Gain'), 'g2' (modelName 'Gain')") in err
+    assert "'reference: {scheme: gauss-seidel, extrapolation_order: 1, interpolation_order: 1, macro_step: 0.01}'" in err
+    # the fix it gives loads
+    path.write_text(path.read_text() + "  reference: {scheme: gauss-seidel, extrapolation_order: 1, "
+                    "interpolation_order: 1, macro_step: 0.01}\n")
+    assert load_compare(path).reference.changes["coupling.macro_step"] == 0.01

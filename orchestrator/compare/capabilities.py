@@ -80,17 +80,43 @@ def forward_only(sc: Scenario, mds: Mapping[str, Any]) -> list[str]:
     return [n for n, md in mds.items() if not md.can_get_and_set_fmu_state]
 
 
+def monolithic_problem(mds: Mapping[str, Any], variant_steps) -> str | None:
+    """Why the monolithic reference cannot be built for FMUs with these model descriptions (it
+    knows our rotor and bearing models and those registered by ``build_fmus``), or None.
+
+    Before, a comparison that left ``reference`` out (monolithic is the default) over
+    third-party FMUs ran every variant and then failed with "the reference run failed"."""
+    from orchestrator.reference.models import MODELS
+
+    unknown = {n: md.model_name for n, md in mds.items() if md.model_name not in MODELS}
+    if not unknown:
+        return None
+    steps = sorted({float(h) for h in variant_steps})
+    h = steps[0] / 10 if steps else None
+    example = (f"{{scheme: gauss-seidel, extrapolation_order: 1, interpolation_order: 1, macro_step: {h:g}}}"
+               if h else "{scheme: gauss-seidel, macro_step: H}")
+    return (f"is the monolithic reference (the default when 'reference' is left out), which has no model of "
+            + ", ".join(f"'{n}' (modelName '{m}')" for n, m in unknown.items())
+            + f" (it knows {sorted(MODELS)}); give a fine co-simulation as the reference, e.g. 'reference: "
+            f"{example}' (its macro step must divide every variant's, docs/compare.md \"Reference\")")
+
+
 def check_run_capabilities(base: Scenario, reference, variants, group_of: Mapping[str, int],
                            bad: Callable[..., None]) -> None:
     """Report (through ``bad(key, msg)``) every run of the comparison that its FMUs cannot take:
-    the co-simulation reference at ``reference``, each variant at ``variants[i]`` of its group,
-    one line per problem and variant."""
+    the reference at ``reference`` (a monolithic one: a model of every FMU), each variant at
+    ``variants[i]`` of its group, one line per problem and variant."""
     from orchestrator.compare.spec import apply_changes
 
     mds = model_descriptions(base)
     if not mds:
         return
-    if not reference.monolithic:
+    if reference.monolithic:
+        steps = [v.changes.get("coupling.macro_step", base.coupling.macro_step) for v in variants]
+        why = monolithic_problem(mds, steps) if len(mds) == len(base.fmus) else None
+        if why:
+            bad("reference", why)
+    else:
         for p in capability_problems(apply_changes(base, reference.changes), mds):
             bad("reference", f"cannot run with these FMUs: {p}")
     for v in variants:
