@@ -5,6 +5,7 @@ a two-mass oscillator whose coupling spring steps from stiff to soft, against it
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -246,3 +247,71 @@ coupling: {{scheme: gauss-seidel, macro_step: 1.0e-3, step_control: {{type: erro
     out, err = capsys.readouterr()
     text = out + err + caplog.text        # the CLI prints the warning on stderr (logging)
     assert "adapts forward" in text and "'t'" in text and "canGetAndSetFMUstate" in text, text
+
+
+class FixedInternalStep(LinearFake):
+    """LinearFake with a fixed internal step ``dt``, as the Modelica Reference FMUs: a doStep
+    integrates the whole internal steps that end by its end (within 1e-9 dt) and nothing else, so
+    the outputs change in stairs at multiples of ``dt`` whatever the communication step."""
+
+    def __init__(self, *args, dt, **kw):
+        super().__init__(*args, **kw)
+        self.dt, self.t_int = dt, 0.0
+
+    def do_step(self, t, h):
+        n = int(np.floor((t + h - self.t_int) / self.dt + 1e-9))
+        for _ in range(n):
+            super().do_step(self.t_int, self.dt)
+            self.calls["doStep"] -= 1
+            self.t_int += self.dt
+        self.calls["doStep"] += 1
+
+    def get_state(self):
+        return (self.x.copy(), self.t_int)
+
+    def set_state(self, s):
+        self.x, self.t_int = s[0].copy(), s[1]
+
+
+def test_steps_accepted_above_the_tolerance_are_said_at_the_end(caplog):
+    """The Reference FMU Dahlquist (internal step 0.1 s) under an error-controlled step: its output
+    changes in stairs, which no macro step resolves; 82 steps were forced at min_step and 23 taken
+    across jumps, and the run said only "status: finished" (the counters sat in summary.json).
+    Now the message and a warning say how many steps missed the tolerance, where, and what to do."""
+    P = P2                                             # soft coupling: smooth without the stairs
+    f = fakes(P, X0, interpolate=False)
+    m1, k1 = P["m1"], P["k1"]
+    f["left"] = FixedInternalStep("left", [[0, 1], [-k1 / m1, 0]], [[0], [1 / m1]], np.eye(2), np.zeros((2, 1)),
+                                  X0[:2], ["F"], ["x1", "v1"], interpolate=False, dt=0.02)
+    s = scenario("gauss-seidel", 1e-4, T=0.2, k=1, q=1)
+    s = dataclasses.replace(s, coupling=dataclasses.replace(
+        s.coupling, step_control=StepControlSpec(type="error", rtol=1e-3, atol=1e-6, min_step=1e-6)),
+        output=dataclasses.replace(s.output, interval=1e-2))
+    with caplog.at_level("WARNING"):
+        res = MasterAlgorithm(s, subsystems=f).run()
+    assert res.success, res.message
+    st = res.stats["step_control"]
+    assert st["over_tolerance_steps"] > 0 and st["over_tolerance_steps"] == st["forced_steps"] + st["jumps"]
+    assert (f"; {st['over_tolerance_steps']} of {st['accepted_steps']} accepted macro steps had a scaled error "
+            "above 1, so the run does not meet coupling.step_control rtol 0.001 / atol there") in res.message
+    assert re.search(r"; signals: (left\.F|right\.x1|right\.v1) \(\d+\)", res.message), res.message
+    assert "an FMU with a fixed internal step" in res.message
+    assert "accepted macro steps had a scaled error above 1" in caplog.text
+    # the same run with a smooth left mass: every step within the tolerance, nothing said
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        smooth = MasterAlgorithm(s, subsystems=fakes(P, X0, interpolate=False)).run()
+    assert smooth.success and smooth.stats["step_control"]["over_tolerance_steps"] == 0
+    assert smooth.message.startswith("finished at t=0.2 s") and "scaled error above 1" not in smooth.message
+    assert "scaled error above 1" not in caplog.text
+
+
+def test_forward_only_steps_above_the_tolerance_are_counted_and_said():
+    """Without state restore a step with an error above 1 cannot be redone; such steps were not
+    counted anywhere (forced_steps counts only rejectable ones)."""
+    res = run(1e-3, T=0.2, control=StepControlSpec(type="error", rtol=1e-3, atol=1e-6), state=False)
+    assert res.success
+    st = res.stats["step_control"]
+    assert st["can_reject"] is False and st["forced_steps"] == 0 and st["over_tolerance_steps"] > 0
+    assert "that could not be rejected (an FMU cannot restore its state)" in res.message
+    assert "use FMUs that can save their state" in res.message

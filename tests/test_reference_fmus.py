@@ -119,3 +119,26 @@ def test_a_failing_run_ends_every_fmu_legally(isolation, fault, tmp_path, caplog
               out_dir=tmp_path / "out", progress=False)
     assert res.status.short == "failed", res.message
     assert illegal(caplog) == []
+
+
+def test_error_controlled_step_over_a_fixed_internal_step_says_it_missed_the_tolerance(tmp_path):
+    """Dahlquist integrates in fixed internal steps of 0.1 s, so its output changes in stairs; an
+    error-controlled macro step cannot resolve them: it forced steps at min_step and accepted jumps
+    (with rtol 1e-3: 82 and 23 of 706), and the run said only "finished". Now the message (and a
+    warning) gives the count, the signal and the fix (a constant step that is a multiple of the
+    FMU's own, or the signal left out of the estimate)."""
+    (tmp_path / "s.yaml").write_text(
+        f"name: dq\nfmus:\n  dq: {{path: {ref('Dahlquist')}}}\n  ft: {{path: {ref('Feedthrough')}}}\n"
+        "connections:\n  - {from: dq.x, to: ft.Float64_continuous_input}\n"
+        "coupling: {scheme: jacobi, macro_step: 0.1, extrapolation_order: 1,\n"
+        "           step_control: {type: error, rtol: 1.0e-3, atol: 1.0e-4}}\noutput: {interval: 0.5}\n")
+    res = run(load_scenario(tmp_path / "s.yaml"), out_dir=tmp_path / "out", progress=False)
+    assert res.success, res.message
+    st = res.stats["step_control"]
+    assert st["over_tolerance_steps"] == st["forced_steps"] + st["jumps"] > 0
+    assert f"{st['over_tolerance_steps']} of {st['accepted_steps']} accepted macro steps had a scaled error" in res.message
+    assert "signals: ft.Float64_continuous_input" in res.message and "fixed internal step" in res.message
+    # a constant step on the FMU's own grid: nothing to say
+    res = run(load_scenario(tmp_path / "s.yaml", ["coupling.step_control={type: constant}"]),
+              out_dir=tmp_path / "out2", progress=False)
+    assert res.success and res.message == "finished at t=10 s after 100 macro steps"

@@ -113,6 +113,7 @@ class ErrorControlled(StepSizeController):
         self.ij_groups: list = []              # interface-Jacobian forces (bind)
         self.nominal_scaled: list[str] = []    # signals with a declared nominal (bind)
         self.limiting: dict[int, int] = {}     # signal index -> steps it had the largest error
+        self.over_signals: dict[int, int] = {}  # signal index -> accepted steps it took above tolerance
         self.accepted = 0
         self.h_min_taken = math.inf
         self.h_max_taken = 0.0
@@ -204,6 +205,8 @@ class ErrorControlled(StepSizeController):
                 if cp is not None:
                     stepper.release(cp)
             self.limiting[worst] = self.limiting.get(worst, 0) + 1
+            if err > 1.0:
+                self.over_signals[worst] = self.over_signals.get(worst, 0) + 1
             if d.jump:          # restart the extrapolation from the value after the jump
                 hist.count = min(hist.count, 1)
             # a step shortened onto an output time does not shrink the proposal (the steps of an
@@ -236,11 +239,44 @@ class ErrorControlled(StepSizeController):
                 f"coupling.step_control.rtol ({self.spec.rtol:g}) or atol for them, or raise "
                 "coupling.step_control.min_step (steps at min_step are accepted whatever their error)")
 
+    def over_tolerance_note(self) -> str | None:
+        """What a finished run must say when it accepted steps above its tolerance, or None.
+
+        Such steps are accepted so that a run never stalls (at ``min_step``, a jump, or any step
+        when no FMU state can be restored); the run then finishes, but not to ``rtol``/``atol``
+        there. Before, only summary.json's counters showed it (the Modelica Reference FMU
+        Dahlquist, whose output changes only every 0.1 s, internal fixed step: 82 forced steps,
+        23 jumps, and ``status: finished``)."""
+        p = self.pi
+        if not p.over:
+            return None
+        names = self.signal_names
+        top = sorted(self.over_signals.items(), key=lambda kv: -kv[1])[:3]
+        where = ", ".join(f"{names[i] if i < len(names) else i} ({n})" for i, n in top) or "?"
+        kinds = [f"{p.forced} at min_step {p.min_step:.3g} s" if p.forced else "",
+                 f"{p.jumps} across a jump in a signal" if p.jumps else "",
+                 (f"{p.over - p.forced - p.jumps} that could not be rejected (an FMU cannot restore its state)"
+                  if not p.can_reject and p.over > p.forced + p.jumps else "")]
+        fixes = []
+        if p.forced or p.jumps:
+            fixes.append("A signal that jumps or changes in stairs (an FMU with a fixed internal step, events) is "
+                         "not resolved by smaller steps: leave it out of the estimate (coupling.step_control.atol: "
+                         "{SIGNAL: .inf}) or use a constant step that is a multiple of the FMU's own; otherwise "
+                         "lower min_step or loosen rtol/atol")
+        if p.over > p.forced + p.jumps:
+            fixes.append("Steps that cannot be rejected are only followed by a smaller next step: ask for a "
+                         "tighter rtol than you need, or use FMUs that can save their state "
+                         "(canGetAndSetFMUstate)")
+        return (f"{p.over} of {self.accepted} accepted macro steps had a scaled error above 1, so the run does not "
+                f"meet coupling.step_control rtol {self.spec.rtol:g} / atol there ({'; '.join(k for k in kinds if k)}); "
+                f"signals: {where}. " + ". ".join(fixes))
+
     def statistics(self) -> dict:
         return {"rejected_steps": 0, "retried_steps": 0, "retry_substeps": 0,
                 "step_control": {"type": "error", "accepted_steps": self.accepted,
                                  "rejected_steps": self.pi.rejected, "forced_steps": self.pi.forced,
                                  "jumps": self.pi.jumps, "can_reject": self.can_reject,
+                                 "over_tolerance_steps": self.pi.over,
                                  "limiting_signals": self._limiting(),
                                  "interface_jacobian": [self.signal_names[j] for j, _ in self.ij_groups],
                                  "estimate_order": self.pi.p,

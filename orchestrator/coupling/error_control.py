@@ -125,6 +125,7 @@ class PIController:
         self.rejected = 0
         self.forced = 0
         self.jumps = 0
+        self.over = 0              # accepted with err > 1: forced, jumps, and (can_reject False) every such step
         self._last_reject = None   # (h, err) of the last rejected attempt
         self._since_reject = 0     # accepted steps since then
 
@@ -143,6 +144,7 @@ class PIController:
                 # the step shrank but the error did not: a jump in a signal, which no step resolves
                 self._last_reject = None
                 self.jumps += 1
+                self.over += 1
                 self.after_reject = False
                 return Decision(True, h, jump=True)
             fac = max(self.fac_min, self.safety * err ** (-1.0 / p))
@@ -156,6 +158,8 @@ class PIController:
         forced = err > 1.0 and self.can_reject
         if forced:
             self.forced += 1
+        if err > 1.0:
+            self.over += 1
         e = max(err, ERR_FLOOR)
         fac = self.safety * e ** (-ALPHA / p) * max(self.err_old, ERR_FLOOR) ** (BETA / p)
         fac = min(self.fac_max, max(self.fac_min, fac))

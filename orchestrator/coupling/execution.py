@@ -501,6 +501,10 @@ class MasterAlgorithm:
         if last:
             self.status = Status.FINISHED
             self.message = f"finished at t={t_next:g} s after {self.n} macro steps"
+            note = self.grid.over_tolerance_note() if variable else None
+            if note:
+                self.message += f"; {note}"
+                log.warning("%s", note)
         for o in self.observers:
             o.on_step_complete(self.view)
         return self.status
