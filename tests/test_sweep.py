@@ -545,3 +545,38 @@ def test_shipped_sweep_files_and_all_their_runs_validate(path):
     runs = plan_sweep(spec)                      # builds our FMUs when missing, like `rotorcosim run`
     assert len(runs) == len({r.run_id for r in runs}) >= 5
     assert {"psi", "eta0"} <= set(runs[0].values) or "eta0" in runs[0].values
+
+
+def test_collect_takes_the_last_value_of_a_recorded_signal(sdir):
+    """A sweep over a coupling parameter of third-party FMUs (no analysis section) could collect
+    only macro_steps, end_time and the like: summary.json held no value of any signal, and
+    'collect: {x_end: a.x[0]}' gave empty cells. summary.json now has output.final (the last row)
+    and collect reads 'output.final.<instance>.<variable>', variable names with dots included."""
+    import csv
+    import warnings
+    from orchestrator import load_scenario, run
+    from orchestrator.sweep.table import build_rows, lookup
+    run(load_scenario(sdir / "ramp.yaml"), out_dir=sdir / "one", progress=False)
+    summary = json.loads((sdir / "one" / "summary.json").read_text())
+    with open(sdir / "one" / "results.csv") as f:
+        last = list(csv.DictReader(f))[-1]
+    assert summary["output"]["final_time"] == pytest.approx(float(last["time"])) == pytest.approx(0.1)
+    assert summary["output"]["final"] == {c: pytest.approx(float(last[c])) for c in summary["output"]["columns"]}
+    assert lookup(summary, "output.final.g.y") == summary["output"]["final"]["g.y"]
+    # a variable whose name has dots (crane-fmu's 'boom.end[0]'), and lists, as before
+    doc = {"output": {"final": {"crane.boom.end[0]": 1.5, "crane.boom": 2.0}}, "a": [{"b.c": 3}]}
+    assert lookup(doc, "output.final.crane.boom.end[0]") == 1.5
+    assert lookup(doc, "output.final.crane.boom") == 2.0
+    assert lookup(doc, "a.0.b.c") == 3
+    assert lookup(doc, "output.final.crane.nope") is lookup(doc, "nope")          # missing
+    # in a sweep table, and the warning for the bare signal name says where its value is
+    (sdir / "sweep.yaml").write_text(SWEEP + "  y_end: output.final.g.y\n  bare: g.y\n")
+    spec = load_sweep(sdir / "sweep.yaml")
+    runs = plan_sweep(spec, build_fmus=False)
+    records = {r.run_id: {"status": "finished", "message": "", "wall_time_s": 1.0, "summary": summary} for r in runs}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rows = build_rows(spec, runs, records, sdir)
+    assert [r["y_end"] for r in rows] == [summary["output"]["final"]["g.y"]] * 3
+    assert [r["bare"] for r in rows] == [None] * 3
+    assert any("have no 'g.y'" in str(w.message) and "is 'output.final.g.y'" in str(w.message) for w in caught)

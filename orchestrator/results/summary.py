@@ -2,7 +2,8 @@
 
 Keys, in order: ``scenario``, ``scenario_file``, ``status``, ``message``, ``start_time``,
 ``stop_time``, ``end_time``, the run's statistics (``macro_steps``, ...; see
-docs/scenario-format.md), ``coupling``, ``output`` (columns, rows, units), ``versions``; a run
+docs/scenario-format.md), ``coupling``, ``output`` (columns, rows, units, the last row's time and
+values ``final_time``/``final``), ``versions``; a run
 with an ``analysis:`` section adds ``analysis`` and ``analysis_wall_time_s``.
 """
 
@@ -34,9 +35,24 @@ def make_summary(scenario, res, *, stats: Mapping[str, Any], coupling: Mapping[s
         **stats,
         "coupling": coupling,
         "output": {"columns": list(res.outputs), "rows": int(len(res.t)),
-                   "units": column_units(scenario, list(res.outputs))},
+                   "units": column_units(scenario, list(res.outputs)),
+                   **final_values(res)},
         "versions": versions(),
     }
+
+
+def final_values(res) -> dict:
+    """``{"final_time": t, "final": {column: value}}`` of the last row written (none without rows):
+    what a sweep collects as ``output.final.<instance>.<variable>`` (docs/sweeps.md), e.g. the end
+    state of a third-party FMU over a coupling parameter, which no analysis section computes."""
+    t = getattr(res, "t", None)
+    if t is None or len(t) == 0:
+        return {}
+    out = {}
+    for c, v in res.outputs.items():
+        x = v[-1]
+        out[c] = x.item() if hasattr(x, "item") else x
+    return {"final_time": float(t[-1]), "final": out}
 
 
 def column_units(scenario, columns) -> dict[str, str]:

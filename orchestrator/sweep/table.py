@@ -29,16 +29,27 @@ _MISSING = object()
 
 def lookup(summary: Any, path: str):
     """The value at dotted ``path`` in a parsed summary.json (integer parts index lists), or
-    ``_MISSING``."""
-    node = summary
-    for part in path.split("."):
-        if isinstance(node, dict) and part in node:
-            node = node[part]
-        elif isinstance(node, list) and part.lstrip("-").isdigit() and -len(node) <= int(part) < len(node):
-            node = node[int(part)]
-        else:
-            return _MISSING
-    return node
+    ``_MISSING``. A key that itself contains dots (a column ``crane.boom.end[0]`` of
+    ``output.final``) is matched too: every run of parts joined by dots that is a key is tried,
+    the single part first."""
+    return _lookup_parts(summary, path.split("."))
+
+
+def _lookup_parts(node: Any, parts: list[str]):
+    if not parts:
+        return node
+    if isinstance(node, dict):
+        for j in range(1, len(parts) + 1):
+            key = ".".join(parts[:j])
+            if key in node:
+                found = _lookup_parts(node[key], parts[j:])
+                if found is not _MISSING:
+                    return found
+        return _MISSING
+    part = parts[0]
+    if isinstance(node, list) and part.lstrip("-").isdigit() and -len(node) <= int(part) < len(node):
+        return _lookup_parts(node[int(part)], parts[1:])
+    return _MISSING
 
 
 def _cell(value):
@@ -77,8 +88,13 @@ def build_rows(spec: SweepSpec, runs: list[RunPlan], records: dict[str, dict], o
         rows.append(row)
     for (name, path), n in zip(spec.collect, missing.values(), strict=True):
         if n:
+            hint = ""
+            first = next((r for r in runs if (records.get(r.run_id) or {}).get("summary")), None)
+            final = lookup(records[first.run_id]["summary"], "output.final") if first is not None else _MISSING
+            if isinstance(final, dict) and path in final:      # a recorded column named as it is
+                hint = f"; the last value of the recorded signal '{path}' is 'output.final.{path}'"
             warnings.warn(f"collect '{name}': {n} finished run(s) have no '{path}' in their summary.json; their "
-                          f"cells are empty (check the path against one run's summary.json)", stacklevel=2)
+                          f"cells are empty (check the path against one run's summary.json{hint})", stacklevel=2)
     for (name, path), n in zip(spec.collect, null.values(), strict=True):
         if n:
             warnings.warn(f"collect '{name}': {n} finished run(s) have '{path}' = null in their summary.json (the "
