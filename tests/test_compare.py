@@ -459,3 +459,32 @@ def test_a_forward_only_error_controlled_variant_is_said_so_in_the_report(tmp_pa
     write_report(rep, spec, tmp_path, [])
     md = (tmp_path / "report.md").read_text()
     assert "adapting **forward only** in `gs-err`:" in md and "`gs-e0i0-h0.1`" not in md.split("forward only")[1]
+
+
+def test_the_cheapest_variant_within_its_tolerance_is_named(compare_files, tmp_path, capsys):
+    """The question a comparison answers for a co-simulation engineer, "which coupling is good
+    enough at the least cost", had no answer in the report: 18 rows to read. Now report.md,
+    report.json and the command's output name the stable variant within its tolerance with the
+    fewest FMU calls (at equal calls the one furthest within it)."""
+    path = compare_files("")                 # tolerance {rms: 0.05, max: 0.1}: every stable variant passes
+    assert main_compare(path, out_dir=tmp_path / "out", runner=fake_runner, workers=1) == 0
+    out = capsys.readouterr().out
+    # h = 0.2 is the fewest calls (40); among those Gauss-Seidel k = 1 has the smallest error (order 3)
+    assert "cheapest within tolerance: gs-e1i0-h0.2 (40 FMU calls, " in out
+    doc = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert doc["cheapest_within_tolerance"] == "gs-e1i0-h0.2"
+    assert "**Cheapest variant within its tolerance**" in (tmp_path / "out" / "report.md").read_text()
+    # a tolerance only the order-3 family meets at h = 0.2 .. 0.05: the coarsest of them
+    path = compare_files("", tol="{max: 1.0e-3}")
+    assert main_compare(path, out_dir=tmp_path / "o2", runner=fake_runner, workers=1) == 1
+    assert json.loads((tmp_path / "o2" / "report.json").read_text())["cheapest_within_tolerance"] == "gs-e1i0-h0.2"
+    # nothing within: said so; no tolerance at all: said what to give
+    path = compare_files("", tol="{max: 1.0e-9}")
+    capsys.readouterr()
+    assert main_compare(path, out_dir=tmp_path / "o3", runner=fake_runner, workers=1) == 1
+    assert "**No variant is within its tolerance**" in (tmp_path / "o3" / "report.md").read_text()
+    assert "cheapest within tolerance" not in capsys.readouterr().out
+    path = compare_files("", tol="{}")
+    assert main_compare(path, out_dir=tmp_path / "o4", runner=fake_runner, workers=1) == 0
+    assert "No variant has a tolerance" in (tmp_path / "o4" / "report.md").read_text()
+    assert json.loads((tmp_path / "o4" / "report.json").read_text())["cheapest_within_tolerance"] is None

@@ -171,6 +171,22 @@ def load_baseline(path: Path) -> dict[str, Any]:
     return doc
 
 
+def cheapest_within_tolerance(report, failures: list[str]) -> dict | None:
+    """The answer to "which coupling is good enough at the least cost": among the stable variants
+    that have a tolerance and no failed check, the one with the fewest FMU calls (exact on every
+    machine); at equal calls the one furthest within its tolerance (largest error/tolerance the
+    smallest), then wall time. None when no variant qualifies."""
+    failed = {f.split("'")[1] for f in failures if f.startswith("variant '")}
+    ok = [v for v in report.variants if v["stable"] and v["tolerance"] and v["name"] not in failed]
+    if not ok:
+        return None
+
+    def used(v) -> float:
+        return max(v["errors"].get(m, math.inf) / t for m, t in v["tolerance"].items())
+    return min(ok, key=lambda v: (v["fmu_calls"] if isinstance(v.get("fmu_calls"), (int, float)) else math.inf,
+                                  used(v), v.get("wall_time_s") or math.inf))
+
+
 def check_report(report, spec, baseline: Mapping[str, Any] | None) -> list[str]:
     """Every failed check as one readable line naming the variant and the metric."""
     fails = []

@@ -11,6 +11,7 @@ import json
 import math
 from pathlib import Path
 
+from orchestrator.compare.metrics import cheapest_within_tolerance
 from orchestrator.results.jsonsafe import plain
 from orchestrator.results.safe_write import save_figure, write_report_file
 
@@ -67,6 +68,7 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
                 _fmt(v["fmu_calls"], "{}"), "yes" if v["stable"] else "NO", tol,
                 "FAIL" if v["name"] in failed_names else "ok"])
         lines.append("| " + " | ".join(row) + " |")
+    lines += ["", _cheapest_line(report, failures)]
     if spec.derived:   # the derived numbers themselves (the table above has their errors)
         lines += ["", "Derived values (`" + "`, `".join(d["key"] for d in spec.derived.values()) + "`):",
                   "", "| run | " + " | ".join(spec.derived) + " |", "|---|" + "---|" * len(spec.derived)]
@@ -97,12 +99,32 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
     lines += ["", f"Total wall time {report.wall_time_s:.1f} s."]
     paths = [out_dir / "report.md", out_dir / "report.json"]
     write_report_file(paths[0], "\n".join(lines) + "\n")
+    best = cheapest_within_tolerance(report, failures)
     doc = {"name": report.name, "reference": report.reference, "variants": report.variants,
            "orders": report.orders, "failures": failures, "wall_time_s": report.wall_time_s,
-           "passed": not failures}
+           "cheapest_within_tolerance": best["name"] if best else None, "passed": not failures}
     write_report_file(paths[1], json.dumps(plain(doc, "null-nan"), indent=1) + "\n")
     png = _plot(report, spec, out_dir / "error_vs_cost.png")
     return paths + ([png] if png else [])
+
+
+def cheapest_text(best: dict) -> str:
+    """``name (N FMU calls, W s; max 0.01 <= 0.05)``: the cheapest variant within its tolerance."""
+    errs = ", ".join(f"{m} {_fmt(best['errors'].get(m))} <= {t:g}" for m, t in best["tolerance"].items())
+    return (f"{best['name']} ({_fmt(best['fmu_calls'], '{}')} FMU calls, {_fmt(best['wall_time_s'], '{:.2f}')} s; "
+            f"{errs})")
+
+
+def _cheapest_line(report, failures) -> str:
+    best = cheapest_within_tolerance(report, failures)
+    if best is not None:
+        return (f"**Cheapest variant within its tolerance** (fewest FMU calls; then the smallest error for its "
+                f"tolerance): "
+                f"`{cheapest_text(best)}`.")
+    if not any(v["tolerance"] for v in report.variants):
+        return ("No variant has a tolerance, so none is named as good enough: give `tolerance: {max: ...}` "
+                "(the accuracy you need) to the comparison or to its variant groups.")
+    return "**No variant is within its tolerance** (or every one that is failed another check)."
 
 
 def _floor_notes(report, spec) -> list[str]:

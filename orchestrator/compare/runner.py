@@ -34,9 +34,9 @@ from typing import Any, Callable
 import numpy as np
 
 from orchestrator.compare.metrics import (
-    METRICS, RunData, check_baseline_target, check_report, derived_error, derived_values, fit_order, load_baseline,
-    read_run, signal_errors, write_baseline)
-from orchestrator.compare.report import write_report
+    METRICS, RunData, cheapest_within_tolerance, check_baseline_target, check_report, derived_error, derived_values,
+    fit_order, load_baseline, read_run, signal_errors, write_baseline)
+from orchestrator.compare.report import cheapest_text, write_report
 from orchestrator.compare.spec import (
     CompareSpec, CompareSpecError, ReferenceSpec, VariantSpec, apply_changes, expand_variants, load_compare,
     parse_compare)
@@ -334,6 +334,9 @@ def main_compare(path: str | os.PathLike, out_dir: str | os.PathLike | None = No
         print(f"baseline written: {spec.baseline}")
     print(f"report: {out / 'report.md'}  ({len(report.variants)} variants, "
           f"{report.wall_time_s:.1f} s)")
+    best = cheapest_within_tolerance(report, failures)
+    if best is not None:
+        print(f"cheapest within tolerance: {cheapest_text(best)}")
     for f in failures:
         print(f"FAIL {f}", file=sys.stderr)
     if not failures:
