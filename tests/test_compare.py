@@ -488,3 +488,15 @@ def test_the_cheapest_variant_within_its_tolerance_is_named(compare_files, tmp_p
     assert main_compare(path, out_dir=tmp_path / "o4", runner=fake_runner, workers=1) == 0
     assert "No variant has a tolerance" in (tmp_path / "o4" / "report.md").read_text()
     assert json.loads((tmp_path / "o4" / "report.json").read_text())["cheapest_within_tolerance"] is None
+
+
+def test_no_variant_is_named_good_enough_against_a_reference_that_failed_its_check():
+    from orchestrator.compare.metrics import cheapest_within_tolerance
+
+    class R:
+        variants = [{"name": "a", "stable": True, "tolerance": {"max": 0.1}, "errors": {"max": 0.01},
+                     "fmu_calls": 10, "wall_time_s": 1.0}]
+    assert cheapest_within_tolerance(R(), [])["name"] == "a"
+    assert cheapest_within_tolerance(R(), ["reference: halving its tolerance/step changes the 'max' error by "
+                                           "0.2 >= the smallest tolerance in use 0.1; tighten the reference"]) is None
+    assert cheapest_within_tolerance(R(), ["variant 'a': max error 0.2 exceeds tolerance 0.1"]) is None

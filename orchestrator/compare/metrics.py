@@ -171,11 +171,22 @@ def load_baseline(path: Path) -> dict[str, Any]:
     return doc
 
 
+#: a variant error below this many times the reference's own change (its convergence check, in the
+#: order metric) is within the reference's accuracy: the reference's error, which is of the order of
+#: that change, is then >= 10 % of the measured error, and an order fitted through it is not the
+#: scheme's (a third-party FMU's internal solver tolerance sets such a floor for a co-simulation
+#: reference; docs/compare.md, "Observed order")
+REFERENCE_FLOOR_FACTOR = 10.0
+
+
 def cheapest_within_tolerance(report, failures: list[str]) -> dict | None:
     """The answer to "which coupling is good enough at the least cost": among the stable variants
     that have a tolerance and no failed check, the one with the fewest FMU calls (exact on every
     machine); at equal calls the one furthest within its tolerance (largest error/tolerance the
-    smallest), then wall time. None when no variant qualifies."""
+    smallest), then wall time. None when no variant qualifies, or when the reference failed its
+    convergence check (the errors are then not to be trusted)."""
+    if any(f.startswith("reference:") for f in failures):
+        return None                 # errors against a reference that is not converged name nothing
     failed = {f.split("'")[1] for f in failures if f.startswith("variant '")}
     ok = [v for v in report.variants if v["stable"] and v["tolerance"] and v["name"] not in failed]
     if not ok:

@@ -11,7 +11,7 @@ import json
 import math
 from pathlib import Path
 
-from orchestrator.compare.metrics import cheapest_within_tolerance
+from orchestrator.compare.metrics import REFERENCE_FLOOR_FACTOR, cheapest_within_tolerance
 from orchestrator.results.jsonsafe import plain
 from orchestrator.results.safe_write import save_figure, write_report_file
 
@@ -118,9 +118,11 @@ def cheapest_text(best: dict) -> str:
 def _cheapest_line(report, failures) -> str:
     best = cheapest_within_tolerance(report, failures)
     if best is not None:
-        return (f"**Cheapest variant within its tolerance** (fewest FMU calls; then the smallest error for its "
-                f"tolerance): "
-                f"`{cheapest_text(best)}`.")
+        return ("**Cheapest variant within its tolerance** (fewest FMU calls; then the smallest error for its "
+                f"tolerance): `{cheapest_text(best)}`.")
+    if any(f.startswith("reference:") for f in failures):
+        return ("No variant is named as good enough: the reference failed its convergence check (see Result), "
+                "so the errors are not to be trusted; tighten the reference first.")
     if not any(v["tolerance"] for v in report.variants):
         return ("No variant has a tolerance, so none is named as good enough: give `tolerance: {max: ...}` "
                 "(the accuracy you need) to the comparison or to its variant groups.")
@@ -129,7 +131,6 @@ def _cheapest_line(report, failures) -> str:
 
 def _floor_notes(report, spec) -> list[str]:
     """Lines saying which families' orders rest on errors within the reference's accuracy."""
-    from orchestrator.compare.runner import REFERENCE_FLOOR_FACTOR
     near = [o for o in report.orders if o.get("near_reference")]
     if not near:
         return []

@@ -34,8 +34,8 @@ from typing import Any, Callable
 import numpy as np
 
 from orchestrator.compare.metrics import (
-    METRICS, RunData, cheapest_within_tolerance, check_baseline_target, check_report, derived_error, derived_values,
-    fit_order, load_baseline, read_run, signal_errors, write_baseline)
+    METRICS, REFERENCE_FLOOR_FACTOR, RunData, cheapest_within_tolerance, check_baseline_target, check_report,
+    derived_error, derived_values, fit_order, load_baseline, read_run, signal_errors, write_baseline)
 from orchestrator.compare.report import cheapest_text, write_report
 from orchestrator.compare.spec import (
     CompareSpec, CompareSpecError, ReferenceSpec, VariantSpec, apply_changes, expand_variants, load_compare,
@@ -214,14 +214,6 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
                        "near_reference": [x for x, err in zip(h, e) if floor is not None and err < floor]})
     return CompareReport(name=spec.name, reference=reference, variants=variants, orders=orders,
                          wall_time_s=time.perf_counter() - t_start)
-
-
-#: a variant error below this many times the reference's own change (its convergence check, in the
-#: order metric) is within the reference's accuracy: the reference's error, which is of the order of
-#: that change, is then >= 10 % of the measured error, and an order fitted through it is not the
-#: scheme's (a third-party FMU's internal solver tolerance sets such a floor for a co-simulation
-#: reference; docs/compare.md, "Observed order")
-REFERENCE_FLOOR_FACTOR = 10.0
 
 
 def _reference_floor(reference: dict, metric: str) -> float | None:
