@@ -506,3 +506,49 @@ def test_unreadable_yaml_values_are_reported_with_their_line(sdir):
     p = write(sdir, "name: x\nstop_time: !!python/object:os.system ls\nfmus:\n  g: {path: fmus/Gain.fmu}\n")
     problems = problems_of(p)
     assert problems[-1].startswith(f"{p}:2: cannot read this value (could not determine a constructor")
+
+
+OSP_XML = """<OspSystemStructure xmlns="http://opensimulationplatform.com/MSMI/OSPSystemStructure" version="0.1">
+   <StartTime>0.0</StartTime>
+   <BaseStepSize>0.01</BaseStepSize>
+   <Simulators>
+      <Simulator name="crane" source="MobileCraneStraight.fmu" stepSize="0.01"/>
+      <Simulator name="osc" source="HarmonicOscillator6D.fmu" stepSize="0.01" />
+   </Simulators>
+</OspSystemStructure>"""
+
+
+@pytest.mark.parametrize("name, text, needle", [
+    # the OSP system structure that the crane-fmu wheel ships beside its FMUs
+    ("CraneOnOscillatorSystemStructure.xml", OSP_XML,
+     "is an XML file (root element <OspSystemStructure>), not a scenario: rotorcosim reads YAML scenarios"),
+    ("modelDescription.xml", '<?xml version="1.0" encoding="UTF-8"?>\n<!-- made by hand -->\n'
+     '<fmiModelDescription fmiVersion="2.0" modelName="M" guid="{x}">\n</fmiModelDescription>\n',
+     "(root element <fmiModelDescription>), not a scenario: rotorcosim reads YAML scenarios"),
+    ("system.xml", '<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/'
+     'SystemStructureDescription" version="1.0" name="s"/>\n',
+     "it is an SSD: give it the extension .ssd and it is read as one"),
+])
+def test_an_xml_file_is_named_as_such_not_quoted_whole(tmp_path, name, text, needle):
+    """An XML file given as a scenario read as one YAML string, and the message quoted all of it
+    (1.4 kB for crane-fmu's CraneOnOscillatorSystemStructure.xml) as "'top level' must be a mapping"."""
+    p = tmp_path / name
+    p.write_text(text)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(p)
+    msg = str(info.value)
+    assert f"{name}:1: " in msg and needle in msg
+    assert "Simulator name" not in msg and "must be a mapping" not in msg
+
+
+def test_a_long_text_that_came_is_quoted_by_its_start():
+    p_text = "word " * 100          # YAML reads it without the last blank: 499 characters
+    from orchestrator.scenario.nodes import GOT_CHARS
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "s.yaml"
+        p.write_text(p_text)
+        with pytest.raises(ScenarioError) as info:
+            load_scenario(p)
+    msg = str(info.value)
+    assert f"'top level' must be a mapping (got {p_text[:GOT_CHARS]!r}... (499 characters), a string)" in msg

@@ -24,6 +24,11 @@ FLOAT_RE = re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
     |[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$""", re.X)
 
 
+
+#: the longest text a message quotes as what came (``got``): a file that is not YAML (an XML
+#: system structure) reads as one string and was quoted whole, 1.4 kB for crane-fmu's OSP file
+GOT_CHARS = 80
+
 class YamlLoader(yaml.SafeLoader):
     """Safe YAML loader that also reads ``1e-4`` as a float (YAML 1.2 style)."""
 
@@ -111,6 +116,8 @@ class NodeReader:
         v = self.value(node)
         kind = {bool: "a boolean", int: "an integer", float: "a number", str: "a string",
                 type(None): "nothing"}.get(type(v), type(v).__name__)
+        if isinstance(v, str) and len(v) > GOT_CHARS:    # a whole file read as one string: its start
+            return f"{v[:GOT_CHARS]!r}... ({len(v)} characters), {kind}"
         return f"{v!r}, {kind}" if v is not None else "nothing"
 
     def mapping(self, node, where: str, keys=None, required=(), fix="") -> dict | None:

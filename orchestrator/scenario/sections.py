@@ -101,6 +101,18 @@ class SectionReader(NodeReader):
         root = self._read_tree()
         for text in self.overrides:
             apply_override(self, root, text)
+        element = _xml_root(root)
+        if element:
+            fix = {"SystemStructureDescription": "it is an SSD: give it the extension .ssd and it is read as one",
+                   "fmiModelDescription": "it is an FMU's model description: name the .fmu under 'fmus' of a YAML "
+                                          "scenario (rotorcosim info X.fmu lists its variables)",
+                   "OspSystemStructure": "an OSP system structure is not read: write its simulators as 'fmus' and "
+                                         "its connections as 'connections' of a YAML scenario"}.get(
+                element.split(":")[-1], "write the system as a YAML scenario")
+            self.err(root, f"is an XML file (root element <{element}>), not a scenario: rotorcosim reads YAML "
+                           "scenarios (docs/scenario-format.md) and SSP 1.0 system structures as an .ssp archive or "
+                           f"an .ssd file (\"Scenarios from SSP\" there); {fix}")
+            return None
         top = self.mapping(root, "top level", TOP_KEYS, ("name", "fmus"),
                            fix="a scenario is a mapping with at least 'name' and 'fmus'")
         if top is None:
@@ -510,3 +522,12 @@ class SectionReader(NodeReader):
             return None
         return {"line": item.start_mark.line + 1 if item.start_mark else None, "node": item, "gain": 1.0,
                 "offset": 0.0, "from": parts[0], "from_node": item, "to": parts[1], "to_node": item}
+
+
+def _xml_root(node) -> str | None:
+    """The root element's name when the file read as YAML is one XML text (``<?xml ...`` or
+    ``<Name ...``), else None."""
+    if not isinstance(node, yaml.ScalarNode) or not isinstance(node.value, str):
+        return None
+    m = re.match(r"\s*(?:<\?xml[^>]*\?>\s*)?(?:<!--.*?-->\s*)*<([A-Za-z_][\w.:-]*)", node.value, re.S)
+    return m.group(1) if m else None
