@@ -138,3 +138,22 @@ coupling: {{macro_step: 0.1}}
     path.write_text(path.read_text() + "  reference: {scheme: gauss-seidel, extrapolation_order: 1, "
                     "interpolation_order: 1, macro_step: 0.01}\n")
     assert load_compare(path).reference.changes["coupling.macro_step"] == 0.01
+
+
+@pytest.mark.parametrize("listed", [False, True])
+def test_a_string_signal_is_refused_at_load(test_fmus, tmp_path, capsys, listed):
+    """'signals: [ft.String_output]' (the Reference FMU Feedthrough) made every error 'inf': the
+    reference 'failed its convergence check' and every variant was 'unstable'. A text has no
+    numeric error; Integer and Boolean signals are compared as numbers."""
+    signals = "\noutput: {signals: [t.s_out, t.count, t.b_out]}" if listed else ""
+    (tmp_path / "typed.yaml").write_text(f"name: typed\nstop_time: 1.0\nfmus:\n  t: {{path: {test_fmus['TypedPorts']}}}\n"
+                                         f"coupling: {{macro_step: 0.1}}{signals}\n")
+    path = tmp_path / "cmp.yaml"
+    path.write_text("compare:\n  scenario: typed.yaml\n  signals: [t.count, t.s_out, t.b_out]\n"
+                    "  reference: {scheme: jacobi, macro_step: 0.05}\n"
+                    "  variants:\n    - {scheme: jacobi, macro_step: [0.2, 0.1]}\n")
+    assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
+    err = capsys.readouterr().err
+    assert ("cmp.yaml:3: 'compare.signals' entry 't.s_out' is a String variable, which has no numeric error to "
+            "measure") in err
+    assert "'t.count'" not in err and "'t.b_out'" not in err

@@ -469,15 +469,23 @@ def _check_signals(signals, base: Scenario, bad) -> None:
             bad("signals", f"entry {s!r} names the instance '{inst}', which is not an FMU of the base scenario; "
                 f"instances: {', '.join(instances)}")
             continue
-        if recorded is not None:
-            if s not in recorded:
-                bad("signals", f"lists '{s}', which the base scenario does not output; add it to "
-                    f"'output.signals' (has {list(base.output.signals)})")
+        if recorded is not None and s not in recorded:
+            bad("signals", f"lists '{s}', which the base scenario does not output; add it to "
+                f"'output.signals' (has {list(base.output.signals)})")
             continue
         try:
             md = cached_model_description(instances[inst].path)
         except (FmuError, OSError):
             continue                                 # the run reports an unreadable FMU
+        if var in md.variables and md.variables[var].type == "String":
+            # a text has no difference to measure: every run came out 'inf', reported as an
+            # unstable variant and a reference to tighten
+            bad("signals", f"entry {s!r} is a String variable, which has no numeric error to measure; compare "
+                "Real, Integer, Boolean or Enumeration signals (a String can be recorded in 'output.signals' "
+                "and read in each run's results.csv)")
+            continue
+        if recorded is not None:
+            continue
         outputs = [v.name for v in md.outputs()]
         if var not in md.variables:
             bad("signals", f"entry {s!r}: '{inst}' has no variable '{var}'; outputs of '{inst}' (closest first): "
