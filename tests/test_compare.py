@@ -500,3 +500,22 @@ def test_no_variant_is_named_good_enough_against_a_reference_that_failed_its_che
     assert cheapest_within_tolerance(R(), ["reference: halving its tolerance/step changes the 'max' error by "
                                            "0.2 >= the smallest tolerance in use 0.1; tighten the reference"]) is None
     assert cheapest_within_tolerance(R(), ["variant 'a': max error 0.2 exceeds tolerance 0.1"]) is None
+
+
+def test_gauss_seidel_families_whose_order_interpolation_order_caps_are_said(tmp_path):
+    """Two crane-fmu oscillators in a loop: Gauss-Seidel k = 1 with the default q = 0 had order
+    1.01 against Jacobi k = 1's 2.00 (and q = 1: 1.97), which read as "Jacobi is more accurate";
+    the report now says that q caps those families' order at q + 1."""
+    sec = dict(SECTION, variants=[{"scheme": ["jacobi", "gauss-seidel"], "extrapolation_order": [0, 1],
+                                   "macro_step": [0.2, 0.1]},
+                                  {"scheme": "gauss-seidel", "extrapolation_order": 1, "interpolation_order": 1,
+                                   "macro_step": [0.2, 0.1]}])
+    spec = parse_compare(sec, base_scenario())
+    rep = run_comparison(spec, tmp_path, runner=fake_runner, workers=1)
+    capped = {v["name"]: v["order_capped_at"] for v in rep.variants}
+    assert capped["gs-e1i0-h0.2"] == capped["gs-e1i0-h0.1"] == 1
+    assert capped["gs-e1i1-h0.2"] is None and capped["jac-e1i0-h0.2"] is None and capped["gs-e0i0-h0.2"] is None
+    from orchestrator.compare.report import write_report
+    write_report(rep, spec, tmp_path, [])
+    md = (tmp_path / "report.md").read_text()
+    assert "**Order capped by `interpolation_order`** in `gs-e1i0`:" in md

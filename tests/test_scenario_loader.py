@@ -552,3 +552,36 @@ def test_a_long_text_that_came_is_quoted_by_its_start():
             load_scenario(p)
     msg = str(info.value)
     assert f"'top level' must be a mapping (got {p_text[:GOT_CHARS]!r}... (499 characters), a string)" in msg
+
+
+def test_gauss_seidel_with_interpolation_order_below_the_extrapolation_order_warns(test_fmus, tmp_path, caplog):
+    """q < k under Gauss-Seidel caps the coupling's order at q + 1 for the inputs fed by FMUs
+    stepped earlier (measured: k = 1, q = 0 order 1.01, q = 1 order 1.97, two crane-fmu
+    oscillators in a loop); the scenario said nothing."""
+    import logging
+    from orchestrator.scenario import checks
+
+    def load(coupling: str, name: str):
+        p = tmp_path / f"{name}.yaml"
+        p.write_text(f"name: {name}\nstop_time: 1.0\nfmus:\n  left: {{path: {test_fmus['LeftMass']}}}\n"
+                     f"  right: {{path: {test_fmus['RightMass']}}}\nconnections:\n"
+                     "  - {from: left.x1, to: right.x1}\n  - {from: left.v1, to: right.v1}\n"
+                     f"  - {{from: right.F, to: left.F}}\ncoupling: {coupling}\n")
+        checks._WARNED.clear()
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            load_scenario(p)
+        return [r.getMessage() for r in caplog.records if "interpolation_order" in r.getMessage()]
+
+    said = load("{scheme: gauss-seidel, extrapolation_order: 1, macro_step: 0.01}", "q0")
+    assert said == [f"{tmp_path / 'q0.yaml'}:10: 'coupling.interpolation_order' 0 with extrapolation_order 1 under "
+                    "gauss-seidel: right.x1, right.v1 come from FMUs stepped earlier in the sequence and get a "
+                    "degree-0 polynomial through the new values, so the coupling is of order 1 at most, not up to 2; "
+                    "set interpolation_order: 1 (docs/coupling.md, \"One macro step\")"]
+    assert "left.F" not in said[0]                       # fed by the later FMU: extrapolated
+    said = load("{scheme: gauss-seidel, sequence: [right, left], extrapolation_order: 2, interpolation_order: 1, "
+                "macro_step: 0.01}", "rev")
+    assert len(said) == 1 and "left.F comes from an FMU stepped earlier" in said[0] and "not up to 3" in said[0]
+    assert load("{scheme: gauss-seidel, extrapolation_order: 1, interpolation_order: 1, macro_step: 0.01}", "q1") == []
+    assert load("{scheme: jacobi, extrapolation_order: 2, macro_step: 0.01}", "jac") == []
+    assert load("{scheme: gauss-seidel, macro_step: 0.01}", "k0") == []

@@ -88,6 +88,13 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
                          f"{_fmt(o['order_finest'], '{:.2f}')} | {o['points']} | "
                          f"{_fmt(o['expected'], '{:g}')} |")
         lines += _floor_notes(report, spec)
+    capped = list(dict.fromkeys(v["family"] for v in report.variants if v.get("order_capped_at")))
+    if capped:
+        lines += ["", "**Order capped by `interpolation_order`** in " + ", ".join(f"`{f}`" for f in capped) +
+                  ": Gauss-Seidel inputs from FMUs stepped earlier in the sequence get a polynomial of degree "
+                  "q < k through their new values, so these couplings are of order q + 1 at most whatever k is; "
+                  "compare them with `interpolation_order` = `extrapolation_order` (docs/coupling.md) before "
+                  "concluding that Gauss-Seidel is less accurate than Jacobi."]
     forward = [v["name"] for v in report.variants if v.get("forward_only")]
     if forward:
         lines += ["", f"Error-controlled step adapting **forward only** in {', '.join(f'`{n}`' for n in forward)}: "

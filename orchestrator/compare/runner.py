@@ -180,6 +180,7 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
                               "derived_tolerances": spec.derived_tolerances(),
                               "derived": derived_values(spec.derived, chk.summary)}
     variants = []
+    real = _real_connections(spec.base)
     for v in spec.variants:
         data = read_run(runs / v.name, results[v.name])
         errs = _errors(spec, ref, data, scales)
@@ -198,7 +199,8 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
             "fmu_calls": data.fmu_calls, "tolerance": dict(v.tolerance),
             "expect_order": v.expect_order, "dir": str(runs / v.name),
             "derived": derived_values(spec.derived, data.summary),
-            "forward_only": _forward_only(data.summary)})
+            "forward_only": _forward_only(data.summary),
+            "order_capped_at": _order_cap(sc, real)})
     floor = _reference_floor(reference, spec.order_metric)
     orders = []
     for fam in dict.fromkeys(v["family"] for v in variants):
@@ -224,6 +226,29 @@ def _reference_floor(reference: dict, metric: str) -> float | None:
         return None
     change = chk["errors"].get(metric)
     return REFERENCE_FLOOR_FACTOR * change if change is not None and math.isfinite(change) else None
+
+
+def _real_connections(base: Scenario) -> list[tuple[str, str]]:
+    """``(from, to)`` of the base's Real connections (the FMUs' model descriptions; a connection
+    whose source cannot be read counts as Real)."""
+    from orchestrator.compare.capabilities import model_descriptions
+    mds = model_descriptions(base)
+    out = []
+    for c in base.connections:
+        v = getattr(mds.get(c.src_instance), "variables", {}).get(c.src_variable)
+        if v is None or v.type == "Real":
+            out.append((c.src, c.dst))
+    return out
+
+
+def _order_cap(sc: Scenario, real: list[tuple[str, str]]) -> int | None:
+    """q + 1 when Gauss-Seidel's interpolation order q < k caps the order of this variant's
+    coupling (scenario/coupling_sections.py ``interpolated_inputs``), else None."""
+    from orchestrator.scenario.coupling_sections import interpolated_inputs
+    c = sc.coupling
+    order = c.sequence or tuple(f.name for f in sc.fmus)
+    capped = interpolated_inputs(c.scheme, c.extrapolation_order, c.interpolation_order, order, real)
+    return c.interpolation_order + 1 if capped else None
 
 
 def _forward_only(summary: dict | None) -> bool:

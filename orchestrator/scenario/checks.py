@@ -14,7 +14,8 @@ import yaml
 
 from orchestrator.errors import CosimError
 from orchestrator.fmi.archive import cached_model_description
-from orchestrator.scenario.coupling_sections import check_atol_patterns, check_capabilities
+from orchestrator.scenario.coupling_sections import (check_atol_patterns, check_capabilities, interpolated_inputs,
+                                                       interpolation_warning)
 from orchestrator.fmi.values import check_value, declared_range, settable_problem
 from orchestrator.scenario.completion import Completion
 from orchestrator.scenario.model import ANALYSIS_KEYS, JOURNAL_KEYS
@@ -58,6 +59,7 @@ class FmuChecks(Completion):
         check_atol_patterns(self, draft.coupling, draft.connections)
         if len(self.fmu_caps) == len(draft.fmus):
             check_capabilities(self, draft.coupling_node, draft.coupling, self.fmu_caps)
+        self.check_interpolation_order(draft)
         draft.signals = self.expand_patterns(draft.signals)
         self.check_signals(draft.signals, "output.signals")
         if getattr(draft, "output_format", "csv") == "csv":
@@ -188,6 +190,27 @@ class FmuChecks(Completion):
                         self.err(c[key + "_node"], f"'{key}' of the connection '{c['from']}' -> '{c['to']}': gain "
                                                    f"and offset apply to Real connections only (this one is "
                                                    f"{src.type}, held over the macro step); remove '{key}'")
+
+    def check_interpolation_order(self, draft) -> None:
+        """Warn when Gauss-Seidel's interpolation order q < extrapolation order k caps the order
+        of the coupling at q + 1 (:func:`interpolated_inputs`); only Real connections count (the
+        others are held whatever q is)."""
+        c = draft.coupling
+        if not c:
+            return
+        k, q = c.get("extrapolation_order", 0), c.get("interpolation_order", 0)
+        real = []
+        for conn in draft.connections:
+            src, dst = conn.get("from"), conn.get("to")
+            if src and dst:
+                inst, _, var = src.partition(".")
+                v = self.mds.get(inst, {}).get(var)
+                if v is not None and v.type == "Real":
+                    real.append((src, dst))
+        inputs = interpolated_inputs(c.get("scheme", "gauss-seidel"), k, q, c.get("sequence", ()), real)
+        if inputs:
+            node = draft.coupling_node
+            warn_once(f"{self.loc(node) if node is not None else self.display}: {interpolation_warning(k, q, inputs)}")
 
     def check_units(self, c: dict, src, dst) -> None:
         """Warn (not refuse: the FMUs may mean the same) when a Real connection without gain or
