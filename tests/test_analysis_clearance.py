@@ -1,0 +1,77 @@
+"""The run-up analysis's clearance is the clearance of the bearing it analyses.
+
+Every amplitude of the whirl analysis is relative to ``analysis.journals.<j>.clearance``, which
+the scenario gave separately from the bearings' ``R`` and ``psi``: a scenario copied from a
+shipped one and given other bearings (or a sweep over psi without a clearance column) was
+analysed with the old clearance and printed a wrong onset speed without any warning. The
+loader now compares it with ``psi R`` of the JournalBearing the journal's x signal is connected
+to (orchestrator/scenario/analysis_clearance.py), and fills it in when it is left out.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from orchestrator import load_scenario
+from orchestrator.errors import ScenarioError
+
+pytestmark = pytest.mark.integration
+
+QUICKSTART = Path(__file__).resolve().parents[1] / "scenarios" / "quickstart.yaml"
+R, PSI = 4.9e-3, 2.8e-3               # quickstart's bearings
+
+
+def _problems(path, overrides) -> list[str]:
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path, overrides, build_fmus=True)
+    return info.value.problems
+
+
+def _line(path: Path, needle: str) -> int:
+    return next(i for i, t in enumerate(path.read_text().splitlines(), 1) if needle in t)
+
+
+def test_shipped_clearance_matches_the_bearings():
+    sc = load_scenario(QUICKSTART, build_fmus=True)
+    for j in ("bearing1", "bearing2"):
+        assert sc.analysis["journals"][j]["clearance"] == 1.372e-5     # as written, psi R to 4 digits
+
+
+def test_other_bearing_clearance_is_an_error_at_the_clearance_line():
+    """psi of bearing1 changed to 2.0e-3 (c = 9.8 um) without the analysis's 13.72 um."""
+    probs = _problems(QUICKSTART, ["fmus.bearing1.parameters.psi=2.0e-3"])
+    assert len(probs) == 1, probs
+    msg = probs[0]
+    line = _line(QUICKSTART, "bearing1: {x: rotor.x_1")
+    assert msg.startswith(f"{QUICKSTART}:{line}: 'analysis.journals.bearing1.clearance' is 1.372e-05 m"), msg
+    assert "'bearing1' (its input x is connected from rotor.x_1)" in msg
+    assert f"c = psi R = 0.002 x {R:g} m = {2.0e-3 * R:.6g} m" in msg
+    assert f"write clearance: {2.0e-3 * R:.6g}" in msg and "leave 'clearance' out" in msg
+
+
+def test_radius_in_millimetres_is_caught_by_the_clearance():
+    """R = 4.9 (mm meant, m read): c = psi R = 13.7 mm, 1000 times the analysis's clearance."""
+    probs = _problems(QUICKSTART, ["fmus.bearing2.parameters.R=4.9"])
+    assert len(probs) == 1 and "'analysis.journals.bearing2.clearance'" in probs[0], probs
+    assert "(0.001 times that)" in probs[0]
+
+
+def test_rounding_within_one_percent_is_accepted():
+    c = PSI * R
+    for given in (c * 1.009, c * 0.991):
+        sc = load_scenario(QUICKSTART, [f"analysis.journals.bearing1.clearance={given!r}"], build_fmus=True)
+        assert sc.analysis["journals"]["bearing1"]["clearance"] == given
+    assert _problems(QUICKSTART, [f"analysis.journals.bearing1.clearance={c * 1.02!r}"])
+
+
+def test_a_left_out_clearance_is_taken_from_the_bearing(tmp_path):
+    """Before: no clearance in the scenario; the analysis estimated one from eps after the run."""
+    text = QUICKSTART.read_text().replace(", clearance: 1.372e-5}", "}")
+    assert text.count("clearance") < QUICKSTART.read_text().count("clearance")
+    p = tmp_path / "quickstart.yaml"
+    p.write_text(text)
+    sc = load_scenario(p, ["fmus.bearing2.parameters.psi=3.0e-3"], build_fmus=True)
+    assert sc.analysis["journals"]["bearing1"]["clearance"] == pytest.approx(PSI * R, rel=1e-12)
+    assert sc.analysis["journals"]["bearing2"]["clearance"] == pytest.approx(3.0e-3 * R, rel=1e-12)
