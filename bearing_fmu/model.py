@@ -397,6 +397,21 @@ class BearingModel:
                 "the loads")
         return self.gap(x, y, vx, vy) + (float(omega),)
 
+    def _start_outside_message(self, x, y) -> str:
+        p, eps = self.params, math.hypot(x, y) / self.c
+        limit = ("eps >= 1" if not p.contact else
+                 f"deeper into the shell than contact_h_limit = {p.contact_h_limit:g} sigma_rough allows")
+        return (f"BearingModel.initialize: the journal starts outside the clearance: eps = {eps:.4g} "
+                f"(x = {x:g} m, y = {y:g} m; clearance c = psi R = {p.psi:g} x {p.R:g} m = {self.c:g} m), "
+                f"{limit}. No step has been taken: the start position is the inputs x, y at "
+                "initialization, i.e. the rotor's start position (for our rotor FMUs the parameters "
+                "journal_x0, journal_y0 [m], relative to the bearing centre; the turbocharger's second "
+                "journal also journal_dx0_2, journal_dy0_2). Give a start inside the clearance, "
+                "|(x, y)| < c, e.g. the static equilibrium or 0; lengths are in metres (a value in mm "
+                "is 1000 times too large)"
+                + ("; to start with the journal resting on the shell, set contact = 1 (asperity contact)"
+                   if not p.contact else ""))
+
     def gap(self, x, y, vx, vy, grid=None):
         """(H, He, Hdot) of the film (non-dimensional, grid.Grid.gap; ``grid``: another grid
         of this bearing, e.g. ``grid_full`` for the half-Sommerfeld solver); with contact = 1
@@ -495,7 +510,11 @@ class BearingModel:
         """
         if init not in ("flooded", "stationary"):
             raise ValueError(f"initialize: init must be 'flooded' or 'stationary' (got {init!r})")
-        kin = self._kinematics(x, y, vx, vy, omega)
+        try:
+            kin = self._kinematics(x, y, vx, vy, omega)
+        except StepFailed as exc:
+            # no step has been taken: the start position itself is outside, not a blow-up
+            raise StepFailed(self._start_outside_message(x, y)) from exc
         self._kin, self._t = kin, 0.0
         self._set_inputs(x, y, vx, vy, omega)
         if self.film is None:

@@ -241,3 +241,24 @@ def test_outside_the_clearance_messages_tell_contact_from_blow_up():
         b.step(1e-5, 0.0, -1.01 * C, 0.0, 0.0, 500.0)
     with pytest.raises(StepFailed, match="far outside the clearance.*unstable"):
         b.step(1e-5, 0.0, -9.8 * C, 0.0, 0.0, 500.0)
+
+
+@pytest.mark.parametrize("contact", [0, 1])
+def test_a_start_outside_the_clearance_is_named_as_the_start_not_a_blow_up(contact):
+    """A journal start position outside the clearance (journal_x0 in mm, or beyond c) used to
+    be reported as 'the coupled simulation went unstable before this step: reduce the macro
+    step' although no step had been taken; it must name the start position and its parameters."""
+    from bearing_fmu.solver import StepFailed
+    b = BearingModel(small(cavitation=0, contact=contact))
+    with pytest.raises(StepFailed) as info:
+        b.initialize(1.6 * C, 0.0, 0.0, 0.0, 500.0)
+    msg = str(info.value)
+    assert "starts outside the clearance" in msg and "eps = 1.6" in msg
+    assert "journal_x0" in msg and "metres" in msg
+    assert f"c = psi R = {PSI:g} x {R:g} m" in msg
+    assert "unstable" not in msg and "macro step" not in msg
+    assert ("contact = 1" in msg) == (contact == 0)
+    b.initialize(0.0, -0.5 * C, 0.0, 0.0, 500.0)          # inside: fine, and after a step ...
+    during_run = "far outside the clearance.*unstable" if contact == 0 else "asperity layer"
+    with pytest.raises(StepFailed, match=during_run):
+        b.step(1e-5, 1.6 * C, 0.0, 0.0, 0.0, 500.0)       # ... the same position is a run's failure
