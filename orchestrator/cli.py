@@ -151,9 +151,29 @@ def _analysis_lines(analysis) -> list[str]:
         lines.append(f"  {name}: onset at {_num(j.get('onset_speed_hz'), '.1f', ' Hz')} (t = "
                      f"{_num(j.get('onset_time_s'), '.4f', ' s')}){before}, whirl/speed ratio "
                      f"{_num(j.get('dominant_ratio'), '.2f')}, {vanish}; {eps}")
+        lines.append("    " + _threshold_line(j, analysis.get("parameters")))
         if j.get("warnings"):
             lines.append(f"    ({len(j['warnings'])} warning(s) in summary.json)")
     return lines
+
+
+def _threshold_line(j: dict, parameters) -> str:
+    """What the onset is, and the run's estimate of the linear stability threshold: the onset
+    is where the whirl has *grown* to a fraction of the clearance, well above the speed where the
+    rotor became unstable on a ramp (docs/analysis.md, "Instability threshold")."""
+    level = (parameters or {}).get("threshold") if isinstance(parameters, dict) else None
+    reached = (f"{level * 100:g} % of the clearance" if isinstance(level, (int, float))
+               and not isinstance(level, bool) else "the detection level (analysis.whirl.threshold)")
+    what = f"the onset is where the whirl orbit reached {reached}"
+    th = j.get("threshold_speed_hz")
+    if th is None:
+        return f"({what}; no instability threshold found before it, see warnings in summary.json)"
+    snr = j.get("threshold_snr")
+    weak = (f"; unreliable, the growing mode is within the noise floor there (threshold_snr "
+            f"{_num(snr, '.1f')} < 3)") if isinstance(snr, (int, float)) and snr < 3 else ""
+    return (f"({what}; it became unstable earlier: the whirl's growth rate turns positive at "
+            f"{_num(th, '.1f', ' Hz')} (t = {_num(j.get('threshold_time_s'), '.4f', ' s')}), the "
+            f"estimate of the linear stability threshold{weak})")
 
 
 def _run_function() -> Callable:

@@ -282,10 +282,29 @@ def test_run_prints_the_whirl_analysis():
     lines = cli._analysis_lines(analysis)
     assert lines[1] == ("  bearing1: onset at 256.0 Hz (t = 0.6400 s), whirl/speed ratio 0.47, vanishes at "
                         "560.0 Hz; max eps 0.810 at 400.0 Hz")
-    assert lines[2] == "  bearing2: no sub-synchronous whirl; max eps 0.200 at 100.0 Hz"
-    assert lines[3] == "  bearing3: not analysed: no signal rotor.x_3"
+    assert lines[2] == ("    (the onset is where the whirl orbit reached the detection level (analysis.whirl.threshold); "
+                        "no instability threshold found before it, see warnings in summary.json)")
+    assert lines[3] == "  bearing2: no sub-synchronous whirl; max eps 0.200 at 100.0 Hz"
+    assert lines[4] == "  bearing3: not analysed: no signal rotor.x_3"
     assert cli._analysis_lines({"error": "results.csv: not found"}) == [
         "analysis: not available: results.csv: not found"]
+
+
+def test_run_prints_the_instability_threshold_beside_the_onset():
+    """My pump rotor: onset (whirl at 5 % of c) 325.7 Hz, growth turning positive at 249.2 Hz
+    (Ocvirk linear threshold 256.8 Hz). Before, only the onset was printed, which on a ramp lies
+    far above the speed where the rotor became unstable."""
+    j = {"whirl": True, "onset": {"present_at_start": False}, "onset_speed_hz": 325.70, "onset_time_s": 1.6285,
+         "dominant_ratio": 0.499, "vanish_speed_hz": None, "max_eps": 0.97, "max_eps_speed_hz": 370.7,
+         "threshold_speed_hz": 249.18, "threshold_time_s": 1.2459, "threshold_snr": 4.6, "warnings": []}
+    lines = cli._analysis_lines({"parameters": {"threshold": 0.05}, "journals": {"bearing1": j}})
+    assert lines[2] == ("    (the onset is where the whirl orbit reached 5 % of the clearance; it became unstable "
+                        "earlier: the whirl's growth rate turns positive at 249.2 Hz (t = 1.2459 s), the "
+                        "estimate of the linear stability threshold)")
+    weak = cli._analysis_lines({"parameters": {"threshold": 0.05},
+                                "journals": {"b": dict(j, threshold_snr=1.9)}})[2]
+    assert weak.endswith("threshold; unreliable, the growing mode is within the noise floor there "
+                         "(threshold_snr 1.9 < 3))")
 
 
 
