@@ -1,12 +1,18 @@
 """The map of a sweep folder (``rotorcosim plot DIR`` when DIR holds sweep.csv).
 
-For every collected value: over one parameter a line with markers (runs that did not
-finish, or have no value, marked with a red x at the bottom of the axes); over two
-parameters a heat map of the value with the numbers printed in the cells and unfinished
-runs drawn as a hatched cell labelled with their status. With more parameters the map is
-over the first two, which must then identify each run (the others derived from them, as
-in a zip sweep that also sets a seed or a clearance per point). PNGs go to
-``DIR/plots/sweep_<value>.png``. matplotlib's object API with the Agg canvas.
+For every collected value: over one parameter a line with markers (runs without a value
+marked with a red x at the bottom of the axes); over two parameters a heat map of the
+value with the numbers printed in the cells and runs without a value drawn as a hatched
+cell labelled with their status. A run that stopped early (``failed``: a run-up whose
+journal reached the shell after the whirl set in, the usual end of a half-Sommerfeld run
+through whip) but has a value - its summary holds the analysis of the rows it computed,
+e.g. the onset - is drawn with its value and marked (hollow marker / its status under the
+number): its onset and threshold are as valid as those of a finished run, a maximum is the
+maximum up to its stop. With more parameters the map is over the first two, which must
+then identify each run (the others derived from them, as in a zip sweep that also sets a
+seed or a clearance per point); when the first parameter alone identifies each run (a zip
+sweep along one parameter with derived columns such as seeds) the plot is a line over it.
+PNGs go to ``DIR/plots/sweep_<value>.png``. matplotlib's object API with the Agg canvas.
 """
 
 from __future__ import annotations
@@ -55,18 +61,22 @@ def _line(rows, p: str, col: str, path: Path) -> None:
     if any(isinstance(v, str) for v in xs):       # texts (or texts and numbers): one place per value, in order
         at = {v: k for k, v in enumerate(xs)}
         rows = [{**r, p: at[r[p]]} for r in rows]
-    pts = sorted(((r[p], r[col]) for r in rows if r["status"] == "finished" and r[col] is not None),
-                 key=lambda t: _order(t[0]))
+    valued = sorted(((r[p], r[col], r["status"]) for r in rows if r[col] is not None), key=lambda t: _order(t[0]))
+    pts = [(x, y) for x, y, _ in valued]
+    early = [(x, y) for x, y, st in valued if st != "finished"]
     if at is not None:
         ax.set_xticks(*_ticks(xs))
     if pts:
-        ax.plot([x for x, _ in pts], [y for _, y in pts], "o-", color="C0", label=f"{col} (finished runs)")
-    bad = [r[p] for r in rows if r["status"] != "finished" or r[col] is None]
+        ax.plot([x for x, _ in pts], [y for _, y in pts], "o-", color="C0", label=f"{col}")
+    if early:
+        ax.plot([x for x, _ in early], [y for _, y in early], "o", ms=11, mfc="none", mec="C3", mew=1.5,
+                label="run stopped early (" + ", ".join(sorted({r["status"] for r in rows if r["status"] != "finished"
+                                                                and r[col] is not None})) + "): value up to its stop")
+    bad = [r[p] for r in rows if r[col] is None]
     if bad:
         y0 = min((y for _, y in pts), default=0.0)
         ax.plot(bad, [y0] * len(bad), "x", color="C3", ms=9, mew=2,
-                label="failed / no value (" + ", ".join(sorted({r["status"] for r in rows
-                                                                if r["status"] != "finished"}) or ["empty"]) + ")")
+                label="no value (" + ", ".join(sorted({r["status"] for r in rows if r[col] is None})) + ")")
     ax.set_xlabel(p)
     ax.set_ylabel(col)
     ax.grid(True, alpha=0.3)
@@ -101,7 +111,7 @@ def _heat(rows, p: str, q: str, col: str, path: Path) -> None:
     for r in rows:
         i, j = yi[r[q]], xi[r[p]]
         status[(i, j)] = r["status"]
-        if r["status"] == "finished" and r[col] is not None:
+        if r[col] is not None:                     # a run that stopped early keeps what it computed
             z[i, j] = r[col]
     # a cell per value pair with its number printed in it up to MAX_LABELLED_CELLS cells; a larger
     # map (up to plan.MAX_RUNS runs) is drawn at a bounded size, unfinished runs as red crosses
@@ -119,17 +129,21 @@ def _heat(rows, p: str, q: str, col: str, path: Path) -> None:
     if labelled:
         for (i, j), st in status.items():
             if np.isfinite(z[i, j]):
-                ax.text(j, i, _fmt(float(z[i, j])), ha="center", va="center", fontsize=8,
-                        color="black" if z[i, j] > mid else "white")
+                ax.text(j, i, _fmt(float(z[i, j])) + ("" if st == "finished" else f"\n({st})"), ha="center",
+                        va="center", fontsize=8, color="black" if z[i, j] > mid else "white")
             else:
                 ax.add_patch(_hatch(j, i))
                 ax.text(j, i, st if st != "finished" else "no value", ha="center", va="center", fontsize=8,
                         color="C3", fontweight="bold", bbox={"facecolor": "white", "edgecolor": "none", "pad": 1.5})
     else:
         bad = [(j, i) for (i, j) in status if not np.isfinite(z[i, j])]
+        early = [(j, i) for (i, j), st in status.items() if np.isfinite(z[i, j]) and st != "finished"]
         if bad:
-            ax.plot([j for j, _ in bad], [i for _, i in bad], "x", color="C3", ms=4, mew=1,
-                    label="not finished / no value")
+            ax.plot([j for j, _ in bad], [i for _, i in bad], "x", color="C3", ms=4, mew=1, label="no value")
+        if early:
+            ax.plot([j for j, _ in early], [i for _, i in early], "o", ms=4, mfc="none", mec="C3", mew=1,
+                    label="run stopped early: value up to its stop")
+        if bad or early:
             ax.legend(fontsize=8, loc="upper right")
     _finish_map(fig, ax, p, q, xs, ys, f"{col} over {p} and {q}", path)
 
@@ -139,15 +153,19 @@ def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path) -> None
     value, a red cross per run without (memory per run, not per grid cell)."""
     fig = _figure((10.0, 8.0))
     ax = fig.add_subplot()
-    good = [r for r in rows if r["status"] == "finished" and r[col] is not None]
-    bad = [r for r in rows if not (r["status"] == "finished" and r[col] is not None)]
+    good = [r for r in rows if r[col] is not None]
+    bad = [r for r in rows if r[col] is None]
+    early = [r for r in good if r["status"] != "finished"]
     if good:
         sc = ax.scatter([xi[r[p]] for r in good], [yi[r[q]] for r in good], c=[r[col] for r in good],
                         cmap="viridis", s=16)
         fig.colorbar(sc, ax=ax, label=col)
     if bad:
-        ax.plot([xi[r[p]] for r in bad], [yi[r[q]] for r in bad], "x", color="C3", ms=5, mew=1,
-                label="not finished / no value")
+        ax.plot([xi[r[p]] for r in bad], [yi[r[q]] for r in bad], "x", color="C3", ms=5, mew=1, label="no value")
+    if early:
+        ax.plot([xi[r[p]] for r in early], [yi[r[q]] for r in early], "o", ms=7, mfc="none", mec="C3", mew=1,
+                label="run stopped early: value up to its stop")
+    if bad or early:
         ax.legend(fontsize=8, loc="upper right")
     _finish_map(fig, ax, p, q, xs, ys, f"{col} over {p} and {q} ({len(rows)} runs)", path)
 
@@ -191,7 +209,8 @@ def plot_sweep(out_dir: str | Path) -> list[Path]:
     written = []
     for col in values:
         path = out_dir / "plots" / f"sweep_{col}.png"
-        if len(params) == 1 or len({r[params[1]] for r in rows}) == 1:
+        if (len(params) == 1 or len({r[params[1]] for r in rows}) == 1
+                or len({r[params[0]] for r in rows}) == len(rows)):     # the first alone identifies each run
             _line(rows, params[0], col, path)
         else:
             _heat(rows, params[0], params[1], col, path)
