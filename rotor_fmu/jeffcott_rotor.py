@@ -153,9 +153,15 @@ def rotor_init(self, **kwargs: Any) -> None:
     _register_ring_variables(self, par)
     units |= {"kg", "m", "m/s", "m/s2", "N/m", "N.s/m"}
     for name in self._output_names():
-        base = name.rsplit("_", 1)[0] if name[-1].isdigit() else name
+        base = name.rsplit("_", 1)[0] if name.rsplit("_", 1)[-1].isdigit() else name   # x_1: journal 1
         unit, desc = OUTPUT_DOCS.get(base, (None, None))
-        if desc is None:
+        disc = name.rsplit("_", 1)[-1]
+        if desc is None and disc.startswith("disc") and disc[4:].isdigit():
+            what = "displacement" if name.startswith(("x_", "y_")) else "velocity"
+            unit = "m" if what == "displacement" else "m/s"
+            desc = (f"{name}: {what} of the centre of disc {disc[4:]} (its place in the rotor file's "
+                    f"'discs' list), {name.split('_')[0][-1]} component [{unit}]; NaN when the file has fewer discs")
+        elif desc is None:
             if name.startswith(("x_", "y_")):
                 unit, desc = "m", f"{name}: displacement [m]"
             elif name.startswith(("vx_", "vy_")):

@@ -28,6 +28,7 @@ Errors list every problem: ``file: 'discs[1].z' ... (got ...); fix``.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -196,6 +197,11 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
                         Id=_num(d, "Id", w, p, nonneg=True),
                         unbalance=_num(d, "unbalance", w, p, nonneg=True, default=0.0),
                         unbalance_phase=_num(d, "unbalance_phase", w, p, default=0.0))
+        pos = re.fullmatch(r"disc(\d+)", spec.name)
+        if pos and int(pos.group(1)) != i + 1:
+            p.append(f"'{w}.name' is {spec.name!r}, the name of the outputs of the disc at position "
+                     f"{int(pos.group(1))} in the file (x_{spec.name}, ...: every disc is also output "
+                     f"as disc<k> by its place k); rename it, e.g. 'wheel{i + 1}', or move it to that place")
         discs.append(spec)
         dz.append(spec.z)
     bnames, bz = [], []

@@ -152,11 +152,12 @@ class TurbochargerRotor(LinearRotor):
         M, C, G, K, Kc, Ka = [0.5 * (A + A.T) if k in (0, 3) else A for k, A in enumerate(mats)]
         extra = {}
         unb = []
-        for d, nd in zip(rd.discs, rd.disc_nodes):
-            extra[f"x_{d.name}"] = ("q", xdof[nd])
-            extra[f"y_{d.name}"] = ("q", ydof[nd])
-            extra[f"vx_{d.name}"] = ("v", xdof[nd])
-            extra[f"vy_{d.name}"] = ("v", ydof[nd])
+        for k, (d, nd) in enumerate(zip(rd.discs, rd.disc_nodes), 1):
+            for name in (d.name, f"disc{k}"):      # by name, and by position in the file (FMU outputs)
+                extra[f"x_{name}"] = ("q", xdof[nd])
+                extra[f"y_{name}"] = ("q", ydof[nd])
+                extra[f"vx_{name}"] = ("v", xdof[nd])
+                extra[f"vy_{name}"] = ("v", ydof[nd])
             if d.unbalance > 0:
                 unb.append((xdof[nd], ydof[nd], d.unbalance, d.unbalance_phase))
         self._setup(

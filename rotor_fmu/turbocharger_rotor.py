@@ -17,7 +17,10 @@ Variables (see ``docs/fmus.md``)
 * inputs ``Fx_1, Fy_1`` (compressor-side bearing), ``Fx_2, Fy_2`` (turbine side) [N];
 * outputs ``x_i, y_i, vx_i, vy_i``, ``omega``, ``angle``, ``alpha`` and the wheel centres
   ``x_comp, y_comp, vx_comp, vy_comp, x_turb, y_turb, vx_turb, vy_turb`` (the disc names
-  of the default rotor file; a rotor file with other disc names leaves these NaN).
+  of the default rotor file; a rotor file with other disc names leaves these NaN), and
+  ``x_disc<k>, y_disc<k>, vx_disc<k>, vy_disc<k>`` for the k-th disc of any rotor file
+  (k = 1 ... ``N_DISC_OUTPUTS``; NaN beyond the file's discs): the motion of your own
+  machine's discs (an e-machine core, a pump impeller) whatever they are called.
 """
 
 from __future__ import annotations
@@ -31,6 +34,8 @@ from pythonfmu import Fmi2Slave
 from rotor_fmu import jeffcott_rotor as _slave
 
 WHEELS = ("comp", "turb")
+#: discs of any rotor file output by their place in the file: x_disc1 ... vy_disc<N>
+N_DISC_OUTPUTS = 4
 
 
 def _fields():
@@ -90,7 +95,8 @@ class TurbochargerRotor(Fmi2Slave):
 
     @staticmethod
     def _extra_output_names() -> list[str]:
-        return [f"{c}_{w}" for w in WHEELS for c in ("x", "y", "vx", "vy")]
+        wheels = list(WHEELS) + [f"disc{k}" for k in range(1, N_DISC_OUTPUTS + 1)]
+        return [f"{c}_{w}" for w in wheels for c in ("x", "y", "vx", "vy")]
 
     def _make_model(self, params: dict[str, Any], t0: float):
         # the default rotor file from THIS instance's resources: a rotor_fmu imported by an earlier

@@ -1,6 +1,8 @@
 """Turbocharger rotor: rotor file, Craig-Bampton reduction accuracy vs the full FE
 model (Craig & Bampton 1968), statics, energy, state round trip."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -195,3 +197,63 @@ def test_params_errors_name_the_field():
         TurbochargerRotor(TurbochargerParams(t_ramp=-1.0))
     with pytest.raises(ValueError, match=r"n_modes must be an integer"):
         TurbochargerRotor(TurbochargerParams(n_modes=-2))
+
+
+# ---------------------------------------------------------------- discs of any rotor file as outputs
+def _core_rotor(d=0.030, L=0.300, m=6.0, extra_discs=()):
+    """An e-machine-like rotor: uniform steel shaft d x L on bearings at its ends, a core disc
+    (not named comp or turb) at mid-span."""
+    from rotor_fmu.rotor_file import parse_rotor
+    discs = [{"name": "core", "z": L / 2, "mass": m, "Ip": 7.5e-3, "Id": 1.5e-2}, *extra_discs]
+    return parse_rotor({
+        "name": "e-machine", "materials": {"steel": {"E": 2.1e11, "nu": 0.3, "rho": 7850.0}},
+        "shaft": {"z_start": 0.0, "max_element_length": 0.015,
+                  "sections": [{"length": L, "d_outer": d, "material": "steel"}]},
+        "discs": discs, "bearings": [{"name": "b1", "z": 0.0}, {"name": "b2", "z": L}],
+        "reduction": {"n_modes": 4}})
+
+
+def test_any_disc_is_output_by_its_place_with_the_closed_form_static_sag():
+    """Before, the turbocharger FMU output only discs named comp/turb: the core of my e-machine
+    rotor (where its first bending mode is largest) could not be recorded. Now disc k of any file
+    is x_disc<k>...; checked against the closed-form sag of a simply supported Timoshenko beam
+    under the core's weight (point load at mid-span) and its own weight (uniform load):
+    d = P L^3/(48 EI) + P L/(4 kappa G A) + 5 w L^4/(384 EI) + w L^2/(8 kappa G A),
+    kappa = 6 (1 + nu) / (7 + 6 nu) (Cowper, solid circle)."""
+    from rotor_fmu.turbocharger import TurbochargerParams, TurbochargerRotor
+    d, L, m, E, nu, rho, g = 0.030, 0.300, 6.0, 2.1e11, 0.3, 7850.0, 9.81
+    r = TurbochargerRotor(TurbochargerParams(g=g), rotor=_core_rotor(d, L, m))
+    r.initialize()
+    out = r.outputs
+    A, I = math.pi * d**2 / 4, math.pi * d**4 / 64
+    G, kappa = E / (2 * (1 + nu)), 6 * (1 + nu) / (7 + 6 * nu)
+    P, w = m * g, rho * A * g
+    sag = (P * L**3 / (48 * E * I) + P * L / (4 * kappa * G * A)
+           + 5 * w * L**4 / (384 * E * I) + w * L**2 / (8 * kappa * G * A))
+    assert out["y_disc1"] == pytest.approx(-sag, rel=2e-3)
+    assert out["y_disc1"] == out["y_core"] and out["x_disc1"] == out["x_core"] == 0.0
+    assert "x_comp" not in out and "x_disc2" not in out      # the FMU shows NaN for these
+
+
+def test_a_disc_named_like_another_place_is_refused():
+    from rotor_fmu.rotor_file import RotorFileError
+    with pytest.raises(RotorFileError) as info:
+        _core_rotor(extra_discs=({"name": "disc1", "z": 0.06, "mass": 0.5, "Ip": 1e-4, "Id": 1e-4},))
+    assert ("'discs[1].name' is 'disc1', the name of the outputs of the disc at position 1 in the file"
+            in str(info.value))
+    _core_rotor(extra_discs=({"name": "disc2", "z": 0.06, "mass": 0.5, "Ip": 1e-4, "Id": 1e-4},))   # its own place
+
+
+def test_the_fmu_declares_the_disc_outputs():
+    from pathlib import Path
+
+    from orchestrator.fmi.archive import read_model_description
+    from orchestrator.fmi.build import build_fmus
+    out = Path(__file__).resolve().parents[1] / "fmus"
+    fmu = {p.stem: p for p in build_fmus(out, names=["TurbochargerRotor"])}["TurbochargerRotor"]
+    v = read_model_description(fmu).variables
+    for k in range(1, 5):
+        for c, unit in (("x", "m"), ("y", "m"), ("vx", "m/s"), ("vy", "m/s")):
+            var = v[f"{c}_disc{k}"]
+            assert var.causality == "output" and var.unit == unit
+            assert f"disc {k} (its place in the rotor file" in var.description
