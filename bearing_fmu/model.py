@@ -118,6 +118,11 @@ def available_memory() -> int | None:
         return None
 
 
+#: an oil bath without a groove whose cavity pressure p0 - cav_width lies above half of p0 warns
+#: (gaseous cavities in oil sit at a fraction of ambient; the 1 kPa default is 0.99 p0)
+OIL_BATH_MIN_CAV_WIDTH = 0.5
+
+
 @dataclass(frozen=True, kw_only=True)
 class BearingParams:
     """Bearing geometry, lubricant, grid and solver settings (SI units).
@@ -282,6 +287,19 @@ class BearingParams:
                 "a feed groove (groove_width=0): nothing refills the cavity except the "
                 "weak sub-ambient suction penalty_a, so the film drains over time. "
                 "Set groove_width > 0 (e.g. 15 deg = 0.2618 rad) to feed the bearing.",
+                stacklevel=3)
+        if (self.cavitation == 1 and self.axial_bc == 0 and self.groove_width == 0
+                and self.cav_width < OIL_BATH_MIN_CAV_WIDTH * self.p0):
+            warnings.warn(
+                f"BearingParams: mass-conserving model in an oil bath (axial_bc=0) without a feed "
+                f"groove (groove_width=0) and cav_width = {self.cav_width:g} Pa: the bath refills the "
+                f"cavity only through the suction p0 - p_cav = cav_width, so the film drains to a "
+                f"starved state (a 25 mm, L/D 0.5 bearing at eps 0.6 then carries 1.5 % of the load of "
+                f"a flooded one at the 1 kPa default; docs/bearing-model.md, 'Oil bath without a "
+                f"groove'). For a flooded bearing give it a feed groove (groove_width > 0, e.g. "
+                f"0.2618 rad at groove_angle pi/2; within 1 % of Raimondi-Boyd); for a bath without "
+                f"one give the cavity's pressure, cav_width = p0 - p_cav, e.g. 0.9 p0 = "
+                f"{0.9 * self.p0:g} Pa for a cavity at 0.1 p0",
                 stacklevel=3)
 
     def _check_memory(self, problems: list[str]) -> None:

@@ -466,3 +466,32 @@ def test_law_eval_hands_dominant_update_the_same_exp_and_log1p():
     e, l1 = np.empty_like(u), np.empty_like(u)
     law_el(u, law.delta, e, l1)
     assert np.array_equal(outs[4], e) and np.array_equal(outs[5], l1)
+
+
+def test_oil_bath_without_groove_at_the_default_cav_width_warns_and_is_starved():
+    """A mass-conserving oil-bath film without a groove at the 1 kPa default cav_width drains to a
+    starved state: on a pump bearing (R = 12.5 mm, L/D 0.5, psi 1.5e-3, 18 mPa s, 200 Hz, eps 0.6)
+    it carries 1.5 % of the load of the same film fed by a groove, which itself is within 1 % of
+    Raimondi & Boyd's Sommerfeld number for L/D = 1/2, eps = 0.6 (S = 0.319; Khonsari & Booser
+    2008 table 8.6). Before, nothing said so (the free-to-air case without a groove warned)."""
+    import math
+    import warnings
+
+    from bearing_fmu.model import BearingParams, solve_stationary
+    R, B, psi, eta, f = 12.5e-3, 12.5e-3, 1.5e-3, 0.018, 200.0
+    kw = dict(R=R, B=B, psi=psi, eta0=eta, n_phi=96, n_z=20, cavitation=1, axial_bc=0)
+    with pytest.warns(UserWarning, match=r"oil bath \(axial_bc=0\) without a feed groove.*starved.*"
+                                         r"cav_width = p0 - p_cav, e\.g\. 0\.9 p0 = 90000 Pa"):
+        bath = BearingParams(**kw)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                   # no warning for these
+        fed = BearingParams(**kw, groove_width=math.radians(15))
+        BearingParams(**kw, cav_width=9.0e4)
+        BearingParams(**dict(kw, cavitation=0))
+
+    def sommerfeld(p):
+        o = solve_stationary(p, 0.0, -0.6 * psi * R, 2 * math.pi * f).outputs
+        return eta * f * B * 2 * R / math.hypot(o["Fx"], o["Fy"]) / psi**2
+    s_fed, s_bath = sommerfeld(fed), sommerfeld(bath)
+    assert s_fed == pytest.approx(0.319, rel=0.01)
+    assert s_fed / s_bath < 0.05                          # measured 0.014
