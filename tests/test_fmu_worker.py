@@ -341,3 +341,21 @@ def test_spin_poll_returns_when_readable_and_gives_up_after_its_time():
     finally:
         a.close()
         b.close()
+
+
+def test_an_arena_with_a_live_view_closes_without_a_traceback():
+    """At a worker's exit a view into its shared memory that is still alive (an instance left
+    unfreed after fmi2Fatal, an exception holding a batch's buffer) made mmap.close raise
+    BufferError, printed as a bare traceback at the end of `rotorcosim validate`."""
+    import ctypes
+    import mmap
+
+    from orchestrator.fmi.worker_main import _close_arena
+    arena = mmap.mmap(-1, 4096)
+    view = (ctypes.c_double * 4).from_buffer(arena)      # what a RealBatch holds
+    with pytest.raises(BufferError):
+        arena.close()                                     # what the worker called
+    _close_arena(arena)                                   # no exception
+    del view
+    _close_arena(arena)                                   # and closes once nothing points into it
+    assert arena.closed

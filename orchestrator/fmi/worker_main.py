@@ -126,8 +126,21 @@ def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str,
             sub.free()
         batches.clear()
         del reg, code
-        arena.close()
+        _close_arena(arena)
         conn.close()
+
+
+def _close_arena(arena: mmap.mmap) -> None:
+    """Close the worker's shared memory at its exit. A view into it that is still alive (an
+    instance left unfreed after fmi2Fatal, or an exception whose traceback holds a batch's
+    buffer) makes ``mmap.close`` raise BufferError; the worker printed that as a bare traceback
+    on the user's terminal at the end of a ``validate`` (seen after an FMU rebuild, with the
+    bearing's initialization failing or warning). The process is exiting: its mappings go with
+    it, so an arena that cannot be closed yet is left to the exit."""
+    try:
+        arena.close()
+    except BufferError:
+        pass
 
 
 def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) -> tuple[Any, bool]:
