@@ -75,3 +75,27 @@ def test_a_left_out_clearance_is_taken_from_the_bearing(tmp_path):
     sc = load_scenario(p, ["fmus.bearing2.parameters.psi=3.0e-3"], build_fmus=True)
     assert sc.analysis["journals"]["bearing1"]["clearance"] == pytest.approx(PSI * R, rel=1e-12)
     assert sc.analysis["journals"]["bearing2"]["clearance"] == pytest.approx(3.0e-3 * R, rel=1e-12)
+
+
+# ---------------------------------------------------------------- the output resolves the top speed
+def test_a_top_speed_the_output_cannot_resolve_is_named_at_load_with_the_rpm_hint(caplog):
+    """f_max is in Hz. Written in rpm (48000 for the quickstart's 800 Hz) the run-up reaches a
+    speed where output.interval gives under 8 samples per revolution; before, only summary.json
+    said so after the run (and the analysis still printed an onset)."""
+    import logging
+
+    from orchestrator.scenario import checks
+    checks._WARNED.clear()
+    with caplog.at_level(logging.WARNING, logger="orchestrator.scenario.checks"):
+        load_scenario(QUICKSTART, build_fmus=True)
+        assert not [r for r in caplog.records if "samples per revolution" in r.getMessage()]
+        load_scenario(QUICKSTART, ["fmus.rotor.parameters.f_max=48000"], build_fmus=True)
+    (msg,) = [r.getMessage() for r in caplog.records if "samples per revolution" in r.getMessage()]
+    sc = load_scenario(QUICKSTART, build_fmus=True)
+    t_ramp = sc.fmu("rotor").parameters["t_ramp"]
+    f_top = 48000 * min(sc.stop_time, t_ramp) / t_ramp
+    dt = sc.output.interval or sc.coupling.macro_step
+    assert msg.startswith("--set fmus.rotor.parameters.f_max=48000: 'rotor' runs up to "
+                          f"{f_top:g} Hz ({f_top * 60:.4g} rpm)")
+    assert f"records {1 / (dt * f_top):.2g} samples per revolution there" in msg
+    assert "48000 rpm would be f_max: 800" in msg

@@ -18,6 +18,7 @@ from orchestrator.scenario.coupling_sections import (check_atol_patterns, check_
                                                        interpolation_warning)
 from orchestrator.fmi.values import check_value, declared_range, settable_problem
 from orchestrator.scenario.analysis_clearance import check_analysis_clearance
+from orchestrator.scenario.analysis_sampling import check_analysis_sampling
 from orchestrator.scenario.completion import Completion
 from orchestrator.scenario.model import ANALYSIS_KEYS, JOURNAL_KEYS
 from orchestrator.scenario.nodes import FLOAT_RE, article, did_you_mean, ranked
@@ -68,6 +69,7 @@ class FmuChecks(Completion):
         if draft.analysis_node is not None and isinstance(draft.kw.get("analysis"), dict):
             self.check_analysis(draft.analysis_node, draft.signals)
             check_analysis_clearance(self, draft, params)
+            check_analysis_sampling(self, draft, params, warn_once)
         return params
 
     def read_fmu(self, f: dict) -> None:
