@@ -212,3 +212,31 @@ def test_a_signal_constant_up_to_rounding_is_drawn_flat(tmp_path):
     files, notes = plot_signals({"time": np.linspace(0, 1, 200), "b.Fx": flat,
                                  "b.Fy": np.linspace(0, 1, 200)}, tmp_path, "t")
     assert [f.name for f in files] == ["signals_b.png"] and notes == []
+
+
+def test_waterfall_spans_the_run_and_marks_the_threshold(tmp_path, monkeypatch):
+    """My pump run-up starts at 150 Hz (on the ramp) and its analysis puts the instability
+    threshold at 249 Hz, the onset at 326 Hz. Before, the waterfall's speed axis started at 0 Hz
+    (40 % of it empty) and only the onset was marked, not where the rotor became unstable."""
+    from orchestrator.results.plots import common
+    d = whirl_vanishing()
+    keep = d["t"] >= 0.4                                 # the run starts at 160 Hz
+    write_run(tmp_path, {**d, **{k: d[k][keep] for k in ("t", "z", "om")}}, step=4)
+    res = analyze_run(tmp_path, SPEC)
+    res["journals"]["bearing1"].update(threshold_speed_hz=215.0, threshold_snr=4.0)
+    (tmp_path / "summary.json").write_text(json.dumps({"scenario": "pump", "status": "finished",
+                                                       "analysis": res}))
+    figs = {}
+    real = common.save_figure
+    monkeypatch.setattr(common, "save_figure", lambda fig, path, **kw: (figs.__setitem__(path.name, fig),
+                                                                        real(fig, path, **kw))[1])
+    plot_run(tmp_path)
+    ax = figs["waterfall_bearing1.png"].axes[0]
+    lo, hi = ax.get_xlim()
+    # the first cell's edge: half a window less half a hop (8 - 1 = 7 revolutions) after 160 Hz on
+    # the 400 Hz/s ramp: 400 dt^2 / 2 + 160 dt = 7
+    dt = (-160.0 + math.sqrt(160.0**2 + 2 * 400.0 * 7)) / 400.0
+    assert lo == pytest.approx(160.0 + 400.0 * dt, abs=0.5) and hi > 790.0
+    labels = [line.get_label() for line in ax.lines]
+    assert "instability threshold 215 Hz (growth rate > 0)" in labels
+    assert any(lab.startswith("whirl onset") for lab in labels)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from orchestrator.results.plots.common import PlotContext, edges, safe_name
@@ -46,8 +48,15 @@ def draw(ctx: PlotContext, jn: str) -> None:
         ax.plot(f, 0.5 * f, "k:", lw=0.8, label="0.5x")
         ax.set_xlabel("rotor speed [Hz]")
         ax.set_ylabel("frequency of forward journal motion [Hz]")
-        ax.set_xlim(0, np.max(sp))
+        se = edges(sp)
+        ax.set_xlim(max(0.0, float(np.min(se))), float(np.max(se)))   # the speeds the run covered
         ax.set_ylim(0, 1.5 * np.max(sp))
+        th = (j["res"] or {}).get("threshold_speed_hz")
+        if isinstance(th, (int, float)) and math.isfinite(th):
+            snr = (j["res"] or {}).get("threshold_snr")
+            weak = ", unreliable" if isinstance(snr, (int, float)) and snr < 3 else ""
+            ax.axvline(th, color="C1", ls=":", lw=1.2,
+                       label=f"instability threshold {th:.4g} Hz (growth rate > 0{weak})")
         ev = (j["res"] or {}).get("onset")
         if ev:
             ax.axvline(ev["speed_hz"], color="C0", ls="--", lw=1.0,
