@@ -282,8 +282,9 @@ def test_run_prints_the_whirl_analysis():
     lines = cli._analysis_lines(analysis)
     assert lines[1] == ("  bearing1: onset at 256.0 Hz (t = 0.6400 s), whirl/speed ratio 0.47, vanishes at "
                         "560.0 Hz; max eps 0.810 at 400.0 Hz")
-    assert lines[2] == ("    (the onset is where the whirl orbit reached the detection level (analysis.whirl.threshold); "
-                        "no instability threshold found before it, see warnings in summary.json)")
+    assert lines[2] == ("    (the onset is where the whirl orbit reached the detection level "
+                        "(analysis.whirl.threshold); no instability threshold found before it, see warnings "
+                        "in summary.json)")
     assert lines[3] == "  bearing2: no sub-synchronous whirl; max eps 0.200 at 100.0 Hz"
     assert lines[4] == "  bearing3: not analysed: no signal rotor.x_3"
     assert cli._analysis_lines({"error": "results.csv: not found"}) == [
