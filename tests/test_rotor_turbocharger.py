@@ -230,7 +230,8 @@ def test_any_disc_is_output_by_its_place_with_the_closed_form_static_sag():
     P, w = m * g, rho * A * g
     sag = (P * L**3 / (48 * E * I) + P * L / (4 * kappa * G * A)
            + 5 * w * L**4 / (384 * E * I) + w * L**2 / (8 * kappa * G * A))
-    assert out["y_disc1"] == pytest.approx(-sag, rel=2e-3)
+    # two-node Timoshenko elements with consistent loads are nodally exact in statics (measured 6e-15)
+    assert out["y_disc1"] == pytest.approx(-sag, rel=1e-9)
     assert out["y_disc1"] == out["y_core"] and out["x_disc1"] == out["x_core"] == 0.0
     assert "x_comp" not in out and "x_disc2" not in out      # the FMU shows NaN for these
 
