@@ -1,0 +1,402 @@
+"""One-dimensional model of the mass-conserving film's reformation front (issue 16 item 2).
+
+Why: the free-to-air film with a groove of its true width is not in its asymptotic range
+circumferentially on 48 ... 384 cells (docs/bearing-validation.md, "Where the circumferential
+error comes from"); the suspected cause is the layer of width ~ cav_width / (dp/dphi) at the
+reformation front. This script isolates it on the steady, infinitely long film in phi.
+
+Model (the 2-D film of bearing_fmu/film.py without axial flow, steady):
+
+    d/dphi q = 0,   q = omega H theta(p) - a H^3 dp/dphi,   a = psi^2 / (6 eta0)
+
+with the law theta(p) of bearing_fmu/cavitation.py (``law_eval``, universal variable u, the
+same K, delta, p_cav), gap ``H = 1 + eps cos(phi - phi_hmax)``, and a groove held at p_feed
+from ``-groove_width / 2`` to ``+groove_width / 2``. The film cells cover the rest of the
+circle, ``[groove_width / 2, 2 pi - groove_width / 2]``, uniformly; their outer faces are the
+groove edges (so no cut cell: the 2-D "faces" sequence of groove_cut_study.py).
+
+Discretisation (as film.py ``assemble`` along phi, omega > 0): face flux
+``F = omega H_f theta_up - a H_f^3 (p_E - p_W) / d``; theta_up the upwind cell's theta
+(``muscl``: film.py's limited second-order face value, first order next to the groove);
+Poiseuille two-point with the exact face gap, the half-cell distance to the groove edges;
+at the groove exit (west edge of the film) film.py's ``groove_exit`` (Scharfetter-Gummel
+blend of the distance; ``exit_sg=False``: the plain half-cell flux).
+Cell residual ``F_east - F_west``. Newton on u with a banded finite-difference Jacobian.
+
+Semi-analytic reference: with q constant the ODE ``a H^3 dp/dphi = omega H theta(p) - q``
+(in u: ``du/dphi = (omega H theta(u) - q) / (a H^3 dp/du)``) holds on the whole film; it is
+unstable forward wherever dtheta/dp > 0 (the cavity) and stable backward, so it is
+integrated BACKWARD from the groove's west edge (p = p_feed) with scipy's Radau, and q is
+the root of ``p(groove east edge) = p_feed`` (brentq).
+
+Run: ``nice -n 10 .venv/bin/python docs/scripts/reformation_front_1d.py [check] [widths]
+[split]`` (all three by default, about two minutes; prints markdown tables).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numba as nb
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.linalg import solve_banded
+from scipy.optimize import brentq
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))          # repo root
+
+from bearing_fmu.cavitation import CavitationLaw, law_eval  # noqa: E402
+from bearing_fmu.film import groove_exit, limiter  # noqa: E402
+
+BW = 3                      # half bandwidth of the finite-difference Jacobian
+
+
+@dataclass(frozen=True)
+class Problem:
+    """The 1-D film. Defaults: the Jeffcott bearing's psi, eta0, p0 (grid_convergence.py);
+    omega and eps chosen so that the pressure scale omega / a and the front gradient are
+    close to the 2-D free-to-air film's (see :func:`describe`)."""
+    eps: float = 0.6
+    phi_hmax: float = math.radians(160.0)     # the minimum gap 20 deg before the groove
+    groove_width: float = math.radians(15.0)
+    omega: float = 2 * math.pi * 3.5
+    psi: float = 2.8e-3
+    eta0: float = 0.012
+    p0: float = 1.0e5
+    p_feed: float = 1.0e5
+    cav_width: float = 1.0e3
+    delta: float = 0.05
+
+    @property
+    def a(self):
+        return self.psi ** 2 / (6 * self.eta0)
+
+    @property
+    def law(self):
+        return CavitationLaw(self.p0, self.cav_width, self.delta)
+
+    @property
+    def span(self):
+        """(start, end) of the film: the groove's east and (next turn) west edge."""
+        return 0.5 * self.groove_width, 2 * math.pi - 0.5 * self.groove_width
+
+    def H(self, phi):
+        return 1.0 + self.eps * np.cos(phi - self.phi_hmax)
+
+
+def evaluate(u, law):
+    """p, dp/du, theta, dtheta/du of u (bearing_fmu.cavitation.law_eval)."""
+    u = np.ascontiguousarray(u, dtype=float)
+    p, dp, th, dth = (np.empty_like(u) for _ in range(4))
+    law_eval(u, law.p_cav, law.K, law.delta, p, dp, th, dth)
+    return p, dp, th, dth
+
+
+@nb.njit(cache=True)
+def _muscl_faces(th, th_feed):
+    """Couette theta at the faces 0 ... n (omega > 0): film.py's limited second-order
+    value (``limiter``) at interior faces with two upwind cells, first order at face 1 (its
+    upwind-upwind is the groove) and the groove's theta at face 0 (film.py face_theta)."""
+    n = th.size
+    f = np.empty(n + 1)
+    f[0] = th_feed
+    for k in range(1, n + 1):
+        if k == 1 or k == n:
+            f[k] = th[k - 1]
+        else:
+            L, _, _ = limiter(th[k - 1] - th[k - 2], th[k] - th[k - 1])
+            f[k] = th[k - 1] + 0.5 * L
+    return f
+
+
+class Film1D:
+    """The discrete 1-D film on n uniform cells (module doc)."""
+
+    def __init__(self, prob: Problem, n: int, muscl=False, exit_sg=True):
+        self.prob, self.n, self.muscl = prob, n, muscl
+        self.exit_sg = exit_sg
+        a0, a1 = prob.span
+        self.dphi = (a1 - a0) / n
+        self.phi_f = a0 + self.dphi * np.arange(n + 1)
+        self.phi = self.phi_f[:-1] + 0.5 * self.dphi
+        self.Hf = prob.H(self.phi_f)
+        self.Hc = prob.H(self.phi)
+        self.law = prob.law
+        self.u_feed = float(self.law.u_from_p(prob.p_feed))
+        _, _, th_feed, _ = evaluate(np.array([self.u_feed]), self.law)
+        self.th_feed = th_feed[0]
+        d = np.full(n + 1, self.dphi)
+        d[0] = d[-1] = 0.5 * self.dphi
+        self.cond = prob.a * self.Hf ** 3 / d
+
+    def fluxes(self, u):
+        """Face fluxes F_0 ... F_n (omega > 0)."""
+        pr = self.prob
+        p, dp, th, dth = evaluate(u, self.law)
+        pe = np.concatenate([[pr.p_feed], p, [pr.p_feed]])
+        if self.muscl:
+            thf = _muscl_faces(th, self.th_feed)
+        else:
+            thf = np.concatenate([[self.th_feed], th])
+        F = pr.omega * self.Hf * thf - self.cond * np.diff(pe)
+        if self.exit_sg:            # film.py groove_exit: the face where the flow leaves the groove
+            B, _, _ = groove_exit(self.Hf[:1], 1, 0, 1, 0.5, self.dphi, pr.omega, pr.a,
+                                  self.cond[0], pr.p_feed - p[0], dth[0], self.law.K)
+            F[0] = pr.omega * self.Hf[0] * thf[0] + B
+        return F
+
+    def residual(self, u):
+        return np.diff(self.fluxes(u))
+
+    def jacobian_banded(self, u, r0):
+        """Banded (BW, BW) Jacobian by coloured forward differences."""
+        n = self.n
+        ab = np.zeros((2 * BW + 1, n))
+        h = 1e-7 * (1.0 + np.abs(u))
+        for c in range(2 * BW + 1):
+            idx = np.arange(c, n, 2 * BW + 1)
+            up = u.copy()
+            up[idx] += h[idx]
+            dr = (self.residual(up) - r0)
+            for o in range(-BW, BW + 1):          # row i = j + o: ab[BW + o, j]
+                j = idx[(idx + o >= 0) & (idx + o < n)]
+                ab[BW + o, j] = dr[j + o] / h[j]
+        return ab
+
+    def newton(self, u0, tol=1e-10, maxit=60):
+        """Damped Newton; returns (u, converged). tol on |r| relative to the Couette scale."""
+        u = u0.copy()
+        scale = self.prob.omega * self.dphi * 0 + self.prob.omega
+        r = self.residual(u)
+        nr = np.max(np.abs(r)) / scale
+        for it in range(maxit):
+            if nr < tol:
+                return u, True
+            J = self.jacobian_banded(u, r)
+            du = solve_banded((BW, BW), J, -r)
+            lam = 1.0
+            while lam > 1e-4:
+                un = u + lam * du
+                rn = self.residual(un)
+                nrn = np.max(np.abs(rn)) / scale
+                if np.isfinite(nrn) and nrn < (1 - 1e-4 * lam) * nr:
+                    break
+                lam *= 0.5
+            else:
+                return u, False
+            u, r, nr = un, rn, nrn
+        return u, nr < tol
+
+    def ptc(self, u0, steps=400):
+        """Pseudo-transient continuation (BDF1 in theta, dt growing by SER), then Newton."""
+        u = u0.copy()
+        dt = 0.1 / self.prob.omega
+        mass = 2 * self.Hc * self.dphi
+        base = self.residual
+        r0 = np.max(np.abs(base(u)))
+        for _ in range(steps):
+            _, _, th_old, _ = evaluate(u, self.law)
+
+            def rt(v, th_old=th_old, dt=dt):
+                _, _, th, _ = evaluate(v, self.law)
+                return base(v) + mass * (th - th_old) / dt
+            self.residual = rt
+            un, ok = self.newton(u, tol=1e-9, maxit=20)
+            self.residual = base
+            if not ok:
+                dt *= 0.25
+                continue
+            u = un
+            r1 = np.max(np.abs(base(u)))
+            dt *= min(10.0, max(1.5, r0 / max(r1, 1e-300)))
+            r0 = r1
+            if dt * self.prob.omega > 1e8:
+                break
+        return self.newton(u)
+
+    def solve(self, u0=None):
+        if u0 is None:
+            u0 = np.full(self.n, self.u_feed)
+        u, ok = self.newton(u0)
+        if not ok:
+            u, ok = self.ptc(u0)
+        if not ok:
+            raise RuntimeError(f"no convergence on n = {self.n}")
+        return u
+
+    def load(self, u):
+        """(Wx, Wy): integral of (p - p0) (cos, sin) over the film (midpoint rule; the
+        groove at p_feed = p0 adds nothing) [Pa rad]."""
+        p, _, _, _ = evaluate(u, self.law)
+        x = (p - self.prob.p0) * self.dphi
+        return np.array([np.sum(x * np.cos(self.phi)), np.sum(x * np.sin(self.phi))])
+
+    def q(self, u):
+        return float(np.mean(self.fluxes(u)))
+
+
+def interpolate(film_from: Film1D, u, film_to: Film1D):
+    """u of one grid on another (linear in phi, constant extrapolation to the edges)."""
+    return np.interp(film_to.phi, film_from.phi, u)
+
+
+def solve_sequence(prob, grids, **kw):
+    """Solutions on grids (ascending), each warm-started from the previous one."""
+    out = {}
+    prev = None
+    for n in grids:
+        f = Film1D(prob, n, **kw)
+        u0 = None if prev is None else interpolate(prev[0], prev[1], f)
+        u = f.solve(u0)
+        out[n] = (f, u)
+        prev = (f, u)
+    return out
+
+
+def reference(prob, n_ref=2 ** 14, **kw):
+    """The discrete solution on n_ref cells (grid sequence from 64)."""
+    grids = [64 * 2 ** k for k in range(int(math.log2(n_ref // 64)) + 1)]
+    return solve_sequence(prob, grids, **kw)[n_ref]
+
+
+# ---------------------------------------------------------------- semi-analytic reference
+
+def _rhs_factory(prob):
+    law = prob.law
+    a, om = prob.a, prob.omega
+    buf = [np.empty(1) for _ in range(4)]
+
+    def rhs(phi, y, q):
+        law_eval(np.array([y[0]]), law.p_cav, law.K, law.delta, *buf)
+        H = prob.H(phi)
+        return [(om * H * buf[2][0] - q) / (a * H ** 3 * buf[1][0])]
+    return rhs
+
+
+def shoot(prob, q, dense=False, rtol=1e-11, atol=1e-12):
+    """Integrate u backward from the groove's west edge (p_feed) to its east edge."""
+    rhs = _rhs_factory(prob)
+    a0, a1 = prob.span
+    u_feed = float(prob.law.u_from_p(prob.p_feed))
+    return solve_ivp(rhs, (a1, a0), [u_feed], method="Radau", args=(q,), rtol=rtol,
+                     atol=atol, dense_output=dense)
+
+
+def semi_analytic(prob, q_guess, rel=2e-3):
+    """(q, dense u(phi)) of the continuous regularised problem: brentq on q for
+    p(groove east edge) = p_feed, bracket q_guess (1 -+ rel)."""
+    law = prob.law
+    u_feed = float(law.u_from_p(prob.p_feed))
+
+    def g(q):
+        s = shoot(prob, q)
+        return s.y[0, -1] - u_feed
+    lo, hi = q_guess * (1 - rel), q_guess * (1 + rel)
+    q = brentq(g, lo, hi, xtol=1e-14 * q_guess, rtol=1e-14)
+    return q, shoot(prob, q, dense=True).sol
+
+
+def semi_analytic_load(prob, sol, m=200001):
+    """Load of the semi-analytic solution (composite Simpson on m points)."""
+    from scipy.integrate import simpson
+    a0, a1 = prob.span
+    phi = np.linspace(a0, a1, m)
+    p, _, _, _ = evaluate(sol(phi)[0], prob.law)
+    x = p - prob.p0
+    return np.array([simpson(x * np.cos(phi), x=phi), simpson(x * np.sin(phi), x=phi)])
+
+
+# ---------------------------------------------------------------- reports
+
+def layers(prob, sol):
+    """(rupture layer, reformation band, front) [deg] of the semi-analytic solution: from
+    the groove exit to where p first falls below p_cav + 0.1 cav_width; from where p last
+    is below p_cav + 0.1 cav_width to where it reaches p0 at the reformation front; and
+    that last point."""
+    phi = np.linspace(*prob.span, 400001)
+    p, _, _, _ = evaluate(sol(phi)[0], prob.law)
+    low = np.flatnonzero(p < prob.law.p_cav + 0.1 * prob.cav_width)
+    k1, k2 = low[0], low[-1]
+    k3 = k2 + np.flatnonzero(p[k2:] >= prob.p0)[0]
+    return (math.degrees(phi[k1] - phi[0]), math.degrees(phi[k3] - phi[k2]),
+            math.degrees(phi[k2]))
+
+
+def orders(vals):
+    d = np.diff(vals)
+    return [math.log2(d[i] / d[i + 1]) if d[i + 1] != 0 and d[i] / d[i + 1] > 0 else float("nan")
+            for i in range(len(d) - 1)]
+
+
+GRIDS = [20, 40, 80, 160, 320, 640, 1280, 2560, 5120]
+WIDTHS = [1e2, 1e3, 3e3]
+
+
+def study(prob, muscl, grids=GRIDS):
+    """Discrete solutions on grids, the semi-analytic q, W and solution, and per grid
+    (n, W, q, Wq): Wq the load of the backward ODE solution with the DISCRETE q, i.e. what
+    the exact full film, front and cavity carry for that q."""
+    sols = solve_sequence(prob, grids, muscl=muscl)
+    f, u = sols[grids[-1]]
+    qs, sol = semi_analytic(prob, f.q(u))
+    Ws = semi_analytic_load(prob, sol)
+    rows = []
+    for n in grids:
+        f, u = sols[n]
+        q = f.q(u)
+        Wq = semi_analytic_load(prob, shoot(prob, q, dense=True).sol)
+        rows.append((n, f.load(u), q, Wq))
+    return qs, Ws, sol, rows
+
+
+def main(argv):
+    parts = argv or ["check", "widths", "split"]
+    base = Problem()
+    if "check" in parts:
+        print("\n### Fine discrete solution against the semi-analytic one (1 kPa)\n")
+        print("| transport | n | q discrete | q semi-analytic | rel | Wx rel | Wy rel |")
+        print("|---|---|---|---|---|---|---|")
+        for muscl in (False, True):
+            f, u = reference(base, muscl=muscl)
+            q_d = f.q(u)
+            q_s, sol = semi_analytic(base, q_d)
+            W_d, W_s = f.load(u), semi_analytic_load(base, sol)
+            print(f"| {'MUSCL' if muscl else 'upwind'} | {f.n} | {q_d:.9g} | {q_s:.9g} | "
+                  f"{q_d / q_s - 1:+.2e} | {W_d[0] / W_s[0] - 1:+.2e} | {W_d[1] / W_s[1] - 1:+.2e} |")
+        lr, lb, pf = layers(base, sol)
+        print(f"\nsemi-analytic W = ({W_s[0]:.6g}, {W_s[1]:.6g}) Pa rad, q = {q_s:.9g}; "
+              f"rupture layer {lr:.2f} deg, reformation band {lb:.2f} deg at {pf:.2f} deg")
+    if "widths" in parts:
+        print("\n### Wy error against the semi-analytic solution, per cav_width\n")
+        print("| cav_width | transport | rupture layer / reformation band [deg] | "
+              + " | ".join(str(n) for n in GRIDS) + " | orders of Wy (successive) |")
+        print("|---|---|---|" + "---|" * (len(GRIDS) + 1))
+        for w in WIDTHS:
+            prob = replace(base, cav_width=w)
+            for muscl in (False, True):
+                qs, Ws, sol, rows = study(prob, muscl)
+                lr, lb, _ = layers(prob, sol)
+                errs = [W[1] / Ws[1] - 1 for _, W, _, _ in rows]
+                o = orders([W[1] for _, W, _, _ in rows])
+                print(f"| {w:g} Pa | {'MUSCL' if muscl else 'upwind'} | {lr:.2f} / {lb:.2f} | "
+                      + " | ".join(f"{e:+.2e}" for e in errs) + " | "
+                      + ", ".join(f"{x:.2f}" for x in o) + " |", flush=True)
+    if "split" in parts:
+        for w in WIDTHS:
+            prob = replace(base, cav_width=w)
+            qs, Ws, sol, rows = study(prob, True)
+            print(f"\n### Where the error comes from: cav_width {w:g} Pa, MUSCL "
+                  f"(semi-analytic q = {qs:.6g})\n")
+            print("| n | q error | Wy error | Wy of the exact film with the discrete q, error "
+                  "| discrete Wy against that |")
+            print("|---|---|---|---|---|")
+            for n, W, q, Wq in rows:
+                print(f"| {n} | {q / qs - 1:+.2e} | {W[1] / Ws[1] - 1:+.2e} | "
+                      f"{Wq[1] / Ws[1] - 1:+.2e} | {W[1] / Wq[1] - 1:+.2e} |", flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
