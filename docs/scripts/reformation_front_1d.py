@@ -20,7 +20,8 @@ Discretisation (as film.py ``assemble`` along phi, omega > 0): face flux
 (``muscl``: film.py's limited second-order face value, first order next to the groove);
 Poiseuille two-point with the exact face gap, the half-cell distance to the groove edges;
 at the groove exit (west edge of the film) film.py's ``groove_exit`` (Scharfetter-Gummel
-blend of the distance; ``exit_sg=False``: the plain half-cell flux).
+blend of the distance; ``exit="plain"``: the plain half-cell flux; ``exit="rupture"``: the
+sub-cell rupture model of :func:`rupture_exit_flux`).
 Cell residual ``F_east - F_west``. Newton on u with a banded finite-difference Jacobian.
 
 Semi-analytic reference: with q constant the ODE ``a H^3 dp/dphi = omega H theta(p) - q``
@@ -35,6 +36,7 @@ Run: ``nice -n 10 .venv/bin/python docs/scripts/reformation_front_1d.py [check] 
 
 from __future__ import annotations
 
+import copy
 import math
 import sys
 from dataclasses import dataclass, replace
@@ -115,9 +117,10 @@ def _muscl_faces(th, th_feed):
 class Film1D:
     """The discrete 1-D film on n uniform cells (module doc)."""
 
-    def __init__(self, prob: Problem, n: int, muscl=False, exit_sg=True):
+    def __init__(self, prob: Problem, n: int, muscl=False, exit="sg"):
         self.prob, self.n, self.muscl = prob, n, muscl
-        self.exit_sg = exit_sg
+        self.exit = exit
+        self.layer_corr = None
         a0, a1 = prob.span
         self.dphi = (a1 - a0) / n
         self.phi_f = a0 + self.dphi * np.arange(n + 1)
@@ -142,10 +145,22 @@ class Film1D:
         else:
             thf = np.concatenate([[self.th_feed], th])
         F = pr.omega * self.Hf * thf - self.cond * np.diff(pe)
-        if self.exit_sg:            # film.py groove_exit: the face where the flow leaves the groove
+        if self.exit == "sg":       # film.py groove_exit: the face where the flow leaves the groove
             B, _, _ = groove_exit(self.Hf[:1], 1, 0, 1, 0.5, self.dphi, pr.omega, pr.a,
                                   self.cond[0], pr.p_feed - p[0], dth[0], self.law.K)
             F[0] = pr.omega * self.Hf[0] * thf[0] + B
+        elif self.exit in ("layer", "layer0", "layer_lin"):
+            B, _, _ = groove_exit(self.Hf[:1], 1, 0, 1, 0.5, self.dphi, pr.omega, pr.a,
+                                  self.cond[0], pr.p_feed - p[0], dth[0], self.law.K)
+            F[0] = pr.omega * self.Hf[0] * thf[0] + B
+            if self.layer_corr is None:       # set once, from the uncorrected fluxes
+                self.layer_corr = 0.0
+                self.layer_corr = layer_correction(self, first_only=self.exit == "layer0")
+            F = F + self.layer_corr
+        elif self.exit == "rupture":
+            dH = (self.Hf[1] - self.Hf[0]) / self.dphi
+            F[0] = pr.omega * self.Hf[0] * thf[0] + rupture_exit_flux(
+                pr.p_feed - p[0], 0.5 * self.dphi, pr.a * self.Hf[0] ** 3, pr.omega * dH)
         return F
 
     def residual(self, u):
@@ -238,6 +253,107 @@ class Film1D:
         return float(np.mean(self.fluxes(u)))
 
 
+def rupture_exit_flux(dp, d, c, s):
+    """Poiseuille flux from the groove into the first film cell, with the rupture placed
+    inside the cell (issue 16 item 2, this study): ``dp = p_feed - p_cell``, ``d`` the
+    distance groove edge - cell centre, ``c = a H^3`` at the edge, ``s = omega dH/dphi``.
+
+    Local model: in the diverging gap after the groove the full film obeys ``a H^3 p'' =
+    omega H'`` (q constant, theta = 1, H^3 frozen at the edge), so with the exit flux P
+    (``P = -a H^3 p'`` at the edge) ``p = p_feed - P x / c + s x^2 / (2 c)``, which ruptures
+    (p' = 0, JFO) at ``x_r = P / s`` with the pressure ``p_feed - P^2 / (2 c s)``. If the
+    rupture lies beyond the centre (dp >= D = s d^2 / (2 c)) the cell is full and
+    ``P = c dp / d + s d / 2`` (the two-point flux plus the curvature term: the one-sided
+    second-order gradient at the edge); if it lies before the centre the cell holds the
+    cavity pressure and ``P = sqrt(2 c s dp)``. The two branches meet with equal value and
+    slope at dp = D (C1: the square root is the envelope of the lines), so Newton sees a C1
+    function; below dp = D / 4 the square root is continued by its tangent (finite slope at
+    dp -> 0). For s <= 0 (no rupture possible) the plain two-point flux ``c dp / d``. In the
+    resolved limit (d -> 0) the flux differs from the two-point one by s d / 2 = O(d)."""
+    if s <= 0.0:
+        return c * dp / d
+    D = s * d * d / (2.0 * c)
+    if dp >= D:
+        return c * dp / d + 0.5 * s * d
+    if dp >= 0.25 * D:
+        return math.sqrt(2.0 * c * s * dp)
+    return 0.5 * s * d + 2.0 * c * (dp - 0.25 * D) / d
+
+
+def exit_layer(prob, n_len=8.0, linear_gap=False):
+    """The rupture layer after the groove exit as a local problem (issue 16 item 2, this
+    study): (P0, u(phi) dense), P0 the Poiseuille flux from the groove into the film at the
+    groove edge phi_a.
+
+    Downstream of the exit the film in the diverging gap falls from p_feed through the
+    soft part of the law onto the slow manifold of the cavity, ``theta(p) = q / (omega H)``;
+    with ``q = omega H(phi_a) theta(p_feed) + P0`` the ODE ``a H^3 p' = omega H theta(p) -
+    q`` is integrated BACKWARD (stable) from phi_far = phi_a + n_len L, L = sqrt(2 a H^3
+    cav_width / (omega H')) the sharp-law (JFO) length of the layer, starting on the
+    manifold, and P0 is the root of p(phi_a) = p_feed. It depends only on the gap near the
+    exit, omega and the law, not on the film's unknowns; in 1-D it is the exact
+    continuous q - omega H theta_feed up to the manifold start (exponentially small).
+    ``linear_gap``: the gap linearised at the exit, ``H(phi_a) + H'(phi_a) (phi - phi_a)``
+    (local information only, as a 2-D film column would have it)."""
+    law = prob.law
+    a0 = prob.span[0]
+    Hg = float(prob.H(a0))
+    dH = -prob.eps * math.sin(a0 - prob.phi_hmax)
+    c = prob.a * Hg ** 3
+    if dH <= 0.0:
+        raise ValueError("exit_layer: the gap must diverge at the groove exit")
+    L = math.sqrt(2 * c * prob.cav_width / (prob.omega * dH))
+    phi_far = a0 + n_len * L
+    u_feed = float(law.u_from_p(prob.p_feed))
+    th_feed = float(evaluate(np.array([u_feed]), law)[2][0])
+    gap = (lambda phi: Hg + dH * (phi - a0)) if linear_gap else prob.H
+    rhs = _rhs_factory(prob, gap)
+
+    def u_on_manifold(q):
+        target = q / (prob.omega * float(gap(phi_far)))
+        return brentq(lambda v: evaluate(np.array([v]), law)[2][0] - target, -5.0, 1e3,
+                      xtol=1e-14)
+
+    def run(P0, dense=False):
+        q = prob.omega * Hg * th_feed + P0
+        return solve_ivp(rhs, (phi_far, a0), [u_on_manifold(q)], method="Radau", args=(q,),
+                         rtol=1e-11, atol=1e-12, dense_output=dense)
+    P_jfo = math.sqrt(2 * c * prob.omega * dH * prob.cav_width)
+    P0 = brentq(lambda P: run(P).y[0, -1] - u_feed, 1e-6 * P_jfo, 3 * P_jfo,
+                xtol=1e-13 * P_jfo)
+    return P0, run(P0, dense=True).sol, phi_far, gap
+
+
+def layer_correction(film, first_only=False):
+    """Deferred (defect) correction of the face fluxes in the exit layer (``exit="layer"``):
+    per face k, ``q_L - F_k(u_L)``, the layer's exact flux ``q_L = omega H(phi_a)
+    theta_feed + P0`` (:func:`exit_layer`) minus the scheme's flux evaluated on the layer's
+    own profile u_L at the cell centres, for the faces whose cells all lie within the layer
+    (centres up to phi_far); 0 elsewhere. ``first_only``: the groove-exit face only.
+
+    Added to the scheme's fluxes it makes them exact wherever the cells hold the layer's
+    values, on any grid, so the discrete q is the layer's; it is a constant (no Jacobian
+    change, C-infinity in the unknowns) and vanishes with the scheme's truncation error once
+    the grid resolves the layer, so the limit is the unmodified scheme's."""
+    pr = film.prob
+    P0, sol, phi_far, gap = exit_layer(pr, linear_gap=film.exit == "layer_lin")
+    q_L = pr.omega * film.Hf[0] * film.th_feed + P0
+    inside = np.flatnonzero(film.phi <= phi_far)
+    corr = np.zeros(film.n + 1)
+    if inside.size == 0:
+        return corr
+    u = np.full(film.n, float(sol(phi_far)[0]))
+    u[inside] = sol(film.phi[inside])[0]
+    model = copy.copy(film)             # the scheme on the layer's own gap (truncation error
+    model.exit = "sg"                   # of the scheme on the model problem, -> 0 with h)
+    model.Hf = gap(film.phi_f)
+    model.cond = film.cond * (model.Hf / film.Hf) ** 3
+    F = model.fluxes(u)
+    last = 1 if first_only else inside.size     # faces 0 ... K-1 have all their cells inside
+    corr[:last] = q_L - F[:last]
+    return corr
+
+
 def interpolate(film_from: Film1D, u, film_to: Film1D):
     """u of one grid on another (linear in phi, constant extrapolation to the edges)."""
     return np.interp(film_to.phi, film_from.phi, u)
@@ -264,14 +380,15 @@ def reference(prob, n_ref=2 ** 14, **kw):
 
 # ---------------------------------------------------------------- semi-analytic reference
 
-def _rhs_factory(prob):
+def _rhs_factory(prob, gap=None):
     law = prob.law
+    gap = gap or prob.H
     a, om = prob.a, prob.omega
     buf = [np.empty(1) for _ in range(4)]
 
     def rhs(phi, y, q):
         law_eval(np.array([y[0]]), law.p_cav, law.K, law.delta, *buf)
-        H = prob.H(phi)
+        H = gap(phi)
         return [(om * H * buf[2][0] - q) / (a * H ** 3 * buf[1][0])]
     return rhs
 
@@ -335,11 +452,11 @@ GRIDS = [20, 40, 80, 160, 320, 640, 1280, 2560, 5120]
 WIDTHS = [1e2, 1e3, 3e3]
 
 
-def study(prob, muscl, grids=GRIDS):
+def study(prob, muscl, grids=GRIDS, exit="sg"):
     """Discrete solutions on grids, the semi-analytic q, W and solution, and per grid
-    (n, W, q, Wq): Wq the load of the backward ODE solution with the DISCRETE q, i.e. what
-    the exact full film, front and cavity carry for that q."""
-    sols = solve_sequence(prob, grids, muscl=muscl)
+    (n, W, q, Wq, film, u): Wq the load of the backward ODE solution with the DISCRETE q,
+    i.e. what the exact full film, front and cavity carry for that q."""
+    sols = solve_sequence(prob, grids, muscl=muscl, exit=exit)
     f, u = sols[grids[-1]]
     qs, sol = semi_analytic(prob, f.q(u))
     Ws = semi_analytic_load(prob, sol)
@@ -348,12 +465,17 @@ def study(prob, muscl, grids=GRIDS):
         f, u = sols[n]
         q = f.q(u)
         Wq = semi_analytic_load(prob, shoot(prob, q, dense=True).sol)
-        rows.append((n, f.load(u), q, Wq))
+        rows.append((n, f.load(u), q, Wq, f, u))
     return qs, Ws, sol, rows
 
 
+POINTS_DEG = [260.0, 300.0, 330.0]
+EXITS = {"sg": "film.py groove_exit (today)", "layer": "layer correction, exact gap",
+         "layer_lin": "layer correction, gap linear at the exit"}
+
+
 def main(argv):
-    parts = argv or ["check", "widths", "split"]
+    parts = argv or ["check", "widths", "split", "treatment", "points"]
     base = Problem()
     if "check" in parts:
         print("\n### Fine discrete solution against the semi-analytic one (1 kPa)\n")
@@ -379,8 +501,8 @@ def main(argv):
             for muscl in (False, True):
                 qs, Ws, sol, rows = study(prob, muscl)
                 lr, lb, _ = layers(prob, sol)
-                errs = [W[1] / Ws[1] - 1 for _, W, _, _ in rows]
-                o = orders([W[1] for _, W, _, _ in rows])
+                errs = [r[1][1] / Ws[1] - 1 for r in rows]
+                o = orders([r[1][1] for r in rows])
                 print(f"| {w:g} Pa | {'MUSCL' if muscl else 'upwind'} | {lr:.2f} / {lb:.2f} | "
                       + " | ".join(f"{e:+.2e}" for e in errs) + " | "
                       + ", ".join(f"{x:.2f}" for x in o) + " |", flush=True)
@@ -393,9 +515,42 @@ def main(argv):
             print("| n | q error | Wy error | Wy of the exact film with the discrete q, error "
                   "| discrete Wy against that |")
             print("|---|---|---|---|---|")
-            for n, W, q, Wq in rows:
+            for n, W, q, Wq, _, _ in rows:
                 print(f"| {n} | {q / qs - 1:+.2e} | {W[1] / Ws[1] - 1:+.2e} | "
                       f"{Wq[1] / Ws[1] - 1:+.2e} | {W[1] / Wq[1] - 1:+.2e} |", flush=True)
+    if "treatment" in parts:
+        print("\n### Exit-layer correction: Wy and q error against the semi-analytic solution "
+              "(MUSCL)\n")
+        print("| cav_width | exit flux | quantity | " + " | ".join(str(n) for n in GRIDS)
+              + " | orders (successive) |")
+        print("|---|---|---|" + "---|" * (len(GRIDS) + 1))
+        for w in WIDTHS:
+            prob = replace(base, cav_width=w)
+            for ex, label in EXITS.items():
+                qs, Ws, sol, rows = study(prob, True, exit=ex)
+                o = orders([r[1][1] for r in rows])
+                print(f"| {w:g} Pa | {label} | Wy | "
+                      + " | ".join(f"{r[1][1] / Ws[1] - 1:+.2e}" for r in rows) + " | "
+                      + ", ".join(f"{x:.2f}" for x in o) + " |")
+                print(f"| | | q | " + " | ".join(f"{r[2] / qs - 1:+.1e}" for r in rows)
+                      + " | |", flush=True)
+    if "points" in parts:
+        print("\n### Pressure at fixed points, cav_width 1 kPa, MUSCL: p - p_exact [Pa] "
+              "(linear interpolation of the cell values)\n")
+        print("| exit flux | phi | p_exact - p0 [Pa] | " + " | ".join(str(n) for n in GRIDS)
+              + " |")
+        print("|---|---|---|" + "---|" * len(GRIDS))
+        for ex in ("sg", "layer"):
+            qs, Ws, sol, rows = study(base, True, exit=ex)
+            for deg in POINTS_DEG:
+                x = math.radians(deg)
+                pe = evaluate(sol(x), base.law)[0][0]
+                errs = []
+                for r in rows:
+                    f, u = r[4], r[5]
+                    errs.append(np.interp(x, f.phi, evaluate(u, base.law)[0]) - pe)
+                print(f"| {EXITS[ex]} | {deg:g} deg | {pe - base.p0:.1f} | "
+                      + " | ".join(f"{e:+.3g}" for e in errs) + " |", flush=True)
 
 
 if __name__ == "__main__":
