@@ -280,48 +280,61 @@ def rupture_exit_flux(dp, d, c, s):
     return 0.5 * s * d + 2.0 * c * (dp - 0.25 * D) / d
 
 
-def exit_layer(prob, n_len=8.0, linear_gap=False):
-    """The rupture layer after the groove exit as a local problem (issue 16 item 2, this
-    study): (P0, u(phi) dense), P0 the Poiseuille flux from the groove into the film at the
-    groove edge phi_a.
+def layer_solution(gap, dH, a0, a, omega, law, p_feed, n_len=8.0):
+    """The rupture layer after a groove exit at phi = a0 as a local 1-D problem (issue 16
+    item 2, this study): (P0, u(phi) dense, phi_far), P0 the Poiseuille flux from the groove
+    into the film at the groove edge. ``gap(phi)`` the film gap, ``dH`` its slope at a0
+    (> 0: diverging), ``a`` the circumferential film conductance, ``law`` a CavitationLaw.
 
     Downstream of the exit the film in the diverging gap falls from p_feed through the
     soft part of the law onto the slow manifold of the cavity, ``theta(p) = q / (omega H)``;
-    with ``q = omega H(phi_a) theta(p_feed) + P0`` the ODE ``a H^3 p' = omega H theta(p) -
-    q`` is integrated BACKWARD (stable) from phi_far = phi_a + n_len L, L = sqrt(2 a H^3
-    cav_width / (omega H')) the sharp-law (JFO) length of the layer, starting on the
-    manifold, and P0 is the root of p(phi_a) = p_feed. It depends only on the gap near the
-    exit, omega and the law, not on the film's unknowns; in 1-D it is the exact
-    continuous q - omega H theta_feed up to the manifold start (exponentially small).
-    ``linear_gap``: the gap linearised at the exit, ``H(phi_a) + H'(phi_a) (phi - phi_a)``
-    (local information only, as a 2-D film column would have it)."""
-    law = prob.law
-    a0 = prob.span[0]
-    Hg = float(prob.H(a0))
-    dH = -prob.eps * math.sin(a0 - prob.phi_hmax)
-    c = prob.a * Hg ** 3
+    with ``q = omega H(a0) theta(p_feed) + P0`` the ODE ``a H^3 p' = omega H theta(p) - q``
+    is integrated BACKWARD (stable) from phi_far = a0 + n_len L, L = sqrt(2 a H^3 cav_width /
+    (omega H')) the sharp-law (JFO) length of the layer, starting on the manifold, and P0
+    is the root of p(a0) = p_feed. It depends only on the gap after the exit, omega and the
+    law, not on the film's unknowns."""
+    Hg = float(gap(a0))
+    c = a * Hg ** 3
     if dH <= 0.0:
-        raise ValueError("exit_layer: the gap must diverge at the groove exit")
-    L = math.sqrt(2 * c * prob.cav_width / (prob.omega * dH))
+        raise ValueError("layer_solution: the gap must diverge at the groove exit")
+    L = math.sqrt(2 * c * law.width / (omega * dH))
     phi_far = a0 + n_len * L
-    u_feed = float(law.u_from_p(prob.p_feed))
+    u_feed = float(law.u_from_p(p_feed))
     th_feed = float(evaluate(np.array([u_feed]), law)[2][0])
-    gap = (lambda phi: Hg + dH * (phi - a0)) if linear_gap else prob.H
-    rhs = _rhs_factory(prob, gap)
+    buf = [np.empty(1) for _ in range(4)]
+
+    def rhs(phi, y, q):
+        law_eval(np.array([y[0]]), law.p_cav, law.K, law.delta, *buf)
+        H = gap(phi)
+        return [(omega * H * buf[2][0] - q) / (a * H ** 3 * buf[1][0])]
 
     def u_on_manifold(q):
-        target = q / (prob.omega * float(gap(phi_far)))
+        target = q / (omega * float(gap(phi_far)))
         return brentq(lambda v: evaluate(np.array([v]), law)[2][0] - target, -5.0, 1e3,
                       xtol=1e-14)
 
     def run(P0, dense=False):
-        q = prob.omega * Hg * th_feed + P0
+        q = omega * Hg * th_feed + P0
         return solve_ivp(rhs, (phi_far, a0), [u_on_manifold(q)], method="Radau", args=(q,),
                          rtol=1e-11, atol=1e-12, dense_output=dense)
-    P_jfo = math.sqrt(2 * c * prob.omega * dH * prob.cav_width)
+    P_jfo = math.sqrt(2 * c * omega * dH * law.width)
     P0 = brentq(lambda P: run(P).y[0, -1] - u_feed, 1e-6 * P_jfo, 3 * P_jfo,
                 xtol=1e-13 * P_jfo)
-    return P0, run(P0, dense=True).sol, phi_far, gap
+    return P0, run(P0, dense=True).sol, phi_far
+
+
+def exit_layer(prob, n_len=8.0, linear_gap=False):
+    """:func:`layer_solution` for the 1-D film: (P0, u(phi) dense, phi_far, gap). In 1-D
+    P0 is the exact continuous q - omega H theta_feed up to the manifold start
+    (exponentially small). ``linear_gap``: the gap linearised at the exit, ``H(phi_a) +
+    H'(phi_a) (phi - phi_a)`` (local information only)."""
+    a0 = prob.span[0]
+    Hg = float(prob.H(a0))
+    dH = -prob.eps * math.sin(a0 - prob.phi_hmax)
+    gap = (lambda phi: Hg + dH * (phi - a0)) if linear_gap else prob.H
+    P0, sol, phi_far = layer_solution(gap, dH, a0, prob.a, prob.omega, prob.law, prob.p_feed,
+                                      n_len)
+    return P0, sol, phi_far, gap
 
 
 def layer_correction(film, first_only=False):
