@@ -17,8 +17,13 @@ docs/scripts/grid_convergence.py (Jeffcott run-up bearing, 15 deg groove at phi 
   cav_width) and the part of the cells at or above p0 (the full film), with the film's own
   force quadrature (``linearize._force`` of the pressure with the other part set to p0).
 
-Run: ``nice .venv/bin/python docs/scripts/free_to_air_phi_refinement.py [z] [phi] [width] [split]``
-(all four by default; about two minutes on one core). Prints markdown tables.
+* ``flux`` (not in the default set; about three minutes): Fy and the circumferential flux
+  through the cavity, ``Q = sum_j dz (omega H_e theta_i - a_phi H_e^3 (p_i+1 - p_i) / d)`` at
+  the east face of the column nearest 120 and 180 deg (the analogue of the 1-D film's q,
+  docs/scripts/reformation_front_1d.py), on the n_phi sequence at n_z = 40.
+
+Run: ``nice .venv/bin/python docs/scripts/free_to_air_phi_refinement.py [z] [phi] [width] [split]
+[flux]`` (the first four by default; about two minutes on one core). Prints markdown tables.
 """
 
 from __future__ import annotations
@@ -82,6 +87,29 @@ def main(argv):
             vals = [gc.mc_quantities("air", n, q, omega, n_z=40, coefficients=False,
                                      cav_width=w)[1] for n in PHI_GRIDS]
             row(f"cav_width {w:g} Pa", vals)
+    if "flux" in parts:
+        from bearing_fmu.model import BearingModel
+        print("\n### Fy and the cavity flux Q: n_z = 40\n")
+        print("| n_phi | Fy [N] | Q(120 deg) | Q(180 deg) | dFy / dQ to the previous grid [N] |")
+        print("|---|---|---|---|---|")
+        prev = None
+        for n in PHI_GRIDS:
+            b = BearingModel(gc.params("air", n, 40))
+            b.initialize(q[0], q[1], 0.0, 0.0, omega, init="stationary")
+            g = b.grid
+            p, th = b.law.p_theta(b.film.u)
+            p, th = p.reshape(g.n_z, g.n_phi), th.reshape(g.n_z, g.n_phi)
+            He, om = b._kin[1], b._kin[3]
+            Q = []
+            for deg in (120.0, 180.0):
+                i = int(np.argmin(np.abs(g.phi - math.radians(deg))))
+                d = g.frel[i] * g.dphi
+                Q.append(float(np.sum(g.dz * (om * He[i] * th[:, i] - b.a_phi * He[i] ** 3
+                                              * (p[:, (i + 1) % g.n_phi] - p[:, i]) / d))))
+            fy = b.outputs["Fy"]
+            ratio = "" if prev is None else f"{(fy - prev[0]) / (Q[1] - prev[1]):.4f}"
+            print(f"| {n} | {fy:.5f} | {Q[0]:.6f} | {Q[1]:.6f} | {ratio} |", flush=True)
+            prev = (fy, Q[1])
     if "split" in parts:
         from bearing_fmu.linearize import _force
         from bearing_fmu.model import BearingModel

@@ -54,6 +54,8 @@ from bearing_fmu.cavitation import CavitationLaw, law_eval  # noqa: E402
 from bearing_fmu.film import groove_exit, limiter  # noqa: E402
 
 BW = 3                      # half bandwidth of the finite-difference Jacobian
+#: Radau tolerance of the semi-analytic solutions (1e-11 moves the shot's end value by 1e-13)
+RTOL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -301,12 +303,7 @@ def layer_solution(gap, dH, a0, a, omega, law, p_feed, n_len=8.0):
     phi_far = a0 + n_len * L
     u_feed = float(law.u_from_p(p_feed))
     th_feed = float(evaluate(np.array([u_feed]), law)[2][0])
-    buf = [np.empty(1) for _ in range(4)]
-
-    def rhs(phi, y, q):
-        law_eval(np.array([y[0]]), law.p_cav, law.K, law.delta, *buf)
-        H = gap(phi)
-        return [(omega * H * buf[2][0] - q) / (a * H ** 3 * buf[1][0])]
+    rhs, jac = _ode(gap, a, omega, law)
 
     def u_on_manifold(q):
         target = q / (omega * float(gap(phi_far)))
@@ -316,7 +313,7 @@ def layer_solution(gap, dH, a0, a, omega, law, p_feed, n_len=8.0):
     def run(P0, dense=False):
         q = omega * Hg * th_feed + P0
         return solve_ivp(rhs, (phi_far, a0), [u_on_manifold(q)], method="Radau", args=(q,),
-                         rtol=1e-11, atol=1e-12, dense_output=dense)
+                         rtol=RTOL, atol=0.1 * RTOL, dense_output=dense, jac=jac)
     P_jfo = math.sqrt(2 * c * omega * dH * law.width)
     P0 = brentq(lambda P: run(P).y[0, -1] - u_feed, 1e-6 * P_jfo, 3 * P_jfo,
                 xtol=1e-13 * P_jfo)
@@ -393,26 +390,38 @@ def reference(prob, n_ref=2 ** 14, **kw):
 
 # ---------------------------------------------------------------- semi-analytic reference
 
-def _rhs_factory(prob, gap=None):
-    law = prob.law
-    gap = gap or prob.H
-    a, om = prob.a, prob.omega
+def _ode(gap, a, omega, law):
+    """(rhs, jac) of ``du/dphi = (omega H theta(u) - q) / (a H^3 dp/du)`` (args q) for
+    scipy's Radau; the Jacobian from law_eval's dp/du and dtheta/du, with ``d2p/du2 =
+    dp/du (1 - dp/du / K) / delta`` (the derivative of K sigmoid(u / delta))."""
     buf = [np.empty(1) for _ in range(4)]
+    ua = np.empty(1)
+
+    def ev(y):
+        ua[0] = y[0]
+        law_eval(ua, law.p_cav, law.K, law.delta, *buf)
+        return buf[1][0], buf[2][0], buf[3][0]
 
     def rhs(phi, y, q):
-        law_eval(np.array([y[0]]), law.p_cav, law.K, law.delta, *buf)
+        dp, th, _ = ev(y)
         H = gap(phi)
-        return [(om * H * buf[2][0] - q) / (a * H ** 3 * buf[1][0])]
-    return rhs
+        return [(omega * H * th - q) / (a * H ** 3 * dp)]
+
+    def jac(phi, y, q):
+        dp, th, dth = ev(y)
+        H = gap(phi)
+        d2p = dp * (1.0 - dp / law.K) / law.delta
+        return [[(omega * H * dth * dp - (omega * H * th - q) * d2p) / (a * H ** 3 * dp * dp)]]
+    return rhs, jac
 
 
-def shoot(prob, q, dense=False, rtol=1e-11, atol=1e-12):
+def shoot(prob, q, dense=False, rtol=RTOL, atol=0.1 * RTOL):
     """Integrate u backward from the groove's west edge (p_feed) to its east edge."""
-    rhs = _rhs_factory(prob)
+    rhs, jac = _ode(prob.H, prob.a, prob.omega, prob.law)
     a0, a1 = prob.span
     u_feed = float(prob.law.u_from_p(prob.p_feed))
     return solve_ivp(rhs, (a1, a0), [u_feed], method="Radau", args=(q,), rtol=rtol,
-                     atol=atol, dense_output=dense)
+                     atol=atol, dense_output=dense, jac=jac)
 
 
 def semi_analytic(prob, q_guess, rel=2e-3):
