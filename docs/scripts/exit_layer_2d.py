@@ -15,9 +15,10 @@ The bearing, journal position and Newton tolerances are those of grid_convergenc
 3. the residual of every film cell gains ``dz (Delta_east - Delta_west)`` (all rows alike),
    a constant: the Jacobian is unchanged.
 
-Run: ``nice -n 10 .venv/bin/python docs/scripts/exit_layer_2d.py [phi] [square]``
-(``phi``: n_phi = 48 ... 768 at n_z = 40; ``square``: 20 ... 160 square grids; prints
-markdown tables of Fx, Fy without and with the correction).
+Run: ``nice -n 10 .venv/bin/python docs/scripts/exit_layer_2d.py [phi] [fine] [square]``
+(``phi``: n_phi = 48 ... 768 at n_z = 40, about 2 minutes; ``fine``: 1536 and 3072 at n_z =
+40, about 8 minutes; ``square``: 20 ... 160 square grids, about 3 minutes; prints markdown
+tables of Fx, Fy without and with the correction).
 """
 
 from __future__ import annotations
@@ -132,6 +133,9 @@ def main(argv):
     if "phi" in parts:
         print("\n### n_z = 40, n_phi refined\n")
         table([48, 96, 192, 384, 768], 40, q, omega)
+    if "fine" in parts:
+        print("\n### n_z = 40, n_phi 1536 and 3072\n")
+        table([1536, 3072], 40, q, omega)
     if "square" in parts:
         print("\n### square grids\n")
         table([20, 40, 80, 160], None, q, omega)
