@@ -15,10 +15,11 @@ The bearing, journal position and Newton tolerances are those of grid_convergenc
 3. the residual of every film cell gains ``dz (Delta_east - Delta_west)`` (all rows alike),
    a constant: the Jacobian is unchanged.
 
-Run: ``nice -n 10 .venv/bin/python docs/scripts/exit_layer_2d.py [phi] [fine] [square]``
+Run: ``nice -n 10 .venv/bin/python docs/scripts/exit_layer_2d.py [phi] [fine] [square] [flux]``
 (``phi``: n_phi = 48 ... 768 at n_z = 40, about 2 minutes; ``fine``: 1536 and 3072 at n_z =
 40, about 8 minutes; ``square``: 20 ... 160 square grids, about 3 minutes; prints markdown
-tables of Fx, Fy without and with the correction).
+tables of Fx, Fy without and with the correction; ``flux``: the cavity flux Q of the corrected
+film on 96 ... 768 x 40 against the layer model's, about a minute).
 """
 
 from __future__ import annotations
@@ -91,7 +92,20 @@ def exit_correction(b, kin, xy):
     return corr, (P0, phi_far, int(np.count_nonzero(delta)))
 
 
-def solve(n_phi, n_z, q, omega, corrected):
+def cavity_flux(b, deg=180.0):
+    """Q = sum_j dz (omega H_e theta - a_phi H_e^3 dp/dphi) at the east face of the column
+    nearest ``deg`` (free_to_air_phi_refinement.py ``flux``)."""
+    g = b.grid
+    p, th = b.law.p_theta(b.film.u)
+    p, th = p.reshape(g.n_z, g.n_phi), th.reshape(g.n_z, g.n_phi)
+    He, om = b._kin[1], b._kin[3]
+    i = int(np.argmin(np.abs(g.phi - math.radians(deg))))
+    d = g.frel[i] * g.dphi
+    return float(np.sum(g.dz * (om * He[i] * th[:, i] - b.a_phi * He[i] ** 3
+                                * (p[:, (i + 1) % g.n_phi] - p[:, i]) / d)))
+
+
+def solve(n_phi, n_z, q, omega, corrected, model=False):
     b = BearingModel(gc.params("air", n_phi, n_z))
     info = None
     if corrected:
@@ -107,6 +121,8 @@ def solve(n_phi, n_z, q, omega, corrected):
         f.residual = residual
         f.fused = False                 # any Newton of this film goes through f.residual
     b.initialize(q[0], q[1], 0.0, 0.0, omega, init="stationary")
+    if model:
+        return b
     return b.outputs["Fx"], b.outputs["Fy"], info
 
 
@@ -136,6 +152,20 @@ def main(argv):
     if "fine" in parts:
         print("\n### n_z = 40, n_phi 1536 and 3072\n")
         table([1536, 3072], 40, q, omega)
+    if "flux" in parts:
+        print("\n### cavity flux Q(180 deg) of the corrected film, n_z = 40\n")
+        print("| n_phi | Q corrected | q_L sum dz (the layer model) | Fy corrected |")
+        print("|---|---|---|---|")
+        for n in (96, 192, 384, 768):
+            b = solve(n, 40, q, omega, True, model=True)
+            kin = b._kinematics(q[0], q[1], 0.0, 0.0, omega)
+            P0 = exit_correction(b, kin, q)[1][0]
+            fe = next(i for i in range(n) if b.grid.groove[i - 1] and not b.grid.groove[i]) - 1
+            u_feed = float(b.law.u_from_p(b.params.p_feed))
+            th_feed = float(rf.evaluate(np.array([u_feed]), b.law)[2][0])
+            q_L = omega * kin[1][fe] * th_feed + P0
+            print(f"| {n} | {cavity_flux(b):.6f} | {q_L * b.grid.dz * b.grid.n_z:.6f} | "
+                  f"{b.outputs['Fy']:.5f} |", flush=True)
     if "square" in parts:
         print("\n### square grids\n")
         table([20, 40, 80, 160], None, q, omega)
