@@ -185,6 +185,8 @@ shutil.rmtree(folder)
 sc = load_scenario(scenario)
 res = run(replace(sc, stop_time=sc.start_time + 1e-3), out_dir=out, progress=False)
 print(res.success, res.message)
+from orchestrator.cli import exit_process
+exit_process(0)     # as rotorcosim leaves: PythonFMU 0.7 can abort in the interpreter's teardown (cli.console_main)
 """
 
 

@@ -254,6 +254,8 @@ import rotor_fmu.floating_ring_growth                # a submodule the run did n
 from rotor_fmu.rotor_file import load_rotor_file     # and a data file of the package
 load_rotor_file()
 print("imports ok after the run")
+from orchestrator.cli import exit_process
+exit_process(0)     # as rotorcosim leaves: PythonFMU 0.7 can abort in the interpreter's teardown (cli.console_main)
 """
 
 
