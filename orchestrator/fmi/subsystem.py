@@ -48,6 +48,8 @@ from orchestrator.errors import FmuCallError, FmuError, LifecycleError, Scenario
 from orchestrator.fmi.archive import ModelDescription, Variable, binary_path, read_model_description, safe_extract
 from orchestrator.fmi.bundled_python import own_imports
 from orchestrator.fmi.call_record import CODE as CALL_CODE
+from orchestrator.fmi import fmu_logging
+from orchestrator.fmi.fmu_logging import _running as _RUNNING
 from orchestrator.fmi.values import FAMILY, TypedBatch, settable_problem
 from orchestrator.untrusted import OUT_DIR_FIELD, UNSHOWN as _UNSHOWN, out_dir_escape, shown_char as _shown
 
@@ -405,6 +407,7 @@ class Subsystem(SubsystemBase):
 
         # the logger first: a SettingError there (ROTORCOSIM_SAFE_LOGGER, CC) leaves no library loaded
         cb = _callbacks()
+        fmu_logging.install()      # the FMU's Python log records name this instance, capped
         global native_fmu_loaded
         native_fmu_loaded = True     # the CLI then leaves without interpreter teardown (cli.console_main)
         # fmpy changes into binaries/<platform> to load the library and, when loading fails, stays
@@ -450,6 +453,7 @@ class Subsystem(SubsystemBase):
 
     def _enter(self, fname: str, t: float | None = None) -> None:
         """Record that this instance is in FMI function ``fname`` (at ``t``, else its time now)."""
+        _RUNNING.name = self.name          # the FMU's Python log records name this instance
         a = self._slot
         if a is not None:
             k = self._k
@@ -457,6 +461,7 @@ class Subsystem(SubsystemBase):
             a[k] = CALL_CODE.get(fname, 0.0)
 
     def _leave(self) -> None:
+        _RUNNING.name = None
         if self._slot is not None:
             self._slot[self._k] = 0.0
 
@@ -594,12 +599,14 @@ class Subsystem(SubsystemBase):
         if a is not None:                   # the call record, inline (two stores; see _enter)
             a[self._k + 1] = self._now
             a[self._k] = _SET_REAL
+        _RUNNING.name = self.name
         try:
             res = self._c_set_real(self._component, batch.c_vrs, batch.n, batch.c_values)
         except Exception as e:
             self._state = "error"
             raise FmuCallError(self.name, "fmi2SetReal", "exception", self._detail(str(e))) from e
         finally:
+            _RUNNING.name = None
             if a is not None:
                 a[self._k] = 0.0
         if res:
@@ -611,12 +618,14 @@ class Subsystem(SubsystemBase):
         if a is not None:
             a[self._k + 1] = self._now
             a[self._k] = _GET_REAL
+        _RUNNING.name = self.name
         try:
             res = self._c_get_real(self._component, batch.c_vrs, batch.n, batch.c_values)
         except Exception as e:
             self._state = "error"
             raise FmuCallError(self.name, "fmi2GetReal", "exception", self._detail(str(e))) from e
         finally:
+            _RUNNING.name = None
             if a is not None:
                 a[self._k] = 0.0
         if res:
@@ -629,12 +638,14 @@ class Subsystem(SubsystemBase):
         if a is not None:
             a[self._k + 1] = t
             a[self._k] = _DO_STEP
+        _RUNNING.name = self.name
         try:
             res = self._c_do_step(self._component, t, h, 1 if self.no_set_prior_state else 0)
         except Exception as e:
             self._state = "error"
             raise FmuCallError(self.name, "fmi2DoStep", "exception", self._detail(str(e))) from e
         finally:
+            _RUNNING.name = None
             if a is not None:
                 a[self._k] = 0.0
         if res:
@@ -709,6 +720,7 @@ class Subsystem(SubsystemBase):
         self._free_library()
 
     def _forget_log(self) -> None:
+        fmu_logging.forget(self.name)
         _LOG_SINKS.pop(self._sink_key, None)
         if not _LOG_SINKS:
             _LOG_OTHERS.clear()          # the next run (a script, a warm sweep process) starts afresh
