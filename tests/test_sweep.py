@@ -580,3 +580,38 @@ def test_collect_takes_the_last_value_of_a_recorded_signal(sdir):
     assert [r["y_end"] for r in rows] == [summary["output"]["final"]["g.y"]] * 3
     assert [r["bare"] for r in rows] == [None] * 3
     assert any("have no 'g.y'" in str(w.message) and "is 'output.final.g.y'" in str(w.message) for w in caught)
+
+
+def test_a_value_the_fmus_cannot_run_is_reported_at_the_sweep_axis(sdir):
+    """An axis over coupling.scheme with 'iterative' for FMUs that cannot save state (Faulty,
+    Gain) was reported as ``sweep.yaml: run h=..., scheme='iterative': scenario ramp.yaml:
+    ramp.yaml:8: 'coupling.scheme: iterative' ...``: the scenario's coupling line, which the user
+    need not change. Now it names the sweep file's line of that axis and the value (--set ...),
+    with the scenario's line after it, once for all runs."""
+    (sdir / "bad.yaml").write_text(
+        "sweep: 1\nscenario: ramp.yaml\nparameters:\n"
+        "  - name: h\n    set: [coupling.macro_step]\n    values: [0.01, 0.02]\n"
+        "  - name: scheme\n    set: [coupling.scheme]\n    values: [jacobi, iterative]\n")
+    found = problems(sdir / "bad.yaml")
+    assert len(found) == 1, found
+    assert found[0].startswith(f"{sdir / 'bad.yaml'}:8: run h=0.01, scheme='iterative': "
+                               "--set coupling.scheme=\"iterative\": 'coupling.scheme: iterative' repeats every "
+                               "macro step from saved FMU states, but 'f', 'g' cannot save them"), found
+    assert found[0].endswith(f"(the scenario's line: {sdir / 'ramp.yaml'}:8)"), found
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")
+def test_a_step_control_a_fixed_step_fmu_cannot_take_is_reported_at_the_sweep_axis(tmp_path):
+    from tests.fmus_c.build_c_fmu import build_c_fmu
+    fixed = build_c_fmu(tmp_path, "AllTypes", fixed_step=True)     # canHandleVariableCommunicationStepSize false
+    (tmp_path / "fixed.yaml").write_text(f"name: fixed\nstop_time: 1.0\nfmus:\n  a: {{path: {fixed}}}\n"
+                                         "coupling:\n  macro_step: 0.1\n  step_control: {type: constant}\n")
+    (tmp_path / "sw.yaml").write_text(
+        "sweep: 1\nscenario: fixed.yaml\nparameters:\n"
+        "  - name: control\n    set: coupling.step_control.type\n    values: [constant, error]\n")
+    found = problems(tmp_path / "sw.yaml")
+    assert len(found) == 1, found
+    assert found[0].startswith(f"{tmp_path / 'sw.yaml'}:5: run control='error': --set coupling.step_control.type="
+                               "\"error\": 'coupling.step_control: {type: error}' varies the macro step, but 'a' "
+                               "cannot take varying steps"), found
+    assert found[0].endswith(f"(the scenario's line: {tmp_path / 'fixed.yaml'}:7)"), found

@@ -165,6 +165,34 @@ def check_atol_patterns(ld, coupling: dict | None, connections: list) -> None:
                                    f"{', '.join(names[:12])}{' ...' if len(names) > 12 else ''}")
 
 
+def _value_place(ld, node, keys: tuple[str, ...]) -> tuple:
+    """Where a capability problem of ``coupling.<keys>`` is reported: the deepest node of that
+    value the tree has (``coupling.step_control.type``, else ``coupling.step_control``, else the
+    ``coupling`` section ``node``), and, when that value came from ``--set`` (or a sweep axis,
+    which is one), the text that names the scenario's own line after the message.
+
+    The section's node was the place before: a sweep over ``coupling.scheme`` that included
+    ``iterative`` for FMUs without state saving was reported at the scenario's ``coupling:``
+    line, which the user does not need to change, not at the sweep's axis
+    (orchestrator/sweep/plan.py places problems that start with ``--set path=``)."""
+    at, key_node = node, None
+    for key in keys:
+        if not isinstance(at, yaml.MappingNode):
+            break
+        entry = next(((k, v) for k, v in at.value if isinstance(k, yaml.ScalarNode) and k.value == key), None)
+        if entry is None:
+            break
+        key_node, at = entry
+    origins = getattr(ld, "origins", {})
+    if id(at) not in origins:
+        return at, ""
+    # the scenario's line of that key (its value replaced), else of the section
+    for there in (key_node, node):
+        if there is not None and id(there) not in origins and getattr(there, "start_mark", None) is not None:
+            return at, f" (the scenario's line: {ld.loc(there)})"
+    return at, ""
+
+
 def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
     """The FMU capability flags the chosen coupling needs (``mds``: instance -> model description).
 
@@ -177,19 +205,22 @@ def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
         return
     stateless = [n for n, md in mds.items() if not md.can_get_and_set_fmu_state]
     if coupling.get("scheme") == "iterative" and stateless:
-        ld.err(node, f"'coupling.scheme: iterative' repeats every macro step from saved FMU states, but "
-                     f"{', '.join(map(repr, stateless))} cannot save them (canGetAndSetFMUstate is false); use "
-                     "gauss-seidel or jacobi, or FMUs built with state support")
+        at, then = _value_place(ld, node, ("scheme",))
+        ld.err(at, f"'coupling.scheme: iterative' repeats every macro step from saved FMU states, but "
+                   f"{', '.join(map(repr, stateless))} cannot save them (canGetAndSetFMUstate is false); use "
+                   f"gauss-seidel or jacobi, or FMUs built with state support{then}")
     sc = coupling.get("step_control")
     if sc is None or sc.type != "error":
         return
     fixed = [n for n, md in mds.items() if not md.can_handle_variable_step]
     if fixed:
-        ld.err(node, f"'coupling.step_control: {{type: error}}' varies the macro step, but "
-                     f"{', '.join(map(repr, fixed))} cannot take varying steps "
-                     "(canHandleVariableCommunicationStepSize is false); use type: constant")
+        at, then = _value_place(ld, node, ("step_control", "type"))
+        ld.err(at, f"'coupling.step_control: {{type: error}}' varies the macro step, but "
+                   f"{', '.join(map(repr, fixed))} cannot take varying steps "
+                   f"(canHandleVariableCommunicationStepSize is false); use type: constant{then}")
     elif stateless:
-        log.warning("%s: %s", ld.loc(node), f"'coupling.step_control: {{type: error}}': {', '.join(map(repr, stateless))} cannot save "
+        at, then = _value_place(ld, node, ("step_control", "type"))
+        log.warning("%s: %s%s", ld.loc(at), then, f"'coupling.step_control: {{type: error}}': {', '.join(map(repr, stateless))} cannot save "
                       "and restore its state (canGetAndSetFMUstate is false), so no step can be rejected and "
                       "redone: the macro step only adapts forward (the next step follows the error of the last)")
 
