@@ -17,6 +17,7 @@ import json
 import shutil
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -153,3 +154,99 @@ def test_unsupported_ssp_content_is_reported(tmp_path):
         orchestrator.load_scenario(p)
     text = str(info.value)
     assert "FMU of component 'a' 'resources/missing.fmu' not found" in text
+
+
+_RICH = _SYSTEM.replace(
+    f"coupling: {{scheme: jacobi, macro_step: {H}, extrapolation_order: 0}}\noutput: {{signals: [{', '.join(RECORD)}]}}\n",
+    f"""coupling:
+  scheme: gauss-seidel
+  sequence: [b, a]
+  macro_step: {H}
+  extrapolation_order: 1
+  interpolation_order: 1
+  parallel: false
+  step_control: {{type: error, rtol: 1.0e-3, atol: {{"b.u": 1.0e-6}}, max_step: 0.2}}
+output: {{signals: [b.y, a.count], interval: 0.05}}
+""").replace("stop_after: 0}}", "stop_after: 0}, substeps: 2, isolation: process}")
+
+
+def test_export_then_run_the_ssp_keeps_signals_output_coupling_and_instance_settings(scenario_file, tmp_path):
+    """`export-ssp s.yaml x.ssp` then `run x.ssp` dropped output.signals (every output was
+    recorded), the output interval, the coupling beyond the macro step (the run was Jacobi, zero
+    order) and substeps/isolation of an instance, silently. Now they travel in an
+    org.rotorcosim.scenario annotation (ignored by libcosim) and come back."""
+    import zipfile
+
+    import orchestrator
+    from orchestrator.scenario.ssp import export_ssp
+    rich = scenario_file.with_name("rich.yaml")
+    rich.write_text(_RICH)
+    sc = orchestrator.load_scenario(rich)
+    with pytest.warns(UserWarning, match="reads the whole coupling section back"):
+        ssp = export_ssp(sc, tmp_path / "rich.ssp")
+    with zipfile.ZipFile(ssp) as zf:
+        assert b'<ssc:Annotation type="org.rotorcosim.scenario">' in zf.read("SystemStructure.ssd")
+    back = orchestrator.load_scenario(ssp)
+    assert back.coupling == sc.coupling and back.coupling.scheme == "gauss-seidel"
+    assert back.output == sc.output and back.output.signals == ("b.y", "a.count")
+    assert [(f.name, f.substeps, f.isolation) for f in back.fmus] == [("a", None, None), ("b", 2, "process")]
+    res = orchestrator.run(back, out_dir=tmp_path / "run", progress=False)
+    assert res.success, res.message
+    assert list(res.outputs) == ["b.y", "a.count"]
+    # a YAML scenario naming the SSP still changes what the annotation set
+    over = tmp_path / "over.yaml"
+    over.write_text("ssp: rich.ssp\ncoupling: {scheme: jacobi}\noutput: {signals: [b.count]}\n")
+    again = orchestrator.load_scenario(over)
+    assert again.coupling.scheme == "jacobi" and again.coupling.extrapolation_order == 1
+    assert again.output.signals == ("b.count",)
+
+
+def test_a_shipped_scenario_with_analysis_survives_the_ssp_round_trip(tmp_path):
+    import orchestrator
+    from orchestrator.scenario.ssp import export_ssp
+    from orchestrator.shipped import resolve
+    sc = orchestrator.load_scenario(resolve("jeffcott_runup_half_sommerfeld"))
+    assert sc.analysis and sc.output.signals
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")              # what libcosim would not run as we do
+        back = orchestrator.load_scenario(export_ssp(sc, tmp_path / "j.ssp"))
+    assert (back.analysis, back.output, back.coupling) == (sc.analysis, sc.output, sc.coupling)
+    assert [dict(f.parameters) for f in back.fmus] == [dict(f.parameters) for f in sc.fmus]
+
+
+def _ssd_with(annotation: str) -> str:
+    return f"""<?xml version="1.0"?>
+<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+  xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+  xmlns:rc="https://rotorcosim.org/SSP/ScenarioAnnotation" version="1.0" name="x">
+ <ssd:System name="x"><ssd:Elements>
+  <ssd:Component name="a" source="resources/AllTypes.fmu"/>
+ </ssd:Elements></ssd:System>
+ <ssd:Annotations><ssc:Annotation type="org.rotorcosim.scenario">{annotation}</ssc:Annotation></ssd:Annotations>
+</ssd:SystemStructureDescription>"""
+
+
+@pytest.mark.parametrize("annotation, needle", [
+    ('<rc:Scenario format="1">output: {signals: [a.nope]}</rc:Scenario>', "a.nope"),
+    ('<rc:Scenario format="1">stop_time: 5\nfmus: {a: {path: /etc/passwd}, z: {substeps: 2}}</rc:Scenario>',
+     "unknown key 'stop_time'"),
+    ('<rc:Scenario format="1">fmus: {a: {path: /etc/passwd}, z: {substeps: 2}}</rc:Scenario>',
+     "'fmus.a' may set only substeps, isolation"),
+    ('<rc:Scenario format="1">fmus: {z: {substeps: 2}}</rc:Scenario>', "'fmus' names 'z', which is no component"),
+    ('<rc:Scenario format="2">output: {}</rc:Scenario>', "format '2'; this rotorcosim reads format 1"),
+    ('<rc:Scenario format="1">a: &amp;a [*a]</rc:Scenario>', "(a recursive alias)"),
+    ('<rc:Scenario format="1">' + "x" * ((1 << 20) + 1) + '</rc:Scenario>', "not a plausible scenario annotation"),
+    ('<rc:Scenario format="1">' + "[" * 200 + '</rc:Scenario>', "nested more than 64 levels deep"),
+])
+def test_the_scenario_annotation_is_read_as_untrusted(scenario_file, tmp_path, annotation, needle):
+    import zipfile
+
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    p = tmp_path / "x.ssp"
+    with zipfile.ZipFile(p, "w") as zf:
+        zf.writestr("SystemStructure.ssd", _ssd_with(annotation))
+        zf.write(scenario_file.with_name("AllTypes.fmu"), "resources/AllTypes.fmu")
+    with pytest.raises(ScenarioError) as info:
+        orchestrator.load_scenario(p)
+    assert needle in str(info.value), str(info.value)
