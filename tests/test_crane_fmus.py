@@ -131,3 +131,25 @@ output: {{signals: ["a.x[0]", "b.x[0]"]}}
                     + "  reference: {scheme: gauss-seidel, extrapolation_order: 1, interpolation_order: 1, "
                       "macro_step: 0.01}\n")
     assert [v.name for v in load_compare(path).variants] == ["jac-e1i0-h0.2", "jac-e1i0-h0.1"]
+
+
+def test_the_crane_fmus_python_log_lines_name_the_instance(crane_fmus, tmp_path, caplog):
+    """MobileCrane's component_model logs through Python's logging in our process: driving an
+    input with range [0, 0] printed ``ERROR component_model.variable: set(): values (0.56...,)
+    outside range.``, as if rotorcosim said it. Now the line names the instance whose call ran."""
+    import logging
+    with caplog.at_level(logging.WARNING):
+        res = _run(tmp_path, f"""name: range
+stop_time: 0.05
+fmus:
+  drv: {{path: {crane_fmus['DrivingForce']}}}
+  crane: {{path: {crane_fmus['MobileCrane']}}}
+connections:
+  - {{from: "drv.f[0]", to: "crane.boom.boom[2]"}}
+coupling: {{scheme: jacobi, macro_step: 0.01, extrapolation_order: 0}}
+""", "range")
+    assert res.success, res.message
+    theirs = [r for r in caplog.records if r.name == "component_model.variable"]
+    assert theirs, [r.getMessage() for r in caplog.records]
+    for r in theirs:
+        assert r.getMessage().startswith("crane: set(): values (") and r.fmu_instance == "crane", r.getMessage()

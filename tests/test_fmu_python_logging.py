@@ -79,3 +79,36 @@ def test_only_records_of_other_loggers_made_during_an_fmu_call_are_attributed(ca
     assert msgs == ["outside a call", "rotor: inside a call / second line", "ours inside"]
     assert [getattr(r, "fmu_instance", None) for r in caplog.records] == [None, "rotor", None]
     fmu_logging.forget("rotor")
+
+
+def test_the_cap_counts_each_record_once_whatever_the_number_of_handlers():
+    """A console and a log file handler: each shows the same first 20 records of the instance
+    (a record is counted by the first handler's filter, not once per handler)."""
+    class Keep(logging.Handler):
+        def __init__(self):
+            super().__init__()
+            self.got = []
+
+        def emit(self, record):
+            self.got.append(record.getMessage())
+
+    root = logging.getLogger()
+    a, b = Keep(), Keep()
+    root.addHandler(a)
+    root.addHandler(b)
+    try:
+        fmu_logging.install()
+        fmu_logging.enter("flood")
+        try:
+            for i in range(25):
+                logging.getLogger("some_fmu_package").warning("line %d", i)
+        finally:
+            fmu_logging.leave()
+        fmu_logging.forget("flood")
+    finally:
+        root.removeHandler(a)
+        root.removeHandler(b)
+    mine = [m for m in a.got if m.startswith("flood: line")]
+    assert mine == [m for m in b.got if m.startswith("flood: line")] and len(mine) == 20
+    assert any(m.startswith("flood: 5 more Python log lines of the FMU were not shown (20 shown; the full log is "
+                            "not kept); the last: line 24") for m in a.got), a.got
