@@ -23,12 +23,12 @@ def chatty(tmp_path_factory) -> Path:
     return Path(FmuBuilder.build_FMU(HERE / "fmus_src" / "_chatty.py", dest=d))
 
 
-def _run(tmp_path, chatty, isolation, n_lines):
+def _run(tmp_path, chatty, isolation, n_lines, n_warnings=0):
     sc = tmp_path / "chatty.yaml"
     sc.write_text(f"""name: chatty
 stop_time: 0.3
 fmus:
-  talker: {{path: {chatty}, parameters: {{n_lines: {n_lines}}}}}
+  talker: {{path: {chatty}, parameters: {{n_lines: {n_lines}, n_warnings: {n_warnings}}}}}
   quiet: {{path: {chatty}, parameters: {{n_lines: 0}}}}
 connections:
   - {{from: "talker.y", to: "quiet.u"}}
@@ -62,6 +62,20 @@ def test_an_fmus_python_log_lines_name_the_instance_and_are_capped(tmp_path, cha
         assert f"WARNING orchestrator.fmi.subsystem: {inst}: [warning] fmi line at t=0.2" in lines, text
     assert lines[0].startswith("running chatty (")        # ours: unchanged
     assert "status: finished" in lines
+
+
+@pytest.mark.parametrize("isolation", ["none", "process"])
+def test_an_fmus_python_warnings_name_the_instance(tmp_path, chatty, isolation):
+    """``warnings.warn`` in the FMU printed ``warning: python warning 0 at t=0``, the form of
+    rotorcosim's own warnings; now the text starts with the instance (in a worker process the
+    warning keeps Python's own format, on the worker's stderr)."""
+    rc, text = _run(tmp_path, chatty, isolation, 0, n_warnings=1)
+    assert rc == 0, text[-2000:]
+    assert "python warning 0 at t=0.2" in text
+    shown = [ln for ln in text.splitlines() if "python warning 0 at t=" in ln and "warnings.warn(" not in ln]
+    assert len(shown) == 3 and all("talker: python warning 0 at t=" in ln for ln in shown), text
+    if isolation == "none":
+        assert "warning: talker: python warning 0 at t=0.1" in shown, text
 
 
 def test_only_records_of_other_loggers_made_during_an_fmu_call_are_attributed(caplog):

@@ -21,8 +21,12 @@ and run, marks the last one shown, and counts the rest; :func:`forget` (when the
 freed) says how many were not shown and the last of them. The FMU's full log is not kept (an
 FMU that logs a million lines must not fill the disk either). A handler the FMU adds to its own
 logger (``propagate = False``) gets the attributed records, uncapped: that is the FMU's choice.
-Python ``warnings`` an FMU raises are not attributed (the ``warnings`` module has no per-thread
-hook).
+
+Python ``warnings`` an FMU raises during its call (``warnings.warn`` in a PythonFMU slave) went
+to the terminal as ``warning: <text>``, the form of rotorcosim's own warnings; :func:`install`
+wraps ``warnings.showwarning`` so that one shown while an FMI call runs in this thread reads
+``warning: <instance>: <text>`` and counts toward the same cap (the ``warnings`` module's own
+filters still decide first whether it is shown at all).
 """
 
 from __future__ import annotations
@@ -103,18 +107,39 @@ class _Cap(logging.Filter):
 
 
 _CAP = _Cap()
+_previous_showwarning = None
+
+
+def _showwarning(message, category, filename, lineno, file=None, line=None):
+    inst = getattr(_running, "name", None)
+    if inst is not None:
+        from orchestrator.fmi.subsystem import log_message_text
+        text = log_message_text(str(message))
+        with _lock:
+            c = _counts.setdefault(inst, [0, 0, ""])
+            if c[0] >= LOG_SHOWN:
+                c[1] += 1
+                c[2] = text
+                return
+            c[0] += 1
+        message = f"{log_message_text(inst)[:80]}: {text}"
+    _previous_showwarning(message, category, filename, lineno, file, line)
 
 
 def install() -> None:
     """Install the record factory and the cap on the root logger's handlers (idempotent; new
     root handlers get the cap when the next FMU is loaded)."""
-    global _previous_factory
+    global _previous_factory, _previous_showwarning
     with _lock:
         if _previous_factory is None or logging.getLogRecordFactory() is not _factory:
             current = logging.getLogRecordFactory()
             if current is not _factory:
                 _previous_factory = current
                 logging.setLogRecordFactory(_factory)
+    import warnings
+    if warnings.showwarning is not _showwarning:
+        _previous_showwarning = warnings.showwarning
+        warnings.showwarning = _showwarning
     for handler in logging.getLogger().handlers:
         if _CAP not in handler.filters:
             handler.addFilter(_CAP)
