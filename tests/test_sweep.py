@@ -615,3 +615,26 @@ def test_a_step_control_a_fixed_step_fmu_cannot_take_is_reported_at_the_sweep_ax
                                "\"error\": 'coupling.step_control: {type: error}' varies the macro step, but 'a' "
                                "cannot take varying steps"), found
     assert found[0].endswith(f"(the scenario's line: {tmp_path / 'fixed.yaml'}:7)"), found
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")
+def test_a_macro_step_off_a_fixed_step_fmus_grid_is_reported_at_the_sweep_axis(tmp_path):
+    """A fixed-step FMU needs stop_time on the grid start_time + n*macro_step: an axis over
+    coupling.macro_step with 0.03 (stop_time 1.0) was reported at the scenario's first line
+    (``fixed.yaml:1: stop_time 1.0 is not on the macro-step grid ...``); now at the axis, and an
+    axis over discard_retries at its own line."""
+    from tests.fmus_c.build_c_fmu import build_c_fmu
+    fixed = build_c_fmu(tmp_path, "AllTypes", fixed_step=True)     # canHandleVariableCommunicationStepSize false
+    (tmp_path / "fixed.yaml").write_text(f"name: fixed\nstop_time: 1.0\nfmus:\n  a: {{path: {fixed}}}\n"
+                                         "coupling:\n  macro_step: 0.1\n")
+    (tmp_path / "sw.yaml").write_text(
+        "sweep: 1\nscenario: fixed.yaml\nparameters:\n"
+        "  - name: h\n    set: coupling.macro_step\n    values: [0.1, 0.03]\n"
+        "  - name: retries\n    set: coupling.discard_retries\n    values: [0, 2]\n")
+    found = problems(tmp_path / "sw.yaml")
+    assert len(found) == 2, found
+    assert found[0].startswith(f"{tmp_path / 'sw.yaml'}:8: run h=0.1, retries=2: --set coupling.discard_retries=2: "
+                               "coupling.discard_retries = 2 redoes discarded steps with halved step sizes"), found
+    assert found[1].startswith(f"{tmp_path / 'sw.yaml'}:5: run h=0.03, retries=0: --set coupling.macro_step=0.03: "
+                               "stop_time 1.0 is not on the macro-step grid start_time + n*0.03"), found
+    assert found[1].endswith(f"(the scenario's line: {tmp_path / 'fixed.yaml'}:6)"), found

@@ -115,7 +115,12 @@ class Completion:
         why = fixed_step_problem(t0, t1, coupling.get("macro_step", CouplingSpec.macro_step), self.fixed_step,
                                  coupling.get("discard_retries", 0) or 0)
         if why:
-            self.err(getattr(self, "root_node", None), why)
+            from orchestrator.scenario.coupling_sections import value_place
+            root = getattr(self, "root_node", None)
+            paths = ([("coupling", "discard_retries")] if why.startswith("coupling.discard_retries") else
+                     [("stop_time",), ("coupling", "macro_step"), ("start_time",)])
+            at, then = value_place(self, root, *paths)
+            self.err(at, why + then)
 
     def expand_arrays(self, connections: list[dict]) -> list[dict]:
         """``drv.f -> osc.f`` between two arrays (no variable ``f``, elements ``f[...]``) becomes one

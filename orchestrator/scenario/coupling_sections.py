@@ -165,32 +165,40 @@ def check_atol_patterns(ld, coupling: dict | None, connections: list) -> None:
                                    f"{', '.join(names[:12])}{' ...' if len(names) > 12 else ''}")
 
 
-def _value_place(ld, node, keys: tuple[str, ...]) -> tuple:
-    """Where a capability problem of ``coupling.<keys>`` is reported: the deepest node of that
-    value the tree has (``coupling.step_control.type``, else ``coupling.step_control``, else the
-    ``coupling`` section ``node``), and, when that value came from ``--set`` (or a sweep axis,
-    which is one), the text that names the scenario's own line after the message.
-
-    The section's node was the place before: a sweep over ``coupling.scheme`` that included
-    ``iterative`` for FMUs without state saving was reported at the scenario's ``coupling:``
-    line, which the user does not need to change, not at the sweep's axis
-    (orchestrator/sweep/plan.py places problems that start with ``--set path=``)."""
-    at, key_node = node, None
+def _entry(node, keys: tuple[str, ...]):
+    """(key node, value node) of the value at ``keys`` under the mapping ``node``, or None."""
+    key_node = None
     for key in keys:
-        if not isinstance(at, yaml.MappingNode):
-            break
-        entry = next(((k, v) for k, v in at.value if isinstance(k, yaml.ScalarNode) and k.value == key), None)
-        if entry is None:
-            break
-        key_node, at = entry
+        if not isinstance(node, yaml.MappingNode):
+            return None
+        found = next(((k, v) for k, v in node.value if isinstance(k, yaml.ScalarNode) and k.value == key), None)
+        if found is None:
+            return None
+        key_node, node = found
+    return key_node, node
+
+
+def value_place(ld, node, *paths: tuple[str, ...]) -> tuple:
+    """Where a problem caused by the values at ``paths`` (key tuples under the mapping ``node``,
+    in order of preference) is reported, and the text that follows the message: the first of
+    those values that came from ``--set`` (or a sweep axis, which is one), followed by the
+    scenario's own line of its key (or of ``node``); else the first of them in the file; else
+    ``node`` itself.
+
+    ``node`` alone was the place before: a sweep over ``coupling.scheme`` that included
+    ``iterative`` for FMUs without state saving was reported at the scenario's ``coupling:``
+    line, and a macro step off the grid of a fixed-step FMU at the scenario's first line,
+    which the user need not change, not at the sweep's axis (orchestrator/sweep/plan.py
+    places problems that start with ``--set path=``)."""
     origins = getattr(ld, "origins", {})
-    if id(at) not in origins:
-        return at, ""
-    # the scenario's line of that key (its value replaced), else of the section
-    for there in (key_node, node):
-        if there is not None and id(there) not in origins and getattr(there, "start_mark", None) is not None:
-            return at, f" (the scenario's line: {ld.loc(there)})"
-    return at, ""
+    found = [e for e in (_entry(node, p) for p in paths) if e is not None]
+    for key_node, at in found:
+        if id(at) in origins:
+            for there in (key_node, node):
+                if there is not None and id(there) not in origins and getattr(there, "start_mark", None) is not None:
+                    return at, f" (the scenario's line: {ld.loc(there)})"
+            return at, ""
+    return (found[0][1] if found else node), ""
 
 
 def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
@@ -205,7 +213,7 @@ def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
         return
     stateless = [n for n, md in mds.items() if not md.can_get_and_set_fmu_state]
     if coupling.get("scheme") == "iterative" and stateless:
-        at, then = _value_place(ld, node, ("scheme",))
+        at, then = value_place(ld, node, ("scheme",))
         ld.err(at, f"'coupling.scheme: iterative' repeats every macro step from saved FMU states, but "
                    f"{', '.join(map(repr, stateless))} cannot save them (canGetAndSetFMUstate is false); use "
                    f"gauss-seidel or jacobi, or FMUs built with state support{then}")
@@ -214,12 +222,12 @@ def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
         return
     fixed = [n for n, md in mds.items() if not md.can_handle_variable_step]
     if fixed:
-        at, then = _value_place(ld, node, ("step_control", "type"))
+        at, then = value_place(ld, node, ("step_control", "type"), ("step_control",))
         ld.err(at, f"'coupling.step_control: {{type: error}}' varies the macro step, but "
                    f"{', '.join(map(repr, fixed))} cannot take varying steps "
                    f"(canHandleVariableCommunicationStepSize is false); use type: constant{then}")
     elif stateless:
-        at, then = _value_place(ld, node, ("step_control", "type"))
+        at, then = value_place(ld, node, ("step_control", "type"), ("step_control",))
         log.warning("%s: %s%s", ld.loc(at), then, f"'coupling.step_control: {{type: error}}': {', '.join(map(repr, stateless))} cannot save "
                       "and restore its state (canGetAndSetFMUstate is false), so no step can be rejected and "
                       "redone: the macro step only adapts forward (the next step follows the error of the last)")
