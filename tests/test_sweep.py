@@ -597,7 +597,7 @@ def test_a_value_the_fmus_cannot_run_is_reported_at_the_sweep_axis(sdir):
     assert found[0].startswith(f"{sdir / 'bad.yaml'}:8: run h=0.01, scheme='iterative': "
                                "--set coupling.scheme=\"iterative\": 'coupling.scheme: iterative' repeats every "
                                "macro step from saved FMU states, but 'f', 'g' cannot save them"), found
-    assert found[0].endswith(f"(the scenario's line: {sdir / 'ramp.yaml'}:8)"), found
+    assert found[0].endswith(f"(the scenario: {sdir / 'ramp.yaml'}:8)"), found     # its coupling: line (no scheme key)
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")
@@ -638,3 +638,23 @@ def test_a_macro_step_off_a_fixed_step_fmus_grid_is_reported_at_the_sweep_axis(t
     assert found[1].startswith(f"{tmp_path / 'sw.yaml'}:5: run h=0.03, retries=0: --set coupling.macro_step=0.03: "
                                "stop_time 1.0 is not on the macro-step grid start_time + n*0.03"), found
     assert found[1].endswith(f"(the scenario's line: {tmp_path / 'fixed.yaml'}:6)"), found
+
+
+def test_discard_retries_the_fmus_cannot_honour_are_refused_before_any_run(sdir):
+    """coupling.discard_retries > 0 needs every FMU to save its state (Faulty and Gain cannot):
+    the master refused it when each run started, so a sweep over it validated, ran, and every
+    such run failed naming the scenario. Now validation refuses it at the axis's line, as does
+    step_control type error combined with discard_retries."""
+    (sdir / "bad.yaml").write_text(
+        "sweep: 1\nscenario: ramp.yaml\nparameters:\n"
+        "  - name: retries\n    set: [coupling.discard_retries]\n    values: [0, 2]\n"
+        "  - name: control\n    set: [coupling.step_control.type]\n    values: [constant, error]\n")
+    found = problems(sdir / "bad.yaml")
+    text = "\n".join(found)
+    assert (f"{sdir / 'bad.yaml'}:5: run retries=2, control='constant': --set coupling.discard_retries=2: "
+            "coupling.discard_retries = 2 needs every FMU to save and restore its state") in text, text
+    assert f"(the scenario: {sdir / 'ramp.yaml'}:8)" in text, text
+    assert (f"{sdir / 'bad.yaml'}:5: run retries=2, control='error': --set coupling.discard_retries=2: "
+            "coupling.step_control type error and coupling.discard_retries cannot be combined") in text, text
+    assert main(["sweep", str(sdir / "bad.yaml"), "--out", str(sdir / "o")]) == 1
+    assert not (sdir / "o").exists()

@@ -182,7 +182,8 @@ def value_place(ld, node, *paths: tuple[str, ...]) -> tuple:
     """Where a problem caused by the values at ``paths`` (key tuples under the mapping ``node``,
     in order of preference) is reported, and the text that follows the message: the first of
     those values that came from ``--set`` (or a sweep axis, which is one), followed by the
-    scenario's own line of its key (or of ``node``); else the first of them in the file; else
+    scenario's own line of its key (``(the scenario's line: s.yaml:10)``, or of ``node`` when the
+    file does not have the key: ``(the scenario: s.yaml:9)``); else the first of them in the file; else
     ``node`` itself.
 
     ``node`` alone was the place before: a sweep over ``coupling.scheme`` that included
@@ -194,9 +195,9 @@ def value_place(ld, node, *paths: tuple[str, ...]) -> tuple:
     found = [e for e in (_entry(node, p) for p in paths) if e is not None]
     for key_node, at in found:
         if id(at) in origins:
-            for there in (key_node, node):
+            for there, what in ((key_node, "the scenario's line"), (node, "the scenario")):
                 if there is not None and id(there) not in origins and getattr(there, "start_mark", None) is not None:
-                    return at, f" (the scenario's line: {ld.loc(there)})"
+                    return at, f" ({what}: {ld.loc(there)})"
             return at, ""
     return (found[0][1] if found else node), ""
 
@@ -204,7 +205,9 @@ def value_place(ld, node, *paths: tuple[str, ...]) -> tuple:
 def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
     """The FMU capability flags the chosen coupling needs (``mds``: instance -> model description).
 
-    ``scheme: iterative`` needs canGetAndSetFMUstate in every FMU (an error);
+    ``scheme: iterative`` needs canGetAndSetFMUstate in every FMU (an error), and so does
+    ``discard_retries`` > 0 (an error; with ``step_control: {type: error}`` it is refused whatever
+    the FMUs, as the master does: the error-controlled step has its own rejection);
     ``step_control: error`` needs canHandleVariableCommunicationStepSize (an error) and,
     to reject steps, canGetAndSetFMUstate (without it the step adapts forward only: a warning,
     which ``rotorcosim validate`` prints).
@@ -218,6 +221,20 @@ def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
                    f"{', '.join(map(repr, stateless))} cannot save them (canGetAndSetFMUstate is false); use "
                    f"gauss-seidel or jacobi, or FMUs built with state support{then}")
     sc = coupling.get("step_control")
+    retries = coupling.get("discard_retries", 0) or 0
+    if retries and coupling.get("scheme") != "monolithic":
+        # refused by the master when the run starts (coupling/adaptive.py, coupling/execution.py): a
+        # sweep over discard_retries validated, then every such run failed with no line of the sweep
+        if sc is not None and sc.type == "error":
+            at, then = value_place(ld, node, ("discard_retries",), ("step_control", "type"), ("step_control",))
+            ld.err(at, "coupling.step_control type error and coupling.discard_retries cannot be combined (the "
+                       f"error-controlled step has its own rejection); set discard_retries: 0{then}")
+        elif stateless:
+            at, then = value_place(ld, node, ("discard_retries",))
+            ld.err(at, f"coupling.discard_retries = {retries} needs every FMU to save and restore its state "
+                       f"(canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} cannot (got "
+                       "canGetAndSetFMUstate false); set coupling.discard_retries: 0 or use an FMU built with "
+                       f"state support{then}")
     if sc is None or sc.type != "error":
         return
     fixed = [n for n, md in mds.items() if not md.can_handle_variable_step]
