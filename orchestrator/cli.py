@@ -477,7 +477,8 @@ def _cmd_init(args) -> int:
 
 
 def _add_export_ssp(sub) -> None:
-    p = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive (runs in libcosim)")
+    p = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive (runs in libcosim; what SSP "
+                                          "has no element for travels in an org.rotorcosim.scenario annotation)")
     p.add_argument("file", metavar="SCENARIO", help="scenario YAML file (or a shipped scenario's name)")
     p.add_argument("out", metavar="OUT.ssp", help="archive to write: a new file in an existing folder, or an "
                                                   "earlier .ssp archive to replace")
