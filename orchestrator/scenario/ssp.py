@@ -26,9 +26,9 @@ settings have no SSP equivalent (a warning says libcosim runs Jacobi with zero-o
 What a scenario holds that SSP 1.0 has no element for (the whole ``coupling`` section,
 ``output``: signals, interval, format; ``analysis``; ``compare``; each instance's ``substeps`` and
 ``isolation``) is written as an ``ssc:Annotation`` of type ``org.rotorcosim.scenario`` on the
-SSD (:func:`scenario_annotation`: YAML text in an ``rc:Scenario`` element), which SSP 1.0 lets other
-tools ignore and libcosim does; the import reads it back (:func:`_read_annotation`, bounded like
-the rest of the SSD), so ``export-ssp`` then ``run x.ssp`` runs the scenario that was exported.
+SSD (``orchestrator/scenario/ssp_annotation.py``: YAML text in an ``rc:Scenario`` element), which
+SSP 1.0 lets other tools ignore and libcosim does; the import reads it back (bounded like the
+rest of the SSD), so ``export-ssp`` then ``run x.ssp`` runs the scenario that was exported.
 Before, ``output.signals`` and everything else without an SSP element were dropped silently.
 
 The output is a regular ``.ssp`` file or a new name in an existing folder
@@ -54,10 +54,11 @@ import tempfile
 import warnings
 import zipfile
 from pathlib import Path, PurePosixPath
-from typing import Any, Mapping
+from typing import Any
 from xml.etree import ElementTree as ET
 
 from orchestrator.errors import ScenarioError
+from orchestrator.scenario.ssp_annotation import ANNOTATION_TYPE, RC_NS, read_annotation, write_annotation
 from orchestrator.untrusted import InputError, file_kind, parse_xml, read_bytes
 
 log = logging.getLogger(__name__)
@@ -66,7 +67,7 @@ NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
       "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
       "osp": "https://opensimulationplatform.com/SSP/OSPAnnotations",
-      "rc": "https://rotorcosim.org/SSP/ScenarioAnnotation"}
+      "rc": RC_NS}
 TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
 MAX_XML_BYTES = 16 * 2**20
 
@@ -430,137 +431,8 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
         if fixed is not None and fixed.get("baseStepSize"):
             doc["coupling"] = {"scheme": "jacobi", "macro_step": _number(
                 fixed.get("baseStepSize"), f"{src.ssd}: osp:FixedStepAlgorithm baseStepSize")}
-    _read_annotation(root, doc, src)
+    read_annotation(root, doc, str(src.ssd))
     return doc
-
-
-# ------------------------------------------------------- the rotorcosim annotation (both ways)
-#: ``ssc:Annotation type`` of what a scenario holds that SSP 1.0 has no element for (SSP 1.0 sec.
-#: 2.3.4: tools ignore annotation types they do not know; libcosim does)
-ANNOTATION_TYPE = "org.rotorcosim.scenario"
-ANNOTATION_FORMAT = 1
-#: longest text of the annotation read (characters): a scenario's sections are a few kB
-MAX_ANNOTATION_CHARS = 1 << 20
-#: the scenario keys the annotation may set, and under ``fmus.<instance>`` the keys it may set
-ANNOTATION_KEYS = ("format", "coupling", "output", "analysis", "compare", "fmus")
-ANNOTATION_FMU_KEYS = ("substeps", "isolation")
-
-
-def _plain(value):
-    """``value`` (a loaded scenario's mappings, tuples) as plain dicts, lists and scalars for YAML."""
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, Path):
-        return str(value)
-    return value
-
-
-def _changed(spec, skip=()) -> dict:
-    """The fields of a frozen spec that differ from the dataclass's defaults (the loader gives
-    the defaults back), as plain values."""
-    import dataclasses
-    default = type(spec)()
-    return {f.name: _plain(getattr(spec, f.name)) for f in dataclasses.fields(spec)
-            if f.name not in skip and getattr(spec, f.name) != getattr(default, f.name)}
-
-
-def scenario_annotation(scenario) -> dict:
-    """What ``scenario`` holds that SSP 1.0 has no element for, in the scenario format: the whole
-    ``coupling`` section (the SSP's osp:FixedStepAlgorithm holds the macro step only), ``output``,
-    ``analysis``, ``compare`` and each instance's ``substeps`` and ``isolation``. Values at their
-    defaults are left out (the loader gives them back)."""
-    c = scenario.coupling
-    coupling = {"scheme": c.scheme, "macro_step": c.macro_step,
-                **_changed(c, skip=("scheme", "macro_step", "iteration", "step_control"))}
-    if "atol" in (sc := _changed(c.step_control)) and isinstance(c.step_control.atol, tuple):
-        sc["atol"] = {str(k): v for k, v in c.step_control.atol}
-    for key, sub in (("iteration", _changed(c.iteration)), ("step_control", sc)):
-        if sub:
-            coupling[key] = sub
-    doc: dict[str, Any] = {"format": ANNOTATION_FORMAT, "coupling": coupling}
-    output = _changed(scenario.output)
-    if output:
-        doc["output"] = output
-    for key in ("analysis", "compare"):
-        if getattr(scenario, key):
-            doc[key] = _plain(getattr(scenario, key))
-    fmus = {f.name: {k: getattr(f, k) for k in ANNOTATION_FMU_KEYS if getattr(f, k) is not None}
-            for f in scenario.fmus}
-    fmus = {k: v for k, v in fmus.items() if v}
-    if fmus:
-        doc["fmus"] = fmus
-    return doc
-
-
-def _write_annotation(root: ET.Element, scenario) -> None:
-    """The rotorcosim annotation as the SSD's last element (``ssd:Annotations``), its content YAML
-    text in an ``rc:Scenario`` element."""
-    import yaml
-    ann = ET.SubElement(ET.SubElement(root, f"{{{NS['ssd']}}}Annotations"), f"{{{NS['ssc']}}}Annotation",
-                        {"type": ANNOTATION_TYPE})
-    el = ET.SubElement(ann, f"{{{NS['rc']}}}Scenario", {"format": str(ANNOTATION_FORMAT)})
-    el.text = "\n" + yaml.safe_dump(scenario_annotation(scenario), sort_keys=False)
-
-
-def _read_annotation(root: ET.Element, doc: dict, src: _Source) -> None:
-    """The rotorcosim annotation of an SSD (:func:`scenario_annotation`) into ``doc``: its
-    ``coupling`` replaces the one read from osp:FixedStepAlgorithm, ``output``, ``analysis`` and
-    ``compare`` are set, ``fmus.<instance>`` keys are merged. Untrusted like the rest of the SSD:
-    at most :data:`MAX_ANNOTATION_CHARS` characters, read by the bounded YAML reader (depth,
-    aliases, digits), only :data:`ANNOTATION_KEYS` (per instance :data:`ANNOTATION_FMU_KEYS`, of
-    instances the SSD has); the values are then checked by the scenario loader as any scenario's."""
-    found = [a for a in root.findall("ssd:Annotations/ssc:Annotation", NS) if a.get("type") == ANNOTATION_TYPE]
-    if not found:
-        return
-    where = f"{src.ssd}: ssc:Annotation type=\"{ANNOTATION_TYPE}\""
-    if len(found) > 1:
-        raise ScenarioError(f"{where}: given {len(found)} times; keep one")
-    el = found[0].find("rc:Scenario", NS)
-    if el is None:
-        raise ScenarioError(f"{where}: has no rc:Scenario element ({NS['rc']}); re-export the SSP, or remove "
-                            "the annotation")
-    if el.get("format") != str(ANNOTATION_FORMAT):
-        raise ScenarioError(f"{where}: format {el.get('format')!r}; this rotorcosim reads format "
-                            f"{ANNOTATION_FORMAT}: export the SSP again with this rotorcosim, or remove the annotation")
-    text = el.text or ""
-    if len(text) > MAX_ANNOTATION_CHARS:
-        raise ScenarioError(f"{where}: {len(text)} characters (limit {MAX_ANNOTATION_CHARS}, orchestrator.scenario."
-                            "ssp.MAX_ANNOTATION_CHARS); not a plausible scenario annotation")
-    import yaml
-
-    from orchestrator.scenario.nodes import YamlLoader
-    from orchestrator.untrusted import compose_yaml, construct_yaml
-    try:
-        node = compose_yaml(text, display=where, loader_cls=YamlLoader)
-        value = None if node is None else construct_yaml(node, display=where, loader_cls=YamlLoader)
-    except InputError as e:
-        raise ScenarioError(str(e)) from None
-    except yaml.YAMLError as e:
-        raise ScenarioError(f"{where}: not valid YAML ({e}); re-export the SSP, or remove the annotation") from None
-    if not isinstance(value, dict):
-        raise ScenarioError(f"{where}: must hold a mapping of scenario sections (got {type(value).__name__})")
-    problems = [f"{where}: unknown key {k!r}; valid: {', '.join(ANNOTATION_KEYS)}"
-                for k in value if k not in ANNOTATION_KEYS]
-    fmus = value.get("fmus", {})
-    if not isinstance(fmus, dict):
-        problems.append(f"{where}: 'fmus' must be a mapping of instance names (got {type(fmus).__name__})")
-        fmus = {}
-    for inst, entry in fmus.items():
-        if inst not in doc["fmus"]:
-            problems.append(f"{where}: 'fmus' names {inst!r}, which is no component of the SSD "
-                            f"({', '.join(doc['fmus']) or 'none'})")
-        elif not isinstance(entry, dict) or any(k not in ANNOTATION_FMU_KEYS for k in entry):
-            problems.append(f"{where}: 'fmus.{inst}' may set only {', '.join(ANNOTATION_FMU_KEYS)} (got "
-                            f"{entry!r:.200})")
-        else:
-            doc["fmus"][inst].update(entry)
-    if problems:
-        raise ScenarioError(problems)
-    for key in ("coupling", "output", "analysis", "compare"):
-        if key in value:
-            doc[key] = value[key]
 
 
 # ------------------------------------------------------------------------------------ export
@@ -729,6 +601,6 @@ def export_ssp(scenario, out: Path | str) -> Path:
                         {"type": "com.opensimulationplatform"})
     ET.SubElement(ET.SubElement(ann, f"{{{NS['osp']}}}Algorithm"), f"{{{NS['osp']}}}FixedStepAlgorithm",
                   {"baseStepSize": repr(float(c.macro_step))})
-    _write_annotation(root, scenario)
+    write_annotation(root, scenario)
     _write_archive(check_output_path(out), root, files)
     return out

@@ -1,0 +1,166 @@
+"""rotorcosim's own SSP annotation: what a scenario holds that SSP 1.0 has no element for.
+
+``export-ssp`` wrote the components, connections, parameter values, start and stop time and the
+macro step (libcosim's ``osp:FixedStepAlgorithm``); ``run x.ssp`` then dropped the rest of the
+scenario without a word: ``output.signals`` (every output was recorded), the output interval,
+the coupling beyond the macro step (the run was Jacobi, zero-order hold), ``analysis``,
+``compare``, and each instance's ``substeps`` and ``isolation``.
+
+Now :func:`write_annotation` adds them to the SSD as::
+
+    <ssd:Annotations>
+      <ssc:Annotation type="org.rotorcosim.scenario">
+        <rc:Scenario xmlns:rc="https://rotorcosim.org/SSP/ScenarioAnnotation" format="1">
+    format: 1
+    coupling: {scheme: gauss-seidel, macro_step: 0.1, ...}
+    output: {signals: [a.y], interval: 0.05}
+        </rc:Scenario>
+      </ssc:Annotation>
+    </ssd:Annotations>
+
+(the scenario format's YAML, values at their defaults left out; SSP 1.0 lets tools ignore
+annotation types they do not know, and libcosim does), and :func:`read_annotation` takes them
+back into the scenario document the SSP reader makes (``ssp.scenario_from_ssp``), as untrusted
+as the rest of the SSD.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Mapping
+from xml.etree import ElementTree as ET
+
+from orchestrator.errors import ScenarioError
+from orchestrator.untrusted import InputError
+
+RC_NS = "https://rotorcosim.org/SSP/ScenarioAnnotation"
+_NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
+       "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
+       "rc": RC_NS}
+
+#: ``ssc:Annotation type`` of what a scenario holds that SSP 1.0 has no element for (SSP 1.0 sec.
+#: 2.3.4: tools ignore annotation types they do not know; libcosim does)
+ANNOTATION_TYPE = "org.rotorcosim.scenario"
+ANNOTATION_FORMAT = 1
+#: longest text of the annotation read (characters): a scenario's sections are a few kB
+MAX_ANNOTATION_CHARS = 1 << 20
+#: the scenario keys the annotation may set, and under ``fmus.<instance>`` the keys it may set
+ANNOTATION_KEYS = ("format", "coupling", "output", "analysis", "compare", "fmus")
+ANNOTATION_FMU_KEYS = ("substeps", "isolation")
+
+
+def _plain(value):
+    """``value`` (a loaded scenario's mappings, tuples) as plain dicts, lists and scalars for YAML."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def _changed(spec, skip=()) -> dict:
+    """The fields of a frozen spec that differ from the dataclass's defaults (the loader gives
+    the defaults back), as plain values."""
+    import dataclasses
+    default = type(spec)()
+    return {f.name: _plain(getattr(spec, f.name)) for f in dataclasses.fields(spec)
+            if f.name not in skip and getattr(spec, f.name) != getattr(default, f.name)}
+
+
+def scenario_annotation(scenario) -> dict:
+    """What ``scenario`` holds that SSP 1.0 has no element for, in the scenario format: the whole
+    ``coupling`` section (the SSP's osp:FixedStepAlgorithm holds the macro step only), ``output``,
+    ``analysis``, ``compare`` and each instance's ``substeps`` and ``isolation``. Values at their
+    defaults are left out (the loader gives them back)."""
+    c = scenario.coupling
+    coupling = {"scheme": c.scheme, "macro_step": c.macro_step,
+                **_changed(c, skip=("scheme", "macro_step", "iteration", "step_control"))}
+    if "atol" in (sc := _changed(c.step_control)) and isinstance(c.step_control.atol, tuple):
+        sc["atol"] = {str(k): v for k, v in c.step_control.atol}
+    for key, sub in (("iteration", _changed(c.iteration)), ("step_control", sc)):
+        if sub:
+            coupling[key] = sub
+    doc: dict[str, Any] = {"format": ANNOTATION_FORMAT, "coupling": coupling}
+    output = _changed(scenario.output)
+    if output:
+        doc["output"] = output
+    for key in ("analysis", "compare"):
+        if getattr(scenario, key):
+            doc[key] = _plain(getattr(scenario, key))
+    fmus = {f.name: {k: getattr(f, k) for k in ANNOTATION_FMU_KEYS if getattr(f, k) is not None}
+            for f in scenario.fmus}
+    fmus = {k: v for k, v in fmus.items() if v}
+    if fmus:
+        doc["fmus"] = fmus
+    return doc
+
+
+def write_annotation(root: ET.Element, scenario) -> None:
+    """The rotorcosim annotation as the SSD's last element (``ssd:Annotations``), its content YAML
+    text in an ``rc:Scenario`` element."""
+    import yaml
+    ann = ET.SubElement(ET.SubElement(root, f"{{{_NS['ssd']}}}Annotations"), f"{{{_NS['ssc']}}}Annotation",
+                        {"type": ANNOTATION_TYPE})
+    el = ET.SubElement(ann, f"{{{_NS['rc']}}}Scenario", {"format": str(ANNOTATION_FORMAT)})
+    el.text = "\n" + yaml.safe_dump(scenario_annotation(scenario), sort_keys=False)
+
+
+def read_annotation(root: ET.Element, doc: dict, ssd: str) -> None:
+    """The rotorcosim annotation of an SSD (:func:`scenario_annotation`) into ``doc``: its
+    ``coupling`` replaces the one read from osp:FixedStepAlgorithm, ``output``, ``analysis`` and
+    ``compare`` are set, ``fmus.<instance>`` keys are merged. Untrusted like the rest of the SSD:
+    at most :data:`MAX_ANNOTATION_CHARS` characters, read by the bounded YAML reader (depth,
+    aliases, digits), only :data:`ANNOTATION_KEYS` (per instance :data:`ANNOTATION_FMU_KEYS`, of
+    instances the SSD has); the values are then checked by the scenario loader as any scenario's."""
+    found = [a for a in root.findall("ssd:Annotations/ssc:Annotation", _NS) if a.get("type") == ANNOTATION_TYPE]
+    if not found:
+        return
+    where = f"{ssd}: ssc:Annotation type=\"{ANNOTATION_TYPE}\""
+    if len(found) > 1:
+        raise ScenarioError(f"{where}: given {len(found)} times; keep one")
+    el = found[0].find("rc:Scenario", _NS)
+    if el is None:
+        raise ScenarioError(f"{where}: has no rc:Scenario element ({_NS['rc']}); re-export the SSP, or remove "
+                            "the annotation")
+    if el.get("format") != str(ANNOTATION_FORMAT):
+        raise ScenarioError(f"{where}: format {el.get('format')!r}; this rotorcosim reads format "
+                            f"{ANNOTATION_FORMAT}: export the SSP again with this rotorcosim, or remove the annotation")
+    text = el.text or ""
+    if len(text) > MAX_ANNOTATION_CHARS:
+        raise ScenarioError(f"{where}: {len(text)} characters (limit {MAX_ANNOTATION_CHARS}, orchestrator.scenario."
+                            "ssp.MAX_ANNOTATION_CHARS); not a plausible scenario annotation")
+    import yaml
+
+    from orchestrator.scenario.nodes import YamlLoader
+    from orchestrator.untrusted import compose_yaml, construct_yaml
+    try:
+        node = compose_yaml(text, display=where, loader_cls=YamlLoader)
+        value = None if node is None else construct_yaml(node, display=where, loader_cls=YamlLoader)
+    except InputError as e:
+        raise ScenarioError(str(e)) from None
+    except yaml.YAMLError as e:
+        raise ScenarioError(f"{where}: not valid YAML ({e}); re-export the SSP, or remove the annotation") from None
+    if not isinstance(value, dict):
+        raise ScenarioError(f"{where}: must hold a mapping of scenario sections (got {type(value).__name__})")
+    problems = [f"{where}: unknown key {k!r}; valid: {', '.join(ANNOTATION_KEYS)}"
+                for k in value if k not in ANNOTATION_KEYS]
+    fmus = value.get("fmus", {})
+    if not isinstance(fmus, dict):
+        problems.append(f"{where}: 'fmus' must be a mapping of instance names (got {type(fmus).__name__})")
+        fmus = {}
+    for inst, entry in fmus.items():
+        if inst not in doc["fmus"]:
+            problems.append(f"{where}: 'fmus' names {inst!r}, which is no component of the SSD "
+                            f"({', '.join(doc['fmus']) or 'none'})")
+        elif not isinstance(entry, dict) or any(k not in ANNOTATION_FMU_KEYS for k in entry):
+            problems.append(f"{where}: 'fmus.{inst}' may set only {', '.join(ANNOTATION_FMU_KEYS)} (got "
+                            f"{entry!r:.200})")
+        else:
+            doc["fmus"][inst].update(entry)
+    if problems:
+        raise ScenarioError(problems)
+    for key in ("coupling", "output", "analysis", "compare"):
+        if key in value:
+            doc[key] = value[key]
