@@ -156,8 +156,9 @@ def test_unsupported_ssp_content_is_reported(tmp_path):
     assert "FMU of component 'a' 'resources/missing.fmu' not found" in text
 
 
+_PLAIN_COUPLING = f"coupling: {{scheme: jacobi, macro_step: {H}, extrapolation_order: 0}}\n"
 _RICH = _SYSTEM.replace(
-    f"coupling: {{scheme: jacobi, macro_step: {H}, extrapolation_order: 0}}\noutput: {{signals: [{', '.join(RECORD)}]}}\n",
+    _PLAIN_COUPLING + f"output: {{signals: [{', '.join(RECORD)}]}}\n",
     f"""coupling:
   scheme: gauss-seidel
   sequence: [b, a]

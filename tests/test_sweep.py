@@ -658,3 +658,18 @@ def test_discard_retries_the_fmus_cannot_honour_are_refused_before_any_run(sdir)
             "coupling.step_control type error and coupling.discard_retries cannot be combined") in text, text
     assert main(["sweep", str(sdir / "bad.yaml"), "--out", str(sdir / "o")]) == 1
     assert not (sdir / "o").exists()
+
+
+def test_the_forward_only_warning_of_a_set_step_control_names_the_set(sdir, caplog):
+    """step_control type error with FMUs that cannot save state is a warning (the step adapts
+    forward only): given by --set (a sweep axis), it names the --set, then the message, then the
+    scenario's place."""
+    import logging
+
+    from orchestrator import load_scenario
+    with caplog.at_level(logging.WARNING, logger="orchestrator.scenario"):
+        load_scenario(sdir / "ramp.yaml", ["coupling.step_control.type=error"], build_fmus=False)
+    said = [r.getMessage() for r in caplog.records if "adapts forward" in r.getMessage()]
+    assert said and said[0].startswith("--set coupling.step_control.type=error: 'coupling.step_control: "
+                                       "{type: error}': 'f', 'g' cannot save and restore its state"), said
+    assert said[0].endswith(f"(the next step follows the error of the last) (the scenario: {sdir / 'ramp.yaml'}:8)")

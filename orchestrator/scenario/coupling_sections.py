@@ -245,9 +245,10 @@ def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
                    f"(canHandleVariableCommunicationStepSize is false); use type: constant{then}")
     elif stateless:
         at, then = value_place(ld, node, ("step_control", "type"), ("step_control",))
-        log.warning("%s: %s%s", ld.loc(at), then, f"'coupling.step_control: {{type: error}}': {', '.join(map(repr, stateless))} cannot save "
-                      "and restore its state (canGetAndSetFMUstate is false), so no step can be rejected and "
-                      "redone: the macro step only adapts forward (the next step follows the error of the last)")
+        log.warning("%s: %s%s", ld.loc(at),
+                    f"'coupling.step_control: {{type: error}}': {', '.join(map(repr, stateless))} cannot save "
+                    "and restore its state (canGetAndSetFMUstate is false), so no step can be rejected and "
+                    "redone: the macro step only adapts forward (the next step follows the error of the last)", then)
 
 
 def interpolated_inputs(scheme: str, k: int, q: int, sequence, connections) -> list[str]:

@@ -1,7 +1,8 @@
 """Chatty: y = u, logging ``n_lines`` lines a step through Python's ``logging`` (logger
-``chatty_model``, as PythonFMU FMUs such as crane-fmu's do), ``n_warnings`` Python warnings a
-step (``warnings.warn``) and one message a step through the FMI logger (``Fmi2Slave.log``). Built by tests/test_fmu_python_logging.py only (the leading
-underscore keeps it out of the ``test_fmus`` fixture).
+``chatty_model``, as PythonFMU FMUs such as crane-fmu's do), ``n_warnings`` Python warnings
+a step (``warnings.warn``) and one message a step through the FMI logger (``Fmi2Slave.log``).
+Built by tests/test_fmu_python_logging.py only (the leading underscore keeps it out of the
+``test_fmus`` fixture).
 """
 
 import logging
