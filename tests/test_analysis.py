@@ -498,3 +498,34 @@ def test_analyze_run_on_results_parquet(tmp_path):
     (tmp_path / "bad").mkdir()
     (tmp_path / "bad" / "results.parquet").write_bytes(b"PAR1 not really")
     assert "not a readable Parquet file" in str(pytest.raises(ValueError, RunDirectory(tmp_path / "bad").columns).value)
+
+
+def test_waterfall_has_no_low_band_below_the_whirl_line():
+    """A drifting mean position plus a forward whirl at 0.43 x the rotor speed (6.88 bins: not a
+    whole number of cycles per window, as a real whirl): the waterfall shows the whirl line and
+    the 1x line and nothing at orders 0 .. whirl - 2 bins. Before 2026-12-06 the unweighted linear detrend took
+    part of the whirl into each window's fitted mean and slope, and subtracting them put a band at
+    orders 0 and +-1/16 (0-50 Hz on the half-Sommerfeld run-up) of 4 % of the whirl amplitude
+    into every window after the onset; the drift alone was removed (the window-weighted fit of
+    detrend_windowed takes less than 0.3 % of the whirl)."""
+    t, om, theta = ramp()
+    t_on = 0.8
+    order_w = 0.43
+    whirl = 0.3 * C * np.exp(1j * order_w * theta) * gate(t, t_on)
+    drift = C * (-0.6j * (1.0 - np.exp(-t / 0.5)) + 0.4 * (t / T_END) ** 3)   # mean position moves
+    sync = 0.02 * C * np.exp(1j * theta)
+    for z, has_whirl in ((drift + sync, False), (whirl + drift + sync, True)):
+        wf = waterfall(t, z, om)
+        o, amp = wf["orders"], wf["amplitude"] / C
+        d = 1.0 / P.window_revs
+        after = wf["t"] > t_on + tol_window(t_on)
+        assert after.sum() > 50
+        for k in np.nonzero(after)[0]:
+            row = amp[k]
+            assert row[np.argmin(np.abs(o - 1.0))] == pytest.approx(0.02, rel=0.05)     # 1x in place
+            if has_whirl:
+                near = np.abs(o - order_w) <= 1.0 * d
+                assert row[near].max() > 0.15, (k, row[near])                    # whirl in place
+                assert o[near][np.argmax(row[near])] == pytest.approx(order_w, abs=0.5 * d + 1e-9)
+            below = np.abs(o) < order_w - 2 * d     # 0 .. whirl line (its main lobe out), both ways
+            assert row[below].max() < 0.003, (wf["speed_hz"][k], o[below][np.argmax(row[below])], row[below].max())

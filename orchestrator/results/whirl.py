@@ -11,8 +11,9 @@ whirl has positive frequency). It is analysed in the *order domain*:
    revolution by *averaging* the piecewise-linear ``z(r)`` over each angle bin
    (a box-car anti-alias filter: noise and fast content are not folded back).
 3. Sliding windows of ``window_revs`` (an integer) revolutions, hop
-   ``hop_revs``: linear detrend (removes the static equilibrium position and its
-   slow drift with speed), periodic Hann window, FFT normalised by ``sum(w)``.
+   ``hop_revs``: linear detrend fitted with the window's weights (removes the static
+   equilibrium position and its slow drift with speed without taking part of the
+   whirl, :func:`detrend_windowed`), periodic Hann window, FFT normalised by ``sum(w)``.
    The bins are orders (multiples of the rotor speed), spacing
    ``1/window_revs``; a forward circular orbit of radius ``A`` gives a peak of
    ``A``. Because a window spans an integer number of revolutions, the
@@ -257,6 +258,32 @@ class OrderSpectra:
         return self.band_amplitude(*self.params.band)
 
 
+def _hann(n: int) -> np.ndarray:
+    """Periodic Hann window of ``n`` points."""
+    return 0.5 - 0.5 * np.cos(TWO_PI * np.arange(n) / n)
+
+
+def detrend_windowed(segs: np.ndarray) -> np.ndarray:
+    """Rows of ``segs`` less their linear trend, times the periodic Hann window.
+
+    The trend (mean position and its drift, complex) is the least-squares line *weighted by the
+    window*, so that the windowed residual has exactly zero mean and zero first moment. An
+    unweighted fit (used before 2026-12-06) lets a sub-synchronous whirl that is not a whole number
+    of cycles in the window leak into the fitted mean and slope: subtracting them put a spurious
+    DC + ramp into every window after the whirl onset, which the window turned into a band at
+    orders 0 and +-1/window_revs (0-50 Hz on the half-Sommerfeld run-up, about 4 % of the whirl
+    amplitude). With the window's weights the whirl's share of the fit falls off as the window's
+    side lobes (order 1/k^3), and a slow drift of the mean position is still removed.
+    """
+    n = segs.shape[-1]
+    w = _hann(n)
+    x = np.arange(n, dtype=float)
+    x = x - np.dot(w, x) / w.sum()
+    mean = (segs @ w)[..., None] / w.sum()
+    slope = (segs @ (w * x))[..., None] / np.dot(w, x * x)
+    return (segs - mean - slope * x) * w
+
+
 def order_spectra(t, z, omega, params: WhirlParams | None = None) -> OrderSpectra:
     """Sliding-window order spectra of the complex displacement ``z(t)``.
 
@@ -283,12 +310,7 @@ def order_spectra(t, z, omega, params: WhirlParams | None = None) -> OrderSpectr
         return OrderSpectra(e, e, e, e, orders, np.empty((0, n), complex), p)
     segs = np.lib.stride_tricks.sliding_window_view(z_c, n)[::hop]
     starts = np.arange(segs.shape[0]) * hop
-    # linear detrend (least squares, complex), then periodic Hann
-    xc = np.arange(n) - 0.5 * (n - 1)
-    mean = segs.mean(axis=1, keepdims=True)
-    slope = (segs @ xc)[:, None] / np.sum(xc * xc)
-    w = 0.5 - 0.5 * np.cos(TWO_PI * np.arange(n) / n)
-    X = np.fft.fft((segs - mean - slope * xc) * w, axis=1) / w.sum()
+    X = np.fft.fft(detrend_windowed(segs), axis=1) / _hann(n).sum()
     r_mid = r_c[starts] + 0.5 * (n - 1) / m
     t_mid = np.interp(r_mid, r_c, t_c)
     sp = np.interp(t_mid, t, omega) / TWO_PI
@@ -563,19 +585,26 @@ def _threshold(res, s, eps_list, p, clearance, spd) -> None:
         warn.append(f"threshold_speed_hz not estimated: {why}")
         return
     res["threshold_time_s"], res["threshold_speed_hz"] = t_th, spd(t_th)
-    # how clearly the growing mode stands out at the crossing: largest band bin over
-    # the median band bin (a broadband numerical floor near the threshold biases the
-    # zero crossing late, docs/analysis.md)
+    # how clearly the growing mode stands out at the crossing: the largest band bin over the
+    # largest band bin outside its main lobe (+-1 bin). The growth rate is that of the whole
+    # band's amplitude, so anything else in the band as large as the mode (the unbalance
+    # response's leakage near a critical, a broadband numerical floor) moves the zero crossing
+    # (typically late, docs/analysis.md). Until 2026-12-06 this was the largest over the median
+    # bin, which relied on a floor that the unweighted detrend put into every band bin
+    # (detrend_windowed): without it, the median no longer sees a leakage at one band edge.
     kk = int(np.argmin(np.abs(s.t - t_th)))
     sel = (s.orders >= p.growth_band[0] - 1e-12) & (s.orders <= p.growth_band[1] + 1e-12)
     mags = np.abs(s.X[kk, sel])
-    med = float(np.median(mags))
-    res["threshold_snr"] = float(np.max(mags) / med) if med > 0 else None
+    j = int(np.argmax(mags))
+    rest = mags[np.abs(np.arange(mags.size) - j) > 1]
+    top = float(np.max(rest)) if rest.size else 0.0
+    res["threshold_snr"] = float(mags[j] / top) if top > 0 else None
     if res["threshold_snr"] is not None and res["threshold_snr"] < 3.0:
-        warn.append(f"threshold_speed_hz {res['threshold_speed_hz']:.4g} Hz: the growing mode is not "
-                    f"above the broadband floor there (peak / median bin = {res['threshold_snr']:.2g} "
-                    "< 3): the zero crossing lies in the floor and is unreliable (typically late, "
-                    "where the mode rises out of the floor)")
+        warn.append(f"threshold_speed_hz {res['threshold_speed_hz']:.4g} Hz: the growing mode does not "
+                    f"stand out in growth_band there (its peak / the largest other bin = "
+                    f"{res['threshold_snr']:.2g} < 3): the zero crossing may be that of other content "
+                    "(the unbalance response's leakage, a broadband floor) and is unreliable (typically "
+                    "late, where the mode rises out of it)")
 
 
 def _first_episode(res, s, ratio, all_whirl, resolution) -> None:
