@@ -331,7 +331,7 @@ class JournalBearing(Fmi2Slave):
             getter=self._getter("init"), setter=self._param_setter("init", str), **par))
         self.register_variable(String(
             "fields_file", description=(
-                "if not empty: at fmi2Terminate write numpy.savez(fields_file, phi, z, p, theta, h, t) "
+                "if not empty: at fmi2Terminate write numpy.savez(fields_file, phi, z, p, theta, h, t, cavitation, p0) "
                 "(arrays of JournalBearing.fields(); '{out_dir}' is substituted by the rotorcosim master)"),
             getter=lambda: self.fields_file, setter=self._set_fields_file, **par))
         self._values["linearize"] = 0

@@ -26,7 +26,8 @@ Conventions
   ``q_feed`` [m^3/s] flow out of the groove into the film, ``q_side`` [m^3/s]
   net flow out through both axial edges (in a steady state q_feed = q_side).
 * ``fields()``: ``phi`` (n_phi,) [rad], ``z`` (n_z,) [m] from 0 to B, ``p``
-  [Pa], ``theta`` [-], ``h`` [m], each (n_z, n_phi).
+  [Pa], ``theta`` [-], ``h`` [m], each (n_z, n_phi); ``cavitation`` (the film model, 0 or 1) and
+  ``p0`` [Pa] (a half-Sommerfeld film has theta = 1 and p clipped to p0 where it ruptures).
 * Time: ``t`` is the film time; ``initialize`` sets t = 0.
 """
 
@@ -618,13 +619,17 @@ class BearingModel:
         self._update_outputs()
 
     def fields(self) -> dict:
-        """Pressure, fluid fraction and gap fields (shape (n_z, n_phi))."""
+        """Pressure, fluid fraction and gap fields (shape (n_z, n_phi)), with the film model
+        (``cavitation``: 0 half-Sommerfeld, whose theta is 1 by definition and whose ruptured
+        region is where p is clipped to ``p0``; 1 mass-conserving) and ``p0`` [Pa], so that a
+        reader of the fields file knows what theta means."""
         self._check_init("fields")
         p, th = self._pth()
         H = self._kin[0]
         g = self.grid_full
         return dict(phi=g.phi.copy(), z=g.zbar * self.params.B, p=p.copy(), theta=th.copy(),
-                    h=np.broadcast_to(H * self.c, (g.n_z, g.n_phi)).copy())
+                    h=np.broadcast_to(H * self.c, (g.n_z, g.n_phi)).copy(),
+                    cavitation=np.int64(self.params.cavitation), p0=np.float64(self.params.p0))
 
     # ----------------------------------------------------------- steady
     def _steady(self, kin, u0, max_iter=40):

@@ -240,3 +240,61 @@ def test_waterfall_spans_the_run_and_marks_the_threshold(tmp_path, monkeypatch):
     labels = [line.get_label() for line in ax.lines]
     assert "instability threshold 215 Hz (growth rate > 0)" in labels
     assert any(lab.startswith("whirl onset") for lab in labels)
+
+
+def _field_axes(tmp_path, name, **extra):
+    """The drawn panels (axes with a colour bar's partner excluded) and their titles of one
+    field file written as the bearing FMU writes it, with ``extra`` arrays (None: left out)."""
+    from orchestrator.results.plots.common import PlotContext
+    from orchestrator.results.plots.fields import field_plot
+    phi = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    z = np.linspace(0, 0.032, 12)
+    P, Z = np.meshgrid(phi, z)
+    p = 1e5 + 30e5 * np.clip(np.sin(P - np.pi / 2), 0, None) ** 2 * np.sin(np.pi * Z / 0.032)
+    arrays = dict(phi=phi, z=z, p=p, theta=np.ones_like(p), h=1 - 0.7 * np.cos(P - np.pi), t=0.1)
+    arrays.update({k: v for k, v in extra.items() if v is not None})
+    for k in [k for k, v in extra.items() if v is None]:
+        arrays.pop(k, None)
+    path = tmp_path / f"{name}_fields.npz"
+    np.savez(path, **arrays)
+    drawn = []
+
+    class Ctx(PlotContext):
+        def save(self, fig, fname):
+            drawn.append(fig)
+            super().save(fig, fname)
+
+    field_plot(Ctx(name="run", out=tmp_path / "plots"), path)
+    check_png(tmp_path / "plots" / f"fields_{name}.png")
+    fig, = drawn
+    panels = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
+    return panels, " ".join(ax.get_title() for ax in panels), p
+
+
+def test_half_sommerfeld_fields_show_pressure_and_the_ruptured_region_not_theta(tmp_path):
+    """A half-Sommerfeld film has no fluid fraction: theta is 1 by definition. Before 2026-12-06 its
+    figure had a second panel of that constant theta (a yellow rectangle, colour bar 0.999-1);
+    now the bearing writes its film model (cavitation, p0) into the fields file and the figure
+    is the pressure alone, the ruptured region (p clipped to p0) hatched, and says so."""
+    panels, titles, p = _field_axes(tmp_path, "hs", cavitation=np.int64(0), p0=np.float64(1e5))
+    assert len(panels) == 1, titles
+    assert "half-Sommerfeld" in titles and "ruptured, p clipped to p0 = 1 bar" in titles, titles
+    assert f"({100 * np.mean(p <= 1e5 + 1e-9 * p.max()):.0f} % of the film)" in titles
+    # the mass-conserving film keeps its fluid-fraction panel, even when it is full
+    panels, titles, _ = _field_axes(tmp_path, "mc", cavitation=np.int64(1), p0=np.float64(1e5),
+                                    theta=np.where(np.arange(24) > 14, 0.7, 1.0) * np.ones((12, 1)))
+    assert len(panels) == 2 and "fluid fraction" in titles and "half-Sommerfeld" not in titles
+    # a file of before (no film model) with theta 1 everywhere: that panel would show nothing
+    panels, titles, _ = _field_axes(tmp_path, "old", cavitation=None, p0=None)
+    assert len(panels) == 1 and "= 1 everywhere" in titles, titles
+    with pytest.raises(ValueError, match="expected 0 .half-Sommerfeld. or 1"):
+        _field_axes(tmp_path, "bad", cavitation=np.int64(7))
+
+
+def test_the_bearing_writes_its_film_model_into_the_fields(tmp_path):
+    from bearing_fmu.model import BearingModel, BearingParams
+    b = BearingModel(BearingParams(R=4.9e-3, B=7.84e-3, psi=2.8e-3, n_phi=24, n_z=12, cavitation=0))
+    b.initialize(4e-6, -6e-6, 0.0, 0.0, 2 * math.pi * 100.0)
+    f = b.fields()
+    assert int(f["cavitation"]) == 0 and float(f["p0"]) == 1e5
+    assert np.all(f["theta"] == 1.0) and np.isclose(f["p"].min(), 1e5) and f["p"].max() > 1e5

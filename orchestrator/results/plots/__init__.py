@@ -9,7 +9,8 @@ What is drawn, when the data exist (see ``docs/analysis.md``):
 * ``waterfall_<journal>.png``: run-up waterfall, frequency of the forward journal
   motion against rotor speed, colour = amplitude / clearance, 1x and 0.5x lines;
 * ``fields_<name>.png``: pressure [bar] and fluid fraction over (phi [deg], z [mm])
-  for every ``*_fields.npz`` (stationary runs), cavity (theta < 1) outlined;
+  for every ``*_fields.npz`` (stationary runs), cavity (theta < 1) outlined; a
+  half-Sommerfeld film: the pressure alone, its ruptured region (p = p0) outlined;
 * ``signals_<instance>.png``: the recorded signals over time, one figure per
   instance, for a run without journals (any FMUs) or the ``signals`` picked
   (:mod:`orchestrator.results.plots.signals`).

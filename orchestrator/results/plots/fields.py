@@ -1,4 +1,11 @@
-"""``fields_<name>.png``: pressure [bar] and fluid fraction over (phi [deg], z [mm]) of each field file, cavity outlined."""
+"""``fields_<name>.png``: pressure [bar] and fluid fraction over (phi [deg], z [mm]) of each field file, cavity outlined.
+
+A half-Sommerfeld film (the file's ``cavitation`` = 0) has no fluid fraction (theta is 1 by
+definition): its figure is the pressure alone, with the ruptured region (pressure clipped to
+``p0``) hatched and outlined, and says so in its title. A file without ``cavitation`` (written
+before 2026-12-06, or by another tool) whose theta is 1 everywhere gets the pressure alone too,
+as that panel would show nothing.
+"""
 
 from __future__ import annotations
 
@@ -30,6 +37,7 @@ MAX_FIELD_FILE_BYTES = 256 * 2**20
 MAX_FIELD_VALUES = 2**20
 """values of one array in it (our bearings refuse films of more than 262 144 cells)"""
 _FIELD_ARRAYS = ("phi", "z", "p", "theta")
+_FIELD_SCALARS = ("cavitation", "p0")       # optional: the film model and the ambient pressure
 
 
 def read_fields(path: Path) -> dict[str, np.ndarray]:
@@ -65,6 +73,15 @@ def read_fields(path: Path) -> dict[str, np.ndarray]:
                     held = sorted(n.removesuffix(".npy") for n in names)[:10]
                     raise ValueError(f"no array '{key}' (it holds {held})")
                 out[key] = _read_array(zf, key)
+            for key in _FIELD_SCALARS:
+                if f"{key}.npy" in names:
+                    out[key] = _read_array(zf, key)
+    for key in _FIELD_SCALARS:
+        if key in out and (out[key].size != 1 or not np.isfinite(out[key]).all()):
+            raise ValueError(f"'{key}' is {out[key].ravel()[:3]} of shape {out[key].shape}, expected one finite number")
+    if "cavitation" in out and float(out["cavitation"]) not in (0.0, 1.0):
+        raise ValueError(f"'cavitation' is {float(out['cavitation']):g}, expected 0 (half-Sommerfeld) or 1 "
+                         "(mass-conserving)")
     phi, z, p = out["phi"], out["z"], out["p"]
     for key, a in (("phi", phi), ("z", z)):
         if a.ndim != 1 or a.size < 2:
@@ -101,14 +118,31 @@ def field_plot(ctx: PlotContext, path: Path) -> None:
     from matplotlib.figure import Figure
     d = read_fields(path)
     phi, zz, p, theta = d["phi"], d["z"], d["p"], d.get("theta")
+    model = int(d["cavitation"]) if "cavitation" in d else None
+    hs = model == 0
+    note = None
+    if hs:
+        theta = None
+    elif model is None and theta is not None and np.all(theta == 1.0):
+        theta, note = None, r"fluid fraction $\vartheta$ = 1 everywhere (full film or half-Sommerfeld): not drawn"
     n = 2 if theta is not None else 1
-    fig = Figure(figsize=(7, 3.3 * n), layout="constrained")
+    fig = Figure(figsize=(7, 3.3 * n + (0.5 if note or hs else 0.0)), layout="constrained")
     axes = fig.subplots(n, 1, squeeze=False)[:, 0]
     P_, Z_ = np.degrees(phi), zz * 1e3
     cp = axes[0].contourf(P_, Z_, p / 1e5, levels=30, cmap="viridis")
     fig.colorbar(cp, ax=axes[0], label="pressure p [bar]")
-    axes[0].set_title(f"{ctx.name}: {path.stem}  (p_max {p.max() / 1e5:.4g} bar, "
-                      f"p_min {p.min() / 1e5:.4g} bar)", fontsize=10)
+    title = (f"{ctx.name}: {path.stem}  (p_max {p.max() / 1e5:.4g} bar, "
+             f"p_min {p.min() / 1e5:.4g} bar)")
+    if hs:
+        p0 = float(d["p0"]) if "p0" in d else float(p.min())
+        ruptured = p <= p0 + 1e-9 * max(float(np.max(np.abs(p))), 1.0)
+        note = (r"half-Sommerfeld film: no fluid fraction ($\vartheta$ = 1 by definition)" "\n"
+                + (f"hatched, red outline: ruptured, p clipped to p0 = {p0 / 1e5:.4g} bar "
+                   f"({100 * ruptured.mean():.0f} % of the film)" if ruptured.any() else "no ruptured region"))
+        if ruptured.any() and not ruptured.all():
+            axes[0].contour(P_, Z_, ruptured.astype(float), levels=[0.5], colors="r", linewidths=1.0)
+            axes[0].contourf(P_, Z_, ruptured.astype(float), levels=[0.5, 1.5], colors="none", hatches=["//"])
+    axes[0].set_title(title + (f"\n{note}" if note else ""), fontsize=10)
     if theta is not None:
         cav = theta < 1.0 - 1e-3
         ct = axes[1].contourf(P_, Z_, theta, levels=np.linspace(min(theta.min(), 0.999), 1.0, 21),
