@@ -37,7 +37,7 @@ from fmu_common.slave import (
 _FILM_REAL = {   # per film (suffix _inner / _outer): name -> (inner default, outer default, unit, description)
     "R": (4.9e-3, 7.84e-3, "m", "film radius: journal radius (inner), ring outer radius (outer) [m]"),
     "B": (7.84e-3, 7.84e-3, "m", "axial film width [m]"),
-    "psi": (2.8e-3, 3.5e-3, "1", "relative radial clearance psi = c/R [-]"),
+    "psi": (2.8e-3, 3.5e-3, "1", "relative radial clearance psi = c/R, radial clearance over radius [-], typically 1e-3 to 3e-3 (a value in per mille is 1000 times too large; a clearance in m is not psi)"),
     "eta0": (0.012, 0.012, "Pa.s", "oil viscosity [Pa s]"),
     "p_feed": (1.0e5, 1.0e5, "Pa", "feed pressure in the groove [Pa] (inner: fed through the ring)"),
     "groove_width": (0.0, 0.0, "rad", "opening angle of the axial feed groove [rad] (0: no groove)"),

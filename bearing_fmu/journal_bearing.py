@@ -66,10 +66,13 @@ log = logging.getLogger(__name__)
 DEFAULT_R = 0.02
 
 REAL_PARAMETERS: dict[str, tuple[float, str, str]] = {
-    "R": (DEFAULT_R, "m", "journal (bearing) radius R [m]"),
-    "B": (1.6 * DEFAULT_R, "m", "axial bearing width B [m]"),
-    "psi": (2.8e-3, "1", "relative radial clearance psi = C/R [-]"),
-    "eta0": (0.012, "Pa.s", "dynamic viscosity of the pure lubricant eta0 [Pa s]"),
+    "R": (DEFAULT_R, "m", "journal (bearing) radius R [m] (e.g. 0.02 for 20 mm)"),
+    "B": (1.6 * DEFAULT_R, "m", "axial bearing width B [m] (e.g. 0.032 for 32 mm)"),
+    "psi": (2.8e-3, "1", "relative radial clearance psi = C/R, radial clearance C over journal radius R [-], "
+                         "typically 1e-3 to 3e-3 (1 to 3 per mille); a value in per mille is 1000 times too "
+                         "large (1.5 per mille is psi = 1.5e-3), a clearance in m is not psi (C = 15 um at "
+                         "R = 10 mm is psi = 1.5e-3)"),
+    "eta0": (0.012, "Pa.s", "dynamic viscosity of the pure lubricant eta0 [Pa s] (e.g. 0.012 for 12 mPa s = 12 cP)"),
     "p0": (1.0e5, "Pa", "ambient pressure p0 [Pa]"),
     "p_feed": (1.0e5, "Pa", "feed pressure in the axial groove p_feed [Pa]"),
     "groove_width": (0.0, "rad", "opening angle of the axial feed groove [rad] (0: no groove)"),
@@ -121,9 +124,13 @@ LINEARIZATION_OUTPUTS: dict[str, tuple[str, str]] = {
 # to bearing_fmu.model's (tests/test_fmu_param_bounds.py checks it; model.py is not imported
 # here: the FMU loads its code in __init__, see use_stable_code_copy).
 MAX_N_PHI, MAX_N_Z = 8192, 2048
+# psi = C/R: journal bearings have 0.3 to 3 per mille; 1e-4 .. 0.1 refuses a value in per mille
+# (1.5 for 1.5e-3) and a clearance in metres (1.5e-5 for 15 um), both of which passed as psi > 0
+# before 2026-12-06 (the first with a film 100 x too thin). Keep equal to bearing_fmu.model's.
+PSI_MIN, PSI_MAX = 1.0e-4, 0.1
 POS = POSITIVE
 PARAMETER_RANGES: dict[str, tuple[Any, Any]] = {
-    "R": (POS, None), "B": (POS, None), "psi": (POS, 0.1), "eta0": (POS, None), "p0": (0.0, None),
+    "R": (POS, None), "B": (POS, None), "psi": (PSI_MIN, PSI_MAX), "eta0": (POS, None), "p0": (0.0, None),
     "p_feed": (0.0, None), "groove_width": (0.0, 2 * math.pi), "sigma_rough": (POS, None),
     "contact_KE": (0.0, None), "mu_contact": (0.0, None), "contact_h_limit": (-6.0, 0.0),
     "n_phi": (8, MAX_N_PHI), "n_z": (2, MAX_N_Z), "cavitation": (0, 1), "axial_bc": (0, 1),

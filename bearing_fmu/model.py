@@ -60,6 +60,7 @@ __all__ = ["BearingParams", "BearingModel", "StepFailed", "film_memory_estimate"
 # square grid (BENCHMARKS.md session 19): time, not memory, is what limits it.
 MAX_N_PHI = 8192
 MAX_N_Z = 2048
+PSI_MIN, PSI_MAX = 1.0e-4, 0.1   # relative clearance C/R (journal_bearing.PSI_MIN/MAX: the FMU's declared range)
 MAX_FILM_CELLS = 2**18       # n_phi * n_z (262 144 cells; 1536 x 40 is 61 440)
 
 
@@ -230,13 +231,23 @@ class BearingParams:
                 problems.append(f"BearingParams.{name} must be {expected} "
                                 f"(got {getattr(self, name)!r})")
 
+        what = {"R": " [m], the journal radius (e.g. 0.02 for 20 mm; a value in mm is 1000 times too large)",
+                "B": " [m], the axial bearing width (e.g. 0.032 for 32 mm; a value in mm is 1000 times too large)",
+                "psi": " [-], the relative radial clearance C/R (typically 1e-3 to 3e-3)",
+                "eta0": " [Pa s], the dynamic viscosity (e.g. 0.012 for 12 mPa s; a value in mPa s or cP is "
+                        "1000 times too large)"}
         for name in ("R", "B", "psi", "eta0", "cav_width", "cav_smoothing",
                      "penalty_b", "theta_atol", "newton_atol", "h_init", "h_min",
                      "h_max"):
             v = getattr(self, name)
             need(name, isinstance(v, (int, float)) and math.isfinite(v) and v > 0,
-                 "a positive finite number")
-        need("psi", self.psi < 0.1, "a relative clearance below 0.1 (e.g. 2.8e-3)")
+                 "a positive finite number" + what.get(name, ""))
+        if isinstance(self.psi, (int, float)) and math.isfinite(self.psi) and not PSI_MIN <= self.psi <= PSI_MAX:
+            problems.append(
+                f"BearingParams.psi must be the relative radial clearance C/R (radial clearance over "
+                f"journal radius) in [{PSI_MIN:g}, {PSI_MAX:g}], typically 1e-3 to 3e-3 (got {self.psi!r} = "
+                f"{self.psi * 1e3:.4g} per mille): a value in per mille is 1000 times too large (1.5 per mille "
+                f"is psi = 1.5e-3); a clearance C in m is not psi (psi = C / R, e.g. 15e-6 m / 10e-3 m = 1.5e-3)")
         for name in ("p0", "p_feed", "groove_width", "groove_angle", "penalty_a",
                      "newton_rtol"):
             v = getattr(self, name)

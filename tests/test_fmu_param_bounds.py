@@ -53,7 +53,8 @@ def test_our_fmus_declare_parameter_ranges():
     assert (jb["n_z"].min, jb["n_z"].max) == (2, model.MAX_N_Z)
     assert (journal_bearing.MAX_N_PHI, journal_bearing.MAX_N_Z) == (model.MAX_N_PHI, model.MAX_N_Z)
     assert (jb["cavitation"].min, jb["cavitation"].max) == (0, 1)
-    assert 0 < jb["psi"].min < 1e-300 and jb["psi"].max == 0.1
+    assert (jb["psi"].min, jb["psi"].max) == (model.PSI_MIN, model.PSI_MAX) == (journal_bearing.PSI_MIN,
+                                                                                journal_bearing.PSI_MAX)
     assert jb["R"].min > 0 and jb["solver_h_min"].min > 0 and jb["contact_h_limit"].min == -6.0
     for name, var in jb.items():                       # every default inside its declared range
         if var.causality == "parameter" and var.min is not None:
@@ -271,3 +272,44 @@ def test_a_film_larger_than_the_available_memory_is_refused(monkeypatch):
 def test_the_available_memory_is_read():
     from bearing_fmu.model import available_memory
     assert available_memory() > 2**26
+
+
+@pytest.mark.parametrize("psi, words", [
+    ("1.5", ["bearing1.psi' = 1.5", "outside its declared range [0.0001, 0.1]", "C/R",
+             "radial clearance C over journal radius R", "typically 1e-3 to 3e-3", "per mille",
+             "1.5 per mille is psi = 1.5e-3"]),
+    ("1.5e-5", ["bearing1.psi' = 1.5e-05", "a clearance in m is not psi"]),   # a clearance in metres
+])
+def test_psi_out_of_range_says_what_psi_is(tmp_path, psi, words):
+    """Before 2026-12-06 psi = 1.5 (meant: 1.5 per mille) got "outside its declared range (0, 0.1]"
+    without saying what psi is, and a clearance in metres (1.5e-5) was accepted (psi > 0)."""
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(scenario(tmp_path, GOOD.replace("psi: 2.8e-3", f"psi: {psi}")))
+    msg = str(exc.value)
+    for w in words:
+        assert w in msg, msg
+
+
+def test_geometric_parameters_out_of_range_give_their_units(tmp_path):
+    """A range error says what the parameter is, with its unit (from the FMU's description)."""
+    for old, bad, words in (("R: 4.9e-3", "R: 0", ["bearing1.R' = 0.0", "radius R [m]", "20 mm"]),
+                            ("B: 7.84e-3", "B: -7.84", ["width B [m]", "32 mm"]),
+                            ("eta0: 0.012", "eta0: -12", ["eta0 [Pa s]", "12 mPa s"])):
+        with pytest.raises(ScenarioError) as exc:
+            load_scenario(scenario(tmp_path, GOOD.replace(old, bad)))
+        for w in words:
+            assert w in str(exc.value), str(exc.value)
+
+
+def test_bearing_params_psi_message_in_per_mille():
+    """The model's own check (BearingParams, also the FMU's check in another importer)."""
+    from bearing_fmu.journal_bearing import fmu_parameter_message
+    from bearing_fmu.model import BearingParams
+    for psi, shown in ((1.5, "1500 per mille"), (1.5e-5, "0.015 per mille")):
+        with pytest.raises(ValueError) as exc:
+            BearingParams(psi=psi)
+        msg = fmu_parameter_message(str(exc.value).splitlines()[1])
+        assert msg.startswith("parameter 'psi' must be the relative radial clearance C/R"), msg
+        assert shown in msg and "1.5 per mille is psi = 1.5e-3" in msg and "C / R" in msg, msg
+    with pytest.raises(ValueError, match=r"BearingParams.R must be a positive finite number \[m\], the journal radius"):
+        BearingParams(R=0.0)

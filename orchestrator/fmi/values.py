@@ -34,7 +34,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from orchestrator.untrusted import surrogate_problem
+from orchestrator.untrusted import surrogate_problem, terminal_text
 
 INT32_MIN, INT32_MAX = -2**31, 2**31 - 1      # fmi2Integer is a C int (FMI 2.0 sec. 2.1.2, fmi2TypesPlatform.h)
 
@@ -158,8 +158,23 @@ def check_value(var, value: Any, qualified: str) -> tuple[Any, str | None]:
         if (lo is not None and conv < lo) or (hi is not None and conv > hi):
             return None, (f"'{qualified}' = {conv!r} is outside its declared range {declared_range(var)} "
                           f"(min/max{' of type ' + var.declared_type if var.declared_type else ''}); "
-                          "give a value inside the range")
+                          f"give a value inside the range{_what_it_is(var)}")
     return conv, None
+
+
+def _what_it_is(var, n: int = 300) -> str:
+    """``"; it is <description> [unit]"`` of ``var`` for a range error, so that the user sees what
+    the number means and in which unit (psi is C/R, not per mille; R is in m, not mm); the FMU's
+    text shown escaped and cut at ``n`` characters. Empty when the FMU declares neither."""
+    desc = terminal_text(" ".join((getattr(var, "description", "") or "").split()))
+    unit = terminal_text(getattr(var, "unit", "") or "")
+    if len(desc) > n:
+        desc = desc[:n] + "..."
+    if unit and unit != "1" and "[" not in desc and desc:       # a description such as "radius R [m]" has it
+        desc += f" (unit {unit})"
+    elif unit and not desc:
+        desc = f"in {unit}"
+    return f"; '{var.name}' is: {desc}" if desc else ""
 
 
 def _short(text: str, n: int = 40) -> str:
