@@ -359,3 +359,68 @@ def test_an_arena_with_a_live_view_closes_without_a_traceback():
     del view
     _close_arena(arena)                                   # and closes once nothing points into it
     assert arena.closed
+
+
+# Loaded into the worker process (sitecustomize on its PYTHONPATH): its initialization fails,
+# and the frames of that failing call are kept alive after it, as a cache of compile errors
+# (numba keeps the exceptions of a failed typing), an FMU's leaked traceback or an exception
+# cycle not yet collected keep them; the cyclic GC is off so that it cannot run between the
+# failure and the exit. mmap.close reports a BufferError on stderr even when the caller hides it.
+_FAILING_INIT_HOOK = '''
+import gc, mmap, sys
+gc.disable()
+
+class _ReportingMmap(mmap.mmap):
+    def close(self):
+        try:
+            super().close()
+        except BufferError as e:
+            sys.stderr.write(f"worker arena close: BufferError: {e}\\n")
+            sys.stderr.flush()
+            raise
+
+mmap.mmap = _ReportingMmap
+KEPT = []
+from orchestrator.errors import FmuCallError
+from orchestrator.fmi import subsystem
+
+def _failing_get(self, batch):
+    # as the bearing does: its model is made at the first fmi2GetReal in initialization mode,
+    # and fails there (journal outside the clearance, a bad parameter)
+    KEPT.append(sys._getframe())
+    raise FmuCallError(self.name, "fmi2GetReal", "error", "initialization failed (test hook)")
+
+subsystem.Subsystem.get_real = _failing_get
+sys.stderr.write("failing-initialization hook loaded\\n")
+'''
+
+
+def test_a_failing_initialization_leaves_no_view_into_the_shared_memory(fmus, tmp_path, monkeypatch, capfd):
+    """The worker's path of a failing initialization (walkthrough: a bare 'BufferError: cannot
+    close exported pointers exist' from worker_main at the end of `validate`, after the bearing's
+    initialization failed). The worker's numpy/ctypes views into its shared memory were locals
+    of _execute (``reg``, the batches' buffers): any frame of the failing call kept alive after it
+    kept them, and mmap.close raised. The worker now holds every view in one ArenaViews that
+    releases them (and empties the batches) before the close, and drops the traceback of a
+    failed command; the worker exits by itself, with nothing on stderr."""
+    hook = tmp_path / "hook"
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(_FAILING_INIT_HOOK)
+    monkeypatch.setenv("PYTHONPATH", str(hook) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    w = WorkerSubsystem("bearing1", fmus / "LinearBearing.fmu", work_dir=tmp_path / "w")
+    try:
+        w.set_parameters({"k": 2.0e6, "c": 300.0})
+        w.setup_experiment(0.0, 1.0)
+        w.enter_initialization_mode()
+        inb, outb = w.real_batch(["x", "y", "vx", "vy"]), w.real_batch(["Fx", "Fy"])
+        inb.values[:] = [1e-6, 0.0, 0.0, 0.0]
+        w.set_real(inb)
+        with pytest.raises(FmuCallError, match="initialization failed"):
+            w.get_real(outb)
+    finally:
+        w.free()
+    code = w._chan._proc.returncode
+    err = capfd.readouterr().err
+    assert "failing-initialization hook loaded" in err           # the worker ran with the hook
+    assert "BufferError" not in err and "Traceback" not in err, err
+    assert code == 0, (code, err)                                 # it exited by itself

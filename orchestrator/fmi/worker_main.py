@@ -17,6 +17,7 @@ import os
 import select
 import signal
 import sys
+import traceback
 from multiprocessing import connection as mp_connection
 from typing import Any
 
@@ -26,6 +27,58 @@ from orchestrator.errors import FmuCallError, ScenarioError
 from orchestrator.fmi.subsystem import RealBatch
 from .channel import CODES, spin_poll
 from .worker import SLOTS
+
+class ArenaViews:
+    """Every view of the worker into its shared memory: the call register (``reg``: the FMI
+    function's time; ``code``: the command being executed) and the Real batches whose ctypes
+    buffers lie in the arena (``batches``: {slot id: RealBatch}).
+
+    They live here, not in the locals of ``_serve`` / ``_execute``, so that :meth:`release` drops
+    them all before the arena is closed, whatever still references a frame or a batch: a ctypes
+    ``from_buffer`` array pins the mmap (``mmap.close`` raises ``BufferError: cannot close exported
+    pointers exist``), and a frame of a failed FMU call can outlive the call (its exception's
+    traceback, a cache of compile errors such as numba's, an exception cycle the GC has not
+    collected yet), with the batch it was given as a local. Release empties every batch
+    (``c_values`` and ``values`` become None), so a batch kept by such a frame no longer pins it.
+    """
+
+    def __init__(self, arena: mmap.mmap):
+        self.arena = arena
+        self.reg = np.ndarray((2,), dtype=np.float64, buffer=arena)
+        self.code = np.ndarray((1,), dtype=np.int64, buffer=arena)
+        self.batches: dict[int, RealBatch] = {}
+
+    def register(self, bid: int, offset: int, nbytes: int, vrs, orders) -> None:
+        """The SLOTS batches of batch ``bid``, their buffers at ``offset + k * nbytes`` in the arena."""
+        for k in range(SLOTS):
+            b = RealBatch([str(v) for v in vrs], vrs, orders)
+            b.c_values = (ctypes.c_double * max(b.n, 1)).from_buffer(self.arena, offset + k * nbytes)
+            b.values = np.ctypeslib.as_array(b.c_values)[: b.n]
+            self.batches[bid * SLOTS + k] = b
+
+    def drop_batches(self) -> None:
+        """Empty and forget the batches (see the class doc); the call register stays."""
+        for b in self.batches.values():
+            b.c_values = b.values = None
+        self.batches.clear()
+
+    def release(self) -> None:
+        """Drop every view, the call register too (before the arena is closed). Idempotent."""
+        self.drop_batches()
+        self.reg = self.code = None
+
+
+def _drop_traceback(e: BaseException) -> None:
+    """Clear the frames of ``e``'s traceback (and of its causes and contexts) once it has been
+    reported: their locals (the batch a failed get/set was given) go now, not whenever the last
+    reference to the traceback goes."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        traceback.clear_frames(e.__traceback__)
+        e.__traceback__ = None
+        e = e.__cause__ or e.__context__
+
 
 class _Collect(logging.Handler):
     """Log records of the worker at WARNING and above, sent to the master with each reply."""
@@ -81,20 +134,19 @@ def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str,
     conn.send(("hello",))
     arena = mmap.mmap(arena_fd, os.fstat(arena_fd).st_size)     # as large as the master made it
     os.close(arena_fd)
-    reg = np.ndarray((2,), dtype=np.float64, buffer=arena)
-    code = np.ndarray((1,), dtype=np.int64, buffer=arena)
+    views = ArenaViews(arena)
     sub = None
-    batches: dict[int, RealBatch] = {}
     states: dict[int, Any] = {}
     try:
         msg = conn.recv()                         # [("init",)]
-        code[0] = 1
+        views.code[0] = 1
         try:
             sub = Subsystem(name, fmu_path, work_dir=work_dir)
         except Exception as e:
             conn.send(("err", 0, *_encode(e), logs.take()))
+            _drop_traceback(e)
             return
-        code[0] = 0
+        views.code[0] = 0
         conn.send(("ok", None, logs.take()))
         poller = select.poll()
         poller.register(conn.fileno(), select.POLLIN)
@@ -108,50 +160,60 @@ def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str,
             result, done = None, False
             for i, cmd in enumerate(msg):
                 op = cmd[0]
-                code[0] = CODES[op]
+                views.code[0] = CODES[op]
                 try:
-                    result, done = _execute(sub, op, cmd, batches, states, arena, reg)
+                    result, done = _execute(sub, op, cmd, views, states)
                 except Exception as e:
-                    conn.send(("err", i, *_encode(e), logs.take()))
+                    reply = ("err", i, *_encode(e), logs.take())
+                    _drop_traceback(e)
+                    conn.send(reply)
                     break
             else:
-                code[0] = 0
+                views.code[0] = 0
                 conn.send(("ok", result, logs.take()))
-            code[0] = 0
+            views.code[0] = 0
             if done:
                 sub = None
                 return
     finally:
         if sub is not None:
             sub.free()
-        batches.clear()
-        del reg, code
-        _close_arena(arena)
+        views.release()
+        _close_arena(arena, name)
         conn.close()
 
 
-def _close_arena(arena: mmap.mmap) -> None:
-    """Close the worker's shared memory at its exit. A view into it that is still alive (an
-    instance left unfreed after fmi2Fatal, or an exception whose traceback holds a batch's
-    buffer) makes ``mmap.close`` raise BufferError; the worker printed that as a bare traceback
-    on the user's terminal at the end of a ``validate`` (seen after an FMU rebuild, with the
-    bearing's initialization failing or warning). The process is exiting: its mappings go with
-    it, so an arena that cannot be closed yet is left to the exit."""
+def _close_arena(arena: mmap.mmap, name: str = "?") -> None:
+    """Close the worker's shared memory at its exit, after :meth:`ArenaViews.release`. Should
+    something outside the worker's own views still point into it (an FMU that kept a pointer,
+    a ctypes array made elsewhere), the cyclic GC gets one chance to collect it, and then the
+    arena is left to the process exit, which releases it, with one line on stderr instead of
+    the bare ``BufferError`` traceback the worker printed before 2026-12-06."""
+    try:
+        arena.close()
+        return
+    except BufferError:
+        pass
+    import gc
+    gc.collect()
     try:
         arena.close()
     except BufferError:
-        pass
+        sys.stderr.write(f"rotorcosim FMU worker '{name}': its shared memory is still referenced at exit "
+                         "(left to the process exit)\n")
 
 
-def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) -> tuple[Any, bool]:
-    """One command in the worker; returns (result, worker done)."""
+def _execute(sub, op: str, cmd: tuple, views: ArenaViews, states: dict) -> tuple[Any, bool]:
+    """One command in the worker; returns (result, worker done). The arena's views are reached
+    through ``views`` only (no view as a local: a frame kept after a failure must not pin it)."""
+    batches = views.batches
     if op == "set":
         sub.set_real(batches[cmd[1]])
     elif op == "step":
-        reg[1] = cmd[1]
+        views.reg[1] = cmd[1]
         sub.no_set_prior_state = cmd[3]
         sub.do_step(cmd[1], cmd[2])
-        reg[1] = cmd[1] + cmd[2]
+        views.reg[1] = cmd[1] + cmd[2]
     elif op == "get":
         sub.get_real(batches[cmd[1]])
     elif op == "der":
@@ -173,11 +235,7 @@ def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) 
         return sub.terminated_by_fmu(), False
     elif op == "reg":
         _, bid, offset, nbytes, vrs, orders = cmd
-        for k in range(SLOTS):
-            b = RealBatch([str(v) for v in vrs], vrs, orders)
-            b.c_values = (ctypes.c_double * max(b.n, 1)).from_buffer(arena, offset + k * nbytes)
-            b.values = np.ctypeslib.as_array(b.c_values)[: b.n]
-            batches[bid * SLOTS + k] = b
+        views.register(bid, offset, nbytes, vrs, orders)
     elif op == "gs":
         states[cmd[1]] = sub.get_state()
     elif op == "ss":
@@ -187,7 +245,7 @@ def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) 
     elif op == "params":
         sub.set_parameters(cmd[1], out_dir=cmd[2])
     elif op == "setup":
-        reg[1] = cmd[1]
+        views.reg[1] = cmd[1]
         sub.setup_experiment(cmd[1], cmd[2])
     elif op == "enter":
         sub.enter_initialization_mode()
@@ -199,7 +257,7 @@ def _execute(sub, op: str, cmd: tuple, batches: dict, states: dict, arena, reg) 
         for s in list(states.values()):
             sub.free_state(s)
         states.clear()
-        batches.clear()
+        views.drop_batches()
         sub.free()
         return dict(sub.calls), True
     return None, False
