@@ -1,4 +1,6 @@
-"""``fields_<name>.png``: pressure [bar] and fluid fraction over (phi [deg], z [mm]) of each field file, cavity outlined.
+"""``fields_<name>.png``: pressure [bar] and fluid fraction over (phi [deg], z [mm]) of each field file.
+
+The cavity (theta < 1) is hatched and outlined on both panels.
 
 A half-Sommerfeld film (the file's ``cavitation`` = 0) has no fluid fraction (theta is 1 by
 definition): its figure is the pressure alone, with the ruptured region (pressure clipped to
