@@ -99,6 +99,14 @@ def _worker_env() -> dict:
     return env
 
 
+# A worker is a process group of its own: the terminal's Ctrl-C (SIGINT to the whole foreground
+# group) and a SIGTERM to the run's group (`kill -- -PGID`, a batch system cancelling a job) reach
+# the master only, which stops its workers in order. The worker ignores both signals once its
+# imports are done (worker_main._worker_setup), but a Ctrl-C in its first 0.3 s (the imports)
+# killed it with a KeyboardInterrupt traceback, and the run ended "FMU instance 'rotor' crashed
+# in starting the worker process ... the FMU's binary failed" instead of "interrupted by the user"
+_OWN_GROUP = {"process_group": 0} if os.name == "posix" else {}
+
 SPIN_WAIT = env_number("ROTORCOSIM_WORKER_SPIN", 0.002, minimum=0.0, maximum=1.0,
                        meaning="seconds a pinned worker polls before it blocks; 0 = off")
 """s: how long a pinned channel and its worker poll before they block (WorkerChannel.spin);
@@ -142,7 +150,8 @@ class WorkerChannel:
             self._proc = subprocess.Popen(
                 [sys.executable, "-m", "orchestrator.fmi.worker_main", str(theirs.fileno()), str(self._arena_fd),
                  name, str(fmu_path), str(work_dir), repr(self.spin)],
-                pass_fds=(theirs.fileno(), self._arena_fd), env=_worker_env(), stdin=subprocess.DEVNULL)
+                pass_fds=(theirs.fileno(), self._arena_fd), env=_worker_env(), stdin=subprocess.DEVNULL,
+                **_OWN_GROUP)
         except BaseException:
             mine.close()
             theirs.close()

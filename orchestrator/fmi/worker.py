@@ -40,8 +40,9 @@ raises the same error with ``status='timeout'``. A KeyboardInterrupt while waiti
 (the second Ctrl-C) kills the worker too. After that the proxy is dead: ``terminate``
 does nothing and ``free`` only releases the arena.
 
-Workers ignore SIGINT and SIGTERM (the master stops them in order: a Ctrl-C that the
-terminal sends to the whole process group must not kill them in the middle of a step);
+Workers are process groups of their own and ignore SIGINT and SIGTERM (the master stops
+them in order: a Ctrl-C that the terminal sends to the whole foreground process group, or a
+SIGTERM to the run's group, must not kill them in the middle of a step, nor while they start);
 they exit when the socket closes, and on Linux they are killed when the master dies
 (``PR_SET_PDEATHSIG``). A worker is a fresh interpreter (``python -m
 orchestrator.fmi.worker_main``, :mod:`subprocess`), not a multiprocessing child: forking the

@@ -1,0 +1,84 @@
+"""Seventh probe (after tests/test_hostile_probe6.py): runs interrupted or killed as a user or a
+batch system stops them, run folders others tampered with, and resource limits (file size, open
+files, memory). One test per finding, each failing on the code before its fix."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+posix_only = pytest.mark.skipif(os.name != "posix", reason="process groups and rlimits are POSIX")
+
+
+def _env() -> dict:
+    return dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+
+
+def _workers(pid: int) -> list[int]:
+    """Child processes of ``pid`` that are FMU workers already (exec'd, importing)."""
+    try:
+        with open(f"/proc/{pid}/task/{pid}/children") as f:
+            kids = [int(p) for p in f.read().split()]
+    except OSError:
+        return []
+    found = []
+    for k in kids:
+        try:
+            with open(f"/proc/{k}/cmdline", "rb") as f:
+                if b"worker_main" in f.read():
+                    found.append(k)
+        except OSError:
+            pass
+    return found
+
+
+def _two_mass(tmp_path: Path, test_fmus, *, stop: str = "50.0", extra: str = "") -> Path:
+    p = tmp_path / "s.yaml"
+    p.write_text(f"name: two-mass\nstop_time: {stop}\nfmus:\n"
+                 f"  left: {{path: {test_fmus['LeftMass']}, parameters: {{x1_0: 1.0}}}}\n"
+                 f"  right: {{path: {test_fmus['RightMass']}}}\n"
+                 "connections:\n  - {from: left.x1, to: right.x1}\n  - {from: right.F, to: left.F}\n"
+                 f"coupling: {{macro_step: 1.0e-3{extra}}}\noutput: {{signals: [left.x1, right.F]}}\n")
+    return p
+
+
+@posix_only
+@pytest.mark.skipif(not os.path.exists("/proc/self/task"), reason="needs /proc")
+def test_ctrl_c_while_the_workers_start_is_an_interrupt_not_an_fmu_crash(tmp_path, test_fmus):
+    """The terminal sends Ctrl-C (SIGINT) to the whole foreground process group. A worker process
+    (isolation: process) ignored it only once its imports were done, so a Ctrl-C in its first
+    0.3 s killed it with a KeyboardInterrupt traceback on the terminal, and the run ended with
+    exit code 1, "FMU instance 'left' ... crashed in starting the worker process: its worker
+    process was killed by signal SIGINT ...; the FMU's binary failed" and summary.json "setup
+    failed" (the same for a SIGTERM to the group, as batch systems send). Now the workers are a
+    process group of their own: the run stops as interrupted (exit 130, stopped_by SIGINT)."""
+    scen = _two_mass(tmp_path, test_fmus)          # one worker: 'left'
+    scen.write_text(scen.read_text().replace("parameters: {x1_0: 1.0}", "parameters: {x1_0: 1.0}, isolation: process"))
+    out = tmp_path / "out"
+    for signum, code in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
+        proc = subprocess.Popen([sys.executable, "-m", "orchestrator", "run", str(scen), "--out", str(out)],
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=_env(), cwd=tmp_path,
+                                start_new_session=True)
+        try:
+            deadline = time.monotonic() + 60
+            while not _workers(proc.pid) and time.monotonic() < deadline and proc.poll() is None:
+                time.sleep(0.002)
+            assert _workers(proc.pid), "no worker process started"
+            os.killpg(proc.pid, signum)          # what the terminal (or `kill -- -PGID`) does, while it imports
+            text = proc.communicate(timeout=120)[0].decode(errors="replace")
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+        assert proc.returncode == code, text
+        assert "crashed" not in text and "Traceback" not in text, text
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["status"] == "failed" and summary.get("stopped_by") == signum.name, summary
