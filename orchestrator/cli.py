@@ -428,9 +428,10 @@ def _cmd_sweep(args) -> int:
         if r["status"] not in ("finished", "cancelled"):
             print(f"  {r['run_id']} {r['status']}: {r['message']}", file=sys.stderr)
     if o.interrupted:
-        print(f"interrupted: pending runs cancelled, finished runs kept; continue with `{PROG} sweep "
-              f"{args.file} --out {out} --resume`", file=sys.stderr)
-        return 130
+        term = o.stopped_by == "SIGTERM"
+        print(f"{'terminated by signal SIGTERM' if term else 'interrupted'}: pending runs cancelled, finished "
+              f"runs kept; continue with `{PROG} sweep {args.file} --out {out} --resume`", file=sys.stderr)
+        return 143 if term else 130
     return 0 if counts.get("finished", 0) == len(o.rows) else 1
 
 

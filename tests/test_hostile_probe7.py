@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -13,6 +14,8 @@ import time
 from pathlib import Path
 
 import pytest
+
+from tests.test_sweep import SCENARIO, SWEEP, _processes_using, _wait_for
 
 REPO = Path(__file__).resolve().parents[1]
 posix_only = pytest.mark.skipif(os.name != "posix", reason="process groups and rlimits are POSIX")
@@ -82,3 +85,35 @@ def test_ctrl_c_while_the_workers_start_is_an_interrupt_not_an_fmu_crash(tmp_pat
         assert "crashed" not in text and "Traceback" not in text, text
         summary = json.loads((out / "summary.json").read_text())
         assert summary["status"] == "failed" and summary.get("stopped_by") == signum.name, summary
+
+
+@posix_only
+def test_sigterm_to_a_sweep_writes_its_table_and_says_how_to_resume(tmp_path, test_fmus):
+    """`kill PID` (SIGTERM, what a batch system or a service manager sends) of `rotorcosim sweep`
+    killed it outright: exit -15, no sweep.csv, no message, and the run processes of its local
+    cluster ran on without it. Now SIGTERM stops a sweep as Ctrl-C does: the table of what
+    finished is written (the rest `cancelled`), the runs in progress are stopped, and the
+    message says how to resume; exit 143."""
+    (tmp_path / "fmus").mkdir()
+    for name in ("Faulty", "Gain"):
+        shutil.copy(test_fmus[name], tmp_path / "fmus" / f"{name}.fmu")
+    (tmp_path / "ramp.yaml").write_text(SCENARIO)
+    (tmp_path / "long.yaml").write_text(SWEEP.replace("[0.05, 0.5, 1.0]", "[2.0, 3.0, 4.0, 5.0]")
+                                        .replace("stop_time: 0.1", "stop_time: 100.0, coupling.macro_step: 2.0e-4"))
+    out = tmp_path / "o"
+    proc = subprocess.Popen([sys.executable, "-m", "orchestrator", "sweep", str(tmp_path / "long.yaml"), "--out",
+                             str(out), "--workers", "1", "--no-progress"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=_env(), start_new_session=True)
+    try:
+        _wait_for(lambda: any((out / "runs").glob("*/summary.json")), 240, "the first run to start")
+        os.kill(proc.pid, signal.SIGTERM)                 # the sweep's process only, not its group
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 143, err
+    assert "terminated by signal SIGTERM" in err and "--resume" in err and "Traceback" not in err, err
+    rows = (out / "sweep.csv").read_text().splitlines()[1:]
+    assert len(rows) == 4 and all(",cancelled," in r for r in rows), rows
+    _wait_for(lambda: not _processes_using(out), 30, "the run processes to end")      # none left running

@@ -39,6 +39,7 @@ class SweepOutcome:
     out_dir: Path
     table: Path
     interrupted: bool = False
+    stopped_by: str | None = None                 # the signal that interrupted it: "SIGINT" or "SIGTERM"
     skipped: int = 0                              # runs taken from an earlier sweep (--resume)
     warnings: list[str] = field(default_factory=list)
 
@@ -258,37 +259,41 @@ def _submit(client, spec: SweepSpec, todo: list[RunPlan], runs_dir: Path, warm: 
 
 
 class _Interrupt:
-    """Ctrl-C as a flag the sweep's loop checks, not a KeyboardInterrupt raised wherever the
-    main thread happens to be.
+    """Ctrl-C (and SIGTERM) as a flag the sweep's loop checks, not a KeyboardInterrupt raised
+    wherever the main thread happens to be.
 
     Python raises KeyboardInterrupt in the main thread at its next bytecode. In a sweep that is
     mostly Dask's client code, and an exception raised inside a finaliser or a callback there
     is printed and dropped ("Exception ignored in ..."): the sweep then carried on and ended
     with exit 1, its interrupted run a ``failed`` row. Here the handler only sets
     :attr:`requested`; :func:`_gather` looks at it every :data:`_POLL_S` and raises the
-    KeyboardInterrupt itself, from its own code. A second Ctrl-C raises at once. Outside the
-    main thread (the Python API called from a thread) Python delivers no signals and nothing
-    is installed.
+    KeyboardInterrupt itself, from its own code. A second Ctrl-C raises at once. SIGTERM (a
+    batch system or ``kill`` stopping the sweep) is handled the same way: it killed the sweep
+    outright before, with no sweep.csv, no message and exit -15, while the run processes of
+    the local cluster went on. :attr:`signum` is the first signal. Outside the main thread (the
+    Python API called from a thread) Python delivers no signals and nothing is installed.
     """
 
     def __init__(self):
         self.requested = False
-        self._previous = None
+        self.signum: int | None = None
+        self._previous: dict = {}
 
     def __enter__(self) -> "_Interrupt":
         if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handler)
+            self._previous = {s: signal.signal(s, self._handler) for s in (signal.SIGINT, signal.SIGTERM)}
         return self
 
     def _handler(self, signum, frame):
         if self.requested:
             raise KeyboardInterrupt
         self.requested = True
+        self.signum = signum
 
     def __exit__(self, *exc) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
+        for s, h in self._previous.items():
+            signal.signal(s, h)
+        self._previous = {}
 
 
 _POLL_S = 0.2
@@ -358,13 +363,15 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
     skipped = len(records)
     todo = [r for r in runs if r.run_id not in records]
     interrupted = False
+    stopped_by = None
     t0 = time.perf_counter()
     if todo:
         client = cluster = futures = None
         bar = _progress(len(todo), progress)
         stack = contextlib.ExitStack()
+        interrupt = _Interrupt()
         try:
-            interrupt = stack.enter_context(_Interrupt())
+            stack.enter_context(interrupt)
             if warm and not (scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")):
                 # the local workers are threads of this process and their run processes its
                 # children: start them now, they import the run's libraries while the cluster starts
@@ -378,6 +385,7 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
             _gather(futures, records, bar, interrupt)
         except KeyboardInterrupt:
             interrupted = True
+            stopped_by = signal.Signals(interrupt.signum or signal.SIGINT).name
             if futures:
                 client.cancel([f for f in futures if not f.done()], force=True)
             for run in todo:                      # ended on a worker, result not gathered yet
@@ -400,5 +408,6 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
     texts = [str(w.message) for w in caught]
     for text in texts:
         warnings.warn(text, stacklevel=2)
-    return SweepOutcome(rows=rows, out_dir=out_dir, table=table, interrupted=interrupted, skipped=skipped,
+    return SweepOutcome(rows=rows, out_dir=out_dir, table=table, interrupted=interrupted, stopped_by=stopped_by,
+                        skipped=skipped,
                         warnings=resume_texts + texts)
