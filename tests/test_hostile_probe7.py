@@ -11,8 +11,10 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from tests.test_sweep import SCENARIO, SWEEP, _processes_using, _wait_for
@@ -117,3 +119,80 @@ def test_sigterm_to_a_sweep_writes_its_table_and_says_how_to_resume(tmp_path, te
     rows = (out / "sweep.csv").read_text().splitlines()[1:]
     assert len(rows) == 4 and all(",cancelled," in r for r in rows), rows
     _wait_for(lambda: not _processes_using(out), 30, "the run processes to end")      # none left running
+
+
+def _journal_run(tmp_path: Path, journals: dict, n: int = 60) -> Path:
+    run = tmp_path / "run"
+    run.mkdir()
+    rows = "".join(f"{i * 1e-3!r},{1e-6 * float(np.cos(i / 3))!r},{1e-6 * float(np.sin(i / 3))!r},{300.0 + i}\n"
+                   for i in range(n))
+    (run / "results.csv").write_text("time,r.x_1,r.y_1,r.omega\n" + rows)
+    (run / "summary.json").write_text(json.dumps({"scenario": "s", "status": "finished", "analysis": {
+        "spec": {"speed": "r.omega", "journals": journals}}}))
+    return run
+
+
+def test_a_clearance_of_1e308_skips_the_waterfall_with_a_reason(tmp_path):
+    """A summary.json whose journal clearance is 1e308 m (positive and finite, so the checks let it
+    through) made `rotorcosim plot` end in "internal error: ValueError: Invalid vmin or vmax": the
+    waterfall's amplitudes / clearance fell below the smallest normal float and matplotlib's
+    logarithmic colour bar failed. Now that waterfall is skipped with a warning naming the
+    clearance; the other figures are drawn."""
+    from orchestrator.results.plots import plot_run
+    t = np.arange(4000) * 2e-4                      # 0.8 s at 300 Hz: enough revolutions for a waterfall
+    x, y = 1e-6 * np.cos(2 * np.pi * 300 * t), 1e-6 * np.sin(2 * np.pi * 300 * t)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "results.csv").write_text("time,r.x_1,r.y_1,r.omega\n" + "".join(
+        f"{a!r},{b!r},{c!r},{2 * np.pi * 300}\n" for a, b, c in zip(t.tolist(), x.tolist(), y.tolist())))
+    for c, ok in ((1.372e-5, True), (1e308, False)):
+        (run / "summary.json").write_text(json.dumps({"scenario": "s", "status": "finished", "analysis": {
+            "spec": {"speed": "r.omega", "journals": {"b1": {"x": "r.x_1", "y": "r.y_1", "clearance": c}}}}}))
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            written = [p.name for p in plot_run(run)]
+        assert ("waterfall_b1.png" in written) is ok, written
+        assert "orbit_b1.png" in written
+        if not ok:
+            assert any("waterfall of 'b1'" in str(w.message) and "clearance 1e+308 m" in str(w.message)
+                       for w in rec), [str(w.message) for w in rec]
+
+
+def test_the_journals_one_plot_draws_are_bounded(tmp_path, monkeypatch):
+    """A summary.json (or a results.csv of x_i/y_i column pairs) listing 2000 journals kept
+    `rotorcosim plot` drawing 4000 figures for over an hour. Now at most MAX_JOURNALS (50) are drawn
+    and a warning says how many were left out."""
+    import orchestrator.results.plots as plots
+    monkeypatch.setattr(plots, "MAX_JOURNALS", 3, raising=False)      # 8 journals: fast either way
+    run = _journal_run(tmp_path, {f"j{i}": {"x": "r.x_1", "y": "r.y_1"} for i in range(8)})
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        written = [p.name for p in plots.plot_run(run)]
+    assert sorted(n for n in written if n.startswith("orbit_")) == ["orbit_j0.png", "orbit_j1.png", "orbit_j2.png"]
+    assert any("8 journals in the analysis spec" in str(w.message) and "the other 5 are not" in str(w.message)
+               for w in rec), [str(w.message) for w in rec]
+
+
+@posix_only
+def test_plot_does_not_write_figures_through_a_plots_link(tmp_path, capsys):
+    """A run folder from someone else whose `plots` is a symbolic link to another folder (`plots -> ~`)
+    made `rotorcosim plot` write its PNGs there, replacing files of the same names
+    (orbit_<journal>.png, eccentricity.png). Now the link is refused, naming where it points, and
+    nothing is written; the same for a sweep folder's plots/."""
+    from orchestrator.cli import main
+    run = _journal_run(tmp_path, {"b1": {"x": "r.x_1", "y": "r.y_1"}})
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "orbit_b1.png").write_text("my own file")
+    (run / "plots").symlink_to(elsewhere)
+    assert main(["plot", str(run)]) == 1
+    err = capsys.readouterr().err
+    assert f"{run / 'plots'} is a symbolic link (to {elsewhere})" in err and "remove the link" in err, err
+    assert sorted(p.name for p in elsewhere.iterdir()) == ["orbit_b1.png"]
+    assert (elsewhere / "orbit_b1.png").read_text() == "my own file"
+    from tests.test_sweep_hostile import sweep_folder
+    d = sweep_folder(tmp_path)
+    (d / "plots").symlink_to(elsewhere)
+    assert main(["plot", str(d)]) == 1
+    assert f"{d / 'plots'} is a symbolic link" in capsys.readouterr().err
+    assert sorted(p.name for p in elsewhere.iterdir()) == ["orbit_b1.png"]

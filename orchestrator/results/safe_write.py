@@ -67,6 +67,20 @@ def write_report_file(path: Path | str, text: str) -> Path:
     return path
 
 
+def figure_folder(path: Path | str) -> Path:
+    """The folder figures go into (``DIR/plots``), created when missing; a symbolic link there is
+    refused (:class:`~orchestrator.errors.LifecycleError`). A run or sweep folder from someone else
+    with ``plots`` linked to another folder (``plots -> ~``) made ``rotorcosim plot`` write, and
+    replace, its PNGs there."""
+    path = Path(path)
+    if path.is_symlink():
+        raise LifecycleError(f"{path} is a symbolic link (to {os.path.realpath(path)}); rotorcosim writes "
+                             "figures only into a folder of the run itself (through a link it would replace "
+                             "files elsewhere): remove the link, then run the command again")
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
 def save_figure(fig, path: Path | str, **kwargs) -> Path:
     """``fig.savefig(path, **kwargs)`` atomically: into a temporary file created exclusively beside
     ``path``, then renamed over it (never written through a link). On an OSError (disk full) the

@@ -22,7 +22,7 @@ import warnings
 from pathlib import Path
 
 from orchestrator.errors import CosimError, path_arg
-from orchestrator.results.safe_write import save_figure
+from orchestrator.results.safe_write import figure_folder, save_figure
 from orchestrator.sweep.table import read_table
 
 __all__ = ["plot_sweep", "is_sweep_dir"]
@@ -205,7 +205,7 @@ def plot_sweep(out_dir: str | Path) -> list[Path]:
         raise CosimError(f"{out_dir}: maps are drawn over the first two parameters ({params[0]}, {params[1]}), "
                          f"and in this sweep the other parameters vary on their own; read sweep.csv (or "
                          "sweep.parquet) with pandas for other views")
-    (out_dir / "plots").mkdir(exist_ok=True)
+    figure_folder(out_dir / "plots")
     written = []
     for col in values:
         path = out_dir / "plots" / f"sweep_{col}.png"

@@ -37,6 +37,11 @@ from orchestrator.results.plots.signals import pick, plot_signals
 
 __all__ = ["plot_run", "plot_result", "draw_all", "infer_spec", "PlotContext"]
 
+#: journals drawn by one plot (an orbit and a waterfall each, and a line of the eccentricity
+#: figure); the rest are named in a note. A summary.json listing 2000 journals (or a results.csv
+#: of 2000 x_i/y_i column pairs) kept `plot` drawing 4000 figures for over an hour
+MAX_JOURNALS = 50
+
 
 def plot_run(run_dir: str | Path, signals: list[str] | None = None) -> list[Path]:
     """Write the plots of a run into ``run_dir/plots/``; return the written files.
@@ -94,6 +99,12 @@ def draw_all(ctx: PlotContext, signals: list[str] | None = None) -> PlotContext:
 def _draw_all(ctx: PlotContext, signals: list[str] | None) -> PlotContext:
     if ctx.cols.get("time", np.empty(0)).size >= 2:
         ctx.spec, src = ctx.load_spec()
+        journals = ctx.spec.get("journals") or {}
+        if len(journals) > MAX_JOURNALS:
+            ctx.notes.append(f"{len(journals)} journals in the analysis spec ({src}); the first {MAX_JOURNALS} "
+                             f"are drawn, the other {len(journals) - MAX_JOURNALS} are not "
+                             "(orchestrator.results.plots.MAX_JOURNALS)")
+            ctx.spec = {**ctx.spec, "journals": dict(list(journals.items())[:MAX_JOURNALS])}
         logger.info("plot signals from %s: %s", src, ctx.spec)
         if not ctx.spec.get("journals") or signals:
             output = ctx.summary.get("output")

@@ -17,7 +17,7 @@ import numpy as np
 from orchestrator.errors import CosimError
 from orchestrator.results.plots.checks import checked_result, checked_spec
 from orchestrator.results.run_directory import RunDirectory
-from orchestrator.results.safe_write import save_figure
+from orchestrator.results.safe_write import figure_folder, save_figure
 from orchestrator.untrusted import InputError, load_yaml, read_text
 
 logger = logging.getLogger("orchestrator.results.plots")
@@ -166,7 +166,7 @@ class PlotContext:
                 "res": jr}
 
     def save(self, fig, fname: str) -> None:
-        self.out.mkdir(parents=True, exist_ok=True)
+        figure_folder(self.out)
         path = self.out / fname
         save_figure(fig, path, dpi=DPI)
         self.written.append(path)

@@ -33,7 +33,16 @@ def draw(ctx: PlotContext, jn: str) -> None:
     keep = (wf["orders"] >= 0) & (wf["orders"] <= 2.5)
     orders, amp = wf["orders"][keep], wf["amplitude"][:, keep] * scale
     sp = wf["speed_hz"]
-    top = float(np.nanmax(amp)) if np.isfinite(amp).any() and np.nanmax(amp) > 0 else 1.0
+    drawn = amp[np.isfinite(amp) & (amp > 0)]
+    top = float(drawn.max()) if drawn.size else 1.0
+    if not top * 3e-3 >= np.finfo(float).tiny or not np.isfinite(top):
+        # the colour scale spans 3e-3 * top to top on a log axis; below the smallest normal float
+        # (a clearance of 1e308 m in a crafted summary.json) matplotlib's colour bar raised
+        # "Invalid vmin or vmax" and `plot` ended in an internal error
+        ctx.skipped.append(f"waterfall of '{jn}': its largest {unit.split(' [')[0]} is {top:.3g}, too small for a "
+                           f"logarithmic colour scale (clearance {c!r} m; check the journal's clearance in the "
+                           "analysis spec of summary.json or the scenario)")
+        return
     norm = LogNorm(vmin=top * 3e-3, vmax=top)
     shown = np.ma.masked_less(amp, top * 3e-3)          # below the colour range: white
     o_edges = edges(orders)
