@@ -196,3 +196,49 @@ def test_plot_does_not_write_figures_through_a_plots_link(tmp_path, capsys):
     assert main(["plot", str(d)]) == 1
     assert f"{d / 'plots'} is a symbolic link" in capsys.readouterr().err
     assert sorted(p.name for p in elsewhere.iterdir()) == ["orbit_b1.png"]
+
+
+@posix_only
+def test_an_fmu_that_cannot_be_extracted_names_the_fmu_the_folder_and_the_limit(tmp_path, test_fmus):
+    """Under a file size limit (`ulimit -f`) below an FMU's largest file, `rotorcosim run` ended in
+    "error: File too large" (a full temporary folder: "error: No space left on device; the disk is
+    full"), naming neither the FMU nor the folder, which is in TMPDIR, not the output folder the
+    user then looked at. Now the message names both and the fix (raise the limit / set TMPDIR)."""
+    import resource
+    scen = _two_mass(tmp_path, test_fmus, stop="0.01")
+    limit = 64 * 1024                                   # the FMUs' shared libraries are larger
+
+    def small_files():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    proc = subprocess.run([sys.executable, "-m", "orchestrator", "run", str(scen), "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True, env=_env(), cwd=tmp_path, preexec_fn=small_files,
+                          timeout=300)
+    assert proc.returncode == 1, proc.stderr
+    err = proc.stderr
+    assert "cannot extract the FMU into" in err and "File too large" in err and "ulimit -f" in err, err
+    assert str(test_fmus["LeftMass"]) in err or str(test_fmus["RightMass"]) in err, err
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["status"] == "failed" and "cannot extract the FMU" in summary["message"], summary
+
+
+@posix_only
+def test_shared_memory_a_file_size_limit_refuses_is_named_with_the_fix(tmp_path, test_fmus):
+    """The shared memory of a worker process (isolation: process, 1 MiB at least) counts against the
+    file size limit (`ulimit -f`): below it, `rotorcosim run` and `validate` (which loads every FMU
+    in a worker) ended in "error: File too large". Now the message names the instance, the size and
+    the fix."""
+    import resource
+    scen = _two_mass(tmp_path, test_fmus, stop="0.01", extra=", isolation: process")
+    limit = 768 * 1024                                  # above the FMUs' files, below the 1 MiB arena
+
+    def small_files():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    for verb in (["run", str(scen), "--out", str(tmp_path / "o")], ["validate", str(scen)]):
+        proc = subprocess.run([sys.executable, "-m", "orchestrator", *verb], capture_output=True, text=True,
+                              env=_env(), cwd=tmp_path, preexec_fn=small_files, timeout=300)
+        assert proc.returncode == 1, proc.stderr
+        out = proc.stdout + proc.stderr
+        assert "cannot make the shared memory (1048576 bytes) of its worker process" in out, out
+        assert "ulimit -f" in out and "FMU instance 'left'" in out, out

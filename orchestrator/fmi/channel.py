@@ -91,6 +91,20 @@ def _arena(size: int = ARENA_BYTES) -> tuple[int, mmap.mmap]:
         raise
 
 
+def arena_error(name: str, size: int, e: OSError) -> str:
+    """Why the shared memory of instance ``name``'s worker could not be made, and what to do (it
+    was a bare "error: File too large" under a file size limit, ``ulimit -f``, below its size)."""
+    import errno
+    fix = {errno.EFBIG: f"the file size limit of this process (`ulimit -f`) is below its {size} bytes: raise "
+                        "that limit (ulimit -f unlimited)",
+           errno.ENOMEM: "the machine is out of memory (or this process's memory limit, `ulimit -v`, is too "
+                         "low): free memory or raise the limit",
+           errno.ENOSPC: "the shared memory of this machine is used up: free it or raise its limit"}.get(
+        e.errno, "check the memory limits of this process")
+    return (f"FMU instance '{name}': cannot make the shared memory ({size} bytes) of its worker process "
+            f"(isolation: process): {e.strerror or e}; {fix}, or give the instance isolation: none")
+
+
 def _worker_env() -> dict:
     """The worker's environment: ours, with this package importable (also from a source checkout)."""
     env = dict(os.environ)
@@ -142,7 +156,10 @@ class WorkerChannel:
         self.outstanding: tuple | None = None    # (message, function) sent, reply not yet read
         self._closed = False
         self.spin = (SPIN_WAIT if cpu is not None else 0.0) if spin is None else float(spin)
-        self._arena_fd, self.arena = _arena(arena_bytes)
+        try:
+            self._arena_fd, self.arena = _arena(arena_bytes)
+        except OSError as e:
+            raise CosimError(arena_error(name, arena_bytes, e)) from None
         self._register = np.ndarray((2,), dtype=np.float64, buffer=self.arena)
         self._code = np.ndarray((1,), dtype=np.int64, buffer=self.arena)
         mine, theirs = socket.socketpair()

@@ -97,6 +97,23 @@ def clean_stale(base: str | os.PathLike | None = None, *, now: float | None = No
     return removed
 
 
+def extract_error(fmu_path: Path, dest: Path, exc: OSError) -> FmuError:
+    """The error of an extraction the disk refused: the FMU, the folder (in the temporary
+    directory, not the output folder) and what to do. It was a bare "error: No space left on
+    device" (or "File too large" under a file size limit, ``ulimit -f``) naming neither."""
+    import errno
+    where = Path(exc.filename) if exc.filename else dest
+    tmp = "the temporary folder (TMPDIR, now " + tempfile.gettempdir() + ")"
+    fix = {errno.ENOSPC: f"free some space in {tmp}, or set TMPDIR to a folder on a disk with room",
+           errno.EDQUOT: f"free some of your disk quota in {tmp}, or set TMPDIR to another disk",
+           errno.EFBIG: "one of its files is larger than the file size limit of this process (`ulimit -f`): "
+                        "raise that limit (ulimit -f unlimited)",
+           errno.EROFS: f"{tmp} is read-only: set TMPDIR to a writable folder",
+           errno.EACCES: "set TMPDIR to a folder you can write to"}.get(
+        exc.errno, f"check {tmp}: it must be writable and have room for the FMU's files")
+    return FmuError(f"{fmu_path}: cannot extract the FMU into {where} ({exc.strerror or exc}); {fix}")
+
+
 class ExtractionPool:
     """The extractions of one run: ``extract(fmu)`` once per file, shared by instances.
 
@@ -126,7 +143,11 @@ class ExtractionPool:
             return self._done[key]
         dest = self.root / f"fmu{len(self._done)}-{fmu_path.stem[:40]}"
         left = self.budget - self.used
-        fmu_archive.safe_extract(fmu_path, dest, budget=left)
+        try:
+            fmu_archive.safe_extract(fmu_path, dest, budget=left)
+        except OSError as exc:
+            shutil.rmtree(dest, ignore_errors=True)
+            raise extract_error(fmu_path, dest, exc) from None
         self.used += sum(f.stat().st_size for f in dest.rglob("*") if f.is_file() and not f.is_symlink())
         self.extractions += 1
         self._done[key] = dest

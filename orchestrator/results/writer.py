@@ -301,7 +301,8 @@ class ResultsWriter:
         why = e.strerror or str(e)
         fix = {errno.ENOSPC: "free some space on that disk or give another output folder (--out)",
                errno.EDQUOT: "free some of your disk quota or give another output folder (--out)",
-               errno.EFBIG: "the file is larger than that file system allows: record fewer signals or a coarser "
+               errno.EFBIG: "the file is larger than that file system allows, or than the file size limit of "
+                            "this process (`ulimit -f`): raise that limit, record fewer signals or a coarser "
                             "output.interval, or give another output folder (--out)"}.get(
             e.errno, "check that disk or give another output folder (--out)")
         if self.format != "csv":
