@@ -242,3 +242,32 @@ def test_shared_memory_a_file_size_limit_refuses_is_named_with_the_fix(tmp_path,
         out = proc.stdout + proc.stderr
         assert "cannot make the shared memory (1048576 bytes) of its worker process" in out, out
         assert "ulimit -f" in out and "FMU instance 'left'" in out, out
+
+
+def test_a_full_disk_at_the_lock_file_is_named_and_does_not_keep_the_folder_locked(tmp_path, monkeypatch):
+    """On an output disk with no room left, the run's first write (its record in .rotorcosim.lock)
+    failed with a bare "error: No space left on device", and the lock's descriptor stayed open: the
+    next run of the same process (a notebook, a script's retry) into that folder, once there was
+    room, was refused as "in use by another run" - its own. Now the message names the lock file and
+    the fix, and the folder is free again."""
+    import errno
+    from types import SimpleNamespace
+
+    from orchestrator.coupling import lifecycle
+    from orchestrator.errors import OutputWriteError
+    sc = SimpleNamespace(name="a", source=tmp_path / "a.yaml", fmus=())
+    real = os.pwrite
+
+    def full(fd, data, offset):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(lifecycle.os, "pwrite", full)
+    with pytest.raises(OutputWriteError) as info:
+        with lifecycle.RunFolder(tmp_path / "out", sc):
+            pass
+    assert f"cannot write the lock file {tmp_path / 'out' / '.rotorcosim.lock'} (No space left on device)" in \
+        str(info.value) and "free some space" in str(info.value)
+    monkeypatch.setattr(lifecycle.os, "pwrite", real)                  # room again
+    assert lifecycle.folder_in_use(tmp_path / "out") is False
+    with lifecycle.RunFolder(tmp_path / "out", sc) as folder:
+        folder.finish({"status": "finished"})

@@ -252,9 +252,19 @@ class RunFolder:
             if not got_lock:
                 os.close(fd)
                 raise LifecycleError(_in_use_message(self.out_dir, holder)) from None
+        try:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, json.dumps({**self._holder(), "host": socket.gethostname()}).encode(), 0)
+        except OSError as e:
+            # a full disk: this was a bare "error: No space left on device", and the descriptor (and
+            # so the lock) stayed open, so the next run() of the same process into this folder, once
+            # there was room, was refused as "in use by another run" - by itself
+            os.close(fd)
+            from orchestrator.results.safe_write import space_fix
+            raise OutputWriteError(f"cannot write the lock file {path} ({e.strerror or e}); "
+                                   f"{space_fix(e, 'check the output folder (it must be writable)')} or give "
+                                   "another output folder (--out)") from None
         self._lock_fd = fd
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, json.dumps({**self._holder(), "host": socket.gethostname()}).encode(), 0)
         names = [str(getattr(f, "name", "")) for f in getattr(self.scenario, "fmus", ())]
         try:        # where each FMU in this process is, readable after a crash (plot, sweeps)
             self.calls = CallRecord(self.out_dir / CALLS_NAME, names, {"pid": os.getpid()})
