@@ -244,6 +244,28 @@ def test_shared_memory_a_file_size_limit_refuses_is_named_with_the_fix(tmp_path,
         assert "ulimit -f" in out and "FMU instance 'left'" in out, out
 
 
+@posix_only
+def test_too_few_open_files_for_the_worker_processes_is_named_with_the_fix(tmp_path, test_fmus):
+    """Each worker process (isolation: process) needs file descriptors of the master (its socket,
+    its shared memory, a pipe while it starts). Under a low limit of open files (`ulimit -n`) the
+    run ended in a bare "error: Too many open files" (or "error: /dev/null: Too many open files").
+    Now the instance, the limit and the fix are named."""
+    import resource
+    scen = _two_mass(tmp_path, test_fmus, stop="0.01", extra=", isolation: process")
+
+    def few_files():
+        resource.setrlimit(resource.RLIMIT_NOFILE, (12, resource.getrlimit(resource.RLIMIT_NOFILE)[1]))
+
+    proc = subprocess.run([sys.executable, "-m", "orchestrator", "run", str(scen), "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True, env=_env(), cwd=tmp_path, preexec_fn=few_files,
+                          timeout=300)
+    assert proc.returncode == 1, proc.stderr
+    assert "cannot start its worker process (isolation: process): Too many open files" in proc.stderr, proc.stderr
+    assert "`ulimit -n`, now 12" in proc.stderr, proc.stderr
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert "cannot start its worker process" in summary["message"], summary
+
+
 def test_a_full_disk_at_the_lock_file_is_named_and_does_not_keep_the_folder_locked(tmp_path, monkeypatch):
     """On an output disk with no room left, the run's first write (its record in .rotorcosim.lock)
     failed with a bare "error: No space left on device", and the lock's descriptor stayed open: the

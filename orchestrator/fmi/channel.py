@@ -91,6 +91,35 @@ def _arena(size: int = ARENA_BYTES) -> tuple[int, mmap.mmap]:
         raise
 
 
+def start_error(name: str, e: OSError, *, always: bool = False) -> str | None:
+    """Why instance ``name``'s worker process could not be started, and what to do, for the limits
+    of the master's process (too many open files or processes; with ``always`` any other OSError
+    too, else None for those). These were a bare "error: Too many open files" (or "error:
+    /dev/null: Too many open files")."""
+    import errno
+    import resource
+    if e.errno in (errno.EMFILE, errno.ENFILE):
+        try:
+            now = f", now {resource.getrlimit(resource.RLIMIT_NOFILE)[0]}"
+        except (OSError, ValueError):      # pragma: no cover
+            now = ""
+        fix = (f"each worker process needs a few file descriptors of the master: raise the limit of open files "
+               f"(`ulimit -n`{now}), or give fewer instances isolation: process")
+        if e.errno == errno.ENFILE:
+            fix = "the whole system is out of file descriptors: close programs, or give fewer instances isolation: process"
+    elif e.errno == errno.EAGAIN:
+        fix = ("no more processes may be started (`ulimit -u`, or the system's limit): raise the limit, or give "
+               "fewer instances isolation: process")
+    elif e.errno == errno.ENOMEM:
+        fix = "the machine is out of memory: free memory, or give fewer instances isolation: process"
+    elif always:
+        fix = "check the limits of this process (ulimit -a), or give the instance isolation: none"
+    else:
+        return None
+    return (f"FMU instance '{name}': cannot start its worker process (isolation: process): "
+            f"{e.strerror or e}; {fix}")
+
+
 def arena_error(name: str, size: int, e: OSError) -> str:
     """Why the shared memory of instance ``name``'s worker could not be made, and what to do (it
     was a bare "error: File too large" under a file size limit, ``ulimit -f``, below its size)."""
@@ -159,20 +188,26 @@ class WorkerChannel:
         try:
             self._arena_fd, self.arena = _arena(arena_bytes)
         except OSError as e:
-            raise CosimError(arena_error(name, arena_bytes, e)) from None
+            raise CosimError(start_error(name, e) or arena_error(name, arena_bytes, e)) from None
         self._register = np.ndarray((2,), dtype=np.float64, buffer=self.arena)
         self._code = np.ndarray((1,), dtype=np.int64, buffer=self.arena)
-        mine, theirs = socket.socketpair()
+        try:
+            mine, theirs = socket.socketpair()
+        except OSError as e:
+            self._release()
+            raise CosimError(start_error(name, e, always=True)) from None
         try:
             self._proc = subprocess.Popen(
                 [sys.executable, "-m", "orchestrator.fmi.worker_main", str(theirs.fileno()), str(self._arena_fd),
                  name, str(fmu_path), str(work_dir), repr(self.spin)],
                 pass_fds=(theirs.fileno(), self._arena_fd), env=_worker_env(), stdin=subprocess.DEVNULL,
                 **_OWN_GROUP)
-        except BaseException:
+        except BaseException as e:
             mine.close()
             theirs.close()
             self._release()
+            if isinstance(e, OSError):
+                raise CosimError(start_error(name, e, always=True)) from None
             raise
         theirs.close()
         if cpu is not None:
