@@ -293,3 +293,39 @@ def test_a_full_disk_at_the_lock_file_is_named_and_does_not_keep_the_folder_lock
     assert lifecycle.folder_in_use(tmp_path / "out") is False
     with lifecycle.RunFolder(tmp_path / "out", sc) as folder:
         folder.finish({"status": "finished"})
+
+
+def test_ctrl_c_while_a_figure_is_written_leaves_no_temporary_file(tmp_path):
+    """Ctrl-C during `rotorcosim plot` (a figure takes a second or more to draw) left
+    `plots/.eccentricity.png.XXXX.part` behind: the temporary file was removed only after an
+    OSError. Now after any exception, and the interrupt goes on."""
+    from orchestrator.results.safe_write import save_figure
+
+    class Figure:
+        def savefig(self, f, **kw):
+            f.write(b"\x89PNG half")
+            raise KeyboardInterrupt
+
+    (tmp_path / "plots").mkdir()
+    with pytest.raises(KeyboardInterrupt):
+        save_figure(Figure(), tmp_path / "plots" / "eccentricity.png")
+    assert list((tmp_path / "plots").iterdir()) == []
+
+
+def test_ctrl_c_while_build_fmus_writes_an_fmu_leaves_no_temporary_file(tmp_path, monkeypatch):
+    """The same for `rotorcosim build-fmus`: Ctrl-C while the built FMU was copied into place left
+    `.JeffcottRotor.fmu.<pid>.tmp` in the FMU folder."""
+    from orchestrator.fmi import build
+
+    real = build.shutil.copyfile
+
+    def copy_half(src, dst, **kw):
+        if Path(dst).parent != tmp_path:                # the build's own copies
+            return real(src, dst, **kw)
+        Path(dst).write_bytes(b"PK half an FMU")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(build.shutil, "copyfile", copy_half)
+    with pytest.raises(KeyboardInterrupt):
+        build.build_one(build.RECIPES["JeffcottRotor"], tmp_path)
+    assert list(tmp_path.iterdir()) == []

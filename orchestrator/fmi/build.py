@@ -210,11 +210,14 @@ def build_one(recipe: FmuRecipe, out_dir: Path) -> Path:
             os.replace(tmp_target, target)
             stamp_tmp.write_text(json.dumps(info, indent=1) + "\n")
             os.replace(stamp_tmp, _stamp_path(target))  # atomic: concurrent runs may check it
-        except OSError as e:
-            # a full disk left an empty .tmp file and named the build's temporary FMU, not the target
+        except BaseException as e:
+            # a full disk left an empty .tmp file and named the build's temporary FMU, not the target;
+            # Ctrl-C during the copy left the .tmp file too
             for p in (tmp_target, stamp_tmp):
                 with contextlib.suppress(OSError):
                     p.unlink()
+            if not isinstance(e, OSError):
+                raise
             from orchestrator.results.safe_write import space_fix
             raise FmuError(f"cannot write {target} ({e.strerror or e}); {space_fix(e)} or give build-fmus --out another "
                            "folder, then build again") from None

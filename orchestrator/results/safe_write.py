@@ -86,7 +86,7 @@ def save_figure(fig, path: Path | str, **kwargs) -> Path:
     ``path``, then renamed over it (never written through a link). On an OSError (disk full) the
     temporary file is removed and :class:`orchestrator.errors.OutputWriteError` names ``path``; a
     full disk used to leave an empty or truncated PNG and "error: No space left on device" without
-    a file name."""
+    a file name. A KeyboardInterrupt (Ctrl-C) while drawing removes the temporary file too."""
     import tempfile
 
     from orchestrator.errors import OutputWriteError
@@ -99,10 +99,12 @@ def save_figure(fig, path: Path | str, **kwargs) -> Path:
             fig.savefig(f, **kwargs)
         os.chmod(tmp, 0o644)
         os.replace(tmp, path)
-    except OSError as e:
+    except BaseException as e:                # Ctrl-C while drawing left the .part file too
         if tmp is not None:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+        if not isinstance(e, OSError):
+            raise
         raise OutputWriteError(f"cannot write {path} ({e.strerror or e}); {space_fix(e)}, then run the command "
                                "again") from None
     return path
