@@ -329,3 +329,38 @@ def test_ctrl_c_while_build_fmus_writes_an_fmu_leaves_no_temporary_file(tmp_path
     with pytest.raises(KeyboardInterrupt):
         build.build_one(build.RECIPES["JeffcottRotor"], tmp_path)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_crafted_call_record_nested_too_deeply_is_ignored_by_plot(tmp_path):
+    """`rotorcosim plot` of a folder whose run ended without a final summary reads the FMI call
+    record `.rotorcosim.calls` to say which call the run died in. One holding "[[[[..." (500 000
+    deep, well within its 1 MiB bound) ended `plot` in "internal error: RecursionError". Now the
+    record is ignored like any other unreadable one and the figures are drawn."""
+    from orchestrator.fmi.call_record import read_calls
+    from orchestrator.results.plots import plot_run
+    run = _journal_run(tmp_path, {"b1": {"x": "r.x_1", "y": "r.y_1"}})
+    (run / "summary.json").write_text(json.dumps({"scenario": "s", "status": "running", "pid": 1}))
+    (run / ".rotorcosim.lock").write_text("")
+    (run / ".rotorcosim.calls").write_text("[" * 500_000)
+    assert read_calls(run / ".rotorcosim.calls") == []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert [p.name for p in plot_run(run) if p.name.startswith("orbit_")]
+
+
+@pytest.mark.parametrize("record", ["[" * 3000, "[1, 2]"])
+def test_a_lock_record_that_is_no_json_object_is_unreadable_not_an_internal_error(tmp_path, record):
+    """A second run into a folder in use reads who holds it from `.rotorcosim.lock`. A record of
+    "[[[[..." ended in "internal error: RecursionError", a JSON list in "AttributeError: 'list' object
+    has no attribute 'get'"; now both say the folder is in use by another run (details unreadable)."""
+    import fcntl
+    from types import SimpleNamespace
+
+    from orchestrator.coupling import lifecycle
+    from orchestrator.errors import LifecycleError
+    (tmp_path / ".rotorcosim.lock").write_text(record)
+    with open(tmp_path / ".rotorcosim.lock") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)              # a live run holds it
+        with pytest.raises(LifecycleError, match=r"in use by another run: another run \(details unreadable\)"):
+            with lifecycle.RunFolder(tmp_path, SimpleNamespace(name="a", source=None, fmus=())):
+                pass

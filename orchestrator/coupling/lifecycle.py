@@ -130,7 +130,7 @@ def _read_holder(fd: int) -> dict | None:
     ending: it clears them before it unlocks), half written, or not a run's."""
     try:
         holder = json.loads(os.pread(fd, 4096, 0).decode())
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):     # a crafted record nested deep
         return None
     return holder if isinstance(holder, dict) and isinstance(holder.get("pid"), int) else None
 

@@ -84,7 +84,7 @@ def read_calls(path) -> list[tuple[str, str, float]]:
     try:                                # bounded: 256 instances need far less than 1 MiB
         raw = read_bytes(path, what="FMI call record", limit=1 << 20)
         head = json.loads(raw.split(b"\0", 1)[0].decode() or "{}")
-    except (InputError, ValueError):
+    except (InputError, ValueError, RecursionError):   # "[[[[..." in a crafted record: nested too deeply
         return []
     names = head.get("instances") if isinstance(head, dict) else None
     offset = head.get("calls_at") if isinstance(head, dict) else None
