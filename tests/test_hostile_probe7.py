@@ -364,3 +364,41 @@ def test_a_lock_record_that_is_no_json_object_is_unreadable_not_an_internal_erro
         with pytest.raises(LifecycleError, match=r"in use by another run: another run \(details unreadable\)"):
             with lifecycle.RunFolder(tmp_path, SimpleNamespace(name="a", source=None, fmus=())):
                 pass
+
+
+@posix_only
+@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_stopped_comparison_starts_no_more_runs_and_stops_the_running_ones(tmp_path, test_fmus, signum, code):
+    """Ctrl-C that reached only `rotorcosim compare`'s own process (`kill -INT PID`, an IDE's stop
+    button) let every queued run start and run to its end before the comparison said
+    "interrupted" (minutes to hours); SIGTERM killed it without a word (exit -15), its runs going
+    on; a Ctrl-C to the whole group printed a traceback per run. Now the queued runs never start,
+    the running ones stop after their macro step (their summary says why), exit 130 / 143."""
+    _two_mass(tmp_path, test_fmus, stop="30.0")
+    cmp = tmp_path / "cmp.yaml"
+    cmp.write_text("compare:\n  scenario: s.yaml\n  signals: [left.x1]\n  reference: {macro_step: 5.0e-4}\n"
+                   "  variants:\n    - {macro_step: 1.0e-3}\n    - {macro_step: 2.0e-3}\n"
+                   "    - {scheme: jacobi, macro_step: 1.0e-3}\n")
+    out = tmp_path / "c"
+    proc = subprocess.Popen([sys.executable, "-m", "orchestrator", "compare", str(cmp), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(), cwd=tmp_path,
+                            start_new_session=True)
+    try:
+        _wait_for(lambda: len(list((out / "runs").glob("*/summary.json"))) >= 2, 120, "two runs to start")
+        os.kill(proc.pid, signum)                     # the comparison's process only
+        t0 = time.monotonic()
+        _, err = proc.communicate(timeout=300)
+        stopped_in = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == code, err
+    assert "Traceback" not in err, err
+    assert stopped_in < 60, stopped_in
+    started = sorted(p.parent.name for p in (out / "runs").glob("*/summary.json"))
+    assert started == ["reference", "reference-check"], started        # no variant started
+    for name in started:
+        summary = json.loads((out / "runs" / name / "summary.json").read_text())
+        assert summary.get("stopped_by") == signum.name, summary
+    _wait_for(lambda: not _processes_using(out), 30, "the run processes to end")

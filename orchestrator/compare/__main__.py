@@ -7,7 +7,10 @@ import sys
 from orchestrator.compare.runner import worker_main
 
 if __name__ == "__main__":   # worker of run_comparison (one run per process)
-    rc = worker_main(sys.argv[1])
+    try:
+        rc = worker_main(sys.argv[1])
+    except KeyboardInterrupt as exc:   # stopped by the comparison (Ctrl-C, SIGTERM): the run's
+        rc = getattr(exc, "exit_code", 130)   # summary says so; no traceback on the terminal
     # Leave without the interpreter's teardown: the run is complete and its files (results,
     # summary, compare_job.json) are closed; the teardown only frees the FMUs' Python
     # objects, and PythonFMU-built FMUs abort there intermittently ("corrupted

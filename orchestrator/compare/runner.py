@@ -22,10 +22,13 @@ Call order (library use)::
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import logging
 import math
 import os
+import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -89,7 +92,19 @@ def _run_isolated(runner, scenario: Scenario, out_dir: str, models: tuple = ()) 
     job.write_bytes(pickle.dumps((runner, scenario, str(out), tuple(models))))
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "orchestrator.compare", str(job)], env=env)
+    with _LIVE_LOCK:
+        if _STOPPING:                       # the comparison was interrupted: start nothing more
+            return {"error": "not run: the comparison was interrupted", "wall_time_s": 0.0}
+        # a process group of its own: the terminal's Ctrl-C reaches the comparison, which passes
+        # one stop signal on to each run (a run then stops after its macro step, rows kept)
+        proc = subprocess.Popen([sys.executable, "-m", "orchestrator.compare", str(job)], env=env,
+                                **({"process_group": 0} if os.name == "posix" else {}))
+        _LIVE.add(proc)
+    try:
+        proc.wait()
+    finally:
+        with _LIVE_LOCK:
+            _LIVE.discard(proc)
     result_file = out / "compare_job.json"
     if proc.returncode == 0 and result_file.exists():
         import json
@@ -98,6 +113,62 @@ def _run_isolated(runner, scenario: Scenario, out_dir: str, models: tuple = ()) 
            else f"exit code {proc.returncode}")
     return {"error": f"worker process died ({how}); see the messages above",
             "wall_time_s": time.perf_counter() - t0}
+
+
+_LIVE: set = set()          # run processes of _run_isolated now running
+_LIVE_LOCK = threading.Lock()
+_STOPPING = False           # set when the comparison is interrupted: no new run process starts
+
+
+def _stop_runs(signum: int) -> None:
+    """Pass the stop signal (SIGINT or SIGTERM) on to every run process and wait for them: each
+    stops after its current macro step and writes its summary (``interrupted by the user`` /
+    ``terminated by signal SIGTERM``), as `rotorcosim run` does; none starts after this."""
+    global _STOPPING
+    import signal as _signal
+    with _LIVE_LOCK:
+        _STOPPING = True
+        procs = list(_LIVE)
+    for proc in procs:
+        with contextlib.suppress(OSError):
+            proc.send_signal(signum)
+    for proc in procs:
+        try:
+            proc.wait(60)
+        except subprocess.TimeoutExpired:
+            proc.send_signal(_signal.SIGKILL)
+
+
+def _run_parallel(runner, jobs: list, runs: Path, models: tuple, workers: int, results: dict) -> None:
+    """The jobs in fresh processes, ``workers`` at a time, into ``results``.
+
+    Ctrl-C or SIGTERM stops the comparison: the queued runs are not started, the running ones
+    get the signal (and stop after their macro step, rows and summary kept), then the
+    KeyboardInterrupt goes on (exit 130 / 143). Before, a Ctrl-C that reached only the
+    comparison's process let every queued run start and finish first (minutes to hours), a
+    SIGTERM killed it without a word (exit -15), and the runs printed tracebacks."""
+    global _STOPPING
+    import signal as _signal
+
+    from orchestrator.coupling.lifecycle import RunStopped, _raise_stopped
+    _STOPPING = False
+    main = threading.current_thread() is threading.main_thread()
+    previous = _signal.signal(_signal.SIGTERM, _raise_stopped) if main else None
+    pool = concurrent.futures.ThreadPoolExecutor(max_workers=workers)
+    try:
+        futs = {pool.submit(_run_isolated, runner, sc, str(runs / label), models): label for label, sc in jobs}
+        for fut in concurrent.futures.as_completed(futs):
+            results[futs[fut]] = fut.result()
+            log.info("compare: finished %s", futs[fut])
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", _signal.SIGINT)
+        pool.shutdown(wait=False, cancel_futures=True)
+        _stop_runs(signum)
+        raise exc if isinstance(exc, RunStopped) else RunStopped(signum) from None
+    finally:
+        pool.shutdown(wait=True)
+        if main:
+            _signal.signal(_signal.SIGTERM, previous)
 
 
 def worker_main(job_file: str) -> int:
@@ -142,12 +213,7 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
             log.info("compare: running %s", label)
             results[label] = _run_job(runner, sc, str(runs / label), spec.reference_models)
     else:   # threads that each wait for one fresh process per run
-        with concurrent.futures.ThreadPoolExecutor(max_workers=min(workers, 2)) as pool:
-            futs = {pool.submit(_run_isolated, runner, sc, str(runs / label), spec.reference_models): label
-                    for label, sc in jobs}
-            for fut in concurrent.futures.as_completed(futs):
-                results[futs[fut]] = fut.result()
-                log.info("compare: finished %s", futs[fut])
+        _run_parallel(runner, jobs, runs, spec.reference_models, min(workers, 2), results)
 
     ref = read_run(runs / "reference", results["reference"])
     if not ref.ok:
