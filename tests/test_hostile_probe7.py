@@ -402,3 +402,20 @@ def test_a_stopped_comparison_starts_no_more_runs_and_stops_the_running_ones(tmp
         summary = json.loads((out / "runs" / name / "summary.json").read_text())
         assert summary.get("stopped_by") == signum.name, summary
     _wait_for(lambda: not _processes_using(out), 30, "the run processes to end")
+
+
+def test_a_sweep_table_with_collected_texts_is_drawn_not_refused(tmp_path, capsys):
+    """A sweep writes a collected value as summary.json holds it: a text, or a list or object as
+    JSON (`collect: {onset: analysis.journals.bearing1.onset}`, `{why: message}`). `rotorcosim plot`
+    then refused the whole folder ("sweep.csv:3: column 'steps' must be a number ...; rerun the
+    sweep (or fix the file)"), which no rerun fixes. Now such cells are drawn as no value, with a
+    warning naming the column, the line and the value."""
+    from orchestrator.cli import main
+    from tests.test_sweep_hostile import HEADER, ROWS, sweep_folder
+    d = sweep_folder(tmp_path, HEADER + ROWS[0] + ROWS[1].replace(",20,", ',"[1, 2]",') + "".join(ROWS[2:]))
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        assert main(["plot", str(d)]) == 0, capsys.readouterr().err
+    assert (d / "plots" / "sweep_steps.png").is_file()
+    assert any("sweep.csv:3: column 'steps' holds 1 value(s) that are not numbers (first: '[1, 2]')"
+               in str(w.message) for w in rec), [str(w.message) for w in rec]

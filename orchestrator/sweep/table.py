@@ -219,6 +219,7 @@ def read_table(out_dir: str | Path):
     mixed: dict[str, int] = {}
     odd_status: list[tuple[int, str]] = []
     nonfinite: dict[str, tuple[int, int]] = {}
+    texts: dict[str, tuple[int, str, int]] = {}     # collected column -> (first line, its text, count)
     try:
         header = next(reader, None)
         if not header:
@@ -260,10 +261,17 @@ def read_table(out_dir: str | Path):
                     row[name] = None
                     continue
                 x = _number(v)
+                if x is None and name != "wall_time_s":
+                    # a sweep writes the collected value as it finds it in summary.json: a text, or a
+                    # list/object as JSON (`collect: {onset: analysis.journals.b1.onset}`); such a
+                    # table was refused whole, so a sweep made a folder that `plot` would not draw
+                    first, value, n = texts.get(name, (line, v, 0))
+                    texts[name] = (first, value, n + 1)
+                    row[name] = None
+                    continue
                 if x is None:
-                    what = "the run's wall time" if name == "wall_time_s" else "a collected value"
-                    raise InputError(f"{path}:{line}: column '{name}' must be a number ({what}, or empty for "
-                                     f"none) (got {v!r:.60}); {_FIX}")
+                    raise InputError(f"{path}:{line}: column '{name}' must be a number (the run's wall time, or "
+                                     f"empty for none) (got {v!r:.60}); {_FIX}")
                 if not math.isfinite(x):
                     first, n = nonfinite.get(name, (line, 0))
                     nonfinite[name] = (first, n + 1)
@@ -287,6 +295,10 @@ def read_table(out_dir: str | Path):
             warnings.warn(f"{path}:{line}: parameter '{name}' is {first!r:.60}, a text, where other rows have "
                           f"numbers; the map draws the texts after the numbers (rerun the sweep or fix the "
                           f"row if it is a typo)", stacklevel=2)
+    for name, (line, value, n) in texts.items():
+        warnings.warn(f"{path}:{line}: column '{name}' holds {n} value(s) that are not numbers (first: "
+                      f"{value!r:.60}), which a map cannot show; drawn as no value (collect a number from "
+                      "summary.json to map it, e.g. a field of that object)", stacklevel=2)
     for name, (line, n) in nonfinite.items():
         warnings.warn(f"{path}:{line}: column '{name}' holds {n} non-finite value(s) (nan or inf), which a "
                       "sweep never writes; drawn as no value", stacklevel=2)
