@@ -359,7 +359,8 @@ def _add_plot(sub) -> None:
 def _cmd_plot(args) -> int:
     run_dir = Path(args.dir)
     if not run_dir.is_dir():
-        raise CosimError(f"{run_dir}: no such run folder; give the --out folder of a run (it holds "
+        what = "is a file, not a folder" if run_dir.exists() else "no such run folder"
+        raise CosimError(f"{run_dir}: {what}; give the --out folder of a run (it holds "
                          "results.csv and summary.json)")
     if (run_dir / "sweep.csv").is_file():              # a sweep folder: draw its map
         return _print_paths(_feature("orchestrator.sweep.plot", "plot_sweep", "plot")(run_dir))

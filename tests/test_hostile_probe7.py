@@ -419,3 +419,34 @@ def test_a_sweep_table_with_collected_texts_is_drawn_not_refused(tmp_path, capsy
     assert (d / "plots" / "sweep_steps.png").is_file()
     assert any("sweep.csv:3: column 'steps' holds 1 value(s) that are not numbers (first: '[1, 2]')"
                in str(w.message) for w in rec), [str(w.message) for w in rec]
+
+
+@posix_only
+def test_a_file_or_link_where_a_sweep_run_folder_goes_is_replaced_not_a_crash_or_written_through(tmp_path):
+    """runs/<run_id> belongs to the sweep. A file there ended that run as "crashed: the task failed
+    on its worker: FileExistsError: [Errno 17] File exists"; a symbolic link there (to another
+    folder) made the run write results.csv, summary.json, run.log and sweep_run.json where it
+    pointed. Now either is removed (the link itself, never its target) and the run runs in a
+    folder of its own."""
+    from orchestrator.sweep import task
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    (runs / "aaa").write_text("debris")
+    (runs / "bbb").symlink_to(elsewhere)
+    seen = []
+
+    def fake(args, out, timeout_s):          # stands in for the run process
+        seen.append(out)
+        (out / "summary.json").write_text(json.dumps({"status": "finished", "message": ""}))
+        return 0, ""
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(task, "_fresh", fake)
+        recs = [task.execute_run("s.yaml", [], str(runs / rid), warm=False) for rid in ("aaa", "bbb")]
+    assert [r["status"] for r in recs] == ["finished", "finished"], recs
+    for rid in ("aaa", "bbb"):
+        assert (runs / rid).is_dir() and not (runs / rid).is_symlink()
+        assert (runs / rid / "sweep_run.json").is_file()
+    assert list(elsewhere.iterdir()) == []

@@ -115,6 +115,11 @@ def execute_run(scenario: str, overrides: list[str], run_dir: str, *, timeout_s:
     Returns the run's record (see the module docstring); never raises for a failed run.
     """
     out = Path(run_dir)
+    if out.is_symlink() or (out.exists() and not out.is_dir()):
+        # runs/<run_id> is the sweep's own; a file there ended the run as "crashed: the task failed
+        # on its worker: FileExistsError: [Errno 17] File exists", and a symbolic link (to ~, say)
+        # made the run write its results, summary and log wherever it pointed
+        out.unlink()
     out.mkdir(parents=True, exist_ok=True)
     _clear_stale(out)
     args = ["run", str(scenario), "--out", str(out), "--no-progress"]
