@@ -586,12 +586,35 @@ def _init_folder(value: str) -> str:
     return value
 
 
+def _memory_limit() -> str:
+    """'this process may use at most N MiB of memory (`ulimit -v`)' when such a limit is set, else ''."""
+    try:
+        import resource
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+    except (ImportError, OSError, ValueError):     # pragma: no cover - not POSIX
+        return ""
+    if soft == resource.RLIM_INFINITY:
+        return ""
+    return f"this process may use at most {soft / 2**20:.0f} MiB of memory (`ulimit -v`): raise that limit"
+
+
 def _describe(exc: BaseException) -> str:
     if isinstance(exc, CosimError):
         return f"error: {exc}"
+    if isinstance(exc, MemoryError):
+        # was "internal error: MemoryError ... this is a bug in rotorcosim"
+        limit = _memory_limit()
+        return ("error: out of memory" + (f" ({exc})" if str(exc) else "") + "; "
+                + (limit if limit else "free memory (close other programs) or run a smaller case (a coarser "
+                   "film grid, fewer recorded signals)"))
     if isinstance(exc, OSError):
         where = f"{exc.filename}: " if exc.filename else ""
         fix = _OS_FIXES.get(exc.errno, "")
+        limit = _memory_limit()
+        if not fix and limit and any(w in str(exc) for w in ("shared object", "map segment", "allocate memory")):
+            # a library that cannot be mapped under a memory limit: llvmlite says "Could not find/load
+            # shared object file 'libllvmlite.so' ... cannot be found, or the permissions are incorrect"
+            fix = f"if the file is there, {limit}"
         return f"error: {where}{exc.strerror or exc}" + (f"; {fix}" if fix else "")
     import yaml
     if isinstance(exc, yaml.YAMLError):

@@ -450,3 +450,24 @@ def test_a_file_or_link_where_a_sweep_run_folder_goes_is_replaced_not_a_crash_or
         assert (runs / rid).is_dir() and not (runs / rid).is_symlink()
         assert (runs / rid / "sweep_run.json").is_file()
     assert list(elsewhere.iterdir()) == []
+
+
+@posix_only
+def test_running_out_of_memory_is_a_message_not_an_internal_error(monkeypatch):
+    """A MemoryError (a memory limit, `ulimit -v`, or a machine out of memory while a scenario or
+    its FMUs are set up) ended in "internal error: MemoryError (this is a bug in rotorcosim ...)".
+    Now it is "error: out of memory; ..." with the limit when one is set, and a library that cannot
+    be mapped under such a limit (llvmlite's "Could not find/load shared object file") gets the
+    limit as its likely cause."""
+    import resource
+
+    from orchestrator import cli
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    monkeypatch.setattr(resource, "getrlimit", lambda r: (3 * 2**30, hard) if r == resource.RLIMIT_AS else (soft, hard))
+    text = cli._describe(MemoryError())
+    assert text.startswith("error: out of memory;") and "3072 MiB" in text and "ulimit -v" in text, text
+    text = cli._describe(OSError("Could not find/load shared object file 'libllvmlite.so'"))
+    assert "ulimit -v" in text, text
+    monkeypatch.setattr(resource, "getrlimit", lambda r: (resource.RLIM_INFINITY, resource.RLIM_INFINITY))
+    text = cli._describe(MemoryError())
+    assert text.startswith("error: out of memory;") and "internal error" not in text, text
