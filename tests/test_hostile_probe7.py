@@ -471,3 +471,24 @@ def test_running_out_of_memory_is_a_message_not_an_internal_error(monkeypatch):
     monkeypatch.setattr(resource, "getrlimit", lambda r: (resource.RLIM_INFINITY, resource.RLIM_INFINITY))
     text = cli._describe(MemoryError())
     assert text.startswith("error: out of memory;") and "internal error" not in text, text
+
+
+def test_a_parquet_file_of_a_killed_run_says_why_it_cannot_be_read(tmp_path, capsys):
+    """A run with output.format: parquet killed hard (SIGKILL) leaves results.parquet without its
+    footer; `rotorcosim plot` said only "not a readable Parquet file (ArrowInvalid: ... Parquet magic
+    bytes not found in footer. Either the file is corrupted or this is not a parquet file.)". Now
+    it says the run was killed before it closed the file, that none of its rows can be read, and
+    that output.format: csv keeps the rows of a killed run."""
+    pa = pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+
+    from orchestrator.cli import main
+    run = _journal_run(tmp_path, {"b1": {"x": "r.x_1", "y": "r.y_1"}})
+    (run / "results.csv").unlink()
+    path = run / "results.parquet"
+    pq.write_table(pa.table({"time": [0.0, 0.1, 0.2], "r.x_1": [1.0, 2.0, 3.0]}), path)
+    path.write_bytes(path.read_bytes()[:-12])          # no footer: what SIGKILL leaves
+    assert main(["plot", str(run)]) == 1
+    err = capsys.readouterr().err
+    assert "the run was killed (or its disk filled) before it ended and none of its rows can be read" in err, err
+    assert "output.format: csv" in err, err

@@ -322,7 +322,16 @@ def read_results_parquet(path: str | Path) -> dict[str, np.ndarray]:
     try:
         table = pq.read_table(path)
     except Exception as exc:                 # pyarrow raises its own ArrowInvalid / OSError
-        raise ValueError(f"{path}: not a readable Parquet file ({type(exc).__name__}: {exc})") from None
+        why = f"{type(exc).__name__}: {exc}"
+        if "magic bytes not found in footer" in str(exc):
+            # what a run killed hard (SIGKILL, a crash, the machine going down) leaves: a Parquet file
+            # is readable only once it is closed, so none of its rows can be read
+            raise ValueError(f"{path}: not a readable Parquet file: it has no footer, which a run writes when it "
+                             "closes the file, so the run was killed (or its disk filled) before it ended and "
+                             "none of its rows can be read; run it again, with output.format: csv if it may be "
+                             "killed again (a CSV file keeps every row written before the run was killed) "
+                             f"({why})") from None
+        raise ValueError(f"{path}: not a readable Parquet file ({why})") from None
     if "time" not in table.column_names:
         raise ValueError(f"{path}: no 'time' column (columns: {', '.join(table.column_names[:8])})")
     import pyarrow as pa
