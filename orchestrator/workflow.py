@@ -142,6 +142,8 @@ def _execute(scenario, out_dir: Path, folder: RunFolder, progress, observers) ->
                 note = ""       # the master's note of this same stop: said again, or a SIGTERM called the user
         else:
             msg, stop = f"the run stopped at t={res.end_time:.12g} s: {type(exc).__name__}: {exc}", None
+            if note and str(exc) in note:
+                note = ""       # the master's "stopped by an error (<the same text>)": said twice
         summary = _summary(scenario, replace(res, status=Status.FAILED,
                                              message=msg + ("; " + note if note else "")))
         if stop is not None:                    # machine-readable: a sweep counts such a run as cancelled

@@ -492,3 +492,20 @@ def test_a_parquet_file_of_a_killed_run_says_why_it_cannot_be_read(tmp_path, cap
     err = capsys.readouterr().err
     assert "the run was killed (or its disk filled) before it ended and none of its rows can be read" in err, err
     assert "output.format: csv" in err, err
+
+
+def test_the_summary_of_a_run_stopped_by_a_write_error_says_its_reason_once(tmp_path, capsys, monkeypatch,
+                                                                          test_fmus):
+    """A run whose results.csv could not be written (full disk, `ulimit -f`) wrote a summary message
+    holding the whole reason twice: "the run stopped at t=0.006 s: OutputWriteError: cannot write
+    ...; free some space ...; stopped by an error (OutputWriteError: cannot write ...; free some
+    space ...) at t=0.006 s". Now once."""
+    from hostile_builders import two_mass_dir
+    from tests.test_hostile_probe3 import _disk_full_after
+    d = two_mass_dir(tmp_path, test_fmus)
+    _disk_full_after(monkeypatch, 6)
+    from orchestrator.cli import main
+    assert main(["run", str(d / "two_mass.yaml"), "--out", str(tmp_path / "out")]) == 1
+    message = json.loads((tmp_path / "out" / "summary.json").read_text())["message"]
+    assert message.count("cannot write") == 1, message
+    assert message.startswith("the run stopped at t=0.006 s: OutputWriteError: cannot write"), message
