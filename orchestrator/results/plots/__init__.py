@@ -39,7 +39,7 @@ __all__ = ["plot_run", "plot_result", "draw_all", "infer_spec", "PlotContext"]
 
 #: journals drawn by one plot (an orbit and a waterfall each, and a line of the eccentricity
 #: figure); the rest are named in a note. A summary.json listing 2000 journals (or a results.csv
-#: of 2000 x_i/y_i column pairs) kept `plot` drawing 4000 figures for over an hour
+#: of 2000 x_i/y_i column pairs) kept `plot` drawing 4000 figures (still at it after 5 minutes)
 MAX_JOURNALS = 50
 
 
