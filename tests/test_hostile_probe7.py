@@ -92,8 +92,8 @@ def test_ctrl_c_while_the_workers_start_is_an_interrupt_not_an_fmu_crash(tmp_pat
 @posix_only
 def test_sigterm_to_a_sweep_writes_its_table_and_says_how_to_resume(tmp_path, test_fmus):
     """`kill PID` (SIGTERM, what a batch system or a service manager sends) of `rotorcosim sweep`
-    killed it outright: exit -15, no sweep.csv, no message, and the run processes of its local
-    cluster ran on without it. Now SIGTERM stops a sweep as Ctrl-C does: the table of what
+    killed it outright: exit -15, no sweep.csv, no message (its run processes stopped only once
+    they noticed their worker was gone). Now SIGTERM stops a sweep as Ctrl-C does: the table of what
     finished is written (the rest `cancelled`), the runs in progress are stopped, and the
     message says how to resume; exit 143."""
     (tmp_path / "fmus").mkdir()

@@ -269,8 +269,8 @@ class _Interrupt:
     :attr:`requested`; :func:`_gather` looks at it every :data:`_POLL_S` and raises the
     KeyboardInterrupt itself, from its own code. A second Ctrl-C raises at once. SIGTERM (a
     batch system or ``kill`` stopping the sweep) is handled the same way: it killed the sweep
-    outright before, with no sweep.csv, no message and exit -15, while the run processes of
-    the local cluster went on. :attr:`signum` is the first signal. Outside the main thread (the
+    outright before, with no sweep.csv and no message, exit -15 (its run processes stopped only
+    once they noticed their worker was gone). :attr:`signum` is the first signal. Outside the main thread (the
     Python API called from a thread) Python delivers no signals and nothing is installed.
     """
 
