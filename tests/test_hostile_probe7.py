@@ -352,7 +352,8 @@ def test_a_crafted_call_record_nested_too_deeply_is_ignored_by_plot(tmp_path):
 def test_a_lock_record_that_is_no_json_object_is_unreadable_not_an_internal_error(tmp_path, record):
     """A second run into a folder in use reads who holds it from `.rotorcosim.lock`. A record of
     "[[[[..." ended in "internal error: RecursionError", a JSON list in "AttributeError: 'list' object
-    has no attribute 'get'"; now both say the folder is in use by another run (details unreadable)."""
+    has no attribute 'get'"; now both say the folder is in use by another process that has not said
+    which run it is (the message of a holder whose details cannot be read, after its bounded wait)."""
     import fcntl
     from types import SimpleNamespace
 
@@ -361,7 +362,8 @@ def test_a_lock_record_that_is_no_json_object_is_unreadable_not_an_internal_erro
     (tmp_path / ".rotorcosim.lock").write_text(record)
     with open(tmp_path / ".rotorcosim.lock") as held:
         fcntl.flock(held, fcntl.LOCK_EX)              # a live run holds it
-        with pytest.raises(LifecycleError, match=r"in use by another run: another run \(details unreadable\)"):
+        with pytest.raises(LifecycleError,
+                           match=r"in use by another process: it holds .* but had not written which run it is"):
             with lifecycle.RunFolder(tmp_path, SimpleNamespace(name="a", source=None, fmus=())):
                 pass
 
