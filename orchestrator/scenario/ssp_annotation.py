@@ -130,7 +130,7 @@ def read_annotation(root: ET.Element, doc: dict, ssd: str) -> None:
     text = el.text or ""
     if len(text) > MAX_ANNOTATION_CHARS:
         raise ScenarioError(f"{where}: {len(text)} characters (limit {MAX_ANNOTATION_CHARS}, orchestrator.scenario."
-                            "ssp.MAX_ANNOTATION_CHARS); not a plausible scenario annotation")
+                            "ssp_annotation.MAX_ANNOTATION_CHARS); not a plausible scenario annotation")
     import yaml
 
     from orchestrator.scenario.nodes import YamlLoader
