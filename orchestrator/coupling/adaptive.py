@@ -52,7 +52,8 @@ import math
 import numpy as np
 
 from orchestrator.coupling.error_control import PIController, next_stop, scaled_error_norm
-from orchestrator.coupling.signal_scales import atol_vector, corrected_prediction, jacobian_groups
+from orchestrator.coupling.signal_scales import (DEFAULT_ATOL, atol_vector, corrected_prediction, jacobian_groups,
+                                                  running_scale_mask)
 from orchestrator.coupling.signals import lagrange_weights
 from orchestrator.coupling.step_control import ConstantStep, DiscardHalving, StepSizeController
 from orchestrator.errors import CouplingError
@@ -112,6 +113,8 @@ class ErrorControlled(StepSizeController):
         self.atol: np.ndarray | None = None    # per signal (bind); None: spec.atol as given
         self.ij_groups: list = []              # interface-Jacobian forces (bind)
         self.nominal_scaled: list[str] = []    # signals with a declared nominal (bind)
+        self.running = np.zeros(0, dtype=bool)  # signals whose atol is rtol x their running scale (bind)
+        self.scale = np.zeros(0)               # largest |y| of those signals at accepted step ends so far
         self.limiting: dict[int, int] = {}     # signal index -> steps it had the largest error
         self.over_signals: dict[int, int] = {}  # signal index -> accepted steps it took above tolerance
         self.accepted = 0
@@ -147,6 +150,8 @@ class ErrorControlled(StepSizeController):
         for _, terms in self.ij_groups:        # the coefficients act through the force's defect
             for kc, _, _ in terms:
                 self.atol[kc] = math.inf
+        self.running = running_scale_mask(self.spec.atol, len(names), nominals) & np.isfinite(self.atol)
+        self.scale = np.zeros(len(names))
         if self.ij_groups:
             forces = {j for j, _ in self.ij_groups}
             if self.ij_order and all(j in forces for j in np.flatnonzero(np.isfinite(self.atol))):
@@ -167,6 +172,10 @@ class ErrorControlled(StepSizeController):
                 a = corrected_prediction(pred, b, prev, self.ij_groups)
         atol = self.atol if self.atol is not None and len(self.atol) == len(b) else \
             atol_vector(self.spec.atol, [""] * len(b))
+        if len(self.running) == len(b) and self.running.any():
+            atol = atol.copy()
+            r = self.running
+            atol[r] = np.maximum(DEFAULT_ATOL, self.spec.rtol * np.maximum(self.scale[r], np.abs(prev[r])))
         err, worst = scaled_error_norm(a, b, prev, rtol=self.spec.rtol, atol=atol)
         if self.impulse and h is not None:
             err *= h / self.grid.interval
@@ -205,6 +214,9 @@ class ErrorControlled(StepSizeController):
                 if cp is not None:
                     stepper.release(cp)
             self.limiting[worst] = self.limiting.get(worst, 0) + 1
+            if self.running.any():           # only accepted values (a rejected attempt is rolled back)
+                r = self.running
+                self.scale[r] = np.maximum(self.scale[r], np.maximum(np.abs(prev[r]), np.abs(hist.store[1][r])))
             if err > 1.0:
                 self.over_signals[worst] = self.over_signals.get(worst, 0) + 1
             if d.jump:          # restart the extrapolation from the value after the jump
@@ -282,6 +294,9 @@ class ErrorControlled(StepSizeController):
                                  "estimate_order": self.pi.p,
                                  "atol_from_nominal": [n for n in self.nominal_scaled
                                                        if self._uses_nominal(n)],
+                                 "atol_running_scale": {n: max(DEFAULT_ATOL, self.spec.rtol * float(v))
+                                                        for n, v, r in zip(self.signal_names, self.scale,
+                                                                           self.running) if r},
                                  "min_step_taken": self.h_min_taken if self.accepted else None,
                                  "max_step_taken": self.h_max_taken if self.accepted else None}}
 

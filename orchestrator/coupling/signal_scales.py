@@ -83,6 +83,16 @@ def atol_vector(atol, names: list[str], *, rtol: float = 0.0,
     return out
 
 
+def running_scale_mask(atol, n: int, nominals: Sequence[float | None] | None = None) -> np.ndarray:
+    """Which of ``n`` signals take ``atol = rtol * running scale`` (module docstring): all whose FMUs
+    declare no nominal, when ``atol`` is not given at all (None); none when it is (a number or a
+    mapping keep their meaning, 1e-8 included)."""
+    if atol is not None:
+        return np.zeros(n, dtype=bool)
+    nominals = nominals if nominals is not None else [None] * n
+    return np.array([nominals[j] is None for j in range(n)], dtype=bool)
+
+
 def signal_nominals(names: list[str], connections, variable) -> list[float | None]:
     """The nominal of every column ``names`` (module docstring): ``variable(instance, name)``
     gives an FMU's :class:`~orchestrator.fmi.model_description.Variable` (or None); the producer
