@@ -16,8 +16,15 @@ variable, for scaling): a change of rtol times the signal's typical size is with
 tolerance, also where the signal passes zero, the rule of model-exchange importers for state
 tolerances (OpenModelica, Dymola: atol_i = rtol * nominal_i). The nominal is the producer's
 output's, times |gain| of the connection; where the output declares none, the consumer input's.
-A signal without a nominal gets 1e-8. An explicit number ``atol: 1.0e-6`` applies to every
-signal as before (nominals unused).
+A signal without a nominal gets 1e-8 when ``atol`` is a mapping that does not name it; when
+``atol`` is not given at all it gets ``max(1e-8, rtol * s)`` instead, s the largest |y| of the
+signal at accepted step ends so far and at the start of the attempt (:func:`running_scale_mask`
+selects them, ``ErrorControlled.error`` applies it): a signal that passes through zero is held
+to rtol times the size it has had, not to 1e-8 in its own units (a practically relative test
+whose step followed every zero crossing: two crane-fmu oscillators in a loop, rtol 1e-3, took
+18 092 steps with 1e-8 and 5 136 with the running scale, error against a fine reference
+1.3e-4 and 3.8e-4 of the amplitude). An explicit number ``atol: 1.0e-6`` applies to every
+signal as before (nominals and running scale unused).
 
 Interface-Jacobian estimate
 ---------------------------
