@@ -511,3 +511,37 @@ def test_the_summary_of_a_run_stopped_by_a_write_error_says_its_reason_once(tmp_
     message = json.loads((tmp_path / "out" / "summary.json").read_text())["message"]
     assert message.count("cannot write") == 1, message
     assert message.startswith("the run stopped at t=0.006 s: OutputWriteError: cannot write"), message
+
+
+def test_load_names_each_wrong_typed_summary_field_and_drops_it(tmp_path, caplog):
+    """CoSimResult.load passed wrong-typed summary.json fields through silently: macro_steps "x"
+    and fmu_calls "y" came back as stats, status "exploded" became failed without a word. Now each
+    field the loader reads is type-checked; a wrong one is dropped with a warning naming the
+    file, the field, what was expected and what came (as plot drops a malformed analysis)."""
+    import logging
+    from orchestrator import CoSimResult
+    from orchestrator.results.result import Status
+    (tmp_path / "results.csv").write_text("time,a.y\n0.0,1.0\n0.1,2.0\n")
+    (tmp_path / "summary.json").write_text(json.dumps({
+        "status": "exploded", "message": ["no"], "macro_steps": "x", "rejected_steps": True,
+        "retried_steps": 2, "wall_time_s": "slow", "fmu_calls": "y", "end_time": {"t": 1},
+        "analysis": [1, 2]}))
+    with caplog.at_level(logging.WARNING, logger="orchestrator.results.result"):
+        res = CoSimResult.load(tmp_path)
+    assert res.status is Status.FAILED and res.message == "" and res.end_time is None and res.analysis is None
+    assert res.stats == {"retried_steps": 2}
+    said = caplog.text
+    for field, got in (("status", "'exploded'"), ("message", "['no']"), ("macro_steps", "'x'"),
+                       ("rejected_steps", "True"), ("wall_time_s", "'slow'"), ("fmu_calls", "'y'"),
+                       ("end_time", "{'t': 1}"), ("analysis", "[1, 2]")):
+        assert f"summary.json: field '{field}' must be" in said and got in said, field
+    assert "the run is taken as failed" in said
+    # a summary as a run writes it (counters null while running, a non-finite float as "inf") is quiet
+    caplog.clear()
+    (tmp_path / "summary.json").write_text(json.dumps({
+        "status": "running", "message": "m", "macro_steps": None, "wall_time_s": None, "end_time": "inf",
+        "fmu_calls": {"a": {"doStep": 3}}, "analysis": None}))
+    with caplog.at_level(logging.WARNING, logger="orchestrator.results.result"):
+        res = CoSimResult.load(tmp_path)
+    assert caplog.text == "" and res.status is Status.RUNNING and res.end_time == float("inf")
+    assert res.stats == {"macro_steps": None, "wall_time_s": None, "fmu_calls": {"a": {"doStep": 3}}}

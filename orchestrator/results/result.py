@@ -7,11 +7,15 @@
 from __future__ import annotations
 
 import enum
+import logging
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 
 class Status(enum.Enum):
@@ -66,16 +70,94 @@ class CoSimResult:
         summary = run.summary() if run.has_summary() else {}
         cols = run.columns() if run.has_results() else {"time": np.zeros(0)}
         t = cols.pop("time", np.zeros(0))
-        status = Status[str(summary.get("status", "failed")).upper()] if str(
-            summary.get("status", "")).upper() in Status.__members__ else Status.FAILED
-        stats = {k: summary[k] for k in ("macro_steps", "rejected_steps", "retried_steps", "retry_substeps",
-                                         "wall_time_s", "fmu_calls") if k in summary}
-        message = str(summary.get("message", "")) if summary else (
+        checked = _checked_summary(summary, run.summary_json)
+        stats = {k: checked[k] for k in _STATS if k in checked}
+        message = checked.get("message", "") if summary else (
             f"{run.summary_json} is missing: the run was killed before its summary was written, or is "
             "still running; the rows of its results file are loaded")
-        return cls(status=status, message=message, t=t, outputs=cols, stats=stats,
-                   out_dir=run.path, end_time=summary.get("end_time"), analysis=summary.get("analysis"))
+        return cls(status=checked["status"], message=message, t=t, outputs=cols, stats=stats,
+                   out_dir=run.path, end_time=checked.get("end_time"), analysis=checked.get("analysis"))
 
     def __repr__(self) -> str:
         return (f"CoSimResult(status={self.status.short}, end_time={self.end_time}, rows={len(self.t)}, "
                 f"signals={len(self.outputs)}, message={self.message!r})")
+
+
+_COUNTERS = ("macro_steps", "rejected_steps", "retried_steps", "retry_substeps")
+_STATS = (*_COUNTERS, "wall_time_s", "fmu_calls")
+_NONFINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}   # summary.json's "string" JSON policy
+
+
+def _number(x) -> float | int | None:
+    """``x`` as a number if it is one (a JSON number, or the "nan"/"inf"/"-inf" the summary
+    writer puts for a non-finite float), else None."""
+    if isinstance(x, bool):
+        return None
+    if isinstance(x, (int, float)):
+        return x
+    if isinstance(x, str) and x in _NONFINITE:
+        return _NONFINITE[x]
+    return None
+
+
+def _checked_summary(summary: Mapping[str, Any], path: Path) -> dict[str, Any]:
+    """The fields :meth:`CoSimResult.load` reads from summary.json, each of the type the run
+    writes; a field of another type is dropped with a warning naming the file, the field, what
+    was expected and what came (a run folder may come from anyone; ``plot`` drops a malformed
+    analysis the same way, with a note). An unknown ``status`` reads as failed, said likewise."""
+    out: dict[str, Any] = {"status": Status.FAILED}
+
+    def drop(key: str, expected: str, got) -> None:
+        shown = repr(got)
+        shown = shown if len(shown) <= 80 else shown[:77] + "..."
+        log.warning("%s: field '%s' must be %s (got %s %s); ignored", path, key, expected,
+                    type(got).__name__, shown)
+
+    if "status" in summary:
+        st = summary["status"]
+        if isinstance(st, str) and st.upper() in Status.__members__:
+            out["status"] = Status[st.upper()]
+        else:
+            drop("status", f"one of {[s.short for s in Status]}", st)
+            log.warning("%s: the run is taken as failed", path)
+    if "message" in summary:
+        if isinstance(summary["message"], str):
+            out["message"] = summary["message"]
+        else:
+            drop("message", "a string", summary["message"])
+    for key in _COUNTERS:
+        if key in summary:
+            v = summary[key]
+            if v is None or (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+                out[key] = v
+            else:
+                drop(key, "a count (an integer >= 0) or null", v)
+    if "wall_time_s" in summary:
+        v = summary["wall_time_s"]
+        n = _number(v)
+        if v is None or (n is not None and n >= 0):
+            out["wall_time_s"] = n
+        else:
+            drop("wall_time_s", "a number of seconds >= 0 or null", v)
+    if "end_time" in summary:
+        v = summary["end_time"]
+        n = _number(v)
+        if v is None or n is not None:
+            out["end_time"] = n
+        else:
+            drop("end_time", "a number of seconds or null", v)
+    if "fmu_calls" in summary:
+        v = summary["fmu_calls"]
+        if isinstance(v, Mapping) and all(
+                isinstance(calls, Mapping) and all(isinstance(n, int) and not isinstance(n, bool) and n >= 0
+                                                   for n in calls.values()) for calls in v.values()):
+            out["fmu_calls"] = v
+        else:
+            drop("fmu_calls", "a mapping {instance: {call: count}}", v)
+    if "analysis" in summary:
+        v = summary["analysis"]
+        if v is None or isinstance(v, Mapping):
+            out["analysis"] = v
+        else:
+            drop("analysis", "a mapping or null", v)
+    return out
