@@ -426,7 +426,7 @@ def _cmd_sweep(args) -> int:
     print(f"table: {o.table}" + (f" ({o.skipped} runs resumed)" if o.skipped else ""))
     print("runs: " + ", ".join(f"{n} {s}" for s, n in counts.items()))
     for r in o.rows:
-        if r["status"] not in ("finished", "cancelled"):
+        if r["status"] != "finished" and (r["status"] != "cancelled" or not r["message"].startswith("not run")):
             print(f"  {r['run_id']} {r['status']}: {r['message']}", file=sys.stderr)
     if o.interrupted:
         term = o.stopped_by == "SIGTERM"

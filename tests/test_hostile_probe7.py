@@ -545,3 +545,85 @@ def test_load_names_each_wrong_typed_summary_field_and_drops_it(tmp_path, caplog
         res = CoSimResult.load(tmp_path)
     assert caplog.text == "" and res.status is Status.RUNNING and res.end_time == float("inf")
     assert res.stats == {"macro_steps": None, "wall_time_s": None, "fmu_calls": {"a": {"doStep": 3}}}
+
+
+def _run_in_progress(scenario, overrides, run_dir, *, warm=True, inputs=None):   # stands in for task.execute_run
+    out = Path(run_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    if any(o.endswith("t_fail=0.05") for o in overrides):
+        return {"status": "finished", "message": "", "wall_time_s": 0.0, "summary": {"status": "finished"}}
+    (out / "results.csv").write_text("time,f.y\n0.0,1.0\n")
+    (out / "summary.json").write_text(json.dumps({"status": "running", "message": "the run is in progress"}))
+    time.sleep(30.0)
+    return {"status": "finished", "message": "", "wall_time_s": 0.0, "summary": {"status": "finished"}}
+
+
+def _run_again(scenario, overrides, run_dir, *, warm=True, inputs=None):
+    (Path(run_dir) / "ran-again").write_text("")
+    return {"status": "finished", "message": "", "wall_time_s": 0.0, "summary": {"status": "finished"}}
+
+
+@pytest.mark.filterwarnings("ignore:collect")        # the stand-in runs write no end_time/steps
+def test_an_interrupted_sweep_says_which_runs_were_running_not_that_they_never_ran(tmp_path, test_fmus,
+                                                                                   monkeypatch):
+    """Ctrl-C while a run was in progress: its row said "not run: the sweep was interrupted"
+    although its folder held the rows and summary it had written. Now it says "interrupted while
+    running" and what its own summary.json says; a run that never started still says "not run",
+    one whose folder holds only an earlier sweep's summary too; --resume runs both again."""
+    import threading
+
+    from orchestrator.sweep import prepare, runner
+    (tmp_path / "fmus").mkdir()
+    for name in ("Faulty", "Gain"):
+        shutil.copy(test_fmus[name], tmp_path / "fmus" / f"{name}.fmu")
+    (tmp_path / "ramp.yaml").write_text(SCENARIO)
+    (tmp_path / "sweep.yaml").write_text(SWEEP)
+    monkeypatch.setattr(runner, "execute_run", _run_in_progress)
+    spec, runs = prepare(tmp_path / "sweep.yaml")
+    old = tmp_path / "o" / "runs" / runs[2].run_id          # an earlier sweep's run, never started in this one
+    old.mkdir(parents=True)
+    (old / "summary.json").write_text(json.dumps({"status": "failed", "message": "of an earlier sweep"}))
+    os.utime(old / "summary.json", (time.time() - 3600, time.time() - 3600))
+    timer = threading.Timer(8.0, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        outcome = runner.run_sweep(spec, runs, tmp_path / "o", workers=1, warm=False, progress=False)
+    finally:
+        timer.cancel()
+    assert outcome.interrupted
+    rows = outcome.rows
+    assert [r["status"] for r in rows] == ["finished", "cancelled", "cancelled"], rows
+    assert rows[1]["message"].startswith("interrupted while running (its summary.json still says running"), rows[1]
+    assert "rows so far" in rows[1]["message"] and "--resume" in rows[1]["message"]
+    assert rows[2]["message"].startswith("not run: the sweep was interrupted"), rows[2]
+    table = (tmp_path / "o" / "sweep.csv").read_text()
+    assert "interrupted while running" in table
+    monkeypatch.setattr(runner, "execute_run", _run_again)
+    again = runner.run_sweep(spec, runs, tmp_path / "o", workers=1, warm=False, progress=False, resume=True)
+    assert [r["status"] for r in again.rows] == ["finished"] * 3
+    assert all((tmp_path / "o" / "runs" / r.run_id / "ran-again").exists() for r in runs[1:])
+
+
+def test_the_printed_summary_of_an_interrupted_sweep_names_the_runs_that_were_running(tmp_path, test_fmus,
+                                                                                       monkeypatch, capsys):
+    """`rotorcosim sweep` printed no line for the cancelled runs, so a run interrupted while running
+    (its rows kept) could not be told from one never started. Now each cancelled run that had
+    started is printed with its message; those not run are only counted."""
+    from orchestrator.cli import main
+    from orchestrator.sweep import runner
+    (tmp_path / "fmus").mkdir()
+    for name in ("Faulty", "Gain"):
+        shutil.copy(test_fmus[name], tmp_path / "fmus" / f"{name}.fmu")
+    (tmp_path / "ramp.yaml").write_text(SCENARIO)
+    (tmp_path / "sweep.yaml").write_text(SWEEP)
+    rows = [{"run_id": "r1", "status": "finished", "message": ""},
+            {"run_id": "r2", "status": "cancelled",
+             "message": "interrupted while running (its summary.json says failed: interrupted by the user at "
+                        "t=0.3 s); rerun with --resume"},
+            {"run_id": "r3", "status": "cancelled", "message": "not run: the sweep was interrupted; rerun with --resume"}]
+    monkeypatch.setattr(runner, "run_sweep", lambda *a, **kw: runner.SweepOutcome(
+        rows=rows, out_dir=tmp_path / "o", table=tmp_path / "o" / "sweep.csv", interrupted=True, stopped_by="SIGINT"))
+    assert main(["sweep", str(tmp_path / "sweep.yaml"), "--out", str(tmp_path / "o"), "--no-progress"]) == 130
+    err = capsys.readouterr().err
+    assert "r2 cancelled: interrupted while running (its summary.json says failed: interrupted by the user" in err
+    assert "r3" not in err

@@ -170,6 +170,40 @@ def _recorded(run_dir: Path, run: RunPlan) -> dict | None:
     return {**record, "summary": summary}
 
 
+_RUN_FILES = ("summary.json", "run.log", "results.csv", "results.parquet")
+_SAID_CHARS = 300                                 # of the run's own message in its row
+
+
+def _in_progress(run_dir: Path, since: float) -> dict | None:
+    """The record of a run that was in progress when the sweep was interrupted (it wrote into
+    ``run_dir`` after ``since``, the sweep's start, but no sweep_run.json): status ``cancelled``
+    (``--resume`` runs it again unless its summary says finished), the message saying it was
+    interrupted while running and what its own summary.json says. None when it never started
+    (its folder holds nothing of this sweep: a summary from an earlier sweep is not taken)."""
+    def newer(name: str) -> bool:
+        try:
+            return (run_dir / name).stat().st_mtime >= since
+        except OSError:
+            return False
+    if not any(newer(name) for name in _RUN_FILES):
+        return None
+    summary = read_run_file(run_dir / "summary.json", "summary.json")[0] if newer("summary.json") else None
+    status = summary.get("status") if summary is not None else None
+    said = summary.get("message") if summary is not None else None
+    said = " ".join(said.split()) if isinstance(said, str) else ""
+    said = said if len(said) <= _SAID_CHARS else said[:_SAID_CHARS - 3] + "..."
+    if not isinstance(status, str):
+        how = "it wrote no summary.json yet"
+    elif status == "running":
+        how = "its summary.json still says running: it was stopped before it wrote its final one"
+    else:
+        how = f"its summary.json says {status[:40]}" + (f": {said}" if said else "")
+    rows = "; its rows so far are in its results file" if newer("results.csv") or newer("results.parquet") else ""
+    again = ("; --resume keeps it" if status == "finished" else "; rerun with --resume")
+    return {"status": "cancelled", "message": f"interrupted while running ({how}){rows}{again}",
+            "wall_time_s": None, "summary": summary}
+
+
 # The local cluster's housekeeping at the pace of runs that take seconds to hours, not of
 # millisecond tasks: Dask's defaults (a statistical profiler sampling every worker every 10 ms,
 # event-loop health ticks every 20 ms, memory checks every 100 ms, system monitor every 0.5 s)
@@ -365,6 +399,7 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
     interrupted = False
     stopped_by = None
     t0 = time.perf_counter()
+    since = time.time()                           # files of this sweep's runs are newer
     if todo:
         client = cluster = futures = None
         bar = _progress(len(todo), progress)
@@ -390,7 +425,7 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
                 client.cancel([f for f in futures if not f.done()], force=True)
             for run in todo:                      # ended on a worker, result not gathered yet
                 if run.run_id not in records:
-                    rec = _recorded(runs_dir / run.run_id, run)
+                    rec = _recorded(runs_dir / run.run_id, run) or _in_progress(runs_dir / run.run_id, since)
                     if rec is not None:
                         records[run.run_id] = rec
         finally:
