@@ -627,3 +627,46 @@ def test_the_printed_summary_of_an_interrupted_sweep_names_the_runs_that_were_ru
     err = capsys.readouterr().err
     assert "r2 cancelled: interrupted while running (its summary.json says failed: interrupted by the user" in err
     assert "r3" not in err
+
+
+_KILLED_RUN = """
+import os, signal, sys
+from pathlib import Path
+from types import SimpleNamespace
+from orchestrator.coupling.lifecycle import RunFolder
+from orchestrator.fmi.call_record import CODE
+sc = SimpleNamespace(name="killed", source=None, fmus=[SimpleNamespace(name="rotor"), SimpleNamespace(name="bearing1")])
+f = RunFolder(sys.argv[1], sc).__enter__()
+(Path(sys.argv[1]) / "results.csv").write_text("time,rotor.x\\n0.0,1.0\\n0.001,2.0\\n")
+a, k = f.calls.slot("bearing1")
+a[k + 1], a[k] = 0.004, CODE["fmi2DoStep"]
+os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+@posix_only
+def test_the_call_record_of_a_killed_run_goes_to_previous_with_its_other_files(tmp_path):
+    """After a SIGKILL of a run, the next run into the folder moved the killed run's summary.json
+    and results.csv into previous/ but truncated its FMI call record .rotorcosim.calls (made
+    anew for itself), and `plot DIR/previous` (no lock file there) said nothing of the run having
+    died. Now the record is moved along, and plot of the previous/ folder of a run folder says
+    the run ended without a final summary and which FMI call it died in."""
+    from types import SimpleNamespace
+
+    from orchestrator.coupling.lifecycle import CALLS_NAME, RunFolder, open_calls
+    from orchestrator.results.plots import plot_run
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-c", _KILLED_RUN, str(out)], env=_env(), capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == -signal.SIGKILL, r.stderr
+    assert open_calls(out) == [("bearing1", "fmi2DoStep", 0.004)]
+    with RunFolder(out, SimpleNamespace(name="next", source=None, fmus=[SimpleNamespace(name="g")])) as f:
+        assert open_calls(out) == []                        # the new run's own record, no open call
+        f.finish({"status": "finished", "message": "done"})
+    assert not (out / CALLS_NAME).exists()                  # a run that ended in order removes its own
+    assert open_calls(out / "previous") == [("bearing1", "fmi2DoStep", 0.004)]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert plot_run(out / "previous")
+    said = [str(w.message) for w in caught if "ended without a final summary" in str(w.message)]
+    assert len(said) == 1 and "'bearing1' in fmi2DoStep at t=0.004 s" in said[0], [str(w.message) for w in caught]

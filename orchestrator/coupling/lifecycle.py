@@ -20,7 +20,8 @@ Rules:
   meanwhile); a holder that never writes them is named as "another process".
 * **Earlier runs**: ``results.csv`` and ``summary.json`` left by an earlier run are moved
   into ``out_dir/previous/`` (replacing what was there) before anything is written, with its
-  figures (``plots/``) and film fields (``*_fields.npz``), so a
+  figures (``plots/``), film fields (``*_fields.npz``) and, for a run that died, its FMI call
+  record (``.rotorcosim.calls``, which ``plot DIR/previous`` reads), so a
   run that fails early never sits beside another run's results, and a run killed hard
   leaves a summary that says ``running``, never another run's ``finished``.
 * **summary.json** is written at the start (``status: running``, the scenario, its file,
@@ -218,6 +219,7 @@ class RunFolder:
         try:
             self.started_at = _now()
             self._move_aside()
+            self._open_calls()
             self._write(self._head("running", "the run is in progress (or was killed hard: no final summary)"))
         except BaseException:
             self._unlock()
@@ -265,6 +267,9 @@ class RunFolder:
                                    f"{space_fix(e, 'check the output folder (it must be writable)')} or give "
                                    "another output folder (--out)") from None
         self._lock_fd = fd
+
+    def _open_calls(self) -> None:
+        """This run's FMI call record (after :meth:`_move_aside` moved the earlier run's away)."""
         names = [str(getattr(f, "name", "")) for f in getattr(self.scenario, "fmus", ())]
         try:        # where each FMU in this process is, readable after a crash (plot, sweeps)
             self.calls = CallRecord(self.out_dir / CALLS_NAME, names, {"pid": os.getpid()})
@@ -304,7 +309,10 @@ class RunFolder:
         # plot draws) go with it: left behind, they sat beside the new run's results as if they were its own
         extra = [p.name for p in sorted(self.out_dir.glob(FIELDS_GLOB))]
         extra += [PLOTS] if os.path.lexists(self.out_dir / PLOTS) else []
-        for n in (*RUN_FILES, *(p.name for p in prev.glob(FIELDS_GLOB)), PLOTS):
+        # and its FMI call record, left only by a run that died (one ending in order removes it): it
+        # was truncated by the new run's, so `plot DIR/previous` could not say which call the run died in
+        extra += [CALLS_NAME] if os.path.lexists(self.out_dir / CALLS_NAME) else []
+        for n in (*RUN_FILES, *(p.name for p in prev.glob(FIELDS_GLOB)), PLOTS, CALLS_NAME):
             _remove(prev / n)
         for n in (*present, *extra):
             os.replace(self.out_dir / n, prev / n)     # moves a link itself, never its target

@@ -8,6 +8,7 @@ through :class:`~orchestrator.results.run_directory.RunDirectory`) or from an in
 from __future__ import annotations
 
 import logging
+import os
 import re
 from pathlib import Path
 from typing import Any, Mapping
@@ -270,6 +271,8 @@ def _unfinished(summary: Mapping[str, Any], run_dir: Path) -> list[str]:
     pid = summary.get("pid")
     who = f"the run (pid {pid}, started {summary.get('started_at')})" if isinstance(pid, int) else "the run"
     in_use = folder_in_use(run_dir)
+    if in_use is None and _moved_aside(run_dir):
+        in_use = False            # a later run took the folder's lock and moved this one here: it is gone
     if in_use:
         return [f"{who} is still going on: these are the rows it has written so far"]
     if in_use is False:
@@ -281,3 +284,11 @@ def _unfinished(summary: Mapping[str, Any], run_dir: Path) -> list[str]:
                 "process that crashes takes the run down with it: give it isolation: process, "
                 f"docs/coupling.md){where}; these are the rows it wrote before"]
     return []
+
+
+def _moved_aside(run_dir: Path) -> bool:
+    """Whether ``run_dir`` is the ``previous/`` folder of a run folder (one with a lock file): an
+    earlier run's files, moved there by a later run that held the folder's lock."""
+    from orchestrator.coupling.lifecycle import LOCK_NAME, PREVIOUS
+    run_dir = Path(run_dir)
+    return run_dir.name == PREVIOUS and os.path.lexists(run_dir.parent / LOCK_NAME)
