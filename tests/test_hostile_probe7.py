@@ -670,3 +670,31 @@ def test_the_call_record_of_a_killed_run_goes_to_previous_with_its_other_files(t
         assert plot_run(out / "previous")
     said = [str(w.message) for w in caught if "ended without a final summary" in str(w.message)]
     assert len(said) == 1 and "'bearing1' in fmi2DoStep at t=0.004 s" in said[0], [str(w.message) for w in caught]
+
+
+@pytest.mark.parametrize("value", ["1e300", "-1e300", "1e308", "1.7976931348623157e308", "5e-324", "0"])
+def test_a_signal_constant_at_an_extreme_value_is_drawn_flat_without_a_stray_warning(tmp_path, value):
+    """A signal constant at an extreme value: at 5e-324 plot printed matplotlib's unattributed
+    "Attempting to set identical low and high ylims" (0.1 % of the value, the steady axis's pad,
+    is 0), at 1e308 it ended in "internal error: ValueError: arange: cannot compute length" (the
+    tick finder overflows), at 1.8e308 in "Axis limits cannot be NaN or Inf" (the value + 0.1 %
+    is inf). Now signals.steady_limits keeps the limits finite and distinct for any magnitude, a
+    steady signal of 1e300 or more is drawn divided by a power of ten, and such a signal's one
+    tick is its value, labelled by us: a flat line, no warning."""
+    from orchestrator.results.plots import plot_run
+    from orchestrator.results.plots.signals import steady_limits, steady_scale, steady_ticks
+    y = np.full(20, float(value))
+    lims = steady_limits(y)
+    assert lims is not None and np.all(np.isfinite(lims)) and lims[0] < lims[1], lims
+    assert lims[0] <= y[0] <= lims[1]
+    scale = steady_scale(lims)
+    if abs(y[0]) >= 1e300:
+        assert 1 <= abs(y[0]) / scale < 10 and steady_ticks(lims, y) == [y[0]]
+        scaled = steady_limits(y / scale)
+        assert scaled[0] < y[0] / scale < scaled[1] and scaled[1] - scaled[0] > 1e-3
+    (tmp_path / "results.csv").write_text("time,a.y\n" + "".join(f"{i * 0.1},{value}\n" for i in range(20)))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        paths = plot_run(tmp_path)
+    assert [p.name for p in paths] == ["signals_a.png"]
+    assert [str(w.message) for w in caught] == []

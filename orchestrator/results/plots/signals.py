@@ -13,6 +13,7 @@ were left out and how to pick them with ``--signals``).
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -94,11 +95,16 @@ def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
             for ax, c in zip(axes, part):
                 y = _numbers(cols[c])
                 whole = bool(np.all(np.isnan(y) | (y == np.round(y))))
-                ax.plot(t[::stride], y[::stride], lw=0.9, drawstyle="steps-post" if whole else "default")
                 steady = steady_limits(y)
+                scale = steady_scale(steady)    # a huge steady signal is drawn divided by it
+                ax.plot(t[::stride], y[::stride] / scale, lw=0.9, drawstyle="steps-post" if whole else "default")
                 if steady is not None:          # rounding noise, not a signal: a flat line, plain ticks
-                    ax.set_ylim(*steady)
-                    ax.ticklabel_format(axis="y", useOffset=False)
+                    ax.set_ylim(*(steady_limits(y / scale) if scale != 1.0 else steady))
+                    ticks = steady_ticks(steady, y)
+                    if ticks is not None:      # labelled here: matplotlib's formatter overflows there too
+                        ax.set_yticks([v / scale for v in ticks], labels=[f"{v:.7g}" for v in ticks])
+                    else:
+                        ax.ticklabel_format(axis="y", useOffset=False)
                 unit = units.get(c)
                 ax.set_ylabel(c.split(".", 1)[-1] + (f" [{unit}]" if unit else ""), rotation=0, ha="right",
                               va="center")
@@ -117,22 +123,58 @@ def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
 
 #: a signal whose values differ by at most this fraction of their size is drawn as constant
 STEADY_SPAN = 1e-9
+#: the least half-height of a steady signal's axis (0.1 % of a value below 1e-297 is no normal float)
+STEADY_MIN_PAD = 1e-300
+#: from this magnitude on, a steady signal's tick is its value (matplotlib's tick finder overflows)
+HUGE = 1e300
+_FMAX = float(np.finfo(float).max)
 
 
 def steady_limits(y: np.ndarray) -> tuple[float, float] | None:
     """y-limits for a signal that is constant up to rounding (its finite values within
     :data:`STEADY_SPAN` of their size): the value +- 0.1 %. Left to matplotlib, such a signal
     filled its panel with the rounding noise under an offset (a stationary bearing's Fx, which
-    varies by 1e-10 of itself, looked like a wandering signal). None for any other signal."""
+    varies by 1e-10 of itself, looked like a wandering signal). None for any other signal.
+
+    Any finite magnitude: the limits stay finite (clipped to the largest float, so a signal at
+    1.8e308 sits at the top edge) and distinct (at least +- :data:`STEADY_MIN_PAD` around a
+    value so small that 0.1 % of it is no normal number, e.g. 5e-324); matplotlib's warning
+    "Attempting to set identical low and high ylims" and its ValueErrors ("Axis limits cannot be
+    NaN or Inf") came from such values."""
     v = y[np.isfinite(y)]
     if v.size == 0:
         return None
     lo, hi = float(v.min()), float(v.max())
     size = max(abs(lo), abs(hi))
-    if hi - lo > STEADY_SPAN * size:
+    with np.errstate(over="ignore"):
+        if not hi - lo <= STEADY_SPAN * size:       # (hi - lo may overflow to inf)
+            return None
+    if size == 0:
+        return -1.0, 1.0
+    pad = max(1e-3 * size, STEADY_MIN_PAD)
+    return max(lo - pad, -_FMAX), min(hi + pad, _FMAX)
+
+
+def steady_scale(limits: tuple[float, float] | None) -> float:
+    """What a steady signal of :data:`HUGE` magnitude or more is divided by to be drawn (a power
+    of ten: its values then lie in [1, 10), its tick labelled with the true value): Agg drew an
+    empty panel, without even its frame, for a line at 1e308. 1.0 for any other signal."""
+    if limits is None:
+        return 1.0
+    size = max(abs(limits[0]), abs(limits[1]))
+    return 10.0 ** math.floor(math.log10(size)) if size >= HUGE else 1.0
+
+
+def steady_ticks(limits: tuple[float, float], y: np.ndarray) -> list[float] | None:
+    """The y tick of a steady signal (its value, to be labelled by the caller) when matplotlib's
+    own tick finder and formatter fail on its limits: a magnitude of :data:`HUGE` or more
+    ("arange: cannot compute length" and an OverflowError ended plot at 1e308), or limits
+    within 1e-290 of each other (a value of 5e-324); None otherwise (matplotlib's ticks)."""
+    v = y[np.isfinite(y)]
+    size = max(abs(limits[0]), abs(limits[1]))
+    if v.size == 0 or (size < HUGE and limits[1] - limits[0] >= 1e-290):
         return None
-    pad = 1e-3 * size if size > 0 else 1.0
-    return lo - pad, hi + pad
+    return [float(np.sort(v)[v.size // 2])]        # a value of the signal (a mean may overflow)
 
 
 def unit_labels(units: Any) -> dict[str, str]:
