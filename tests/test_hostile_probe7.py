@@ -620,7 +620,8 @@ def test_the_printed_summary_of_an_interrupted_sweep_names_the_runs_that_were_ru
             {"run_id": "r2", "status": "cancelled",
              "message": "interrupted while running (its summary.json says failed: interrupted by the user at "
                         "t=0.3 s); rerun with --resume"},
-            {"run_id": "r3", "status": "cancelled", "message": "not run: the sweep was interrupted; rerun with --resume"}]
+            {"run_id": "r3", "status": "cancelled",
+             "message": "not run: the sweep was interrupted; rerun with --resume"}]
     monkeypatch.setattr(runner, "run_sweep", lambda *a, **kw: runner.SweepOutcome(
         rows=rows, out_dir=tmp_path / "o", table=tmp_path / "o" / "sweep.csv", interrupted=True, stopped_by="SIGINT"))
     assert main(["sweep", str(tmp_path / "sweep.yaml"), "--out", str(tmp_path / "o"), "--no-progress"]) == 130
