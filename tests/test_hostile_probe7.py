@@ -699,3 +699,31 @@ def test_a_signal_constant_at_an_extreme_value_is_drawn_flat_without_a_stray_war
         paths = plot_run(tmp_path)
     assert [p.name for p in paths] == ["signals_a.png"]
     assert [str(w.message) for w in caught] == []
+
+
+@pytest.mark.parametrize("speed", [1e300, 2 * np.pi * 300 * 60 * 1e4])
+def test_a_speed_with_too_many_revolutions_skips_the_waterfall_and_the_analysis_with_a_reason(tmp_path, speed):
+    """A speed signal constant at 1e300 rad/s in results.csv made `rotorcosim plot` end in
+    "internal error: Maximum allowed size exceeded": the orbit was resampled into one angle bin per
+    1/32 revolution, with no bound on their number (whirl.order_resample); the run-up analysis
+    calls the same code. Now at most whirl.MAX_ORDER_BINS bins: the waterfall is skipped and the
+    analysis says why (naming the speed's largest value and asking whether it is in rad/s), and
+    the other figures are drawn. Also for a finite but absurd speed (300 Hz given in rpm x 1e4)."""
+    from orchestrator.results.plots import plot_run
+    from orchestrator.results.whirl import analyze_journal
+    t = np.arange(4000) * 2e-4
+    x, y = 1e-6 * np.cos(2 * np.pi * 300 * t), 1e-6 * np.sin(2 * np.pi * 300 * t)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "results.csv").write_text("time,r.x_1,r.y_1,r.omega\n" + "".join(
+        f"{a!r},{b!r},{c!r},{speed!r}\n" for a, b, c in zip(t.tolist(), x.tolist(), y.tolist())))
+    (run / "summary.json").write_text(json.dumps({"scenario": "s", "status": "finished", "analysis": {
+        "spec": {"speed": "r.omega", "journals": {"b1": {"x": "r.x_1", "y": "r.y_1", "clearance": 1.372e-5}}}}}))
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        written = [p.name for p in plot_run(run)]
+    assert "waterfall_b1.png" not in written and "orbit_b1.png" in written, written
+    said = [str(w.message) for w in rec if "waterfall of 'b1'" in str(w.message)]
+    assert len(said) == 1 and "is the speed in rad/s?" in said[0] and "angle bins" in said[0], said
+    res = analyze_journal(t, x, y, np.full(t.size, speed), 1.372e-5)
+    assert res["whirl"] is False and any("is the speed in rad/s?" in w for w in res["warnings"]), res["warnings"]

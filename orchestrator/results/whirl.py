@@ -73,6 +73,11 @@ logger = logging.getLogger(__name__)
 
 TWO_PI = 2.0 * math.pi
 HANN_ENBW = 1.5          # equivalent noise bandwidth of the periodic Hann window [bins]
+#: most angle bins one orbit is resampled into (16.8 M: 256 MiB of complex bins; a 100 000 rpm
+#: rotor recorded for a minute at 32 samples per revolution needs 3.2 M). A speed signal that
+#: would need more (a speed in rpm or deg/s given as rad/s, a value of 1e300 in a tampered
+#: results file) is not analysed: :func:`too_many_bins` says why
+MAX_ORDER_BINS = 1 << 24
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -180,6 +185,21 @@ def revolutions(t: np.ndarray, omega: np.ndarray) -> np.ndarray:
     return r
 
 
+def too_many_bins(t, omega, samples_per_rev: int) -> str | None:
+    """Why the orbit cannot be resampled in angle (more than :data:`MAX_ORDER_BINS` bins), or None."""
+    r = revolutions(t, np.where(np.isfinite(np.asarray(omega, float)), omega, 0.0))
+    with np.errstate(all="ignore"):
+        revs = float(np.nanmax(r, initial=0.0)) if r.size else 0.0
+    bins = revs * int(samples_per_rev)
+    if bins <= MAX_ORDER_BINS:
+        return None
+    top = float(np.nanmax(np.abs(np.asarray(omega, float)), initial=0.0))
+    return (f"the speed signal gives {revs:.3g} revolutions ({bins:.3g} angle bins of 1/{int(samples_per_rev)} "
+            f"revolution, at most {MAX_ORDER_BINS} are analysed; its largest |value| is {top:.6g} rad/s = "
+            f"{top / TWO_PI:.6g} Hz): is the speed in rad/s? (rpm or deg/s read as rad/s give 9.5x or 57x too "
+            "many); whirl not analysed")
+
+
 def order_resample(t: np.ndarray, z: np.ndarray, r: np.ndarray, samples_per_rev: int):
     """Average ``z`` over uniform angle bins of ``1/samples_per_rev`` revolution.
 
@@ -188,7 +208,8 @@ def order_resample(t: np.ndarray, z: np.ndarray, r: np.ndarray, samples_per_rev:
     ``r`` does not increase (standstill, reverse rotation) are dropped.
 
     Returns ``(r_c, z_c, t_c)``: bin-centre revolutions, bin means, times at the
-    bin centres. Empty arrays when fewer than two bins fit.
+    bin centres. Empty arrays when fewer than two bins fit, or more than
+    :data:`MAX_ORDER_BINS`.
     """
     t = np.asarray(t, float)
     z = np.asarray(z, complex)
@@ -204,7 +225,10 @@ def order_resample(t: np.ndarray, z: np.ndarray, r: np.ndarray, samples_per_rev:
         return empty
     m = int(samples_per_rev)
     e0 = math.ceil(r[0] * m) / m
-    n_bins = int(math.floor((r[-1] - e0) * m + 1e-9))
+    span = (r[-1] - e0) * m
+    if not span <= MAX_ORDER_BINS:     # too many to hold (too_many_bins says why); inf/NaN too
+        return empty
+    n_bins = int(math.floor(span + 1e-9))
     if n_bins < 2:
         return empty
     edges = e0 + np.arange(n_bins + 1) / m
@@ -488,6 +512,10 @@ def _analyze_journal(t, x, y, omega, clearance, *, eps, params) -> dict:
     _sampling_check(warn, t, omega)
     z = x + 1j * y
     if not _analysable(warn, t, z, omega):
+        return res
+    why = too_many_bins(t, omega, p.samples_per_rev)
+    if why:
+        warn.append(why)
         return res
     s = order_spectra(t, z, omega, p)
     if s.n_frames == 0:

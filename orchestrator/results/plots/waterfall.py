@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from orchestrator.results.plots.common import PlotContext, edges, safe_name
-from orchestrator.results.whirl import WhirlParams, waterfall
+from orchestrator.results.whirl import WhirlParams, too_many_bins, waterfall
 
 
 def draw(ctx: PlotContext, jn: str) -> None:
@@ -23,6 +23,10 @@ def draw(ctx: PlotContext, jn: str) -> None:
         params = WhirlParams.from_mapping(ctx.spec.get("whirl"))
     except (ValueError, TypeError) as exc:
         ctx.skipped.append(f"custom whirl parameters for the waterfall ({exc}); defaults used")
+    why = too_many_bins(j["t"], j["omega"], params.samples_per_rev)
+    if why:
+        ctx.skipped.append(f"waterfall of '{jn}': {why.replace('; whirl not analysed', '')}")
+        return
     wf = waterfall(j["t"], j["x"] + 1j * j["y"], j["omega"], params)
     if wf["t"].size < 2:
         ctx.skipped.append(f"waterfall of '{jn}': fewer than {params.window_revs + params.hop_revs} "
