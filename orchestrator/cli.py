@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import math
 import sys
 import time
 import warnings
@@ -499,8 +500,74 @@ def _cmd_export_ssp(args) -> int:
     return 0
 
 
+def _add_stability(sub) -> None:
+    p = sub.add_parser("stability", help="linear stability threshold of a scenario's rotor in its bearings",
+                       description=(
+        "The lowest speed at which the scenario's rotor (our JeffcottRotor or TurbochargerRotor) with the linear "
+        "film coefficients of its JournalBearings, at their static equilibrium under gravity, has an eigenvalue "
+        "in the right half plane; the whirl frequency ratio of that mode and each bearing's eccentricity there "
+        "(docs/analysis.md, \"Linear stability threshold\"). Exit status 1 when nothing crosses in the speed "
+        "range."))
+    p.add_argument("file", metavar="FILE", help="scenario YAML file, or the name of a shipped scenario")
+    _add_set(p)
+    p.add_argument("--film", choices=("short", "hs"), default="hs",
+                   help="bearing coefficients: hs = each bearing's own finite-length half-Sommerfeld film on its "
+                        "grid (default); short = the short-bearing (Ocvirk) closed form")
+    p.add_argument("--speeds", metavar="LO:HI", type=_speed_range,
+                   help="speed range [Hz] searched (default: 0.1 f_max : f_max of the rotor's ramp)")
+    p.add_argument("--json", metavar="OUT", help="also write the result as JSON to this file")
+    p.set_defaults(func=_cmd_stability)
+
+
+def _speed_range(text: str) -> tuple[float, float]:
+    lo, sep, hi = text.partition(":")
+    try:
+        a, b = float(lo), float(hi)
+    except ValueError:
+        a = b = math.nan
+    if not sep or not (0.0 < a < b < math.inf):
+        raise argparse.ArgumentTypeError(f"expected LO:HI in Hz with 0 < LO < HI, e.g. 50:800 (got {text!r})")
+    return a, b
+
+
+def _cmd_stability(args) -> int:
+    import json
+
+    from orchestrator.scenario import load_scenario
+    from orchestrator.shipped import resolve
+    stability = _feature("orchestrator.stability", "stability", "stability")
+
+    args.file = str(resolve(args.file))
+    scenario = load_scenario(args.file, args.set, build_fmus=True)
+    r = stability(scenario, film=args.film, speeds=args.speeds)
+    lo, hi = r["speed_range_hz"]
+    print(f"linear stability of {r['scenario']} ({args.file}): rotor '{r['rotor']['instance']}' "
+          f"({r['rotor']['model']}), {lo:g} - {hi:g} Hz")
+    print(f"method: eigenvalues of the rotor's linear model with the bearing coefficients of the {r['method']}")
+    for note in r["notes"]:
+        print(f"note: {note}")
+    if r["status"] == "threshold":
+        print(f"threshold speed: {r['threshold_hz']:.2f} Hz (an eigenvalue crosses into the right half plane)")
+        print(f"whirl frequency: {r['whirl_hz']:.2f} Hz, whirl frequency ratio {r['whirl_ratio']:.3f}")
+        for name, b in r["bearings"].items():
+            print(f"  {name} (station {b['station']}): static eccentricity ratio {b['eps_at_threshold']:.3f} at the "
+                  f"threshold, load {b['load_n']:.4g} N")
+    if args.json:
+        Path(args.json).write_text(json.dumps(r, indent=2) + "\n")
+        print(f"written: {args.json}")
+    if r["status"] == "stable":
+        print(f"error: no eigenvalue crosses into the right half plane between {lo:g} and {hi:g} Hz: the system is "
+              "linearly stable in that range; give a wider --speeds LO:HI", file=sys.stderr)
+        return 1
+    if r["status"] == "unstable_at_lower_bound":
+        print(f"error: already unstable at the lower end of the range ({lo:g} Hz), so the threshold is below it; "
+              "give a lower --speeds LO", file=sys.stderr)
+        return 1
+    return 0
+
+
 VERBS = (_add_run, _add_validate, _add_info, _add_build_fmus, _add_plot, _add_compare, _add_scenarios, _add_init,
-         _add_export_ssp, _add_sweep)
+         _add_export_ssp, _add_sweep, _add_stability)
 
 
 # --------------------------------------------------------------------------- entry point

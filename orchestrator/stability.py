@@ -1,0 +1,322 @@
+"""Linear stability threshold of a scenario's rotor-bearing system (``rotorcosim stability``).
+
+What it computes (docs/analysis.md, "Linear stability threshold"): the lowest speed at which an
+eigenvalue of the rotor's linear model with speed-dependent linear film coefficients at its
+bearing stations crosses into the right half plane (:func:`rotor_fmu.stability.threshold_speed`:
+geometric scan, then Brent on the largest real part; Lund 1974, J. Eng. Ind. 96:509; Childs
+1993, "Turbomachinery Rotordynamics", sec. 3.6), the whirl frequency ratio of the crossing mode,
+and each bearing's static eccentricity there. The coefficients are taken at the static
+equilibrium of each journal under the rotor's gravity load on that station
+(:func:`rotor_fmu.stability.static_bearing_loads`, stations held at 0):
+
+* ``film="short"``: the closed-form short-bearing (Ocvirk 1952, NACA TN 2808) pi-film
+  coefficients (:func:`rotor_fmu.stability.short_bearing_coefficients`) of each bearing's
+  R, B (length), c = psi R and eta0 - a bound for B/D not small; grooves and feed pressure
+  are not in the closed form;
+* ``film="hs"``: the scenario's own finite-length half-Sommerfeld film (its R, B, psi, eta0,
+  p0, p_feed, groove, grid): the equilibrium by Newton on the journal centre, the coefficients
+  by :func:`bearing_fmu.linearize.hs_linearization` (what the FMU outputs as ``kxx .. cyy``),
+  as docs/paper_cases_radius.py does. For a mass-conserving bearing (``cavitation = 1``) these
+  are the half-Sommerfeld film's coefficients (the HS linearisation), said so in the result.
+
+Supported scenarios: one of our ``JeffcottRotor`` or ``TurbochargerRotor`` FMUs (its parameters,
+incl. ``rotor_file``, from the scenario) and one of our ``JournalBearing`` FMUs at every bearing
+station, connected by the station convention of docs/fmus.md (``rotor.x_i -> bearing.x``, ``y``,
+``vx``, ``vy``, ``rotor.omega -> bearing.omega``, ``bearing.Fx -> rotor.Fx_i``, ``Fy``; gain 1,
+offset 0). Anything else (another FMU, a floating-ring bearing or ``m_ring_i > 0``, a bearing
+connected otherwise) is refused with a message naming what is supported.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from orchestrator.errors import CosimError
+
+ROTOR_MODELS = ("JeffcottRotor", "TurbochargerRotor")
+BEARING_MODEL = "JournalBearing"
+FILMS = ("short", "hs")
+SUPPORTED = (f"supported: one of our {' or '.join(ROTOR_MODELS)} FMUs and one of our {BEARING_MODEL} FMUs at "
+             "every bearing station i, connected by the station convention of docs/fmus.md (rotor.x_i, y_i, "
+             "vx_i, vy_i -> bearing.x, y, vx, vy; rotor.omega -> bearing.omega; bearing.Fx, Fy -> rotor.Fx_i, "
+             "Fy_i; gain 1, offset 0), and no other FMU")
+_STATION_IN = ("x", "y", "vx", "vy")
+
+
+class StabilityError(CosimError):
+    """A scenario the stability command does not support, or a computation that failed."""
+
+
+@dataclass
+class Bearing:
+    instance: str
+    station: int                      # 1-based station of the rotor
+    params: Any                       # bearing_fmu.model.BearingParams
+    line: int | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass
+class System:
+    rotor_instance: str
+    rotor_model: str
+    rotor: Any                        # rotor_fmu.linear_rotor.LinearRotor
+    f_max: float                      # the scenario's ramp end speed [Hz]
+    bearings: list[Bearing]
+
+
+def _where(scenario, spec) -> str:
+    src = scenario.source or "scenario"
+    return f"{src}:{spec.line}" if spec.line else str(src)
+
+
+def _md(spec):
+    from orchestrator.fmi.archive import cached_model_description
+    return cached_model_description(str(spec.path))
+
+
+def _params(md, spec) -> dict:
+    """The FMU's parameter values as the run has them: its start values, then the scenario's."""
+    out = {n: v.start for n, v in md.variables.items() if v.causality == "parameter" and v.start is not None}
+    out.update(spec.parameters)
+    return out
+
+
+def _fields(cls, params: dict) -> dict:
+    names = {f.name for f in dataclasses.fields(cls)}
+    return {k: v for k, v in params.items() if k in names}
+
+
+def _make_rotor(model: str, params: dict, where: str, inst: str):
+    if model == "JeffcottRotor":
+        from rotor_fmu.jeffcott import JeffcottModel, JeffcottParams
+        kw = _fields(JeffcottParams, params)
+        return JeffcottModel(JeffcottParams(**kw)), float(kw.get("f_max", JeffcottParams.f_max))
+    from rotor_fmu.turbocharger import TurbochargerParams, TurbochargerRotor
+    kw = _fields(TurbochargerParams, params)
+    kw["rotor_file"] = params.get("rotor_file") or None       # as rotor_fmu/turbocharger_rotor.py
+    kw["n_modes"] = params.get("n_modes") or None
+    return TurbochargerRotor(TurbochargerParams(**kw)), float(kw.get("f_max", TurbochargerParams.f_max))
+
+
+def build_system(scenario) -> System:
+    """The rotor model and the bearing of each station, or :class:`StabilityError` naming why not."""
+    from bearing_fmu import journal_bearing as slave
+    from bearing_fmu.model import BearingParams
+
+    kinds = {spec.name: _md(spec).model_name for spec in scenario.fmus}
+    rotors = [s for s in scenario.fmus if kinds[s.name] in ROTOR_MODELS]
+    if len(rotors) != 1:
+        found = ", ".join(f"'{n}' ({k})" for n, k in kinds.items())
+        raise StabilityError(f"{scenario.source}: `stability` needs exactly one rotor FMU of ours "
+                             f"({' or '.join(ROTOR_MODELS)}); the scenario has {len(rotors)} among {found}; "
+                             f"{SUPPORTED}")
+    rspec = rotors[0]
+    rname, rmodel = rspec.name, kinds[rspec.name]
+    rparams = _params(_md(rspec), rspec)
+    rings = [k for k, v in rparams.items() if k.startswith("m_ring_") and isinstance(v, (int, float)) and v > 0]
+    if rings:
+        raise StabilityError(f"{_where(scenario, rspec)}: fmus.{rname}.parameters.{rings[0]} is "
+                             f"{rparams[rings[0]]:g} kg: floating-ring bearings are not supported by `stability` "
+                             f"(their ring adds degrees of freedom and a second film); {SUPPORTED}")
+    try:
+        rotor, f_max = _make_rotor(rmodel, rparams, _where(scenario, rspec), rname)
+    except (ValueError, OSError) as exc:
+        raise StabilityError(f"{_where(scenario, rspec)}: the rotor '{rname}' ({rmodel}) cannot be built from its "
+                             f"parameters: {exc}") from None
+    n_st = len(rotor.bearing_dofs)
+    conns = list(scenario.connections)
+    bearings: list[Bearing] = []
+    for i in range(1, n_st + 1):
+        hits = [c for c in conns if c.src == f"{rname}.x_{i}" and c.dst_variable == "x"]
+        if len(hits) != 1:
+            raise StabilityError(f"{scenario.source}: station {i} of the rotor '{rname}' needs exactly one "
+                                 f"connection {rname}.x_{i} -> <bearing>.x (found {len(hits)}); {SUPPORTED}")
+        b = hits[0].dst_instance
+        if kinds.get(b) != BEARING_MODEL:
+            raise StabilityError(f"{scenario.source}:{hits[0].line}: station {i} of '{rname}' is connected to "
+                                 f"'{b}' ({kinds.get(b)}), not to our {BEARING_MODEL}; {SUPPORTED}")
+        want = [(f"{rname}.{v}_{i}", f"{b}.{v}") for v in _STATION_IN] + [(f"{rname}.omega", f"{b}.omega")]
+        want += [(f"{b}.F{a}", f"{rname}.F{a}_{i}") for a in ("x", "y")]
+        for src, dst in want:
+            ok = [c for c in conns if c.src == src and c.dst == dst and c.gain == 1.0 and c.offset == 0.0]
+            if not ok:
+                raise StabilityError(f"{scenario.source}: the bearing '{b}' at station {i} of '{rname}' lacks the "
+                                     f"connection {src} -> {dst} (gain 1, offset 0) of the station convention; "
+                                     f"write it in 'connections:'; {SUPPORTED}")
+        bspec = scenario.fmu(b)
+        renamed = getattr(slave, "RENAMED", {})
+        bp = {renamed.get(k, k): v for k, v in _params(_md(bspec), bspec).items()}
+        try:
+            params = BearingParams(**_fields(BearingParams, bp))
+        except (TypeError, ValueError) as exc:
+            raise StabilityError(f"{_where(scenario, bspec)}: the bearing '{b}': {exc}") from None
+        bearings.append(Bearing(b, i, params, bspec.line))
+    used = {rname, *(b.instance for b in bearings)}
+    extra = [n for n in kinds if n not in used]
+    if extra:
+        spec = scenario.fmu(extra[0])
+        raise StabilityError(f"{_where(scenario, spec)}: the FMU '{extra[0]}' ({kinds[extra[0]]}) is not a bearing "
+                             f"at a station of '{rname}'; `stability` does not know what it adds to the linear "
+                             f"system and does not guess; {SUPPORTED}")
+    if len({b.instance for b in bearings}) != len(bearings):
+        raise StabilityError(f"{scenario.source}: one bearing instance is connected at two stations; {SUPPORTED}")
+    return System(rname, rmodel, rotor, f_max, bearings)
+
+
+# --------------------------------------------------------------------------- coefficients
+class _ShortFilm:
+    """Ocvirk coefficients of each station under its static load (closed form)."""
+
+    method = ("short-bearing (Ocvirk) pi-film closed form (rotor_fmu/stability.py), at the static equilibrium "
+              "under the rotor's gravity load")
+
+    def __init__(self, system: System):
+        from rotor_fmu.stability import static_bearing_loads
+        self.loads = static_bearing_loads(system.rotor)
+        self.system = system
+
+    def __call__(self, omega):
+        from rotor_fmu.stability import short_bearing_coefficients
+        K, C = [], []
+        for b, ld in zip(self.system.bearings, self.loads):
+            p = b.params
+            k, c = short_bearing_coefficients(ld, omega, R=p.R, L=p.B, C=p.psi * p.R, eta=p.eta0)
+            K.append(k)
+            C.append(c)
+        return np.array(K), np.array(C)
+
+    def eccentricities(self, omega):
+        from rotor_fmu.stability import short_bearing_equilibrium
+        out = []
+        for b, ld in zip(self.system.bearings, self.loads):
+            p = b.params
+            out.append(short_bearing_equilibrium(ld, omega, R=p.R, L=p.B, C=p.psi * p.R, eta=p.eta0)[0])
+        return out
+
+
+class _HSFilm:
+    """Half-Sommerfeld film coefficients of each station's own bearing at its static equilibrium."""
+
+    method = ("finite-length half-Sommerfeld film of each bearing (its parameters and grid), linearized by central "
+              "differences (bearing_fmu/linearize.py hs_linearization) at the static equilibrium under the rotor's "
+              "gravity load (Newton on the journal centre)")
+
+    def __init__(self, system: System):
+        from bearing_fmu.model import BearingModel
+        from rotor_fmu.stability import static_bearing_loads
+        self.system = system
+        self.loads = static_bearing_loads(system.rotor)
+        self.models = []
+        for b in system.bearings:
+            p = dataclasses.replace(b.params, cavitation=0)
+            m = BearingModel(p)
+            m.initialize(0.0, -0.5 * m.c, 0.0, 0.0, 1.0)
+            self.models.append(m)
+        self.q: list = [None] * len(self.models)
+
+    def equilibrium(self, j: int, omega: float) -> np.ndarray:
+        """Journal centre (x, y) [m] where the HS film force equals -load (Newton, K = -dF/dq)."""
+        from bearing_fmu.linearize import hs_force, hs_linearization
+        from rotor_fmu.stability import short_bearing_equilibrium
+        b, m, ld = self.system.bearings[j], self.models[j], self.loads[j]
+        c = m.c
+        target = -np.asarray(ld, float)
+        W = float(np.hypot(*target))
+        q = self.q[j]
+        if q is None:       # start from the short-bearing equilibrium (kept inside 0.8 c)
+            p = b.params
+            eps, psi = short_bearing_equilibrium(ld, omega, R=p.R, L=p.B, C=c, eta=p.eta0)
+            eps = min(eps, 0.8)
+            q = eps * c * np.array([math.cos(psi), math.sin(psi)])
+        q = np.array(q, float)
+        for _ in range(60):
+            f = hs_force(m, q[0], q[1], 0.0, 0.0, omega) - target
+            if np.max(np.abs(f)) <= 1e-9 * W:
+                self.q[j] = q
+                return q
+            K, _ = hs_linearization(m, q[0], q[1], 0.0, 0.0, omega)
+            step = np.linalg.solve(K, f)           # F(q + dq) ~ F(q) - K dq = target
+            lam = 1.0
+            while np.hypot(*(q + lam * step)) >= 0.98 * c:
+                lam *= 0.5
+            q = q + lam * step
+        raise StabilityError(f"bearing '{b.instance}': no half-Sommerfeld static equilibrium found at "
+                             f"{omega / (2 * math.pi):.4g} Hz under the load {W:.4g} N (60 Newton steps; last "
+                             f"eccentricity ratio {np.hypot(*q) / c:.3f}); raise the lower end of --speeds")
+
+    def __call__(self, omega):
+        from bearing_fmu.linearize import hs_linearization
+        K, C = [], []
+        for j, (b, m) in enumerate(zip(self.system.bearings, self.models)):
+            q = self.equilibrium(j, omega)
+            k, d = hs_linearization(m, q[0], q[1], 0.0, 0.0, omega)
+            p = b.params
+            if p.contact and 1.0 - np.hypot(*q) / m.c < 8.0 * p.sigma_rough / m.c:
+                raise StabilityError(f"bearing '{b.instance}': at {omega / (2 * math.pi):.4g} Hz the static "
+                                     f"equilibrium's minimum gap is below 8 roughness heights: the asperity contact "
+                                     f"(contact = 1) carries load there, which `stability` does not linearize; raise "
+                                     f"the lower end of --speeds")
+            K.append(k)
+            C.append(d)
+        return np.array(K), np.array(C)
+
+    def eccentricities(self, omega):
+        return [float(np.hypot(*self.equilibrium(j, omega)) / m.c) for j, m in enumerate(self.models)]
+
+
+# --------------------------------------------------------------------------- the command's library call
+def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int = 80) -> dict:
+    """The threshold result (a JSON-ready dict) of a loaded scenario; see the module doc."""
+    from rotor_fmu.stability import max_real_eigenvalue, threshold_speed
+
+    if film not in FILMS:
+        raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
+    system = build_system(scenario)
+    lo, hi = speeds if speeds is not None else (0.1 * system.f_max, system.f_max)
+    if not (0.0 < lo < hi and math.isfinite(hi)):
+        raise StabilityError(f"--speeds: need 0 < LO < HI in Hz (got {lo:g}:{hi:g})")
+    fn = _ShortFilm(system) if film == "short" else _HSFilm(system)
+    notes = []
+    for b in system.bearings:
+        if b.params.cavitation == 1:
+            notes.append(f"bearing '{b.instance}' is mass-conserving (cavitation = 1): its coefficients here are "
+                         "those of the half-Sommerfeld film (the HS linearisation), not of its own film")
+        if film == "short" and (b.params.groove_width > 0 or b.params.p_feed != b.params.p0):
+            notes.append(f"bearing '{b.instance}': the short-bearing closed form has no groove and no feed "
+                         "pressure (use --film hs for the film with them)")
+    if film == "short":
+        notes.append("short-bearing theory is a bound for B/D not small (B/D of "
+                     + ", ".join(f"'{b.instance}' {b.params.B / (2 * b.params.R):.2f}" for b in system.bearings)
+                     + ")")
+    w_lo, w_hi = 2 * math.pi * lo, 2 * math.pi * hi
+    result: dict[str, Any] = {
+        "scenario": scenario.name, "file": str(scenario.source) if scenario.source else None,
+        "rotor": {"instance": system.rotor_instance, "model": system.rotor_model},
+        "film": film, "method": fn.method, "speed_range_hz": [lo, hi],
+        "threshold_hz": None, "whirl_hz": None, "whirl_ratio": None, "bearings": {}, "notes": notes,
+    }
+    v_lo = max_real_eigenvalue(system.rotor, w_lo, fn)[0]
+    loads = fn.loads
+    if v_lo >= 0.0:
+        status, at = "unstable_at_lower_bound", None
+    else:
+        wt, nu = threshold_speed(system.rotor, fn, omega_min=w_lo, omega_max=w_hi, n_scan=n_scan)
+        if wt is None:
+            status, at = "stable", None
+        else:
+            status, at = "threshold", wt
+            result.update(threshold_hz=wt / (2 * math.pi), whirl_hz=nu / (2 * math.pi), whirl_ratio=nu / wt)
+    result["status"] = status
+    eps = fn.eccentricities(at) if at is not None else [None] * len(system.bearings)
+    for b, e, ld in zip(system.bearings, eps, loads):
+        result["bearings"][b.instance] = {"station": b.station, "load_n": float(np.hypot(*ld)),
+                                          "eps_at_threshold": e, "clearance_m": b.params.psi * b.params.R,
+                                          "cavitation": int(b.params.cavitation),
+                                          "grid": [int(b.params.n_phi), int(b.params.n_z)] if film == "hs" else None}
+    return result
