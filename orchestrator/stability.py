@@ -15,7 +15,8 @@ equilibrium of each journal under the rotor's gravity load on that station
   are not in the closed form;
 * ``film="hs"``: the scenario's own finite-length half-Sommerfeld film (its R, B, psi, eta0,
   p0, p_feed, groove, grid): the equilibrium by Newton on the journal centre, the coefficients
-  by :func:`bearing_fmu.linearize.hs_linearization` (what the FMU outputs as ``kxx .. cyy``),
+  by :func:`bearing_fmu.linearize.hs_linearization` (what the FMU outputs as ``kxx .. cyy``;
+  with ``contact = 1`` plus the asperity contact's force and coefficients, as the FMU adds them),
   as docs/paper_cases_radius.py does. For a mass-conserving bearing (``cavitation = 1``) these
   are the half-Sommerfeld film's coefficients (the HS linearisation), said so in the result.
 
@@ -220,9 +221,26 @@ class _HSFilm:
             self.models.append(m)
         self.q: list = [None] * len(self.models)
 
-    def equilibrium(self, j: int, omega: float) -> np.ndarray:
-        """Journal centre (x, y) [m] where the HS film force equals -load (Newton, K = -dF/dq)."""
+    def force_and_coefficients(self, j: int, q, omega: float, coefficients: bool = True):
+        """HS film force [N] at rest at q, plus the asperity contact force when the bearing has
+        ``contact = 1`` (bearing_fmu/contact.py; exactly 0 above 6 roughness heights), and (K, C)
+        of both (as ``bearing_fmu.linearize.linearization`` adds them)."""
+        from bearing_fmu.contact import contact_coefficients, contact_force
         from bearing_fmu.linearize import hs_force, hs_linearization
+        m = self.models[j]
+        F = hs_force(m, q[0], q[1], 0.0, 0.0, omega)
+        if m.params.contact:
+            F = F + np.array(contact_force(q[0], q[1], 0.0, 0.0, omega, **m.contact_kw)[:2])
+        if not coefficients:
+            return F, None, None
+        K, C = hs_linearization(m, q[0], q[1], 0.0, 0.0, omega)
+        if m.params.contact:
+            Kc, Cc = contact_coefficients(q[0], q[1], 0.0, 0.0, omega, **m.contact_kw)
+            K, C = K + Kc, C + Cc
+        return F, K, C
+
+    def equilibrium(self, j: int, omega: float) -> np.ndarray:
+        """Journal centre (x, y) [m] where the bearing force equals -load (Newton, K = -dF/dq)."""
         from rotor_fmu.stability import short_bearing_equilibrium
         b, m, ld = self.system.bearings[j], self.models[j], self.loads[j]
         c = m.c
@@ -236,14 +254,14 @@ class _HSFilm:
             q = eps * c * np.array([math.cos(psi), math.sin(psi)])
         q = np.array(q, float)
         for _ in range(60):
-            f = hs_force(m, q[0], q[1], 0.0, 0.0, omega) - target
+            F, K, _ = self.force_and_coefficients(j, q, omega)
+            f = F - target
             if np.max(np.abs(f)) <= 1e-9 * W:
                 self.q[j] = q
                 return q
-            K, _ = hs_linearization(m, q[0], q[1], 0.0, 0.0, omega)
             step = np.linalg.solve(K, f)           # F(q + dq) ~ F(q) - K dq = target
             lam = 1.0
-            while np.hypot(*(q + lam * step)) >= 0.98 * c:
+            while np.hypot(*(q + lam * step)) >= 0.995 * c:
                 lam *= 0.5
             q = q + lam * step
         raise StabilityError(f"bearing '{b.instance}': no half-Sommerfeld static equilibrium found at "
@@ -251,20 +269,26 @@ class _HSFilm:
                              f"eccentricity ratio {np.hypot(*q) / c:.3f}); raise the lower end of --speeds")
 
     def __call__(self, omega):
-        from bearing_fmu.linearize import hs_linearization
         K, C = [], []
-        for j, (b, m) in enumerate(zip(self.system.bearings, self.models)):
+        for j in range(len(self.models)):
             q = self.equilibrium(j, omega)
-            k, d = hs_linearization(m, q[0], q[1], 0.0, 0.0, omega)
-            p = b.params
-            if p.contact and 1.0 - np.hypot(*q) / m.c < 8.0 * p.sigma_rough / m.c:
-                raise StabilityError(f"bearing '{b.instance}': at {omega / (2 * math.pi):.4g} Hz the static "
-                                     f"equilibrium's minimum gap is below 8 roughness heights: the asperity contact "
-                                     f"(contact = 1) carries load there, which `stability` does not linearize; raise "
-                                     f"the lower end of --speeds")
+            _, k, d = self.force_and_coefficients(j, q, omega)
             K.append(k)
             C.append(d)
         return np.array(K), np.array(C)
+
+    def contact_share(self, omega):
+        """Share of each bearing's static load carried by asperity contact at omega (0 without contact)."""
+        from bearing_fmu.contact import contact_force
+        out = []
+        for j, m in enumerate(self.models):
+            if not m.params.contact:
+                out.append(0.0)
+                continue
+            q = self.equilibrium(j, omega)
+            Fn = contact_force(q[0], q[1], 0.0, 0.0, omega, **m.contact_kw)[2]
+            out.append(float(abs(Fn) / np.hypot(*self.loads[j])))
+        return out
 
     def eccentricities(self, omega):
         return [float(np.hypot(*self.equilibrium(j, omega)) / m.c) for j, m in enumerate(self.models)]
@@ -314,6 +338,11 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
             result.update(threshold_hz=wt / (2 * math.pi), whirl_hz=nu / (2 * math.pi), whirl_ratio=nu / wt)
     result["status"] = status
     eps = fn.eccentricities(at) if at is not None else [None] * len(system.bearings)
+    if at is not None and film == "hs":
+        for b, share in zip(system.bearings, fn.contact_share(at)):
+            if share > 1e-3:
+                notes.append(f"bearing '{b.instance}': asperity contact carries {share:.1%} of its static load at "
+                             "the threshold (its coefficients are included, bearing_fmu/contact.py)")
     for b, e, ld in zip(system.bearings, eps, loads):
         result["bearings"][b.instance] = {"station": b.station, "load_n": float(np.hypot(*ld)),
                                           "eps_at_threshold": e, "clearance_m": b.params.psi * b.params.R,
