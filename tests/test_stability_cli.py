@@ -1,0 +1,107 @@
+"""`rotorcosim stability`: the linear threshold of a scenario's rotor in its bearings.
+
+References (independent of the eigenvalue path the command takes):
+* short film: Lund's closed-form threshold of a Jeffcott rotor (disc on a flexible shaft, massless
+  journals) on linear bearing coefficients (Lund 1974; Childs 1993 sec. 3.6,
+  :func:`rotor_fmu.stability.lund_threshold_speed`);
+* HS film: the documented threshold of the paper's Jeffcott rotor, docs/paper-cases.md "How R was
+  chosen": R = 4.9 mm gives 256.1 Hz on the 40 x 40 film (eps 0.186, whirl 0.45 x speed), computed by
+  docs/paper_cases_radius.py (its own Newton, finite differences of the film force and bisection).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from orchestrator.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+JEFFCOTT_HS = REPO / "scenarios" / "jeffcott_runup_half_sommerfeld.yaml"
+
+
+def _run(capsys, *args):
+    code = main(["stability", *map(str, args)])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_short_film_matches_lund_closed_form(capsys, tmp_path):
+    # massless journals (1e-4 kg against 2.5 kg of disc per bearing) and no damping outside the film:
+    # the system of Lund's flexible-rotor criterion m nu^2 = K_eq k_s / (K_eq + k_s)
+    from rotor_fmu.stability import lund_threshold_speed
+    out = tmp_path / "r.json"
+    code, text, err = _run(capsys, JEFFCOTT_HS, "--film", "short", "--speeds", "20:2000", "--json", out,
+                           "--set", "fmus.rotor.parameters.m_journal=1e-4", "--set", "fmus.rotor.parameters.d_external=0",
+                           "--set", "fmus.rotor.parameters.d_internal=0")
+    assert code == 0, err
+    r = json.loads(out.read_text())
+    m = 2.5 + 1e-4                      # mass (and gravity load) per bearing
+    w = lund_threshold_speed(m, R=4.9e-3, L=7.84e-3, C=2.8e-3 * 4.9e-3, eta=0.012, k_shaft=0.5 * 4.0e6)
+    assert r["threshold_hz"] == pytest.approx(w / (2 * math.pi), rel=1e-3)
+    assert f"threshold speed: {r['threshold_hz']:.2f} Hz" in text
+    assert r["film"] == "short" and r["status"] == "threshold"
+
+
+def test_hs_film_reproduces_documented_threshold(capsys, tmp_path):
+    out = tmp_path / "r.json"
+    code, text, err = _run(capsys, JEFFCOTT_HS, "--json", out)
+    assert code == 0, err
+    r = json.loads(out.read_text())
+    assert r["threshold_hz"] == pytest.approx(256.1, abs=0.3)      # docs/paper-cases.md
+    assert r["whirl_ratio"] == pytest.approx(0.45, abs=0.01)
+    for b in ("bearing1", "bearing2"):
+        assert r["bearings"][b]["eps_at_threshold"] == pytest.approx(0.186, abs=0.005)
+        assert r["bearings"][b]["load_n"] == pytest.approx((2.5 + 0.5) * 9.81, rel=1e-12)
+        assert r["bearings"][b]["grid"] == [40, 40]
+    assert "half-Sommerfeld" in r["method"] and "half-Sommerfeld" in text
+
+
+def test_json_content_and_stable_range_exit(capsys, tmp_path):
+    out = tmp_path / "r.json"
+    code, text, err = _run(capsys, JEFFCOTT_HS, "--speeds", "100:200", "--json", out,
+                           "--set", "fmus.bearing1.parameters.n_phi=16", "--set", "fmus.bearing1.parameters.n_z=8",
+                           "--set", "fmus.bearing2.parameters.n_phi=16", "--set", "fmus.bearing2.parameters.n_z=8")
+    assert code == 1
+    assert "no eigenvalue crosses" in err and "100" in err and "200" in err
+    r = json.loads(out.read_text())
+    assert r["status"] == "stable" and r["threshold_hz"] is None and r["speed_range_hz"] == [100.0, 200.0]
+    assert r["bearings"]["bearing1"]["grid"] == [16, 8]
+    assert set(r) >= {"scenario", "rotor", "film", "method", "threshold_hz", "whirl_hz", "whirl_ratio",
+                      "bearings", "notes", "status"}
+
+
+def test_mass_conserving_bearing_is_said_to_be_hs_linearised(capsys):
+    code, text, err = _run(capsys, REPO / "scenarios" / "jeffcott_runup_oil_bath.yaml", "--speeds", "150:400",
+                           *[a for b in ("bearing1", "bearing2") for a in
+                             ("--set", f"fmus.{b}.parameters.n_phi=16", "--set", f"fmus.{b}.parameters.n_z=8")])
+    assert code == 0, err
+    assert "mass-conserving (cavitation = 1)" in text and "HS linearisation" in text
+
+
+def test_floating_ring_refused(capsys):
+    code, text, err = _run(capsys, REPO / "scenarios" / "jeffcott_runup_floating_ring_half_sommerfeld.yaml")
+    assert code == 1
+    assert "floating-ring bearings are not supported" in err and "m_ring_1" in err
+    assert "supported: one of our JeffcottRotor or TurbochargerRotor FMUs" in err
+
+
+def test_bearing_not_connected_by_station_convention_refused(capsys, tmp_path):
+    text = JEFFCOTT_HS.read_text()
+    line = "  - {from: rotor.vy_2, to: bearing2.vy}\n"
+    assert line in text
+    f = tmp_path / "no_vy2.yaml"
+    f.write_text(text.replace(line, ""))
+    code, out, err = _run(capsys, f)
+    assert code == 1
+    assert "lacks the connection rotor.vy_2 -> bearing2.vy" in err and "station convention" in err
+
+
+def test_bad_speed_range_is_a_usage_error(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["stability", str(JEFFCOTT_HS), "--speeds", "300:100"])
+    assert exc.value.code == 2
+    assert "LO:HI" in capsys.readouterr().err
