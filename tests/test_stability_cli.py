@@ -105,3 +105,25 @@ def test_bad_speed_range_is_a_usage_error(capsys):
         main(["stability", str(JEFFCOTT_HS), "--speeds", "300:100"])
     assert exc.value.code == 2
     assert "LO:HI" in capsys.readouterr().err
+
+
+def test_third_party_fmus_refused(capsys, tmp_path, test_fmus):
+    from test_scenario_loader import scenario_dir
+    d = scenario_dir(tmp_path, test_fmus)
+    code, out, err = _run(capsys, d / "two_mass.yaml")
+    assert code == 1
+    assert "needs exactly one rotor FMU of ours" in err and "has 0" in err
+    assert "supported: one of our JeffcottRotor or TurbochargerRotor FMUs" in err
+
+
+def test_other_fmu_beside_rotor_and_bearings_refused(capsys, tmp_path, test_fmus):
+    import shutil
+    text = JEFFCOTT_HS.read_text()
+    shutil.copy(test_fmus["Gain"], tmp_path / "Gain.fmu")
+    text = text.replace("connections:\n", "  extra:\n    path: Gain.fmu\nconnections:\n", 1)
+    text = text.replace("sequence: [rotor, bearing1, bearing2]", "sequence: [rotor, bearing1, bearing2, extra]")
+    f = tmp_path / "extra.yaml"
+    f.write_text(text)
+    code, out, err = _run(capsys, f)
+    assert code == 1
+    assert "the FMU 'extra'" in err and "does not guess" in err
