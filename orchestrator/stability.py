@@ -306,6 +306,12 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     if not (0.0 < lo < hi and math.isfinite(hi)):
         raise StabilityError(f"--speeds: need 0 < LO < HI in Hz (got {lo:g}:{hi:g})")
     fn = _ShortFilm(system) if film == "short" else _HSFilm(system)
+    for b, ld in zip(system.bearings, fn.loads):
+        if not np.hypot(*ld) > 0.0:
+            raise StabilityError(f"the bearing '{b.instance}' (station {b.station}) carries no static load (the "
+                                 f"rotor's g is {getattr(system.rotor.params, 'g', '?')}): `stability` linearizes "
+                                 "each film at its equilibrium under the rotor's gravity load and has no other load "
+                                 "to find it; give the rotor g > 0")
     notes = []
     for b in system.bearings:
         if b.params.cavitation == 1:
