@@ -10,7 +10,7 @@ command-line usage (argparse); 130 interrupted. ``compare`` returns the exit
 code of :func:`orchestrator.compare.main_compare`.
 
 Length: one small ``_add_<verb>`` / ``_cmd_<verb>`` pair per verb (run, validate, info,
-build-fmus, plot, compare, scenarios, init, export-ssp, sweep, quickstart, ...); a file of
+build-fmus, plot, compare, scenarios, init, export-ssp, sweep, stability, quickstart, ...); a file of
 ~500 lines for that reason, with no logic of its own to split out.
 """
 

@@ -35,7 +35,8 @@ def test_short_film_matches_lund_closed_form(capsys, tmp_path):
     from rotor_fmu.stability import lund_threshold_speed
     out = tmp_path / "r.json"
     code, text, err = _run(capsys, JEFFCOTT_HS, "--film", "short", "--speeds", "20:2000", "--json", out,
-                           "--set", "fmus.rotor.parameters.m_journal=1e-4", "--set", "fmus.rotor.parameters.d_external=0",
+                           "--set", "fmus.rotor.parameters.m_journal=1e-4",
+                           "--set", "fmus.rotor.parameters.d_external=0",
                            "--set", "fmus.rotor.parameters.d_internal=0")
     assert code == 0, err
     r = json.loads(out.read_text())
