@@ -92,6 +92,22 @@ coupling: {{scheme: jacobi, macro_step: 0.01, extrapolation_order: 0}}
     assert json.loads((tmp_path / "run" / "summary.json").read_text())["versions"]["pythonfmu"] == version("pythonfmu")
 
 
+def _oscillator_loop(osc, name: str, stop_time: float, coupling: str, output: str) -> str:
+    """A scenario of two HarmonicOscillator6D coupled both ways (x[0] of each drives f[0] of the
+    other with gain 0.5), Jacobi with ``coupling`` added, recording both x[0]."""
+    return f"""name: {name}
+stop_time: {stop_time}
+fmus:
+  a: {{path: {osc}, parameters: {{"x[0]": 1.0}}}}
+  b: {{path: {osc}}}
+connections:
+  - {{from: "a.x[0]", to: "b.f[0]", gain: 0.5}}
+  - {{from: "b.x[0]", to: "a.f[0]", gain: 0.5}}
+coupling: {{scheme: jacobi, {coupling}}}
+output: {{{output}signals: ["a.x[0]", "b.x[0]"]}}
+"""
+
+
 def test_a_comparison_of_two_oscillators_in_a_loop_names_what_these_fmus_cannot_run(crane_fmus, tmp_path, capsys):
     """The walkthrough's case (docs/compare.md): two HarmonicOscillator6D coupled both ways. They
     cannot save their state (canGetAndSetFMUstate false) and have no monolithic model: an
@@ -99,17 +115,7 @@ def test_a_comparison_of_two_oscillators_in_a_loop_names_what_these_fmus_cannot_
     with lines and fixes, before the ~3 s reference runs; the fix it gives for the reference loads."""
     from orchestrator.compare import load_compare, main_compare
     osc = crane_fmus["HarmonicOscillator6D"]
-    (tmp_path / "osc2.yaml").write_text(f"""name: osc2
-stop_time: 2.0
-fmus:
-  a: {{path: {osc}, parameters: {{"x[0]": 1.0}}}}
-  b: {{path: {osc}}}
-connections:
-  - {{from: "a.x[0]", to: "b.f[0]", gain: 0.5}}
-  - {{from: "b.x[0]", to: "a.f[0]", gain: 0.5}}
-coupling: {{scheme: jacobi, macro_step: 0.05}}
-output: {{signals: ["a.x[0]", "b.x[0]"]}}
-""")
+    (tmp_path / "osc2.yaml").write_text(_oscillator_loop(osc, "osc2", 2.0, "macro_step: 0.05", ""))
     path = tmp_path / "cmp.yaml"
     path.write_text("""compare:
   scenario: osc2.yaml
@@ -165,17 +171,7 @@ def test_two_oscillators_in_a_loop_without_nominal_take_the_running_scale(crane_
     osc = crane_fmus["HarmonicOscillator6D"]
 
     def text(name, coupling):
-        return f"""name: {name}
-stop_time: 1.0
-fmus:
-  a: {{path: {osc}, parameters: {{"x[0]": 1.0}}}}
-  b: {{path: {osc}}}
-connections:
-  - {{from: "a.x[0]", to: "b.f[0]", gain: 0.5}}
-  - {{from: "b.x[0]", to: "a.f[0]", gain: 0.5}}
-coupling: {{scheme: jacobi, {coupling}}}
-output: {{interval: 0.05, signals: ["a.x[0]", "b.x[0]"]}}
-"""
+        return _oscillator_loop(osc, name, 1.0, coupling, "interval: 0.05, ")
     rtol = 1e-3
     ref = _run(tmp_path, text("ref", "macro_step: 1.0e-3, extrapolation_order: 2"), "ref")
     new = _run(tmp_path, text("new", f"macro_step: 0.01, extrapolation_order: 0, "
