@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -58,8 +58,6 @@ class Bearing:
     instance: str
     station: int                      # 1-based station of the rotor
     params: Any                       # bearing_fmu.model.BearingParams
-    line: int | None = None
-    notes: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -93,7 +91,7 @@ def _fields(cls, params: dict) -> dict:
     return {k: v for k, v in params.items() if k in names}
 
 
-def _make_rotor(model: str, params: dict, where: str, inst: str):
+def _make_rotor(model: str, params: dict):
     if model == "JeffcottRotor":
         from rotor_fmu.jeffcott import JeffcottModel, JeffcottParams
         kw = _fields(JeffcottParams, params)
@@ -126,7 +124,7 @@ def build_system(scenario) -> System:
                              f"{rparams[rings[0]]:g} kg: floating-ring bearings are not supported by `stability` "
                              f"(their ring adds degrees of freedom and a second film); {SUPPORTED}")
     try:
-        rotor, f_max = _make_rotor(rmodel, rparams, _where(scenario, rspec), rname)
+        rotor, f_max = _make_rotor(rmodel, rparams)
     except (ValueError, OSError) as exc:
         raise StabilityError(f"{_where(scenario, rspec)}: the rotor '{rname}' ({rmodel}) cannot be built from its "
                              f"parameters: {exc}") from None
@@ -157,7 +155,7 @@ def build_system(scenario) -> System:
             params = BearingParams(**_fields(BearingParams, bp))
         except (TypeError, ValueError) as exc:
             raise StabilityError(f"{_where(scenario, bspec)}: the bearing '{b}': {exc}") from None
-        bearings.append(Bearing(b, i, params, bspec.line))
+        bearings.append(Bearing(b, i, params))
     used = {rname, *(b.instance for b in bearings)}
     extra = [n for n in kinds if n not in used]
     if extra:
