@@ -53,7 +53,7 @@ def _bearing_of(journal: dict, connections: list, caps: dict) -> tuple[str, str]
     return None
 
 
-def _value(inst: str, name: str, params: dict, mds: dict):
+def parameter_value(inst: str, name: str, params: dict, mds: dict):
     """A Real parameter's value as the run will have it: the scenario's, else the FMU's start."""
     v = params.get(inst, {}).get(name)
     if v is None:
@@ -77,7 +77,7 @@ def check_analysis_clearance(loader, draft, params: dict) -> None:
         if found is None:
             continue
         inst, how = found
-        R, psi = _value(inst, "R", params, loader.mds), _value(inst, "psi", params, loader.mds)
+        R, psi = parameter_value(inst, "R", params, loader.mds), parameter_value(inst, "psi", params, loader.mds)
         if R is None or psi is None or not (R > 0 and psi > 0):
             continue                                   # the parameter checks report bad values
         c = psi * R

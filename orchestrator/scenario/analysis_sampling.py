@@ -11,7 +11,7 @@ A warning, not an error: the run itself is right for the speed it was given.
 
 from __future__ import annotations
 
-import math
+from orchestrator.scenario.analysis_clearance import parameter_value
 
 ROTOR_MODELS = ("JeffcottRotor", "TurbochargerRotor")
 MIN_SAMPLES_PER_REV = 8          # as orchestrator.results.whirl's own warning
@@ -34,14 +34,7 @@ def check_analysis_sampling(loader, draft, params: dict, warn) -> None:
         return
     spec = next((f for f in draft.fmus if f["name"] == inst), None)
 
-    def value(name):
-        v = params.get(inst, {}).get(name)
-        if v is None:
-            var = loader.mds.get(inst, {}).get(name)
-            v = None if var is None else var.start
-        return _number(v)
-
-    f_max, t_ramp = value("f_max"), value("t_ramp")
+    f_max, t_ramp = (parameter_value(inst, n, params, loader.mds) for n in ("f_max", "t_ramp"))
     start, stop = _number(draft.kw.get("start_time")), _number(draft.kw.get("stop_time"))
     h = _number((draft.coupling or {}).get("macro_step"))
     dt = _number(draft.interval) or h
