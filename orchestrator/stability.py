@@ -38,9 +38,9 @@ from typing import Any
 import numpy as np
 
 from orchestrator.errors import CosimError
+from orchestrator.scenario.analysis_clearance import BEARING_MODEL
+from orchestrator.scenario.analysis_sampling import ROTOR_MODELS
 
-ROTOR_MODELS = ("JeffcottRotor", "TurbochargerRotor")
-BEARING_MODEL = "JournalBearing"
 FILMS = ("short", "hs")
 SUPPORTED = (f"supported: one of our {' or '.join(ROTOR_MODELS)} FMUs and one of our {BEARING_MODEL} FMUs at "
              "every bearing station i, connected by the station convention of docs/fmus.md (rotor.x_i, y_i, "
