@@ -169,6 +169,11 @@ def build_system(scenario) -> System:
 
 
 # --------------------------------------------------------------------------- coefficients
+def _short(p) -> dict:
+    """The short-bearing closed form's geometry and viscosity of a bearing's BearingParams."""
+    return dict(R=p.R, L=p.B, C=p.psi * p.R, eta=p.eta0)
+
+
 class _ShortFilm:
     """Ocvirk coefficients of each station under its static load (closed form)."""
 
@@ -184,8 +189,7 @@ class _ShortFilm:
         from rotor_fmu.stability import short_bearing_coefficients
         K, C = [], []
         for b, ld in zip(self.system.bearings, self.loads):
-            p = b.params
-            k, c = short_bearing_coefficients(ld, omega, R=p.R, L=p.B, C=p.psi * p.R, eta=p.eta0)
+            k, c = short_bearing_coefficients(ld, omega, **_short(b.params))
             K.append(k)
             C.append(c)
         return np.array(K), np.array(C)
@@ -194,8 +198,7 @@ class _ShortFilm:
         from rotor_fmu.stability import short_bearing_equilibrium
         out = []
         for b, ld in zip(self.system.bearings, self.loads):
-            p = b.params
-            out.append(short_bearing_equilibrium(ld, omega, R=p.R, L=p.B, C=p.psi * p.R, eta=p.eta0)[0])
+            out.append(short_bearing_equilibrium(ld, omega, **_short(b.params))[0])
         return out
 
 
@@ -246,8 +249,7 @@ class _HSFilm:
         W = float(np.hypot(*target))
         q = self.q[j]
         if q is None:       # start from the short-bearing equilibrium (kept inside 0.8 c)
-            p = b.params
-            eps, psi = short_bearing_equilibrium(ld, omega, R=p.R, L=p.B, C=c, eta=p.eta0)
+            eps, psi = short_bearing_equilibrium(ld, omega, **_short(b.params))
             eps = min(eps, 0.8)
             q = eps * c * np.array([math.cos(psi), math.sin(psi)])
         q = np.array(q, float)
