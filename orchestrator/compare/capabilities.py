@@ -16,7 +16,8 @@ on the coupling scheme when the FMUs simply cannot run it. Now the file is refus
 before any run, naming the variant group's line, the variant, the FMUs and the fix.
 
 An error-controlled step whose FMUs cannot save their state is not refused (it adapts forward
-only, as ``rotorcosim run`` warns); the report says so per variant (``forward_only``).
+only, as ``rotorcosim run`` warns); the report says so per variant (``forward_only``, read from
+the run's summary.json by ``orchestrator/compare/runner.py``).
 """
 
 from __future__ import annotations
@@ -70,14 +71,6 @@ def capability_problems(sc: Scenario, mds: Mapping[str, Any]) -> list[str]:
         if why:
             out.append(why)
     return out
-
-
-def forward_only(sc: Scenario, mds: Mapping[str, Any]) -> list[str]:
-    """The FMUs that make ``sc``'s error-controlled step adapt forward only (they cannot save
-    their state, so no step is rejected and redone); [] for a constant step."""
-    if getattr(sc.coupling.step_control, "type", "constant") != "error" or sc.coupling.scheme == "monolithic":
-        return []
-    return [n for n, md in mds.items() if not md.can_get_and_set_fmu_state]
 
 
 def monolithic_problem(mds: Mapping[str, Any], variant_steps) -> str | None:
