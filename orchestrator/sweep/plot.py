@@ -70,8 +70,8 @@ def _line(rows, p: str, col: str, path: Path) -> None:
         ax.plot([x for x, _ in pts], [y for _, y in pts], "o-", color="C0", label=f"{col}")
     if early:
         ax.plot([x for x, _ in early], [y for _, y in early], "o", ms=11, mfc="none", mec="C3", mew=1.5,
-                label="run stopped early (" + ", ".join(sorted({r["status"] for r in rows if r["status"] != "finished"
-                                                                and r[col] is not None})) + "): value up to its stop")
+                label="run stopped early (" + ", ".join(sorted({st for _, _, st in valued if st != "finished"}))
+                + "): value up to its stop")
     bad = [r[p] for r in rows if r[col] is None]
     if bad:
         y0 = min((y for _, y in pts), default=0.0)
