@@ -23,11 +23,10 @@ FLOAT_RE = re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
     |[-+]?\.[0-9_]+(?:[eE][-+]?[0-9]+)?
     |[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$""", re.X)
 
-
-
 #: the longest text a message quotes as what came (``got``): a file that is not YAML (an XML
 #: system structure) reads as one string and was quoted whole, 1.4 kB for crane-fmu's OSP file
 GOT_CHARS = 80
+
 
 class YamlLoader(yaml.SafeLoader):
     """Safe YAML loader that also reads ``1e-4`` as a float (YAML 1.2 style)."""
