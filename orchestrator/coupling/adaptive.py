@@ -115,6 +115,7 @@ class ErrorControlled(StepSizeController):
         self.nominal_scaled: list[str] = []    # signals with a declared nominal (bind)
         self.running = np.zeros(0, dtype=bool)  # signals whose atol is rtol x their running scale (bind)
         self.scale = np.zeros(0)               # largest |y| of those signals at accepted step ends so far
+        self._run_idx = np.zeros(0, dtype=np.intp)  # np.flatnonzero(running), computed once (bind)
         self.limiting: dict[int, int] = {}     # signal index -> steps it had the largest error
         self.over_signals: dict[int, int] = {}  # signal index -> accepted steps it took above tolerance
         self.accepted = 0
@@ -152,6 +153,7 @@ class ErrorControlled(StepSizeController):
                 self.atol[kc] = math.inf
         self.running = running_scale_mask(self.spec.atol, len(names), nominals) & np.isfinite(self.atol)
         self.scale = np.zeros(len(names))
+        self._run_idx = np.flatnonzero(self.running)
         if self.ij_groups:
             forces = {j for j, _ in self.ij_groups}
             if self.ij_order and all(j in forces for j in np.flatnonzero(np.isfinite(self.atol))):
@@ -172,9 +174,9 @@ class ErrorControlled(StepSizeController):
                 a = corrected_prediction(pred, b, prev, self.ij_groups)
         atol = self.atol if self.atol is not None and len(self.atol) == len(b) else \
             atol_vector(self.spec.atol, [""] * len(b))
-        if len(self.running) == len(b) and self.running.any():
+        r = self._run_idx                      # indices, not the mask: half the cost per attempt
+        if r.size and len(self.running) == len(b):
             atol = atol.copy()
-            r = self.running
             atol[r] = np.maximum(DEFAULT_ATOL, self.spec.rtol * np.maximum(self.scale[r], np.abs(prev[r])))
         err, worst = scaled_error_norm(a, b, prev, rtol=self.spec.rtol, atol=atol)
         if self.impulse and h is not None:
@@ -214,8 +216,8 @@ class ErrorControlled(StepSizeController):
                 if cp is not None:
                     stepper.release(cp)
             self.limiting[worst] = self.limiting.get(worst, 0) + 1
-            if self.running.any():           # only accepted values (a rejected attempt is rolled back)
-                r = self.running
+            r = self._run_idx
+            if r.size:                       # only accepted values (a rejected attempt is rolled back)
                 self.scale[r] = np.maximum(self.scale[r], np.maximum(np.abs(prev[r]), np.abs(hist.store[1][r])))
             if err > 1.0:
                 self.over_signals[worst] = self.over_signals.get(worst, 0) + 1
