@@ -6,8 +6,9 @@ through Python's ``logging``. Its records reached our handlers like ours:
 (the crane-fmu FMUs log so), and an FMU that logs on every step flooded the terminal.
 
 Now :class:`~orchestrator.fmi.subsystem.Subsystem` says in this thread which instance's FMI
-call runs (:func:`enter`, :func:`leave`: one attribute store each, the hot path allocates
-nothing), and the log record factory installed by :func:`install` rewrites every record made
+call runs (one attribute store of ``_running.name`` on entry and one on exit, inline in its
+per-call paths as its call record is; :func:`enter` and :func:`leave` do the same; the hot path
+allocates nothing), and the log record factory installed by :func:`install` rewrites every record made
 meanwhile by a logger that is not ours (not ``orchestrator`` or below): its message becomes
 ``<instance>: <message>``, shown on one line with control characters escaped as the FMU's FMI
 log messages are (``subsystem.log_message_text``), and the record gets ``fmu_instance``. So the
@@ -54,11 +55,6 @@ def enter(instance: str) -> None:
 def leave() -> None:
     """No FMI call runs in this thread any more."""
     _running.name = None
-
-
-def running() -> str | None:
-    """The instance whose FMI call runs in this thread, or None."""
-    return getattr(_running, "name", None)
 
 
 def _ours(name: str) -> bool:
@@ -131,11 +127,10 @@ def install() -> None:
     root handlers get the cap when the next FMU is loaded)."""
     global _previous_factory, _previous_showwarning
     with _lock:
-        if _previous_factory is None or logging.getLogRecordFactory() is not _factory:
-            current = logging.getLogRecordFactory()
-            if current is not _factory:
-                _previous_factory = current
-                logging.setLogRecordFactory(_factory)
+        current = logging.getLogRecordFactory()
+        if current is not _factory:
+            _previous_factory = current
+            logging.setLogRecordFactory(_factory)
     import warnings
     if warnings.showwarning is not _showwarning:
         _previous_showwarning = warnings.showwarning
