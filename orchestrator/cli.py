@@ -553,7 +553,8 @@ def _cmd_stability(args) -> int:
             print(f"  {name} (station {b['station']}): static eccentricity ratio {b['eps_at_threshold']:.3f} at the "
                   f"threshold, load {b['load_n']:.4g} N")
     if args.json:
-        Path(args.json).write_text(json.dumps(r, indent=2) + "\n")
+        from orchestrator.results.safe_write import write_report_file
+        write_report_file(args.json, json.dumps(r, indent=2) + "\n")   # as compare/sweep: atomic, disk full named
         print(f"written: {args.json}")
     if r["status"] == "stable":
         print(f"error: no eigenvalue crosses into the right half plane between {lo:g} and {hi:g} Hz: the system is "
