@@ -282,7 +282,8 @@ class ErrorControlled(StepSizeController):
                          "tighter rtol than you need, or use FMUs that can save their state "
                          "(canGetAndSetFMUstate)")
         return (f"{p.over} of {self.accepted} accepted macro steps had a scaled error above 1, so the run does not "
-                f"meet coupling.step_control rtol {self.spec.rtol:g} / atol there ({'; '.join(k for k in kinds if k)}); "
+                f"meet coupling.step_control rtol {self.spec.rtol:g} / atol there "
+                f"({'; '.join(k for k in kinds if k)}); "
                 f"signals: {where}. " + ". ".join(fixes))
 
     def statistics(self) -> dict:
