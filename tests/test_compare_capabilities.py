@@ -61,12 +61,13 @@ def test_variants_the_fmus_cannot_save_state_for_are_refused_at_load(test_fmus, 
                     "       set: {coupling.discard_retries: 2}}\n")
     assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
     err = capsys.readouterr().err
-    assert "cmp.yaml:4: 'compare.reference' cannot run with these FMUs: coupling.scheme iterative" in err
+    assert "cmp.yaml:4: 'compare.reference' cannot run with these FMUs: 'coupling.scheme: iterative'" in err
     assert ("cmp.yaml:7: 'compare.variants[1]' variant 'it-e0i0-h0.1' cannot run with these FMUs: "
-            "coupling.scheme iterative repeats every macro step from saved FMU states, but 'left' cannot "
-            "save them (canGetAndSetFMUstate=\"false\")") in err
+            "'coupling.scheme: iterative' repeats every macro step from saved FMU states, but 'left' cannot "
+            "save them (canGetAndSetFMUstate is false); use gauss-seidel or jacobi") in err
     assert ("cmp.yaml:8: 'compare.variants[2]' variant 'gs-retry' cannot run with these FMUs: "
-            "coupling.discard_retries = 2") in err
+            "coupling.discard_retries = 2 needs every FMU to save and restore its state") in err
+    assert "set coupling.discard_retries: 0" in err
     assert "gs-e1i0" not in err                          # the explicit variants are fine
     assert not (tmp_path / "out" / "runs").exists()
 
@@ -78,6 +79,42 @@ def test_the_same_variants_load_when_every_fmu_can_save_state(test_fmus, tmp_pat
                                  "    - {name: gs-retry, scheme: gauss-seidel, macro_step: 0.1,\n"
                                  "       set: {coupling.discard_retries: 2}}\n"))
     assert [v.name for v in spec.variants] == ["it-e0i0-h0.1", "gs-retry"]
+
+
+def test_an_error_controlled_variant_with_discard_retries_is_refused_at_load(test_fmus, tmp_path, capsys):
+    """``step_control: {type: error}`` with ``discard_retries > 0`` is refused whatever the FMUs
+    (the error-controlled step has its own rejection): the scenario loader refused it, compare's
+    own copy of the rules did not, so over FMUs that save their state such a variant loaded and
+    failed only when its run started. Now compare applies the loader's rules."""
+    _two_mass(tmp_path, test_fmus["LeftMass"], test_fmus["RightMass"])      # both canGetAndSetFMUstate
+    path = _compare(tmp_path, "{scheme: gauss-seidel, macro_step: 0.01}",
+                    "    - {scheme: gauss-seidel, macro_step: [0.2, 0.1]}\n"
+                    "    - {name: err-retry, scheme: gauss-seidel, macro_step: 0.1,\n"
+                    "       set: {coupling.step_control.type: error, coupling.discard_retries: 1}}\n")
+    assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
+    err = capsys.readouterr().err
+    assert ("cmp.yaml:7: 'compare.variants[1]' variant 'err-retry' cannot run with these FMUs: "
+            "coupling.step_control type error and coupling.discard_retries cannot be combined (the "
+            "error-controlled step has its own rejection); set discard_retries: 0") in err
+    assert "gs-e0i0" not in err and "compare.reference" not in err
+    assert not (tmp_path / "out" / "runs").exists()
+
+
+def test_an_error_controlled_variant_over_stateless_fmus_loads_with_the_loaders_warning(test_fmus, tmp_path,
+                                                                                      caplog):
+    """Without state saving the error-controlled step adapts forward only: not refused (as by the
+    loader), and the loader's warning is logged with the variant's line."""
+    import logging
+    _two_mass(tmp_path, test_fmus["StepLimitedMass"], test_fmus["RightMass"])
+    path = _compare(tmp_path, "{scheme: gauss-seidel, macro_step: 0.01}",
+                    "    - {name: gs-err, scheme: gauss-seidel, macro_step: 0.1,\n"
+                    "       set: {coupling.step_control.type: error}}\n")
+    with caplog.at_level(logging.WARNING, logger="orchestrator.compare"):
+        spec = load_compare(path)
+    assert [v.name for v in spec.variants] == ["gs-err"]
+    said = [r.getMessage() for r in caplog.records if "adapts forward" in r.getMessage()]
+    assert said and "cmp.yaml:6: 'compare.variants[0]' variant 'gs-err' runs with a warning: " \
+                    "'coupling.step_control: {type: error}': 'left' cannot save and restore its state" in said[0], said
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")
@@ -104,8 +141,8 @@ output: {{signals: [a.x]}}
 """)
     assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
     err = capsys.readouterr().err
-    assert ("cmp.yaml:7: 'compare.variants[1]' variant 'err' cannot run with these FMUs: coupling.step_control "
-            "type error varies the macro step, but 'a' cannot take varying steps") in err
+    assert ("cmp.yaml:7: 'compare.variants[1]' variant 'err' cannot run with these FMUs: 'coupling.step_control: "
+            "{type: error}' varies the macro step, but 'a' cannot take varying steps") in err
     assert ("cmp.yaml:8: 'compare.variants[2]' variant 'off-grid' cannot run with these FMUs: stop_time 1.05 is "
             "not on the macro-step grid") in err
     assert "'jac-e0i0-h0.2'" not in err and "compare.reference" not in err

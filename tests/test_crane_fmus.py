@@ -131,8 +131,8 @@ def test_a_comparison_of_two_oscillators_in_a_loop_names_what_these_fmus_cannot_
     err = capsys.readouterr().err
     assert ("'compare.reference' is the monolithic reference (the default when 'reference' is left out), which has "
             "no model of 'a' (modelName 'HarmonicOscillator6D')") in err
-    assert ("cmp.yaml:6: 'compare.variants[1]' variant 'it-e0i0-h0.1' cannot run with these FMUs: coupling.scheme "
-            "iterative repeats every macro step from saved FMU states, but 'a', 'b' cannot save them") in err
+    assert ("cmp.yaml:6: 'compare.variants[1]' variant 'it-e0i0-h0.1' cannot run with these FMUs: 'coupling.scheme: "
+            "iterative' repeats every macro step from saved FMU states, but 'a', 'b' cannot save them") in err
     path.write_text(path.read_text().replace("    - {scheme: iterative, macro_step: 0.1}\n", "")
                     + "  reference: {scheme: gauss-seidel, extrapolation_order: 1, interpolation_order: 1, "
                       "macro_step: 0.01}\n")

@@ -2,22 +2,25 @@
 
 A variant (or a co-simulation reference) changes the coupling of the base scenario after the
 scenario loader checked it against its FMUs' capability flags, so the flags are checked again
-here, per run, with the loader's rules (``orchestrator/scenario/coupling_sections.py``
-``check_capabilities`` and ``completion.fixed_step_problem``):
+here, per run, by the loader's own rules: ``capability_issues`` in
+``orchestrator/scenario/coupling_sections.py`` (which the loader's ``check_capabilities`` calls)
+and ``completion.fixed_step_problem``, so that the two cannot drift apart. They say, e.g.:
 
 * ``scheme: iterative`` and ``discard_retries > 0`` need ``canGetAndSetFMUstate`` in every FMU;
-* ``step_control: {type: error}`` and ``discard_retries > 0`` need
-  ``canHandleVariableCommunicationStepSize``, and an FMU without it needs ``stop_time`` on the
-  macro-step grid.
+* ``step_control: {type: error}`` cannot be combined with ``discard_retries > 0``, whatever the FMUs;
+* ``step_control: {type: error}`` needs ``canHandleVariableCommunicationStepSize``, and an FMU
+  without it needs ``stop_time`` on the macro-step grid and no ``discard_retries``.
 
 Before, such a variant ran after the reference and came back as an *unstable* variant with
 infinite error (``iterative`` with FMUs that cannot save their state), which reads as a verdict
 on the coupling scheme when the FMUs simply cannot run it. Now the file is refused (exit 2)
-before any run, naming the variant group's line, the variant, the FMUs and the fix.
+before any run, naming the variant group's line, the variant, the FMUs and the fix. (This
+module had its own copy of the rules, which had drifted: an error-controlled variant with
+``discard_retries: 1`` over FMUs that save their state loaded, and failed when its run started.)
 
 An error-controlled step whose FMUs cannot save their state is not refused (it adapts forward
-only, as ``rotorcosim run`` warns); the report says so per variant (``forward_only``, read from
-the run's summary.json by ``orchestrator/compare/runner.py``).
+only): the loader's warning is logged with the variant's line, and the report says so per variant
+(``forward_only``, read from the run's summary.json by ``orchestrator/compare/runner.py``).
 """
 
 from __future__ import annotations
@@ -42,35 +45,25 @@ def model_descriptions(scenario: Scenario) -> dict[str, Any]:
     return out
 
 
-def capability_problems(sc: Scenario, mds: Mapping[str, Any]) -> list[str]:
-    """What in ``sc``'s coupling its FMUs (``mds``: instance -> model description) cannot do:
-    one text per problem, each saying what the coupling needs, which FMUs lack it and the fix."""
+def capability_problems(sc: Scenario, mds: Mapping[str, Any]) -> tuple[list[str], list[str]]:
+    """What in ``sc``'s coupling its FMUs (``mds``: instance -> model description) cannot do, by
+    the scenario loader's rules: (errors, warnings), one text per problem, each saying what the
+    coupling needs, which FMUs lack it and the fix. A monolithic run does not step the FMUs."""
     from orchestrator.scenario.completion import fixed_step_problem
+    from orchestrator.scenario.coupling_sections import capability_issues
 
     c = sc.coupling
     if c.scheme == "monolithic":
-        return []
-    stateless = [n for n, md in mds.items() if not md.can_get_and_set_fmu_state]
+        return [], []
+    errors, warnings = [], []
     fixed = [n for n, md in mds.items() if not md.can_handle_variable_step]
-    who = ", ".join(map(repr, stateless))
-    out = []
-    if c.scheme == "iterative" and stateless:
-        out.append(f"coupling.scheme iterative repeats every macro step from saved FMU states, but {who} "
-                   "cannot save them (canGetAndSetFMUstate=\"false\"); compare gauss-seidel or jacobi "
-                   "variants instead, or use FMUs built with state support")
-    if c.discard_retries and stateless:
-        out.append(f"coupling.discard_retries = {c.discard_retries} redoes a discarded step from saved FMU "
-                   f"states, but {who} cannot save them (canGetAndSetFMUstate=\"false\"); set "
-                   "coupling.discard_retries: 0 for this variant")
-    if getattr(c.step_control, "type", "constant") == "error" and fixed:
-        out.append(f"coupling.step_control type error varies the macro step, but "
-                   f"{', '.join(map(repr, fixed))} cannot take varying steps "
-                   "(canHandleVariableCommunicationStepSize=\"false\"); use step_control type constant")
-    elif fixed:
-        why = fixed_step_problem(sc.start_time, sc.stop_time, c.macro_step, fixed, c.discard_retries)
-        if why:
-            out.append(why)
-    return out
+    why = fixed_step_problem(sc.start_time, sc.stop_time, c.macro_step, fixed, c.discard_retries)
+    if why:
+        errors.append(why)
+    coupling = {"scheme": c.scheme, "step_control": c.step_control, "discard_retries": c.discard_retries}
+    for issue in capability_issues(coupling, mds):
+        (warnings if issue.warning else errors).append(issue.text)
+    return errors, warnings
 
 
 def monolithic_problem(mds: Mapping[str, Any], variant_steps) -> str | None:
@@ -95,10 +88,11 @@ def monolithic_problem(mds: Mapping[str, Any], variant_steps) -> str | None:
 
 
 def check_run_capabilities(base: Scenario, reference, variants, group_of: Mapping[str, int],
-                           bad: Callable[..., None]) -> None:
+                           bad: Callable[..., None], warn: Callable[..., None] | None = None) -> None:
     """Report (through ``bad(key, msg)``) every run of the comparison that its FMUs cannot take:
     the reference at ``reference`` (a monolithic one: a model of every FMU), each variant at
-    ``variants[i]`` of its group, one line per problem and variant."""
+    ``variants[i]`` of its group, one line per problem and variant; the loader's warnings (an
+    error-controlled step that adapts forward only) through ``warn(key, msg)``, the same way."""
     from orchestrator.compare.spec import apply_changes
 
     mds = model_descriptions(base)
@@ -109,9 +103,12 @@ def check_run_capabilities(base: Scenario, reference, variants, group_of: Mappin
         why = monolithic_problem(mds, steps) if len(mds) == len(base.fmus) else None
         if why:
             bad("reference", why)
-    else:
-        for p in capability_problems(apply_changes(base, reference.changes), mds):
-            bad("reference", f"cannot run with these FMUs: {p}")
-    for v in variants:
-        for p in capability_problems(apply_changes(base, v.changes), mds):
-            bad(f"variants[{group_of.get(v.name, 0)}]", f"variant '{v.name}' cannot run with these FMUs: {p}")
+    runs = [("reference", "", apply_changes(base, reference.changes))] if not reference.monolithic else []
+    runs += [(f"variants[{group_of.get(v.name, 0)}]", f"variant '{v.name}' ", apply_changes(base, v.changes))
+             for v in variants]
+    for key, who, sc in runs:
+        errors, warnings = capability_problems(sc, mds)
+        for p in errors:
+            bad(key, f"{who}cannot run with these FMUs: {p}")
+        for p in warnings if warn is not None else ():
+            warn(key, f"{who}runs with a warning: {p}")

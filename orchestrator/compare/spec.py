@@ -286,9 +286,12 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     where = str(source) if source else "<compare>"
     problems: list[str] = []
 
-    def bad(key, msg, m=sec, at=None):      # line of ``at`` (default ``key``) in ``m``, else of the top key
+    def said(key, msg, m=sec, at=None) -> str:  # line of ``at`` (default ``key``) in ``m``, else of the top key
         line = _line(m, key if at is None else at) or _line(sec, key.split("[")[0].split(".")[0])
-        problems.append(f"{where}{line}: 'compare.{key}' {msg}")
+        return f"{where}{line}: 'compare.{key}' {msg}"
+
+    def bad(key, msg, m=sec, at=None):
+        problems.append(said(key, msg, m, at))
 
     for k in sec:
         if k not in _TOP_KEYS:
@@ -322,7 +325,9 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     if not problems:        # every run of the comparison within the loader's numeric limits
         _check_run_limits(base, reference, variants, interval, bad)
     if not problems:        # ... and one its FMUs can take (state saving, variable steps)
-        check_run_capabilities(base, reference, variants, group_of, lambda key, msg: bad(key, msg, *_group_at(sec, key)))
+        check_run_capabilities(base, reference, variants, group_of,
+                               lambda key, msg: bad(key, msg, *_group_at(sec, key)),
+                               lambda key, msg: log.warning("%s", said(key, msg, *_group_at(sec, key))))
     if problems:
         raise CompareSpecError(problems)
     return CompareSpec(name=name, base=base, variants=tuple(variants), reference=reference,

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import fnmatch
 import logging
+from dataclasses import dataclass
+from typing import Mapping
 
 import yaml
 
@@ -202,8 +204,18 @@ def value_place(ld, node, *paths: tuple[str, ...]) -> tuple:
     return (found[0][1] if found else node), ""
 
 
-def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
-    """The FMU capability flags the chosen coupling needs (``mds``: instance -> model description).
+@dataclass(frozen=True)
+class CapabilityIssue:
+    """One thing a coupling needs that its FMUs cannot do (:func:`capability_issues`)."""
+
+    text: str                               # what the coupling needs, which FMUs lack it, the fix
+    paths: tuple[tuple[str, ...], ...]      # coupling keys that cause it, in order of preference (value_place)
+    warning: bool = False                   # True: the run goes on (the step adapts forward only)
+
+
+def capability_issues(coupling: Mapping, mds: Mapping) -> list[CapabilityIssue]:
+    """The FMU capability flags the chosen coupling needs (``coupling``: the loader's coupling
+    mapping, ``scheme``/``step_control``/``discard_retries``; ``mds``: instance -> model description).
 
     ``scheme: iterative`` needs canGetAndSetFMUstate in every FMU (an error), and so does
     ``discard_retries`` > 0 (an error; with ``step_control: {type: error}`` it is refused whatever
@@ -211,44 +223,63 @@ def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
     ``step_control: error`` needs canHandleVariableCommunicationStepSize (an error) and,
     to reject steps, canGetAndSetFMUstate (without it the step adapts forward only: a warning,
     which ``rotorcosim validate`` prints).
+
+    The one set of these rules: the scenario loader (:func:`check_capabilities`, which places
+    each at its line) and ``rotorcosim compare`` (orchestrator/compare/capabilities.py, per
+    variant) both call it. Fixed-step FMUs' grid: ``completion.fixed_step_problem``.
     """
-    if coupling is None:
-        return
+    out: list[CapabilityIssue] = []
     stateless = [n for n, md in mds.items() if not md.can_get_and_set_fmu_state]
     if coupling.get("scheme") == "iterative" and stateless:
-        at, then = value_place(ld, node, ("scheme",))
-        ld.err(at, f"'coupling.scheme: iterative' repeats every macro step from saved FMU states, but "
-                   f"{', '.join(map(repr, stateless))} cannot save them (canGetAndSetFMUstate is false); use "
-                   f"gauss-seidel or jacobi, or FMUs built with state support{then}")
+        out.append(CapabilityIssue(
+            f"'coupling.scheme: iterative' repeats every macro step from saved FMU states, but "
+            f"{', '.join(map(repr, stateless))} cannot save them (canGetAndSetFMUstate is false); use "
+            f"gauss-seidel or jacobi, or FMUs built with state support", (("scheme",),)))
     sc = coupling.get("step_control")
     retries = coupling.get("discard_retries", 0) or 0
     if retries and coupling.get("scheme") != "monolithic":
         # refused by the master when the run starts (coupling/adaptive.py, coupling/execution.py): a
         # sweep over discard_retries validated, then every such run failed with no line of the sweep
         if sc is not None and sc.type == "error":
-            at, then = value_place(ld, node, ("discard_retries",), ("step_control", "type"), ("step_control",))
-            ld.err(at, "coupling.step_control type error and coupling.discard_retries cannot be combined (the "
-                       f"error-controlled step has its own rejection); set discard_retries: 0{then}")
+            out.append(CapabilityIssue(
+                "coupling.step_control type error and coupling.discard_retries cannot be combined (the "
+                "error-controlled step has its own rejection); set discard_retries: 0",
+                (("discard_retries",), ("step_control", "type"), ("step_control",))))
         elif stateless:
-            at, then = value_place(ld, node, ("discard_retries",))
-            ld.err(at, f"coupling.discard_retries = {retries} needs every FMU to save and restore its state "
-                       f"(canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} cannot (got "
-                       "canGetAndSetFMUstate false); set coupling.discard_retries: 0 or use an FMU built with "
-                       f"state support{then}")
+            out.append(CapabilityIssue(
+                f"coupling.discard_retries = {retries} needs every FMU to save and restore its state "
+                f"(canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} cannot (got "
+                "canGetAndSetFMUstate false); set coupling.discard_retries: 0 or use an FMU built with "
+                "state support", (("discard_retries",),)))
     if sc is None or sc.type != "error":
-        return
+        return out
     fixed = [n for n, md in mds.items() if not md.can_handle_variable_step]
     if fixed:
-        at, then = value_place(ld, node, ("step_control", "type"), ("step_control",))
-        ld.err(at, f"'coupling.step_control: {{type: error}}' varies the macro step, but "
-                   f"{', '.join(map(repr, fixed))} cannot take varying steps "
-                   f"(canHandleVariableCommunicationStepSize is false); use type: constant{then}")
+        out.append(CapabilityIssue(
+            f"'coupling.step_control: {{type: error}}' varies the macro step, but "
+            f"{', '.join(map(repr, fixed))} cannot take varying steps "
+            f"(canHandleVariableCommunicationStepSize is false); use type: constant",
+            (("step_control", "type"), ("step_control",))))
     elif stateless:
-        at, then = value_place(ld, node, ("step_control", "type"), ("step_control",))
-        log.warning("%s: %s%s", ld.loc(at),
-                    f"'coupling.step_control: {{type: error}}': {', '.join(map(repr, stateless))} cannot save "
-                    "and restore its state (canGetAndSetFMUstate is false), so no step can be rejected and "
-                    "redone: the macro step only adapts forward (the next step follows the error of the last)", then)
+        out.append(CapabilityIssue(
+            f"'coupling.step_control: {{type: error}}': {', '.join(map(repr, stateless))} cannot save "
+            "and restore its state (canGetAndSetFMUstate is false), so no step can be rejected and "
+            "redone: the macro step only adapts forward (the next step follows the error of the last)",
+            (("step_control", "type"), ("step_control",)), warning=True))
+    return out
+
+
+def check_capabilities(ld, node, coupling: dict, mds: dict) -> None:
+    """:func:`capability_issues` of ``coupling`` reported by the loader ``ld``: an error at the
+    line of the key that causes it (:func:`value_place`), a warning logged with that place."""
+    if coupling is None:
+        return
+    for issue in capability_issues(coupling, mds):
+        at, then = value_place(ld, node, *issue.paths)
+        if issue.warning:
+            log.warning("%s: %s%s", ld.loc(at), issue.text, then)
+        else:
+            ld.err(at, issue.text + then)
 
 
 def interpolated_inputs(scheme: str, k: int, q: int, sequence, connections) -> list[str]:
