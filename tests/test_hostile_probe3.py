@@ -364,6 +364,18 @@ def _enospc():
     return OSError(errno.ENOSPC, "No space left on device")
 
 
+@pytest.mark.parametrize("code, fix", [("ENOSPC", "free some space on that disk"),
+                                       ("EDQUOT", "free some of your disk quota"),
+                                       ("EACCES", "check that disk")])
+def test_the_disk_full_fix_is_one_text_for_every_writer(code, fix):
+    """safe_write.space_fix is the one text of the full-disk (or full-quota) fix; the results
+    writer had its own copy of it (with the quota case the shared one lacked)."""
+    import errno
+
+    from orchestrator.results.safe_write import space_fix
+    assert space_fix(OSError(getattr(errno, code), "x"), "check that disk") == fix
+
+
 def test_a_full_disk_while_writing_plots_fmus_or_an_ssp_names_the_file_and_leaves_no_debris(
         tmp_path, capsys, monkeypatch):
     """A full disk under `rotorcosim plot` left an empty signals_*.png and said "error: No space left

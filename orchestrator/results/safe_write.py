@@ -47,9 +47,13 @@ def write_text_no_follow(path: Path | str, text: str, *, encoding: str | None = 
 
 
 def space_fix(e: OSError, otherwise: str = "check that folder (it must be writable)") -> str:
-    """What to do about ``e``, an OSError of a write: free space for a full disk or quota
-    (ENOSPC, EDQUOT), else ``otherwise``."""
-    return "free some space on that disk" if e.errno in (errno.ENOSPC, errno.EDQUOT) else otherwise
+    """What to do about ``e``, an OSError of a write: free space for a full disk (ENOSPC) or an
+    exhausted quota (EDQUOT), else ``otherwise``. The one text of that fix for every writer of
+    output (the results writer, reports, figures, the lock file, build-fmus, export-ssp); the FMU
+    extraction names TMPDIR instead (orchestrator/fmi/extraction.py)."""
+    if e.errno == errno.EDQUOT:
+        return "free some of your disk quota"
+    return "free some space on that disk" if e.errno == errno.ENOSPC else otherwise
 
 
 def write_report_file(path: Path | str, text: str) -> Path:

@@ -287,6 +287,7 @@ class ResultsWriter:
         import errno
 
         from orchestrator.errors import OutputWriteError
+        from orchestrator.results.safe_write import space_fix
         f, pq = self._f, self._pq
         self._f = self._csv = self._pq = None
         self._buf = []
@@ -299,12 +300,12 @@ class ResultsWriter:
         t = t if t is not None else self._t            # a flush or close: the last row offered
         at = f" at t={t:.12g} s" if t is not None else ""
         why = e.strerror or str(e)
-        fix = {errno.ENOSPC: "free some space on that disk or give another output folder (--out)",
-               errno.EDQUOT: "free some of your disk quota or give another output folder (--out)",
-               errno.EFBIG: "the file is larger than that file system allows, or than the file size limit of "
-                            "this process (`ulimit -f`): raise that limit, record fewer signals or a coarser "
-                            "output.interval, or give another output folder (--out)"}.get(
-            e.errno, "check that disk or give another output folder (--out)")
+        if e.errno == errno.EFBIG:
+            fix = ("the file is larger than that file system allows, or than the file size limit of this process "
+                   "(`ulimit -f`): raise that limit, record fewer signals or a coarser output.interval, or give "
+                   "another output folder (--out)")
+        else:
+            fix = f"{space_fix(e, 'check that disk')} or give another output folder (--out)"
         if self.format != "csv":
             kept = "the Parquet file is incomplete (no rows can be read from it)"
         else:
