@@ -68,6 +68,7 @@ import numpy as np
 
 from orchestrator.results.jsonsafe import plain
 from orchestrator.results.run_directory import RunDirectory
+from orchestrator.scenario.analysis_sampling import MIN_SAMPLES_PER_REV
 
 logger = logging.getLogger(__name__)
 
@@ -553,14 +554,15 @@ def _max_eps(res, t, x, y, omega, clearance, eps) -> None:
 
 
 def _sampling_check(warn, t, omega) -> None:
-    """Warn when the output has fewer than 8 samples per revolution at the top speed."""
+    """Warn when the output has fewer than MIN_SAMPLES_PER_REV (8) samples per revolution at the
+    top speed (the limit the scenario loader warns about before the run, analysis_sampling.py)."""
     if t.size > 1:
         f_max = float(np.nanmax(np.abs(omega))) / TWO_PI
         dt = float(np.median(np.diff(t)))
-        if f_max > 0 and dt > 0 and 1.0 / (dt * f_max) < 8:
+        if f_max > 0 and dt > 0 and 1.0 / (dt * f_max) < MIN_SAMPLES_PER_REV:
             warn.append(f"output interval {dt:g} s gives {1.0 / (dt * f_max):.1f} samples per revolution "
-                        f"at {f_max:.4g} Hz (< 8): amplitudes are low-passed; use output.interval <= "
-                        f"{1.0 / (8 * f_max):.3g} s")
+                        f"at {f_max:.4g} Hz (< {MIN_SAMPLES_PER_REV}): amplitudes are low-passed; use "
+                        f"output.interval <= {1.0 / (MIN_SAMPLES_PER_REV * f_max):.3g} s")
 
 
 def _analysable(warn, t, z, omega) -> bool:

@@ -14,7 +14,7 @@ from __future__ import annotations
 from orchestrator.scenario.analysis_clearance import parameter_value
 
 ROTOR_MODELS = ("JeffcottRotor", "TurbochargerRotor")
-MIN_SAMPLES_PER_REV = 8          # as orchestrator.results.whirl's own warning
+MIN_SAMPLES_PER_REV = 8          # also the limit of orchestrator.results.whirl's own warning, which imports it
 
 
 def _number(value):
