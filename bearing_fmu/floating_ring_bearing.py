@@ -131,6 +131,32 @@ def _side_names(msg: str, names, side: str) -> str:
     return msg
 
 
+def ring_params(values: dict, instance: str = "?"):
+    """The :class:`bearing_fmu.floating_ring.RingParams` of the FMU's parameter values ``values``
+    (name -> value, every parameter of the tables above; the FMU's own, and ``rotorcosim stability``
+    from a scenario's start values): ``ValueError`` naming every invalid parameter by its FMU name."""
+    from bearing_fmu.floating_ring import RingParams
+    from bearing_fmu.model import BearingParams
+    v = values
+    films, problems = {}, []
+    for side in ("inner", "outer"):
+        kw = {n: v[f"{n}_{side}"] for n in (*_FILM_REAL, *_FILM_INT)}
+        try:
+            films[side] = BearingParams(p0=v["p0"], **kw)
+        except ValueError as exc:     # the model's message in the FMU's parameter names
+            for line in str(exc).splitlines()[1:]:
+                msg = _jb.fmu_parameter_message(line)
+                name = msg.partition("'")[2].partition("'")[0] if msg.startswith("parameter '") else ""
+                problems.append(msg.replace(f"'{name}'", f"'{name}_{side}'", 1) if name in kw
+                                else f"{side} film: {_side_names(msg, kw, side)}")
+    if problems:
+        raise ValueError(f"invalid parameters of the FloatingRingBearing FMU instance '{instance}': "
+                         + "; ".join(problems) + "; set them in the scenario (fmus.<instance>.parameters)")
+    return RingParams(**films, m_ring=v["m_ring"], J_ring=v["J_ring"], floating=v["floating"],
+                      gravity=v["gravity"], h_ring=v["h_ring"], jacobian_every=v["jacobian_every"],
+                      input_hold=v["input_hold"], ring_integrator=v["ring_integrator"])
+
+
 @guard_callbacks
 class FloatingRingBearing(Fmi2Slave):
     """Floating-ring bearing: ring with mass and inertia between two Reynolds films."""
@@ -192,27 +218,7 @@ class FloatingRingBearing(Fmi2Slave):
 
     # -- model --------------------------------------------------------------------
     def _ring_params(self):
-        from bearing_fmu.floating_ring import RingParams
-        from bearing_fmu.model import BearingParams
-        v = self._values
-        films, problems = {}, []
-        for side in ("inner", "outer"):
-            kw = {n: v[f"{n}_{side}"] for n in (*_FILM_REAL, *_FILM_INT)}
-            try:
-                films[side] = BearingParams(p0=v["p0"], **kw)
-            except ValueError as exc:     # the model's message in the FMU's parameter names
-                for line in str(exc).splitlines()[1:]:
-                    msg = _jb.fmu_parameter_message(line)
-                    name = msg.partition("'")[2].partition("'")[0] if msg.startswith("parameter '") else ""
-                    problems.append(msg.replace(f"'{name}'", f"'{name}_{side}'", 1) if name in kw
-                                    else f"{side} film: {_side_names(msg, kw, side)}")
-        if problems:
-            raise ValueError(f"invalid parameters of the FloatingRingBearing FMU instance "
-                             f"'{getattr(self, 'instance_name', '?')}': " + "; ".join(problems)
-                             + "; set them in the scenario (fmus.<instance>.parameters)")
-        return RingParams(**films, m_ring=v["m_ring"], J_ring=v["J_ring"], floating=v["floating"],
-                          gravity=v["gravity"], h_ring=v["h_ring"], jacobian_every=v["jacobian_every"],
-                          input_hold=v["input_hold"], ring_integrator=v["ring_integrator"])
+        return ring_params(self._values, getattr(self, "instance_name", "?"))
 
     def _inputs(self):
         return tuple(self._values[n] for n in INPUTS)

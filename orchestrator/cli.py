@@ -504,7 +504,8 @@ def _add_stability(sub) -> None:
     p = sub.add_parser("stability", help="linear stability threshold of a scenario's rotor in its bearings",
                        description=(
         "The lowest speed at which the scenario's rotor (our JeffcottRotor or TurbochargerRotor) with the linear "
-        "film coefficients of its JournalBearings, at their static equilibrium under gravity, has an eigenvalue "
+        "film coefficients of its JournalBearings (or FloatingRingBearings, with the rings' degrees of freedom), "
+        "at their static equilibrium under gravity, has an eigenvalue "
         "in the right half plane; the whirl frequency ratio of that mode and each bearing's eccentricity there "
         "(docs/analysis.md, \"Linear stability threshold\"). Exit status 1 when nothing crosses in the speed "
         "range."))
@@ -515,6 +516,9 @@ def _add_stability(sub) -> None:
                         "grid (default); short = the short-bearing (Ocvirk) closed form")
     p.add_argument("--speeds", metavar="LO:HI", type=_speed_range,
                    help="speed range [Hz] searched (default: 0.1 f_max : f_max of the rotor's ramp)")
+    p.add_argument("--ring-spin", action="store_true",
+                   help="floating-ring bearings: add each ring's spin perturbation to the linear model (default: the "
+                        "ring spin held at its steady value, as the classical analyses do)")
     p.add_argument("--json", metavar="OUT", help="also write the result as JSON to this file")
     p.set_defaults(func=_cmd_stability)
 
@@ -539,7 +543,7 @@ def _cmd_stability(args) -> int:
 
     args.file = str(resolve(args.file))
     scenario = load_scenario(args.file, args.set, build_fmus=True)
-    r = stability(scenario, film=args.film, speeds=args.speeds)
+    r = stability(scenario, film=args.film, speeds=args.speeds, ring_spin=args.ring_spin)
     lo, hi = r["speed_range_hz"]
     print(f"linear stability of {r['scenario']} ({args.file}): rotor '{r['rotor']['instance']}' "
           f"({r['rotor']['model']}), {lo:g} - {hi:g} Hz")
@@ -550,8 +554,11 @@ def _cmd_stability(args) -> int:
         print(f"threshold speed: {r['threshold_hz']:.2f} Hz (an eigenvalue crosses into the right half plane)")
         print(f"whirl frequency: {r['whirl_hz']:.2f} Hz, whirl frequency ratio {r['whirl_ratio']:.3f}")
         for name, b in r["bearings"].items():
+            ring = ("" if b["kind"] != "floating_ring" else
+                    f", outer film {b['eps_outer_at_threshold']:.3f}, ring speed {b['ring_speed_ratio_at_threshold']:.3f}"
+                    " x journal speed")
             print(f"  {name} (station {b['station']}): static eccentricity ratio {b['eps_at_threshold']:.3f} at the "
-                  f"threshold, load {b['load_n']:.4g} N")
+                  f"threshold{ring}, load {b['load_n']:.4g} N")
     if args.json:
         from orchestrator.results.safe_write import write_report_file
         write_report_file(args.json, json.dumps(r, indent=2) + "\n")   # as compare/sweep: atomic, disk full named

@@ -24,8 +24,20 @@ Supported scenarios: one of our ``JeffcottRotor`` or ``TurbochargerRotor`` FMUs 
 incl. ``rotor_file``, from the scenario) and one of our ``JournalBearing`` FMUs at every bearing
 station, connected by the station convention of docs/fmus.md (``rotor.x_i -> bearing.x``, ``y``,
 ``vx``, ``vy``, ``rotor.omega -> bearing.omega``, ``bearing.Fx -> rotor.Fx_i``, ``Fy``; gain 1,
-offset 0). Anything else (another FMU, a floating-ring bearing or ``m_ring_i > 0``, a bearing
-connected otherwise) is refused with a message naming what is supported.
+offset 0), or one of our ``FloatingRingBearing`` FMUs at every station, connected the same way.
+Anything else (another FMU, plain and floating-ring bearings on one rotor, ``m_ring_i > 0`` at a
+plain bearing's station, a bearing connected otherwise) is refused with a message naming what is
+supported.
+
+Floating-ring bearings (:func:`rotor_fmu.floating_ring_stability.ring_system_eigen`,
+docs/floating-ring.md): at each speed, each ring's steady operating point under the station's
+gravity load (ring speed from the torque balance of its two films, journal and ring at their
+static equilibria), the half-Sommerfeld coefficients of its inner film (at the wedge speed
+omega + Omega) and outer film, and the ring's translation as two more degrees of freedom per
+station (mass ``m_ring``). The ring spin is held at its steady value, as the classical linear
+analyses do (Tatara 1970; Tanaka & Hori 1972); ``ring_spin=True`` adds
+each ring's spin perturbation as a first-order degree of freedom. Only the half-Sommerfeld films
+(``film="hs"``): the short-bearing closed form has no ring.
 """
 
 from __future__ import annotations
@@ -42,8 +54,9 @@ from orchestrator.scenario.analysis_clearance import BEARING_MODEL
 from orchestrator.scenario.analysis_sampling import ROTOR_MODELS
 
 FILMS = ("short", "hs")
-SUPPORTED = (f"supported: one of our {' or '.join(ROTOR_MODELS)} FMUs and one of our {BEARING_MODEL} FMUs at "
-             "every bearing station i, connected by the station convention of docs/fmus.md (rotor.x_i, y_i, "
+RING_MODEL = "FloatingRingBearing"
+SUPPORTED = (f"supported: one of our {' or '.join(ROTOR_MODELS)} FMUs and one of our {BEARING_MODEL} FMUs (or "
+             f"one of our {RING_MODEL} FMUs) at every bearing station i, connected by the station convention of docs/fmus.md (rotor.x_i, y_i, "
              "vx_i, vy_i -> bearing.x, y, vx, vy; rotor.omega -> bearing.omega; bearing.Fx, Fy -> rotor.Fx_i, "
              "Fy_i; gain 1, offset 0), and no other FMU")
 _STATION_IN = ("x", "y", "vx", "vy")
@@ -57,7 +70,8 @@ class StabilityError(CosimError):
 class Bearing:
     instance: str
     station: int                      # 1-based station of the rotor
-    params: Any                       # bearing_fmu.model.BearingParams
+    params: Any                       # bearing_fmu.model.BearingParams, or RingParams (kind "floating_ring")
+    kind: str = "journal"             # "journal" (JournalBearing) or "floating_ring" (FloatingRingBearing)
 
 
 @dataclass
@@ -67,6 +81,11 @@ class System:
     rotor: Any                        # rotor_fmu.linear_rotor.LinearRotor
     f_max: float                      # the scenario's ramp end speed [Hz]
     bearings: list[Bearing]
+
+    @property
+    def rings(self) -> bool:
+        """True when the stations carry floating-ring bearings (all of them: build_system)."""
+        return bool(self.bearings) and self.bearings[0].kind == "floating_ring"
 
 
 def _where(scenario, spec) -> str:
@@ -118,11 +137,6 @@ def build_system(scenario) -> System:
     rspec = rotors[0]
     rname, rmodel = rspec.name, kinds[rspec.name]
     rparams = _params(_md(rspec), rspec)
-    rings = [k for k, v in rparams.items() if k.startswith("m_ring_") and isinstance(v, (int, float)) and v > 0]
-    if rings:
-        raise StabilityError(f"{_where(scenario, rspec)}: fmus.{rname}.parameters.{rings[0]} is "
-                             f"{rparams[rings[0]]:g} kg: floating-ring bearings are not supported by `stability` "
-                             f"(their ring adds degrees of freedom and a second film); {SUPPORTED}")
     try:
         rotor, f_max = _make_rotor(rmodel, rparams)
     except (ValueError, OSError) as exc:
@@ -137,9 +151,9 @@ def build_system(scenario) -> System:
             raise StabilityError(f"{scenario.source}: station {i} of the rotor '{rname}' needs exactly one "
                                  f"connection {rname}.x_{i} -> <bearing>.x (found {len(hits)}); {SUPPORTED}")
         b = hits[0].dst_instance
-        if kinds.get(b) != BEARING_MODEL:
+        if kinds.get(b) not in (BEARING_MODEL, RING_MODEL):
             raise StabilityError(f"{scenario.source}:{hits[0].line}: station {i} of '{rname}' is connected to "
-                                 f"'{b}' ({kinds.get(b)}), not to our {BEARING_MODEL}; {SUPPORTED}")
+                                 f"'{b}' ({kinds.get(b)}), not to our {BEARING_MODEL} or {RING_MODEL}; {SUPPORTED}")
         want = [(f"{rname}.{v}_{i}", f"{b}.{v}") for v in _STATION_IN] + [(f"{rname}.omega", f"{b}.omega")]
         want += [(f"{b}.F{a}", f"{rname}.F{a}_{i}") for a in ("x", "y")]
         for src, dst in want:
@@ -149,6 +163,19 @@ def build_system(scenario) -> System:
                                      f"connection {src} -> {dst} (gain 1, offset 0) of the station convention; "
                                      f"write it in 'connections:'; {SUPPORTED}")
         bspec = scenario.fmu(b)
+        m_ring = rparams.get(f"m_ring_{i}", 0.0)
+        if kinds[b] == RING_MODEL:
+            from bearing_fmu.floating_ring_bearing import ring_params
+            try:
+                params = ring_params(_params(_md(bspec), bspec), b)
+            except (KeyError, TypeError, ValueError) as exc:
+                raise StabilityError(f"{_where(scenario, bspec)}: the bearing '{b}': {exc}") from None
+            bearings.append(Bearing(b, i, params, "floating_ring"))
+            continue
+        if isinstance(m_ring, (int, float)) and m_ring > 0:
+            raise StabilityError(f"{_where(scenario, rspec)}: fmus.{rname}.parameters.m_ring_{i} is {m_ring:g} kg "
+                                 f"(a ring at station {i} in the rotor's step), but station {i} carries the plain "
+                                 f"{BEARING_MODEL} '{b}': set m_ring_{i}: 0, or put a {RING_MODEL} there; {SUPPORTED}")
         renamed = getattr(slave, "RENAMED", {})
         bp = {renamed.get(k, k): v for k, v in _params(_md(bspec), bspec).items()}
         try:
@@ -156,6 +183,12 @@ def build_system(scenario) -> System:
         except (TypeError, ValueError) as exc:
             raise StabilityError(f"{_where(scenario, bspec)}: the bearing '{b}': {exc}") from None
         bearings.append(Bearing(b, i, params))
+    if len({x.kind for x in bearings}) > 1:
+        rings = [f"'{x.instance}'" for x in bearings if x.kind == "floating_ring"]
+        plain = [f"'{x.instance}'" for x in bearings if x.kind != "floating_ring"]
+        raise StabilityError(f"{scenario.source}: the rotor '{rname}' has floating-ring bearings ({', '.join(rings)}) "
+                             f"and plain journal bearings ({', '.join(plain)}); `stability` takes one kind at every "
+                             f"station; {SUPPORTED}")
     used = {rname, *(b.instance for b in bearings)}
     extra = [n for n in kinds if n not in used]
     if extra:
@@ -294,10 +327,59 @@ class _HSFilm:
         return [float(np.hypot(*self.equilibrium(j, omega)) / m.c) for j, m in enumerate(self.models)]
 
 
+class _RingFilms:
+    """Floating-ring bearings: the rotor with each ring's translation as two more degrees of
+    freedom, coupled by the half-Sommerfeld coefficients of its two films at the steady operating
+    point (:func:`rotor_fmu.floating_ring_stability.ring_system_eigen`; module doc)."""
+
+    def __init__(self, system: System, spin: bool = False):
+        from rotor_fmu.stability import static_bearing_loads
+        self.system, self.spin = system, spin
+        self.loads = static_bearing_loads(system.rotor)
+        self.rings = [b.params for b in system.bearings]
+        self._at: tuple[float, list] | None = None
+        held = ("each ring's spin as a first-order degree of freedom (--ring-spin)" if spin else
+                "the ring spin held at its steady value (classical; --ring-spin adds its perturbation)")
+        self.method = ("finite-length half-Sommerfeld inner and outer films of each floating-ring bearing (their "
+                       "parameters and grids), linearized by central differences (bearing_fmu/linearize.py "
+                       "linearization) at the ring's steady operating point under the rotor's gravity load (ring "
+                       "speed from the torque balance of its two films, journal and ring at their static "
+                       "equilibria), the ring's translation as two more degrees of freedom per station (mass "
+                       f"m_ring), {held} (rotor_fmu/floating_ring_stability.py)")
+
+    def max_re(self, omega: float) -> tuple[float, float]:
+        """(largest real part [1/s], |Im| of that eigenvalue [rad/s]) at journal speed omega."""
+        from bearing_fmu.model import StepFailed
+        from rotor_fmu.floating_ring_stability import ring_system_eigen
+        try:
+            with np.errstate(all="raise"):
+                lam, points = ring_system_eigen(self.system.rotor, self.rings, omega, spin=self.spin)
+        except (StepFailed, ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
+            raise StabilityError(f"no steady operating point of the floating-ring bearings at "
+                                 f"{omega / (2 * math.pi):.4g} Hz ({exc}); at low speed a ring's outer film may "
+                                 "not carry its load: raise the lower end of --speeds") from None
+        if not np.all(np.isfinite(lam)):
+            raise StabilityError(f"the floating-ring system's eigenvalues at {omega / (2 * math.pi):.4g} Hz are "
+                                 "not finite (a film at the edge of its clearance); raise the lower end of --speeds")
+        self._at = (omega, points)
+        k = int(np.argmax(lam.real))
+        return float(lam.real[k]), float(abs(lam.imag[k]))
+
+    def points(self, omega: float) -> list:
+        """Each station's FloatingRing model at its steady operating point at omega."""
+        if self._at is None or self._at[0] != omega:
+            self.max_re(omega)
+        return self._at[1]
+
+    def eccentricities(self, omega):
+        return [float(p.outputs["eps"]) for p in self.points(omega)]
+
+
 # --------------------------------------------------------------------------- the command's library call
-def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int = 80) -> dict:
+def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int = 80,
+              ring_spin: bool = False) -> dict:
     """The threshold result (a JSON-ready dict) of a loaded scenario; see the module doc."""
-    from rotor_fmu.stability import max_real_eigenvalue, threshold_speed
+    from rotor_fmu.stability import first_crossing, max_real_eigenvalue
 
     if film not in FILMS:
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
@@ -305,7 +387,18 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     lo, hi = speeds if speeds is not None else (0.1 * system.f_max, system.f_max)
     if not (0.0 < lo < hi and math.isfinite(hi)):
         raise StabilityError(f"--speeds: need 0 < LO < HI in Hz (got {lo:g}:{hi:g})")
-    fn = _ShortFilm(system) if film == "short" else _HSFilm(system)
+    if system.rings and film == "short":
+        raise StabilityError("--film short: the short-bearing closed form has no floating ring; the floating-ring "
+                             "bearings of this scenario are linearized with their half-Sommerfeld films (--film hs)")
+    if ring_spin and not system.rings:
+        raise StabilityError("--ring-spin: the scenario has no floating-ring bearings (its stations carry "
+                             f"{BEARING_MODEL}s); leave --ring-spin out")
+    if system.rings:
+        fn = _RingFilms(system, spin=ring_spin)
+        max_re = fn.max_re
+    else:
+        fn = _ShortFilm(system) if film == "short" else _HSFilm(system)
+        max_re = lambda w: max_real_eigenvalue(system.rotor, w, fn)     # noqa: E731
     for b, ld in zip(system.bearings, fn.loads):
         if not np.hypot(*ld) > 0.0:
             raise StabilityError(f"the bearing '{b.instance}' (station {b.station}) carries no static load (the "
@@ -313,7 +406,15 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
                                  "each film at its equilibrium under the rotor's gravity load and has no other load "
                                  "to find it; give the rotor g > 0")
     notes = []
-    for b in system.bearings:
+    for b in (x for x in system.bearings if x.kind == "floating_ring"):
+        mc = [side for side in ("inner", "outer") if getattr(b.params, side).cavitation == 1]
+        if mc:
+            notes.append(f"bearing '{b.instance}': its {' and '.join(mc)} film is mass-conserving (cavitation = 1); "
+                         "its coefficients here are those of the half-Sommerfeld film")
+        if b.params.floating and not ring_spin:
+            notes.append(f"bearing '{b.instance}': full floating ring, spin held at its steady value in the "
+                         "linear model (--ring-spin adds its perturbation)")
+    for b in (x for x in system.bearings if x.kind == "journal"):
         if b.params.cavitation == 1:
             notes.append(f"bearing '{b.instance}' is mass-conserving (cavitation = 1): its coefficients here are "
                          "those of the half-Sommerfeld film (the HS linearisation), not of its own film")
@@ -331,12 +432,12 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         "film": film, "method": fn.method, "speed_range_hz": [lo, hi],
         "threshold_hz": None, "whirl_hz": None, "whirl_ratio": None, "bearings": {}, "notes": notes,
     }
-    v_lo = max_real_eigenvalue(system.rotor, w_lo, fn)[0]
+    v_lo = max_re(w_lo)[0]
     loads = fn.loads
     if v_lo >= 0.0:
         status, at = "unstable_at_lower_bound", None
     else:
-        wt, nu = threshold_speed(system.rotor, fn, omega_min=w_lo, omega_max=w_hi, n_scan=n_scan)
+        wt, nu = first_crossing(max_re, w_lo, w_hi, n_scan)
         if wt is None:
             status, at = "stable", None
         else:
@@ -344,14 +445,25 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
             result.update(threshold_hz=wt / (2 * math.pi), whirl_hz=nu / (2 * math.pi), whirl_ratio=nu / wt)
     result["status"] = status
     eps = fn.eccentricities(at) if at is not None else [None] * len(system.bearings)
-    if at is not None and film == "hs":
+    if at is not None and film == "hs" and not system.rings:
         for b, share in zip(system.bearings, fn.contact_share(at)):
             if share > 1e-3:
                 notes.append(f"bearing '{b.instance}': asperity contact carries {share:.1%} of its static load at "
                              "the threshold (its coefficients are included, bearing_fmu/contact.py)")
-    for b, e, ld in zip(system.bearings, eps, loads):
-        result["bearings"][b.instance] = {"station": b.station, "load_n": float(np.hypot(*ld)),
-                                          "eps_at_threshold": e, "clearance_m": b.params.psi * b.params.R,
-                                          "cavitation": int(b.params.cavitation),
-                                          "grid": [int(b.params.n_phi), int(b.params.n_z)] if film == "hs" else None}
+    points = fn.points(at) if at is not None and system.rings else [None] * len(system.bearings)
+    for b, e, ld, pt in zip(system.bearings, eps, loads, points):
+        entry = {"station": b.station, "kind": b.kind, "load_n": float(np.hypot(*ld)), "eps_at_threshold": e}
+        if b.kind == "floating_ring":       # eps, clearance, cavitation, grid: of the inner film
+            inner, outer = b.params.inner, b.params.outer
+            entry.update(clearance_m=inner.psi * inner.R, cavitation=int(inner.cavitation),
+                         grid=[int(inner.n_phi), int(inner.n_z)],
+                         eps_outer_at_threshold=None if pt is None else float(pt.outputs["eps_outer"]),
+                         ring_speed_ratio_at_threshold=None if pt is None else float(pt.outputs["omega_ring"] / at),
+                         clearance_outer_m=outer.psi * outer.R, cavitation_outer=int(outer.cavitation),
+                         grid_outer=[int(outer.n_phi), int(outer.n_z)], m_ring_kg=float(b.params.m_ring),
+                         floating=int(b.params.floating))
+        else:
+            entry.update(clearance_m=b.params.psi * b.params.R, cavitation=int(b.params.cavitation),
+                         grid=[int(b.params.n_phi), int(b.params.n_z)] if film == "hs" else None)
+        result["bearings"][b.instance] = entry
     return result

@@ -208,17 +208,24 @@ def threshold_speed(rotor, coeff_fn, *, omega_min=2 * math.pi * 1.0,
     bearing coefficients ``coeff_fn(omega) -> (K (n_b,2,2), C (n_b,2,2))`` becomes
     unstable (an eigenvalue crosses Re = 0), and the whirl frequency there [rad/s].
     Returns (None, None) if stable over the whole range.  Scan on a geometric grid,
-    then Brent on the crossing."""
-    f = lambda w: max_real_eigenvalue(rotor, w, coeff_fn)[0]
+    then Brent on the crossing (:func:`first_crossing`)."""
+    return first_crossing(lambda w: max_real_eigenvalue(rotor, w, coeff_fn), omega_min, omega_max, n_scan)
+
+
+def first_crossing(max_re, omega_min, omega_max, n_scan=120):
+    """(lowest speed [rad/s] in [omega_min, omega_max] where ``max_re(omega) -> (max Re(lambda),
+    |Im| of that eigenvalue)`` turns >= 0, |Im| there), or (None, None): ``n_scan`` speeds on a
+    geometric grid, then Brent on the first bracket; (omega_min, |Im|) when already >= 0 there."""
+    f = lambda w: max_re(w)[0]
     ws = np.geomspace(omega_min, omega_max, n_scan)
     prev_w, prev_v = ws[0], f(ws[0])
     if prev_v >= 0:
-        return float(ws[0]), max_real_eigenvalue(rotor, ws[0], coeff_fn)[1]
+        return float(ws[0]), max_re(ws[0])[1]
     for w in ws[1:]:
         v = f(w)
         if v >= 0:
             wt = brentq(f, prev_w, w, xtol=1e-9, rtol=1e-11)
-            return wt, max_real_eigenvalue(rotor, wt, coeff_fn)[1]
+            return wt, max_re(wt)[1]
         prev_w, prev_v = w, v
     return None, None
 

@@ -83,10 +83,12 @@ def test_mass_conserving_bearing_is_said_to_be_hs_linearised(capsys):
     assert "mass-conserving (cavitation = 1)" in text and "HS linearisation" in text
 
 
-def test_floating_ring_refused(capsys):
-    code, text, err = _run(capsys, REPO / "scenarios" / "jeffcott_runup_floating_ring_half_sommerfeld.yaml")
+def test_ring_mass_at_a_plain_bearing_refused(capsys):
+    # m_ring_1 > 0 puts a ring into the rotor's step at station 1, where the scenario has a plain
+    # JournalBearing: the scenario contradicts itself (floating-ring bearings: test_stability_floating_ring.py)
+    code, text, err = _run(capsys, JEFFCOTT_HS, "--set", "fmus.rotor.parameters.m_ring_1=7.3e-3")
     assert code == 1
-    assert "floating-ring bearings are not supported" in err and "m_ring_1" in err
+    assert "m_ring_1 is 0.0073 kg" in err and "plain JournalBearing 'bearing1'" in err and "set m_ring_1: 0" in err
     assert "supported: one of our JeffcottRotor or TurbochargerRotor FMUs" in err
 
 
