@@ -9,7 +9,7 @@ sets of bearing coefficients at the static equilibrium under gravity:
 * ``short``: the closed-form short-bearing (Ocvirk) pi-film coefficients,
   :func:`rotor_fmu.stability.short_bearing_coefficient_fn` (B/R = 1.6 is not short: a bound);
 * ``hs40``: the coefficients of our finite-length half-Sommerfeld film on the 40 x 40 grid of the
-  run-ups (:class:`bearing_fmu.model.JournalBearing`, central differences at the Newton
+  run-ups (:class:`bearing_fmu.model.BearingModel`, central differences at the Newton
   equilibrium, as ``docs/paper_cases_radius.py`` does) - the same film the HS sweep integrates.
 
 Run: ``.venv/bin/python docs/sweeps_threshold.py [--csv out.csv]`` (a few minutes).
@@ -32,19 +32,19 @@ ETAS = (0.008, 0.012, 0.016)
 
 
 def rotor():
-    from rotor_fmu.jeffcott import JeffcottParams, JeffcottRotor
-    return JeffcottRotor(JeffcottParams(m_disc=5.0, m_journal=0.5))
+    from rotor_fmu.jeffcott import JeffcottModel, JeffcottParams
+    return JeffcottModel(JeffcottParams(m_disc=5.0, m_journal=0.5))
 
 
 def hs40_coefficient_fn(rot, psi: float, eta: float, n: int = 40):
     """omega -> (K, C) (n_b, 2, 2) of the 40 x 40 HS film at its equilibrium under each
     bearing's static load (both bearings carry the same load in this symmetric rotor)."""
     import paper_cases_radius as pcr
-    from bearing_fmu.model import BearingParams, JournalBearing
+    from bearing_fmu.model import BearingModel, BearingParams
     from rotor_fmu.stability import static_bearing_loads
 
-    b = JournalBearing(BearingParams(R=R, B=B_OVER_R * R, psi=psi, eta0=eta, p0=1e5, p_feed=1e5,
-                                     n_phi=n, n_z=n, cavitation=0, axial_bc=0))
+    b = BearingModel(BearingParams(R=R, B=B_OVER_R * R, psi=psi, eta0=eta, p0=1e5, p_feed=1e5,
+                                   n_phi=n, n_z=n, cavitation=0, axial_bc=0))
     b.initialize(0.0, -0.5 * psi * R, 0.0, 0.0, 1.0)
     load = float(np.hypot(*static_bearing_loads(rot)[0]))
     state = {"q": np.array([0.3, -0.5]) * b.c}
@@ -75,9 +75,9 @@ def seed(psi: float, eta: float, f_hz: float, model: str, offset: float = 0.02) 
     omega, c = 2 * math.pi * f_hz, psi * R
     if model == "hs":
         import paper_cases_radius as pcr
-        from bearing_fmu.model import BearingParams, JournalBearing
-        b = JournalBearing(BearingParams(R=R, B=B_OVER_R * R, psi=psi, eta0=eta, p0=1e5, p_feed=1e5,
-                                         n_phi=40, n_z=40, cavitation=0, axial_bc=0))
+        from bearing_fmu.model import BearingModel, BearingParams
+        b = BearingModel(BearingParams(R=R, B=B_OVER_R * R, psi=psi, eta0=eta, p0=1e5, p_feed=1e5,
+                                       n_phi=40, n_z=40, cavitation=0, axial_bc=0))
         b.initialize(0.0, -0.5 * c, 0.0, 0.0, 1.0)
         q = pcr.equilibrium(b, load, omega)
     else:
