@@ -127,24 +127,17 @@ def shear_torques(fields: dict, x: float, y: float, c: float, R: float, B: float
     return T_j, T_s
 
 
-def _film_balance(b: BearingModel, F_target, omega, tol=1e-10, max_iter=60):
+def _film_balance(b: BearingModel, F_target, omega, max_iter=60):
     """Journal position (x, y) [m] in film ``b`` at which its quasi-static force at spin
-    ``omega`` is ``F_target`` (Newton with the film stiffness, kept inside 0.98 c)."""
-    from .linearize import hs_force, hs_linearization
-    c = b.c
-    z = np.array([0.0, -0.3 * c])
-    for _ in range(max_iter):
-        res = hs_force(b, z[0], z[1], 0.0, 0.0, omega) - F_target
-        K, _ = hs_linearization(b, z[0], z[1], 0.0, 0.0, omega)
-        dz = np.linalg.solve(K, res)            # F(z + dz) ~ F - K dz = F_target
-        lam = 1.0
-        while math.hypot(*(z + lam * dz)) >= 0.98 * c:
-            lam *= 0.5
-        z = z + lam * dz
-        if np.linalg.norm(lam * dz) < tol * c:
-            return z
-    raise StepFailed(f"static_equilibrium: no film position carries {F_target} N at omega = {omega:g} rad/s "
-                     f"(last {z / c} c): the load is too high for this film")
+    ``omega`` is ``F_target``: :func:`.linearize.hs_static_equilibrium` (Newton with the film
+    stiffness, kept inside 0.98 c, from (0, -0.3 c), residual below 1e-10 of the load)."""
+    from .linearize import HSEquilibriumError, hs_static_equilibrium
+    try:
+        return hs_static_equilibrium(b, F_target, omega, guess=(0.0, -0.3 * b.c), ftol=1e-10,
+                                     max_iter=max_iter, max_ecc=0.98)
+    except HSEquilibriumError as exc:
+        raise StepFailed(f"static_equilibrium: no film position carries {F_target} N at omega = {omega:g} "
+                         f"rad/s: the load is too high for this film ({exc})") from None
 
 
 def static_equilibrium(params: RingParams, load: float, omega: float, omega_ring=None):

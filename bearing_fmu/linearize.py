@@ -22,6 +22,10 @@ be accurate enough to stabilize, the converged answer does not depend on them.
   linearized coefficients of the short bearing, Lund 1987 / Childs 1993 sec. 3.6,
   are the limit; see the tests vs ``reference.short_bearing_coefficients``).
 
+* Static equilibrium (:func:`hs_static_equilibrium`): the journal position at rest where the
+  half-Sommerfeld force balances a static load (Newton with the coefficients above); the
+  coefficients of the linear stability analyses are taken there.
+
 * Mass-conserving (``cavitation = 1``, transient): by default (and in the FMU) the
   half-Sommerfeld coefficients at the same kinematics (see :func:`linearization` for
   the measured reasons). With ``method="film"``: the instantaneous sensitivity of
@@ -49,12 +53,12 @@ import numba as nb
 import numpy as np
 from scipy.linalg import lapack
 
-from .contact import H_AVG, average_gap, contact_coefficients
+from .contact import H_AVG, average_gap, contact_coefficients, contact_force
 from .film import assemble, assemble_muscl, hs_force_pressure, integrals, stencil_to_band
 from .grid import _gap
 from .hs import _tangent_modes
 
-__all__ = ["linearization", "hs_force", "film_force_at"]
+__all__ = ["linearization", "hs_force", "film_force_at", "hs_static_equilibrium", "HSEquilibriumError"]
 
 
 def _kin(b, x, y, vx, vy, omega, grid=None):
@@ -288,6 +292,94 @@ def hs_linearization_scalar(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3
     D = _central(lambda z: hs_force(b, z[0], z[1], z[2], z[3], omega), z0,
                  _steps(b, z0, omega, rel_step, t_ref))
     return D[:, :2].copy(), D[:, 2:].copy()
+
+
+class HSEquilibriumError(RuntimeError):
+    """:func:`hs_static_equilibrium` found no journal position carrying the load."""
+
+
+def hs_static_equilibrium(b, F_target, omega, *, guess=None, contact=None, ftol=1e-9, max_iter=60,
+                          max_ecc=0.995):
+    """Journal centre (x, y) [m] at rest where the quasi-static half-Sommerfeld film force of
+    bearing ``b`` at journal speed ``omega`` [rad/s] equals ``F_target`` (2,) [N]: the static
+    equilibrium of a journal under a static load W, ``F_target = -W`` (the film carries the load;
+    a downward weight m g is carried by ``F_target = (0, m g)``). The one Newton solve of the
+    rotor-bearing statics: ``rotorcosim stability`` (orchestrator/stability.py), the docs scripts
+    (docs/paper_cases_radius.py, docs/sweeps_threshold.py, docs/turbocharger_threshold.py) and the
+    floating ring's films (:func:`.floating_ring_statics.static_equilibrium`).
+
+    Equations: the film force is that of the Reynolds equation of the paper
+    (../shared/paper/transient-run-up-mass-conserving-cavitation.md, eq. (2)) with constant
+    density and viscosity (fluid fraction 1), the journal at rest (no squeeze term: the
+    stationary film), the Dirichlet edges p = p0 of eq. (5) (or the bearing's own axial and groove
+    conditions) and the half-Sommerfeld (Guembel) condition - the pressure clipped at p0 in the
+    force integral (Dowson & Taylor 1979; Szeri 2011) - on the bearing's full grid, exactly
+    :func:`hs_force`; with asperity contact (``contact`` true; default ``b.params.contact``) plus
+    the contact force :func:`.contact.contact_force`, as the FMU adds it. The equilibrium is the
+    root of ``r(q) = F(q, 0, omega) - F_target`` (the linear-stability setting of Lund 1974 /
+    Childs 1993 sec. 3.6: the coefficients are taken there).
+
+    Newton on q = (x, y) with the film stiffness ``K = -dF/dq`` of :func:`hs_linearization`
+    (plus :func:`.contact.contact_coefficients`): ``q <- q + lam K^-1 r``, where ``lam`` is halved
+    until the new centre lies inside ``max_ecc`` c (the film force is singular at the wall; at most
+    40 halvings). Converged when ``max |r| <= ftol |F_target|``; the position is returned without a
+    further step. ``guess``: the start (x, y) [m]; default 0.5 c away from the load's line,
+    rotated 45 deg in the direction of rotation (where the journal of a plain bearing sits).
+
+    Raises :class:`ValueError` for a zero or non-finite ``F_target`` or a guess outside
+    ``max_ecc`` c, and :class:`HSEquilibriumError` naming the last residual and eccentricity when
+    the stiffness is singular, a force is not finite, or ``max_iter`` Newton steps do not
+    converge (e.g. a load the film cannot carry inside ``max_ecc`` c, or omega = 0)."""
+    c = b.c
+    target = np.asarray(F_target, dtype=float).reshape(2)
+    W = float(np.hypot(*target))
+    if not (W > 0.0 and math.isfinite(W)):
+        raise ValueError(f"hs_static_equilibrium: F_target must be a finite nonzero force (got {target.tolist()} N)")
+    if not 0.0 < max_ecc < 1.0:
+        raise ValueError(f"hs_static_equilibrium: max_ecc must lie in (0, 1) (got {max_ecc})")
+    if guess is None:
+        a = math.atan2(-target[1], -target[0]) + math.copysign(math.pi / 4, omega)
+        q = 0.5 * c * np.array([math.cos(a), math.sin(a)])
+    else:
+        q = np.array(guess, dtype=float).reshape(2)
+        if not math.hypot(*q) < max_ecc * c:
+            raise ValueError(f"hs_static_equilibrium: the guess {q.tolist()} m lies outside {max_ecc} c "
+                             f"(c = {c:.4g} m)")
+    with_contact = bool(b.params.contact if contact is None else contact)
+    f = np.full(2, np.nan)
+    for _ in range(max_iter):
+        x, y = float(q[0]), float(q[1])
+        F = hs_force(b, x, y, 0.0, 0.0, omega)
+        if with_contact:
+            F = F + np.array(contact_force(x, y, 0.0, 0.0, omega, **b.contact_kw)[:2])
+        f = F - target
+        if not np.all(np.isfinite(f)):
+            raise HSEquilibriumError(f"hs_static_equilibrium: non-finite film force {F.tolist()} N at "
+                                     f"eccentricity {math.hypot(x, y) / c:.4f}")
+        if np.max(np.abs(f)) <= ftol * W:
+            return q
+        K, _ = hs_linearization(b, x, y, 0.0, 0.0, omega)
+        if with_contact:
+            K = K + contact_coefficients(x, y, 0.0, 0.0, omega, **b.contact_kw)[0]
+        try:
+            step = np.linalg.solve(K, f)        # F(q + dq) ~ F(q) - K dq = F_target
+        except np.linalg.LinAlgError:
+            raise HSEquilibriumError(f"hs_static_equilibrium: singular film stiffness at eccentricity "
+                                     f"{math.hypot(x, y) / c:.4f}, omega = {omega:.6g} rad/s (a film at "
+                                     "rest carries no load)") from None
+        lam = 1.0
+        for _ in range(40):
+            if math.hypot(*(q + lam * step)) < max_ecc * c:
+                break
+            lam *= 0.5
+        else:
+            raise HSEquilibriumError("hs_static_equilibrium: no Newton step stays inside "
+                                     f"{max_ecc} c (eccentricity {math.hypot(x, y) / c:.4f})")
+        q = q + lam * step
+    raise HSEquilibriumError(
+        f"hs_static_equilibrium: no journal position carries {W:.6g} N at omega = {omega:.6g} rad/s in "
+        f"{max_iter} Newton steps (residual {np.max(np.abs(f)) / W:.3g} of the load at eccentricity "
+        f"{math.hypot(x, y) / c:.4f} before the last step; steps kept inside {max_ecc} c)")
 
 
 def _last_bdf(film):

@@ -7,7 +7,8 @@ i.e. 256 Hz):
 
 1. at each speed, the static equilibrium of a journal under its share of the
    weight, (m_disc / 2 + m_journal) g, on the HS film of
-   :class:`bearing_fmu.model.BearingModel` (40 x 40, Newton on x, y);
+   :class:`bearing_fmu.model.BearingModel` (40 x 40, Newton on x, y:
+   :func:`bearing_fmu.linearize.hs_static_equilibrium`);
 2. the eight linear film coefficients by central differences of the HS force
    (K = -dF/dq, D = -dF/dv);
 3. the Jeffcott rotor's M, C, K (:meth:`rotor_fmu.jeffcott.JeffcottModel.system_matrices`)
@@ -44,26 +45,12 @@ def film_force(b, x, y, vx, vy, omega) -> np.ndarray:
 
 
 def equilibrium(b, load: float, omega: float, guess=(0.3, -0.5)) -> np.ndarray:
-    """Journal centre (x, y) [m] where the film carries ``load`` [N] upwards."""
-    c = b.c
-    q = np.array(guess, float) * c
-    target = np.array([0.0, load])
-    for _ in range(60):
-        f = film_force(b, q[0], q[1], 0.0, 0.0, omega) - target
-        if np.max(np.abs(f)) < 1e-9 * load:
-            return q
-        d = 1e-6 * c
-        J = np.empty((2, 2))
-        for j in range(2):
-            e = np.zeros(2)
-            e[j] = d
-            J[:, j] = (film_force(b, *(q + e), 0.0, 0.0, omega) - film_force(b, *(q - e), 0.0, 0.0, omega)) / (2 * d)
-        step = np.linalg.solve(J, -f)
-        lam = 1.0
-        while np.hypot(*(q + lam * step)) >= 0.98 * c:
-            lam *= 0.5
-        q = q + lam * step
-    raise RuntimeError(f"no HS equilibrium found at omega={omega:.4g} rad/s, load={load:.4g} N")
+    """Journal centre (x, y) [m] where the film carries ``load`` [N] upwards: Newton from
+    ``guess`` [c] (:func:`bearing_fmu.linearize.hs_static_equilibrium`, the one HS static
+    equilibrium of the repository; raises its ``HSEquilibriumError``, a RuntimeError, when it
+    finds none)."""
+    from bearing_fmu.linearize import hs_static_equilibrium
+    return hs_static_equilibrium(b, (0.0, load), omega, guess=np.asarray(guess, float) * b.c)
 
 
 def coefficients(b, q, omega):

@@ -10,7 +10,8 @@ sets of bearing coefficients at the static equilibrium under gravity:
   :func:`rotor_fmu.stability.short_bearing_coefficient_fn` (B/R = 1.6 is not short: a bound);
 * ``hs40``: the coefficients of our finite-length half-Sommerfeld film on the 40 x 40 grid of the
   run-ups (:class:`bearing_fmu.model.BearingModel`, central differences at the Newton
-  equilibrium, as ``docs/paper_cases_radius.py`` does) - the same film the HS sweep integrates.
+  equilibrium :func:`bearing_fmu.linearize.hs_static_equilibrium`, as ``docs/paper_cases_radius.py``
+  does) - the same film the HS sweep integrates.
 
 Run: ``.venv/bin/python docs/sweeps_threshold.py [--csv out.csv]`` (a few minutes).
 """

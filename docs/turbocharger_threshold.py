@@ -8,7 +8,8 @@ stations carrying their own static load):
    (:func:`rotor_fmu.stability.static_bearing_loads`, stations held at 0);
 2. at each speed, the static equilibrium of each journal under its load on the HS
    film of :class:`bearing_fmu.model.BearingModel` (R = 4.9 mm, B = 1.6 R,
-   psi = 2.8e-3, eta0 = 12 mPa s, 40 x 40; Newton on x, y);
+   psi = 2.8e-3, eta0 = 12 mPa s, 40 x 40; Newton on x, y,
+   :func:`bearing_fmu.linearize.hs_static_equilibrium` via ``paper_cases_radius.equilibrium``);
 3. the eight film coefficients of each journal by central differences
    (K = -dF/dq, D = -dF/dv);
 4. the rotor's M, C + omega G, K (:meth:`TurbochargerRotor.system_matrices`, the

@@ -14,7 +14,8 @@ equilibrium of each journal under the rotor's gravity load on that station
   R, B (length), c = psi R and eta0 - a bound for B/D not small; grooves and feed pressure
   are not in the closed form;
 * ``film="hs"``: the scenario's own finite-length half-Sommerfeld film (its R, B, psi, eta0,
-  p0, p_feed, groove, grid): the equilibrium by Newton on the journal centre, the coefficients
+  p0, p_feed, groove, grid): the equilibrium by Newton on the journal centre
+  (:func:`bearing_fmu.linearize.hs_static_equilibrium`), the coefficients
   by :func:`bearing_fmu.linearize.hs_linearization` (what the FMU outputs as ``kxx .. cyy``;
   with ``contact = 1`` plus the asperity contact's force and coefficients, as the FMU adds them),
   as docs/paper_cases_radius.py does. For a mass-conserving bearing (``cavitation = 1``) these
@@ -274,32 +275,28 @@ class _HSFilm:
         return F, K, C
 
     def equilibrium(self, j: int, omega: float) -> np.ndarray:
-        """Journal centre (x, y) [m] where the bearing force equals -load (Newton, K = -dF/dq)."""
+        """Journal centre (x, y) [m] where the bearing force equals -load
+        (:func:`bearing_fmu.linearize.hs_static_equilibrium`: Newton with K = -dF/dq, the contact
+        force included when the bearing has ``contact = 1``); started from the last speed's
+        equilibrium, or from the short-bearing one (kept inside 0.8 c)."""
+        from bearing_fmu.linearize import HSEquilibriumError, hs_static_equilibrium
         from rotor_fmu.stability import short_bearing_equilibrium
         b, m, ld = self.system.bearings[j], self.models[j], self.loads[j]
         c = m.c
         target = -np.asarray(ld, float)
-        W = float(np.hypot(*target))
         q = self.q[j]
         if q is None:       # start from the short-bearing equilibrium (kept inside 0.8 c)
             eps, psi = short_bearing_equilibrium(ld, omega, **_short(b.params))
             eps = min(eps, 0.8)
             q = eps * c * np.array([math.cos(psi), math.sin(psi)])
-        q = np.array(q, float)
-        for _ in range(60):
-            F, K, _ = self.force_and_coefficients(j, q, omega)
-            f = F - target
-            if np.max(np.abs(f)) <= 1e-9 * W:
-                self.q[j] = q
-                return q
-            step = np.linalg.solve(K, f)           # F(q + dq) ~ F(q) - K dq = target
-            lam = 1.0
-            while np.hypot(*(q + lam * step)) >= 0.995 * c:
-                lam *= 0.5
-            q = q + lam * step
-        raise StabilityError(f"bearing '{b.instance}': no half-Sommerfeld static equilibrium found at "
-                             f"{omega / (2 * math.pi):.4g} Hz under the load {W:.4g} N (60 Newton steps; last "
-                             f"eccentricity ratio {np.hypot(*q) / c:.3f}); raise the lower end of --speeds")
+        try:
+            q = hs_static_equilibrium(m, target, omega, guess=q, max_iter=60, max_ecc=0.995)
+        except HSEquilibriumError as exc:
+            raise StabilityError(f"bearing '{b.instance}': no half-Sommerfeld static equilibrium found at "
+                                 f"{omega / (2 * math.pi):.4g} Hz under the load {np.hypot(*target):.4g} N "
+                                 f"({exc}); raise the lower end of --speeds") from None
+        self.q[j] = q
+        return q
 
     def __call__(self, omega):
         K, C = [], []
