@@ -516,6 +516,10 @@ def _add_stability(sub) -> None:
                         "grid (default); short = the short-bearing (Ocvirk) closed form")
     p.add_argument("--speeds", metavar="LO:HI", type=_speed_range,
                    help="speed range [Hz] searched (default: 0.1 f_max : f_max of the rotor's ramp)")
+    p.add_argument("--load", metavar="BEARING=FX,FY", action="append", default=[], type=_bearing_load,
+                   help="a static force [N] on that bearing instance in addition to its share of the rotor's weight "
+                        "(the force the rotor puts on it, down is -y: a gear or belt force, a magnetic pull, a "
+                        "horizontal rotor with g = 0), e.g. --load bearing1=0,-150 (repeatable)")
     p.add_argument("--ring-spin", action="store_true",
                    help="floating-ring bearings: add each ring's spin perturbation to the linear model (default: the "
                         "ring spin held at its steady value, as the classical analyses do)")
@@ -534,6 +538,19 @@ def _speed_range(text: str) -> tuple[float, float]:
     return a, b
 
 
+def _bearing_load(text: str) -> tuple[str, float, float]:
+    name, sep, value = text.partition("=")
+    parts = value.split(",")
+    try:
+        fx, fy = (float(v) for v in parts)
+    except ValueError:
+        fx = fy = math.nan
+    if not sep or not name.strip() or not (math.isfinite(fx) and math.isfinite(fy)):
+        raise argparse.ArgumentTypeError(f"expected BEARING=FX,FY with the bearing instance and two finite forces in N, "
+                                         f"e.g. bearing1=0,-150 (got {text!r})")
+    return name.strip(), fx, fy
+
+
 def _cmd_stability(args) -> int:
     import json
 
@@ -543,7 +560,11 @@ def _cmd_stability(args) -> int:
 
     args.file = str(resolve(args.file))
     scenario = load_scenario(args.file, args.set, build_fmus=True)
-    r = stability(scenario, film=args.film, speeds=args.speeds, ring_spin=args.ring_spin)
+    loads: dict[str, tuple[float, float]] = {}
+    for name, fx, fy in args.load:          # repeated for one bearing: the forces add
+        ox, oy = loads.get(name, (0.0, 0.0))
+        loads[name] = (ox + fx, oy + fy)
+    r = stability(scenario, film=args.film, speeds=args.speeds, ring_spin=args.ring_spin, loads=loads)
     lo, hi = r["speed_range_hz"]
     print(f"linear stability of {r['scenario']} ({args.file}): rotor '{r['rotor']['instance']}' "
           f"({r['rotor']['model']}), {lo:g} - {hi:g} Hz")

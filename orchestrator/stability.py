@@ -7,7 +7,9 @@ geometric scan, then Brent on the largest real part; Lund 1974, J. Eng. Ind. 96:
 1993, "Turbomachinery Rotordynamics", sec. 3.6), the whirl frequency ratio of the crossing mode,
 and each bearing's static eccentricity there. The coefficients are taken at the static
 equilibrium of each journal under the rotor's gravity load on that station
-(:func:`rotor_fmu.stability.static_bearing_loads`, stations held at 0):
+(:func:`rotor_fmu.stability.static_bearing_loads`, stations held at 0), plus any static force
+given per bearing (``loads``, the command's ``--load BEARING=FX,FY``: a gear or belt force, a
+magnetic pull, the load of a horizontal rotor with g = 0):
 
 * ``film="short"``: the closed-form short-bearing (Ocvirk 1952, NACA TN 2808) pi-film
   coefficients (:func:`rotor_fmu.stability.short_bearing_coefficients`) of each bearing's
@@ -212,11 +214,10 @@ class _ShortFilm:
     """Ocvirk coefficients of each station under its static load (closed form)."""
 
     method = ("short-bearing (Ocvirk) pi-film closed form (rotor_fmu/stability.py), at the static equilibrium "
-              "under the rotor's gravity load")
+              "under its static load (the rotor's weight share, plus --load)")
 
-    def __init__(self, system: System):
-        from rotor_fmu.stability import static_bearing_loads
-        self.loads = static_bearing_loads(system.rotor)
+    def __init__(self, system: System, loads: np.ndarray):
+        self.loads = loads
         self.system = system
 
     def __call__(self, omega):
@@ -241,13 +242,12 @@ class _HSFilm:
 
     method = ("finite-length half-Sommerfeld film of each bearing (its parameters and grid), linearized by central "
               "differences (bearing_fmu/linearize.py hs_linearization) at the static equilibrium under the rotor's "
-              "gravity load (Newton on the journal centre)")
+              "static load: the rotor's weight share, plus --load (Newton on the journal centre)")
 
-    def __init__(self, system: System):
+    def __init__(self, system: System, loads: np.ndarray):
         from bearing_fmu.model import BearingModel
-        from rotor_fmu.stability import static_bearing_loads
         self.system = system
-        self.loads = static_bearing_loads(system.rotor)
+        self.loads = loads
         self.models = []
         for b in system.bearings:
             p = dataclasses.replace(b.params, cavitation=0)
@@ -329,17 +329,16 @@ class _RingFilms:
     freedom, coupled by the half-Sommerfeld coefficients of its two films at the steady operating
     point (:func:`rotor_fmu.floating_ring_stability.ring_system_eigen`; module doc)."""
 
-    def __init__(self, system: System, spin: bool = False):
-        from rotor_fmu.stability import static_bearing_loads
+    def __init__(self, system: System, loads: np.ndarray, spin: bool = False):
         self.system, self.spin = system, spin
-        self.loads = static_bearing_loads(system.rotor)
+        self.loads = loads
         self.rings = [b.params for b in system.bearings]
         self._at: tuple[float, list] | None = None
         held = ("each ring's spin as a first-order degree of freedom (--ring-spin)" if spin else
                 "the ring spin held at its steady value (classical; --ring-spin adds its perturbation)")
         self.method = ("finite-length half-Sommerfeld inner and outer films of each floating-ring bearing (their "
                        "parameters and grids), linearized by central differences (bearing_fmu/linearize.py "
-                       "linearization) at the ring's steady operating point under the rotor's gravity load (ring "
+                       "linearization) at the ring's steady operating point under its static load (the rotor's weight share, plus --load; ring "
                        "speed from the torque balance of its two films, journal and ring at their static "
                        "equilibria), the ring's translation as two more degrees of freedom per station (mass "
                        f"m_ring), {held} (rotor_fmu/floating_ring_stability.py)")
@@ -350,7 +349,8 @@ class _RingFilms:
         from rotor_fmu.floating_ring_stability import ring_system_eigen
         try:
             with np.errstate(all="raise"):
-                lam, points = ring_system_eigen(self.system.rotor, self.rings, omega, spin=self.spin)
+                lam, points = ring_system_eigen(self.system.rotor, self.rings, omega, spin=self.spin,
+                                                loads=self.loads)
         except (StepFailed, ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
             raise StabilityError(f"no steady operating point of the floating-ring bearings at "
                                  f"{omega / (2 * math.pi):.4g} Hz ({exc}); at low speed a ring's outer film may "
@@ -374,9 +374,14 @@ class _RingFilms:
 
 # --------------------------------------------------------------------------- the command's library call
 def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int = 80,
-              ring_spin: bool = False) -> dict:
-    """The threshold result (a JSON-ready dict) of a loaded scenario; see the module doc."""
-    from rotor_fmu.stability import first_crossing, max_real_eigenvalue
+              ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None) -> dict:
+    """The threshold result (a JSON-ready dict) of a loaded scenario; see the module doc.
+
+    ``loads``: bearing instance -> static force (Fx, Fy) [N] the rotor puts on that bearing in
+    addition to its share of the rotor's weight (``--load``: a gear or belt force, a magnetic pull,
+    a horizontal rotor's load with g = 0), in the convention of
+    :func:`rotor_fmu.stability.static_bearing_loads` (down is -y)."""
+    from rotor_fmu.stability import first_crossing, max_real_eigenvalue, static_bearing_loads
 
     if film not in FILMS:
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
@@ -390,19 +395,39 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     if ring_spin and not system.rings:
         raise StabilityError("--ring-spin: the scenario has no floating-ring bearings (its stations carry "
                              f"{BEARING_MODEL}s); leave --ring-spin out")
-    if system.rings:
-        fn = _RingFilms(system, spin=ring_spin)
-        max_re = fn.max_re
-    else:
-        fn = _ShortFilm(system) if film == "short" else _HSFilm(system)
-        max_re = lambda w: max_real_eigenvalue(system.rotor, w, fn)     # noqa: E731
-    for b, ld in zip(system.bearings, fn.loads):
+    weight = static_bearing_loads(system.rotor)
+    extra = np.zeros_like(weight)
+    names = [b.instance for b in system.bearings]
+    for name, f in (loads or {}).items():
+        if name not in names:
+            raise StabilityError(f"--load {name}=...: the scenario has no bearing '{name}' at a station of the rotor "
+                                 f"'{system.rotor_instance}'; its bearings: {', '.join(names)}")
+        fx, fy = (float(v) for v in f)
+        if not (math.isfinite(fx) and math.isfinite(fy)):
+            raise StabilityError(f"--load {name}: the force must be finite (got {fx:g}, {fy:g} N)")
+        extra[names.index(name)] += (fx, fy)
+    total = weight + extra
+    for b, ld in zip(system.bearings, total):
         if not np.hypot(*ld) > 0.0:
             raise StabilityError(f"the bearing '{b.instance}' (station {b.station}) carries no static load (the "
-                                 f"rotor's g is {getattr(system.rotor.params, 'g', '?')}): `stability` linearizes "
-                                 "each film at its equilibrium under the rotor's gravity load and has no other load "
-                                 "to find it; give the rotor g > 0")
-    notes = []
+                                 f"rotor's g is {getattr(system.rotor.params, 'g', '?')} and no --load for it): "
+                                 "`stability` linearizes each film at its equilibrium under its static load and "
+                                 f"has none to find it; give the rotor g > 0, or --load {b.instance}=FX,FY [N]")
+    if system.rings:
+        sideways = [b.instance for b, ld in zip(system.bearings, total) if ld[0] != 0.0 or not ld[1] < 0.0]
+        if sideways:
+            raise StabilityError(f"the floating-ring bearing '{sideways[0]}' carries a static load of "
+                                 f"({total[names.index(sideways[0])][0]:g}, {total[names.index(sideways[0])][1]:g}) N: "
+                                 "`stability` finds a ring's operating point only under a downward load (0, -W); "
+                                 "give --load with an x component of 0 and a net downward force")
+        fn = _RingFilms(system, total, spin=ring_spin)
+        max_re = fn.max_re
+    else:
+        fn = _ShortFilm(system, total) if film == "short" else _HSFilm(system, total)
+        max_re = lambda w: max_real_eigenvalue(system.rotor, w, fn)     # noqa: E731
+    fmt = lambda v: f"({v[0] + 0.0:.4g}, {v[1] + 0.0:.4g}) N"        # noqa: E731 (+ 0.0: no "-0")
+    notes = [f"bearing '{n}': static load {fmt(total[k])} = the rotor's weight share {fmt(weight[k])} plus --load "
+             f"{fmt(extra[k])}" for k, n in enumerate(names) if extra[k].any()]
     for b in (x for x in system.bearings if x.kind == "floating_ring"):
         mc = [side for side in ("inner", "outer") if getattr(b.params, side).cavitation == 1]
         if mc:
@@ -449,7 +474,8 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
                              "the threshold (its coefficients are included, bearing_fmu/contact.py)")
     points = fn.points(at) if at is not None and system.rings else [None] * len(system.bearings)
     for b, e, ld, pt in zip(system.bearings, eps, loads, points):
-        entry = {"station": b.station, "kind": b.kind, "load_n": float(np.hypot(*ld)), "eps_at_threshold": e}
+        entry = {"station": b.station, "kind": b.kind, "load_n": float(np.hypot(*ld)),
+                 "load_vector_n": [float(ld[0]), float(ld[1])], "eps_at_threshold": e}
         if b.kind == "floating_ring":       # eps, clearance, cavitation, grid: of the inner film
             inner, outer = b.params.inner, b.params.outer
             entry.update(clearance_m=inner.psi * inner.R, cavitation=int(inner.cavitation),

@@ -122,11 +122,13 @@ def _spin_terms(fr: FloatingRing):
     return dT, dFi, dFo
 
 
-def ring_system_eigen(rotor, params_list, omega, spin=False, omega_ring=None):
+def ring_system_eigen(rotor, params_list, omega, spin=False, omega_ring=None, loads=None):
     """Eigenvalues [1/s] of the rotor in floating-ring bearings (one RingParams per bearing
     station) at journal speed omega [rad/s], and the operating points used (module doc).
-    ``omega_ring``: one ring speed [rad/s] per station instead of the torque balance's."""
-    loads = static_bearing_loads(rotor)
+    ``omega_ring``: one ring speed [rad/s] per station instead of the torque balance's.
+    ``loads`` (n_stations, 2) [N]: the static forces on the bearings (default the rotor's weight,
+    :func:`static_bearing_loads`); only their y components are used (downward loads)."""
+    loads = static_bearing_loads(rotor) if loads is None else loads
     oms = [None] * len(params_list) if omega_ring is None else list(omega_ring)
     points = [operating_point(p, float(-ld[1]), omega, om) for p, ld, om in zip(params_list, loads, oms)]
     M, C, K = _augmented(rotor, omega, points)

@@ -130,3 +130,40 @@ def test_other_fmu_beside_rotor_and_bearings_refused(capsys, tmp_path, test_fmus
     code, out, err = _run(capsys, f)
     assert code == 1
     assert "the FMU 'extra'" in err and "does not guess" in err
+
+
+def test_load_option_sideways_load_gives_the_same_threshold(capsys, tmp_path):
+    """--load with g = 0: the paper's Jeffcott rotor is isotropic and its bearings have no groove, so
+    the weight share turned by 90 deg (sideways, 29.43 N in +x per bearing, a quarter turn = 10 of the
+    40 cells of the film) is the same problem turned: the same threshold, whirl and eccentricity.
+    The weight given as --load (g = 0, (0, -29.43) N) is the same problem outright."""
+    base = tmp_path / "base.json"
+    code, _, err = _run(capsys, JEFFCOTT_HS, "--speeds", "240:270", "--json", base)
+    assert code == 0, err
+    w = 29.43
+    for k, (fx, fy) in enumerate(((w, 0.0), (0.0, -w))):
+        out = tmp_path / f"r{k}.json"
+        code, text, err = _run(capsys, JEFFCOTT_HS, "--speeds", "240:270", "--json", out,
+                               "--set", "fmus.rotor.parameters.g=0",
+                               "--load", f"bearing1={fx},{fy}", "--load", f"bearing2={fx},{fy}")
+        assert code == 0, err
+        a, b = json.loads(base.read_text()), json.loads(out.read_text())
+        assert b["threshold_hz"] == pytest.approx(a["threshold_hz"], rel=1e-7)
+        assert b["whirl_ratio"] == pytest.approx(a["whirl_ratio"], rel=1e-6)
+        for name in ("bearing1", "bearing2"):
+            assert b["bearings"][name]["eps_at_threshold"] == pytest.approx(a["bearings"][name]["eps_at_threshold"],
+                                                                            rel=1e-6)
+            assert b["bearings"][name]["load_vector_n"] == pytest.approx([fx, fy], abs=1e-9)
+        assert "plus --load" in text
+
+
+def test_load_option_errors(capsys):
+    code, _, err = _run(capsys, JEFFCOTT_HS, "--load", "bearing9=0,-10")
+    assert code == 1 and "no bearing 'bearing9'" in err and "bearing1, bearing2" in err
+    with pytest.raises(SystemExit) as e:
+        main(["stability", str(JEFFCOTT_HS), "--load", "bearing1=-10"])
+    assert e.value.code == 2
+    assert "expected BEARING=FX,FY" in capsys.readouterr().err
+    code, _, err = _run(capsys, JEFFCOTT_HS, "--film", "short", "--set", "fmus.rotor.parameters.g=0",
+                        "--load", "bearing1=0,-10")
+    assert code == 1 and "'bearing2' (station 2) carries no static load" in err and "--load bearing2=FX,FY" in err

@@ -127,3 +127,9 @@ def test_mixed_bearings_refused(capsys, tmp_path):
     assert code == 1, err
     assert "floating-ring bearings ('bearing1')" in err and "plain journal bearings ('bearing2')" in err
     assert "one kind at every station" in err
+
+
+def test_sideways_load_on_a_ring_refused(capsys):
+    code, text, err = _run(capsys, TC_RING, "--load", "bearing1=5,0")
+    assert code == 1
+    assert "floating-ring bearing 'bearing1'" in err and "downward load" in err
