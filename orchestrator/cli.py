@@ -524,6 +524,8 @@ def _add_stability(sub) -> None:
                    help="floating-ring bearings: add each ring's spin perturbation to the linear model (default: the "
                         "ring spin held at its steady value, as the classical analyses do)")
     p.add_argument("--json", metavar="OUT", help="also write the result as JSON to this file")
+    p.add_argument("--plot", metavar="PNG", help="also draw the least-damped mode's logarithmic decrement and "
+                                                 "frequency over the speeds searched into this PNG file")
     p.set_defaults(func=_cmd_stability)
 
 
@@ -580,10 +582,15 @@ def _cmd_stability(args) -> int:
                     " x journal speed")
             print(f"  {name} (station {b['station']}): static eccentricity ratio {b['eps_at_threshold']:.3f} at the "
                   f"threshold{ring}, load {b['load_n']:.4g} N")
+    for c in r["crossings"][1:]:
+        print(f"then {c['becomes']} from {c['speed_hz']:.2f} Hz on (the least-damped mode at {c['whirl_hz']:.2f} Hz)")
     if args.json:
         from orchestrator.results.safe_write import write_report_file
         write_report_file(args.json, json.dumps(r, indent=2) + "\n")   # as compare/sweep: atomic, disk full named
         print(f"written: {args.json}")
+    if args.plot:
+        from orchestrator.results.plots.stability import draw
+        print(f"written: {draw(r, args.plot)}")
     if r["status"] == "stable":
         print(f"error: no eigenvalue crosses into the right half plane between {lo:g} and {hi:g} Hz: the system is "
               "linearly stable in that range; give a wider --speeds LO:HI", file=sys.stderr)

@@ -381,7 +381,9 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     addition to its share of the rotor's weight (``--load``: a gear or belt force, a magnetic pull,
     a horizontal rotor's load with g = 0), in the convention of
     :func:`rotor_fmu.stability.static_bearing_loads` (down is -y)."""
-    from rotor_fmu.stability import first_crossing, max_real_eigenvalue, static_bearing_loads
+    from scipy.optimize import brentq
+
+    from rotor_fmu.stability import max_real_eigenvalue, static_bearing_loads
 
     if film not in FILMS:
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
@@ -447,25 +449,67 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         notes.append("short-bearing theory is a bound for B/D not small (B/D of "
                      + ", ".join(f"'{b.instance}' {b.params.B / (2 * b.params.R):.2f}" for b in system.bearings)
                      + ")")
+    seen: dict[float, tuple[float, float]] = {}
+    search = max_re
+
+    def max_re(w):                       # every speed evaluated, for result["scan"] and --plot
+        v = search(w)
+        seen[float(w)] = v
+        return v
+
     w_lo, w_hi = 2 * math.pi * lo, 2 * math.pi * hi
     result: dict[str, Any] = {
         "scenario": scenario.name, "file": str(scenario.source) if scenario.source else None,
         "rotor": {"instance": system.rotor_instance, "model": system.rotor_model},
         "film": film, "method": fn.method, "speed_range_hz": [lo, hi],
-        "threshold_hz": None, "whirl_hz": None, "whirl_ratio": None, "bearings": {}, "notes": notes,
+        "threshold_hz": None, "whirl_hz": None, "whirl_ratio": None, "crossings": [], "bearings": {},
+        "notes": notes,
     }
-    v_lo = max_re(w_lo)[0]
+    # the whole range on a geometric grid, then Brent on every sign change of the largest real part
+    # between neighbouring speeds: the first one upwards is the threshold (the bracket and the Brent
+    # call of rotor_fmu.stability.threshold_speed, so the same number), a later one downwards is
+    # where the system is stable again (a run-up's whirl "vanish" has its linear counterpart there).
+    # A speed without a static equilibrium (a load a film cannot carry there inside its clearance,
+    # e.g. a floating ring's outer film at low speed) is left out, and no crossing is sought across it.
+    ws = np.geomspace(w_lo, w_hi, n_scan)
+    vals: list[float | None] = []
+    failed: list[tuple[float, StabilityError]] = []
+    for w in ws:
+        try:
+            vals.append(max_re(w)[0])
+        except StabilityError as exc:
+            vals.append(None)
+            failed.append((w, exc))
+    ok = [k for k, v in enumerate(vals) if v is not None]
+    if not ok:
+        raise failed[0][1]
+    if failed:
+        where = ", ".join(f"{w / (2 * math.pi):.4g}" for w, _ in failed[:6]) + (" ..." if len(failed) > 6 else "")
+        notes.append(f"no static equilibrium at {len(failed)} of the {n_scan} speeds searched ({where} Hz), left out: "
+                     f"{failed[0][1]}".replace("; raise the lower end of --speeds", ""))
+        result["speeds_without_equilibrium_hz"] = [w / (2 * math.pi) for w, _ in failed]
     loads = fn.loads
-    if v_lo >= 0.0:
-        status, at = "unstable_at_lower_bound", None
+    for k0, k1 in zip(ok, ok[1:]):
+        if k1 == k0 + 1 and (vals[k0] < 0.0) != (vals[k1] < 0.0):
+            wc = brentq(lambda w: max_re(w)[0], ws[k0], ws[k1], xtol=1e-9, rtol=1e-11)
+            nu = max_re(wc)[1]
+            result["crossings"].append({"speed_hz": wc / (2 * math.pi), "whirl_hz": nu / (2 * math.pi),
+                                        "becomes": "unstable" if vals[k0] < 0.0 else "stable"})
+    vals = [vals[k] for k in ok]
+    at = None
+    if vals[0] >= 0.0:
+        status = "unstable_at_lower_bound"
+    elif not result["crossings"]:
+        status = "stable"
     else:
-        wt, nu = first_crossing(max_re, w_lo, w_hi, n_scan)
-        if wt is None:
-            status, at = "stable", None
-        else:
-            status, at = "threshold", wt
-            result.update(threshold_hz=wt / (2 * math.pi), whirl_hz=nu / (2 * math.pi), whirl_ratio=nu / wt)
+        first = result["crossings"][0]
+        status, at = "threshold", 2 * math.pi * first["speed_hz"]
+        result.update(threshold_hz=first["speed_hz"], whirl_hz=first["whirl_hz"],
+                      whirl_ratio=first["whirl_hz"] / first["speed_hz"])
     result["status"] = status
+    from orchestrator.results.plots.stability import log_decrement
+    result["scan"] = [{"speed_hz": w / (2 * math.pi), "max_re_per_s": re, "whirl_hz": im / (2 * math.pi),
+                       "log_decrement": log_decrement(re, im)} for w, (re, im) in sorted(seen.items())]
     eps = fn.eccentricities(at) if at is not None else [None] * len(system.bearings)
     if at is not None and film == "hs" and not system.rings:
         for b, share in zip(system.bearings, fn.contact_share(at)):

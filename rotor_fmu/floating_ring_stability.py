@@ -61,16 +61,29 @@ def operating_point(params: RingParams, load: float, omega: float, omega_ring=No
         fr = FloatingRing(params)
         fr.initialize(*journal, 0.0, 0.0, omega, ring=(*ring, 0.0, 0.0))
         return fr
-    a = petroff_ratio(params) * omega
-    b = 0.6 * a
-    fa, fr = _ring_torque(params, load, omega, a)
-    fb, fr_b = _ring_torque(params, load, omega, b)
+    from bearing_fmu.model import StepFailed
+
+    def torque(Om, toward):
+        """The ring torque at Om, or, when the outer film cannot carry the load at that ring speed
+        (a trial of the secant too slow: no static equilibrium inside 0.98 c), at the first of up to
+        4 points halfway towards ``toward`` (a speed where it could) that it can carry."""
+        for _ in range(4):
+            try:
+                return Om, *_ring_torque(params, load, omega, Om)
+            except StepFailed:
+                if toward is None:
+                    raise
+                Om = 0.5 * (Om + toward)
+        return Om, *_ring_torque(params, load, omega, Om)
+
+    a, fa, fr = torque(petroff_ratio(params) * omega, None)
+    b, fb, fr_b = torque(0.6 * a, a)
     for _ in range(30):                       # secant; the torque is monotone in Omega
         if abs(fb) < 1e-10 * abs(fr_b.outputs["T_journal"]) or fb == fa:
             return fr_b
-        a, b, fa = b, b - fb * (b - a) / (fb - fa), fb
-        b = min(max(b, 0.0), omega)
-        fb, fr_b = _ring_torque(params, load, omega, b)
+        new = min(max(b - fb * (b - a) / (fb - fa), 0.0), omega)
+        a, fa = b, fb
+        b, fb, fr_b = torque(new, a)
     return fr_b
 
 

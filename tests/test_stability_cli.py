@@ -167,3 +167,24 @@ def test_load_option_errors(capsys):
     code, _, err = _run(capsys, JEFFCOTT_HS, "--film", "short", "--set", "fmus.rotor.parameters.g=0",
                         "--load", "bearing1=0,-10")
     assert code == 1 and "'bearing2' (station 2) carries no static load" in err and "--load bearing2=FX,FY" in err
+
+
+def test_whole_range_crossings_scan_and_plot(capsys, tmp_path):
+    """The paper's Jeffcott rotor in HS films is unstable from 256.1 Hz and stable again higher up; the
+    search evaluates the whole range (result["scan"]) and --plot draws it."""
+    out, png = tmp_path / "r.json", tmp_path / "s.png"
+    code, text, err = _run(capsys, JEFFCOTT_HS, "--json", out, "--plot", png)
+    assert code == 0, err
+    r = json.loads(out.read_text())
+    up, down = r["crossings"]
+    assert up["becomes"] == "unstable" and up["speed_hz"] == r["threshold_hz"]
+    assert down["becomes"] == "stable" and 600.0 < down["speed_hz"] < 700.0
+    scan = r["scan"]
+    assert scan[0]["speed_hz"] == pytest.approx(80.0) and scan[-1]["speed_hz"] == pytest.approx(800.0)
+    for s in scan:           # the sign of the largest real part agrees with the crossings found
+        inside = up["speed_hz"] < s["speed_hz"] < down["speed_hz"]
+        if abs(s["speed_hz"] - up["speed_hz"]) > 1e-6 and abs(s["speed_hz"] - down["speed_hz"]) > 1e-6:
+            assert (s["max_re_per_s"] > 0) == inside, s
+            assert s["log_decrement"] == pytest.approx(-s["max_re_per_s"] / s["whirl_hz"], rel=1e-12)
+    assert f"then stable from {down['speed_hz']:.2f} Hz on" in text
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"written: {png}" in text

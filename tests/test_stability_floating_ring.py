@@ -133,3 +133,20 @@ def test_sideways_load_on_a_ring_refused(capsys):
     code, text, err = _run(capsys, TC_RING, "--load", "bearing1=5,0")
     assert code == 1
     assert "floating-ring bearing 'bearing1'" in err and "downward load" in err
+
+
+def test_turbocharger_both_crossings_and_speeds_without_equilibrium():
+    """Over 15-104 Hz: no ring operating point at the low end (the turbine-side ring's outer film would
+    need more than 0.98 of its clearance), the inner-film whirl from 42.19 Hz and stable again from
+    101.87 Hz (docs/scripts/floating_ring_turbocharger_threshold.py, the hand-built model: crossings at
+    42.19 and 101.87 Hz, whirl 26.88 and 60.59 Hz)."""
+    from orchestrator.stability import stability
+    r = stability(_load(TC_RING), speeds=(15.0, 104.0), n_scan=30)
+    assert r["status"] == "threshold"
+    (up, down) = r["crossings"]
+    assert up["speed_hz"] == pytest.approx(42.19, abs=0.01) and up["whirl_hz"] == pytest.approx(26.88, abs=0.01)
+    assert down["becomes"] == "stable"
+    assert down["speed_hz"] == pytest.approx(101.87, abs=0.01) and down["whirl_hz"] == pytest.approx(60.59, abs=0.01)
+    bad = r["speeds_without_equilibrium_hz"]
+    assert bad and bad[0] == pytest.approx(15.0) and max(bad) < 30.0
+    assert any("no static equilibrium at" in n for n in r["notes"])

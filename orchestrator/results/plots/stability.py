@@ -1,0 +1,79 @@
+"""``rotorcosim stability --plot OUT``: the least-damped mode of the linear model over speed.
+
+Two panels over the rotor speed [Hz], from the speeds the threshold search evaluated (the scan
+and Brent's steps, ``result["scan"]``): the logarithmic decrement of the least-damped eigenvalue,
+``delta = -2 pi Re(lambda) / |Im(lambda)|`` (positive: the mode decays; the threshold is where it
+crosses 0; API 684's measure of a stability margin), and its frequency against 0.5 x speed (a
+film whirl sits just below it). The threshold and its whirl frequency are marked, so is a later
+crossing (stable again), and speeds without a static equilibrium (grey crosses).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from orchestrator.results.safe_write import save_figure
+
+DPI = 110
+
+
+def draw(result: dict, path: Path | str) -> Path:
+    """Write the figure of a :func:`orchestrator.stability.stability` result to ``path``."""
+    from matplotlib.figure import Figure
+    scan = result.get("scan") or []
+    f = np.array([s["speed_hz"] for s in scan], dtype=float)
+    re = np.array([s["max_re_per_s"] for s in scan], dtype=float)
+    fw = np.array([s["whirl_hz"] for s in scan], dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dec = np.where(fw > 0, -re / fw, np.nan)        # -2 pi Re / |Im| with |Im| = 2 pi f_w
+    fig = Figure(figsize=(8, 6.2), layout="constrained")
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    ax1.plot(f, dec, "o-", ms=3, lw=1.2, color="C0", label="least-damped mode")
+    ax1.axhline(0.0, color="k", lw=0.8)
+    ax1.set_ylabel("logarithmic decrement [-]")
+    ax2.plot(f, fw, "o-", ms=3, lw=1.2, color="C0", label="its frequency")
+    if f.size:
+        lim = np.array([f.min(), f.max()])
+        ax2.plot(lim, 0.5 * lim, ":", color="0.4", lw=1.0, label="0.5 x speed")
+    th = result.get("threshold_hz")
+    if th is not None:
+        lab = (f"threshold {th:.2f} Hz, whirl {result['whirl_hz']:.2f} Hz "
+               f"({result['whirl_ratio']:.3f} x speed)")
+        for ax in (ax1, ax2):
+            ax.axvline(th, color="C3", ls="--", lw=1.2, label=lab if ax is ax1 else None)
+        ax2.plot([th], [result["whirl_hz"]], "s", color="C3", ms=6)
+    for c in (result.get("crossings") or [])[1:]:
+        lab = f"{'stable' if c['becomes'] == 'stable' else 'unstable'} again from {c['speed_hz']:.2f} Hz"
+        for ax in (ax1, ax2):
+            ax.axvline(c["speed_hz"], color="C2" if c["becomes"] == "stable" else "C3", ls=":", lw=1.2,
+                       label=lab if ax is ax1 else None)
+    bad = result.get("speeds_without_equilibrium_hz") or []
+    if bad:
+        for ax in (ax1, ax2):
+            ax.plot(bad, np.zeros(len(bad)) if ax is ax1 else 0.5 * np.asarray(bad), "x", color="0.5", ms=4,
+                    label="no static equilibrium" if ax is ax1 else None)
+    if result.get("status") == "stable":
+        ax1.set_title("no crossing in the range: stable there", fontsize=9)
+    elif result.get("status") == "unstable_at_lower_bound":
+        ax1.set_title("unstable already at the lower end of the range", fontsize=9)
+    fin = dec[np.isfinite(dec)]
+    if fin.size and np.ptp(fin) > 0:      # keep the zero line and the crossing in view
+        lo, hi = min(fin.min(), 0.0), max(fin.max(), 0.0)
+        pad = 0.05 * (hi - lo)
+        ax1.set_ylim(lo - pad, hi + pad)
+    ax2.set_xlabel("rotor speed [Hz]")
+    ax2.set_ylabel("whirl frequency [Hz]")
+    for ax in (ax1, ax2):
+        ax.grid(True, lw=0.4, alpha=0.6)
+        ax.legend(fontsize=8, loc="best")
+    film = {"hs": "half-Sommerfeld films", "short": "short-bearing closed form"}.get(result.get("film"), result.get("film"))
+    fig.suptitle(f"{result.get('scenario')}: linear stability ({film})", fontsize=10)
+    return save_figure(fig, path, dpi=DPI)
+
+
+def log_decrement(re: float, im: float) -> float | None:
+    """-2 pi Re / |Im| of an eigenvalue, None for a real one (no oscillation)."""
+    return None if im == 0.0 else -2.0 * math.pi * re / abs(im)
