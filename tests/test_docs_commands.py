@@ -327,3 +327,26 @@ def test_markdown_links_resolve():
                 if anchor not in {_slug(h) for h in re.findall(r"^#+\s+(.*)$", body, re.M)}:
                     bad.append(f"{where}: link to {target}: no such heading")
     assert not bad, "\n".join(bad)
+
+
+def test_every_cli_option_is_shown_in_a_command_of_its_verb():
+    """The converse of test_cli_commands_name_existing_verbs_and_options: every option that
+    ``rotorcosim VERB --help`` lists is shown in some ``rotorcosim VERB ... --option`` of
+    README.md or docs/ (-h/--help and --debug, which every verb takes, are described once in
+    README.md's prose), and every option of ``rotorcosim`` itself in a ``rotorcosim --option``;
+    ``run --progress`` and ``rotorcosim --version`` were in --help and in no document."""
+    top, verbs = cli()
+    common = {"-h", "--help", "--debug"}
+    shown: dict[str, set[str]] = {}
+    for _, text, _ in all_segments():
+        for m in CLI_RE.finditer(text):
+            word, rest = m.group(1), m.group(2)
+            rest = re.split(r"\s#|;|&&|\|\|", rest)[0]     # an "a|b" choice is one option list
+            key = "" if word.startswith("-") else word
+            shown.setdefault(key, set()).update(re.findall(r"(?<![\w-])--[a-z][\w-]*", word + " " + rest))
+    missing = [f"rotorcosim {o}" for o in sorted(top - common) if o.startswith("--") and o not in shown.get("", ())]
+    for verb, opts in sorted(verbs.items()):
+        for o in sorted(opts - top - common):
+            if o.startswith("--") and o not in shown.get(verb, ()):
+                missing.append(f"rotorcosim {verb} {o}")
+    assert not missing, "options in --help that no document shows in a command: " + ", ".join(missing)
