@@ -743,6 +743,37 @@ def _clean_warnings(debug: bool):
     return previous
 
 
+#: exit status when the reader of stdout went away (``rotorcosim scenarios | head -1``): 128 + SIGPIPE,
+#: what a shell reports for a command that a closed pipe stopped
+EXIT_STDOUT_CLOSED = 141
+
+
+def _stdout_closed() -> bool:
+    """True when stdout is a pipe or socket whose reader has gone (poll reports an error or a
+    hang-up on it; a failed write need not leave anything to flush, so flushing again tells
+    nothing); then stdout is pointed at os.devnull, so that the interpreter's final flush does
+    not fail again (Python's signal module documentation, "Note on SIGPIPE"). False when that
+    cannot be told (no poll, no file descriptor): the error is then reported as any other."""
+    import os
+    import select
+    try:
+        fd = sys.stdout.fileno()
+        poller = select.poll()
+        poller.register(fd, select.POLLOUT)
+        events = poller.poll(0)
+    except (AttributeError, OSError, ValueError):
+        return False
+    if not any(ev & (select.POLLERR | select.POLLHUP) for _, ev in events):
+        return False
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, fd)
+        os.close(devnull)
+    except OSError:
+        pass
+    return True
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
     args = build_parser().parse_args(argv)
@@ -754,6 +785,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         logging.getLogger("orchestrator.fmi.build").setLevel(logging.INFO)   # say when FMUs are being built
     try:
         return int(args.func(args) or 0)
+    except BrokenPipeError:
+        if not _stdout_closed():                  # another pipe (a worker's): a failure like any other
+            if args.debug:
+                raise
+            print(_describe(sys.exc_info()[1]), file=sys.stderr)
+            return 1
+        return EXIT_STDOUT_CLOSED                 # `| head`: nobody reads the rest; no message, no flush error
     except KeyboardInterrupt as exc:           # Ctrl-C (130) or SIGTERM (143): RunStopped.exit_code
         code = getattr(exc, "exit_code", 130)
         print("interrupted" if code == 130 else f"terminated by signal {exc}", file=sys.stderr)

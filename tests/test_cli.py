@@ -354,3 +354,22 @@ def test_run_names_the_pressure_fields_a_stationary_scenario_writes(tmp_path):
                            str(tmp_path / "s"), "--no-progress"], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     assert f"results: {tmp_path / 's'} (results.csv, summary.json, bearing_fields.npz)" in done.stdout
+
+
+@pytest.mark.parametrize("args", [["scenarios"], ["--help"]])
+def test_closed_output_pipe_is_no_error(args):
+    """``rotorcosim scenarios | head -1`` (or ``info X.fmu | less`` quit early): the reader
+    closed the pipe, the command did not fail. It used to print "error: Broken pipe" and exit 1;
+    now it stops quietly with 141 (128 + SIGPIPE, what `seq 1 100000 | head -1` gives under
+    `set -o pipefail`), and says nothing, because there is nobody left to read the rest."""
+    r, w = os.pipe()
+    os.close(r)                          # the reader is gone before the first write: EPIPE at once
+    try:
+        proc = subprocess.run([sys.executable, "-m", "orchestrator", *args], cwd=REPO, stdout=w,
+                              stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(w)
+    expected = 0 if args == ["--help"] else 141      # argparse drops a --help it cannot write and exits 0
+    assert "Broken pipe" not in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.stderr.strip() == "", proc.stderr
+    assert proc.returncode == expected, (proc.returncode, proc.stderr)
