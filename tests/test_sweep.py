@@ -673,3 +673,18 @@ def test_the_forward_only_warning_of_a_set_step_control_names_the_set(sdir, capl
     assert said and said[0].startswith("--set coupling.step_control.type=error: 'coupling.step_control: "
                                        "{type: error}': 'f', 'g' cannot save and restore its state"), said
     assert said[0].endswith(f"(the next step follows the error of the last) (the scenario: {sdir / 'ramp.yaml'}:8)")
+
+
+def test_workers_with_a_scheduler_is_refused_before_the_output_folder_is_made(sdir, capsys, monkeypatch):
+    """`rotorcosim sweep FILE --scheduler ADDRESS --workers N` contradicts itself (the size of a
+    cluster is set where its workers start); it was refused only after DIR/runs/ had been made,
+    and left DIR behind for a sweep that never started. Now nothing is written."""
+    out = sdir / "never"
+    assert main(["sweep", str(sdir / "sweep.yaml"), "--out", str(out), "--scheduler", "tcp://127.0.0.1:1",
+                 "--workers", "2", "--no-progress"]) == 1
+    assert "drop --workers" in capsys.readouterr().err
+    assert not out.exists()
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:1")   # the same through the environment
+    assert main(["sweep", str(sdir / "sweep.yaml"), "--out", str(out), "--workers", "2", "--no-progress"]) == 1
+    assert "drop --workers" in capsys.readouterr().err
+    assert not out.exists()

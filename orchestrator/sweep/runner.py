@@ -218,6 +218,17 @@ QUIET_LOCAL_CLUSTER = {
 }
 
 
+def check_cluster_options(scheduler: str | None, workers: int | None) -> str | None:
+    """The address of the external cluster (``scheduler``, else ``$DASK_SCHEDULER_ADDRESS``), or None
+    for a local one; :class:`CosimError` when ``workers`` is given with an external cluster (its size
+    is set where its workers are started). Checked by :func:`run_sweep` before it writes anything."""
+    address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    if address and workers is not None:
+        raise CosimError("--workers sets the size of the local cluster; with --scheduler (or "
+                         "DASK_SCHEDULER_ADDRESS) the cluster has the workers started for it: drop --workers")
+    return address
+
+
 def connect(scheduler: str | None, workers: int | None):
     """A ``distributed.Client`` and the cluster it owns (None for an external cluster).
 
@@ -232,11 +243,8 @@ def connect(scheduler: str | None, workers: int | None):
         raise CosimError("sweeps run on Dask distributed, which is not installed; install it "
                          "(pip install 'dask[distributed]')") from None
     _quiet_dask()
-    address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    address = check_cluster_options(scheduler, workers)
     if address:
-        if workers is not None:
-            raise CosimError("--workers sets the size of the local cluster; with --scheduler (or "
-                             "DASK_SCHEDULER_ADDRESS) the cluster has the workers started for it: drop --workers")
         try:
             return Client(address, timeout="20s"), None
         except (OSError, TimeoutError) as exc:
@@ -379,6 +387,7 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
     (:mod:`orchestrator.sweep.warm`); False: a fresh process per run. On KeyboardInterrupt the pending tasks are cancelled, the table is written with
     the unfinished runs as status ``cancelled``, and the outcome says ``interrupted``.
     """
+    check_cluster_options(scheduler, workers)     # a contradictory command line writes nothing
     out_dir = Path(out_dir).resolve()
     runs_dir = out_dir / "runs"
     runs_dir.mkdir(parents=True, exist_ok=True)
