@@ -380,7 +380,9 @@ def _print_paths(paths) -> int:
 def _add_compare(sub) -> None:
     p = sub.add_parser("compare", help="compare coupling schemes against a reference (CI regression gate)")
     p.add_argument("file", metavar="FILE", help="comparison YAML file (or a scenario with a compare: section)")
-    p.add_argument("--out", metavar="DIR", type=_folder, help="report folder")
+    p.add_argument("--out", metavar="DIR", type=_folder,
+                   help="report folder (default: out/compare/<name> under the current folder; "
+                        "name: the file's compare.name, else its file name)")
     p.add_argument("--update-baseline", action="store_true", help="rewrite the stored baseline from this run")
     p.set_defaults(func=_cmd_compare)
 

@@ -373,3 +373,19 @@ def test_closed_output_pipe_is_no_error(args):
     assert "Broken pipe" not in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
     assert proc.stderr.strip() == "", proc.stderr
     assert proc.returncode == expected, (proc.returncode, proc.stderr)
+
+
+def test_every_out_option_says_its_default():
+    """Each verb's --out help names where the output goes without it, as docs/compare.md and
+    README.md do (compare's said only "report folder"; its default is out/compare/<name>)."""
+    import argparse
+    parser = cli.build_parser()
+    subs = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+    missing = []
+    for verb, p in subs.items():
+        for a in p._actions:
+            if "--out" in a.option_strings and "default" not in (a.help or ""):
+                missing.append(f"{verb}: {a.help!r}")
+    assert not missing, missing
+    out = next(a for a in subs["compare"]._actions if "--out" in a.option_strings)
+    assert "out/compare/<name>" in out.help
