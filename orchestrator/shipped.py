@@ -52,13 +52,20 @@ def describe(path: Path) -> str:
 
 def resolve(arg: str) -> Path:
     """``arg`` as a scenario file: an existing file as it is, else a shipped scenario of that name
-    (``quickstart`` or ``quickstart.yaml``), else the path as given (the loader reports it missing)."""
+    (``quickstart`` or ``quickstart.yaml``), else the path as given (the loader reports it missing);
+    a bare name close to a shipped scenario's is refused with that name (a typo, not a file to look for)."""
     path = Path(arg)
     if path.exists():
         return path
     name = path.name[:-5] if path.name.endswith(".yaml") else path.name
     if path.parent == Path(".") and name in shipped():
         return shipped()[name]
+    if path.parent == Path("."):                  # a bare name, neither a file here nor shipped: a typo?
+        import difflib
+        close = difflib.get_close_matches(name, list(shipped()), n=1, cutoff=0.75)
+        if close:
+            raise CosimError(f"{arg}: no such scenario file here, and no shipped scenario of that name; "
+                             f"did you mean '{close[0]}'? (`rotorcosim scenarios` lists them)")
     return path
 
 

@@ -389,3 +389,15 @@ def test_every_out_option_says_its_default():
     assert not missing, missing
     out = next(a for a in subs["compare"]._actions if "--out" in a.option_strings)
     assert "out/compare/<name>" in out.help
+
+
+@pytest.mark.parametrize("verb", ["run", "validate", "stability"])
+def test_misspelt_shipped_scenario_name_gets_did_you_mean(verb, tmp_path, monkeypatch, capsys):
+    """`rotorcosim run quickstar` (README: "a file, or a shipped scenario by name") said only
+    "quickstar: scenario file not found; check the path"; a name close to a shipped scenario's
+    now gets that name, as every other key and name of rotorcosim does."""
+    monkeypatch.chdir(tmp_path)
+    assert main([verb, "quickstar"]) == 1
+    err = capsys.readouterr().err
+    assert "did you mean 'quickstart'?" in err and "rotorcosim scenarios" in err and "Traceback" not in err
+    assert not (tmp_path / "runs").exists()
