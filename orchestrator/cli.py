@@ -6,12 +6,12 @@ library and formats what comes back; it contains no numerics.
 
 Exit codes: 0 success; 1 a failed run, an invalid scenario or any other error
 (one readable message on stderr, no traceback unless ``--debug``); 2 bad
-command-line usage (argparse); 130 interrupted. ``compare`` returns the exit
+command-line usage (argparse); 130 interrupted; 141 stdout's reader went away (``| head``). ``compare`` returns the exit
 code of :func:`orchestrator.compare.main_compare`.
 
 Length: one small ``_add_<verb>`` / ``_cmd_<verb>`` pair per verb (run, validate, info,
-build-fmus, plot, compare, scenarios, init, export-ssp, sweep, stability, quickstart, ...); a file of
-~500 lines for that reason, with no logic of its own to split out.
+build-fmus, plot, compare, scenarios, init, export-ssp, sweep, stability; the quick start is
+``run quickstart``, no verb of its own); a file of ~800 lines for that reason, with no logic of its own to split out.
 """
 
 from __future__ import annotations
