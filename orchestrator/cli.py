@@ -413,8 +413,9 @@ def _add_sweep(sub) -> None:
 def _cmd_sweep(args) -> int:
     from orchestrator.sweep import default_out_dir, load_sweep
     from orchestrator.sweep.plan import PROGRESS_FROM_RUNS, count_runs, plan_sweep
-    from orchestrator.sweep.runner import run_sweep
+    from orchestrator.sweep.runner import check_cluster_options, run_sweep
 
+    check_cluster_options(args.scheduler, args.workers)   # before validating every run (1-2 min for 10 000)
     spec = load_sweep(args.file)
     n = count_runs(spec)                               # refuses too many runs before expanding any
     if n >= PROGRESS_FROM_RUNS:                        # 5-12 ms per run: say why nothing runs yet

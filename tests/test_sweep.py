@@ -682,7 +682,9 @@ def test_workers_with_a_scheduler_is_refused_before_the_output_folder_is_made(sd
     out = sdir / "never"
     assert main(["sweep", str(sdir / "sweep.yaml"), "--out", str(out), "--scheduler", "tcp://127.0.0.1:1",
                  "--workers", "2", "--no-progress"]) == 1
-    assert "drop --workers" in capsys.readouterr().err
+    printed = capsys.readouterr()
+    assert "drop --workers" in printed.err
+    assert "runs of" not in printed.out          # refused before the runs are planned (validated)
     assert not out.exists()
     monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:1")   # the same through the environment
     assert main(["sweep", str(sdir / "sweep.yaml"), "--out", str(out), "--workers", "2", "--no-progress"]) == 1
