@@ -210,6 +210,20 @@ def _short(p) -> dict:
     return dict(R=p.R, L=p.B, C=p.psi * p.R, eta=p.eta0)
 
 
+_NUMERIC = (ValueError, ArithmeticError, np.linalg.LinAlgError)   # what an absurd parameter makes the numerics raise
+
+
+def _failed(b: Bearing, omega: float | None, exc: BaseException) -> StabilityError:
+    """The message of a film computation of bearing b that failed (an absurd parameter, a speed far off)."""
+    p = b.params
+    at = f" at {omega / (2 * math.pi):.4g} Hz" if omega is not None else ""
+    return StabilityError(f"bearing '{b.instance}' (station {b.station}; R = {p.R:g} m, B = {p.B:g} m, "
+                          f"c = psi R = {p.psi * p.R:g} m, eta0 = {p.eta0:g} Pa s): its film has no usable static "
+                          f"equilibrium{at}: {exc or type(exc).__name__}; check these parameters (--set "
+                          f"fmus.{b.instance}.parameters.NAME=VALUE) against the load, or give a --speeds LO:HI "
+                          "nearer the rotor's running speeds")
+
+
 class _ShortFilm:
     """Ocvirk coefficients of each station under its static load (closed form)."""
 
@@ -224,7 +238,10 @@ class _ShortFilm:
         from rotor_fmu.stability import short_bearing_coefficients
         K, C = [], []
         for b, ld in zip(self.system.bearings, self.loads):
-            k, c = short_bearing_coefficients(ld, omega, **_short(b.params))
+            try:
+                k, c = short_bearing_coefficients(ld, omega, **_short(b.params))
+            except _NUMERIC as exc:
+                raise _failed(b, omega, exc) from None
             K.append(k)
             C.append(c)
         return np.array(K), np.array(C)
@@ -233,7 +250,10 @@ class _ShortFilm:
         from rotor_fmu.stability import short_bearing_equilibrium
         out = []
         for b, ld in zip(self.system.bearings, self.loads):
-            out.append(short_bearing_equilibrium(ld, omega, **_short(b.params))[0])
+            try:
+                out.append(short_bearing_equilibrium(ld, omega, **_short(b.params))[0])
+            except _NUMERIC as exc:
+                raise _failed(b, omega, exc) from None
         return out
 
 
@@ -251,8 +271,11 @@ class _HSFilm:
         self.models = []
         for b in system.bearings:
             p = dataclasses.replace(b.params, cavitation=0)
-            m = BearingModel(p)
-            m.initialize(0.0, -0.5 * m.c, 0.0, 0.0, 1.0)
+            try:
+                m = BearingModel(p)
+                m.initialize(0.0, -0.5 * m.c, 0.0, 0.0, 1.0)
+            except _NUMERIC as exc:
+                raise _failed(b, None, exc) from None
             self.models.append(m)
         self.q: list = [None] * len(self.models)
 
@@ -286,15 +309,23 @@ class _HSFilm:
         target = -np.asarray(ld, float)
         q = self.q[j]
         if q is None:       # start from the short-bearing equilibrium (kept inside 0.8 c)
-            eps, psi = short_bearing_equilibrium(ld, omega, **_short(b.params))
+            try:
+                eps, psi = short_bearing_equilibrium(ld, omega, **_short(b.params))
+            except ValueError:          # no closed-form equilibrium (a load far off its capacity): start mid-gap
+                eps, psi = 0.5, -0.5 * math.pi
             eps = min(eps, 0.8)
             q = eps * c * np.array([math.cos(psi), math.sin(psi)])
         try:
             q = hs_static_equilibrium(m, target, omega, guess=q, max_iter=60, max_ecc=0.995)
         except HSEquilibriumError as exc:
+            # a non-finite film force is a film far stiffer than the load (speed, viscosity), not a speed too low
+            fix = ("give a --speeds LO:HI nearer the rotor's running speeds, or check the bearing's parameters (R, B, "
+                   "psi, eta0) against the load" if "non-finite" in str(exc) else "raise the lower end of --speeds")
             raise StabilityError(f"bearing '{b.instance}': no half-Sommerfeld static equilibrium found at "
                                  f"{omega / (2 * math.pi):.4g} Hz under the load {np.hypot(*target):.4g} N "
-                                 f"({exc}); raise the lower end of --speeds") from None
+                                 f"({exc}); {fix}") from None
+        except _NUMERIC as exc:
+            raise _failed(b, omega, exc) from None
         self.q[j] = q
         return q
 
@@ -302,7 +333,10 @@ class _HSFilm:
         K, C = [], []
         for j in range(len(self.models)):
             q = self.equilibrium(j, omega)
-            _, k, d = self.force_and_coefficients(j, q, omega)
+            try:
+                _, k, d = self.force_and_coefficients(j, q, omega)
+            except _NUMERIC as exc:
+                raise _failed(self.system.bearings[j], omega, exc) from None
             K.append(k)
             C.append(d)
         return np.array(K), np.array(C)
@@ -389,6 +423,10 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
     system = build_system(scenario)
     lo, hi = speeds if speeds is not None else (0.1 * system.f_max, system.f_max)
+    if speeds is None and not (0.0 < lo < hi and math.isfinite(hi)):
+        raise StabilityError(f"the default speed range 0.1 f_max : f_max is {lo:g}:{hi:g} Hz, but the rotor "
+                             f"'{system.rotor_instance}' has f_max = {system.f_max:g} Hz (no ramp to take the range "
+                             "from); give the range: --speeds LO:HI in Hz, e.g. --speeds 50:800")
     if not (0.0 < lo < hi and math.isfinite(hi)):
         raise StabilityError(f"--speeds: need 0 < LO < HI in Hz (got {lo:g}:{hi:g})")
     if system.rings and film == "short":
@@ -426,7 +464,16 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         max_re = fn.max_re
     else:
         fn = _ShortFilm(system, total) if film == "short" else _HSFilm(system, total)
-        max_re = lambda w: max_real_eigenvalue(system.rotor, w, fn)     # noqa: E731
+
+        def coefficients(omega):
+            """The film's (K, C) at omega, refused when not finite (NaN would read as "stable")."""
+            K, C = fn(omega)
+            for b, k, c in zip(system.bearings, K, C):
+                if not (np.all(np.isfinite(k)) and np.all(np.isfinite(c))):
+                    raise _failed(b, omega, ValueError(f"its linear coefficients are not finite (K = {k.tolist()}, "
+                                                       f"C = {c.tolist()})"))
+            return K, C
+        max_re = lambda w: max_real_eigenvalue(system.rotor, w, coefficients)     # noqa: E731
     fmt = lambda v: f"({v[0] + 0.0:.4g}, {v[1] + 0.0:.4g}) N"        # noqa: E731 (+ 0.0: no "-0")
     notes = [f"bearing '{n}': static load {fmt(total[k])} = the rotor's weight share {fmt(weight[k])} plus --load "
              f"{fmt(extra[k])}" for k, n in enumerate(names) if extra[k].any()]
@@ -453,7 +500,13 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     search = max_re
 
     def max_re(w):                       # every speed evaluated, for result["scan"] and --plot
-        v = search(w)
+        try:
+            v = search(w)
+        except _NUMERIC as exc:          # the rotor's own matrices (an absurd mass, a speed far off)
+            raise StabilityError(f"the eigenvalues of the rotor '{system.rotor_instance}' in its bearings cannot "
+                                 f"be computed at {w / (2 * math.pi):.4g} Hz: {exc or type(exc).__name__}; check the "
+                                 "rotor's and the bearings' parameters, or give a --speeds LO:HI nearer the rotor's "
+                                 "running speeds") from exc
         seen[float(w)] = v
         return v
 

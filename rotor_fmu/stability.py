@@ -107,6 +107,18 @@ def short_bearing_equilibrium(load, omega, *, R, L, C, eta):
         raise ValueError(f"short_bearing_equilibrium: need a nonzero load and omega > 0 "
                          f"(got load={load.tolist()}, omega={omega})")
     f = lambda e: short_bearing_load(e, omega, R=R, L=L, C=C, eta=eta) - W
+    with np.errstate(over="ignore", invalid="ignore"):     # a capacity beyond float range is just "too large"
+        lo, hi = f(1e-12), f(1.0 - 1e-12)
+    if not hi >= 0.0:       # the film's capacity s omega ~ eta R L^3 omega / C^2 is too small for the load
+        raise ValueError(f"the short-bearing film cannot carry the load {W:.4g} N at {omega / (2 * math.pi):.4g} Hz "
+                         f"(eccentricity ratio above 1 - 1e-12): speed, viscosity, radius or length far too small, "
+                         f"or clearance far too large, for the load")
+    if not lo <= 0.0:       # capacity so large that the eccentricity is below 1e-12 (or not a number)
+        raise ValueError(f"the short-bearing film's eccentricity under the load {W:.4g} N at "
+                         f"{omega / (2 * math.pi):.4g} Hz is below 1e-12 of the clearance (its load capacity "
+                         f"{short_bearing_load(1e-12, omega, R=R, L=L, C=C, eta=eta):.4g} N at that eccentricity "
+                         f"already exceeds the load): speed, viscosity, radius or length far too large, or the load "
+                         f"far too small")
     eps = brentq(f, 1e-12, 1.0 - 1e-12, xtol=1e-15, rtol=1e-14)
     beta = math.atan2(math.pi * math.sqrt(1 - eps**2), 4 * eps)
     ang_film = math.atan2(-load[1], -load[0])       # direction of the film force

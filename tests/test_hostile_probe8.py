@@ -1,0 +1,51 @@
+"""Eighth probe (after tests/test_hostile_probe7.py): the newest features - the `stability` verb,
+`export-ssp` and the scenario annotation read back from an SSP, `sweep --resume` fingerprints of
+input files, and `compare`'s newest checks. One test per finding, each failing on the code before
+its fix."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from orchestrator.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+JEFFCOTT_HS = REPO / "scenarios" / "jeffcott_runup_half_sommerfeld.yaml"
+COARSE = [a for b in ("bearing1", "bearing2") for a in
+          ("--set", f"fmus.{b}.parameters.n_phi=16", "--set", f"fmus.{b}.parameters.n_z=8")]
+
+
+def _stability(capsys, *args):
+    code = main(["stability", *map(str, args)])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+# --------------------------------------------------------------------------- stability
+@pytest.mark.parametrize("film, extra", [
+    ("short", ["--set", "fmus.bearing1.parameters.B=1e6"]),          # eccentricity below 1e-12
+    ("short", ["--set", "fmus.bearing1.parameters.B=1e-12"]),        # the film cannot carry the load
+    ("short", ["--speeds", "1e-300:1e-299"]),
+    ("short", ["--set", "fmus.rotor.parameters.m_disc=1e300"]),
+    ("hs", ["--set", "fmus.bearing1.parameters.B=1e6"]),             # the HS solver divides by zero
+])
+def test_stability_absurd_bearing_or_speed_is_named_not_an_internal_error(capsys, film, extra):
+    code, out, err = _stability(capsys, JEFFCOTT_HS, "--film", film, *COARSE, *extra)
+    assert code == 1
+    assert "internal error" not in err and "Traceback" not in err
+    assert "bearing 'bearing1'" in err and "B = " in err and "--speeds" in err
+
+
+def test_stability_rotor_without_ramp_names_f_max_not_a_speeds_it_was_not_given(capsys):
+    code, out, err = _stability(capsys, JEFFCOTT_HS, "--film", "short", "--set", "fmus.rotor.parameters.f_max=0")
+    assert code == 1
+    assert "f_max = 0" in err and "--speeds LO:HI" in err
+
+
+def test_stability_hs_film_at_absurd_speeds_does_not_advise_raising_the_lower_end(capsys):
+    code, out, err = _stability(capsys, JEFFCOTT_HS, *COARSE, "--speeds", "1e200:1e300")
+    assert code == 1
+    assert "no half-Sommerfeld static equilibrium" in err and "raise the lower end" not in err
