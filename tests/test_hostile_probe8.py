@@ -6,6 +6,8 @@ its fix."""
 from __future__ import annotations
 
 import json
+import os
+import stat
 from pathlib import Path
 
 import pytest
@@ -49,3 +51,38 @@ def test_stability_hs_film_at_absurd_speeds_does_not_advise_raising_the_lower_en
     code, out, err = _stability(capsys, JEFFCOTT_HS, *COARSE, "--speeds", "1e200:1e300")
     assert code == 1
     assert "no half-Sommerfeld static equilibrium" in err and "raise the lower end" not in err
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs named pipes")
+def test_stability_json_to_a_fifo_or_device_does_not_replace_it(capsys, tmp_path):
+    # `--json /dev/null` run as root replaced /dev/null by a regular file (atomic rename over the name);
+    # a FIFO stands in for the device here (the test must not risk /dev/null)
+    fifo = tmp_path / "pipe.json"
+    os.mkfifo(fifo)
+    code, out, err = _stability(capsys, JEFFCOTT_HS, "--film", "short", "--json", fifo)
+    assert code == 1
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    assert "named pipe (FIFO)" in err and str(fifo) in err and "regular file" in err
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs named pipes")
+def test_report_and_figure_writers_refuse_a_fifo(tmp_path):
+    from orchestrator.errors import OutputWriteError
+    from orchestrator.results.safe_write import save_figure, write_report_file
+    fifo = tmp_path / "report.md"
+    os.mkfifo(fifo)
+    with pytest.raises(OutputWriteError, match="named pipe"):
+        write_report_file(fifo, "x\n")
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig = plt.figure()
+    png = tmp_path / "f.png"
+    os.mkfifo(png)
+    try:
+        with pytest.raises(OutputWriteError, match="named pipe"):
+            save_figure(fig, png)
+    finally:
+        plt.close(fig)
+    assert stat.S_ISFIFO(os.lstat(png).st_mode)

@@ -29,9 +29,27 @@ def open_no_follow(path: Path | str, mode: str = "w", *, newline: str | None = "
     return os.fdopen(fd, mode, newline=newline, encoding=encoding)
 
 
+def _refuse_special(path: Path) -> None:
+    """Refuse a device, FIFO or socket at ``path``: the atomic rename would replace it by a regular
+    file (``--json /dev/null`` run as root replaced /dev/null itself); a link is replaced, by design."""
+    import stat
+
+    from orchestrator.errors import OutputWriteError
+    from orchestrator.untrusted import file_kind
+    try:
+        st = os.lstat(path)
+    except OSError:                          # a new name, or a folder that is missing: the write says so
+        return
+    if not (stat.S_ISREG(st.st_mode) or stat.S_ISLNK(st.st_mode) or stat.S_ISDIR(st.st_mode)):
+        raise OutputWriteError(f"cannot write {path}: it is {file_kind(st.st_mode)}, and rotorcosim writes a file "
+                               "by renaming a finished one over the name, which would replace it; give the path of "
+                               "a regular file (to discard the output, leave the option out)")
+
+
 def write_text_no_follow(path: Path | str, text: str, *, encoding: str | None = None) -> None:
     """Write ``path`` atomically (temporary file + rename) without following links at either name."""
     path = Path(path)
+    _refuse_special(path)
     tmp = path.with_name(path.name + ".tmp")
     with contextlib.suppress(FileNotFoundError):
         tmp.unlink()                          # removes a planted link itself, not its target
@@ -96,6 +114,7 @@ def save_figure(fig, path: Path | str, **kwargs) -> Path:
     from orchestrator.errors import OutputWriteError
     path = Path(path)
     kwargs.setdefault("format", path.suffix.lstrip(".") or "png")
+    _refuse_special(path)
     tmp = None
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
