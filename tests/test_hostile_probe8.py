@@ -86,3 +86,38 @@ def test_report_and_figure_writers_refuse_a_fifo(tmp_path):
     finally:
         plt.close(fig)
     assert stat.S_ISFIFO(os.lstat(png).st_mode)
+
+
+# --------------------------------------------------------------------------- export-ssp / annotation
+def _tampered_ssp(tmp_path: Path, edit) -> Path:
+    """The shipped quickstart exported to an SSP, its SSD text changed by ``edit``."""
+    import warnings
+    import zipfile
+
+    import orchestrator
+    from orchestrator.scenario.ssp import export_ssp
+    from orchestrator.shipped import resolve
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")              # libcosim's Jacobi note
+        good = export_ssp(orchestrator.load_scenario(resolve("quickstart")), tmp_path / "q.ssp")
+    bad = tmp_path / "bad.ssp"
+    with zipfile.ZipFile(good) as zin, zipfile.ZipFile(bad, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "SystemStructure.ssd":
+                data = edit(data.decode()).encode()
+            zout.writestr(item, data)
+    return bad
+
+
+def test_ssd_problems_in_an_archive_name_the_archive_not_the_temporary_folder(tmp_path):
+    # an annotation problem (and every SSD-level one) named /tmp/rotorcosim-ssp-XXXX/ssp/SystemStructure.ssd,
+    # a folder removed when the command ends
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    bad = _tampered_ssp(tmp_path, lambda t: t.replace("format: 1\n", "format: 1\nfmus:\n", 1))
+    with pytest.raises(ScenarioError) as info:
+        orchestrator.load_scenario(bad)
+    text = str(info.value)
+    assert f"{bad} (SystemStructure.ssd): ssc:Annotation" in text and "'fmus' must be a mapping" in text, text
+    assert "rotorcosim-ssp-" not in text, text

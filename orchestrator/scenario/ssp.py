@@ -81,13 +81,14 @@ def _parse(data: bytes, where: str) -> ET.Element:
         raise ScenarioError(str(e)) from None
 
 
-def _read(path: Path) -> bytes:
-    """The bytes of an SSP's XML file: a regular file of at most MAX_XML_BYTES."""
+def _read(path: Path, display: str | None = None) -> bytes:
+    """The bytes of an SSP's XML file: a regular file of at most MAX_XML_BYTES (a problem named
+    by ``display``, e.g. the archive rather than the temporary folder it was extracted to)."""
     try:
         return read_bytes(path, what="SSP file", limit=MAX_XML_BYTES,
                           limit_name="orchestrator.scenario.ssp.MAX_XML_BYTES")
     except InputError as e:
-        raise ScenarioError(str(e)) from None
+        raise ScenarioError(str(e).replace(str(path), display) if display else str(e)) from None
 
 
 def _safe_member(name: str, where: str) -> PurePosixPath:
@@ -112,20 +113,25 @@ class _Source:
                 raise ScenarioError(f"SSP archive: {e}") from None
             self.root = work
             self.ssd = work / "SystemStructure.ssd"
+            # what messages call it: the archive, not the temporary folder it was extracted to (gone
+            # when the command ends)
+            self.name = f"{self.path} (SystemStructure.ssd)"
         else:
             self.root = self.path.parent
             self.ssd = self.path
+            self.name = str(self.path)
 
     def file(self, rel: str, what: str) -> Path:
-        _safe_member(rel, f"{self.ssd} ({what})")
+        _safe_member(rel, f"{self.name} ({what})")
         p = (self.root / rel).resolve()
         with contextlib.suppress(OSError):
             mode = os.stat(p).st_mode
             if not stat.S_ISREG(mode):
-                raise ScenarioError(f"{self.ssd}: {what} {rel!r} is {file_kind(mode)}, expected a regular file; "
+                raise ScenarioError(f"{self.name}: {what} {rel!r} is {file_kind(mode)}, expected a regular file; "
                                     "add the file to the SSP or fix the 'source'")
         if not p.is_file():
-            raise ScenarioError(f"{self.ssd}: {what} {rel!r} not found (looked in {self.root}); "
+            where = "in the archive" if self.root != self.path.parent else f"looked in {self.root}"
+            raise ScenarioError(f"{self.name}: {what} {rel!r} not found ({where}); "
                                 "add the file to the SSP or fix the 'source'")
         return p
 
@@ -175,31 +181,31 @@ def _binding_values(owner: ET.Element, what: str, src: _Source, problems: list[s
         sets = []
         if b.get("source"):
             if b.get("source").startswith("#"):
-                problems.append(f"{src.ssd}: {what}: parameter binding source "
+                problems.append(f"{src.name}: {what}: parameter binding source "
                                 f"{b.get('source')!r} (a reference into the SSD) is not supported; use an .ssv file "
                                 "or inline ParameterValues")
                 continue
             if (b.get("sourceBase") or "SSD") != "SSD":
-                problems.append(f"{src.ssd}: {what}: parameter binding source {b.get('source')!r} with "
+                problems.append(f"{src.name}: {what}: parameter binding source {b.get('source')!r} with "
                                 f"sourceBase={b.get('sourceBase')!r} (a file inside the component) is not supported; "
                                 "put the .ssv file into the SSP beside SystemStructure.ssd")
                 continue
             sets.append(_parse(_read(src.file(b.get("source"), "parameter values")), b.get("source")))
         sets += b.findall("ssd:ParameterValues/ssv:ParameterSet", NS)
         if b.find("ssd:ParameterMapping", NS) is not None:
-            problems.append(f"{src.ssd}: {what}: parameter mappings (.ssm) are not "
+            problems.append(f"{src.name}: {what}: parameter mappings (.ssm) are not "
                             "supported; write the values under the variables' own names")
         for ps in sets:
             set_units = _units_of(ps, "ssv:Units/ssc:Unit")
             for p in ps.findall("ssv:Parameters/ssv:Parameter", NS):
                 name = prefix + p.get("name", "")
                 try:
-                    v = _value(p, f"{src.ssd}: parameter {name!r} of {what}")
+                    v = _value(p, f"{src.name}: parameter {name!r} of {what}")
                 except ScenarioError as e:
                     problems.extend(e.problems)
                     continue
                 if v is None:
-                    problems.append(f"{src.ssd}: parameter {name!r} of {what} has no value")
+                    problems.append(f"{src.name}: parameter {name!r} of {what} has no value")
                 else:
                     real = p.find("ssv:Real", NS)
                     out.append((name, v[1], real.get("unit") if real is not None else None, set_units))
@@ -241,7 +247,7 @@ def _in_fmu_unit(value: Any, unit: str | None, set_units: dict, ssd_units: dict,
 
 def _parameters(comp: ET.Element, path: str, ssd_units: dict, src: _Source, problems: list[str]) -> dict[str, Any]:
     what = f"component {comp.get('name')!r}"
-    return {name: _in_fmu_unit(value, unit, set_units, ssd_units, path, name, f"{src.ssd}: {what}", problems)
+    return {name: _in_fmu_unit(value, unit, set_units, ssd_units, path, name, f"{src.name}: {what}", problems)
             for name, value, unit, set_units in _binding_values(comp, what, src, problems)}
 
 
@@ -256,9 +262,9 @@ def _system_parameters(system: ET.Element, fmus: dict[str, dict], ssd_units: dic
         inst, dot, var = name.partition(".")
         if dot and var and inst in fmus:
             fmus[inst].setdefault("parameters", {})[var] = _in_fmu_unit(
-                value, unit, set_units, ssd_units, fmus[inst]["path"], var, f"{src.ssd}: {what}", problems)
+                value, unit, set_units, ssd_units, fmus[inst]["path"], var, f"{src.name}: {what}", problems)
         else:
-            problems.append(f"{src.ssd}: parameter {name!r} of the system's parameter bindings names no component "
+            problems.append(f"{src.name}: parameter {name!r} of the system's parameter bindings names no component "
                             f"variable (components: {', '.join(fmus) or 'none'}); write it as 'component.variable' "
                             "(or give the binding prefix=\"component.\"): parameters of the system's own connectors "
                             "are not supported")
@@ -347,18 +353,18 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
     connections, experiment), each part's unsupported forms reported where they are met.
     """
     src = _Source(Path(path), Path(work))
-    root = _parse(_read(src.ssd), str(src.ssd))
+    root = _parse(_read(src.ssd, src.name), src.name)
     if root.tag != f"{{{NS['ssd']}}}SystemStructureDescription":
-        raise ScenarioError(f"{src.ssd}: root element is {root.tag}, expected ssd:SystemStructureDescription")
+        raise ScenarioError(f"{src.name}: root element is {root.tag}, expected ssd:SystemStructureDescription")
     system = root.find("ssd:System", NS)
     if system is None:
-        raise ScenarioError(f"{src.ssd}: no ssd:System element; re-export the SSP")
+        raise ScenarioError(f"{src.name}: no ssd:System element; re-export the SSP")
     problems: list[str] = []
     if system.find("ssd:Elements/ssd:System", NS) is not None:
-        problems.append(f"{src.ssd}: nested systems are not supported; flatten the system into one level")
+        problems.append(f"{src.name}: nested systems are not supported; flatten the system into one level")
     if system.find("ssd:Elements/ssd:SignalDictionaryReference", NS) is not None or \
             system.find("ssd:SignalDictionaries", NS) is not None:
-        problems.append(f"{src.ssd}: signal dictionaries are not supported; connect the components' connectors "
+        problems.append(f"{src.name}: signal dictionaries are not supported; connect the components' connectors "
                         "directly")
     fmus: dict[str, dict] = {}
     comps: dict[str, ET.Element] = {}
@@ -366,14 +372,14 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
     for comp in system.findall("ssd:Elements/ssd:Component", NS):
         name, source = comp.get("name"), comp.get("source")
         if not name or not source:
-            problems.append(f"{src.ssd}: a component lacks 'name' or 'source'")
+            problems.append(f"{src.name}: a component lacks 'name' or 'source'")
             continue
         if name in fmus:
-            problems.append(f"{src.ssd}: two components are called {name!r} (the second would replace the "
+            problems.append(f"{src.name}: two components are called {name!r} (the second would replace the "
                             "first); give each component its own name")
             continue
         if comp.get("type") not in (None, "application/x-fmu-sharedlibrary"):
-            problems.append(f"{src.ssd}: component {name!r} has type {comp.get('type')!r}; only FMUs "
+            problems.append(f"{src.name}: component {name!r} has type {comp.get('type')!r}; only FMUs "
                             "(application/x-fmu-sharedlibrary) are supported")
             continue
         entry: dict[str, Any] = {"path": str(src.file(source, f"FMU of component {name!r}"))}
@@ -388,14 +394,14 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
         s_el, s_con, d_el, d_con = (c.get(k) for k in ("startElement", "startConnector", "endElement",
                                                       "endConnector"))
         if not (s_el and d_el):
-            problems.append(f"{src.ssd}: connection {s_con} -> {d_con} touches the system's own connectors; "
+            problems.append(f"{src.name}: connection {s_con} -> {d_con} touches the system's own connectors; "
                             "only component-to-component connections are supported")
             continue
         conn: dict[str, Any] = {"from": f"{s_el}.{s_con}", "to": f"{d_el}.{d_con}"}
         for kind in ("BooleanMappingTransformation", "IntegerMappingTransformation",
                      "EnumerationMappingTransformation"):
             if c.find(f"ssc:{kind}", NS) is not None or c.find(f"ssd:{kind}", NS) is not None:
-                problems.append(f"{src.ssd}: connection {conn['from']} -> {conn['to']}: a {kind} is not supported "
+                problems.append(f"{src.name}: connection {conn['from']} -> {conn['to']}: a {kind} is not supported "
                                 "(the input would get the output's value unmapped); map the values in an FMU, or "
                                 "connect variables that need no mapping")
         lt = c.find("ssc:LinearTransformation", NS)
@@ -404,7 +410,7 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
         if lt is not None:
             try:
                 for attr, key, default in (("factor", "gain", 1.0), ("offset", "offset", 0.0)):
-                    conn[key] = _number(lt.get(attr, default), f"{src.ssd}: connection {conn['from']} -> "
+                    conn[key] = _number(lt.get(attr, default), f"{src.name}: connection {conn['from']} -> "
                                         f"{conn['to']}: LinearTransformation {attr}")
             except ScenarioError as e:
                 problems.extend(e.problems)
@@ -412,7 +418,7 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
         if s_el in fmus and d_el in fmus:
             # SSP 1.0: a Real connection between different units converts them, then applies its
             # LinearTransformation: target = factor * convert(source) + offset
-            conv = _unit_conversion(conn, c, comps, fmus, units, str(src.ssd), problems)
+            conv = _unit_conversion(conn, c, comps, fmus, units, src.name, problems)
             if conv is not None:
                 factor, off = conn.get("gain", 1.0), conn.get("offset", 0.0)
                 conn["gain"], conn["offset"] = factor * conv[0], factor * conv[1] + off
@@ -426,12 +432,12 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
     if de is not None:
         for attr, key in (("startTime", "start_time"), ("stopTime", "stop_time")):
             if de.get(attr) is not None:
-                doc[key] = _number(de.get(attr), f"{src.ssd}: DefaultExperiment {attr}")
+                doc[key] = _number(de.get(attr), f"{src.name}: DefaultExperiment {attr}")
         fixed = de.find("ssd:Annotations/ssc:Annotation/osp:Algorithm/osp:FixedStepAlgorithm", NS)
         if fixed is not None and fixed.get("baseStepSize"):
             doc["coupling"] = {"scheme": "jacobi", "macro_step": _number(
-                fixed.get("baseStepSize"), f"{src.ssd}: osp:FixedStepAlgorithm baseStepSize")}
-    read_annotation(root, doc, str(src.ssd))
+                fixed.get("baseStepSize"), f"{src.name}: osp:FixedStepAlgorithm baseStepSize")}
+    read_annotation(root, doc, src.name)
     return doc
 
 
