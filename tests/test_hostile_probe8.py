@@ -121,3 +121,45 @@ def test_ssd_problems_in_an_archive_name_the_archive_not_the_temporary_folder(tm
     text = str(info.value)
     assert f"{bad} (SystemStructure.ssd): ssc:Annotation" in text and "'fmus' must be a mapping" in text, text
     assert "rotorcosim-ssp-" not in text, text
+
+
+def _annotation_problem(tmp_path: Path, edit) -> str:
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    with pytest.raises(ScenarioError) as info:
+        orchestrator.load_scenario(_tampered_ssp(tmp_path, edit))
+    return str(info.value)
+
+
+def _step(text: str, macro: str, base: str) -> str:
+    import re
+    text = re.sub(r"(<rc:Scenario[^>]*>.*?  macro_step: )[^\n]*", lambda m: m.group(1) + macro, text, count=1,
+                  flags=re.S)
+    return re.sub(r'baseStepSize="[^"]*"', f'baseStepSize="{base}"', text, count=1)
+
+
+def test_annotation_macro_step_contradicting_the_ssds_fixed_step_is_refused(tmp_path):
+    # the annotation's coupling replaced the osp:FixedStepAlgorithm step (what libcosim runs) silently
+    text = _annotation_problem(tmp_path, lambda t: _step(t, "0.5", "0.0002"))
+    assert "'coupling.macro_step: 0.5' contradicts" in text and 'baseStepSize="0.0002"' in text, text
+
+
+def test_annotation_without_macro_step_keeps_the_ssds_fixed_step(tmp_path):
+    import re
+
+    import orchestrator
+    ssp = _tampered_ssp(tmp_path, lambda t: re.sub(r"\n  macro_step: [^\n]*", "", _step(t, "x", "0.0002"), count=1))
+    assert orchestrator.load_scenario(ssp).coupling.macro_step == 0.0002
+
+
+@pytest.mark.parametrize("edit, needle", [
+    (lambda t: t.replace("format: 1\n", "format: 2\n", 1), "'format: 2' in its text contradicts format=\"1\""),
+    (lambda t: t.replace("format: 1\n", "format: 1\ncoupling: {scheme: jacobi}\n", 1), "appears twice"),
+    (lambda t: t.replace("format: 1\n", "format: 1\n<x>output: {interval: 1}</x>\n", 1),
+     "rc:Scenario holds the element <x>"),
+])
+def test_annotation_text_that_was_ignored_is_refused(tmp_path, edit, needle):
+    # a format key contradicting the element's, a section given twice (the last one won), an element
+    # inside rc:Scenario (its text dropped): each was read without a word
+    text = _annotation_problem(tmp_path, edit)
+    assert needle in text, text

@@ -107,6 +107,31 @@ def write_annotation(root: ET.Element, scenario) -> None:
     el.text = "\n" + yaml.safe_dump(scenario_annotation(scenario), sort_keys=False)
 
 
+def _duplicate_keys(node, where: str) -> list[str]:
+    """Keys given twice in a mapping of the composed annotation (the scenario loader refuses them;
+    constructing the value kept the last one without a word). Each node visited once (aliases)."""
+    import yaml
+    out, seen, todo = [], set(), [node]
+    while todo:
+        n = todo.pop()
+        if n is None or id(n) in seen:
+            continue
+        seen.add(id(n))
+        if isinstance(n, yaml.MappingNode):
+            first: dict = {}
+            for k, v in n.value:
+                if isinstance(k, yaml.ScalarNode):
+                    if k.value in first:
+                        out.append(f"{where}:{k.start_mark.line + 1}: key {k.value!r:.60} appears twice in a mapping "
+                                   f"(first on line {first[k.value] + 1}); keep one of them")
+                    else:
+                        first[k.value] = k.start_mark.line
+                todo.extend((k, v))
+        elif isinstance(n, yaml.SequenceNode):
+            todo.extend(n.value)
+    return out
+
+
 def read_annotation(root: ET.Element, doc: dict, ssd: str) -> None:
     """The rotorcosim annotation of an SSD (:func:`scenario_annotation`) into ``doc``: its
     ``coupling`` replaces the one read from osp:FixedStepAlgorithm, ``output``, ``analysis`` and
@@ -144,8 +169,27 @@ def read_annotation(root: ET.Element, doc: dict, ssd: str) -> None:
         raise ScenarioError(f"{where}: not valid YAML ({e}); re-export the SSP, or remove the annotation") from None
     if not isinstance(value, dict):
         raise ScenarioError(f"{where}: must hold a mapping of scenario sections (got {type(value).__name__})")
-    problems = [f"{where}: unknown key {k!r}; valid: {', '.join(ANNOTATION_KEYS)}"
-                for k in value if k not in ANNOTATION_KEYS]
+    problems = _duplicate_keys(node, where)
+    problems += [f"{where}: unknown key {k!r}; valid: {', '.join(ANNOTATION_KEYS)}"
+                 for k in value if k not in ANNOTATION_KEYS]
+    if len(el):           # the content is YAML text; an element inside was dropped without a word
+        problems.append(f"{where}: rc:Scenario holds the element <{el[0].tag}>; its content is YAML text only: "
+                        "re-export the SSP, or remove the element")
+    fmt = value.get("format", ANNOTATION_FORMAT)
+    if type(fmt) is not int or fmt != ANNOTATION_FORMAT:
+        problems.append(f"{where}: 'format: {fmt!r:.40}' in its text contradicts format=\"{ANNOTATION_FORMAT}\" of "
+                        "the element; this rotorcosim reads format 1: export the SSP again, or remove the annotation")
+    coupling, fixed = value.get("coupling"), (doc.get("coupling") or {}).get("macro_step")
+    if isinstance(coupling, dict) and fixed is not None:
+        # the SSD's osp:FixedStepAlgorithm baseStepSize is what libcosim runs; the annotation's macro
+        # step replaced it silently (an SSP edited by hand, or a tampered annotation)
+        step = coupling.get("macro_step")
+        if step is None:
+            value["coupling"] = {**coupling, "macro_step": fixed}
+        elif not (isinstance(step, (int, float)) and not isinstance(step, bool) and step == fixed):
+            problems.append(f"{where}: 'coupling.macro_step: {step!r:.40}' contradicts the SSD's "
+                            f"osp:FixedStepAlgorithm baseStepSize=\"{fixed!r}\" (the step libcosim runs); make them "
+                            "equal (export the SSP again), or remove macro_step from the annotation")
     fmus = value.get("fmus", {})
     if not isinstance(fmus, dict):
         problems.append(f"{where}: 'fmus' must be a mapping of instance names (got {type(fmus).__name__})")
