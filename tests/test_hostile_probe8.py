@@ -163,3 +163,29 @@ def test_annotation_text_that_was_ignored_is_refused(tmp_path, edit, needle):
     # inside rc:Scenario (its text dropped): each was read without a word
     text = _annotation_problem(tmp_path, edit)
     assert needle in text, text
+
+
+# --------------------------------------------------------------------------- sweep --resume
+@pytest.mark.parametrize("inputs, why", [
+    ({"scenario": "aa", "fmus": [[1]]}, "'inputs.fmus' is not an object of texts"),      # was TypeError
+    ({"scenario": "aa", "fmus": "abc"}, "'inputs.fmus' is not an object of texts"),      # was AttributeError
+    ({"scenario": "aa", "fmus": 5}, "'inputs.fmus' is not an object of texts"),
+    ({"scenario": "aa", "fmus": {"f": "bb"}, "files": ["/x/rotor.yaml"]},                  # was resumed silently
+     "'inputs.files' is not an object of texts"),
+    ({"scenario": "aa", "fmus": {"f": "bb"}, "files": None}, "'inputs.files' is not an object of texts"),
+    ({"scenario": ["aa"], "fmus": {"f": "bb"}}, "'inputs.scenario' is not a text"),
+])
+def test_resume_redoes_a_run_whose_recorded_inputs_are_ill_formed(tmp_path, inputs, why):
+    from orchestrator.sweep.plan import RunPlan, run_id_of
+    from orchestrator.sweep.runner import _recorded, resumable
+    ov = ("stop_time=0.1",)
+    run = RunPlan(run_id=run_id_of(ov), index=0, values={"a": 0.1}, overrides=ov)
+    run.inputs.update({"scenario": "aa", "fmus": {"f": "bb"}, "files": {"/x/rotor.yaml": "cc"}})
+    (tmp_path / "summary.json").write_text(json.dumps({"status": "finished"}))
+    (tmp_path / "sweep_run.json").write_text(json.dumps({"status": "finished", "message": "",
+                                                         "overrides": list(ov), "inputs": inputs}))
+    with pytest.warns(UserWarning) as caught:
+        assert resumable(tmp_path, run) is None
+    text = " ".join(str(w.message) for w in caught)
+    assert why in text and "running that run again" in text, text
+    assert _recorded(tmp_path, run) is None

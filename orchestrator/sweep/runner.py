@@ -94,8 +94,15 @@ def _record_problem(record: dict, run: RunPlan) -> str | None:
     wall = record.get("wall_time_s")
     if wall is not None and (isinstance(wall, bool) or not isinstance(wall, (int, float))):
         return "'wall_time_s' is not a number"
-    if not isinstance(record.get("inputs", {}), dict):
+    inputs = record.get("inputs", {})
+    if not isinstance(inputs, dict):
         return "'inputs' is not an object"
+    if not isinstance(inputs.get("scenario", ""), str):
+        return "'inputs.scenario' is not a text (a digest)"
+    for key in ("fmus", "files"):       # what _changed_inputs compares: {name or path: digest}
+        if key in inputs and not (isinstance(inputs[key], dict)
+                                  and all(isinstance(v, str) for v in inputs[key].values())):
+            return f"'inputs.{key}' is not an object of texts (digests)"
     return None
 
 
