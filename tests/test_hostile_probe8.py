@@ -189,3 +189,30 @@ def test_resume_redoes_a_run_whose_recorded_inputs_are_ill_formed(tmp_path, inpu
     text = " ".join(str(w.message) for w in caught)
     assert why in text and "running that run again" in text, text
     assert _recorded(tmp_path, run) is None
+
+
+# --------------------------------------------------------------------------- compare
+@pytest.mark.parametrize("entry", [
+    {"stable": True, "fmu_calls": "abc", "errors": {"max": 1e-4}},          # was TypeError after every run
+    {"stable": True, "fmu_calls": [1], "errors": {"max": 1e-4}},
+    {"stable": True, "fmu_calls": {"a": 1}, "errors": {"max": 1e-4}},
+    {"stable": True, "fmu_calls": float("nan"), "errors": {"max": 1e-4}},  # switched the call check off
+    {"stable": True, "fmu_calls": -5, "errors": {"max": 1e-4}},
+    {"stable": True, "fmu_calls": True, "errors": {"max": 1e-4}},
+    {"stable": "no", "fmu_calls": 10, "errors": {"max": 1e-4}},             # read as stable
+    {"stable": True, "fmu_calls": 10, "errors": {"max": float("nan")}},
+    {"stable": True, "fmu_calls": 10, "errors": {"max": -1.0}},
+])
+def test_a_malformed_baseline_entry_is_refused_before_the_runs(tmp_path, entry):
+    from orchestrator.compare.metrics import load_baseline
+    from orchestrator.untrusted import InputError
+    path = tmp_path / "base.json"
+    path.write_text(json.dumps({"version": 1, "variants": {"v1": entry}}))
+    with pytest.raises(InputError) as info:
+        load_baseline(path)
+    text = str(info.value)
+    assert "malformed entry for variant 'v1'" in text and "fmu_calls: whole number >= 0" in text, text
+    good = {"version": 1, "variants": {"v1": {"stable": False, "fmu_calls": None, "errors": {"max": None}},
+                                       "v2": {"stable": True, "fmu_calls": 235, "errors": {"max": 9.9e-5}}}}
+    path.write_text(json.dumps(good))
+    assert load_baseline(path) == good

@@ -159,11 +159,19 @@ def load_baseline(path: Path) -> dict[str, Any]:
     if not isinstance(variants, dict):
         problem = "has no 'variants' mapping"
     else:
+        def number(x, whole: bool = False) -> bool:
+            # a finite number >= 0 (a whole one for FMU calls): a text or list ended the comparison, after
+            # every run, in "internal error: TypeError"; nan switched the check off, a negative one failed it
+            kinds = (int,) if whole else (int, float)
+            return isinstance(x, kinds) and not isinstance(x, bool) and math.isfinite(x) and x >= 0
         for name, v in variants.items():
             errors = v.get("errors", {}) if isinstance(v, dict) else None
-            if not isinstance(errors, dict) or not all(
-                    x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in errors.values()):
-                problem = f"has a malformed entry for variant {name!r} (expected {{stable: bool, errors: {{metric: number}}}})"
+            if (not isinstance(errors, dict) or not all(x is None or number(x) for x in errors.values())
+                    or not (v.get("fmu_calls") is None or number(v["fmu_calls"], whole=True))
+                    or not isinstance(v.get("stable", False), bool)):
+                problem = (f"has a malformed entry for variant {name!r} (expected {{stable: true or false, errors: "
+                           "{metric: number >= 0 or null}, fmu_calls: whole number >= 0}, got "
+                           f"{json.dumps(v, default=str)[:200]})")
                 break
     if problem:
         raise InputError(f"{path}: the baseline file {problem}; it was not written by `rotorcosim compare "
