@@ -216,3 +216,14 @@ def test_a_malformed_baseline_entry_is_refused_before_the_runs(tmp_path, entry):
                                        "v2": {"stable": True, "fmu_calls": 235, "errors": {"max": 9.9e-5}}}}
     path.write_text(json.dumps(good))
     assert load_baseline(path) == good
+
+
+@pytest.mark.parametrize("path", ["output.columns.\u00b2", "output.columns." + "9" * 5000])
+def test_a_collect_path_with_an_index_int_refuses_is_a_missing_cell_not_an_internal_error(path):
+    # str.isdigit() took '²' and 5000 digits as a list index; int() refused them: the sweep ended after every
+    # run in "internal error: ValueError" and wrote no sweep.csv
+    from orchestrator.sweep.table import _MISSING, lookup
+    summary = {"output": {"columns": ["f.y", "g.y"], "final": {"g.y": 1.0}}}
+    assert lookup(summary, path) is _MISSING
+    assert lookup(summary, "output.columns.1") == "g.y" and lookup(summary, "output.columns.-1") == "g.y"
+    assert lookup(summary, "output.final.g.y") == 1.0

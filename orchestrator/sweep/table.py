@@ -13,6 +13,7 @@ import csv
 import io
 import json
 import math
+import re
 import warnings
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ __all__ = ["lookup", "build_rows", "write_table", "read_table", "columns", "META
 
 META_FILE = "sweep.json"
 _MISSING = object()
+_INDEX_RE = re.compile(r"-?[0-9]{1,18}")      # a list index in a collected path
 
 
 def lookup(summary: Any, path: str):
@@ -47,7 +49,9 @@ def _lookup_parts(node: Any, parts: list[str]):
                     return found
         return _MISSING
     part = parts[0]
-    if isinstance(node, list) and part.lstrip("-").isdigit() and -len(node) <= int(part) < len(node):
+    # ASCII digits only, and few: str.isdigit() also takes '²' (int() refuses it) and 5000 digits exceed
+    # int()'s limit; either ended the sweep, after every run, in an internal error without sweep.csv
+    if isinstance(node, list) and _INDEX_RE.fullmatch(part) and -len(node) <= int(part) < len(node):
         return _lookup_parts(node[int(part)], parts[1:])
     return _MISSING
 
