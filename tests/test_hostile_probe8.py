@@ -227,3 +227,13 @@ def test_a_collect_path_with_an_index_int_refuses_is_a_missing_cell_not_an_inter
     assert lookup(summary, path) is _MISSING
     assert lookup(summary, "output.columns.1") == "g.y" and lookup(summary, "output.columns.-1") == "g.y"
     assert lookup(summary, "output.final.g.y") == 1.0
+
+
+def test_compare_of_an_ssp_archive_says_what_compare_reads(tmp_path, capsys):
+    # an exported SSP (whose annotation carries the compare section) gave "the comparison file is not UTF-8 text"
+    ssp = _tampered_ssp(tmp_path, lambda t: t)
+    code = main(["compare", str(ssp), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "is an SSP, not a comparison file" in err and f"compare.scenario: {ssp.name}" in err, err
+    assert "UTF-8" not in err

@@ -193,6 +193,14 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
     from orchestrator.scenario import load_scenario   # the frontend's validating loader
 
     path = Path(path).resolve()
+    if path.suffix.lower() in (".ssp", ".ssd", ".fmu"):
+        # was "the comparison file is not UTF-8 text (byte 0xb4 ...)": an SSP from export-ssp carries the
+        # compare section in its annotation, so `compare x.ssp` is a natural thing to try
+        kind = "an FMU" if path.suffix.lower() == ".fmu" else "an SSP"
+        raise CompareSpecError(f"{path}: is {kind}, not a comparison file; compare reads a YAML file with a "
+                               f"'compare:' section: write one whose 'compare.scenario: {path.name}' names it "
+                               "and whose compare section lists the reference and the variants (docs/compare.md), "
+                               "or compare the scenario YAML it was exported from")
     try:
         root = read_yaml_tree(path, what="comparison file", loader_cls=_LineLoader)
         doc = None if root is None else construct_yaml(root, display=str(path), loader_cls=_LineLoader)
