@@ -90,6 +90,11 @@ def craig_bampton(M, K, boundary, n_modes, loads=()):
                          "stations / discs") from None
     Mii = M[np.ix_(i, i)]
     vecs = []
+    if n_modes > len(i):      # scipy said "Requested eigenvalue indices are not valid. Valid range is [0, 63]"
+        raise ValueError(f"Craig-Bampton: {n_modes} fixed-interface modes per plane asked for, but the shaft has "
+                         f"only {len(i)} (its degrees of freedom per plane with the bearing and disc nodes held); "
+                         f"use at most {len(i)}: 'reduction.n_modes' of the rotor file, or the rotor's n_modes "
+                         "parameter (or a finer shaft: a smaller 'shaft.max_element_length')")
     if n_modes > 0:
         lam, Phi = sla.eigh(Kii, Mii, subset_by_index=[0, n_modes - 1])
         vecs = [Phi[:, k] for k in range(n_modes)]

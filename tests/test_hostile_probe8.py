@@ -237,3 +237,18 @@ def test_compare_of_an_ssp_archive_says_what_compare_reads(tmp_path, capsys):
     assert code == 2
     assert "is an SSP, not a comparison file" in err and f"compare.scenario: {ssp.name}" in err, err
     assert "UTF-8" not in err
+
+
+TURBO_HS = REPO / "scenarios" / "turbocharger_runup_half_sommerfeld.yaml"
+
+
+def test_stability_a_rotor_file_asking_more_modes_than_the_shaft_has_is_named(capsys, tmp_path):
+    # scipy's "Requested eigenvalue indices are not valid. Valid range is [0, 63] ..." (also what `run` said)
+    text = (REPO / "rotor_fmu" / "data" / "turbocharger.yaml").read_text()
+    assert "reduction: {n_modes: 4}" in text
+    f = tmp_path / "many_modes.yaml"
+    f.write_text(text.replace("reduction: {n_modes: 4}", "reduction: {n_modes: 500}"))
+    code, out, err = _stability(capsys, TURBO_HS, "--film", "short", "--set", f"fmus.rotor.parameters.rotor_file={f}")
+    assert code == 1
+    assert "500 fixed-interface modes per plane asked for" in err and "use at most 64" in err, err
+    assert "reduction.n_modes" in err and "Requested eigenvalue indices" not in err
