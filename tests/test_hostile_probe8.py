@@ -252,3 +252,36 @@ def test_stability_a_rotor_file_asking_more_modes_than_the_shaft_has_is_named(ca
     assert code == 1
     assert "500 fixed-interface modes per plane asked for" in err and "use at most 64" in err, err
     assert "reduction.n_modes" in err and "Requested eigenvalue indices" not in err
+
+
+def test_stability_of_the_unreduced_rotor_is_not_decided_by_rounding(capsys, tmp_path):
+    # the full FE model (reduce = false) has undamped shaft modes near 400 kHz whose real parts are
+    # +-1e-10 1/s of rounding; max Re >= 0 read that as "already unstable at 10.5 Hz" (and a rotor file
+    # with 52 modes as a threshold of 10.62 Hz) where the reduced model's threshold is 60 Hz
+    out = tmp_path / "r.json"
+    code, text, err = _stability(capsys, TURBO_HS, "--film", "short", "--set", "fmus.rotor.parameters.reduce=false",
+                                 "--json", out)
+    assert code == 0, err
+    full = json.loads(out.read_text())
+    code, text, err = _stability(capsys, TURBO_HS, "--film", "short", "--json", out)
+    assert code == 0, err
+    reduced = json.loads(out.read_text())
+    assert full["status"] == reduced["status"] == "threshold"
+    assert full["threshold_hz"] == pytest.approx(reduced["threshold_hz"], rel=0.02)
+
+
+def test_max_real_eigenvalue_of_an_undamped_stiff_system_is_not_positive():
+    import numpy as np
+
+    from rotor_fmu.stability import max_real_eigenvalue
+
+    class Chain:        # 40 undamped masses on springs up to 1e12 N/m: eigenvalues to ~1e6 1/s, Re 0
+        bearing_dofs = [(0, 1)]
+
+        def system_matrices(self, omega):
+            n = 40
+            k = np.logspace(3, 12, n)
+            K = np.diag(k + np.roll(k, 1)) - np.diag(k[:-1], 1) - np.diag(k[:-1], -1)
+            return np.eye(n), np.zeros((n, n)), K
+    re, _ = max_real_eigenvalue(Chain(), 1.0, lambda w: (np.zeros((1, 2, 2)), np.zeros((1, 2, 2))))
+    assert re < 0.0
