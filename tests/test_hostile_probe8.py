@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import stat
+import warnings
 from pathlib import Path
 
 import pytest
@@ -285,3 +286,20 @@ def test_max_real_eigenvalue_of_an_undamped_stiff_system_is_not_positive():
             return np.eye(n), np.zeros((n, n)), K
     re, _ = max_real_eigenvalue(Chain(), 1.0, lambda w: (np.zeros((1, 2, 2)), np.zeros((1, 2, 2))))
     assert re < 0.0
+
+
+def test_export_ssp_refuses_a_control_character_xml_cannot_hold(tmp_path):
+    # a description with "\x07" was written as is: the archive could not be read back ("not well-formed
+    # (invalid token)", and the reader's fix "re-export it" could not help)
+    import dataclasses
+
+    import orchestrator
+    from orchestrator.scenario.ssp import export_ssp
+    from orchestrator.shipped import resolve
+    from orchestrator.untrusted import InputError
+    sc = dataclasses.replace(orchestrator.load_scenario(resolve("quickstart")), description="bell \x07 here")
+    with pytest.raises(InputError) as info, warnings.catch_warnings():
+        warnings.simplefilter("ignore")              # libcosim's Jacobi note
+        export_ssp(sc, tmp_path / "q.ssp")
+    assert "'description' holds the control character U+0007" in str(info.value)
+    assert not (tmp_path / "q.ssp").exists()

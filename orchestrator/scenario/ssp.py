@@ -49,6 +49,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import re
 import stat
 import tempfile
 import warnings
@@ -608,5 +609,36 @@ def export_ssp(scenario, out: Path | str) -> Path:
     ET.SubElement(ET.SubElement(ann, f"{{{NS['osp']}}}Algorithm"), f"{{{NS['osp']}}}FixedStepAlgorithm",
                   {"baseStepSize": repr(float(c.macro_step))})
     write_annotation(root, scenario)
+    _check_xml_chars(root)
     _write_archive(check_output_path(out), root, files)
     return out
+
+
+_NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def _check_xml_chars(root: ET.Element) -> None:
+    """Refuse a text the SSD cannot hold: XML 1.0 has no control characters but tab, newline and
+    carriage return (a description "bell \\x07" was written as is, and the archive could then not
+    be read back, by rotorcosim or any SSP tool: "not well-formed (invalid token)")."""
+    problems = []
+    component = None
+    for el in root.iter():
+        tag = el.tag.split("}")[-1]
+        if tag == "Component":
+            component = el.get("name")
+        for attr, text in [*el.attrib.items(), ("text", el.text or "")]:
+            m = _NOT_XML.search(text)
+            if m is None:
+                continue
+            if tag == "System" and attr == "description":
+                where = "'description'"
+            elif tag in ("String", "Real", "Integer", "Boolean"):
+                where = f"a parameter value of 'fmus.{component}'"
+            else:
+                where = f"the {attr} of the SSD element {tag}"
+            problems.append(f"{where} holds the control character U+{ord(m.group()):04X} at character "
+                            f"{m.start() + 1}, which an SSP (XML 1.0) cannot hold; remove it from the scenario "
+                            "(nothing was written)")
+    if problems:
+        raise InputError("export-ssp: " + "; ".join(problems[:5]))
