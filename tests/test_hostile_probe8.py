@@ -303,3 +303,11 @@ def test_export_ssp_refuses_a_control_character_xml_cannot_hold(tmp_path):
         export_ssp(sc, tmp_path / "q.ssp")
     assert "'description' holds the control character U+0007" in str(info.value)
     assert not (tmp_path / "q.ssp").exists()
+
+
+def test_a_journal_radius_whose_clearance_underflows_is_named_not_an_internal_error(capsys):
+    # R = 5e-324 is inside the bearing's declared range (0, inf); psi R is 0.0 and the analysis clearance
+    # check divided by it: 'internal error: ZeroDivisionError' from validate, run and stability alike
+    code, out, err = _stability(capsys, JEFFCOTT_HS, "--film", "short", "--set", "fmus.bearing1.parameters.R=5e-324")
+    assert code == 1 and "internal error" not in err, err
+    assert "radial clearance c = psi R" in err and "is 0 in floating point" in err and "journal radius" in err

@@ -83,6 +83,12 @@ def check_analysis_clearance(loader, draft, params: dict) -> None:
         c = psi * R
         given = journal.get("clearance")
         jnode = _child(jnodes, jname)
+        if not c > 0.0:     # R = 5e-324 is in the FMU's range (0, inf), psi R underflows: was ZeroDivisionError
+            loader.err(_child(jnode, "clearance") or jnode or draft.analysis_node,
+                       f"'analysis.journals.{jname}' analyses '{inst}', whose radial clearance c = psi R = {psi:g} x "
+                       f"{R:g} m is 0 in floating point; the analysis divides by it: give '{inst}' a journal radius "
+                       "R in m (e.g. 0.02 for 20 mm)")
+            continue
         if given is None:
             journal["clearance"] = c                   # before the run: not estimated from eps after it
             continue
