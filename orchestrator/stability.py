@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -146,6 +147,12 @@ def build_system(scenario) -> System:
         raise StabilityError(f"{_where(scenario, rspec)}: the rotor '{rname}' ({rmodel}) cannot be built from its "
                              f"parameters: {exc}") from None
     n_st = len(rotor.bearing_dofs)
+    ports = sum(1 for v in _md(rspec).variables if re.fullmatch(r"x_[0-9]+", v))
+    if n_st != ports:     # the FMU refuses such a rotor when the run starts; `stability` analysed it
+        raise StabilityError(f"{_where(scenario, rspec)}: the rotor '{rname}' ({rmodel}) has {n_st} bearing "
+                             f"station(s) (its rotor_file {rparams.get('rotor_file') or '(the bundled one)'}), but "
+                             f"the FMU has {ports} (x_1 .. x_{ports}) and refuses it when a run starts; use a rotor "
+                             f"file with {ports} bearing stations")
     conns = list(scenario.connections)
     bearings: list[Bearing] = []
     for i in range(1, n_st + 1):

@@ -311,3 +311,18 @@ def test_a_journal_radius_whose_clearance_underflows_is_named_not_an_internal_er
     code, out, err = _stability(capsys, JEFFCOTT_HS, "--film", "short", "--set", "fmus.bearing1.parameters.R=5e-324")
     assert code == 1 and "internal error" not in err, err
     assert "radial clearance c = psi R" in err and "is 0 in floating point" in err and "journal radius" in err
+
+
+@pytest.mark.parametrize("stations", [1, 3])
+def test_stability_refuses_a_rotor_file_whose_stations_the_fmu_does_not_have(capsys, tmp_path, stations):
+    # the FMU refuses a rotor with other than 2 stations when a run starts; `stability` analysed a 1-station
+    # rotor's bearings (then blamed 'bearing2') or asked for a connection rotor.x_3 the FMU does not have
+    text = (REPO / "rotor_fmu" / "data" / "turbocharger.yaml").read_text()
+    head, _, tail = text.partition("\nbearings:\n")
+    zs = ["0.060", "0.120", "0.170"][:stations]
+    rows = "".join(f"  - {{name: bearing{i + 1}, z: {z}}}\n" for i, z in enumerate(zs))
+    f = tmp_path / "r.yaml"
+    f.write_text(head + "\nbearings:\n" + rows + tail[tail.index("internal_damping"):])
+    code, out, err = _stability(capsys, TURBO_HS, "--film", "short", "--set", f"fmus.rotor.parameters.rotor_file={f}")
+    assert code == 1
+    assert f"has {stations} bearing station(s)" in err and "the FMU has 2 (x_1 .. x_2)" in err, err
