@@ -400,8 +400,8 @@ class _RingFilms:
             raise StabilityError(f"the floating-ring system's eigenvalues at {omega / (2 * math.pi):.4g} Hz are "
                                  "not finite (a film at the edge of its clearance); raise the lower end of --speeds")
         self._at = (omega, points)
-        k = int(np.argmax(lam.real))
-        return float(lam.real[k]), float(abs(lam.imag[k]))
+        from rotor_fmu.stability import rightmost
+        return rightmost(lam)     # a real part within rounding of zero is no crossing
 
     def points(self, omega: float) -> list:
         """Each station's FloatingRing model at its steady operating point at omega."""

@@ -36,7 +36,7 @@ from scipy.optimize import brentq
 from bearing_fmu.floating_ring import FloatingRing, RingParams, petroff_ratio, static_equilibrium
 from bearing_fmu.linearize import linearization
 
-from .stability import static_bearing_loads
+from .stability import rightmost, static_bearing_loads
 
 __all__ = ["operating_point", "ring_system_eigen", "ring_threshold_speed"]
 
@@ -175,8 +175,7 @@ def ring_system_eigen(rotor, params_list, omega, spin=False, omega_ring=None, lo
 
 def _max_re(rotor, params_list, omega, spin=False):
     lam, _ = ring_system_eigen(rotor, params_list, omega, spin)
-    k = int(np.argmax(lam.real))
-    return float(lam.real[k]), float(abs(lam.imag[k]))
+    return rightmost(lam)
 
 
 def ring_threshold_speed(rotor, params_list, omega_min, omega_max, n_scan=40, spin=False):

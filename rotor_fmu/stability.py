@@ -209,10 +209,15 @@ def max_real_eigenvalue(rotor, omega, coeff_fn):
     n = M.shape[0]
     Mi = np.linalg.inv(M)
     A = np.block([[np.zeros((n, n)), np.eye(n)], [-Mi @ K, -Mi @ Cm]])
-    lam = np.linalg.eigvals(A)
-    # a real part within rounding of zero is not a crossing: an undamped mode (a shaft bending mode of a
-    # full or finely reduced rotor model, ~400 kHz) has Re = +-1e-10 1/s from rounding alone
-    # (eps |lambda|), and max Re >= 0 then read "unstable at 10 Hz" (or a threshold at any speed)
+    return rightmost(np.linalg.eigvals(A))
+
+
+def rightmost(lam) -> tuple[float, float]:
+    """(largest real part, |Im| of that eigenvalue) of eigenvalues ``lam``, a real part within
+    rounding of zero counted as -that rounding: an undamped mode (a shaft bending mode of a full
+    or finely reduced rotor model, ~400 kHz) has Re = +-1e-10 1/s from rounding alone (eps
+    |lambda|), and max Re >= 0 then read "unstable at 10 Hz" (or a threshold at any speed)."""
+    lam = np.asarray(lam)
     noise = _ROUNDING * float(np.max(np.abs(lam)))
     re = np.where(np.abs(lam.real) <= noise, -noise, lam.real)
     k = int(np.argmax(re))
