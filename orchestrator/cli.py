@@ -527,7 +527,7 @@ def _add_stability(sub) -> None:
                    help="floating-ring bearings: add each ring's spin perturbation to the linear model (default: the "
                         "ring spin held at its steady value, as the classical analyses do)")
     p.add_argument("--json", metavar="OUT", help="also write the result as JSON to this file")
-    p.add_argument("--plot", metavar="PNG", help="also draw the least-damped mode's logarithmic decrement and "
+    p.add_argument("--plot", metavar="PNG", type=_figure_path, help="also draw the least-damped mode's logarithmic decrement and "
                                                  "frequency over the speeds searched into this PNG file")
     p.set_defaults(func=_cmd_stability)
 
@@ -541,6 +541,18 @@ def _speed_range(text: str) -> tuple[float, float]:
     if not sep or not (0.0 < a < b < math.inf):
         raise argparse.ArgumentTypeError(f"expected LO:HI in Hz with 0 < LO < HI, e.g. 50:800 (got {text!r})")
     return a, b
+
+
+def _figure_path(text: str) -> str:
+    """A figure file whose suffix matplotlib can write (none: PNG); checked before the computation
+    (``--plot x.xyz`` ended, after it, in "internal error: ValueError: Format 'xyz' is not supported")."""
+    from matplotlib.backend_bases import FigureCanvasBase
+    suffix = Path(text).suffix.lower().lstrip(".")
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if suffix and suffix not in formats:
+        raise argparse.ArgumentTypeError(f"{text!r}: a figure cannot be written as '.{suffix}'; give a .png file (or "
+                                         f"one of .{', .'.join(sorted(formats))})")
+    return text
 
 
 def _bearing_load(text: str) -> tuple[str, float, float]:

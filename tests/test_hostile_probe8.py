@@ -326,3 +326,13 @@ def test_stability_refuses_a_rotor_file_whose_stations_the_fmu_does_not_have(cap
     code, out, err = _stability(capsys, TURBO_HS, "--film", "short", "--set", f"fmus.rotor.parameters.rotor_file={f}")
     assert code == 1
     assert f"has {stations} bearing station(s)" in err and "the FMU has 2 (x_1 .. x_2)" in err, err
+
+
+def test_stability_plot_with_a_suffix_matplotlib_cannot_write_is_a_usage_error(capsys, tmp_path):
+    # was "internal error: ValueError: Format 'xyz' is not supported" after the whole computation
+    with pytest.raises(SystemExit) as exc:
+        main(["stability", str(JEFFCOTT_HS), "--film", "short", "--plot", str(tmp_path / "x.xyz")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --plot" in err and "cannot be written as '.xyz'" in err and ".png" in err
+    assert not list(tmp_path.iterdir())
