@@ -336,3 +336,11 @@ def test_stability_plot_with_a_suffix_matplotlib_cannot_write_is_a_usage_error(c
     err = capsys.readouterr().err
     assert "argument --plot" in err and "cannot be written as '.xyz'" in err and ".png" in err
     assert not list(tmp_path.iterdir())
+
+
+def test_a_report_path_that_is_a_directory_is_named_as_one(capsys, tmp_path):
+    # was "cannot write DIR (Is a directory); check that folder (it must be writable)": the folder is fine
+    code, out, err = _stability(capsys, JEFFCOTT_HS, "--film", "short", "--json", tmp_path)
+    assert code == 1
+    assert f"cannot write {tmp_path}: it is a directory; give the path of a file" in err, err
+    assert "must be writable" not in err

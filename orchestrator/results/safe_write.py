@@ -40,7 +40,10 @@ def _refuse_special(path: Path) -> None:
         st = os.lstat(path)
     except OSError:                          # a new name, or a folder that is missing: the write says so
         return
-    if not (stat.S_ISREG(st.st_mode) or stat.S_ISLNK(st.st_mode) or stat.S_ISDIR(st.st_mode)):
+    if stat.S_ISDIR(st.st_mode):             # was "(Is a directory); check that folder (it must be writable)"
+        raise OutputWriteError(f"cannot write {path}: it is a directory; give the path of a file, e.g. "
+                               f"{path / ('report' + (path.suffix or '.txt'))}")
+    if not (stat.S_ISREG(st.st_mode) or stat.S_ISLNK(st.st_mode)):
         raise OutputWriteError(f"cannot write {path}: it is {file_kind(st.st_mode)}, and rotorcosim writes a file "
                                "by renaming a finished one over the name, which would replace it; give the path of "
                                "a regular file (to discard the output, leave the option out)")
