@@ -527,8 +527,9 @@ def _add_stability(sub) -> None:
                    help="floating-ring bearings: add each ring's spin perturbation to the linear model (default: the "
                         "ring spin held at its steady value, as the classical analyses do)")
     p.add_argument("--json", metavar="OUT", help="also write the result as JSON to this file")
-    p.add_argument("--plot", metavar="PNG", type=_figure_path, help="also draw the least-damped mode's logarithmic decrement and "
-                                                 "frequency over the speeds searched into this PNG file")
+    p.add_argument("--plot", metavar="PNG", type=_figure_path,
+                   help="also draw the least-damped mode's logarithmic decrement and frequency over the speeds "
+                        "searched into this PNG file")
     p.set_defaults(func=_cmd_stability)
 
 
