@@ -454,7 +454,13 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
             raise StabilityError(f"--load {name}: the force must be finite (got {fx:g}, {fy:g} N)")
         extra[names.index(name)] += (fx, fy)
     total = weight + extra
-    for b, ld in zip(system.bearings, total):
+    for k, (b, ld) in enumerate(zip(system.bearings, total)):
+        scale = float(np.hypot(*weight[k]) + np.hypot(*extra[k]))
+        if extra[k].any() and np.hypot(*ld) <= 1e-9 * scale:     # the weight cancelled up to rounding
+            raise StabilityError(f"--load {b.instance}={extra[k][0]:g},{extra[k][1]:g} cancels the bearing's share of "
+                                 f"the rotor's weight ({weight[k][0] + 0.0:.6g}, {weight[k][1] + 0.0:.6g}) N: it carries "
+                                 "no static load, so there is no equilibrium to linearize at; --load is added to the "
+                                 "weight share (the force the rotor puts on the bearing, down is -y), not its reaction")
         if not np.hypot(*ld) > 0.0:
             raise StabilityError(f"the bearing '{b.instance}' (station {b.station}) carries no static load (the "
                                  f"rotor's g is {getattr(system.rotor.params, 'g', '?')} and no --load for it): "

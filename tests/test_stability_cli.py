@@ -188,3 +188,11 @@ def test_whole_range_crossings_scan_and_plot(capsys, tmp_path):
             assert s["log_decrement"] == pytest.approx(-s["max_re_per_s"] / s["whirl_hz"], rel=1e-12)
     assert f"then stable from {down['speed_hz']:.2f} Hz on" in text
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"written: {png}" in text
+
+
+def test_load_cancelling_the_weight_is_named(capsys):
+    # the user gave the film's reaction (up) instead of the load (down): weight + load = rounding only
+    code, _, err = _run(capsys, JEFFCOTT_HS, "--load", "bearing1=0,29.43")
+    assert code == 1
+    assert "--load bearing1=0,29.43 cancels the bearing's share of the rotor's weight" in err
+    assert "not its reaction" in err
