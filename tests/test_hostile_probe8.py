@@ -344,3 +344,17 @@ def test_a_report_path_that_is_a_directory_is_named_as_one(capsys, tmp_path):
     assert code == 1
     assert f"cannot write {tmp_path}: it is a directory; give the path of a file" in err, err
     assert "must be writable" not in err
+
+
+def test_export_ssp_warns_of_a_named_file_it_does_not_carry(tmp_path, monkeypatch):
+    """A String parameter naming a file (the rotor file): the SSP does not carry the file and a relative
+    path resolves against the working directory where the SSP runs; export-ssp says so (probe 8)."""
+    from orchestrator.scenario import load_scenario
+    from orchestrator.scenario.ssp import export_ssp
+    repo = Path(__file__).resolve().parents[1]
+    monkeypatch.chdir(repo)
+    sc = load_scenario(str(repo / "scenarios" / "turbocharger_runup_half_sommerfeld.yaml"),
+                       ["fmus.rotor.parameters.rotor_file=rotor_fmu/data/turbocharger.yaml"], build_fmus=True)
+    with pytest.warns(UserWarning, match=r"rotor_file = 'rotor_fmu/data/turbocharger.yaml' \(relative\) names a "
+                                         r"file the SSP does not carry"):
+        export_ssp(sc, tmp_path / "tc.ssp")

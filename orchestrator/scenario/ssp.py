@@ -557,6 +557,22 @@ def export_ssp(scenario, out: Path | str) -> Path:
         warnings.warn(f"export-ssp: {', '.join(starts)} are start values of outputs or locals (initial=\"exact\"); "
                       "the SSP carries them, but libcosim's SSP loader sets only parameters and inputs and "
                       "ignores them", stacklevel=2)
+    named = []          # String parameters naming a file (a rotor file): the FMU opens it where the SSP runs
+    for f in scenario.fmus:
+        md = read_model_description(f.path)
+        for n, value in f.parameters.items():
+            v = md.variables.get(n)
+            if v is not None and v.type == "String" and isinstance(value, str) and value.strip():
+                try:
+                    if Path(value).expanduser().is_file():
+                        named.append(f"fmus.{f.name}.parameters.{n} = {value!r}"
+                                     + ("" if Path(value).expanduser().is_absolute() else " (relative)"))
+                except (OSError, ValueError, RuntimeError):      # a name too long, a NUL: not a file
+                    continue
+    if named:
+        warnings.warn(f"export-ssp: {'; '.join(named)} names a file the SSP does not carry: the FMU opens it when the "
+                      "SSP runs, a relative path from the working directory there; run the SSP where that path "
+                      "resolves, or give an absolute path in the scenario", stacklevel=2)
     for ns, uri in NS.items():
         ET.register_namespace(ns, uri)
     root = ET.Element(f"{{{NS['ssd']}}}SystemStructureDescription", {"version": "1.0", "name": scenario.name,
