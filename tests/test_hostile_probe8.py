@@ -358,3 +358,18 @@ def test_export_ssp_warns_of_a_named_file_it_does_not_carry(tmp_path, monkeypatc
     with pytest.warns(UserWarning, match=r"rotor_file = 'rotor_fmu/data/turbocharger.yaml' \(relative\) names a "
                                          r"file the SSP does not carry"):
         export_ssp(sc, tmp_path / "tc.ssp")
+
+
+def test_export_ssp_names_an_absolute_rotor_file_without_advising_an_absolute_path(tmp_path):
+    """An absolute path was told "a relative path from the working directory there ... or give an
+    absolute path in the scenario", which it already is; each named file now gets its own fix."""
+    from orchestrator.scenario import load_scenario
+    from orchestrator.scenario.ssp import export_ssp
+    rotor = (REPO / "rotor_fmu" / "data" / "turbocharger.yaml").resolve()
+    sc = load_scenario(str(TURBO_HS), [f"fmus.rotor.parameters.rotor_file={rotor}"], build_fmus=True)
+    with pytest.warns(UserWarning) as caught:
+        export_ssp(sc, tmp_path / "tc.ssp")
+    said = [str(w.message) for w in caught if "does not carry" in str(w.message)]
+    assert len(said) == 1, said
+    assert f"fmus.rotor.parameters.rotor_file = '{rotor}' names a file the SSP does not carry" in said[0], said
+    assert "at that absolute path" in said[0] and "give an absolute path" not in said[0], said

@@ -84,7 +84,7 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
             GENERATED.pop(str(path), None)        # its origins are in the messages and parameter origins now
         if loader.problems or scenario is None:
             raise ScenarioError(sorted(loader.problems, key=line_order) or [f"{given}: invalid scenario"])
-        for named in _named_files(scenario, getattr(loader, "mds", {})):
+        for *_, named in named_files(scenario, getattr(loader, "mds", {})):
             reads.add(named)
     scenario = replace(scenario, inputs=tuple(reads.files))
     if path != given:         # made from an SSP: summary.json names the user's file, not the generated one
@@ -92,11 +92,12 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
     return scenario
 
 
-def _named_files(scenario: Scenario, variables: dict) -> list[Path]:
-    """The existing regular files the scenario's String parameters name (a rotor file): the FMU
-    reads them when the run starts, so they are inputs of the run as much as the YAML is. A path
-    is resolved as the FMU resolves it (relative to the working directory); ``{out_dir}`` paths are
-    the run's own outputs and are left out."""
+def named_files(scenario: Scenario, variables: dict) -> list[tuple[str, str, Path]]:
+    """``(instance, parameter, path)`` of each existing regular file the scenario's String
+    parameters name (a rotor file; ``variables``: instance -> {name: model variable}): the FMU
+    reads them when the run starts, so they are inputs of the run as much as the YAML is, and an
+    exported SSP does not carry them. A path is resolved as the FMU resolves it (relative to the
+    working directory); ``{out_dir}`` paths are the run's own outputs and are left out."""
     from orchestrator.untrusted import OUT_DIR_FIELD
     found = []
     for spec in scenario.fmus:
@@ -108,7 +109,7 @@ def _named_files(scenario: Scenario, variables: dict) -> list[Path]:
             try:
                 candidate = Path(value).expanduser()
                 if candidate.is_file():
-                    found.append(candidate)
+                    found.append((spec.name, name, candidate))
             except (OSError, ValueError, RuntimeError):  # a name too long, a NUL: not a file
                 continue
     return found

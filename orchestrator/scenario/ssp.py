@@ -538,6 +538,26 @@ def _write_archive(out: Path, root: ET.Element, files: dict[str, Path]) -> None:
         raise
 
 
+def _warn_named_files(scenario) -> None:
+    """Warn of each file a String parameter names (a rotor file, ``loader.named_files``): the SSP
+    does not carry it, and the FMU opens it where the SSP runs, a relative path from the working
+    directory there, an absolute one on that machine."""
+    from orchestrator.fmi.archive import read_model_description
+    from orchestrator.scenario.loader import named_files
+    variables = {f.name: read_model_description(f.path).variables for f in scenario.fmus}
+    for inst, name, path in named_files(scenario, variables):
+        value = scenario.fmu(inst).parameters[name]
+        if path.is_absolute():
+            how = ("the FMU opens it at that absolute path where the SSP runs; run the SSP on a machine that has the "
+                   "file there")
+        else:
+            how = ("the FMU opens that relative path from the working directory where the SSP runs; run the SSP "
+                   "where that path resolves, or give an absolute path in the scenario")
+        relative = "" if path.is_absolute() else " (relative)"
+        warnings.warn(f"export-ssp: fmus.{inst}.parameters.{name} = {value!r}{relative} names a file the SSP does "
+                      f"not carry: {how}", stacklevel=3)
+
+
 def export_ssp(scenario, out: Path | str) -> Path:
     """Write ``scenario`` as an SSP 1.0 archive ``out`` (see the module docstring); return its path.
 
@@ -557,22 +577,7 @@ def export_ssp(scenario, out: Path | str) -> Path:
         warnings.warn(f"export-ssp: {', '.join(starts)} are start values of outputs or locals (initial=\"exact\"); "
                       "the SSP carries them, but libcosim's SSP loader sets only parameters and inputs and "
                       "ignores them", stacklevel=2)
-    named = []          # String parameters naming a file (a rotor file): the FMU opens it where the SSP runs
-    for f in scenario.fmus:
-        md = read_model_description(f.path)
-        for n, value in f.parameters.items():
-            v = md.variables.get(n)
-            if v is not None and v.type == "String" and isinstance(value, str) and value.strip():
-                try:
-                    if Path(value).expanduser().is_file():
-                        named.append(f"fmus.{f.name}.parameters.{n} = {value!r}"
-                                     + ("" if Path(value).expanduser().is_absolute() else " (relative)"))
-                except (OSError, ValueError, RuntimeError):      # a name too long, a NUL: not a file
-                    continue
-    if named:
-        warnings.warn(f"export-ssp: {'; '.join(named)} names a file the SSP does not carry: the FMU opens it when the "
-                      "SSP runs, a relative path from the working directory there; run the SSP where that path "
-                      "resolves, or give an absolute path in the scenario", stacklevel=2)
+    _warn_named_files(scenario)
     for ns, uri in NS.items():
         ET.register_namespace(ns, uri)
     root = ET.Element(f"{{{NS['ssd']}}}SystemStructureDescription", {"version": "1.0", "name": scenario.name,
