@@ -373,3 +373,26 @@ def test_export_ssp_names_an_absolute_rotor_file_without_advising_an_absolute_pa
     assert len(said) == 1, said
     assert f"fmus.rotor.parameters.rotor_file = '{rotor}' names a file the SSP does not carry" in said[0], said
     assert "at that absolute path" in said[0] and "give an absolute path" not in said[0], said
+
+
+def test_export_ssp_names_the_parameter_and_the_scenario_name_that_xml_cannot_hold(tmp_path):
+    """A control character in a String parameter was "a parameter value of 'fmus.rotor'" (which
+    one?), one in the scenario's name came twice, as "the name of the SSD element
+    SystemStructureDescription" and "... System" (the scenario has no such fields)."""
+    import dataclasses
+
+    from orchestrator.scenario import load_scenario
+    from orchestrator.scenario.ssp import export_ssp
+    from orchestrator.untrusted import InputError
+    sc = load_scenario(str(TURBO_HS), build_fmus=True)
+    fmus = tuple(dataclasses.replace(f, parameters={**f.parameters, "rotor_file": "r\x01.yaml"})
+                 if f.name == "rotor" else f for f in sc.fmus)
+    sc = dataclasses.replace(sc, name="tc\x02", fmus=fmus)
+    with pytest.raises(InputError) as info, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        export_ssp(sc, tmp_path / "tc.ssp")
+    text = str(info.value)
+    assert "'fmus.rotor.parameters.rotor_file' holds the control character U+0001 at character 2" in text, text
+    assert text.count("'name' holds the control character U+0002 at character 3") == 1, text
+    assert "SSD element" not in text and text.endswith("remove them from the scenario (nothing was written)"), text
+    assert not (tmp_path / "tc.ssp").exists()

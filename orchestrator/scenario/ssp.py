@@ -641,25 +641,29 @@ _NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
 def _check_xml_chars(root: ET.Element) -> None:
     """Refuse a text the SSD cannot hold: XML 1.0 has no control characters but tab, newline and
     carriage return (a description "bell \\x07" was written as is, and the archive could then not
-    be read back, by rotorcosim or any SSP tool: "not well-formed (invalid token)")."""
-    problems = []
-    component = None
+    be read back, by rotorcosim or any SSP tool: "not well-formed (invalid token)"). Each problem
+    names the scenario field it came from."""
+    problems: list[str] = []
+    component = parameter = None
     for el in root.iter():
         tag = el.tag.split("}")[-1]
         if tag == "Component":
             component = el.get("name")
+        elif tag == "Parameter":
+            parameter = el.get("name")
         for attr, text in [*el.attrib.items(), ("text", el.text or "")]:
             m = _NOT_XML.search(text)
             if m is None:
                 continue
-            if tag == "System" and attr == "description":
-                where = "'description'"
-            elif tag in ("String", "Real", "Integer", "Boolean"):
-                where = f"a parameter value of 'fmus.{component}'"
+            if tag in ("SystemStructureDescription", "System") and attr in ("name", "description"):
+                where = f"'{attr}'"                       # the scenario's own name and description
+            elif tag in ("String", "Real", "Integer", "Boolean") and attr == "value":
+                where = f"'fmus.{component}.parameters.{parameter}'"
             else:
                 where = f"the {attr} of the SSD element {tag}"
-            problems.append(f"{where} holds the control character U+{ord(m.group()):04X} at character "
-                            f"{m.start() + 1}, which an SSP (XML 1.0) cannot hold; remove it from the scenario "
-                            "(nothing was written)")
+            problem = f"{where} holds the control character U+{ord(m.group()):04X} at character {m.start() + 1}"
+            if problem not in problems:                   # the name is the SSD's and the System's
+                problems.append(problem)
     if problems:
-        raise InputError("export-ssp: " + "; ".join(problems[:5]))
+        raise InputError(f"export-ssp: {'; '.join(problems[:5])}, which an SSP (XML 1.0) cannot hold; remove "
+                         f"{'it' if len(problems) == 1 else 'them'} from the scenario (nothing was written)")
