@@ -169,6 +169,19 @@ def read_annotation(root: ET.Element, doc: dict, ssd: str) -> None:
         raise ScenarioError(f"{where}: not valid YAML ({e}); re-export the SSP, or remove the annotation") from None
     if not isinstance(value, dict):
         raise ScenarioError(f"{where}: must hold a mapping of scenario sections (got {type(value).__name__})")
+    problems = _text_problems(el, node, value, where) + _macro_step_problems(value, doc, where)
+    problems += _merge_fmus(value, doc, where)
+    if problems:
+        raise ScenarioError(problems)
+    for key in ("coupling", "output", "analysis", "compare"):
+        if key in value:
+            doc[key] = value[key]
+
+
+def _text_problems(el: ET.Element, node, value: dict, where: str) -> list[str]:
+    """What in the annotation's text (``value``, composed as ``node``) would be read without a word:
+    a key given twice, a key the annotation may not set, an element inside rc:Scenario (its text
+    dropped), a ``format`` contradicting the element's."""
     problems = _duplicate_keys(node, where)
     problems += [f"{where}: unknown key {k!r}; valid: {', '.join(ANNOTATION_KEYS)}"
                  for k in value if k not in ANNOTATION_KEYS]
@@ -178,18 +191,33 @@ def read_annotation(root: ET.Element, doc: dict, ssd: str) -> None:
     fmt = value.get("format", ANNOTATION_FORMAT)
     if type(fmt) is not int or fmt != ANNOTATION_FORMAT:
         problems.append(f"{where}: 'format: {fmt!r:.40}' in its text contradicts format=\"{ANNOTATION_FORMAT}\" of "
-                        "the element; this rotorcosim reads format 1: export the SSP again, or remove the annotation")
+                        f"the element; this rotorcosim reads format {ANNOTATION_FORMAT}: export the SSP again, or "
+                        "remove the annotation")
+    return problems
+
+
+def _macro_step_problems(value: dict, doc: dict, where: str) -> list[str]:
+    """The annotation's ``coupling.macro_step`` against the SSD's osp:FixedStepAlgorithm
+    baseStepSize (``doc``'s): none given takes the SSD's (into ``value``), another is a problem."""
     coupling, fixed = value.get("coupling"), (doc.get("coupling") or {}).get("macro_step")
-    if isinstance(coupling, dict) and fixed is not None:
-        # the SSD's osp:FixedStepAlgorithm baseStepSize is what libcosim runs; the annotation's macro
-        # step replaced it silently (an SSP edited by hand, or a tampered annotation)
-        step = coupling.get("macro_step")
-        if step is None:
-            value["coupling"] = {**coupling, "macro_step": fixed}
-        elif not (isinstance(step, (int, float)) and not isinstance(step, bool) and step == fixed):
-            problems.append(f"{where}: 'coupling.macro_step: {step!r:.40}' contradicts the SSD's "
-                            f"osp:FixedStepAlgorithm baseStepSize=\"{fixed!r}\" (the step libcosim runs); make them "
-                            "equal (export the SSP again), or remove macro_step from the annotation")
+    if not isinstance(coupling, dict) or fixed is None:
+        return []
+    # the SSD's osp:FixedStepAlgorithm baseStepSize is what libcosim runs; the annotation's macro
+    # step replaced it silently (an SSP edited by hand, or a tampered annotation)
+    step = coupling.get("macro_step")
+    if step is None:
+        value["coupling"] = {**coupling, "macro_step": fixed}
+    elif not (isinstance(step, (int, float)) and not isinstance(step, bool) and step == fixed):
+        return [f"{where}: 'coupling.macro_step: {step!r:.40}' contradicts the SSD's "
+                f"osp:FixedStepAlgorithm baseStepSize=\"{fixed!r}\" (the step libcosim runs); make them "
+                "equal (export the SSP again), or remove macro_step from the annotation"]
+    return []
+
+
+def _merge_fmus(value: dict, doc: dict, where: str) -> list[str]:
+    """The annotation's ``fmus.<instance>`` keys merged into ``doc``'s components; the problems
+    (an instance the SSD lacks, a key the annotation may not set)."""
+    problems = []
     fmus = value.get("fmus", {})
     if not isinstance(fmus, dict):
         problems.append(f"{where}: 'fmus' must be a mapping of instance names (got {type(fmus).__name__})")
@@ -203,8 +231,4 @@ def read_annotation(root: ET.Element, doc: dict, ssd: str) -> None:
                             f"{entry!r:.200})")
         else:
             doc["fmus"][inst].update(entry)
-    if problems:
-        raise ScenarioError(problems)
-    for key in ("coupling", "output", "analysis", "compare"):
-        if key in value:
-            doc[key] = value[key]
+    return problems
