@@ -396,3 +396,15 @@ def test_export_ssp_names_the_parameter_and_the_scenario_name_that_xml_cannot_ho
     assert text.count("'name' holds the control character U+0002 at character 3") == 1, text
     assert "SSD element" not in text and text.endswith("remove them from the scenario (nothing was written)"), text
     assert not (tmp_path / "tc.ssp").exists()
+
+
+def test_compare_of_an_fmu_does_not_advise_naming_it_as_the_scenario(tmp_path, capsys):
+    # an FMU got the SSP's advice: "write one whose 'compare.scenario: x.fmu' names it ... or compare the
+    # scenario YAML it was exported from" - no scenario is an FMU, and no FMU is exported from one
+    fmu = tmp_path / "x.fmu"
+    fmu.write_bytes(b"PK")
+    code = main(["compare", str(fmu), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "is an FMU, not a comparison file" in err and "'fmus.<instance>.path: x.fmu'" in err, err
+    assert "compare.scenario: x.fmu" not in err and "exported from" not in err, err

@@ -196,8 +196,13 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
     if path.suffix.lower() in (".ssp", ".ssd", ".fmu"):
         # was "the comparison file is not UTF-8 text (byte 0xb4 ...)": an SSP from export-ssp carries the
         # compare section in its annotation, so `compare x.ssp` is a natural thing to try
-        kind = "an FMU" if path.suffix.lower() == ".fmu" else "an SSP"
-        raise CompareSpecError(f"{path}: is {kind}, not a comparison file; compare reads a YAML file with a "
+        if path.suffix.lower() == ".fmu":      # no scenario is an FMU: it is named by one (fmus.<instance>.path)
+            raise CompareSpecError(f"{path}: is an FMU, not a comparison file; compare reads a YAML file with a "
+                                   "'compare:' section: write a scenario whose 'fmus.<instance>.path: "
+                                   f"{path.name}' names it, and a comparison file whose 'compare.scenario' names "
+                                   "that scenario and whose compare section lists the reference and the variants "
+                                   "(docs/compare.md)")
+        raise CompareSpecError(f"{path}: is an SSP, not a comparison file; compare reads a YAML file with a "
                                f"'compare:' section: write one whose 'compare.scenario: {path.name}' names it "
                                "and whose compare section lists the reference and the variants (docs/compare.md), "
                                "or compare the scenario YAML it was exported from")
