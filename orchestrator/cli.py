@@ -382,7 +382,7 @@ def _add_compare(sub) -> None:
     p.add_argument("file", metavar="FILE", help="comparison YAML file (or a scenario with a compare: section)")
     p.add_argument("--out", metavar="DIR", type=_folder,
                    help="report folder (default: out/compare/<name> under the current folder; "
-                        "name: the file's compare.name, else its file name)")
+                        "name: the file's compare.name, else its file name without the suffix)")
     p.add_argument("--update-baseline", action="store_true", help="rewrite the stored baseline from this run")
     p.set_defaults(func=_cmd_compare)
 
