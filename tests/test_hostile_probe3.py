@@ -372,8 +372,17 @@ def test_the_disk_full_fix_is_one_text_for_every_writer(code, fix):
     writer had its own copy of it (with the quota case the shared one lacked)."""
     import errno
 
+    from types import SimpleNamespace
+
     from orchestrator.results.safe_write import space_fix
-    assert space_fix(OSError(getattr(errno, code), "x"), "check that disk") == fix
+    from orchestrator.results.writer import ResultsWriter
+    e = OSError(getattr(errno, code), "x")
+    assert space_fix(e, "check that disk") == fix
+    # and the results writer says it (it had its own copy of the text): its failure message, as a run gets it
+    writer = SimpleNamespace(_f=None, _pq=None, _csv=None, _buf=[], _t=0.5, format="parquet",
+                             path=Path("/nowhere/results.parquet"))
+    said = str(ResultsWriter._failed(writer, e, None))
+    assert said.endswith(f"; {fix} or give another output folder (--out)"), said
 
 
 def test_a_full_disk_while_writing_plots_fmus_or_an_ssp_names_the_file_and_leaves_no_debris(
