@@ -408,3 +408,22 @@ def test_compare_of_an_fmu_does_not_advise_naming_it_as_the_scenario(tmp_path, c
     assert code == 2
     assert "is an FMU, not a comparison file" in err and "'fmus.<instance>.path: x.fmu'" in err, err
     assert "compare.scenario: x.fmu" not in err and "exported from" not in err, err
+
+
+def test_a_figure_path_that_is_a_directory_suggests_a_figure_file(tmp_path):
+    # save_figure of a folder suggested "e.g. DIR/report.txt" (the text writers' example) for a PNG
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from orchestrator.errors import OutputWriteError
+    from orchestrator.results.safe_write import save_figure
+    folder = tmp_path / "figs"
+    folder.mkdir()
+    fig = plt.figure()
+    try:
+        with pytest.raises(OutputWriteError) as info:
+            save_figure(fig, folder)
+    finally:
+        plt.close(fig)
+    assert f"it is a directory; give the path of a file, e.g. {folder / 'report.png'}" in str(info.value)

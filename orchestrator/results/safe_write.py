@@ -29,9 +29,10 @@ def open_no_follow(path: Path | str, mode: str = "w", *, newline: str | None = "
     return os.fdopen(fd, mode, newline=newline, encoding=encoding)
 
 
-def _refuse_special(path: Path) -> None:
+def _refuse_special(path: Path, suffix: str = ".txt") -> None:
     """Refuse a device, FIFO or socket at ``path``: the atomic rename would replace it by a regular
-    file (``--json /dev/null`` run as root replaced /dev/null itself); a link is replaced, by design."""
+    file (``--json /dev/null`` run as root replaced /dev/null itself); a link is replaced, by design.
+    A folder is refused with a file in it as the example (``suffix`` when the folder's name has none)."""
     import stat
 
     from orchestrator.errors import OutputWriteError
@@ -42,7 +43,7 @@ def _refuse_special(path: Path) -> None:
         return
     if stat.S_ISDIR(st.st_mode):             # was "(Is a directory); check that folder (it must be writable)"
         raise OutputWriteError(f"cannot write {path}: it is a directory; give the path of a file, e.g. "
-                               f"{path / ('report' + (path.suffix or '.txt'))}")
+                               f"{path / ('report' + (path.suffix or suffix))}")
     if not (stat.S_ISREG(st.st_mode) or stat.S_ISLNK(st.st_mode)):
         raise OutputWriteError(f"cannot write {path}: it is {file_kind(st.st_mode)}, and rotorcosim writes a file "
                                "by renaming a finished one over the name, which would replace it; give the path of "
@@ -117,7 +118,7 @@ def save_figure(fig, path: Path | str, **kwargs) -> Path:
     from orchestrator.errors import OutputWriteError
     path = Path(path)
     kwargs.setdefault("format", path.suffix.lstrip(".") or "png")
-    _refuse_special(path)
+    _refuse_special(path, f".{kwargs['format']}")      # a folder: e.g. DIR/report.png, not report.txt
     tmp = None
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
