@@ -134,7 +134,8 @@ def _duplicate_keys(node, where: str) -> list[str]:
 
 def read_annotation(root: ET.Element, doc: dict, ssd: str) -> None:
     """The rotorcosim annotation of an SSD (:func:`scenario_annotation`) into ``doc``: its
-    ``coupling`` replaces the one read from osp:FixedStepAlgorithm, ``output``, ``analysis`` and
+    ``coupling`` replaces the one read from osp:FixedStepAlgorithm (whose baseStepSize its
+    ``macro_step`` must equal, or takes when it has none), ``output``, ``analysis`` and
     ``compare`` are set, ``fmus.<instance>`` keys are merged. Untrusted like the rest of the SSD:
     at most :data:`MAX_ANNOTATION_CHARS` characters, read by the bounded YAML reader (depth,
     aliases, digits), only :data:`ANNOTATION_KEYS` (per instance :data:`ANNOTATION_FMU_KEYS`, of
