@@ -84,7 +84,7 @@ def read_run_file(path: Path, what: str) -> tuple[dict | None, str | None]:
     return doc, None
 
 
-def _record_problem(record: dict, run: RunPlan) -> str | None:
+def _record_problem(record: dict) -> str | None:
     """Why a parsed sweep_run.json is ill-formed (None: it is well-formed)."""
     overrides = record.get("overrides")
     if overrides is not None and not (isinstance(overrides, list) and all(isinstance(o, str) for o in overrides)):
@@ -150,7 +150,7 @@ def resumable(run_dir: Path, run: RunPlan) -> dict | None:
         return None
     record, problem = read_run_file(run_dir / RUN_RECORD, RUN_RECORD)
     if problem is None and record is not None:
-        problem = _record_problem(record, run)
+        problem = _record_problem(record)
         problem = f"{run_dir / RUN_RECORD}: {problem}" if problem else None
     if problem is not None:
         _redo(problem)
@@ -170,7 +170,7 @@ def _recorded(run_dir: Path, run: RunPlan) -> dict | None:
     """The record a run wrote into ``run_dir`` (``sweep_run.json`` of the same overrides, with its
     summary), or None: after Ctrl-C, the runs that ended before their result reached the client."""
     record, problem = read_run_file(run_dir / RUN_RECORD, RUN_RECORD)
-    if record is None or _record_problem(record, run) is not None or "status" not in record \
+    if record is None or _record_problem(record) is not None or "status" not in record \
             or record.get("overrides") != list(run.overrides):
         return None
     summary, _ = read_run_file(run_dir / "summary.json", "summary.json")
