@@ -683,6 +683,7 @@ _OS_FIXES = {
     _errno.EPERM: "operation not permitted: choose a place you own",
     _errno.EROFS: "that file system is read-only: choose another place",
     _errno.ENOSPC: "the disk is full: free some space or choose another place",
+    _errno.EDQUOT: "your disk quota is used up: free some of it or choose another place",
     _errno.ENAMETOOLONG: "the name is too long: choose a shorter one",
 }
 

@@ -385,6 +385,17 @@ def test_the_disk_full_fix_is_one_text_for_every_writer(code, fix):
     assert said.endswith(f"; {fix} or give another output folder (--out)"), said
 
 
+def test_an_exhausted_quota_reaching_the_cli_gets_a_fix():
+    """An OSError the CLI reports itself (a path it opens) had a fix for a full disk and none for
+    an exhausted quota (EDQUOT), which the writers name since space_fix learnt it."""
+    import errno
+
+    from orchestrator.cli import _describe
+    said = _describe(OSError(errno.EDQUOT, "Disk quota exceeded", "/x/out.csv"))
+    assert said == ("error: /x/out.csv: Disk quota exceeded; your disk quota is used up: free some of it or "
+                    "choose another place"), said
+
+
 def test_a_full_disk_while_writing_plots_fmus_or_an_ssp_names_the_file_and_leaves_no_debris(
         tmp_path, capsys, monkeypatch):
     """A full disk under `rotorcosim plot` left an empty signals_*.png and said "error: No space left
