@@ -427,3 +427,33 @@ def test_a_figure_path_that_is_a_directory_suggests_a_figure_file(tmp_path):
     finally:
         plt.close(fig)
     assert f"it is a directory; give the path of a file, e.g. {folder / 'report.png'}" in str(info.value)
+
+
+def test_an_ssv_problem_in_an_archive_names_the_archive_not_the_temporary_folder(tmp_path, monkeypatch):
+    # the SSD's own problems named the archive (above); a parameter-values (.ssv) file of the archive too large
+    # or not XML still named /tmp/rotorcosim-ssp-XXXX/ssp/p.ssv, gone when the command ends, or only 'p.ssv'
+    import re
+    import zipfile
+
+    import orchestrator
+    from orchestrator.errors import ScenarioError
+    from orchestrator.scenario import ssp
+    good = _tampered_ssp(tmp_path, lambda t: t)
+    bad = tmp_path / "ssv.ssp"
+    with zipfile.ZipFile(good) as zin, zipfile.ZipFile(bad, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "SystemStructure.ssd":
+                text, n = re.subn(r"<ssd:ParameterBinding>", '<ssd:ParameterBinding source="p.ssv">', data.decode(),
+                                  count=1)
+                assert n == 1, "the quickstart SSD has no parameter binding to point at a file"
+                data = text.encode()
+            zout.writestr(item, data)
+        zout.writestr("p.ssv", "<not xml" + " " * 200_000)
+    for limit, needle in ((1 << 20, "not well-formed"), (len(zipfile.ZipFile(good).read("SystemStructure.ssd")) + 100,
+                                                          "bytes")):
+        monkeypatch.setattr(ssp, "MAX_XML_BYTES", limit)
+        with pytest.raises(ScenarioError) as info:
+            orchestrator.load_scenario(bad)
+        text = str(info.value)
+        assert f"{bad} (p.ssv)" in text and needle in text and "rotorcosim-ssp-" not in text, text

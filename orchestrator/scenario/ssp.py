@@ -122,6 +122,11 @@ class _Source:
             self.ssd = self.path
             self.name = str(self.path)
 
+    def shown(self, rel: str) -> str:
+        """What messages call the member ``rel``: in an archive, the archive and the member's name
+        (not the temporary folder it was extracted to), else its path."""
+        return f"{self.path} ({rel})" if self.root != self.path.parent else str(self.root / rel)
+
     def file(self, rel: str, what: str) -> Path:
         _safe_member(rel, f"{self.name} ({what})")
         p = (self.root / rel).resolve()
@@ -191,7 +196,8 @@ def _binding_values(owner: ET.Element, what: str, src: _Source, problems: list[s
                                 f"sourceBase={b.get('sourceBase')!r} (a file inside the component) is not supported; "
                                 "put the .ssv file into the SSP beside SystemStructure.ssd")
                 continue
-            sets.append(_parse(_read(src.file(b.get("source"), "parameter values")), b.get("source")))
+            shown = src.shown(b.get("source"))
+            sets.append(_parse(_read(src.file(b.get("source"), "parameter values"), shown), shown))
         sets += b.findall("ssd:ParameterValues/ssv:ParameterSet", NS)
         if b.find("ssd:ParameterMapping", NS) is not None:
             problems.append(f"{src.name}: {what}: parameter mappings (.ssm) are not "
