@@ -105,7 +105,8 @@ class _Source:
 
     def __init__(self, path: Path, work: Path):
         self.path = Path(path)
-        if self.path.suffix.lower() == ".ssp":
+        self.archive = self.path.suffix.lower() == ".ssp"
+        if self.archive:
             from orchestrator.errors import FmuError
             from orchestrator.fmi.archive import safe_extract
             try:          # the FMU archive rules: regular file, names, links, sizes, ratios, CRC
@@ -125,7 +126,7 @@ class _Source:
     def shown(self, rel: str) -> str:
         """What messages call the member ``rel``: in an archive, the archive and the member's name
         (not the temporary folder it was extracted to), else its path."""
-        return f"{self.path} ({rel})" if self.root != self.path.parent else str(self.root / rel)
+        return f"{self.path} ({rel})" if self.archive else str(self.root / rel)
 
     def file(self, rel: str, what: str) -> Path:
         _safe_member(rel, f"{self.name} ({what})")
@@ -136,7 +137,7 @@ class _Source:
                 raise ScenarioError(f"{self.name}: {what} {rel!r} is {file_kind(mode)}, expected a regular file; "
                                     "add the file to the SSP or fix the 'source'")
         if not p.is_file():
-            where = "in the archive" if self.root != self.path.parent else f"looked in {self.root}"
+            where = "in the archive" if self.archive else f"looked in {self.root}"
             raise ScenarioError(f"{self.name}: {what} {rel!r} not found ({where}); "
                                 "add the file to the SSP or fix the 'source'")
         return p
