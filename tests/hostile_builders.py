@@ -88,3 +88,27 @@ def bomb(levels: int = 9, width: int = 10, indent: str = "    ") -> str:
     for i in range(1, levels):
         lines.append(f"{indent}a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * width)}]")
     return "\n".join(lines) + "\n"
+
+
+def tampered_quickstart_ssp(tmp_path: Path, edit, quiet: bool = True) -> Path:
+    """The shipped quickstart exported to ``tmp_path/q.ssp`` and a copy ``tmp_path/bad.ssp`` whose
+    SystemStructure.ssd text is ``edit(text)``; returns the copy (``quiet``: export-ssp's warnings
+    ignored, else left to the caller)."""
+    import warnings
+    import zipfile
+
+    import orchestrator
+    from orchestrator.scenario.ssp import export_ssp
+    from orchestrator.shipped import resolve
+    with warnings.catch_warnings():
+        if quiet:
+            warnings.simplefilter("ignore")          # libcosim's Jacobi note
+        good = export_ssp(orchestrator.load_scenario(resolve("quickstart")), tmp_path / "q.ssp")
+    bad = tmp_path / "bad.ssp"
+    with zipfile.ZipFile(good) as zin, zipfile.ZipFile(bad, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "SystemStructure.ssd":
+                data = edit(data.decode()).encode()
+            zout.writestr(item, data)
+    return bad

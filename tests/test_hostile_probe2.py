@@ -438,20 +438,12 @@ def test_ssp_problems_name_the_ssp_or_the_users_file_not_the_generated_one(tmp_p
     ended. Now a value from the archive is named by the .ssp and its place
     (`q.ssp [fmus.bearing1.parameters.n_phi]`), and a value of the YAML file that names the SSP by
     that file's line."""
-    import zipfile
-    from hostile_builders import cli
-    import orchestrator
-    from orchestrator.scenario.ssp import export_ssp
-    from orchestrator.shipped import resolve
+    from hostile_builders import cli, tampered_quickstart_ssp
     with pytest.warns(UserWarning, match="SSP has no coupling scheme"):
-        good = export_ssp(orchestrator.load_scenario(resolve("quickstart")), tmp_path / "q.ssp")
-    bad = tmp_path / "bad.ssp"
-    with zipfile.ZipFile(good) as zin, zipfile.ZipFile(bad, "w") as zout:
-        for item in zin.infolist():
-            data = zin.read(item)
-            if item.filename == "SystemStructure.ssd":
-                data = data.replace(b'name="n_phi"><ssv:Integer value="24"', b'name="n_phi"><ssv:Integer value="3"', 1)
-            zout.writestr(item, data)
+        bad = tampered_quickstart_ssp(tmp_path, lambda t: t.replace('name="n_phi"><ssv:Integer value="24"',
+                                                                    'name="n_phi"><ssv:Integer value="3"', 1),
+                                      quiet=False)
+    good = tmp_path / "q.ssp"
     rc, text = cli(capsys, "validate", bad)
     assert rc == 1 and f"{bad} [fmus.bearing1.parameters.n_phi]: parameter 'bearing1.n_phi' = 3" in text, text
     assert "rotorcosim-ssp-" not in text, text

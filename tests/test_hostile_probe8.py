@@ -92,23 +92,8 @@ def test_report_and_figure_writers_refuse_a_fifo(tmp_path):
 # --------------------------------------------------------------------------- export-ssp / annotation
 def _tampered_ssp(tmp_path: Path, edit) -> Path:
     """The shipped quickstart exported to an SSP, its SSD text changed by ``edit``."""
-    import warnings
-    import zipfile
-
-    import orchestrator
-    from orchestrator.scenario.ssp import export_ssp
-    from orchestrator.shipped import resolve
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")              # libcosim's Jacobi note
-        good = export_ssp(orchestrator.load_scenario(resolve("quickstart")), tmp_path / "q.ssp")
-    bad = tmp_path / "bad.ssp"
-    with zipfile.ZipFile(good) as zin, zipfile.ZipFile(bad, "w") as zout:
-        for item in zin.infolist():
-            data = zin.read(item)
-            if item.filename == "SystemStructure.ssd":
-                data = edit(data.decode()).encode()
-            zout.writestr(item, data)
-    return bad
+    from hostile_builders import tampered_quickstart_ssp
+    return tampered_quickstart_ssp(tmp_path, edit)
 
 
 def test_ssd_problems_in_an_archive_name_the_archive_not_the_temporary_folder(tmp_path):
