@@ -598,7 +598,8 @@ def _cmd_stability(args) -> int:
                     " x journal speed")
             print(f"  {name} (station {b['station']}): static eccentricity ratio {b['eps_at_threshold']:.3f} at the "
                   f"threshold{ring}, load {b['load_n']:.4g} N")
-    for c in r["crossings"][1:]:
+    from orchestrator.stability import later_crossings
+    for c in later_crossings(r):
         print(f"then {c['becomes']} from {c['speed_hz']:.2f} Hz on (the least-damped mode at {c['whirl_hz']:.2f} Hz)")
     if args.json:
         from orchestrator.results.safe_write import write_report_file

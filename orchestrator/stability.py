@@ -414,6 +414,14 @@ class _RingFilms:
 
 
 # --------------------------------------------------------------------------- the command's library call
+def later_crossings(result: dict) -> list[dict]:
+    """The crossings of a :func:`stability` result other than the threshold: after the first one
+    when that is the threshold (status ``"threshold"``), else all of them (already unstable at the
+    lower end: the first crossing is where it becomes stable)."""
+    crossings = result.get("crossings") or []
+    return crossings[1:] if result.get("status") == "threshold" else list(crossings)
+
+
 def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int = 80,
               ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None) -> dict:
     """The threshold result (a JSON-ready dict) of a loaded scenario; see the module doc.

@@ -196,3 +196,20 @@ def test_load_cancelling_the_weight_is_named(capsys):
     assert code == 1
     assert "--load bearing1=0,29.43 cancels the bearing's share of the rotor's weight" in err
     assert "not its reaction" in err
+
+
+def test_already_unstable_at_the_lower_end_still_names_where_it_becomes_stable(capsys, tmp_path):
+    """From 300 Hz (inside the paper rotor's unstable window 256.1 - 665.0 Hz) the first crossing is the
+    one where it becomes stable again: printed and drawn like any crossing after a threshold (the CLI
+    and the plot skipped the first crossing whatever it was, and so lost it)."""
+    from orchestrator.stability import later_crossings
+    out, png = tmp_path / "r.json", tmp_path / "s.png"
+    code, text, err = _run(capsys, JEFFCOTT_HS, "--speeds", "300:800", "--json", out, "--plot", png)
+    assert code == 1 and "already unstable at the lower end" in err
+    r = json.loads(out.read_text())
+    assert r["status"] == "unstable_at_lower_bound" and r["threshold_hz"] is None
+    (down,) = r["crossings"]
+    assert down["becomes"] == "stable" and 600.0 < down["speed_hz"] < 700.0
+    assert later_crossings(r) == [down]
+    assert f"then stable from {down['speed_hz']:.2f} Hz on" in text
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -4,8 +4,9 @@ Two panels over the rotor speed [Hz], from the speeds the threshold search evalu
 and Brent's steps, ``result["scan"]``): the logarithmic decrement of the least-damped eigenvalue,
 ``delta = -2 pi Re(lambda) / |Im(lambda)|`` (positive: the mode decays; the threshold is where it
 crosses 0; API 684's measure of a stability margin), and its frequency against 0.5 x speed (a
-film whirl sits just below it). The threshold and its whirl frequency are marked, so is a later
-crossing (stable again), and speeds without a static equilibrium (grey crosses).
+film whirl sits just below it). The threshold and its whirl frequency are marked, so is every
+other crossing (stable again, or, already unstable at the lower end, stable from there), and
+speeds without a static equilibrium (grey crosses).
 """
 
 from __future__ import annotations
@@ -45,8 +46,9 @@ def draw(result: dict, path: Path | str) -> Path:
         for ax in (ax1, ax2):
             ax.axvline(th, color="C3", ls="--", lw=1.2, label=lab if ax is ax1 else None)
         ax2.plot([th], [result["whirl_hz"]], "s", color="C3", ms=6)
-    for c in (result.get("crossings") or [])[1:]:
-        lab = f"{'stable' if c['becomes'] == 'stable' else 'unstable'} again from {c['speed_hz']:.2f} Hz"
+    from orchestrator.stability import later_crossings
+    for c in later_crossings(result):
+        lab = f"{c['becomes']} from {c['speed_hz']:.2f} Hz"
         for ax in (ax1, ax2):
             ax.axvline(c["speed_hz"], color="C2" if c["becomes"] == "stable" else "C3", ls=":", lw=1.2,
                        label=lab if ax is ax1 else None)
