@@ -286,23 +286,18 @@ class _HSFilm:
             self.models.append(m)
         self.q: list = [None] * len(self.models)
 
-    def force_and_coefficients(self, j: int, q, omega: float, coefficients: bool = True):
-        """HS film force [N] at rest at q, plus the asperity contact force when the bearing has
-        ``contact = 1`` (bearing_fmu/contact.py; exactly 0 above 6 roughness heights), and (K, C)
-        of both (as ``bearing_fmu.linearize.linearization`` adds them)."""
-        from bearing_fmu.contact import contact_coefficients, contact_force
-        from bearing_fmu.linearize import hs_force, hs_linearization
+    def coefficients(self, j: int, q, omega: float):
+        """(K, C) of bearing j's HS film at rest at q, plus those of the asperity contact when the
+        bearing has ``contact = 1`` (bearing_fmu/contact.py; exactly 0 above 6 roughness heights),
+        as ``bearing_fmu.linearize.linearization`` adds them."""
+        from bearing_fmu.contact import contact_coefficients
+        from bearing_fmu.linearize import hs_linearization
         m = self.models[j]
-        F = hs_force(m, q[0], q[1], 0.0, 0.0, omega)
-        if m.params.contact:
-            F = F + np.array(contact_force(q[0], q[1], 0.0, 0.0, omega, **m.contact_kw)[:2])
-        if not coefficients:
-            return F, None, None
         K, C = hs_linearization(m, q[0], q[1], 0.0, 0.0, omega)
         if m.params.contact:
             Kc, Cc = contact_coefficients(q[0], q[1], 0.0, 0.0, omega, **m.contact_kw)
             K, C = K + Kc, C + Cc
-        return F, K, C
+        return K, C
 
     def equilibrium(self, j: int, omega: float) -> np.ndarray:
         """Journal centre (x, y) [m] where the bearing force equals -load
@@ -341,7 +336,7 @@ class _HSFilm:
         for j in range(len(self.models)):
             q = self.equilibrium(j, omega)
             try:
-                _, k, d = self.force_and_coefficients(j, q, omega)
+                k, d = self.coefficients(j, q, omega)
             except _NUMERIC as exc:
                 raise _failed(self.system.bearings[j], omega, exc) from None
             K.append(k)
