@@ -26,10 +26,8 @@ def draw(result: dict, path: Path | str) -> Path:
     from matplotlib.figure import Figure
     scan = result.get("scan") or []
     f = np.array([s["speed_hz"] for s in scan], dtype=float)
-    re = np.array([s["max_re_per_s"] for s in scan], dtype=float)
     fw = np.array([s["whirl_hz"] for s in scan], dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        dec = np.where(fw > 0, -re / fw, np.nan)        # -2 pi Re / |Im| with |Im| = 2 pi f_w
+    dec = np.array([np.nan if s["log_decrement"] is None else s["log_decrement"] for s in scan], dtype=float)
     fig = Figure(figsize=(8, 6.2), layout="constrained")
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
     ax1.plot(f, dec, "o-", ms=3, lw=1.2, color="C0", label="least-damped mode")
