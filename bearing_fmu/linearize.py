@@ -323,13 +323,15 @@ def hs_static_equilibrium(b, F_target, omega, *, guess=None, contact=None, ftol=
     (plus :func:`.contact.contact_coefficients`): ``q <- q + lam K^-1 r``, where ``lam`` is halved
     until the new centre lies inside ``max_ecc`` c (the film force is singular at the wall; at most
     40 halvings). Converged when ``max |r| <= ftol |F_target|``; the position is returned without a
-    further step. ``guess``: the start (x, y) [m]; default 0.5 c away from the load's line,
-    rotated 45 deg in the direction of rotation (where the journal of a plain bearing sits).
+    further step. ``guess``: the start (x, y) [m]; default 0.5 c from the bearing centre in the
+    direction of the load (-F_target) turned 45 deg in the direction of rotation (roughly where
+    the journal of a plain bearing sits: down and to +x for a downward load and omega > 0).
 
-    Raises :class:`ValueError` for a zero or non-finite ``F_target`` or a guess outside
-    ``max_ecc`` c, and :class:`HSEquilibriumError` naming the last residual and eccentricity when
-    the stiffness is singular, a force is not finite, or ``max_iter`` Newton steps do not
-    converge (e.g. a load the film cannot carry inside ``max_ecc`` c, or omega = 0)."""
+    Raises :class:`ValueError` for a zero or non-finite ``F_target``, ``max_ecc`` outside (0, 1) or
+    a guess outside ``max_ecc`` c, and :class:`HSEquilibriumError` naming the eccentricity (and,
+    after ``max_iter`` steps, the last residual) when the stiffness is singular (e.g. omega = 0), a
+    force is not finite, 40 halvings leave a step outside ``max_ecc`` c, or ``max_iter`` Newton
+    steps do not converge (e.g. a load the film cannot carry inside ``max_ecc`` c)."""
     c = b.c
     target = np.asarray(F_target, dtype=float).reshape(2)
     W = float(np.hypot(*target))

@@ -508,7 +508,7 @@ def _add_stability(sub) -> None:
                        description=(
         "The lowest speed at which the scenario's rotor (our JeffcottRotor or TurbochargerRotor) with the linear "
         "film coefficients of its JournalBearings (or FloatingRingBearings, with the rings' degrees of freedom), "
-        "at their static equilibrium under gravity, has an eigenvalue "
+        "at their static equilibrium under gravity (plus any --load), has an eigenvalue "
         "in the right half plane; the whirl frequency ratio of that mode and each bearing's eccentricity there "
         "(docs/analysis.md, \"Linear stability threshold\"). Exit status 1 when nothing crosses in the speed "
         "range."))

@@ -2,8 +2,9 @@
 
 What it computes (docs/analysis.md, "Linear stability threshold"): the lowest speed at which an
 eigenvalue of the rotor's linear model with speed-dependent linear film coefficients at its
-bearing stations crosses into the right half plane (:func:`rotor_fmu.stability.threshold_speed`:
-geometric scan, then Brent on the largest real part; Lund 1974, J. Eng. Ind. 96:509; Childs
+bearing stations crosses into the right half plane (a geometric scan of the whole range, then
+Brent on every sign change of the largest real part, the first upwards with the bracket and
+tolerances of :func:`rotor_fmu.stability.threshold_speed`; Lund 1974, J. Eng. Ind. 96:509; Childs
 1993, "Turbomachinery Rotordynamics", sec. 3.6), the whirl frequency ratio of the crossing mode,
 and each bearing's static eccentricity there. The coefficients are taken at the static
 equilibrium of each journal under the rotor's gravity load on that station
@@ -34,7 +35,7 @@ supported.
 
 Floating-ring bearings (:func:`rotor_fmu.floating_ring_stability.ring_system_eigen`,
 docs/floating-ring.md): at each speed, each ring's steady operating point under the station's
-gravity load (ring speed from the torque balance of its two films, journal and ring at their
+static load (its weight share plus any ``loads``, downward only; ring speed from the torque balance of its two films, journal and ring at their
 static equilibria), the half-Sommerfeld coefficients of its inner film (at the wedge speed
 omega + Omega) and outer film, and the ring's translation as two more degrees of freedom per
 station (mass ``m_ring``). The ring spin is held at its steady value, as the classical linear

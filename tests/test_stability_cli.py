@@ -6,7 +6,8 @@ References (independent of the eigenvalue path the command takes):
   :func:`rotor_fmu.stability.lund_threshold_speed`);
 * HS film: the documented threshold of the paper's Jeffcott rotor, docs/paper-cases.md "How R was
   chosen": R = 4.9 mm gives 256.1 Hz on the 40 x 40 film (eps 0.186, whirl 0.45 x speed), computed by
-  docs/paper_cases_radius.py (its own Newton, finite differences of the film force and bisection).
+  docs/paper_cases_radius.py (the same Newton, bearing_fmu.linearize.hs_static_equilibrium, but its
+  own central differences of the film force for the coefficients, and bisection for the threshold).
 """
 
 from __future__ import annotations
