@@ -410,42 +410,12 @@ class _RingFilms:
 
 
 # --------------------------------------------------------------------------- the command's library call
-def later_crossings(result: dict) -> list[dict]:
-    """The crossings of a :func:`stability` result other than the threshold: after the first one
-    when that is the threshold (status ``"threshold"``), else all of them (already unstable at the
-    lower end: the first crossing is where it becomes stable)."""
-    crossings = result.get("crossings") or []
-    return crossings[1:] if result.get("status") == "threshold" else list(crossings)
-
-
-def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int = 80,
-              ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None) -> dict:
-    """The threshold result (a JSON-ready dict) of a loaded scenario; see the module doc.
-
-    ``loads``: bearing instance -> static force (Fx, Fy) [N] the rotor puts on that bearing in
-    addition to its share of the rotor's weight (``--load``: a gear or belt force, a magnetic pull,
-    a horizontal rotor's load with g = 0), in the convention of
-    :func:`rotor_fmu.stability.static_bearing_loads` (down is -y)."""
-    from scipy.optimize import brentq
-
-    from rotor_fmu.stability import max_real_eigenvalue, static_bearing_loads
-
-    if film not in FILMS:
-        raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
-    system = build_system(scenario)
-    lo, hi = speeds if speeds is not None else (0.1 * system.f_max, system.f_max)
-    if speeds is None and not (0.0 < lo < hi and math.isfinite(hi)):
-        raise StabilityError(f"the default speed range 0.1 f_max : f_max is {lo:g}:{hi:g} Hz, but the rotor "
-                             f"'{system.rotor_instance}' has f_max = {system.f_max:g} Hz (no ramp to take the range "
-                             "from); give the range: --speeds LO:HI in Hz, e.g. --speeds 50:800")
-    if not (0.0 < lo < hi and math.isfinite(hi)):
-        raise StabilityError(f"--speeds: need 0 < LO < HI in Hz (got {lo:g}:{hi:g})")
-    if system.rings and film == "short":
-        raise StabilityError("--film short: the short-bearing closed form has no floating ring; the floating-ring "
-                             "bearings of this scenario are linearized with their half-Sommerfeld films (--film hs)")
-    if ring_spin and not system.rings:
-        raise StabilityError("--ring-spin: the scenario has no floating-ring bearings (its stations carry "
-                             f"{BEARING_MODEL}s); leave --ring-spin out")
+def _static_loads(system: System, loads: dict | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(weight share, ``loads`` given, their sum) per station, (n_stations, 2) [N] each, the force
+    the rotor puts on each bearing (down is -y); :class:`StabilityError` for a load on a bearing
+    the scenario does not have, one not finite, a station left without load, and a net load on a
+    floating ring that is not straight down."""
+    from rotor_fmu.stability import static_bearing_loads
     weight = static_bearing_loads(system.rotor)
     extra = np.zeros_like(weight)
     names = [b.instance for b in system.bearings]
@@ -477,20 +447,15 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
                                  f"({total[names.index(sideways[0])][0]:g}, {total[names.index(sideways[0])][1]:g}) N: "
                                  "`stability` finds a ring's operating point only under a downward load (0, -W); "
                                  "give --load with an x component of 0 and a net downward force")
-        fn = _RingFilms(system, total, spin=ring_spin)
-        max_re = fn.max_re
-    else:
-        fn = _ShortFilm(system, total) if film == "short" else _HSFilm(system, total)
+    return weight, extra, total
 
-        def coefficients(omega):
-            """The film's (K, C) at omega, refused when not finite (NaN would read as "stable")."""
-            K, C = fn(omega)
-            for b, k, c in zip(system.bearings, K, C):
-                if not (np.all(np.isfinite(k)) and np.all(np.isfinite(c))):
-                    raise _failed(b, omega, ValueError(f"its linear coefficients are not finite (K = {k.tolist()}, "
-                                                       f"C = {c.tolist()})"))
-            return K, C
-        max_re = lambda w: max_real_eigenvalue(system.rotor, w, coefficients)     # noqa: E731
+
+def _notes(system: System, film: str, ring_spin: bool, weight: np.ndarray, extra: np.ndarray) -> list[str]:
+    """The result's notes on its inputs: each --load with the sum it makes, what the linear model
+    leaves out of each bearing (its own mass-conserving film, the ring spin, grooves and feed
+    pressure in the short-bearing closed form) and the short bearing's B/D."""
+    names = [b.instance for b in system.bearings]
+    total = weight + extra
     fmt = lambda v: f"({v[0] + 0.0:.4g}, {v[1] + 0.0:.4g}) N"        # noqa: E731 (+ 0.0: no "-0")
     notes = [f"bearing '{n}': static load {fmt(total[k])} = the rotor's weight share {fmt(weight[k])} plus --load "
              f"{fmt(extra[k])}" for k, n in enumerate(names) if extra[k].any()]
@@ -513,6 +478,62 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         notes.append("short-bearing theory is a bound for B/D not small (B/D of "
                      + ", ".join(f"'{b.instance}' {b.params.B / (2 * b.params.R):.2f}" for b in system.bearings)
                      + ")")
+    return notes
+
+
+def later_crossings(result: dict) -> list[dict]:
+    """The crossings of a :func:`stability` result other than the threshold: after the first one
+    when that is the threshold (status ``"threshold"``), else all of them (already unstable at the
+    lower end: the first crossing is where it becomes stable)."""
+    crossings = result.get("crossings") or []
+    return crossings[1:] if result.get("status") == "threshold" else list(crossings)
+
+
+def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int = 80,
+              ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None) -> dict:
+    """The threshold result (a JSON-ready dict) of a loaded scenario; see the module doc.
+
+    ``loads``: bearing instance -> static force (Fx, Fy) [N] the rotor puts on that bearing in
+    addition to its share of the rotor's weight (``--load``: a gear or belt force, a magnetic pull,
+    a horizontal rotor's load with g = 0), in the convention of
+    :func:`rotor_fmu.stability.static_bearing_loads` (down is -y)."""
+    from scipy.optimize import brentq
+
+    from rotor_fmu.stability import max_real_eigenvalue
+
+    if film not in FILMS:
+        raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
+    system = build_system(scenario)
+    lo, hi = speeds if speeds is not None else (0.1 * system.f_max, system.f_max)
+    if speeds is None and not (0.0 < lo < hi and math.isfinite(hi)):
+        raise StabilityError(f"the default speed range 0.1 f_max : f_max is {lo:g}:{hi:g} Hz, but the rotor "
+                             f"'{system.rotor_instance}' has f_max = {system.f_max:g} Hz (no ramp to take the range "
+                             "from); give the range: --speeds LO:HI in Hz, e.g. --speeds 50:800")
+    if not (0.0 < lo < hi and math.isfinite(hi)):
+        raise StabilityError(f"--speeds: need 0 < LO < HI in Hz (got {lo:g}:{hi:g})")
+    if system.rings and film == "short":
+        raise StabilityError("--film short: the short-bearing closed form has no floating ring; the floating-ring "
+                             "bearings of this scenario are linearized with their half-Sommerfeld films (--film hs)")
+    if ring_spin and not system.rings:
+        raise StabilityError("--ring-spin: the scenario has no floating-ring bearings (its stations carry "
+                             f"{BEARING_MODEL}s); leave --ring-spin out")
+    weight, extra, total = _static_loads(system, loads)
+    if system.rings:
+        fn = _RingFilms(system, total, spin=ring_spin)
+        max_re = fn.max_re
+    else:
+        fn = _ShortFilm(system, total) if film == "short" else _HSFilm(system, total)
+
+        def coefficients(omega):
+            """The film's (K, C) at omega, refused when not finite (NaN would read as "stable")."""
+            K, C = fn(omega)
+            for b, k, c in zip(system.bearings, K, C):
+                if not (np.all(np.isfinite(k)) and np.all(np.isfinite(c))):
+                    raise _failed(b, omega, ValueError(f"its linear coefficients are not finite (K = {k.tolist()}, "
+                                                       f"C = {c.tolist()})"))
+            return K, C
+        max_re = lambda w: max_real_eigenvalue(system.rotor, w, coefficients)     # noqa: E731
+    notes = _notes(system, film, ring_spin, weight, extra)
     seen: dict[float, tuple[float, float]] = {}
     search = max_re
 
@@ -558,7 +579,6 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         notes.append(f"no static equilibrium at {len(failed)} of the {n_scan} speeds searched ({where} Hz), left out: "
                      f"{failed[0][1]}".replace("; raise the lower end of --speeds", ""))
         result["speeds_without_equilibrium_hz"] = [w / (2 * math.pi) for w, _ in failed]
-    loads = fn.loads
     for k0, k1 in zip(ok, ok[1:]):
         if k1 == k0 + 1 and (vals[k0] < 0.0) != (vals[k1] < 0.0):
             wc = brentq(lambda w: max_re(w)[0], ws[k0], ws[k1], xtol=1e-9, rtol=1e-11)
@@ -587,20 +607,27 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
                 notes.append(f"bearing '{b.instance}': asperity contact carries {share:.1%} of its static load at "
                              "the threshold (its coefficients are included, bearing_fmu/contact.py)")
     points = fn.points(at) if at is not None and system.rings else [None] * len(system.bearings)
-    for b, e, ld, pt in zip(system.bearings, eps, loads, points):
-        entry = {"station": b.station, "kind": b.kind, "load_n": float(np.hypot(*ld)),
-                 "load_vector_n": [float(ld[0]), float(ld[1])], "eps_at_threshold": e}
-        if b.kind == "floating_ring":       # eps, clearance, cavitation, grid: of the inner film
-            inner, outer = b.params.inner, b.params.outer
-            entry.update(clearance_m=inner.psi * inner.R, cavitation=int(inner.cavitation),
-                         grid=[int(inner.n_phi), int(inner.n_z)],
-                         eps_outer_at_threshold=None if pt is None else float(pt.outputs["eps_outer"]),
-                         ring_speed_ratio_at_threshold=None if pt is None else float(pt.outputs["omega_ring"] / at),
-                         clearance_outer_m=outer.psi * outer.R, cavitation_outer=int(outer.cavitation),
-                         grid_outer=[int(outer.n_phi), int(outer.n_z)], m_ring_kg=float(b.params.m_ring),
-                         floating=int(b.params.floating))
-        else:
-            entry.update(clearance_m=b.params.psi * b.params.R, cavitation=int(b.params.cavitation),
-                         grid=[int(b.params.n_phi), int(b.params.n_z)] if film == "hs" else None)
-        result["bearings"][b.instance] = entry
+    for b, e, ld, pt in zip(system.bearings, eps, total, points):
+        result["bearings"][b.instance] = _bearing_entry(b, film, ld, e, pt, at)
     return result
+
+
+def _bearing_entry(b: Bearing, film: str, load, eps, point, at: float | None) -> dict:
+    """A bearing's part of the result: its static ``load`` (2,) [N], eccentricity ratio ``eps``
+    at the threshold speed ``at`` [rad/s] (None without one), and for a floating ring its steady
+    operating ``point`` there (a FloatingRing model, or None)."""
+    entry = {"station": b.station, "kind": b.kind, "load_n": float(np.hypot(*load)),
+             "load_vector_n": [float(load[0]), float(load[1])], "eps_at_threshold": eps}
+    if b.kind == "floating_ring":       # eps, clearance, cavitation, grid: of the inner film
+        inner, outer = b.params.inner, b.params.outer
+        entry.update(clearance_m=inner.psi * inner.R, cavitation=int(inner.cavitation),
+                     grid=[int(inner.n_phi), int(inner.n_z)],
+                     eps_outer_at_threshold=None if point is None else float(point.outputs["eps_outer"]),
+                     ring_speed_ratio_at_threshold=None if point is None else float(point.outputs["omega_ring"] / at),
+                     clearance_outer_m=outer.psi * outer.R, cavitation_outer=int(outer.cavitation),
+                     grid_outer=[int(outer.n_phi), int(outer.n_z)], m_ring_kg=float(b.params.m_ring),
+                     floating=int(b.params.floating))
+    else:
+        entry.update(clearance_m=b.params.psi * b.params.R, cavitation=int(b.params.cavitation),
+                     grid=[int(b.params.n_phi), int(b.params.n_z)] if film == "hs" else None)
+    return entry
