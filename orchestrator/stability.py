@@ -304,7 +304,8 @@ class _HSFilm:
         """Journal centre (x, y) [m] where the bearing force equals -load
         (:func:`bearing_fmu.linearize.hs_static_equilibrium`: Newton with K = -dF/dq, the contact
         force included when the bearing has ``contact = 1``); started from the last speed's
-        equilibrium, or from the short-bearing one (kept inside 0.8 c)."""
+        equilibrium, or from the short-bearing one (kept inside 0.8 c), or, without that, from
+        hs_static_equilibrium's default start."""
         from bearing_fmu.linearize import HSEquilibriumError, hs_static_equilibrium
         from rotor_fmu.stability import short_bearing_equilibrium
         b, m, ld = self.system.bearings[j], self.models[j], self.loads[j]
@@ -314,10 +315,9 @@ class _HSFilm:
         if q is None:       # start from the short-bearing equilibrium (kept inside 0.8 c)
             try:
                 eps, psi = short_bearing_equilibrium(ld, omega, **_short(b.params))
-            except ValueError:          # no closed-form equilibrium (a load far off its capacity): start mid-gap
-                eps, psi = 0.5, -0.5 * math.pi
-            eps = min(eps, 0.8)
-            q = eps * c * np.array([math.cos(psi), math.sin(psi)])
+                q = min(eps, 0.8) * c * np.array([math.cos(psi), math.sin(psi)])
+            except ValueError:          # no closed-form equilibrium (a load far off its capacity): the
+                pass                    # default start, mid-gap on the load's side (also for a sideways --load)
         try:
             q = hs_static_equilibrium(m, target, omega, guess=q, max_iter=60, max_ecc=0.995)
         except HSEquilibriumError as exc:
