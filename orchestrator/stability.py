@@ -497,9 +497,7 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     addition to its share of the rotor's weight (``--load``: a gear or belt force, a magnetic pull,
     a horizontal rotor's load with g = 0), in the convention of
     :func:`rotor_fmu.stability.static_bearing_loads` (down is -y)."""
-    from scipy.optimize import brentq
-
-    from rotor_fmu.stability import max_real_eigenvalue
+    from rotor_fmu.stability import max_real_eigenvalue, refine_crossing
 
     if film not in FILMS:
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
@@ -557,8 +555,8 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         "notes": notes,
     }
     # the whole range on a geometric grid, then Brent on every sign change of the largest real part
-    # between neighbouring speeds: the first one upwards is the threshold (the bracket and the Brent
-    # call of rotor_fmu.stability.threshold_speed, so the same number), a later one downwards is
+    # between neighbouring speeds (rotor_fmu.stability.refine_crossing, as threshold_speed refines
+    # its bracket: the same number): the first one upwards is the threshold, a later one downwards is
     # where the system is stable again (a run-up's whirl "vanish" has its linear counterpart there).
     # A speed without a static equilibrium (a load a film cannot carry there inside its clearance,
     # e.g. a floating ring's outer film at low speed) is left out, and no crossing is sought across it.
@@ -581,8 +579,7 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         result["speeds_without_equilibrium_hz"] = [w / (2 * math.pi) for w, _ in failed]
     for k0, k1 in zip(ok, ok[1:]):
         if k1 == k0 + 1 and (vals[k0] < 0.0) != (vals[k1] < 0.0):
-            wc = brentq(lambda w: max_re(w)[0], ws[k0], ws[k1], xtol=1e-9, rtol=1e-11)
-            nu = max_re(wc)[1]
+            wc, nu = refine_crossing(max_re, ws[k0], ws[k1])
             result["crossings"].append({"speed_hz": wc / (2 * math.pi), "whirl_hz": nu / (2 * math.pi),
                                         "becomes": "unstable" if vals[k0] < 0.0 else "stable"})
     vals = [vals[k] for k in ok]

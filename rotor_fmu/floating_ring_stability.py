@@ -28,15 +28,12 @@ depends linearly on the whirl displacement.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from scipy.optimize import brentq
 
 from bearing_fmu.floating_ring import FloatingRing, RingParams, petroff_ratio, static_equilibrium
 from bearing_fmu.linearize import linearization
 
-from .stability import rightmost, static_bearing_loads
+from .stability import first_crossing, rightmost, static_bearing_loads
 
 __all__ = ["operating_point", "ring_system_eigen", "ring_threshold_speed"]
 
@@ -180,15 +177,6 @@ def _max_re(rotor, params_list, omega, spin=False):
 
 def ring_threshold_speed(rotor, params_list, omega_min, omega_max, n_scan=40, spin=False):
     """(lowest unstable speed [rad/s], whirl frequency there [rad/s]) in [omega_min, omega_max],
-    or (None, None); (omega_min, whirl) when already unstable at omega_min."""
-    ws = np.linspace(omega_min, omega_max, n_scan)
-    f = lambda w: _max_re(rotor, params_list, w, spin)[0]
-    prev = ws[0]
-    if f(prev) >= 0:
-        return float(prev), _max_re(rotor, params_list, prev, spin)[1]
-    for w in ws[1:]:
-        if f(w) >= 0:
-            wt = brentq(f, prev, w, xtol=1e-6 * w, rtol=1e-9)
-            return wt, _max_re(rotor, params_list, wt, spin)[1]
-        prev = w
-    return None, None
+    or (None, None); (omega_min, whirl) when already unstable at omega_min: ``n_scan`` speeds
+    evenly spaced, then Brent (:func:`rotor_fmu.stability.first_crossing`)."""
+    return first_crossing(lambda w: _max_re(rotor, params_list, w, spin), np.linspace(omega_min, omega_max, n_scan))

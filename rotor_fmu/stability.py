@@ -236,25 +236,32 @@ def threshold_speed(rotor, coeff_fn, *, omega_min=2 * math.pi * 1.0,
     unstable (an eigenvalue crosses Re = 0), and the whirl frequency there [rad/s].
     Returns (None, None) if stable over the whole range.  Scan on a geometric grid,
     then Brent on the crossing (:func:`first_crossing`)."""
-    return first_crossing(lambda w: max_real_eigenvalue(rotor, w, coeff_fn), omega_min, omega_max, n_scan)
+    return first_crossing(lambda w: max_real_eigenvalue(rotor, w, coeff_fn),
+                          np.geomspace(omega_min, omega_max, n_scan))
 
 
-def first_crossing(max_re, omega_min, omega_max, n_scan=120):
-    """(lowest speed [rad/s] in [omega_min, omega_max] where ``max_re(omega) -> (max Re(lambda),
-    |Im| of that eigenvalue)`` turns >= 0, |Im| there), or (None, None): ``n_scan`` speeds on a
-    geometric grid, then Brent on the first bracket; (omega_min, |Im|) when already >= 0 there."""
-    f = lambda w: max_re(w)[0]
-    ws = np.geomspace(omega_min, omega_max, n_scan)
-    prev_w, prev_v = ws[0], f(ws[0])
-    if prev_v >= 0:
-        return float(ws[0]), max_re(ws[0])[1]
+def first_crossing(max_re, ws):
+    """(lowest speed [rad/s] among the increasing speeds ``ws`` and between them where
+    ``max_re(omega) -> (max Re(lambda), |Im| of that eigenvalue)`` turns >= 0, |Im| there), or
+    (None, None): ``max_re`` at each speed in turn, then :func:`refine_crossing` on the first
+    bracket; (ws[0], |Im|) when already >= 0 there."""
+    prev_w = ws[0]
+    if max_re(prev_w)[0] >= 0:
+        return float(prev_w), max_re(prev_w)[1]
     for w in ws[1:]:
-        v = f(w)
-        if v >= 0:
-            wt = brentq(f, prev_w, w, xtol=1e-9, rtol=1e-11)
-            return wt, max_re(wt)[1]
-        prev_w, prev_v = w, v
+        if max_re(w)[0] >= 0:
+            return refine_crossing(max_re, prev_w, w)
+        prev_w = w
     return None, None
+
+
+def refine_crossing(max_re, w0, w1):
+    """(speed [rad/s] in [w0, w1] where the largest real part ``max_re(omega)[0]`` crosses 0, the
+    |Im| of that eigenvalue there): Brent, to 1e-9 rad/s and 1e-11 of the speed; the signs at w0
+    and w1 must differ. The one refinement of every threshold search (also the floating ring's,
+    rotor_fmu/floating_ring_stability.py, and ``rotorcosim stability``'s crossings)."""
+    wc = brentq(lambda w: max_re(w)[0], w0, w1, xtol=1e-9, rtol=1e-11)
+    return wc, max_re(wc)[1]
 
 
 def bearing_radius_for_threshold(make_rotor, f_target, *, B_over_R=1.6, psi=2.8e-3,
