@@ -612,6 +612,12 @@ def _cmd_stability(args) -> int:
         print(f"error: no eigenvalue crosses into the right half plane between {lo:g} and {hi:g} Hz: the system is "
               "linearly stable in that range; give a wider --speeds LO:HI", file=sys.stderr)
         return 1
+    if r["status"] == "threshold_not_located":
+        a, b = r["threshold_between_hz"]
+        print(f"error: the system becomes unstable between {a:.4g} and {b:.4g} Hz, across speeds where a film has no "
+              "static equilibrium, so the threshold is not located; give a --speeds LO:HI on one side of them, or "
+              "bearing parameters that carry the load there", file=sys.stderr)
+        return 1
     if r["status"] == "unstable_at_lower_bound":
         print(f"error: already unstable at the lower end of the range ({lo:g} Hz), so the threshold is below it; "
               "give a lower --speeds LO", file=sys.stderr)

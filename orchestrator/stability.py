@@ -559,7 +559,8 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     # its bracket: the same number): the first one upwards is the threshold, a later one downwards is
     # where the system is stable again (a run-up's whirl "vanish" has its linear counterpart there).
     # A speed without a static equilibrium (a load a film cannot carry there inside its clearance,
-    # e.g. a floating ring's outer film at low speed) is left out, and no crossing is sought across it.
+    # e.g. a floating ring's outer film at low speed) is left out, and no crossing is sought across it:
+    # a sign change across such speeds is named (status "threshold_not_located" when it is the first).
     ws = np.geomspace(w_lo, w_hi, n_scan)
     vals: list[float | None] = []
     failed: list[tuple[float, StabilityError]] = []
@@ -577,15 +578,28 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         notes.append(f"no static equilibrium at {len(failed)} of the {n_scan} speeds searched ({where} Hz), left out: "
                      f"{failed[0][1]}".replace("; raise the lower end of --speeds", ""))
         result["speeds_without_equilibrium_hz"] = [w / (2 * math.pi) for w, _ in failed]
+    unlocated = None          # the first sign change, when it lies across speeds without equilibrium
     for k0, k1 in zip(ok, ok[1:]):
-        if k1 == k0 + 1 and (vals[k0] < 0.0) != (vals[k1] < 0.0):
+        if (vals[k0] < 0.0) == (vals[k1] < 0.0):
+            continue
+        if k1 == k0 + 1:
             wc, nu = refine_crossing(max_re, ws[k0], ws[k1])
             result["crossings"].append({"speed_hz": wc / (2 * math.pi), "whirl_hz": nu / (2 * math.pi),
                                         "becomes": "unstable" if vals[k0] < 0.0 else "stable"})
+            continue
+        between = [ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)]
+        notes.append(f"the largest real part changes sign between {between[0]:.4g} and {between[1]:.4g} Hz (it "
+                     f"becomes {'unstable' if vals[k0] < 0.0 else 'stable'}), across speeds without a static "
+                     "equilibrium: that crossing is not located")
+        if unlocated is None and not result["crossings"]:
+            unlocated = between
     vals = [vals[k] for k in ok]
     at = None
     if vals[0] >= 0.0:
         status = "unstable_at_lower_bound"
+    elif unlocated is not None:        # stable below, unstable above, speeds without equilibrium between
+        status = "threshold_not_located"
+        result["threshold_between_hz"] = unlocated
     elif not result["crossings"]:
         status = "stable"
     else:

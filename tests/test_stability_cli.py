@@ -214,3 +214,30 @@ def test_already_unstable_at_the_lower_end_still_names_where_it_becomes_stable(c
     assert later_crossings(r) == [down]
     assert f"then stable from {down['speed_hz']:.2f} Hz on" in text
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_instability_beginning_where_no_equilibrium_is_found_is_not_a_threshold(capsys, tmp_path, monkeypatch):
+    """The short-film paper rotor is unstable from 262.14 Hz and stable again from 575.04 Hz. With no
+    static equilibrium between 240 and 300 Hz (here made so), the sign change lies across speeds left
+    out: the threshold is not located there. It was taken as the first crossing found, the one where
+    the system becomes *stable* (575 Hz), with exit 0 (and, without a later crossing, as "stable")."""
+    import orchestrator.stability as st
+    call = st._ShortFilm.__call__
+
+    def gap(self, omega):
+        if 240.0 <= omega / (2 * math.pi) <= 300.0:
+            raise st._failed(self.system.bearings[0], omega, ValueError("made to fail here"))
+        return call(self, omega)
+    monkeypatch.setattr(st._ShortFilm, "__call__", gap)
+    out, png = tmp_path / "r.json", tmp_path / "s.png"
+    code, text, err = _run(capsys, JEFFCOTT_HS, "--film", "short", "--speeds", "100:800", "--json", out, "--plot", png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert code == 1 and "becomes unstable between" in err and "not located" in err
+    r = json.loads(out.read_text())
+    assert r["status"] == "threshold_not_located" and r["threshold_hz"] is None
+    a, b = r["threshold_between_hz"]
+    assert 230.0 < a < 240.0 and 300.0 < b < 310.0
+    (down,) = r["crossings"]
+    assert down["becomes"] == "stable" and down["speed_hz"] == pytest.approx(575.04, abs=0.01)
+    assert f"then stable from {down['speed_hz']:.2f} Hz on" in text
+    assert any("changes sign between" in n for n in r["notes"])

@@ -59,6 +59,9 @@ def draw(result: dict, path: Path | str) -> Path:
         ax1.set_title("no crossing in the range: stable there", fontsize=9)
     elif result.get("status") == "unstable_at_lower_bound":
         ax1.set_title("unstable already at the lower end of the range", fontsize=9)
+    elif result.get("status") == "threshold_not_located":
+        a, b = result["threshold_between_hz"]
+        ax1.set_title(f"unstable from between {a:.4g} and {b:.4g} Hz (no static equilibrium there)", fontsize=9)
     fin = dec[np.isfinite(dec)]
     if fin.size and np.ptp(fin) > 0:      # keep the zero line and the crossing in view
         lo, hi = min(fin.min(), 0.0), max(fin.max(), 0.0)
