@@ -481,6 +481,68 @@ def _notes(system: System, film: str, ring_spin: bool, weight: np.ndarray, extra
     return notes
 
 
+def _search(max_re, ws: np.ndarray, result: dict) -> float | None:
+    """Fill ``result`` (its ``crossings``, ``status``, the threshold's entries, ``notes``) from
+    ``max_re(omega) -> (largest real part, |Im| there)`` at the speeds ``ws`` [rad/s] and between
+    them; return the threshold speed [rad/s], or None without one."""
+    from rotor_fmu.stability import refine_crossing
+    # the whole range on a geometric grid, then Brent on every sign change of the largest real part
+    # between neighbouring speeds (rotor_fmu.stability.refine_crossing, as threshold_speed refines
+    # its bracket: the same number): the first one upwards is the threshold, a later one downwards is
+    # where the system is stable again (a run-up's whirl "vanish" has its linear counterpart there).
+    # A speed without a static equilibrium (a load a film cannot carry there inside its clearance,
+    # e.g. a floating ring's outer film at low speed) is left out, and no crossing is sought across it:
+    # a sign change across such speeds is named (status "threshold_not_located" when it is the first).
+    vals: list[float | None] = []
+    failed: list[tuple[float, StabilityError]] = []
+    for w in ws:
+        try:
+            vals.append(max_re(w)[0])
+        except StabilityError as exc:
+            vals.append(None)
+            failed.append((w, exc))
+    ok = [k for k, v in enumerate(vals) if v is not None]
+    if not ok:
+        raise failed[0][1]
+    if failed:
+        where = ", ".join(f"{w / (2 * math.pi):.4g}" for w, _ in failed[:6]) + (" ..." if len(failed) > 6 else "")
+        result["notes"].append(f"no static equilibrium at {len(failed)} of the {len(ws)} speeds searched ({where} Hz), "
+                               f"left out: {failed[0][1]}".replace("; raise the lower end of --speeds", ""))
+        result["speeds_without_equilibrium_hz"] = [w / (2 * math.pi) for w, _ in failed]
+    unlocated = None          # the first sign change, when it lies across speeds without equilibrium
+    for k0, k1 in zip(ok, ok[1:]):
+        if (vals[k0] < 0.0) == (vals[k1] < 0.0):
+            continue
+        if k1 == k0 + 1:
+            wc, nu = refine_crossing(max_re, ws[k0], ws[k1])
+            result["crossings"].append({"speed_hz": wc / (2 * math.pi), "whirl_hz": nu / (2 * math.pi),
+                                        "becomes": "unstable" if vals[k0] < 0.0 else "stable"})
+            continue
+        between = [ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)]
+        becomes = "unstable" if vals[k0] < 0.0 else "stable"
+        result["notes"].append(f"the largest real part changes sign between {between[0]:.4g} and "
+                               f"{between[1]:.4g} Hz (it becomes {becomes}), across speeds without a static "
+                               "equilibrium: that crossing is not located")
+        if unlocated is None and not result["crossings"]:
+            unlocated = between
+    vals = [vals[k] for k in ok]
+    at = None
+    if vals[0] >= 0.0:
+        status = "unstable_at_lower_bound"
+    elif unlocated is not None:        # stable below, unstable above, speeds without equilibrium between
+        status = "threshold_not_located"
+        result["threshold_between_hz"] = unlocated
+    elif not result["crossings"]:
+        status = "stable"
+    else:
+        first = result["crossings"][0]
+        status, at = "threshold", 2 * math.pi * first["speed_hz"]
+        result.update(threshold_hz=first["speed_hz"], whirl_hz=first["whirl_hz"],
+                      whirl_ratio=first["whirl_hz"] / first["speed_hz"])
+    result["status"] = status
+    return at
+
+
 def later_crossings(result: dict) -> list[dict]:
     """The crossings of a :func:`stability` result other than the threshold: after the first one
     when that is the threshold (status ``"threshold"``), else all of them (already unstable at the
@@ -497,7 +559,7 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     addition to its share of the rotor's weight (``--load``: a gear or belt force, a magnetic pull,
     a horizontal rotor's load with g = 0), in the convention of
     :func:`rotor_fmu.stability.static_bearing_loads` (down is -y)."""
-    from rotor_fmu.stability import max_real_eigenvalue, refine_crossing
+    from rotor_fmu.stability import max_real_eigenvalue
 
     if film not in FILMS:
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
@@ -554,60 +616,7 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         "threshold_hz": None, "whirl_hz": None, "whirl_ratio": None, "crossings": [], "bearings": {},
         "notes": notes,
     }
-    # the whole range on a geometric grid, then Brent on every sign change of the largest real part
-    # between neighbouring speeds (rotor_fmu.stability.refine_crossing, as threshold_speed refines
-    # its bracket: the same number): the first one upwards is the threshold, a later one downwards is
-    # where the system is stable again (a run-up's whirl "vanish" has its linear counterpart there).
-    # A speed without a static equilibrium (a load a film cannot carry there inside its clearance,
-    # e.g. a floating ring's outer film at low speed) is left out, and no crossing is sought across it:
-    # a sign change across such speeds is named (status "threshold_not_located" when it is the first).
-    ws = np.geomspace(w_lo, w_hi, n_scan)
-    vals: list[float | None] = []
-    failed: list[tuple[float, StabilityError]] = []
-    for w in ws:
-        try:
-            vals.append(max_re(w)[0])
-        except StabilityError as exc:
-            vals.append(None)
-            failed.append((w, exc))
-    ok = [k for k, v in enumerate(vals) if v is not None]
-    if not ok:
-        raise failed[0][1]
-    if failed:
-        where = ", ".join(f"{w / (2 * math.pi):.4g}" for w, _ in failed[:6]) + (" ..." if len(failed) > 6 else "")
-        notes.append(f"no static equilibrium at {len(failed)} of the {n_scan} speeds searched ({where} Hz), left out: "
-                     f"{failed[0][1]}".replace("; raise the lower end of --speeds", ""))
-        result["speeds_without_equilibrium_hz"] = [w / (2 * math.pi) for w, _ in failed]
-    unlocated = None          # the first sign change, when it lies across speeds without equilibrium
-    for k0, k1 in zip(ok, ok[1:]):
-        if (vals[k0] < 0.0) == (vals[k1] < 0.0):
-            continue
-        if k1 == k0 + 1:
-            wc, nu = refine_crossing(max_re, ws[k0], ws[k1])
-            result["crossings"].append({"speed_hz": wc / (2 * math.pi), "whirl_hz": nu / (2 * math.pi),
-                                        "becomes": "unstable" if vals[k0] < 0.0 else "stable"})
-            continue
-        between = [ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)]
-        notes.append(f"the largest real part changes sign between {between[0]:.4g} and {between[1]:.4g} Hz (it "
-                     f"becomes {'unstable' if vals[k0] < 0.0 else 'stable'}), across speeds without a static "
-                     "equilibrium: that crossing is not located")
-        if unlocated is None and not result["crossings"]:
-            unlocated = between
-    vals = [vals[k] for k in ok]
-    at = None
-    if vals[0] >= 0.0:
-        status = "unstable_at_lower_bound"
-    elif unlocated is not None:        # stable below, unstable above, speeds without equilibrium between
-        status = "threshold_not_located"
-        result["threshold_between_hz"] = unlocated
-    elif not result["crossings"]:
-        status = "stable"
-    else:
-        first = result["crossings"][0]
-        status, at = "threshold", 2 * math.pi * first["speed_hz"]
-        result.update(threshold_hz=first["speed_hz"], whirl_hz=first["whirl_hz"],
-                      whirl_ratio=first["whirl_hz"] / first["speed_hz"])
-    result["status"] = status
+    at = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result)
     from orchestrator.results.plots.stability import log_decrement
     result["scan"] = [{"speed_hz": w / (2 * math.pi), "max_re_per_s": re, "whirl_hz": im / (2 * math.pi),
                        "log_decrement": log_decrement(re, im)} for w, (re, im) in sorted(seen.items())]
