@@ -35,13 +35,13 @@ supported.
 
 Floating-ring bearings (:func:`rotor_fmu.floating_ring_stability.ring_system_eigen`,
 docs/floating-ring.md): at each speed, each ring's steady operating point under the station's
-static load (its weight share plus any ``loads``, downward only; ring speed from the torque balance of its two films, journal and ring at their
-static equilibria), the half-Sommerfeld coefficients of its inner film (at the wedge speed
-omega + Omega) and outer film, and the ring's translation as two more degrees of freedom per
-station (mass ``m_ring``). The ring spin is held at its steady value, as the classical linear
-analyses do (Tatara 1970; Tanaka & Hori 1972); ``ring_spin=True`` adds
-each ring's spin perturbation as a first-order degree of freedom. Only the half-Sommerfeld films
-(``film="hs"``): the short-bearing closed form has no ring.
+static load (its weight share plus any ``loads``, downward only; ring speed from the torque
+balance of its two films, journal and ring at their static equilibria), the half-Sommerfeld
+coefficients of its inner film (at the wedge speed omega + Omega) and outer film, and the ring's
+translation as two more degrees of freedom per station (mass ``m_ring``). The ring spin is held
+at its steady value, as the classical linear analyses do (Tatara 1970; Tanaka & Hori 1972);
+``ring_spin=True`` adds each ring's spin perturbation as a first-order degree of freedom. Only
+the half-Sommerfeld films (``film="hs"``): the short-bearing closed form has no ring.
 """
 
 from __future__ import annotations
@@ -61,9 +61,9 @@ from orchestrator.scenario.analysis_sampling import ROTOR_MODELS
 FILMS = ("short", "hs")
 RING_MODEL = "FloatingRingBearing"
 SUPPORTED = (f"supported: one of our {' or '.join(ROTOR_MODELS)} FMUs and one of our {BEARING_MODEL} FMUs (or "
-             f"one of our {RING_MODEL} FMUs) at every bearing station i, connected by the station convention of docs/fmus.md (rotor.x_i, y_i, "
-             "vx_i, vy_i -> bearing.x, y, vx, vy; rotor.omega -> bearing.omega; bearing.Fx, Fy -> rotor.Fx_i, "
-             "Fy_i; gain 1, offset 0), and no other FMU")
+             f"one of our {RING_MODEL} FMUs) at every bearing station i, connected by the station convention of "
+             "docs/fmus.md (rotor.x_i, y_i, vx_i, vy_i -> bearing.x, y, vx, vy; rotor.omega -> bearing.omega; "
+             "bearing.Fx, Fy -> rotor.Fx_i, Fy_i; gain 1, offset 0), and no other FMU")
 _STATION_IN = ("x", "y", "vx", "vy")
 
 
@@ -375,10 +375,10 @@ class _RingFilms:
                 "the ring spin held at its steady value (classical; --ring-spin adds its perturbation)")
         self.method = ("finite-length half-Sommerfeld inner and outer films of each floating-ring bearing (their "
                        "parameters and grids), linearized by central differences (bearing_fmu/linearize.py "
-                       "linearization) at the ring's steady operating point under its static load (the rotor's weight share, plus --load; ring "
-                       "speed from the torque balance of its two films, journal and ring at their static "
-                       "equilibria), the ring's translation as two more degrees of freedom per station (mass "
-                       f"m_ring), {held} (rotor_fmu/floating_ring_stability.py)")
+                       "linearization) at the ring's steady operating point under its static load (the rotor's "
+                       "weight share, plus --load; ring speed from the torque balance of its two films, journal "
+                       "and ring at their static equilibria), the ring's translation as two more degrees of "
+                       f"freedom per station (mass m_ring), {held} (rotor_fmu/floating_ring_stability.py)")
 
     def max_re(self, omega: float) -> tuple[float, float]:
         """(largest real part [1/s], |Im| of that eigenvalue [rad/s]) at journal speed omega."""
@@ -432,9 +432,10 @@ def _static_loads(system: System, loads: dict | None) -> tuple[np.ndarray, np.nd
         scale = float(np.hypot(*weight[k]) + np.hypot(*extra[k]))
         if extra[k].any() and np.hypot(*ld) <= 1e-9 * scale:     # the weight cancelled up to rounding
             raise StabilityError(f"--load {b.instance}={extra[k][0]:g},{extra[k][1]:g} cancels the bearing's share of "
-                                 f"the rotor's weight ({weight[k][0] + 0.0:.6g}, {weight[k][1] + 0.0:.6g}) N: it carries "
-                                 "no static load, so there is no equilibrium to linearize at; --load is added to the "
-                                 "weight share (the force the rotor puts on the bearing, down is -y), not its reaction")
+                                 f"the rotor's weight ({weight[k][0] + 0.0:.6g}, {weight[k][1] + 0.0:.6g}) N: it "
+                                 "carries no static load, so there is no equilibrium to linearize at; --load is added "
+                                 "to the weight share (the force the rotor puts on the bearing, down is -y), not its "
+                                 "reaction")
         if not np.hypot(*ld) > 0.0:
             raise StabilityError(f"the bearing '{b.instance}' (station {b.station}) carries no static load (the "
                                  f"rotor's g is {getattr(system.rotor.params, 'g', '?')} and no --load for it): "
