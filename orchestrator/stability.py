@@ -30,8 +30,8 @@ station, connected by the station convention of docs/fmus.md (``rotor.x_i -> bea
 ``vx``, ``vy``, ``rotor.omega -> bearing.omega``, ``bearing.Fx -> rotor.Fx_i``, ``Fy``; gain 1,
 offset 0), or one of our ``FloatingRingBearing`` FMUs at every station, connected the same way.
 Anything else (another FMU, plain and floating-ring bearings on one rotor, ``m_ring_i > 0`` at a
-plain bearing's station, a bearing connected otherwise) is refused with a message naming what is
-supported.
+plain bearing's station, a semi-floating ring, a bearing connected otherwise) is refused with a
+message naming what is supported.
 
 Floating-ring bearings (:func:`rotor_fmu.floating_ring_stability.ring_system_eigen`,
 docs/floating-ring.md): at each speed, each ring's steady operating point under the station's
@@ -465,7 +465,7 @@ def _notes(system: System, film: str, ring_spin: bool, weight: np.ndarray, extra
         if mc:
             notes.append(f"bearing '{b.instance}': its {' and '.join(mc)} film is mass-conserving (cavitation = 1); "
                          "its coefficients here are those of the half-Sommerfeld film")
-        if b.params.floating and not ring_spin:
+        if not ring_spin:                       # every ring floats (a semi-floating one is refused)
             notes.append(f"bearing '{b.instance}': full floating ring, spin held at its steady value in the "
                          "linear model (--ring-spin adds its perturbation)")
     for b in (x for x in system.bearings if x.kind == "journal"):
@@ -578,6 +578,12 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     if ring_spin and not system.rings:
         raise StabilityError("--ring-spin: the scenario has no floating-ring bearings (its stations carry "
                              f"{BEARING_MODEL}s); leave --ring-spin out")
+    fixed = [b.instance for b in system.bearings if b.kind == "floating_ring" and not b.params.floating]
+    if fixed:           # its outer film at rest: bearing_fmu.floating_ring_statics finds no equilibrium at any speed
+        raise StabilityError(f"the ring of '{fixed[0]}' is semi-floating (floating = 0): its outer film does not "
+                             "spin and carries no static load in the quasi-static (half-Sommerfeld) film, so "
+                             "`stability` has no operating point to linearize at, at any speed; it takes floating "
+                             "rings (floating = 1) only")
     weight, extra, total = _static_loads(system, loads)
     if system.rings:
         fn = _RingFilms(system, total, spin=ring_spin)

@@ -107,6 +107,15 @@ def test_ring_spin_without_rings_refused(capsys):
     assert "--ring-spin" in err and "no floating-ring bearings" in err
 
 
+def test_semi_floating_ring_refused(capsys):
+    # the outer film of a ring that does not spin carries no static load (singular stiffness at rest):
+    # every speed failed, and the message advised raising the lower end of --speeds, which cannot help
+    code, text, err = _run(capsys, TC_RING, "--speeds", "40:45", "--set", "fmus.bearing1.parameters.floating=0")
+    assert code == 1
+    assert "'bearing1' is semi-floating (floating = 0)" in err and "at any speed" in err
+    assert "raise the lower end" not in err
+
+
 def test_mixed_bearings_refused(capsys, tmp_path):
     """A floating ring at station 1 and a plain journal bearing at station 2: refused, naming both."""
     import yaml
