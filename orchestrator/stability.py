@@ -391,7 +391,7 @@ class _RingFilms:
         except (StepFailed, ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
             raise StabilityError(f"no steady operating point of the floating-ring bearings at "
                                  f"{omega / (2 * math.pi):.4g} Hz ({exc}); at low speed a ring's outer film may "
-                                 "not carry its load: raise the lower end of --speeds") from None
+                                 "not carry its load; raise the lower end of --speeds") from None
         if not np.all(np.isfinite(lam)):
             raise StabilityError(f"the floating-ring system's eigenvalues at {omega / (2 * math.pi):.4g} Hz are "
                                  "not finite (a film at the edge of its clearance); raise the lower end of --speeds")
