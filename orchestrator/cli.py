@@ -510,8 +510,9 @@ def _add_stability(sub) -> None:
         "film coefficients of its JournalBearings (or FloatingRingBearings, with the rings' degrees of freedom), "
         "at their static equilibrium under gravity (plus any --load), has an eigenvalue "
         "in the right half plane; the whirl frequency ratio of that mode and each bearing's eccentricity there "
-        "(docs/analysis.md, \"Linear stability threshold\"). Exit status 1 when nothing crosses in the speed "
-        "range."))
+        "(docs/analysis.md, \"Linear stability threshold\"). Exit status 1 when no threshold is located in the "
+        "speed range (stable throughout, already unstable at its lower end, or unstable from between speeds "
+        "without a static equilibrium)."))
     p.add_argument("file", metavar="FILE", help="scenario YAML file, or the name of a shipped scenario")
     _add_set(p)
     p.add_argument("--film", choices=("short", "hs"), default="hs",
@@ -564,8 +565,8 @@ def _bearing_load(text: str) -> tuple[str, float, float]:
     except ValueError:
         fx = fy = math.nan
     if not sep or not name.strip() or not (math.isfinite(fx) and math.isfinite(fy)):
-        raise argparse.ArgumentTypeError(f"expected BEARING=FX,FY with the bearing instance and two finite forces in N, "
-                                         f"e.g. bearing1=0,-150 (got {text!r})")
+        raise argparse.ArgumentTypeError("expected BEARING=FX,FY with the bearing instance and two finite forces in "
+                                         f"N, e.g. bearing1=0,-150 (got {text!r})")
     return name.strip(), fx, fy
 
 
@@ -594,8 +595,8 @@ def _cmd_stability(args) -> int:
         print(f"whirl frequency: {r['whirl_hz']:.2f} Hz, whirl frequency ratio {r['whirl_ratio']:.3f}")
         for name, b in r["bearings"].items():
             ring = ("" if b["kind"] != "floating_ring" else
-                    f", outer film {b['eps_outer_at_threshold']:.3f}, ring speed {b['ring_speed_ratio_at_threshold']:.3f}"
-                    " x journal speed")
+                    f", outer film {b['eps_outer_at_threshold']:.3f}, ring speed "
+                    f"{b['ring_speed_ratio_at_threshold']:.3f} x journal speed")
             print(f"  {name} (station {b['station']}): static eccentricity ratio {b['eps_at_threshold']:.3f} at the "
                   f"threshold{ring}, load {b['load_n']:.4g} N")
     from orchestrator.stability import later_crossings
