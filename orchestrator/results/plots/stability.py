@@ -72,7 +72,8 @@ def draw(result: dict, path: Path | str) -> Path:
     for ax in (ax1, ax2):
         ax.grid(True, lw=0.4, alpha=0.6)
         ax.legend(fontsize=8, loc="best")
-    film = {"hs": "half-Sommerfeld films", "short": "short-bearing closed form"}.get(result.get("film"), result.get("film"))
+    film = {"hs": "half-Sommerfeld films", "short": "short-bearing closed form"}.get(result.get("film"),
+                                                                                    result.get("film"))
     fig.suptitle(f"{result.get('scenario')}: linear stability ({film})", fontsize=10)
     return save_figure(fig, path, dpi=DPI)
 
