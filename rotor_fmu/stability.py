@@ -246,8 +246,9 @@ def first_crossing(max_re, ws):
     (None, None): ``max_re`` at each speed in turn, then :func:`refine_crossing` on the first
     bracket; (ws[0], |Im|) when already >= 0 there."""
     prev_w = ws[0]
-    if max_re(prev_w)[0] >= 0:
-        return float(prev_w), max_re(prev_w)[1]
+    re0, im0 = max_re(prev_w)
+    if re0 >= 0:
+        return float(prev_w), im0
     for w in ws[1:]:
         if max_re(w)[0] >= 0:
             return refine_crossing(max_re, prev_w, w)
