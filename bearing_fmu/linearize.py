@@ -327,8 +327,8 @@ def hs_static_equilibrium(b, F_target, omega, *, guess=None, contact=None, ftol=
     direction of the load (-F_target) turned 45 deg in the direction of rotation (roughly where
     the journal of a plain bearing sits: down and to +x for a downward load and omega > 0).
 
-    Raises :class:`ValueError` for a zero or non-finite ``F_target``, ``max_ecc`` outside (0, 1) or
-    a guess outside ``max_ecc`` c, and :class:`HSEquilibriumError` naming the eccentricity (and,
+    Raises :class:`ValueError` for a zero or non-finite ``F_target``, ``max_ecc`` outside (0, 1),
+    ``max_iter`` below 1 or a guess outside ``max_ecc`` c, and :class:`HSEquilibriumError` naming the eccentricity (and,
     after ``max_iter`` steps, the last residual) when the stiffness is singular (e.g. omega = 0), a
     force is not finite, 40 halvings leave a step outside ``max_ecc`` c, or ``max_iter`` Newton
     steps do not converge (e.g. a load the film cannot carry inside ``max_ecc`` c)."""
@@ -339,6 +339,8 @@ def hs_static_equilibrium(b, F_target, omega, *, guess=None, contact=None, ftol=
         raise ValueError(f"hs_static_equilibrium: F_target must be a finite nonzero force (got {target.tolist()} N)")
     if not 0.0 < max_ecc < 1.0:
         raise ValueError(f"hs_static_equilibrium: max_ecc must lie in (0, 1) (got {max_ecc})")
+    if not max_iter >= 1:
+        raise ValueError(f"hs_static_equilibrium: max_iter must be at least 1 (got {max_iter})")
     if guess is None:
         a = math.atan2(-target[1], -target[0]) + math.copysign(math.pi / 4, omega)
         q = 0.5 * c * np.array([math.cos(a), math.sin(a)])

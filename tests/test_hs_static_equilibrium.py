@@ -64,6 +64,8 @@ def test_clear_errors():
     b = bearing()
     with pytest.raises(ValueError, match="nonzero"):
         hs_static_equilibrium(b, (0.0, 0.0), OMEGA)
+    with pytest.raises(ValueError, match="max_iter must be at least 1"):      # was an UnboundLocalError
+        hs_static_equilibrium(b, (0.0, LOAD), OMEGA, max_iter=0)
     with pytest.raises(ValueError, match="outside"):
         hs_static_equilibrium(b, (0.0, LOAD), OMEGA, guess=(0.0, -C))
     with pytest.raises(HSEquilibriumError, match="singular"):      # a film at rest carries nothing
