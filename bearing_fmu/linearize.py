@@ -58,7 +58,8 @@ from .film import assemble, assemble_muscl, hs_force_pressure, integrals, stenci
 from .grid import _gap
 from .hs import _tangent_modes
 
-__all__ = ["linearization", "hs_force", "film_force_at", "hs_static_equilibrium", "HSEquilibriumError"]
+__all__ = ["linearization", "hs_force", "film_force_at", "hs_static_equilibrium", "HSEquilibriumError",
+           "mc_impedance", "MCFilmLinear"]
 
 
 def _kin(b, x, y, vx, vy, omega, grid=None):
@@ -497,3 +498,195 @@ def linearization(b, *, method="quasi-static", rel_step=1e-5, t_ref=1e-3, horizo
         Kc, Cc = contact_coefficients(*b._inputs, **b.contact_kw)
         K, C = K + Kc, C + Cc
     return K, C
+
+
+# --------------------------------------------------------------------------- film impedance
+def _stencil_sparse(jst, n_phi):
+    """The stencil Jacobian ``jst`` (5 or 7 columns, the neighbours of
+    :func:`.film.stencil_to_band`) as a scipy CSR matrix in the film's flat cell order."""
+    import scipy.sparse as sp
+    n = jst.shape[0]
+    n_z = n // n_phi
+    g = np.arange(n)
+    i, j = g % n_phi, g // n_phi
+    row = j * n_phi
+    cols = [g, row + (i + 1) % n_phi, row + (i - 1) % n_phi,
+            np.where(j + 1 < n_z, g + n_phi, -1), np.where(j > 0, g - n_phi, -1)]
+    if jst.shape[1] > 5:
+        cols += [row + (i + 2) % n_phi, row + (i - 2) % n_phi]
+    R, C, V = [], [], []
+    for k, c in enumerate(cols):
+        m = (c >= 0) & (jst[:, k] != 0.0)
+        R.append(g[m])
+        C.append(c[m])
+        V.append(jst[m, k])
+    return sp.csr_matrix((np.concatenate(V), (np.concatenate(R), np.concatenate(C))), shape=(n, n))
+
+
+class MCFilmLinear:
+    """The linearised semi-discrete mass-conserving film about its steady state, and its
+    impedance (see :func:`mc_impedance` for the derivation).
+
+    Built from a :class:`bearing_fmu.model.BearingModel` ``b`` (``cavitation = 1``) whose film
+    is at (or near: ``polish`` Newton steps on the steady residual are taken, on a copy) the
+    steady state of its current kinematics ``b._inputs`` (journal at rest: vx = vy = 0;
+    ``solve_stationary`` / ``initialize(..., init="stationary")``). The model is not changed.
+
+    Attributes (n film unknowns, the solver grid's cells, flat order): ``Js`` (n, n) CSC, the
+    exact stencil Jacobian of the steady residual; ``Mdiag`` (n,), the time-derivative (mass)
+    part, ``dR/d(du/dt)`` = cell area x 2 H dtheta/du (0 in groove cells); ``Rq``, ``Rv``
+    (n, 2) ``dR/d(x, y)``, ``dR/d(vx, vy)`` (central differences; R is linear in v); ``Fu``
+    (2, n) ``dF/du`` exactly (F = -int (p(u) - p0) (cos, sin) dA); ``Fq``, ``Fv`` (2, 2) the
+    force's explicit kinematic dependence (0 for this film: F depends on p only);
+    ``u`` the (polished) steady field, ``F0`` its force [N], ``polish_step`` the largest
+    Newton increment of the last polishing step (small: the film was steady).
+    """
+
+    def __init__(self, b, *, rel_step=1e-5, polish=2):
+        import scipy.sparse.linalg as spla
+        if b.film is None:
+            raise ValueError("MCFilmLinear: the bearing has no mass-conserving film (cavitation = 0)")
+        b._check_init("mc_impedance")
+        film = b.film
+        x, y, vx, vy, omega = b._inputs
+        g = b.grid
+        prm = b.params
+        n = film.n
+        self.b = b
+        u = film.u.copy()
+        asm = assemble_muscl if prm.theta_transport == 1 else assemble
+        bufs = [np.empty(n) for _ in range(4)]          # p, dp/du, theta, dtheta/du
+        r = np.empty(n)
+        jst = np.zeros((n, 7 if prm.theta_transport == 1 else 5))
+        zero = np.zeros(n)
+
+        def res(u, kin, th_dot0=0.0, th_dot1=zero, want_jac=False):
+            H, He, Hdot, om = kin
+            asm(u, th_dot0, th_dot1, H, He, Hdot, g.groove, b.u_feed, om,
+                b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, b.law.p_cav, b.law.K,
+                b.law.delta, prm.penalty_a, prm.penalty_b, prm.penalty_smoothing,
+                r, want_jac, jst, *bufs, b.sym, g.wrel, g.frel)
+            return r.copy()
+
+        kin0 = _kin(b, x, y, vx, vy, omega)
+        self.polish_step = 0.0
+        for _ in range(polish):
+            r0 = res(u, kin0, want_jac=True)
+            du = spla.splu(_stencil_sparse(jst, g.n_phi).tocsc()).solve(-r0)
+            u = u + du
+            self.polish_step = float(np.abs(du).max())
+        self.r0 = res(u, kin0, want_jac=True)
+        self.Js = _stencil_sparse(jst, g.n_phi).tocsc()
+        dp = bufs[1].copy()
+        d0 = jst[:, 0].copy()
+        # the time term A 2 H (th_dot0 theta + th_dot1) is the only one with th_dot0: its
+        # Jacobian is th_dot0 M + J_s, M diagonal; M = J(th_dot0 = 1) - J(th_dot0 = 0)
+        res(u, kin0, 1.0, -bufs[2].copy(), want_jac=True)
+        self.Mdiag = jst[:, 0] - d0
+        self.u = u
+        c = b.c
+        Rq, Rv = np.empty((n, 2)), np.empty((n, 2))
+        Fq, Fv = np.empty((2, 2)), np.empty((2, 2))
+        p_u, th_u = b.law.p_theta(u)
+        z0 = np.array([x, y, vx, vy], float)
+        steps = [rel_step * c] * 2 + [rel_step * max(c * abs(omega), 1e-12)] * 2
+        for k in range(4):
+            zp, zm = z0.copy(), z0.copy()
+            zp[k] += steps[k]
+            zm[k] -= steps[k]
+            kp, km = _kin(b, *zp, omega), _kin(b, *zm, omega)
+            dR = (res(u, kp) - res(u, km)) / (2 * steps[k])
+            dF = (_force(b, p_u, th_u, kp) - _force(b, p_u, th_u, km)) / (2 * steps[k])
+            if k < 2:
+                Rq[:, k], Fq[:, k] = dR, dF
+            else:
+                Rv[:, k - 2], Fv[:, k - 2] = dR, dF
+        self.Rq, self.Rv, self.Fq, self.Fv = Rq, Rv, Fq, Fv
+        i = np.arange(n) % g.n_phi
+        w = np.ones(g.n_phi) if g.wrel is None else g.wrel
+        area = prm.R * g.dphi * prm.B * g.dz * (2.0 if b.sym else 1.0)
+        self.Fu = -area * np.vstack([np.cos(g.phi)[i] * w[i] * dp, np.sin(g.phi)[i] * w[i] * dp])
+        self.F0 = _force(b, p_u, th_u, kin0)
+        self.omega = omega
+        self._contact = (contact_coefficients(x, y, vx, vy, omega, **b.contact_kw)
+                         if prm.contact else None)
+
+    def impedance(self, s):
+        """Z(s) (2, 2) complex [N/m] at complex s [1/s] (:func:`mc_impedance`)."""
+        import scipy.sparse as sp
+        import scipy.sparse.linalg as spla
+        s = complex(s)
+        A = (self.Js + s * sp.diags(self.Mdiag)).tocsc().astype(complex)
+        X = spla.splu(A).solve((self.Rq + s * self.Rv).astype(complex))
+        Z = -(self.Fq + s * self.Fv) + self.Fu @ X
+        if self._contact is not None:
+            Z = Z + self._contact[0] + s * self._contact[1]
+        return Z
+
+    def quasi_steady(self):
+        """(K, C) of the quasi-steady film: ``-dF/dq``, ``-dF/dv`` of steady solves (theta
+        storage ignored, M = 0); K = Z(0)."""
+        import scipy.sparse.linalg as spla
+        lu = spla.splu(self.Js)
+        K, C = -self.Fq + self.Fu @ lu.solve(self.Rq), -self.Fv + self.Fu @ lu.solve(self.Rv)
+        if self._contact is not None:
+            K, C = K + self._contact[0], C + self._contact[1]
+        return K, C
+
+    def slope0(self):
+        """dZ/ds at s = 0: ``-F_v + F_u J_s^-1 (R_v - M J_s^-1 R_q)``, the quasi-steady damping
+        plus the theta-storage term ``-F_u J_s^-1 M J_s^-1 R_q``."""
+        import scipy.sparse.linalg as spla
+        lu = spla.splu(self.Js)
+        X1 = lu.solve(self.Rv - self.Mdiag[:, None] * lu.solve(self.Rq))
+        D = -self.Fv + self.Fu @ X1
+        return D + self._contact[1] if self._contact is not None else D
+
+    def poles(self):
+        """The film's own modes with the journal held: the finite generalised eigenvalues s of
+        ``(s M + J_s) v = 0`` (dense; largest real part first)."""
+        import scipy.linalg as sl
+        lam = sl.eigvals(-self.Js.toarray(), np.diag(self.Mdiag))
+        lam = lam[np.isfinite(lam)]
+        return lam[np.argsort(-lam.real)]
+
+
+def mc_impedance(b, s, *, rel_step=1e-5):
+    """Film impedance Z(s) (2, 2) complex [N/m] of the mass-conserving film of ``b`` (a
+    :class:`bearing_fmu.model.BearingModel` at the steady state of its current kinematics,
+    journal at rest) at the complex frequency ``s`` [1/s], or (m, 2, 2) for a sequence.
+    Sign convention of K: ``dF(s) = -Z(s) dq(s)`` (dq the journal displacement, dF the film
+    force on the journal), so ``Z(0)`` is the stiffness and, for a film without dynamics,
+    ``Z(s) = K + s C``.
+
+    Derivation. The film (paper eq. 4 with the density and viscosity of eq. 3, axial
+    boundary conditions eq. 5 or 6; finite volumes, bearing_fmu/film.py) is, semi-discretely,
+    ``R(u, du/dt; q, v) = 0`` with one time derivative only, that of the fluid fraction:
+    per cell ``A (2 H dtheta(u)/dt + 2 Hdot theta(u)) + (fluxes) = 0``, H = H(q), Hdot = Hdot(v)
+    (the kinematics enter eq. 4 as inputs). The implicit BDF steps of the solver replace
+    ``dtheta/dt`` by ``th_dot0 theta(u) + th_dot1``, so their Newton matrix is
+    ``th_dot0 M + J_s``: ``M = diag(A 2 H dtheta/du)`` (0 in the groove and, to the
+    smoothing, in the full film) and ``J_s`` the Jacobian of the steady residual (``th_dot0 =
+    0``). About a steady state u0 at q0 (v = 0) the linearised film is
+
+        M du/dt + J_s du + R_q dq + R_v dq' = 0,       dF = F_u du + F_q dq + F_v dq'
+
+    and, Laplace transformed, ``du = -(s M + J_s)^-1 (R_q + s R_v) dq``, so
+
+        Z(s) = -(F_q + s F_v) + F_u (s M + J_s)^-1 (R_q + s R_v).
+
+    ``Z(0)`` is the quasi-steady stiffness (central differences of steady solves);
+    ``dZ/ds(0) = C_qs - F_u J_s^-1 M J_s^-1 R_q``: the quasi-steady damping C_qs plus the
+    storage of fluid in the cavity (the theta dynamics), which is not small for these films
+    (docs/analysis.md, "Linear threshold of the mass-conserving film"). The poles of Z are the
+    film's own modes (:meth:`MCFilmLinear.poles`). Each value is a sparse complex LU of
+    ``s M + J_s`` with two right-hand sides (R_q + s R_v). The rotor's characteristic
+    equation with this film is ``det(s^2 M_r + s C_r + K_r + sum_j P_j^T Z_j(s) P_j) = 0``;
+    its roots are the finite eigenvalues of the descriptor system of rotor and films
+    (docs/scripts/mc_linear_stability.py). With ``contact = 1`` the asperity contact's
+    ``K_c + s C_c`` is added. For many values at one state build :class:`MCFilmLinear` once
+    and call its ``impedance``."""
+    lin = MCFilmLinear(b, rel_step=rel_step)
+    if np.ndim(s) == 0:
+        return lin.impedance(s)
+    return np.array([lin.impedance(v) for v in np.ravel(s)])
