@@ -1,15 +1,19 @@
 """Linear threshold of the mass-conserving film with its theta dynamics (film impedance),
 docs/analysis.md "Linear threshold of the mass-conserving film (film impedance)".
 
-    S=scenarios/jeffcott_runup_oil_bath.yaml
+    S=scenarios/jeffcott_runup_oil_bath.yaml A=scenarios/jeffcott_runup_free_to_air.yaml
     PY=".venv/bin/python docs/scripts/mc_linear_stability.py"
-    $PY checks $S 200                 # checks (a), (b), the film's own poles, at 200 Hz
-    $PY timedomain $S 200 1e-3 200    # check (c): delta = 1e-3 c, 200 steps per period
-    $PY timedomain $S 200 1e-4 400
-    $PY threshold $S 100:300:25       # the threshold (scan, then Brent)
-    $PY threshold scenarios/jeffcott_runup_free_to_air.yaml 150:500:25
-    $PY threshold scenarios/jeffcott_runup_free_to_air.yaml 150:500:25 \
-        fmus.bearing1.parameters.theta_transport=1 fmus.bearing2.parameters.theta_transport=1
+    T1="fmus.bearing1.parameters.theta_transport=1 fmus.bearing2.parameters.theta_transport=1"
+    G80="fmus.bearing1.parameters.n_phi=80 fmus.bearing1.parameters.n_z=80 \
+         fmus.bearing2.parameters.n_phi=80 fmus.bearing2.parameters.n_z=80"
+    $PY checks $S 200; $PY checks $A 300         # checks (a), (b), the film's own poles
+    $PY timedomain $S 200 1e-3 200               # check (c): delta = 1e-3 c, 200 steps per period
+    $PY timedomain $S 200 1e-4 400               # (and $A 300 with both)
+    $PY threshold $S 100:300:25                  # 182.45 Hz (scan, then Brent)
+    $PY threshold $A 150:500:25                  # 234.12 Hz
+    $PY threshold $A 150:500:25 $T1              # 232.91 Hz
+    $PY track $S 160 200 -10 520 $G80            # 80 x 80, sparse: 178.17 Hz
+    $PY track $A 210 260 -15 680 $G80            # 233.60 Hz
 
 Each bearing station: the static equilibrium q0 of its journal under the rotor's gravity load
 with the steady mass-conserving film (Newton on q with K = Z(0)), the linearised film there
@@ -174,6 +178,40 @@ class System:
         return lam[np.argsort(-lam.real)]
 
 
+    def descriptor_near(self, sigma, k=8):
+        """The k eigenvalues of the same descriptor system nearest ``sigma`` (sparse
+        shift-invert Arnoldi; for grids where the dense problem is too large)."""
+        import scipy.sparse as sp
+        import scipy.sparse.linalg as spla
+        M, C, K = self.M, self.C, self.K
+        n = M.shape[0]
+        I = sp.identity(n)
+        rows_A = [[None, I], [sp.csr_matrix(-K), sp.csr_matrix(-C)]]
+        rows_E = [[I, None], [None, sp.csr_matrix(M)]]
+        nf = len(self.st)
+        top_A = [[rows_A[0][0], rows_A[0][1]] + [None] * nf, [rows_A[1][0], rows_A[1][1]] + [None] * nf]
+        top_E = [[rows_E[0][0], None] + [None] * nf, [None, rows_E[1][1]] + [None] * nf]
+        film_A, film_E = [], []
+        for j, (st, (ix, iy)) in enumerate(zip(self.st, self.rotor.bearing_dofs)):
+            L, P = st.lin, self._P(ix, iy)
+            top_A[1][2 + j] = sp.csr_matrix(P.T @ L.Fu)
+            top_A[1][0] = top_A[1][0] + sp.csr_matrix(P.T @ L.Fq @ P)
+            top_A[1][1] = top_A[1][1] + sp.csr_matrix(P.T @ L.Fv @ P)
+            ra = [sp.csr_matrix(-L.Rq @ P), sp.csr_matrix(-L.Rv @ P)] + [None] * nf
+            ra[2 + j] = -L.Js
+            re = [None, None] + [None] * nf
+            re[2 + j] = sp.diags(L.Mdiag)
+            film_A.append(ra)
+            film_E.append(re)
+        A = sp.bmat(top_A + film_A, format="csc")
+        E = sp.bmat(top_E + film_E, format="csc")
+        lu = spla.splu((A - sigma * E).astype(complex).tocsc())
+        op = spla.LinearOperator(A.shape, matvec=lambda x: lu.solve((E @ x).astype(complex)), dtype=complex)
+        mu = spla.eigs(op, k=k, which="LM", return_eigenvectors=False)
+        lam = sigma + 1.0 / mu
+        return lam[np.argsort(-lam.real)]
+
+
 def threshold(scenario, rng, sets):
     lo, hi, step = (float(a) for a in rng.split(":"))
     S = System(scenario, sets)
@@ -211,6 +249,33 @@ def threshold(scenario, rng, sets):
             return
         prev = f
     print(f"stable up to {hi} Hz")
+
+
+def track(scenario, f_lo, f_hi, sigma, sets):
+    """Threshold in [f_lo, f_hi] (stable at f_lo, unstable at f_hi) with the sparse eigenvalues
+    nearest the last root (start: ``sigma`` at f_lo, e.g. the 40 x 40 root); for fine grids."""
+    S = System(scenario, sets)
+    last = {"s": sigma, "f": f_lo}
+
+    def top(f):
+        w = 2 * math.pi * f
+        S.setup(w)
+        sg = complex(last["s"].real, last["s"].imag * f / last["f"])
+        lam = S.descriptor_near(sg)
+        lam = lam[lam.imag > 0]
+        s = lam[0]
+        last["s"], last["f"] = s, f
+        eps = float(np.hypot(*S.st[0].q) / S.st[0].b.c)
+        print(f"  {f:8.3f} Hz  eps {eps:.4f}  max Re near {sg:.1f}: {s.real:+9.3f} 1/s, whirl {s.imag / w:.4f}; "
+              f"next {lam[1]:.1f}", flush=True)
+        return s.real
+
+    if top(f_lo) >= 0 or top(f_hi) < 0:
+        print("no bracket")
+        return
+    ft = brentq(top, f_lo, f_hi, xtol=0.01)
+    s = last["s"]
+    print(f"THRESHOLD {ft:.2f} Hz, whirl ratio {s.imag / (2 * math.pi * ft):.4f}")
 
 
 def checks(scenario, f):
@@ -314,6 +379,9 @@ if __name__ == "__main__":
     cmd, scen = sys.argv[1], sys.argv[2]
     if cmd == "threshold":
         threshold(scen, sys.argv[3], sys.argv[4:])
+    elif cmd == "track":      # track SCEN F_LO F_HI SIGMA_RE SIGMA_IM [sets]: sparse, near the last root
+        track(scen, float(sys.argv[3]), float(sys.argv[4]), complex(float(sys.argv[5]), float(sys.argv[6])),
+              sys.argv[7:])
     elif cmd == "checks":
         checks(scen, float(sys.argv[3]))
     elif cmd == "timedomain":
