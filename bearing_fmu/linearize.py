@@ -43,6 +43,12 @@ be accurate enough to stabilize, the converged answer does not depend on them.
   ``h`` only (the held history). Before the first film step (no BDF history yet) the
   half-Sommerfeld coefficients at the same kinematics are returned (documented
   approximation; they have the right squeeze-damping magnitude).
+
+* Mass-conserving film about its STEADY state, with its theta dynamics (for linear stability,
+  not for the coupling): :func:`mc_impedance` / :class:`MCFilmLinear`, the frequency-dependent
+  impedance ``Z(s) = -(F_q + s F_v) + F_u (s M + J_s)^-1 (R_q + s R_v)`` of the semi-discrete
+  film ``M du/dt + J_s du + R_q dq + R_v dq' = 0`` (docs/analysis.md, "Linear threshold of the
+  mass-conserving film (film impedance)").
 """
 
 from __future__ import annotations
