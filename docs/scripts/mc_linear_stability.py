@@ -14,6 +14,9 @@ docs/analysis.md "Linear threshold of the mass-conserving film (film impedance)"
     $PY threshold $A 150:500:25 $T1              # 232.91 Hz
     $PY track $S 160 200 -10 520 $G80            # 80 x 80, sparse: 178.17 Hz
     $PY track $A 210 260 -15 680 $G80            # 233.60 Hz
+    T0="fmus.bearing1.parameters.theta_transport=0 fmus.bearing2.parameters.theta_transport=0"
+    $PY track $S 160 200 -10 520 $T0             # oil bath, first-order transport: 185.68 Hz
+    $PY track $S 160 200 -10 520 $T0 $G80        # 181.08 Hz
 
 Each bearing station: the static equilibrium q0 of its journal under the rotor's gravity load
 with the steady mass-conserving film (Newton on q with K = Z(0)), the linearised film there
