@@ -13,6 +13,7 @@ docs/analysis.md "Linear threshold of the mass-conserving film (film impedance)"
     $PY threshold $A 150:500:25                  # 234.12 Hz
     $PY threshold $A 150:500:25 $T1              # 232.91 Hz
     $PY track $S 160 200 -10 520 $G80            # 80 x 80, sparse: 178.17 Hz
+    $PY track $S 165 190 -5 520 $G160            # 160 x 160 (G160 as G80 with 160): 176.27 Hz
     $PY track $A 210 260 -15 680 $G80            # 233.60 Hz
     T0="fmus.bearing1.parameters.theta_transport=0 fmus.bearing2.parameters.theta_transport=0"
     $PY track $S 160 200 -10 520 $T0             # oil bath, first-order transport: 185.68 Hz
