@@ -105,7 +105,7 @@ class System:
         self.rotor = self.system.rotor
         self.loads = static_bearing_loads(self.rotor)
         self.st = [Station(b.params, ld) for b, ld in zip(self.system.bearings, self.loads)]
-        self.hs = _HSFilm(self.system)
+        self.hs = _HSFilm(self.system, self.loads)
 
     def setup(self, omega):
         for s in self.st:
@@ -380,6 +380,8 @@ def timedomain(scenario, f, rel_delta, n_per, theta_atol=1e-5):
 
 
 if __name__ == "__main__":
+    if len(sys.argv) < 3:
+        raise SystemExit(__doc__)
     cmd, scen = sys.argv[1], sys.argv[2]
     if cmd == "threshold":
         threshold(scen, sys.argv[3], sys.argv[4:])
