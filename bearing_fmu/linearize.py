@@ -428,22 +428,13 @@ def mc_linearization(b, *, rel_step=1e-5, t_ref=1e-3, horizon=None):
         return hs_linearization(b, x, y, vx, vy, omega, rel_step=rel_step, t_ref=t_ref)
     th_dot0, th_dot1 = bdf
     g = b.grid
-    prm = b.params
     n = film.n
     u = film.u.copy()
-    bufs = [np.empty(n) for _ in range(4)]
-    r = np.empty(n)
-    muscl = prm.theta_transport == 1
-    jst = np.zeros((n, 7 if muscl else 5))
-    asm = assemble_muscl if muscl else assemble
+    residual = _Residual(b)
+    jst = residual.jst
 
     def res(kin, want_jac=False):
-        H, He, Hdot, om = kin
-        asm(u, th_dot0, th_dot1, H, He, Hdot, g.groove, b.u_feed, om,
-            b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, b.law.p_cav, b.law.K,
-            b.law.delta, prm.penalty_a, prm.penalty_b, prm.penalty_smoothing,
-            r, want_jac, jst, *bufs, b.sym, g.wrel, g.frel)
-        return r.copy()
+        return residual(u, kin, th_dot0, th_dot1, want_jac)
 
     kin0 = _kin(b, x, y, vx, vy, omega)
     res(kin0, want_jac=True)
@@ -529,6 +520,31 @@ def _stencil_sparse(jst, n_phi):
     return sp.csr_matrix((np.concatenate(V), (np.concatenate(R), np.concatenate(C))), shape=(n, n))
 
 
+class _Residual:
+    """The film's residual at ``u`` and kinematics ``kin`` with the BDF time term ``th_dot0 theta(u) +
+    th_dot1`` (0, 0: the steady residual), through the solver's own assembly (``film.assemble`` or
+    ``assemble_muscl``); with ``want_jac`` the stencil Jacobian is left in ``jst``. ``bufs`` hold p,
+    dp/du, theta and dtheta/du of the last call. One object per film, reused for every call."""
+
+    def __init__(self, b):
+        n, prm = b.film.n, b.params
+        self.b = b
+        self.asm = assemble_muscl if prm.theta_transport == 1 else assemble
+        self.bufs = [np.empty(n) for _ in range(4)]
+        self.r = np.empty(n)
+        self.jst = np.zeros((n, 7 if prm.theta_transport == 1 else 5))
+        self.zero = np.zeros(n)
+
+    def __call__(self, u, kin, th_dot0=0.0, th_dot1=None, want_jac=False):
+        b, g, prm = self.b, self.b.grid, self.b.params
+        H, He, Hdot, om = kin
+        self.asm(u, th_dot0, self.zero if th_dot1 is None else th_dot1, H, He, Hdot, g.groove, b.u_feed, om,
+                 b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, b.law.p_cav, b.law.K,
+                 b.law.delta, prm.penalty_a, prm.penalty_b, prm.penalty_smoothing,
+                 self.r, want_jac, self.jst, *self.bufs, b.sym, g.wrel, g.frel)
+        return self.r.copy()
+
+
 class MCFilmLinear:
     """The linearised semi-discrete mass-conserving film about its steady state, and its
     impedance (see :func:`mc_impedance` for the derivation).
@@ -560,19 +576,8 @@ class MCFilmLinear:
         n = film.n
         self.b = b
         u = film.u.copy()
-        asm = assemble_muscl if prm.theta_transport == 1 else assemble
-        bufs = [np.empty(n) for _ in range(4)]          # p, dp/du, theta, dtheta/du
-        r = np.empty(n)
-        jst = np.zeros((n, 7 if prm.theta_transport == 1 else 5))
-        zero = np.zeros(n)
-
-        def res(u, kin, th_dot0=0.0, th_dot1=zero, want_jac=False):
-            H, He, Hdot, om = kin
-            asm(u, th_dot0, th_dot1, H, He, Hdot, g.groove, b.u_feed, om,
-                b.a_phi, b.a_z, g.dphi, g.dz, b.bath, b.p0, b.law.p_cav, b.law.K,
-                b.law.delta, prm.penalty_a, prm.penalty_b, prm.penalty_smoothing,
-                r, want_jac, jst, *bufs, b.sym, g.wrel, g.frel)
-            return r.copy()
+        res = _Residual(b)
+        jst, bufs = res.jst, res.bufs          # bufs: p, dp/du, theta, dtheta/du of the last call
 
         kin0 = _kin(b, x, y, vx, vy, omega)
         self.polish_step = 0.0
