@@ -65,7 +65,7 @@ from .grid import _gap
 from .hs import _tangent_modes
 
 __all__ = ["linearization", "hs_force", "film_force_at", "hs_static_equilibrium", "HSEquilibriumError",
-           "mc_impedance", "MCFilmLinear"]
+           "mc_impedance", "MCFilmLinear", "mc_static_equilibrium"]
 
 
 def _kin(b, x, y, vx, vy, omega, grid=None):
@@ -701,3 +701,68 @@ def mc_impedance(b, s, *, rel_step=1e-5):
     if np.ndim(s) == 0:
         return lin.impedance(s)
     return np.array([lin.impedance(v) for v in np.ravel(s)])
+
+
+def mc_static_equilibrium(b, F_target, omega, *, guess, ftol=1e-9, max_iter=60, max_ecc=0.995):
+    """Journal centre (x, y) [m] at rest where the STEADY mass-conserving film of ``b``
+    (``cavitation = 1``) at journal speed ``omega`` carries ``F_target`` (2,) [N] (``-W`` for a
+    static load W, as :func:`hs_static_equilibrium`), and the :class:`MCFilmLinear` there.
+
+    The steady film (paper eq. 4 with constant kinematics, section 3.1) by Newton on its steady
+    residual from the last one (``BearingModel._steady_newton``, pseudo-transient continuation as
+    fallback, ``BearingModel._steady``); the journal by Newton on q with the stiffness of that
+    film, ``Z(0)`` = :meth:`MCFilmLinear.quasi_steady`, steps halved to stay inside ``max_ecc`` c,
+    converged at ``max |r| <= ftol |F_target|``. ``b`` is left initialised at the equilibrium with
+    its steady film (a warm start for the next speed). Raises :class:`HSEquilibriumError` (no
+    position found) like :func:`hs_static_equilibrium`."""
+    if b.params.cavitation != 1:
+        raise ValueError("mc_static_equilibrium: the bearing's film is not mass-conserving (cavitation = 0)")
+    c = b.c
+    target = np.asarray(F_target, dtype=float).reshape(2)
+    W = float(np.hypot(*target))
+    if not (W > 0.0 and math.isfinite(W)):
+        raise ValueError(f"mc_static_equilibrium: F_target must be a finite nonzero force (got {target.tolist()} N)")
+    q = np.array(guess, dtype=float).reshape(2)
+    u = b.film.u.copy() if b._initialized else None      # warm start: the film b holds
+
+    def steady(q):
+        nonlocal u
+        if u is None:
+            b.initialize(q[0], q[1], 0.0, 0.0, omega, init="stationary")
+            u = b.film.u.copy()
+        kin = b._kinematics(q[0], q[1], 0.0, 0.0, omega)
+        us, _ = b._steady_newton(kin, u, np.zeros_like(u), 40)
+        u = b._steady(kin, u) if us is None else us
+        b.initialize(q[0], q[1], 0.0, 0.0, omega)        # the inputs, then the steady film
+        b.film.init_state(u)
+        b._update_outputs()
+        p, th = b.law.p_theta(u)
+        return np.asarray(_force(b, p, th, b._kin))
+
+    f = np.full(2, np.nan)
+    for _ in range(max_iter):
+        f = steady(q) - target
+        if not np.all(np.isfinite(f)):
+            raise HSEquilibriumError(f"mc_static_equilibrium: non-finite film force at eccentricity "
+                                     f"{math.hypot(*q) / c:.4f}")
+        if np.max(np.abs(f)) <= ftol * W:
+            return q, MCFilmLinear(b)
+        K = MCFilmLinear(b, polish=0).quasi_steady()[0]
+        try:
+            step = np.linalg.solve(K, f)                  # F(q + dq) ~ F(q) - K dq = F_target
+        except np.linalg.LinAlgError:
+            raise HSEquilibriumError(f"mc_static_equilibrium: singular film stiffness at eccentricity "
+                                     f"{math.hypot(*q) / c:.4f}") from None
+        lam = 1.0
+        for _ in range(40):
+            if math.hypot(*(q + lam * step)) < max_ecc * c:
+                break
+            lam *= 0.5
+        else:
+            raise HSEquilibriumError(f"mc_static_equilibrium: no Newton step stays inside {max_ecc} c")
+        q = q + lam * step
+    raise HSEquilibriumError(
+        f"mc_static_equilibrium: no journal position carries {W:.6g} N at omega = {omega:.6g} rad/s in "
+        f"{max_iter} Newton steps (residual {np.max(np.abs(f)) / W:.3g} of the load at eccentricity "
+        f"{math.hypot(*q) / c:.4f})")
+

@@ -58,7 +58,8 @@ from orchestrator.errors import CosimError
 from orchestrator.scenario.analysis_clearance import BEARING_MODEL
 from orchestrator.scenario.analysis_sampling import ROTOR_MODELS
 
-FILMS = ("short", "hs")
+FILMS = ("short", "hs", "mc")
+MC_SCAN = 12            # speeds of the default scan with --film mc (about 20 s each at 40 x 40)
 RING_MODEL = "FloatingRingBearing"
 SUPPORTED = (f"supported: one of our {' or '.join(ROTOR_MODELS)} FMUs and one of our {BEARING_MODEL} FMUs (or "
              f"one of our {RING_MODEL} FMUs) at every bearing station i, connected by the station convention of "
@@ -409,6 +410,67 @@ class _RingFilms:
         return [float(p.outputs["eps"]) for p in self.points(omega)]
 
 
+class _MCFilm:
+    """Each station's own mass-conserving film, linearised about its steady state with its cavity
+    (theta) dynamics: the rotor and the films as one descriptor system
+    (:func:`rotor_fmu.stability.film_system_eigenvalues`, :class:`bearing_fmu.linearize.MCFilmLinear`;
+    docs/analysis.md, "Linear threshold of the mass-conserving film")."""
+
+    method = ("each bearing's own mass-conserving film (its parameters and grid) linearised about its steady "
+              "state with its cavity (theta) dynamics, i.e. its film impedance Z(s) (bearing_fmu/linearize.py "
+              "MCFilmLinear), at the static equilibrium of the steady film under its static load; the finite "
+              "eigenvalues of the rotor and films as one descriptor system (rotor_fmu/stability.py "
+              "film_system_eigenvalues)")
+
+    def __init__(self, system: System, loads: np.ndarray):
+        from bearing_fmu.model import BearingModel
+        plain = [b.instance for b in system.bearings if b.params.cavitation != 1]
+        if plain:
+            raise StabilityError(f"--film mc linearises a mass-conserving film (cavitation = 1), but the bearing "
+                                 f"'{plain[0]}' is half-Sommerfeld (cavitation = 0): use --film hs")
+        self.system, self.loads = system, loads
+        self.models = [BearingModel(b.params) for b in system.bearings]
+        self.q: list = [None] * len(self.models)
+        self._at: tuple[float, list] | None = None
+
+    def _films(self, omega: float) -> list:
+        """Each station's MCFilmLinear at its equilibrium at omega (the last speed's kept)."""
+        from bearing_fmu.linearize import HSEquilibriumError, mc_static_equilibrium
+        from bearing_fmu.model import StepFailed
+        from rotor_fmu.stability import short_bearing_equilibrium
+        if self._at is not None and self._at[0] == omega:
+            return self._at[1]
+        films = []
+        for j, (b, m, ld) in enumerate(zip(self.system.bearings, self.models, self.loads)):
+            guess = self.q[j]
+            if guess is None:           # the short-bearing equilibrium, kept inside 0.8 c
+                try:
+                    eps, psi = short_bearing_equilibrium(ld, omega, **_short(b.params))
+                except (ArithmeticError, ValueError):
+                    eps, psi = 0.5, math.atan2(-ld[1], -ld[0]) + math.pi / 4
+                guess = min(eps, 0.8) * m.c * np.array([math.cos(psi), math.sin(psi)])
+            try:
+                with np.errstate(all="ignore"):
+                    q, lin = mc_static_equilibrium(m, -np.asarray(ld, float), omega, guess=guess)
+            except (HSEquilibriumError, StepFailed, ArithmeticError, ValueError, RuntimeError,
+                    np.linalg.LinAlgError) as exc:
+                raise _failed(b, omega, exc) from None
+            self.q[j] = q
+            films.append(lin)
+        self._at = (omega, films)
+        return films
+
+    def max_re(self, omega: float) -> tuple[float, float]:
+        from rotor_fmu.stability import film_system_eigenvalues
+        lam = film_system_eigenvalues(self.system.rotor, omega, self._films(omega))
+        k = int(np.argmax(lam.real))
+        return float(lam.real[k]), float(abs(lam.imag[k]))
+
+    def eccentricities(self, omega):
+        self._films(omega)
+        return [float(np.hypot(*q) / m.c) for q, m in zip(self.q, self.models)]
+
+
 # --------------------------------------------------------------------------- the command's library call
 def _static_loads(system: System, loads: dict | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(weight share, ``loads`` given, their sum) per station, (n_stations, 2) [N] each, the force
@@ -469,9 +531,10 @@ def _notes(system: System, film: str, ring_spin: bool, weight: np.ndarray, extra
             notes.append(f"bearing '{b.instance}': full floating ring, spin held at its steady value in the "
                          "linear model (--ring-spin adds its perturbation)")
     for b in (x for x in system.bearings if x.kind == "journal"):
-        if b.params.cavitation == 1:
+        if b.params.cavitation == 1 and film != "mc":
             notes.append(f"bearing '{b.instance}' is mass-conserving (cavitation = 1): its coefficients here are "
-                         "those of the half-Sommerfeld film (the HS linearisation), not of its own film")
+                         "those of the half-Sommerfeld film (the HS linearisation), not of its own film; "
+                         "--film mc linearises its own film with its cavity dynamics")
         if film == "short" and (b.params.groove_width > 0 or b.params.p_feed != b.params.p0):
             notes.append(f"bearing '{b.instance}': the short-bearing closed form has no groove and no feed "
                          "pressure (use --film hs for the film with them)")
@@ -482,7 +545,7 @@ def _notes(system: System, film: str, ring_spin: bool, weight: np.ndarray, extra
     return notes
 
 
-def _search(max_re, ws: np.ndarray, result: dict) -> float | None:
+def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9) -> float | None:
     """Fill ``result`` (its ``crossings``, ``status``, the threshold's entries, ``notes``) from
     ``max_re(omega) -> (largest real part, |Im| there)`` at the speeds ``ws`` [rad/s] and between
     them; return the threshold speed [rad/s], or None without one."""
@@ -515,7 +578,7 @@ def _search(max_re, ws: np.ndarray, result: dict) -> float | None:
         if (vals[k0] < 0.0) == (vals[k1] < 0.0):
             continue
         if k1 == k0 + 1:
-            wc, nu = refine_crossing(max_re, ws[k0], ws[k1])
+            wc, nu = refine_crossing(max_re, ws[k0], ws[k1], xtol)
             result["crossings"].append({"speed_hz": wc / (2 * math.pi), "whirl_hz": nu / (2 * math.pi),
                                         "becomes": "unstable" if vals[k0] < 0.0 else "stable"})
             continue
@@ -552,14 +615,16 @@ def later_crossings(result: dict) -> list[dict]:
     return crossings[1:] if result.get("status") == "threshold" else list(crossings)
 
 
-def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int = 80,
+def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int | None = None,
               ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None) -> dict:
     """The threshold result (a JSON-ready dict) of a loaded scenario; see the module doc.
 
     ``loads``: bearing instance -> static force (Fx, Fy) [N] the rotor puts on that bearing in
     addition to its share of the rotor's weight (``--load``: a gear or belt force, a magnetic pull,
     a horizontal rotor's load with g = 0), in the convention of
-    :func:`rotor_fmu.stability.static_bearing_loads` (down is -y)."""
+    :func:`rotor_fmu.stability.static_bearing_loads` (down is -y). ``n_scan``: speeds of the scan
+    (default 80; :data:`MC_SCAN` with ``film="mc"``, whose speeds cost about 20 s each at 40 x 40,
+    and its crossings are refined to 0.01 Hz instead of 1e-9 rad/s)."""
     from rotor_fmu.stability import max_real_eigenvalue
 
     if film not in FILMS:
@@ -572,6 +637,9 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
                              "from); give the range: --speeds LO:HI in Hz, e.g. --speeds 50:800")
     if not (0.0 < lo < hi and math.isfinite(hi)):
         raise StabilityError(f"--speeds: need 0 < LO < HI in Hz (got {lo:g}:{hi:g})")
+    if system.rings and film == "mc":
+        raise StabilityError("--film mc: floating-ring bearings are linearized with their half-Sommerfeld films "
+                             "(--film hs); the mass-conserving film impedance is for plain JournalBearings")
     if system.rings and film == "short":
         raise StabilityError("--film short: the short-bearing closed form has no floating ring; the floating-ring "
                              "bearings of this scenario are linearized with their half-Sommerfeld films (--film hs)")
@@ -587,6 +655,9 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     weight, extra, total = _static_loads(system, loads)
     if system.rings:
         fn = _RingFilms(system, total, spin=ring_spin)
+        max_re = fn.max_re
+    elif film == "mc":
+        fn = _MCFilm(system, total)
         max_re = fn.max_re
     else:
         fn = _ShortFilm(system, total) if film == "short" else _HSFilm(system, total)
@@ -623,7 +694,10 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         "threshold_hz": None, "whirl_hz": None, "whirl_ratio": None, "crossings": [], "bearings": {},
         "notes": notes,
     }
-    at = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result)
+    if n_scan is None:
+        n_scan = MC_SCAN if film == "mc" else 80
+    at = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result,
+                 xtol=2 * math.pi * 0.01 if film == "mc" else 1e-9)
     from orchestrator.results.plots.stability import log_decrement
     result["scan"] = [{"speed_hz": w / (2 * math.pi), "max_re_per_s": re, "whirl_hz": im / (2 * math.pi),
                        "log_decrement": log_decrement(re, im)} for w, (re, im) in sorted(seen.items())]
@@ -656,5 +730,5 @@ def _bearing_entry(b: Bearing, film: str, load, eps, point, at: float | None) ->
                      floating=int(b.params.floating))
     else:
         entry.update(clearance_m=b.params.psi * b.params.R, cavitation=int(b.params.cavitation),
-                     grid=[int(b.params.n_phi), int(b.params.n_z)] if film == "hs" else None)
+                     grid=[int(b.params.n_phi), int(b.params.n_z)] if film in ("hs", "mc") else None)
     return entry

@@ -256,12 +256,12 @@ def first_crossing(max_re, ws):
     return None, None
 
 
-def refine_crossing(max_re, w0, w1):
+def refine_crossing(max_re, w0, w1, xtol=1e-9):
     """(speed [rad/s] in [w0, w1] where the largest real part ``max_re(omega)[0]`` crosses 0, the
-    |Im| of that eigenvalue there): Brent, to 1e-9 rad/s and 1e-11 of the speed; the signs at w0
+    |Im| of that eigenvalue there): Brent, to ``xtol`` [rad/s] (1e-9) and 1e-11 of the speed; the signs at w0
     and w1 must differ. The one refinement of every threshold search (also the floating ring's,
     rotor_fmu/floating_ring_stability.py, and ``rotorcosim stability``'s crossings)."""
-    wc = brentq(lambda w: max_re(w)[0], w0, w1, xtol=1e-9, rtol=1e-11)
+    wc = brentq(lambda w: max_re(w)[0], w0, w1, xtol=xtol, rtol=1e-11)
     return wc, max_re(wc)[1]
 
 
@@ -286,3 +286,42 @@ def bearing_radius_for_threshold(make_rotor, f_target, *, B_over_R=1.6, psi=2.8e
                          f"[{R_lo}, {R_hi}] m (threshold offsets {a:+.1f} Hz, {b:+.1f} Hz); "
                          f"widen R_lo/R_hi")
     return brentq(g, R_lo, R_hi, xtol=1e-7)
+
+
+def film_system_eigenvalues(rotor, omega, films):
+    """Finite eigenvalues [1/s] (largest real part first) of the rotor at constant speed omega
+    with a linearised mass-conserving film at each bearing station (``films``: one object per
+    station with the arrays of :class:`bearing_fmu.linearize.MCFilmLinear`: ``Js`` (n, n) sparse,
+    ``Mdiag`` (n,), ``Rq``, ``Rv`` (n, 2), ``Fu`` (2, n), ``Fq``, ``Fv`` (2, 2)).
+
+    The descriptor system ``E x' = A x``, ``x = (q, q', u_1, u_2, ...)``: the rotor
+    ``M q'' + C q' + K q = sum P_j^T (F_u u_j + F_q P_j q + F_v P_j q')`` and each film
+    ``M_j u_j' = -J_s u_j - R_q P_j q - R_v P_j q'``. Eliminating the u_j gives
+    ``det(s^2 M + s C + K + sum P_j^T Z_j(s) P_j) = 0`` with the film impedances Z_j
+    (:func:`bearing_fmu.linearize.mc_impedance`), so these are exactly its roots; solved densely
+    (all roots: the least damped one cannot be missed), the infinite ones (algebraic full-film
+    cells, M = 0) dropped."""
+    import scipy.linalg as sl
+    M, C, K = rotor.system_matrices(omega)
+    n = M.shape[0]
+    sizes = [f.Js.shape[0] for f in films]
+    N = 2 * n + sum(sizes)
+    A, E = np.zeros((N, N)), np.zeros((N, N))
+    A[:n, n:2 * n] = E[:n, :n] = np.eye(n)
+    A[n:2 * n, :n], A[n:2 * n, n:2 * n], E[n:2 * n, n:2 * n] = -K, -C, M
+    o = 2 * n
+    for f, (ix, iy), m in zip(films, rotor.bearing_dofs, sizes):
+        P = np.zeros((2, n))
+        P[0, ix] = P[1, iy] = 1.0
+        A[n:2 * n, o:o + m] = P.T @ f.Fu
+        A[n:2 * n, :n] += P.T @ f.Fq @ P
+        A[n:2 * n, n:2 * n] += P.T @ f.Fv @ P
+        A[o:o + m, o:o + m] = -f.Js.toarray()
+        A[o:o + m, :n] = -f.Rq @ P
+        A[o:o + m, n:2 * n] = -f.Rv @ P
+        E[o:o + m, o:o + m] = np.diag(f.Mdiag)
+        o += m
+    lam = sl.eigvals(A, E)
+    lam = lam[np.isfinite(lam) & (np.abs(lam) < 1e8)]
+    return lam[np.argsort(-lam.real)]
+

@@ -42,11 +42,11 @@ import numpy as np
 import scipy.linalg as sl
 from scipy.optimize import brentq
 
-from bearing_fmu.linearize import MCFilmLinear, _force
+from bearing_fmu.linearize import MCFilmLinear, _force, mc_static_equilibrium
 from bearing_fmu.model import BearingModel
 from orchestrator.scenario import load_scenario
 from orchestrator.stability import _HSFilm, build_system
-from rotor_fmu.stability import short_bearing_equilibrium, static_bearing_loads
+from rotor_fmu.stability import film_system_eigenvalues, short_bearing_equilibrium, static_bearing_loads
 
 
 class Station:
@@ -56,47 +56,18 @@ class Station:
         self.b = BearingModel(params)
         self.load = np.asarray(load, float)
         self.q = None
-        self.u = None
 
-    def steady(self, q, omega):
-        """The steady film at the journal centre q (at rest), from the last one (Newton)."""
-        b = self.b
-        if self.u is None:
-            b.initialize(q[0], q[1], 0.0, 0.0, omega, init="stationary")
-            self.u = b.film.u.copy()
-        kin = b._kinematics(q[0], q[1], 0.0, 0.0, omega)
-        u, _ = b._steady_newton(kin, self.u, np.zeros_like(self.u), 40)
-        if u is None:
-            u = b._steady(kin, self.u)
-        self.u = u
-        b.initialize(q[0], q[1], 0.0, 0.0, omega)     # inputs, then the steady film
-        b.film.init_state(u)
-        b._update_outputs()
-        p, th = b.law.p_theta(u)
-        return np.asarray(_force(b, p, th, b._kin))
-
-    def equilibrium(self, omega, tol=1e-9):
+    def equilibrium(self, omega):
+        """The journal's static equilibrium with the steady film and the film's linearisation
+        there (bearing_fmu.linearize.mc_static_equilibrium, from the last speed's position)."""
         b, c = self.b, self.b.c
-        target = -self.load
-        W = float(np.hypot(*target))
         q = self.q
         if q is None:
             p = b.params
             eps, psi = short_bearing_equilibrium(self.load, omega, R=p.R, L=p.B, C=c, eta=p.eta0)
             q = min(eps, 0.8) * c * np.array([math.cos(psi), math.sin(psi)])
-        for _ in range(60):
-            f = self.steady(q, omega) - target
-            if np.max(np.abs(f)) <= tol * W:
-                self.q = q
-                self.lin = MCFilmLinear(b)
-                return q
-            K = MCFilmLinear(b, polish=0).quasi_steady()[0]
-            step = np.linalg.solve(K, f)
-            lam = 1.0
-            while np.hypot(*(q + lam * step)) >= 0.995 * c:
-                lam *= 0.5
-            q = q + lam * step
-        raise RuntimeError(f"no mass-conserving equilibrium at {omega / (2 * math.pi):.4g} Hz")
+        self.q, self.lin = mc_static_equilibrium(b, -self.load, omega, guess=q)
+        return self.q
 
 
 class System:
@@ -158,29 +129,9 @@ class System:
         return sv[-1] / sv[0]
 
     def descriptor(self):
-        """Finite eigenvalues of E x' = A x, x = (q, q', u_1, u_2, ...) (largest Re first)."""
-        M, C, K = self.M, self.C, self.K
-        n = M.shape[0]
-        nf = [st.lin.Js.shape[0] for st in self.st]
-        N = 2 * n + sum(nf)
-        A, E = np.zeros((N, N)), np.zeros((N, N))
-        A[:n, n:2 * n] = E[:n, :n] = np.eye(n)
-        A[n:2 * n, :n], A[n:2 * n, n:2 * n], E[n:2 * n, n:2 * n] = -K, -C, M
-        o = 2 * n
-        for st, (ix, iy), m in zip(self.st, self.rotor.bearing_dofs, nf):
-            L, P = st.lin, self._P(ix, iy)
-            A[n:2 * n, o:o + m] = P.T @ L.Fu
-            A[n:2 * n, :n] += P.T @ L.Fq @ P
-            A[n:2 * n, n:2 * n] += P.T @ L.Fv @ P
-            A[o:o + m, o:o + m] = -L.Js.toarray()
-            A[o:o + m, :n] = -L.Rq @ P
-            A[o:o + m, n:2 * n] = -L.Rv @ P
-            E[o:o + m, o:o + m] = np.diag(L.Mdiag)
-            o += m
-        lam = sl.eigvals(A, E)
-        lam = lam[np.isfinite(lam) & (np.abs(lam) < 1e8)]
-        return lam[np.argsort(-lam.real)]
-
+        """Finite eigenvalues of E x' = A x, x = (q, q', u_1, u_2, ...) (largest Re first):
+        rotor_fmu.stability.film_system_eigenvalues."""
+        return film_system_eigenvalues(self.rotor, self.omega, [st.lin for st in self.st])
 
     def descriptor_near(self, sigma, k=8):
         """The k eigenvalues of the same descriptor system nearest ``sigma`` (sparse
