@@ -301,6 +301,24 @@ def hs_linearization_scalar(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3
     return D[:, :2].copy(), D[:, 2:].copy()
 
 
+def _newton_step_inside(q, K, f, c, max_ecc, who, why_singular=""):
+    """The Newton step of the static equilibria, ``F(q + dq) ~ F(q) - K dq = F_target`` (``f`` =
+    F(q) - F_target, ``K = -dF/dq``), halved (at most 40 times) until the centre lies inside
+    ``max_ecc`` c; :class:`HSEquilibriumError` naming ``who`` for a singular K or no such step."""
+    try:
+        step = np.linalg.solve(K, f)
+    except np.linalg.LinAlgError:
+        raise HSEquilibriumError(f"{who}: singular film stiffness at eccentricity {math.hypot(*q) / c:.4f}"
+                                 f"{why_singular}") from None
+    lam = 1.0
+    for _ in range(40):
+        if math.hypot(*(q + lam * step)) < max_ecc * c:
+            return q + lam * step
+        lam *= 0.5
+    raise HSEquilibriumError(f"{who}: no Newton step stays inside {max_ecc} c (eccentricity "
+                             f"{math.hypot(*q) / c:.4f})")
+
+
 class HSEquilibriumError(RuntimeError):
     """:func:`hs_static_equilibrium` found no journal position carrying the load."""
 
@@ -372,21 +390,8 @@ def hs_static_equilibrium(b, F_target, omega, *, guess=None, contact=None, ftol=
         K, _ = hs_linearization(b, x, y, 0.0, 0.0, omega)
         if with_contact:
             K = K + contact_coefficients(x, y, 0.0, 0.0, omega, **b.contact_kw)[0]
-        try:
-            step = np.linalg.solve(K, f)        # F(q + dq) ~ F(q) - K dq = F_target
-        except np.linalg.LinAlgError:
-            raise HSEquilibriumError(f"hs_static_equilibrium: singular film stiffness at eccentricity "
-                                     f"{math.hypot(x, y) / c:.4f}, omega = {omega:.6g} rad/s (a film at "
-                                     "rest carries no load)") from None
-        lam = 1.0
-        for _ in range(40):
-            if math.hypot(*(q + lam * step)) < max_ecc * c:
-                break
-            lam *= 0.5
-        else:
-            raise HSEquilibriumError("hs_static_equilibrium: no Newton step stays inside "
-                                     f"{max_ecc} c (eccentricity {math.hypot(x, y) / c:.4f})")
-        q = q + lam * step
+        q = _newton_step_inside(q, K, f, c, max_ecc, "hs_static_equilibrium",
+                                f", omega = {omega:.6g} rad/s (a film at rest carries no load)")
     raise HSEquilibriumError(
         f"hs_static_equilibrium: no journal position carries {W:.6g} N at omega = {omega:.6g} rad/s in "
         f"{max_iter} Newton steps (residual {np.max(np.abs(f)) / W:.3g} of the load at eccentricity "
@@ -748,19 +753,7 @@ def mc_static_equilibrium(b, F_target, omega, *, guess, ftol=1e-9, max_iter=60, 
         if np.max(np.abs(f)) <= ftol * W:
             return q, MCFilmLinear(b)
         K = MCFilmLinear(b, polish=0).quasi_steady()[0]
-        try:
-            step = np.linalg.solve(K, f)                  # F(q + dq) ~ F(q) - K dq = F_target
-        except np.linalg.LinAlgError:
-            raise HSEquilibriumError(f"mc_static_equilibrium: singular film stiffness at eccentricity "
-                                     f"{math.hypot(*q) / c:.4f}") from None
-        lam = 1.0
-        for _ in range(40):
-            if math.hypot(*(q + lam * step)) < max_ecc * c:
-                break
-            lam *= 0.5
-        else:
-            raise HSEquilibriumError(f"mc_static_equilibrium: no Newton step stays inside {max_ecc} c")
-        q = q + lam * step
+        q = _newton_step_inside(q, K, f, c, max_ecc, "mc_static_equilibrium")
     raise HSEquilibriumError(
         f"mc_static_equilibrium: no journal position carries {W:.6g} N at omega = {omega:.6g} rad/s in "
         f"{max_iter} Newton steps (residual {np.max(np.abs(f)) / W:.3g} of the load at eccentricity "
