@@ -565,6 +565,8 @@ class MCFilmLinear:
     (n, 2) ``dR/d(x, y)``, ``dR/d(vx, vy)`` (central differences; R is linear in v); ``Fu``
     (2, n) ``dF/du`` exactly (F = -int (p(u) - p0) (cos, sin) dA); ``Fq``, ``Fv`` (2, 2) the
     force's explicit kinematic dependence (0 for this film: F depends on p only);
+    ``contact`` (K_c, C_c) of the asperity contact with ``contact = 1``, else None (its force is
+    ``-K_c dq - C_c dq'``; added to Z);
     ``u`` the (polished) steady field, ``F0`` its force [N], ``polish_step`` the largest
     Newton increment of the last polishing step (small: the film was steady).
     """
@@ -624,7 +626,7 @@ class MCFilmLinear:
         self.Fu = -area * np.vstack([np.cos(g.phi)[i] * w[i] * dp, np.sin(g.phi)[i] * w[i] * dp])
         self.F0 = _force(b, p_u, th_u, kin0)
         self.omega = omega
-        self._contact = (contact_coefficients(x, y, vx, vy, omega, **b.contact_kw)
+        self.contact = (contact_coefficients(x, y, vx, vy, omega, **b.contact_kw)
                          if prm.contact else None)
 
     def impedance(self, s):
@@ -635,8 +637,8 @@ class MCFilmLinear:
         A = (self.Js + s * sp.diags(self.Mdiag)).tocsc().astype(complex)
         X = spla.splu(A).solve((self.Rq + s * self.Rv).astype(complex))
         Z = -(self.Fq + s * self.Fv) + self.Fu @ X
-        if self._contact is not None:
-            Z = Z + self._contact[0] + s * self._contact[1]
+        if self.contact is not None:
+            Z = Z + self.contact[0] + s * self.contact[1]
         return Z
 
     def quasi_steady(self):
@@ -645,8 +647,8 @@ class MCFilmLinear:
         import scipy.sparse.linalg as spla
         lu = spla.splu(self.Js)
         K, C = -self.Fq + self.Fu @ lu.solve(self.Rq), -self.Fv + self.Fu @ lu.solve(self.Rv)
-        if self._contact is not None:
-            K, C = K + self._contact[0], C + self._contact[1]
+        if self.contact is not None:
+            K, C = K + self.contact[0], C + self.contact[1]
         return K, C
 
     def slope0(self):
@@ -656,7 +658,7 @@ class MCFilmLinear:
         lu = spla.splu(self.Js)
         X1 = lu.solve(self.Rv - self.Mdiag[:, None] * lu.solve(self.Rq))
         D = -self.Fv + self.Fu @ X1
-        return D + self._contact[1] if self._contact is not None else D
+        return D + self.contact[1] if self.contact is not None else D
 
     def poles(self):
         """The film's own modes with the journal held: the finite generalised eigenvalues s of
@@ -742,7 +744,10 @@ def mc_static_equilibrium(b, F_target, omega, *, guess, ftol=1e-9, max_iter=60, 
         b.film.init_state(u)
         b._update_outputs()
         p, th = b.law.p_theta(u)
-        return np.asarray(_force(b, p, th, b._kin))
+        F = np.asarray(_force(b, p, th, b._kin))
+        if b.params.contact:        # as hs_static_equilibrium, and as K = Z(0) includes it
+            F = F + np.array(contact_force(q[0], q[1], 0.0, 0.0, omega, **b.contact_kw)[:2])
+        return F
 
     f = np.full(2, np.nan)
     for _ in range(max_iter):

@@ -292,7 +292,8 @@ def film_system_eigenvalues(rotor, omega, films):
     """Finite eigenvalues [1/s] (largest real part first) of the rotor at constant speed omega
     with a linearised mass-conserving film at each bearing station (``films``: one object per
     station with the arrays of :class:`bearing_fmu.linearize.MCFilmLinear`: ``Js`` (n, n) sparse,
-    ``Mdiag`` (n,), ``Rq``, ``Rv`` (n, 2), ``Fu`` (2, n), ``Fq``, ``Fv`` (2, 2)).
+    ``Mdiag`` (n,), ``Rq``, ``Rv`` (n, 2), ``Fu`` (2, n), ``Fq``, ``Fv`` (2, 2), ``contact`` (K_c, C_c)
+    or None).
 
     The descriptor system ``E x' = A x``, ``x = (q, q', u_1, u_2, ...)``: the rotor
     ``M q'' + C q' + K q = sum P_j^T (F_u u_j + F_q P_j q + F_v P_j q')`` and each film
@@ -316,6 +317,10 @@ def film_system_eigenvalues(rotor, omega, films):
         A[n:2 * n, o:o + m] = P.T @ f.Fu
         A[n:2 * n, :n] += P.T @ f.Fq @ P
         A[n:2 * n, n:2 * n] += P.T @ f.Fv @ P
+        if getattr(f, "contact", None) is not None:      # asperity contact: -K_c q - C_c q'
+            Kc, Cc = f.contact
+            A[n:2 * n, :n] -= P.T @ Kc @ P
+            A[n:2 * n, n:2 * n] -= P.T @ Cc @ P
         A[o:o + m, o:o + m] = -f.Js.toarray()
         A[o:o + m, :n] = -f.Rq @ P
         A[o:o + m, n:2 * n] = -f.Rv @ P
