@@ -112,3 +112,11 @@ def tampered_quickstart_ssp(tmp_path: Path, edit, quiet: bool = True) -> Path:
                 data = edit(data.decode()).encode()
             zout.writestr(item, data)
     return bad
+
+
+def run_verb(capsys, verb: str, *args) -> tuple[int, str, str]:
+    """``rotorcosim VERB ARGS...`` in this process: (exit code, stdout, stderr)."""
+    code = main([verb, *map(str, args)])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+

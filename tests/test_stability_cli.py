@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+from hostile_builders import run_verb
+
 from orchestrator.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
@@ -25,9 +27,7 @@ JEFFCOTT_HS = REPO / "scenarios" / "jeffcott_runup_half_sommerfeld.yaml"
 
 
 def _run(capsys, *args):
-    code = main(["stability", *map(str, args)])
-    out = capsys.readouterr()
-    return code, out.out, out.err
+    return run_verb(capsys, "stability", *args)
 
 
 def test_short_film_matches_lund_closed_form(capsys, tmp_path):

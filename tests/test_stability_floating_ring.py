@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from orchestrator.cli import main
+from hostile_builders import run_verb
 
 REPO = Path(__file__).resolve().parents[1]
 TC_RING = REPO / "scenarios" / "turbocharger_runup_floating_ring_half_sommerfeld.yaml"
@@ -29,9 +29,7 @@ JC_HS = REPO / "scenarios" / "jeffcott_runup_half_sommerfeld.yaml"
 
 
 def _run(capsys, *args):
-    code = main(["stability", *map(str, args)])
-    out = capsys.readouterr()
-    return code, out.out, out.err
+    return run_verb(capsys, "stability", *args)
 
 
 def _load(path, *sets):
