@@ -379,7 +379,8 @@ def _print_paths(paths) -> int:
 
 def _add_compare(sub) -> None:
     p = sub.add_parser("compare", help="compare coupling schemes against a reference (CI regression gate)")
-    p.add_argument("file", metavar="FILE", help="comparison YAML file (or a scenario with a compare: section)")
+    p.add_argument("file", metavar="FILE", help="comparison YAML file (or a scenario with a compare: section, or an "
+                                                "SSP archive export-ssp wrote from one)")
     p.add_argument("--out", metavar="DIR", type=_folder,
                    help="report folder (default: out/compare/<name> under the current folder; "
                         "name: the file's compare.name, else its file name without the suffix)")

@@ -102,6 +102,36 @@ def _libcosim_main(cfg_path: str, out_path: str) -> None:
     del ex
 
 
+def _libcosim_ssp_main(ssp: str, cfg_path: str, out_path: str) -> None:
+    """libcosim runs the SSP archive ``ssp`` (``CosimExecution.from_ssp_file``) for ``n_steps``
+    steps of ``step`` s and records the last values of ``record`` after each step."""
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+    cfg = json.loads(Path(cfg_path).read_text())
+    ex = CosimExecution.from_ssp_file(ssp, step_size=round(float(cfg["step"]) * 1e9))
+    obs = CosimObserver.create_last_value()
+    ex.add_observer(obs)
+    insts = {sig.split(".", 1)[0] for sig in cfg["record"]}
+    index = {n: ex.slave_index_from_instance_name(n) for n in insts}
+    refs = {n: {v.name.decode(): v.reference for v in ex.slave_variables(i)} for n, i in index.items()}
+    rows: dict[str, list] = {sig: [] for sig in cfg["record"]}
+    for _ in range(int(cfg["n_steps"])):
+        if not ex.step(1):
+            from libcosimpy._internal import get_last_error_message
+            raise AssertionError(f"libcosim step failed: {get_last_error_message()}")
+        for sig in cfg["record"]:
+            inst, var = sig.split(".", 1)
+            rows[sig].append(obs.last_real_values(index[inst], [refs[inst][var]])[0])
+    np.savez(out_path, **{k: np.asarray(v, float) for k, v in rows.items()})
+
+
+if __name__ == "__main__" and len(sys.argv) == 5 and sys.argv[1] == "--libcosim-ssp":
+    _libcosim_ssp_main(sys.argv[2], sys.argv[3], sys.argv[4])
+    sys.stdout.flush()
+    sys.stderr.flush()
+    import os
+    os._exit(0)
+
 if __name__ == "__main__" and len(sys.argv) == 4 and sys.argv[1] == "--libcosim":
     _libcosim_main(sys.argv[2], sys.argv[3])
     # leave without the interpreter's teardown, where PythonFMU 0.7.0 FMUs abort intermittently
@@ -261,3 +291,62 @@ def test_third_party_bearing_replaces_ours_by_editing_the_yaml(tmp_path):
     fy = np.asarray(res.outputs["bearing1.Fy"]) + np.asarray(res.outputs["bearing2.Fy"])
     assert fy[-1] == pytest.approx(6.0 * 9.81, rel=0.05)
     assert y1[-1] == pytest.approx(-fy[-1] / 2 / 2.0e7, rel=0.05)
+
+
+# ------------------------------------------- an exported SSP that carries the file a parameter names
+@pytest.mark.integration
+def test_libcosim_runs_an_exported_ssp_that_carries_a_rotor_file(tmp_path, monkeypatch):
+    """export-ssp puts the file a String parameter names into the archive (resources/files/...) and
+    writes that member's name as the value. libcosim loads such an archive (the extra member and the
+    org.rotorcosim.scenario annotation are ignored) and passes the value on as it is, which the FMU
+    opens relative to libcosim's working directory: run from the folder where the archive is unzipped,
+    libcosim gives our Jacobi master's numbers (which runs the archive anywhere); from elsewhere the
+    FMU cannot open the file and says which (docs/limits.md, "Files rotorcosim writes")."""
+    pytest.importorskip("libcosimpy")
+    import warnings
+    import zipfile
+
+    import orchestrator
+    from orchestrator.scenario.ssp import export_ssp
+    from orchestrator.shipped import resolve
+    src = tmp_path / "src"
+    src.mkdir()
+    text = (REPO / "rotor_fmu" / "data" / "turbocharger.yaml").read_text()
+    (src / "my_rotor.yaml").write_text(text.replace("unbalance: 1.5e-6", "unbalance: 3.0e-6", 1))
+    monkeypatch.chdir(src)
+    n, h = 50, 1e-4
+    sc = orchestrator.load_scenario(resolve("turbocharger_runup_half_sommerfeld"), [
+        "fmus.rotor.parameters.rotor_file=my_rotor.yaml", "coupling.scheme=jacobi", f"stop_time={2.0 + n * h}",
+        f"output.interval={h}"], build_fmus=True)
+    assert sc.coupling.extrapolation_order == 0 and sc.coupling.macro_step == h
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")                     # start values libcosim ignores: none here
+        ssp = export_ssp(sc, tmp_path / "tc.ssp")
+    member = "resources/files/rotor/my_rotor.yaml"
+    unzipped = tmp_path / "unzipped"
+    with zipfile.ZipFile(ssp) as zf:
+        assert member in zf.namelist()
+        zf.extractall(unzipped)
+    record = ["rotor.x_1", "rotor.y_1", "rotor.x_comp", "rotor.y_turb", "bearing1.Fy", "bearing2.Fx"]
+    cfg = tmp_path / "lc.json"
+    cfg.write_text(json.dumps({"step": h, "n_steps": n, "record": record}))
+    proc = subprocess.run([sys.executable, str(HERE), "--libcosim-ssp", str(ssp), str(cfg), str(tmp_path / "lc.npz")],
+                          cwd=unzipped, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    lc = np.load(tmp_path / "lc.npz")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    monkeypatch.chdir(empty)                  # our master runs the archive from any folder
+    res = orchestrator.run(orchestrator.load_scenario(ssp), out_dir=tmp_path / "ours", progress=False)
+    assert res.success, res.message
+    assert len(res.t) == n + 1
+    for sig in record:
+        ours = np.asarray(res.outputs[sig])[1:]
+        scale = np.max(np.abs(lc[sig]))
+        np.testing.assert_allclose(ours, lc[sig], rtol=0, atol=1e-9 * scale, err_msg=sig)
+    assert np.ptp(lc["rotor.x_comp"]) > 1e-8            # the rotor moved: the comparison is not trivial
+    # from a folder without the unzipped archive the FMU cannot open the member libcosim passes it
+    proc = subprocess.run([sys.executable, str(HERE), "--libcosim-ssp", str(ssp), str(cfg), str(tmp_path / "x.npz")],
+                          cwd=empty, capture_output=True, text=True, timeout=900)
+    assert proc.returncode != 0
+    assert f"invalid rotor file {member}" in proc.stdout + proc.stderr, proc.stdout[-3000:] + proc.stderr[-3000:]

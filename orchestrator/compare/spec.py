@@ -193,19 +193,15 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
     from orchestrator.scenario import load_scenario   # the frontend's validating loader
 
     path = Path(path).resolve()
-    if path.suffix.lower() in (".ssp", ".ssd", ".fmu"):
-        # was "the comparison file is not UTF-8 text (byte 0xb4 ...)": an SSP from export-ssp carries the
-        # compare section in its annotation, so `compare x.ssp` is a natural thing to try
-        if path.suffix.lower() == ".fmu":      # no scenario is an FMU: it is named by one (fmus.<instance>.path)
-            raise CompareSpecError(f"{path}: is an FMU, not a comparison file; compare reads a YAML file with a "
-                                   "'compare:' section: write a scenario whose 'fmus.<instance>.path: "
-                                   f"{path.name}' names it, and a comparison file whose 'compare.scenario' names "
-                                   "that scenario and whose compare section lists the reference and the variants "
-                                   "(docs/compare.md)")
-        raise CompareSpecError(f"{path}: is an SSP, not a comparison file; compare reads a YAML file with a "
-                               f"'compare:' section: write one whose 'compare.scenario: {path.name}' names it "
-                               "and whose compare section lists the reference and the variants (docs/compare.md), "
-                               "or compare the scenario YAML it was exported from")
+    if path.suffix.lower() == ".fmu":      # no scenario is an FMU: it is named by one (fmus.<instance>.path)
+        # was "the comparison file is not UTF-8 text (byte 0xb4 ...)"
+        raise CompareSpecError(f"{path}: is an FMU, not a comparison file; compare reads a YAML file with a "
+                               "'compare:' section: write a scenario whose 'fmus.<instance>.path: "
+                               f"{path.name}' names it, and a comparison file whose 'compare.scenario' names "
+                               "that scenario and whose compare section lists the reference and the variants "
+                               "(docs/compare.md)")
+    if path.suffix.lower() in (".ssp", ".ssd"):
+        return _load_compare_ssp(path, load_scenario)
     try:
         root = read_yaml_tree(path, what="comparison file", loader_cls=_LineLoader)
         doc = None if root is None else construct_yaml(root, display=str(path), loader_cls=_LineLoader)
@@ -246,6 +242,34 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
         base = load_scenario((path.parent / sec["scenario"]).resolve(), build_fmus=True)
     spec = parse_compare(sec, base, source=path)
     return dataclasses.replace(spec, reference_models=reference_models) if reference_models else spec
+
+
+def _load_compare_ssp(path: Path, load_scenario) -> CompareSpec:
+    """``compare x.ssp``: the comparison an SSP from ``export-ssp`` carries in its
+    ``org.rotorcosim.scenario`` annotation (the ``compare`` section of the scenario it was exported
+    from), with the SSP as its base, as a scenario file with a ``compare:`` section. Paths in it are
+    relative to the SSP's folder (``baseline``). Before, the section was written into every archive
+    but never read: `compare x.ssp` was refused. An annotation is untrusted: ``build_fmus`` (Python
+    sources built and imported) and ``scenario`` (the SSP is the base) are refused."""
+    base = load_scenario(path, build_fmus=True)       # a comparison runs: building is its step
+    sec = base.compare
+    where = f"{path} (its org.rotorcosim.scenario annotation)"
+    if not sec:
+        raise CompareSpecError(f"{path}: the SSP carries no 'compare' section (export-ssp writes the one of the "
+                               "scenario it exports; this one had none): write a comparison file whose "
+                               f"'compare.scenario: {path.name}' names it and whose compare section lists the "
+                               "reference and the variants (docs/compare.md)")
+    problems = []
+    if "build_fmus" in sec:
+        problems.append(f"{where}: 'compare.build_fmus' is not taken from an SSP (it builds and imports the Python "
+                        "sources it names, outside the archive): remove it, or compare with a comparison file "
+                        f"whose 'compare.scenario: {path.name}' names the SSP")
+    if "scenario" in sec:
+        problems.append(f"{where}: 'compare.scenario' must not be given in an SSP's annotation (the SSP itself is the "
+                        "base); remove it")
+    if problems:
+        raise CompareSpecError(problems)
+    return parse_compare(dict(sec), base, source=path)
 
 
 REFERENCE_MODELS = "_reference_models.py"   # in compare.build_fmus.from: register(register_model)

@@ -6,6 +6,7 @@ problem with ``file:line``; :func:`validate_scenario` returns them as lines.
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 from typing import Sequence
@@ -177,7 +178,13 @@ def from_ssp(path: Path) -> Path:
     out.write_text(text)
     n_ssp_connections = len(doc.get("connections", [])) - len(overlay.get("connections", []) or []) \
         if isinstance(overlay.get("connections"), list) else len(doc.get("connections", []))
-    GENERATED[str(out)] = (str(ssp), _origins(text, ssp, path, overlay_lines, n_ssp_connections))
+    # a String parameter set to a file the archive carries names the member, not the temporary folder
+    extracted = str((work / "ssp").resolve()) + os.sep
+    carried = {("fmus", inst, "parameters", name): value[len(extracted):]
+               for inst, entry in doc["fmus"].items() if isinstance(entry, dict)
+               for name, value in (entry.get("parameters") or {}).items()
+               if isinstance(value, str) and value.startswith(extracted)}
+    GENERATED[str(out)] = (str(ssp), _origins(text, ssp, path, overlay_lines, n_ssp_connections, carried))
     return out
 
 
@@ -205,11 +212,12 @@ def _key_lines(root) -> dict[tuple, int]:
 
 
 def _origins(text: str, ssp: Path, overlay_file: Path, user: dict[tuple, int],
-             n_ssp_connections: int) -> dict[int, str]:
+             n_ssp_connections: int, carried: dict[tuple, str] | None = None) -> dict[int, str]:
     """{line of the generated scenario: origin} for :data:`nodes.GENERATED`: ``FILE:LINE`` of the
     user's YAML file ``overlay_file`` for a value it sets (``user``: its :func:`_key_lines`;
     ``fmus.<i>`` entries and ``coupling`` merged key by key, ``connections`` appended, other keys
-    replaced: :func:`from_ssp`), else ``SSP [dotted.path]``."""
+    replaced: :func:`from_ssp`), else ``SSP [dotted.path]``, for a parameter set to a file the
+    archive carries (``carried``: key path -> member) ``SSP [dotted.path] (its file MEMBER)``."""
     generated = _key_lines(yaml.compose(text, Loader=YamlLoader))
     out: dict[int, str] = {}
     for key_path, line in generated.items():
@@ -225,7 +233,7 @@ def _origins(text: str, ssp: Path, overlay_file: Path, user: dict[tuple, int],
             at = f"{overlay_file}:{user[mine]}"
         else:
             dotted = ".".join(str(k) if isinstance(k, str) else f"[{k}]" for k in key_path).replace(".[", "[")
-            at = f"{ssp} [{dotted}]"
+            at = f"{ssp} [{dotted}]" + (f" (its file {carried[key_path]})" if carried and key_path in carried else "")
         out.setdefault(line, at)
     return out
 

@@ -23,6 +23,16 @@ parameter values (Enumeration values as ``ssv:Integer``: libcosim cannot read
 algorithm does: Jacobi with zero-order hold; our extrapolation and sub-step
 settings have no SSP equivalent (a warning says libcosim runs Jacobi with zero-order hold).
 
+A file a String parameter names (a rotor file; :func:`orchestrator.scenario.loader.named_files`)
+travels in the archive as ``resources/files/<instance>/<file name>`` (SSP 1.0: "additional
+entries with the prefix resources/ ... to bundle resources referenced from the System Structure
+Description"), the parameter's value in the SSD being that member's name, and the annotation's
+``files`` key saying so; reading the SSP sets the parameter to the extracted copy, after checking
+the member as untrusted (:func:`_carried_files`: under ``resources/``, no ``..``, not absolute,
+no link, a regular file of at most :data:`MAX_NAMED_FILE_BYTES`). A file larger than that is not
+carried, and export-ssp says so. Before, no named file was carried: an exported turbocharger
+scenario with its own rotor file did not run from the archive anywhere else.
+
 What a scenario holds that SSP 1.0 has no element for (the whole ``coupling`` section,
 ``output``: signals, interval, format; ``analysis``; ``compare``; each instance's ``substeps`` and
 ``isolation``) is written as an ``ssc:Annotation`` of type ``org.rotorcosim.scenario`` on the
@@ -55,7 +65,7 @@ import tempfile
 import warnings
 import zipfile
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import Any, Mapping
 from xml.etree import ElementTree as ET
 
 from orchestrator.errors import ScenarioError
@@ -71,6 +81,12 @@ NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "rc": RC_NS}
 TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
 MAX_XML_BYTES = 16 * 2**20
+#: largest file a String parameter names that export-ssp carries in the archive, and that reading an
+#: SSP accepts as one (a rotor file is at most 1 MiB, ``rotor_fmu.rotor_file.MAX_FILE_BYTES``; the
+#: shipped one has 6 kB)
+MAX_NAMED_FILE_BYTES = 16 * 2**20
+#: where the archive carries them: ``resources/files/<instance>/<file name>``
+NAMED_FILES_DIR = "resources/files"
 
 
 def _parse(data: bytes, where: str) -> ET.Element:
@@ -445,8 +461,65 @@ def scenario_from_ssp(path: Path | str, work: Path | str) -> dict:
         if fixed is not None and fixed.get("baseStepSize"):
             doc["coupling"] = {"scheme": "jacobi", "macro_step": _number(
                 fixed.get("baseStepSize"), f"{src.name}: osp:FixedStepAlgorithm baseStepSize")}
-    read_annotation(root, doc, src.name)
+    _carried_files(read_annotation(root, doc, src.name), doc, src)
     return doc
+
+
+def _carried_files(files: dict[tuple[str, str], str], doc: dict, src: _Source) -> None:
+    """Set each String parameter the annotation's ``files`` lists to the extracted copy of the
+    archive member it names (for a bare .ssd: the file beside it). Untrusted: the parameter's value
+    in the SSD must be the member's name; the member must be a relative path under ``resources/``
+    (no ``..``, not absolute, no backslash or drive letter), no component of it a symbolic link, and
+    a regular file of at most :data:`MAX_NAMED_FILE_BYTES`. Every problem names the archive and the
+    member; ScenarioError listing them all."""
+    problems: list[str] = []
+    where = f'{src.name}: ssc:Annotation type="{ANNOTATION_TYPE}"'
+    root = src.root.resolve()
+    for (inst, name), member in files.items():
+        key = f"'files.{inst}.{name}'"
+        value = doc["fmus"][inst].get("parameters", {}).get(name)
+        if value != member:
+            problems.append(f"{where}: {key} = {member!r:.200} but the SSD sets {inst}.{name} = {value!r:.200}; make "
+                            "them equal (export the SSP again), or remove the entry from 'files'")
+            continue
+        parts = PurePosixPath(member).parts
+        if not member.startswith("resources/") or ".." in parts or "\\" in member or ":" in member \
+                or "\0" in member or len(parts) < 2:
+            problems.append(f"{where}: {key} = {member!r:.200} is no file inside the package: a carried file is a "
+                            "relative path under resources/ (no '..', not absolute, no backslash or drive letter); "
+                            "export the SSP again")
+            continue
+        shown = src.shown(member)
+        what = f"the file fmus.{inst}.parameters.{name} names"
+        path, problem = root, None
+        for part in parts:          # no link anywhere on the way (an archive has none; a folder may)
+            path = path / part
+            try:
+                st = os.lstat(path)
+            except FileNotFoundError:
+                problem = f"{shown}: {what} is not in the {'archive' if src.archive else 'folder'}; add it, or " \
+                          "export the SSP again"
+                break
+            except OSError as e:
+                problem = f"{shown}: cannot inspect {what} ({e.strerror or e})"
+                break
+            if stat.S_ISLNK(st.st_mode):
+                problem = f"{shown}: {what} is a symbolic link (to {os.readlink(path)!r:.200}); a file an SSP " \
+                          "carries must be a regular file inside it: put the file itself there"
+                break
+        else:
+            if not stat.S_ISREG(st.st_mode):
+                problem = f"{shown}: {what} is {file_kind(st.st_mode)}, expected a regular file"
+            elif st.st_size > MAX_NAMED_FILE_BYTES:
+                problem = f"{shown}: {what} has {st.st_size} bytes, more than an SSP may carry for a String " \
+                          f"parameter ({MAX_NAMED_FILE_BYTES}, orchestrator.scenario.ssp.MAX_NAMED_FILE_BYTES); " \
+                          "check the archive"
+        if problem:
+            problems.append(problem)
+        else:
+            doc["fmus"][inst]["parameters"][name] = str(path)
+    if problems:
+        raise ScenarioError(problems)
 
 
 # ------------------------------------------------------------------------------------ export
@@ -518,9 +591,10 @@ def _not_an_ssp(out: Path, size: int) -> str | None:
     return None
 
 
-def _write_archive(out: Path, root: ET.Element, files: dict[str, Path]) -> None:
+def _write_archive(out: Path, root: ET.Element, files: dict[str, Path], blobs: dict[str, bytes]) -> None:
     """The archive written to an exclusively created temporary file beside ``out``, then renamed
-    over it (``os.replace`` replaces a name, never writes through it); removed on failure."""
+    over it (``os.replace`` replaces a name, never writes through it); removed on failure.
+    ``files``: member -> file (the FMUs), ``blobs``: member -> content (the named files)."""
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent)
     except OSError as e:
@@ -532,6 +606,8 @@ def _write_archive(out: Path, root: ET.Element, files: dict[str, Path]) -> None:
             zf.writestr("SystemStructure.ssd", ET.tostring(root, encoding="utf-8", xml_declaration=True))
             for member, path in files.items():
                 zf.write(path, member)
+            for member, data in blobs.items():
+                zf.writestr(member, data)
         os.replace(tmp, out)
     except BaseException as e:
         with contextlib.suppress(OSError):
@@ -545,24 +621,57 @@ def _write_archive(out: Path, root: ET.Element, files: dict[str, Path]) -> None:
         raise
 
 
-def _warn_named_files(scenario) -> None:
-    """Warn of each file a String parameter names (a rotor file, ``loader.named_files``): the SSP
-    does not carry it, and the FMU opens it where the SSP runs, a relative path from the working
-    directory there, an absolute one on that machine."""
+def _member_name(inst: str, filename: str, taken: Mapping[str, bytes]) -> str:
+    """``resources/files/<inst>/<filename>``, the name made portable (letters, digits, ``._-``; no
+    leading dot) and unique among ``taken``."""
+    stem = re.sub(r"[^A-Za-z0-9._-]", "_", filename)[:100].lstrip(".") or "file"
+    base, dot, ext = stem.rpartition(".") if "." in stem else (stem, "", "")
+    member, n = f"{NAMED_FILES_DIR}/{inst}/{stem}", 1
+    while member in taken:
+        n += 1
+        member = f"{NAMED_FILES_DIR}/{inst}/{base}_{n}{dot}{ext}"
+    return member
+
+
+def _named_files(scenario) -> tuple[dict[tuple[str, str], str], dict[str, bytes]]:
+    """The files the scenario's String parameters name (a rotor file, ``loader.named_files``) that
+    the archive carries: ``{(instance, parameter): member}`` and ``{member: content}`` (a file named
+    twice is carried once). A file that cannot be carried (larger than
+    :data:`MAX_NAMED_FILE_BYTES`, unreadable) keeps its value, and a warning says where the FMU
+    opens it when the SSP runs: a relative path from the working directory there, an absolute one on
+    that machine."""
     from orchestrator.fmi.archive import read_model_description
     from orchestrator.scenario.loader import named_files
     variables = {f.name: read_model_description(f.path).variables for f in scenario.fmus}
+    values: dict[tuple[str, str], str] = {}
+    blobs: dict[str, bytes] = {}
+    carried: dict[Path, str] = {}
     for inst, name, path in named_files(scenario, variables):
         value = scenario.fmu(inst).parameters[name]
-        if path.is_absolute():
-            how = ("the FMU opens it at that absolute path where the SSP runs; run the SSP on a machine that has the "
-                   "file there")
-        else:
-            how = ("the FMU opens that relative path from the working directory where the SSP runs; run the SSP "
-                   "where that path resolves, or give an absolute path in the scenario")
-        relative = "" if path.is_absolute() else " (relative)"
-        warnings.warn(f"export-ssp: fmus.{inst}.parameters.{name} = {value!r}{relative} names a file the SSP does "
-                      f"not carry: {how}", stacklevel=3)
+        real = path.resolve()
+        if real not in carried:
+            try:
+                size = os.stat(real).st_size
+                if size > MAX_NAMED_FILE_BYTES:
+                    raise InputError(f"it has {size} bytes, more than export-ssp carries ({MAX_NAMED_FILE_BYTES}, "
+                                     "orchestrator.scenario.ssp.MAX_NAMED_FILE_BYTES)")
+                data = read_bytes(real, limit=MAX_NAMED_FILE_BYTES,            # bounded even if it grows
+                                  limit_name="orchestrator.scenario.ssp.MAX_NAMED_FILE_BYTES")
+            except (InputError, OSError) as e:
+                if path.is_absolute():
+                    how = ("the FMU opens it at that absolute path where the SSP runs; run the SSP on a machine that "
+                           "has the file there")
+                else:
+                    how = ("the FMU opens that relative path from the working directory where the SSP runs; run the "
+                           "SSP where that path resolves, or give an absolute path in the scenario")
+                relative = "" if path.is_absolute() else " (relative)"
+                warnings.warn(f"export-ssp: fmus.{inst}.parameters.{name} = {value!r}{relative} names a file the SSP "
+                              f"does not carry ({e}): {how}", stacklevel=3)
+                continue
+            carried[real] = _member_name(inst, path.name, blobs)
+            blobs[carried[real]] = data
+        values[(inst, name)] = carried[real]
+    return values, blobs
 
 
 def export_ssp(scenario, out: Path | str) -> Path:
@@ -584,7 +693,15 @@ def export_ssp(scenario, out: Path | str) -> Path:
         warnings.warn(f"export-ssp: {', '.join(starts)} are start values of outputs or locals (initial=\"exact\"); "
                       "the SSP carries them, but libcosim's SSP loader sets only parameters and inputs and "
                       "ignores them", stacklevel=2)
-    _warn_named_files(scenario)
+    carried, blobs = _named_files(scenario)
+    if scenario.compare and "build_fmus" in scenario.compare:
+        b = scenario.compare["build_fmus"]
+        warnings.warn(f"export-ssp: compare.build_fmus (from {b.get('from') if isinstance(b, Mapping) else b!r}) "
+                      "is not written into the archive's annotation: the archive carries the FMUs, not the sources "
+                      "they were built from nor the monolithic-reference models a _reference_models.py there "
+                      f"registers, so `rotorcosim compare {out}` needs a co-simulation reference for those FMUs",
+                      stacklevel=2)
+    _warn_baseline(scenario, out)
     for ns, uri in NS.items():
         ET.register_namespace(ns, uri)
     root = ET.Element(f"{{{NS['ssd']}}}SystemStructureDescription", {"version": "1.0", "name": scenario.name,
@@ -618,7 +735,8 @@ def export_ssp(scenario, out: Path | str) -> Path:
             plist = ET.SubElement(ps, f"{{{NS['ssv']}}}Parameters")
             for name, value in f.parameters.items():
                 p = ET.SubElement(plist, f"{{{NS['ssv']}}}Parameter", {"name": name})
-                _type_el(p, "ssv", md.variables[name].type, value)
+                # a carried file: its member's name (relative to the package), set to the extracted copy on reading
+                _type_el(p, "ssv", md.variables[name].type, carried.get((f.name, name), value))
     cel = ET.SubElement(system, f"{{{NS['ssd']}}}Connections")
     for cn in scenario.connections:
         el = ET.SubElement(cel, f"{{{NS['ssd']}}}Connection", {
@@ -636,10 +754,27 @@ def export_ssp(scenario, out: Path | str) -> Path:
                         {"type": "com.opensimulationplatform"})
     ET.SubElement(ET.SubElement(ann, f"{{{NS['osp']}}}Algorithm"), f"{{{NS['osp']}}}FixedStepAlgorithm",
                   {"baseStepSize": repr(float(c.macro_step))})
-    write_annotation(root, scenario)
+    write_annotation(root, scenario, carried)
     _check_xml_chars(root)
-    _write_archive(check_output_path(out), root, files)
+    _write_archive(check_output_path(out), root, files, blobs)
     return out
+
+
+def _warn_baseline(scenario, out: Path) -> None:
+    """``compare.baseline`` is read relative to the comparison file, so `compare OUT` looks for it
+    beside the archive: warn when that is not the file the scenario's comparison reads (the archive
+    does not carry it: --update-baseline writes it)."""
+    baseline = (scenario.compare or {}).get("baseline")
+    if not isinstance(baseline, str) or not baseline.strip() or scenario.source is None:
+        return
+    mine = (Path(scenario.source).parent / baseline).resolve()
+    there = (out.parent / baseline).resolve()
+    if mine != there:
+        state = "exists" if there.is_file() else "does not exist"
+        warnings.warn(f"export-ssp: compare.baseline {baseline!r} is read relative to the comparison file: "
+                      f"`rotorcosim compare {out}` reads {there}, which {state}, not {mine} (the archive does not "
+                      f"carry the baseline: --update-baseline writes it); copy the baseline there, or write the "
+                      f"archive beside the scenario", stacklevel=3)
 
 
 _NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")

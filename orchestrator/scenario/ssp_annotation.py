@@ -22,6 +22,13 @@ Now :func:`write_annotation` adds them to the SSD as::
 annotation types they do not know, and libcosim does), and :func:`read_annotation` takes them
 back into the scenario document the SSP reader makes (``ssp.scenario_from_ssp``), as untrusted
 as the rest of the SSD.
+
+Its ``files`` key lists the files String parameters name that the archive carries
+(``files: {rotor: {rotor_file: resources/files/rotor/my_rotor.yaml}}``: the parameter's value in
+the SSD is that member's name); the SSP reader checks each member and sets the parameter to the
+extracted copy. ``compare`` is what ``rotorcosim compare x.ssp`` runs
+(:func:`orchestrator.compare.spec.load_compare`); its ``build_fmus`` is not written (the archive
+carries the FMUs it built, not the Python sources it built them from).
 """
 
 from __future__ import annotations
@@ -45,7 +52,7 @@ ANNOTATION_FORMAT = 1
 #: longest text of the annotation read (characters): a scenario's sections are a few kB
 MAX_ANNOTATION_CHARS = 1 << 20
 #: the scenario keys the annotation may set, and under ``fmus.<instance>`` the keys it may set
-ANNOTATION_KEYS = ("format", "coupling", "output", "analysis", "compare", "fmus")
+ANNOTATION_KEYS = ("format", "coupling", "output", "analysis", "compare", "fmus", "files")
 ANNOTATION_FMU_KEYS = ("substeps", "isolation")
 
 
@@ -69,11 +76,13 @@ def _changed(spec, skip=()) -> dict:
             if f.name not in skip and getattr(spec, f.name) != getattr(default, f.name)}
 
 
-def scenario_annotation(scenario) -> dict:
+def scenario_annotation(scenario, files: Mapping[tuple[str, str], str] | None = None) -> dict:
     """What ``scenario`` holds that SSP 1.0 has no element for, in the scenario format: the whole
     ``coupling`` section (the SSP's osp:FixedStepAlgorithm holds the macro step only), ``output``,
-    ``analysis``, ``compare`` and each instance's ``substeps`` and ``isolation``. Values at their
-    defaults are left out (the loader gives them back)."""
+    ``analysis``, ``compare`` (without ``build_fmus``: the archive carries the FMUs, not their
+    sources) and each instance's ``substeps`` and ``isolation``; ``files`` the archive members
+    that String parameters name (``{(instance, parameter): member}``). Values at their defaults
+    are left out (the loader gives them back)."""
     c = scenario.coupling
     coupling = {"scheme": c.scheme, "macro_step": c.macro_step,
                 **_changed(c, skip=("scheme", "macro_step", "iteration", "step_control"))}
@@ -86,25 +95,32 @@ def scenario_annotation(scenario) -> dict:
     output = _changed(scenario.output)
     if output:
         doc["output"] = output
-    for key in ("analysis", "compare"):
-        if getattr(scenario, key):
-            doc[key] = _plain(getattr(scenario, key))
+    if scenario.analysis:
+        doc["analysis"] = _plain(scenario.analysis)
+    compare = {k: v for k, v in _plain(scenario.compare or {}).items() if k != "build_fmus"}
+    if compare:
+        doc["compare"] = compare
     fmus = {f.name: {k: getattr(f, k) for k in ANNOTATION_FMU_KEYS if getattr(f, k) is not None}
             for f in scenario.fmus}
     fmus = {k: v for k, v in fmus.items() if v}
     if fmus:
         doc["fmus"] = fmus
+    if files:
+        carried: dict[str, dict[str, str]] = {}
+        for (inst, name), member in files.items():
+            carried.setdefault(inst, {})[name] = member
+        doc["files"] = carried
     return doc
 
 
-def write_annotation(root: ET.Element, scenario) -> None:
+def write_annotation(root: ET.Element, scenario, files: Mapping[tuple[str, str], str] | None = None) -> None:
     """The rotorcosim annotation as the SSD's last element (``ssd:Annotations``), its content YAML
-    text in an ``rc:Scenario`` element."""
+    text in an ``rc:Scenario`` element (``files``: see :func:`scenario_annotation`)."""
     import yaml
     ann = ET.SubElement(ET.SubElement(root, f"{{{_NS['ssd']}}}Annotations"), f"{{{_NS['ssc']}}}Annotation",
                         {"type": ANNOTATION_TYPE})
     el = ET.SubElement(ann, f"{{{_NS['rc']}}}Scenario", {"format": str(ANNOTATION_FORMAT)})
-    el.text = "\n" + yaml.safe_dump(scenario_annotation(scenario), sort_keys=False)
+    el.text = "\n" + yaml.safe_dump(scenario_annotation(scenario, files), sort_keys=False)
 
 
 def _duplicate_keys(node, where: str) -> list[str]:
@@ -132,17 +148,21 @@ def _duplicate_keys(node, where: str) -> list[str]:
     return out
 
 
-def read_annotation(root: ET.Element, doc: dict, ssd: str) -> None:
+def read_annotation(root: ET.Element, doc: dict, ssd: str) -> dict[tuple[str, str], str]:
     """The rotorcosim annotation of an SSD (:func:`scenario_annotation`) into ``doc``: its
     ``coupling`` replaces the one read from osp:FixedStepAlgorithm (whose baseStepSize its
     ``macro_step`` must equal, or takes when it has none), ``output``, ``analysis`` and
     ``compare`` are set, ``fmus.<instance>`` keys are merged. Untrusted like the rest of the SSD:
     at most :data:`MAX_ANNOTATION_CHARS` characters, read by the bounded YAML reader (depth,
     aliases, digits), only :data:`ANNOTATION_KEYS` (per instance :data:`ANNOTATION_FMU_KEYS`, of
-    instances the SSD has); the values are then checked by the scenario loader as any scenario's."""
+    instances the SSD has); the values are then checked by the scenario loader as any scenario's.
+
+    Returns its ``files`` as ``{(instance, parameter): member}`` (instances of the SSD, names and
+    members texts; empty without): the caller checks the members and sets the parameters
+    (``ssp._carried_files``)."""
     found = [a for a in root.findall("ssd:Annotations/ssc:Annotation", _NS) if a.get("type") == ANNOTATION_TYPE]
     if not found:
-        return
+        return {}
     where = f"{ssd}: ssc:Annotation type=\"{ANNOTATION_TYPE}\""
     if len(found) > 1:
         raise ScenarioError(f"{where}: given {len(found)} times; keep one")
@@ -172,11 +192,36 @@ def read_annotation(root: ET.Element, doc: dict, ssd: str) -> None:
         raise ScenarioError(f"{where}: must hold a mapping of scenario sections (got {type(value).__name__})")
     problems = _text_problems(el, node, value, where) + _macro_step_problems(value, doc, where)
     problems += _merge_fmus(value, doc, where)
+    files, more = _files(value, doc, where)
+    problems += more
     if problems:
         raise ScenarioError(problems)
     for key in ("coupling", "output", "analysis", "compare"):
         if key in value:
             doc[key] = value[key]
+    return files
+
+
+def _files(value: dict, doc: dict, where: str) -> tuple[dict[tuple[str, str], str], list[str]]:
+    """The annotation's ``files`` (``{instance: {parameter: member}}``) as ``{(instance, parameter):
+    member}``, and the problems of its shape (not a mapping, an instance the SSD lacks, a name or
+    member that is not a text). The members themselves are checked where the archive is known."""
+    files = value.get("files", {})
+    if not isinstance(files, dict):
+        return {}, [f"{where}: 'files' must be a mapping of instance names to {{parameter: member}} (got "
+                    f"{type(files).__name__})"]
+    out, problems = {}, []
+    for inst, entry in files.items():
+        if inst not in doc["fmus"]:
+            problems.append(f"{where}: 'files' names {inst!r:.80}, which is no component of the SSD "
+                            f"({', '.join(doc['fmus']) or 'none'})")
+        elif not isinstance(entry, dict) or not all(isinstance(k, str) and isinstance(v, str)
+                                                    for k, v in entry.items()):
+            problems.append(f"{where}: 'files.{inst}' must map parameter names to archive members, e.g. "
+                            f"{{rotor_file: resources/files/{inst}/rotor.yaml}} (got {entry!r:.200})")
+        else:
+            out.update({(inst, name): member for name, member in entry.items()})
+    return out, problems
 
 
 def _text_problems(el: ET.Element, node, value: dict, where: str) -> list[str]:
