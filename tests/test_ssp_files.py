@@ -132,7 +132,7 @@ def test_the_archive_alone_in_an_empty_folder_runs_to_the_original_numbers(turbo
     assert rc == 0, text
     import pandas as pd
     a, b = (pd.read_csv(tmp_path / d / "results.csv") for d in ("original", "bundled"))
-    assert np.abs(a["rotor.x_comp"] - b["rotor.x_comp"]).max() > 1e-9
+    assert np.abs(a["rotor.x_comp"] - b["rotor.x_comp"]).max() > 1e-8      # 2e-7 m of 3.8e-6 m
 
 
 SHIPPED_TURBO = sorted(p.stem for p in (REPO / "scenarios").glob("turbocharger_*.yaml"))
