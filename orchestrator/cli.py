@@ -111,7 +111,12 @@ def _cmd_run(args) -> int:
     except OSError:
         fields = []
     print(f"results: {where} ({', '.join([rows, 'summary.json', *fields])})")
-    print(f"status: {status_text}")
+    if result.success and result.status.short != "finished" and result.message:
+        # stopped_by_fmu: which FMU ended the run, and when (the bare status left the user to open
+        # summary.json to learn why a 20 s run ended at 8.99 s)
+        print(f"status: {status_text}: {result.message}")
+    else:
+        print(f"status: {status_text}")
     wall_s = stats.get("wall_time_s")
     print(f"macro steps: {steps}, wall time: {wall_s if isinstance(wall_s, (int, float)) else wall:.2f} s")
     if result.analysis:
@@ -365,9 +370,32 @@ def _cmd_plot(args) -> int:
                          "results.csv and summary.json)")
     if (run_dir / "sweep.csv").is_file():              # a sweep folder: draw its map
         return _print_paths(_feature("orchestrator.sweep.plot", "plot_sweep", "plot")(run_dir))
+    if (run_dir / "report.json").is_file() and (run_dir / "runs").is_dir() and not (
+            (run_dir / "results.csv").exists() or (run_dir / "summary.json").exists()):
+        return _comparison_folder(run_dir)
     plot_run = _feature("orchestrator.results.plots", "plot_run", "plot")
     for path in plot_run(run_dir, signals=args.signals):
         print(path)
+    return 0
+
+
+def _comparison_folder(cmp_dir: Path) -> int:
+    """`plot` of a `compare` output folder: its figure is error_vs_cost.png, its runs are in runs/ (it
+    used to say "results.csv not found (the run wrote no results)", twice, and exit 1)."""
+    try:
+        runs = sorted(p.name for p in (cmp_dir / "runs").iterdir() if p.is_dir())
+    except OSError:
+        runs = []
+    shown = ", ".join(runs[:8]) + (", ..." if len(runs) > 8 else "")
+    example = cmp_dir / "runs" / ("reference" if "reference" in runs or not runs else runs[0])
+    hint = (f"{cmp_dir} is the folder of a comparison (rotorcosim compare): its report is report.md; to draw the "
+            f"signals of one of its runs give that run's folder, e.g. rotorcosim plot {example}"
+            + (f" (runs: {shown})" if runs else ""))
+    figure = cmp_dir / "error_vs_cost.png"
+    if not figure.is_file():
+        raise CosimError(f"{hint}; it has no error_vs_cost.png (matplotlib was missing when it was written)")
+    print(f"note: {hint}", file=sys.stderr)
+    print(figure)
     return 0
 
 

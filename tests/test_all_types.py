@@ -390,3 +390,13 @@ def test_a_string_running_into_unreadable_memory_is_kept_to_there_and_reported_o
     assert said[0].startswith("FMU instance 'a' gave a string that runs into memory that cannot be read before its "
                               "end (no NUL byte; 26 bytes kept, cut there) for the String 's_out' in "
                               "fmi2GetString"), said[0]
+
+
+def test_cli_run_says_which_fmu_ended_the_run(fmus, tmp_path, capsys):
+    """`rotorcosim run` of a run an FMU ended before stop_time prints why, not only the status
+    (the Reference FMU Stair ends a 20 s run at 9 s: the output said `status: stopped_by_fmu`)."""
+    from orchestrator.cli import main
+    path = _yaml(fmus, "jacobi", params_a=", stop_after: 7")
+    assert main(["run", str(path), "--out", str(tmp_path / "stop"), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "status: stopped_by_fmu: FMU instance 'a' ended the simulation at t=0.7 s" in out, out

@@ -196,6 +196,26 @@ def test_plot_missing_dir(tmp_path, capsys):
     assert "no such run folder" in capsys.readouterr().err
 
 
+def test_plot_of_a_comparison_folder_names_its_figure_and_runs(tmp_path, capsys):
+    """`rotorcosim plot out/compare/X` (where compare wrote its report) said twice that results.csv was
+    not found "(the run wrote no results)" and exited 1; it now prints error_vs_cost.png and says how to
+    draw one of the comparison's runs."""
+    d = tmp_path / "cmp"
+    for run in ("reference", "gs-e0i0-h0.1"):
+        (d / "runs" / run).mkdir(parents=True)
+    (d / "report.json").write_text("{}")
+    (d / "report.md").write_text("# Comparison")
+    assert main(["plot", str(d)]) == 1                       # no figure: said why, with the hint
+    err = capsys.readouterr().err
+    assert "is the folder of a comparison" in err and "no error_vs_cost.png" in err
+    (d / "error_vs_cost.png").write_bytes(b"png")
+    assert main(["plot", str(d)]) == 0
+    cap = capsys.readouterr()
+    assert cap.out.strip() == str(d / "error_vs_cost.png")
+    assert f"rotorcosim plot {d / 'runs' / 'reference'}" in cap.err and "gs-e0i0-h0.1" in cap.err
+    assert "the run wrote no results" not in cap.err
+
+
 def test_missing_feature_module_is_reported_cleanly(capsys, monkeypatch):
     real = cli._feature
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from orchestrator.compare import (CompareSpecError, apply_changes, expand_variants, main_compare,
+from orchestrator.compare import (CompareSpecError, apply_changes, expand_variants, load_compare, main_compare,
                                   parse_compare, run_comparison)
 from orchestrator.compare.metrics import check_report, fit_order, signal_errors
 from orchestrator.scenario import (ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario)
@@ -488,6 +488,35 @@ def test_the_cheapest_variant_within_its_tolerance_is_named(compare_files, tmp_p
     assert main_compare(path, out_dir=tmp_path / "o4", runner=fake_runner, workers=1) == 0
     assert "No variant has a tolerance" in (tmp_path / "o4" / "report.md").read_text()
     assert json.loads((tmp_path / "o4" / "report.json").read_text())["cheapest_within_tolerance"] is None
+
+
+def test_a_goal_names_the_cheapest_good_enough_variant_without_failing_the_others(compare_files, tmp_path, capsys):
+    """A co-simulation engineer choosing a coupling wants the cheapest variant within the accuracy
+    they need; with `tolerance` every coarser variant was a `FAIL` line and the command exited 1,
+    as if something were broken. `goal` selects the same variant and is no check: exit 0, the
+    variants outside it marked "no" in report.md's "meets goal" column."""
+    path = compare_files("  goal: {max: 1.0e-3}", tol="{}")
+    assert main_compare(path, out_dir=tmp_path / "g", runner=fake_runner, workers=1) == 0
+    cap = capsys.readouterr()
+    assert "cheapest within tolerance: gs-e1i0-h0.2 (40 FMU calls, " in cap.out and "max " in cap.out
+    assert "FAIL" not in cap.err and "compare: all checks passed" in cap.out
+    doc = json.loads((tmp_path / "g" / "report.json").read_text())
+    assert doc["cheapest_within_tolerance"] == "gs-e1i0-h0.2" and doc["passed"]
+    met = {v["name"]: v["meets_goal"] for v in doc["variants"]}
+    assert met["gs-e1i0-h0.2"] is True and met["jac-e0i0-h0.2"] is False
+    md = (tmp_path / "g" / "report.md").read_text()
+    assert "| goal | meets goal |" in md and "| max 0.001 | no |" in md
+    # the reference must resolve the goal as it must a tolerance
+    assert load_compare(path).smallest_tolerance() == 1.0e-3
+    # a variant group's goal overrides the comparison's; a tolerance beside it still fails
+    path = compare_files("    - {scheme: gauss-seidel, extrapolation_order: 1, macro_step: 0.4, goal: {max: 0.5}}",
+                         tol="{max: 1.0e-6}")
+    spec = load_compare(path)
+    assert {v.name: dict(v.goal) for v in spec.variants}["gs-e1i0-h0.4"] == {"max": 0.5}
+    # goal values are checked as tolerances are
+    bad = compare_files("  goal: {max: .nan}", tol="{}")
+    with pytest.raises(CompareSpecError, match="goal"):
+        load_compare(bad)
 
 
 def test_no_variant_is_named_good_enough_against_a_reference_that_failed_its_check():

@@ -585,3 +585,20 @@ def test_gauss_seidel_with_interpolation_order_below_the_extrapolation_order_war
     assert load("{scheme: gauss-seidel, extrapolation_order: 1, interpolation_order: 1, macro_step: 0.01}", "q1") == []
     assert load("{scheme: jacobi, extrapolation_order: 2, macro_step: 0.01}", "jac") == []
     assert load("{scheme: gauss-seidel, macro_step: 0.01}", "k0") == []
+
+
+def test_arrays_of_different_sizes_are_refused_with_the_connections_to_write():
+    """`drv.f -> osc.f` between a 3-element and a 6-element array (crane-fmu's DrivingForce and
+    HarmonicOscillator6D) names the element connections to write instead of only 'one by one'."""
+    from types import SimpleNamespace
+
+    from orchestrator.scenario.completion import Completion
+    errors = []
+    stub = SimpleNamespace(mds={"drv": {f"f[{i}]": None for i in range(3)},
+                                "osc": {f"f[{i}]": None for i in range(6)}},
+                           err=lambda node, msg: errors.append(msg))
+    out = Completion.expand_arrays(stub, [{"from": "drv.f", "to": "osc.f", "node": None}])
+    assert out == [] and len(errors) == 1
+    assert "index sets differ (0, 1, 2 vs 0, 1, 2, 3, 4, 5)" in errors[0]
+    assert "'drv.f[0] -> osc.f[0]', 'drv.f[1] -> osc.f[1]', 'drv.f[2] -> osc.f[2]'" in errors[0]
+    assert "\n" not in errors[0]                                  # one problem, one line

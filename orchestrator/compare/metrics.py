@@ -189,19 +189,22 @@ REFERENCE_FLOOR_FACTOR = 10.0
 
 def cheapest_within_tolerance(report, failures: list[str]) -> dict | None:
     """The answer to "which coupling is good enough at the least cost": among the stable variants
-    that have a tolerance and no failed check, the one with the fewest FMU calls (exact on every
-    machine); at equal calls the one furthest within its tolerance (largest error/tolerance the
-    smallest), then wall time. None when no variant qualifies, or when the reference failed its
-    convergence check (the errors are then not to be trusted)."""
+    that have a tolerance or a goal, no failed check and every error within their goal, the one
+    with the fewest FMU calls (exact on every machine); at equal calls the one furthest within its
+    tolerance and goal (largest error/limit the smallest), then wall time. None when no variant
+    qualifies, or when the reference failed its convergence check (the errors are then not to be
+    trusted)."""
     if any(f.startswith("reference:") for f in failures):
         return None                 # errors against a reference that is not converged name nothing
     failed = {f.split("'")[1] for f in failures if f.startswith("variant '")}
-    ok = [v for v in report.variants if v["stable"] and v["tolerance"] and v["name"] not in failed]
+    ok = [v for v in report.variants if v["stable"] and (v["tolerance"] or v.get("goal"))
+          and v["name"] not in failed and v.get("meets_goal") is not False]
     if not ok:
         return None
 
     def used(v) -> float:
-        return max(v["errors"].get(m, math.inf) / t for m, t in v["tolerance"].items())
+        return max(v["errors"].get(m, math.inf) / t for lim in (v["tolerance"], v.get("goal") or {})
+                   for m, t in lim.items())
     return min(ok, key=lambda v: (v["fmu_calls"] if isinstance(v.get("fmu_calls"), (int, float)) else math.inf,
                                   used(v), v.get("wall_time_s") or math.inf))
 

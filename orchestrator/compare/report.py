@@ -58,6 +58,9 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
             (f" (check run: {chk_values})" if chk_values else "") + ".", ""]
     head = (["variant", "scheme", "ext", "int", "h [s]"] + [f"{c} err" for c in cols] +
             ["wall [s]", "macro steps", "FMU calls", "stable", "tolerance", "check"])
+    goals = any(v.get("goal") for v in report.variants)
+    if goals:
+        head[-1:-1] = ["goal", "meets goal"]
     lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     failed_names = {f.split("'")[1] for f in failures if f.startswith("variant '")}
     for v in report.variants:
@@ -67,6 +70,10 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
                [_fmt(v["wall_time_s"], "{:.2f}"), _fmt(v["macro_steps"], "{}"),
                 _fmt(v["fmu_calls"], "{}"), "yes" if v["stable"] else "NO", tol,
                 "FAIL" if v["name"] in failed_names else "ok"])
+        if goals:
+            met = v.get("meets_goal")
+            row[-1:-1] = [", ".join(f"{k} {t:g}" for k, t in (v.get("goal") or {}).items()) or "-",
+                          "-" if met is None else ("yes" if met else "no")]
         lines.append("| " + " | ".join(row) + " |")
     lines += ["", _cheapest_line(report, failures)]
     if spec.derived:   # the derived numbers themselves (the table above has their errors)
@@ -117,7 +124,10 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
 
 def cheapest_text(best: dict) -> str:
     """``name (N FMU calls, W s; max 0.01 <= 0.05)``: the cheapest variant within its tolerance."""
-    errs = ", ".join(f"{m} {_fmt(best['errors'].get(m))} <= {t:g}" for m, t in best["tolerance"].items())
+    limits = {**best["tolerance"]}
+    for m, t in (best.get("goal") or {}).items():
+        limits[m] = min(t, limits.get(m, t))
+    errs = ", ".join(f"{m} {_fmt(best['errors'].get(m))} <= {t:g}" for m, t in limits.items())
     return (f"{best['name']} ({_fmt(best['fmu_calls'], '{}')} FMU calls, {_fmt(best['wall_time_s'], '{:.2f}')} s; "
             f"{errs})")
 
@@ -125,15 +135,17 @@ def cheapest_text(best: dict) -> str:
 def _cheapest_line(report, failures) -> str:
     best = cheapest_within_tolerance(report, failures)
     if best is not None:
-        return ("**Cheapest variant within its tolerance** (fewest FMU calls; then the smallest error for its "
-                f"tolerance): `{cheapest_text(best)}`.")
+        return ("**Cheapest variant within its tolerance** (stable, within its `tolerance` and `goal`, no failed "
+                f"check; fewest FMU calls, then the smallest error for its limit): `{cheapest_text(best)}`.")
     if any(f.startswith("reference:") for f in failures):
         return ("No variant is named as good enough: the reference failed its convergence check (see Result), "
                 "so the errors are not to be trusted; tighten the reference first.")
-    if not any(v["tolerance"] for v in report.variants):
-        return ("No variant has a tolerance, so none is named as good enough: give `tolerance: {max: ...}` "
-                "(the accuracy you need) to the comparison or to its variant groups.")
-    return "**No variant is within its tolerance** (or every one that is failed another check)."
+    if not any(v["tolerance"] or v.get("goal") for v in report.variants):
+        return ("No variant has a tolerance or a goal, so none is named as good enough: give `goal: {max: ...}` "
+                "(the accuracy you need; a variant outside it is not a failure) or `tolerance: {max: ...}` (the "
+                "same, and a variant outside it fails the comparison) to the comparison or to its variant groups.")
+    return ("**No variant is within its tolerance** and goal (or every one that is failed another check): try "
+            "smaller macro steps or other schemes.")
 
 
 def _floor_notes(report, spec) -> list[str]:

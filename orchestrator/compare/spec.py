@@ -46,9 +46,9 @@ MAX_WORKERS = 64               # parallel runs of one comparison
 MAX_BUILD_SOURCES = 64         # PythonFMU sources built by compare.build_fmus
 MAX_BUILD_SOURCE_BYTES = 2**20  # each of them
 _ABBR = {"gauss-seidel": "gs", "jacobi": "jac", "iterative": "it", "monolithic": "mono"}
-_VARIANT_KEYS = set(COUPLING_KEYS) | {"name", "family", "set", "tolerance", "expect_order"}
+_VARIANT_KEYS = set(COUPLING_KEYS) | {"name", "family", "set", "tolerance", "goal", "expect_order"}
 _TOP_KEYS = {"name", "scenario", "set", "output_interval", "workers", "reference", "signals",
-             "derived", "metrics", "tolerance", "variants", "order_metric", "order_tolerance",
+             "derived", "metrics", "tolerance", "goal", "variants", "order_metric", "order_tolerance",
              "baseline", "regression_margin", "regression_floor", "build_fmus", "window"}
 
 
@@ -71,6 +71,8 @@ class VariantSpec:
     changes: Mapping[str, Any]                    # e.g. {"coupling.macro_step": 1e-3}
     tolerance: Mapping[str, float] = field(default_factory=dict)   # metric -> max allowed
     expect_order: float | None = None
+    # metric -> the error the user needs: selects the cheapest variant within it, never fails a check
+    goal: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -135,17 +137,22 @@ class CompareSpec:
         return apply_changes(self.base, ch)
 
     def smallest_tolerance(self) -> float | None:
-        tols = [v for var in self.variants for k, v in var.tolerance.items() if k in self.metrics]
+        """The smallest tolerance or goal on a signal metric: the reference's own change (its
+        convergence check) must stay below it, else its errors cannot tell a variant within it
+        from one outside."""
+        tols = [v for var in self.variants for lim in (var.tolerance, var.goal) for k, v in lim.items()
+                if k in self.metrics]
         return min(tols) if tols else None
 
     def derived_tolerances(self) -> dict[str, float]:
-        """Derived quantity -> the smallest tolerance any variant has on it (only those with
+        """Derived quantity -> the smallest tolerance or goal any variant has on it (only those with
         one): the reference's own change in that quantity must stay below it."""
         out: dict[str, float] = {}
         for var in self.variants:
-            for k, v in var.tolerance.items():
-                if k in self.derived:
-                    out[k] = min(v, out.get(k, math.inf))
+            for lim in (var.tolerance, var.goal):
+                for k, v in lim.items():
+                    if k in self.derived:
+                        out[k] = min(v, out.get(k, math.inf))
         return out
 
 
@@ -347,8 +354,9 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     derived = _derived(sec.get("derived") or {}, bad)
     known = set(metrics) | set(derived)
     default_tol = _tolerance(sec.get("tolerance") or {}, known, "tolerance", bad)
+    default_goal = _tolerance(sec.get("goal") or {}, known, "goal", bad)
     group_of: dict[str, int] = {}
-    variants = _variants(sec, base, default_tol, known, bad, group_of)
+    variants = _variants(sec, base, default_tol, known, bad, group_of, default_goal)
     reference = _reference(sec.get("reference") or {"scheme": "monolithic"}, bad)
     order_metric = sec.get("order_metric", "rms")
     if order_metric not in metrics:
@@ -402,7 +410,8 @@ def _derived(derived_sec, bad) -> dict[str, dict]:
     return derived
 
 
-def _variants(sec, base, default_tol, known, bad, group_of: dict[str, int]) -> list[VariantSpec]:
+def _variants(sec, base, default_tol, known, bad, group_of: dict[str, int],
+              default_goal: Mapping[str, float] | None = None) -> list[VariantSpec]:
     """``compare.variants``: every group expanded, at most MAX_VARIANTS, names distinct;
     ``group_of`` gets each variant's group index (for the line of a later problem)."""
     variants: list[VariantSpec] = []
@@ -412,7 +421,8 @@ def _variants(sec, base, default_tol, known, bad, group_of: dict[str, int]) -> l
         groups = []
     for i, g in enumerate(groups):
         group = expand_variants(g, base, default_tol, known, where=f"variants[{i}]",
-                                bad=lambda k, msg, m=g, i=i: bad(f"variants[{i}].{k}", msg, m, k))
+                                bad=lambda k, msg, m=g, i=i: bad(f"variants[{i}].{k}", msg, m, k),
+                                default_goal=default_goal)
         variants.extend(group)
         for v in group:
             group_of.setdefault(v.name, i)
@@ -697,7 +707,8 @@ def _tolerance(tol, known, key, bad) -> dict[str, float]:
 
 def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mapping[str, float],
                     known: set[str], *, where: str = "variants[0]",
-                    bad: Callable[[str, str], None] | None = None) -> list[VariantSpec]:
+                    bad: Callable[[str, str], None] | None = None,
+                    default_goal: Mapping[str, float] | None = None) -> list[VariantSpec]:
     """Expand one variant group (lists in coupling keys -> cartesian product).
 
     Length: every key of a variant group is checked here, in one pass that collects all
@@ -727,6 +738,8 @@ def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mappi
             axes.append((k, vals))
     tol = dict(default_tol)
     tol.update(_tolerance(group.get("tolerance") or {}, known, "tolerance", bad))
+    goal = dict(default_goal or {})
+    goal.update(_tolerance(group.get("goal") or {}, known, "goal", bad))
     extra = _changes(group.get("set") or {}, "set", bad)
     expect = group.get("expect_order")
     if expect is not None and not _finite(expect):
@@ -765,7 +778,7 @@ def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mappi
             continue
         changes = {f"coupling.{k}": v for k, v in values.items()}
         changes.update(extra)
-        out.append(VariantSpec(name=name, family=family, changes=changes, tolerance=tol,
+        out.append(VariantSpec(name=name, family=family, changes=changes, tolerance=tol, goal=goal,
                                expect_order=None if expect is None else float(expect)))
     if problems:
         raise CompareSpecError(problems)

@@ -141,9 +141,13 @@ class Completion:
                 continue
             si_set, di_set = [index_of(e) for e in se], [index_of(e) for e in de]
             if sorted(si_set) != sorted(di_set):
+                common = [i for i in si_set if i in set(di_set)]
+                pairs = ", ".join(f"'{si}.{sv}[{i}] -> {di}.{dv}[{i}]'" for i in common[:6])
+                how = (f"connect the elements one by one, e.g. those both have: {pairs}"
+                       + (", ..." if len(common) > 6 else "") + " (one list entry each)"
+                       if common else "connect the elements one by one ('a.y[0] -> b.u[1]')")
                 self.err(c["node"], f"'{c['from']}' -> '{c['to']}' connects two arrays element by element, but "
-                                    f"their index sets differ ({', '.join(si_set)} vs {', '.join(di_set)}); "
-                                    "connect the elements one by one")
+                                    f"their index sets differ ({', '.join(si_set)} vs {', '.join(di_set)}); {how}")
                 continue
             for idx in si_set:
                 out.append({**c, "from": f"{si}.{sv}[{idx}]", "to": f"{di}.{dv}[{idx}]"})
