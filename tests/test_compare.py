@@ -519,6 +519,18 @@ def test_a_goal_names_the_cheapest_good_enough_variant_without_failing_the_other
         load_compare(bad)
 
 
+def test_a_missing_signals_list_is_answered_with_signals_to_write(compare_files):
+    """A first comparison file often leaves `signals` out; the message now gives outputs the base
+    scenario records to copy instead of only the type of the key."""
+    path = compare_files("")
+    path.write_text(path.read_text().replace("  signals: [left.x1, left.v1]\n", ""))
+    with pytest.raises(CompareSpecError) as info:
+        load_compare(path)
+    msg = str(info.value)
+    assert "'compare.signals' must be a non-empty list" in msg
+    assert "e.g. signals: ['left.x1', 'left.v1'" in msg, msg
+
+
 def test_no_variant_is_named_good_enough_against_a_reference_that_failed_its_check():
     from orchestrator.compare.metrics import cheapest_within_tolerance
 

@@ -350,7 +350,7 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
     if not isinstance(metrics, list) or any(m not in METRICS for m in metrics):
         bad("metrics", f"must be a list drawn from {list(METRICS)} (got {metrics!r})")
         metrics = list(METRICS)
-    signals = _signals(sec.get("signals"), bad)
+    signals = _signals(sec.get("signals"), bad, base)
     derived = _derived(sec.get("derived") or {}, bad)
     known = set(metrics) | set(derived)
     default_tol = _tolerance(sec.get("tolerance") or {}, known, "tolerance", bad)
@@ -669,7 +669,7 @@ def _changes(m, key, bad) -> dict[str, Any]:
     return out
 
 
-def _signals(sig, bad) -> dict[str, float | None]:
+def _signals(sig, bad, base: Scenario | None = None) -> dict[str, float | None]:
     if isinstance(sig, list) and sig and all(isinstance(s, str) for s in sig):
         return {s: None for s in sig}
     if isinstance(sig, dict) and sig:
@@ -682,9 +682,33 @@ def _signals(sig, bad) -> dict[str, float | None]:
                 scale = None
             out[str(s)] = None if scale is None else float(scale)
         return out
+    example = _signal_example(base)
     bad("signals", "must be a non-empty list of 'instance.variable' names or a mapping "
-        "name -> {scale: value}")
+        "name -> {scale: value}: the signals whose errors are measured" +
+        (f", e.g. signals: [{', '.join(repr(x) for x in example)}]" if example else ""))
     return {}
+
+
+def _signal_example(base: Scenario | None) -> list[str]:
+    """Up to three numeric outputs the base scenario records, for the message of a missing
+    ``compare.signals`` (a first comparison file often leaves it out)."""
+    if base is None:
+        return []
+    if base.output.signals is not None:
+        return list(base.output.signals)[:3]
+    from orchestrator.errors import FmuError
+    from orchestrator.fmi.archive import cached_model_description
+    out: list[str] = []
+    for f in base.fmus:
+        try:
+            md = cached_model_description(f.path)
+        except (FmuError, OSError, AttributeError, TypeError):
+            continue
+        out += [f"{f.name}.{n}" for n, v in md.variables.items()
+                if getattr(v, "causality", None) == "output" and getattr(v, "type", None) == "Real"]
+        if len(out) >= 3:
+            break
+    return out[:3]
 
 
 def _tolerance(tol, known, key, bad) -> dict[str, float]:
