@@ -406,7 +406,11 @@ def _print_paths(paths) -> int:
 
 
 def _add_compare(sub) -> None:
-    p = sub.add_parser("compare", help="compare coupling schemes against a reference (CI regression gate)")
+    p = sub.add_parser("compare", help="compare coupling schemes against a reference (CI regression gate)",
+                       description=("Run a scenario with several coupling schemes and macro steps, measure each "
+                                    "one's error against a reference, and name the cheapest variant within the "
+                                    "accuracy needed (compare.goal; docs/compare.md). Exit 1 when a check fails "
+                                    "(a tolerance, an expected order, the baseline), 2 when the file is invalid."))
     p.add_argument("file", metavar="FILE", help="comparison YAML file (or a scenario with a compare: section, or an "
                                                 "SSP archive export-ssp wrote from one)")
     p.add_argument("--out", metavar="DIR", type=_folder,
