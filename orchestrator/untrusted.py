@@ -338,8 +338,12 @@ def read_yaml_tree(path: str | os.PathLike, *, what: str, loader_cls: type | Non
         if exc.context:
             at = f" (line {exc.context_mark.line + 1})" if exc.context_mark is not None else ""
             context = f"{exc.context}{at}, "
-        raise InputError(f"{where}: malformed YAML: {context}{exc.problem}; fix the syntax there "
-                         "(indentation, a missing ':' or a closing bracket)") from None
+        hint = "(indentation, a missing ':' or a closing bracket)"
+        if "flow" in (exc.context or "") and "'['" in (exc.problem or ""):
+            # {x[0]: 1.0}: a bracket inside { } or [ ] starts a list; the crane-fmu FMUs' arrays hit it
+            hint = ("(a name with brackets, such as x[0], needs quotes inside { } or [ ]: {\"x[0]\": 1.0}, "
+                    "[\"osc.x[0]\"]; or write it in block style on its own line)")
+        raise InputError(f"{where}: malformed YAML: {context}{exc.problem}; fix the syntax there {hint}") from None
     except yaml.reader.ReaderError as exc:      # a character YAML does not allow (NUL, other controls)
         before = text[:exc.position]
         line, column = before.count("\n") + 1, exc.position - (before.rfind("\n") + 1) + 1

@@ -147,6 +147,18 @@ def test_malformed_yaml_names_file_line_and_column(sdir):
     assert "fix the syntax" in problems[0]
 
 
+def test_an_unquoted_array_element_in_a_flow_mapping_says_to_quote_it(sdir):
+    """`parameters: {x[0]: 1.0}` (crane-fmu's HarmonicOscillator6D has x[0..5]) is a YAML error whose
+    parser message ("expected ',' or '}', but got '['") does not say that the name needs quotes."""
+    p = write(sdir, "name: a\nstop_time: 1\nfmus:\n  osc: {path: fmus/LeftMass.fmu, parameters: {x[0]: 1.0}}\n")
+    problems = problems_of(p)
+    assert len(problems) == 1 and ":4:" in problems[0]
+    assert 'needs quotes inside { } or [ ]: {"x[0]": 1.0}' in problems[0], problems[0]
+    # other syntax errors keep the general hint
+    p = write(sdir, "name: a\nstop_time: 1\nfmus:\n  osc: {path: fmus/LeftMass.fmu\n")
+    assert "needs quotes" not in problems_of(p)[0] and "a closing bracket" in problems_of(p)[0]
+
+
 def test_unknown_keys_suggest_the_closest_valid_key(sdir):
     path = sdir / "unknown_keys.yaml"
     problems = problems_of(path)
