@@ -329,7 +329,7 @@ def hs_static_equilibrium(b, F_target, omega, *, guess=None, contact=None, ftol=
     bearing ``b`` at journal speed ``omega`` [rad/s] equals ``F_target`` (2,) [N]: the static
     equilibrium of a journal under a static load W, ``F_target = -W`` (the film carries the load;
     a downward weight m g is carried by ``F_target = (0, m g)``). The one Newton solve of the
-    rotor-bearing statics: ``rotorcosim stability`` (orchestrator/stability.py), the docs scripts
+    rotor-bearing statics: ``rotorcosim stability`` (orchestrator/stability/films.py), the docs scripts
     (docs/paper_cases_radius.py, docs/sweeps_threshold.py, docs/turbocharger_threshold.py) and the
     floating ring's films (:func:`.floating_ring_statics.static_equilibrium`).
 

@@ -1,0 +1,296 @@
+"""The film models of ``rotorcosim stability``: each station's bearing linearised at its static
+equilibrium under its static load (module doc of :mod:`orchestrator.stability.system`), at a
+given speed. Each model has a ``method`` (the result's words for it), ``eccentricities(omega)``
+and either ``__call__(omega) -> (K, C)`` per station or ``max_re(omega)`` of the whole system.
+
+* ``film="short"`` (:class:`_ShortFilm`): the closed-form short-bearing (Ocvirk 1952, NACA TN
+  2808) pi-film coefficients (:func:`rotor_fmu.stability.short_bearing_coefficients`) of each
+  bearing's R, B (length), c = psi R and eta0 - a bound for B/D not small; grooves and feed
+  pressure are not in the closed form;
+* ``film="hs"`` (:class:`_HSFilm`): the scenario's own finite-length half-Sommerfeld film (its R,
+  B, psi, eta0, p0, p_feed, groove, grid): the equilibrium by Newton on the journal centre
+  (:func:`bearing_fmu.linearize.hs_static_equilibrium`), the coefficients
+  by :func:`bearing_fmu.linearize.hs_linearization` (what the FMU outputs as ``kxx .. cyy``;
+  with ``contact = 1`` plus the asperity contact's force and coefficients, as the FMU adds them),
+  as docs/paper_cases_radius.py does. For a mass-conserving bearing (``cavitation = 1``) these
+  are the half-Sommerfeld film's coefficients (the HS linearisation), said so in the result.
+* ``film="mc"`` (:class:`_MCFilm`): each mass-conserving bearing's own film linearised with its
+  cavity dynamics (film impedance; docs/analysis.md, "Linear threshold of the mass-conserving
+  film").
+
+Floating-ring bearings (:class:`_RingFilms`; :func:`rotor_fmu.floating_ring_stability.ring_system_eigen`,
+docs/floating-ring.md): at each speed, each ring's steady operating point under the station's
+static load (its weight share plus any ``loads``, downward only; ring speed from the torque
+balance of its two films, journal and ring at their static equilibria), the half-Sommerfeld
+coefficients of its inner film (at the wedge speed omega + Omega) and outer film, and the ring's
+translation as two more degrees of freedom per station (mass ``m_ring``). The ring spin is held
+at its steady value, as the classical linear analyses do (Tatara 1970; Tanaka & Hori 1972);
+``ring_spin=True`` adds each ring's spin perturbation as a first-order degree of freedom. Only
+the half-Sommerfeld films (``film="hs"``): the short-bearing closed form has no ring.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from orchestrator.stability.system import Bearing, StabilityError, System
+
+
+def _short(p) -> dict:
+    """The short-bearing closed form's geometry and viscosity of a bearing's BearingParams."""
+    return dict(R=p.R, L=p.B, C=p.psi * p.R, eta=p.eta0)
+
+
+_NUMERIC = (ValueError, ArithmeticError, np.linalg.LinAlgError)   # what an absurd parameter makes the numerics raise
+
+
+def _failed(b: Bearing, omega: float | None, exc: BaseException) -> StabilityError:
+    """The message of a film computation of bearing b that failed (an absurd parameter, a speed far off)."""
+    p = b.params
+    at = f" at {omega / (2 * math.pi):.4g} Hz" if omega is not None else ""
+    return StabilityError(f"bearing '{b.instance}' (station {b.station}; R = {p.R:g} m, B = {p.B:g} m, "
+                          f"c = psi R = {p.psi * p.R:g} m, eta0 = {p.eta0:g} Pa s): its film has no usable static "
+                          f"equilibrium{at}: {exc or type(exc).__name__}; check these parameters (--set "
+                          f"fmus.{b.instance}.parameters.NAME=VALUE) against the load, or give a --speeds LO:HI "
+                          "nearer the rotor's running speeds")
+
+
+class _ShortFilm:
+    """Ocvirk coefficients of each station under its static load (closed form)."""
+
+    method = ("short-bearing (Ocvirk) pi-film closed form (rotor_fmu/stability.py), at the static equilibrium "
+              "under its static load (the rotor's weight share, plus --load)")
+
+    def __init__(self, system: System, loads: np.ndarray):
+        self.loads = loads
+        self.system = system
+
+    def __call__(self, omega):
+        from rotor_fmu.stability import short_bearing_coefficients
+        K, C = [], []
+        for b, ld in zip(self.system.bearings, self.loads):
+            try:
+                k, c = short_bearing_coefficients(ld, omega, **_short(b.params))
+            except _NUMERIC as exc:
+                raise _failed(b, omega, exc) from None
+            K.append(k)
+            C.append(c)
+        return np.array(K), np.array(C)
+
+    def eccentricities(self, omega):
+        from rotor_fmu.stability import short_bearing_equilibrium
+        out = []
+        for b, ld in zip(self.system.bearings, self.loads):
+            try:
+                out.append(short_bearing_equilibrium(ld, omega, **_short(b.params))[0])
+            except _NUMERIC as exc:
+                raise _failed(b, omega, exc) from None
+        return out
+
+
+class _HSFilm:
+    """Half-Sommerfeld film coefficients of each station's own bearing at its static equilibrium."""
+
+    method = ("finite-length half-Sommerfeld film of each bearing (its parameters and grid), linearized by central "
+              "differences (bearing_fmu/linearize.py hs_linearization) at the static equilibrium under the rotor's "
+              "static load: the rotor's weight share, plus --load (Newton on the journal centre)")
+
+    def __init__(self, system: System, loads: np.ndarray):
+        from bearing_fmu.model import BearingModel
+        self.system = system
+        self.loads = loads
+        self.models = []
+        for b in system.bearings:
+            p = dataclasses.replace(b.params, cavitation=0)
+            try:
+                m = BearingModel(p)
+                m.initialize(0.0, -0.5 * m.c, 0.0, 0.0, 1.0)
+            except _NUMERIC as exc:
+                raise _failed(b, None, exc) from None
+            self.models.append(m)
+        self.q: list = [None] * len(self.models)
+
+    def coefficients(self, j: int, q, omega: float):
+        """(K, C) of bearing j's HS film at rest at q, plus those of the asperity contact when the
+        bearing has ``contact = 1`` (bearing_fmu/contact.py; exactly 0 above 6 roughness heights),
+        as ``bearing_fmu.linearize.linearization`` adds them."""
+        from bearing_fmu.contact import contact_coefficients
+        from bearing_fmu.linearize import hs_linearization
+        m = self.models[j]
+        K, C = hs_linearization(m, q[0], q[1], 0.0, 0.0, omega)
+        if m.params.contact:
+            Kc, Cc = contact_coefficients(q[0], q[1], 0.0, 0.0, omega, **m.contact_kw)
+            K, C = K + Kc, C + Cc
+        return K, C
+
+    def equilibrium(self, j: int, omega: float) -> np.ndarray:
+        """Journal centre (x, y) [m] where the bearing force equals -load
+        (:func:`bearing_fmu.linearize.hs_static_equilibrium`: Newton with K = -dF/dq, the contact
+        force included when the bearing has ``contact = 1``); started from the last speed's
+        equilibrium, or from the short-bearing one (kept inside 0.8 c), or, without that, from
+        hs_static_equilibrium's default start."""
+        from bearing_fmu.linearize import HSEquilibriumError, hs_static_equilibrium
+        from rotor_fmu.stability import short_bearing_equilibrium
+        b, m, ld = self.system.bearings[j], self.models[j], self.loads[j]
+        c = m.c
+        target = -np.asarray(ld, float)
+        q = self.q[j]
+        if q is None:       # start from the short-bearing equilibrium (kept inside 0.8 c)
+            try:
+                eps, psi = short_bearing_equilibrium(ld, omega, **_short(b.params))
+                q = min(eps, 0.8) * c * np.array([math.cos(psi), math.sin(psi)])
+            except ValueError:          # no closed-form equilibrium (a load far off its capacity): the
+                pass                    # default start, mid-gap on the load's side (also for a sideways --load)
+        try:
+            q = hs_static_equilibrium(m, target, omega, guess=q, max_iter=60, max_ecc=0.995)
+        except HSEquilibriumError as exc:
+            # a non-finite film force is a film far stiffer than the load (speed, viscosity), not a speed too low
+            fix = ("give a --speeds LO:HI nearer the rotor's running speeds, or check the bearing's parameters (R, B, "
+                   "psi, eta0) against the load" if "non-finite" in str(exc) else "raise the lower end of --speeds")
+            raise StabilityError(f"bearing '{b.instance}': no half-Sommerfeld static equilibrium found at "
+                                 f"{omega / (2 * math.pi):.4g} Hz under the load {np.hypot(*target):.4g} N "
+                                 f"({exc}); {fix}") from None
+        except _NUMERIC as exc:
+            raise _failed(b, omega, exc) from None
+        self.q[j] = q
+        return q
+
+    def __call__(self, omega):
+        K, C = [], []
+        for j in range(len(self.models)):
+            q = self.equilibrium(j, omega)
+            try:
+                k, d = self.coefficients(j, q, omega)
+            except _NUMERIC as exc:
+                raise _failed(self.system.bearings[j], omega, exc) from None
+            K.append(k)
+            C.append(d)
+        return np.array(K), np.array(C)
+
+    def contact_share(self, omega):
+        """Share of each bearing's static load carried by asperity contact at omega (0 without contact)."""
+        from bearing_fmu.contact import contact_force
+        out = []
+        for j, m in enumerate(self.models):
+            if not m.params.contact:
+                out.append(0.0)
+                continue
+            q = self.equilibrium(j, omega)
+            Fn = contact_force(q[0], q[1], 0.0, 0.0, omega, **m.contact_kw)[2]
+            out.append(float(abs(Fn) / np.hypot(*self.loads[j])))
+        return out
+
+    def eccentricities(self, omega):
+        return [float(np.hypot(*self.equilibrium(j, omega)) / m.c) for j, m in enumerate(self.models)]
+
+
+class _RingFilms:
+    """Floating-ring bearings: the rotor with each ring's translation as two more degrees of
+    freedom, coupled by the half-Sommerfeld coefficients of its two films at the steady operating
+    point (:func:`rotor_fmu.floating_ring_stability.ring_system_eigen`; module doc)."""
+
+    def __init__(self, system: System, loads: np.ndarray, spin: bool = False):
+        self.system, self.spin = system, spin
+        self.loads = loads
+        self.rings = [b.params for b in system.bearings]
+        self._at: tuple[float, list] | None = None
+        held = ("each ring's spin as a first-order degree of freedom (--ring-spin)" if spin else
+                "the ring spin held at its steady value (classical; --ring-spin adds its perturbation)")
+        self.method = ("finite-length half-Sommerfeld inner and outer films of each floating-ring bearing (their "
+                       "parameters and grids), linearized by central differences (bearing_fmu/linearize.py "
+                       "linearization) at the ring's steady operating point under its static load (the rotor's "
+                       "weight share, plus --load; ring speed from the torque balance of its two films, journal "
+                       "and ring at their static equilibria), the ring's translation as two more degrees of "
+                       f"freedom per station (mass m_ring), {held} (rotor_fmu/floating_ring_stability.py)")
+
+    def max_re(self, omega: float) -> tuple[float, float]:
+        """(largest real part [1/s], |Im| of that eigenvalue [rad/s]) at journal speed omega."""
+        from bearing_fmu.model import StepFailed
+        from rotor_fmu.floating_ring_stability import ring_system_eigen
+        try:
+            with np.errstate(all="raise"):
+                lam, points = ring_system_eigen(self.system.rotor, self.rings, omega, spin=self.spin,
+                                                loads=self.loads)
+        except (StepFailed, ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
+            raise StabilityError(f"no steady operating point of the floating-ring bearings at "
+                                 f"{omega / (2 * math.pi):.4g} Hz ({exc}); at low speed a ring's outer film may "
+                                 "not carry its load; raise the lower end of --speeds") from None
+        if not np.all(np.isfinite(lam)):
+            raise StabilityError(f"the floating-ring system's eigenvalues at {omega / (2 * math.pi):.4g} Hz are "
+                                 "not finite (a film at the edge of its clearance); raise the lower end of --speeds")
+        self._at = (omega, points)
+        from rotor_fmu.stability import rightmost
+        return rightmost(lam)     # a real part within rounding of zero is no crossing
+
+    def points(self, omega: float) -> list:
+        """Each station's FloatingRing model at its steady operating point at omega."""
+        if self._at is None or self._at[0] != omega:
+            self.max_re(omega)
+        return self._at[1]
+
+    def eccentricities(self, omega):
+        return [float(p.outputs["eps"]) for p in self.points(omega)]
+
+
+class _MCFilm:
+    """Each station's own mass-conserving film, linearised about its steady state with its cavity
+    (theta) dynamics: the rotor and the films as one descriptor system
+    (:func:`rotor_fmu.stability.film_system_eigenvalues`, :class:`bearing_fmu.linearize.MCFilmLinear`;
+    docs/analysis.md, "Linear threshold of the mass-conserving film")."""
+
+    method = ("each bearing's own mass-conserving film (its parameters and grid) linearised about its steady "
+              "state with its cavity (theta) dynamics, i.e. its film impedance Z(s) (bearing_fmu/linearize.py "
+              "MCFilmLinear), at the static equilibrium of the steady film under its static load; the finite "
+              "eigenvalues of the rotor and films as one descriptor system (rotor_fmu/stability.py "
+              "film_system_eigenvalues)")
+
+    def __init__(self, system: System, loads: np.ndarray):
+        from bearing_fmu.model import BearingModel
+        plain = [b.instance for b in system.bearings if b.params.cavitation != 1]
+        if plain:
+            raise StabilityError(f"--film mc linearises a mass-conserving film (cavitation = 1), but the bearing "
+                                 f"'{plain[0]}' is half-Sommerfeld (cavitation = 0): use --film hs")
+        self.system, self.loads = system, loads
+        self.models = [BearingModel(b.params) for b in system.bearings]
+        self.q: list = [None] * len(self.models)
+        self._at: tuple[float, list] | None = None
+
+    def _films(self, omega: float) -> list:
+        """Each station's MCFilmLinear at its equilibrium at omega (the last speed's kept)."""
+        from bearing_fmu.linearize import HSEquilibriumError, mc_static_equilibrium
+        from bearing_fmu.model import StepFailed
+        from rotor_fmu.stability import short_bearing_equilibrium
+        if self._at is not None and self._at[0] == omega:
+            return self._at[1]
+        films = []
+        for j, (b, m, ld) in enumerate(zip(self.system.bearings, self.models, self.loads)):
+            guess = self.q[j]
+            if guess is None:           # the short-bearing equilibrium, kept inside 0.8 c
+                try:
+                    eps, psi = short_bearing_equilibrium(ld, omega, **_short(b.params))
+                except (ArithmeticError, ValueError):
+                    eps, psi = 0.5, math.atan2(-ld[1], -ld[0]) + math.pi / 4
+                guess = min(eps, 0.8) * m.c * np.array([math.cos(psi), math.sin(psi)])
+            try:
+                with np.errstate(all="ignore"):
+                    q, lin = mc_static_equilibrium(m, -np.asarray(ld, float), omega, guess=guess)
+            except (HSEquilibriumError, StepFailed, ArithmeticError, ValueError, RuntimeError,
+                    np.linalg.LinAlgError) as exc:
+                raise _failed(b, omega, exc) from None
+            self.q[j] = q
+            films.append(lin)
+        self._at = (omega, films)
+        return films
+
+    def max_re(self, omega: float) -> tuple[float, float]:
+        from rotor_fmu.stability import film_system_eigenvalues
+        lam = film_system_eigenvalues(self.system.rotor, omega, self._films(omega))
+        k = int(np.argmax(lam.real))
+        return float(lam.real[k]), float(abs(lam.imag[k]))
+
+    def eccentricities(self, omega):
+        self._films(omega)
+        return [float(np.hypot(*q) / m.c) for q, m in zip(self.q, self.models)]

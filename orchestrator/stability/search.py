@@ -1,0 +1,248 @@
+"""The linear stability threshold of a scenario (``rotorcosim stability``): the search over speeds
+and the result.
+
+What it computes (docs/analysis.md, "Linear stability threshold"): the lowest speed at which an
+eigenvalue of the rotor's linear model with speed-dependent linear film coefficients at its
+bearing stations crosses into the right half plane (a geometric scan of the whole range, then
+Brent on every sign change of the largest real part, the first upwards with the bracket and
+tolerances of :func:`rotor_fmu.stability.threshold_speed`; Lund 1974, J. Eng. Ind. 96:509; Childs
+1993, "Turbomachinery Rotordynamics", sec. 3.6), the whirl frequency ratio of the crossing mode,
+and each bearing's static eccentricity there. The coefficients are taken at the static
+equilibrium of each journal under its static load (:mod:`orchestrator.stability.system`), with
+the film model the ``film`` argument names (:mod:`orchestrator.stability.films`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from orchestrator.scenario.analysis_clearance import BEARING_MODEL
+from orchestrator.stability.films import _NUMERIC, _failed, _HSFilm, _MCFilm, _RingFilms, _ShortFilm
+from orchestrator.stability.system import Bearing, StabilityError, System, _static_loads, build_system
+
+FILMS = ("short", "hs", "mc")
+MC_SCAN = 12            # speeds of the default scan with --film mc (about 20 s each at 40 x 40)
+
+
+def _notes(system: System, film: str, ring_spin: bool, weight: np.ndarray, extra: np.ndarray) -> list[str]:
+    """The result's notes on its inputs: each --load with the sum it makes, what the linear model
+    leaves out of each bearing (its own mass-conserving film, the ring spin, grooves and feed
+    pressure in the short-bearing closed form) and the short bearing's B/D."""
+    names = [b.instance for b in system.bearings]
+    total = weight + extra
+    fmt = lambda v: f"({v[0] + 0.0:.4g}, {v[1] + 0.0:.4g}) N"        # noqa: E731 (+ 0.0: no "-0")
+    notes = [f"bearing '{n}': static load {fmt(total[k])} = the rotor's weight share {fmt(weight[k])} plus --load "
+             f"{fmt(extra[k])}" for k, n in enumerate(names) if extra[k].any()]
+    for b in (x for x in system.bearings if x.kind == "floating_ring"):
+        mc = [side for side in ("inner", "outer") if getattr(b.params, side).cavitation == 1]
+        if mc:
+            notes.append(f"bearing '{b.instance}': its {' and '.join(mc)} film is mass-conserving (cavitation = 1); "
+                         "its coefficients here are those of the half-Sommerfeld film")
+        if not ring_spin:                       # every ring floats (a semi-floating one is refused)
+            notes.append(f"bearing '{b.instance}': full floating ring, spin held at its steady value in the "
+                         "linear model (--ring-spin adds its perturbation)")
+    for b in (x for x in system.bearings if x.kind == "journal"):
+        if b.params.cavitation == 1 and film != "mc":
+            notes.append(f"bearing '{b.instance}' is mass-conserving (cavitation = 1): its coefficients here are "
+                         "those of the half-Sommerfeld film (the HS linearisation), not of its own film; "
+                         "--film mc linearises its own film with its cavity dynamics")
+        if film == "short" and (b.params.groove_width > 0 or b.params.p_feed != b.params.p0):
+            notes.append(f"bearing '{b.instance}': the short-bearing closed form has no groove and no feed "
+                         "pressure (use --film hs for the film with them)")
+    if film == "short":
+        notes.append("short-bearing theory is a bound for B/D not small (B/D of "
+                     + ", ".join(f"'{b.instance}' {b.params.B / (2 * b.params.R):.2f}" for b in system.bearings)
+                     + ")")
+    return notes
+
+
+def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9) -> float | None:
+    """Fill ``result`` (its ``crossings``, ``status``, the threshold's entries, ``notes``) from
+    ``max_re(omega) -> (largest real part, |Im| there)`` at the speeds ``ws`` [rad/s] and between
+    them; return the threshold speed [rad/s], or None without one."""
+    from rotor_fmu.stability import refine_crossing
+    # the whole range on a geometric grid, then Brent on every sign change of the largest real part
+    # between neighbouring speeds (rotor_fmu.stability.refine_crossing, as threshold_speed refines
+    # its bracket: the same number): the first one upwards is the threshold, a later one downwards is
+    # where the system is stable again (a run-up's whirl "vanish" has its linear counterpart there).
+    # A speed without a static equilibrium (a load a film cannot carry there inside its clearance,
+    # e.g. a floating ring's outer film at low speed) is left out, and no crossing is sought across it:
+    # a sign change across such speeds is named (status "threshold_not_located" when it is the first).
+    vals: list[float | None] = []
+    failed: list[tuple[float, StabilityError]] = []
+    for w in ws:
+        try:
+            vals.append(max_re(w)[0])
+        except StabilityError as exc:
+            vals.append(None)
+            failed.append((w, exc))
+    ok = [k for k, v in enumerate(vals) if v is not None]
+    if not ok:
+        raise failed[0][1]
+    if failed:
+        where = ", ".join(f"{w / (2 * math.pi):.4g}" for w, _ in failed[:6]) + (" ..." if len(failed) > 6 else "")
+        result["notes"].append(f"no static equilibrium at {len(failed)} of the {len(ws)} speeds searched ({where} Hz), "
+                               f"left out: {failed[0][1]}".replace("; raise the lower end of --speeds", ""))
+        result["speeds_without_equilibrium_hz"] = [w / (2 * math.pi) for w, _ in failed]
+    unlocated = None          # the first sign change, when it lies across speeds without equilibrium
+    for k0, k1 in zip(ok, ok[1:]):
+        if (vals[k0] < 0.0) == (vals[k1] < 0.0):
+            continue
+        if k1 == k0 + 1:
+            wc, nu = refine_crossing(max_re, ws[k0], ws[k1], xtol)
+            result["crossings"].append({"speed_hz": wc / (2 * math.pi), "whirl_hz": nu / (2 * math.pi),
+                                        "becomes": "unstable" if vals[k0] < 0.0 else "stable"})
+            continue
+        between = [ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)]
+        becomes = "unstable" if vals[k0] < 0.0 else "stable"
+        result["notes"].append(f"the largest real part changes sign between {between[0]:.4g} and "
+                               f"{between[1]:.4g} Hz (it becomes {becomes}), across speeds without a static "
+                               "equilibrium: that crossing is not located")
+        if unlocated is None and not result["crossings"]:
+            unlocated = between
+    vals = [vals[k] for k in ok]
+    at = None
+    if vals[0] >= 0.0:
+        status = "unstable_at_lower_bound"
+    elif unlocated is not None:        # stable below, unstable above, speeds without equilibrium between
+        status = "threshold_not_located"
+        result["threshold_between_hz"] = unlocated
+    elif not result["crossings"]:
+        status = "stable"
+    else:
+        first = result["crossings"][0]
+        status, at = "threshold", 2 * math.pi * first["speed_hz"]
+        result.update(threshold_hz=first["speed_hz"], whirl_hz=first["whirl_hz"],
+                      whirl_ratio=first["whirl_hz"] / first["speed_hz"])
+    result["status"] = status
+    return at
+
+
+def later_crossings(result: dict) -> list[dict]:
+    """The crossings of a :func:`stability` result other than the threshold: after the first one
+    when that is the threshold (status ``"threshold"``), else all of them (already unstable at the
+    lower end: the first crossing is where it becomes stable)."""
+    crossings = result.get("crossings") or []
+    return crossings[1:] if result.get("status") == "threshold" else list(crossings)
+
+
+def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int | None = None,
+              ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None) -> dict:
+    """The threshold result (a JSON-ready dict) of a loaded scenario; see the module doc.
+
+    ``loads``: bearing instance -> static force (Fx, Fy) [N] the rotor puts on that bearing in
+    addition to its share of the rotor's weight (``--load``: a gear or belt force, a magnetic pull,
+    a horizontal rotor's load with g = 0), in the convention of
+    :func:`rotor_fmu.stability.static_bearing_loads` (down is -y). ``n_scan``: speeds of the scan
+    (default 80; :data:`MC_SCAN` with ``film="mc"``, whose speeds cost about 20 s each at 40 x 40,
+    and its crossings are refined to 0.01 Hz instead of 1e-9 rad/s)."""
+    from rotor_fmu.stability import max_real_eigenvalue
+
+    if film not in FILMS:
+        raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
+    system = build_system(scenario)
+    lo, hi = speeds if speeds is not None else (0.1 * system.f_max, system.f_max)
+    if speeds is None and not (0.0 < lo < hi and math.isfinite(hi)):
+        raise StabilityError(f"the default speed range 0.1 f_max : f_max is {lo:g}:{hi:g} Hz, but the rotor "
+                             f"'{system.rotor_instance}' has f_max = {system.f_max:g} Hz (no ramp to take the range "
+                             "from); give the range: --speeds LO:HI in Hz, e.g. --speeds 50:800")
+    if not (0.0 < lo < hi and math.isfinite(hi)):
+        raise StabilityError(f"--speeds: need 0 < LO < HI in Hz (got {lo:g}:{hi:g})")
+    if system.rings and film == "mc":
+        raise StabilityError("--film mc: floating-ring bearings are linearized with their half-Sommerfeld films "
+                             "(--film hs); the mass-conserving film impedance is for plain JournalBearings")
+    if system.rings and film == "short":
+        raise StabilityError("--film short: the short-bearing closed form has no floating ring; the floating-ring "
+                             "bearings of this scenario are linearized with their half-Sommerfeld films (--film hs)")
+    if ring_spin and not system.rings:
+        raise StabilityError("--ring-spin: the scenario has no floating-ring bearings (its stations carry "
+                             f"{BEARING_MODEL}s); leave --ring-spin out")
+    fixed = [b.instance for b in system.bearings if b.kind == "floating_ring" and not b.params.floating]
+    if fixed:           # its outer film at rest: bearing_fmu.floating_ring_statics finds no equilibrium at any speed
+        raise StabilityError(f"the ring of '{fixed[0]}' is semi-floating (floating = 0): its outer film does not "
+                             "spin and carries no static load in the quasi-static (half-Sommerfeld) film, so "
+                             "`stability` has no operating point to linearize at, at any speed; it takes floating "
+                             "rings (floating = 1) only")
+    weight, extra, total = _static_loads(system, loads)
+    if system.rings:
+        fn = _RingFilms(system, total, spin=ring_spin)
+        max_re = fn.max_re
+    elif film == "mc":
+        fn = _MCFilm(system, total)
+        max_re = fn.max_re
+    else:
+        fn = _ShortFilm(system, total) if film == "short" else _HSFilm(system, total)
+
+        def coefficients(omega):
+            """The film's (K, C) at omega, refused when not finite (NaN would read as "stable")."""
+            K, C = fn(omega)
+            for b, k, c in zip(system.bearings, K, C):
+                if not (np.all(np.isfinite(k)) and np.all(np.isfinite(c))):
+                    raise _failed(b, omega, ValueError(f"its linear coefficients are not finite (K = {k.tolist()}, "
+                                                       f"C = {c.tolist()})"))
+            return K, C
+        max_re = lambda w: max_real_eigenvalue(system.rotor, w, coefficients)     # noqa: E731
+    notes = _notes(system, film, ring_spin, weight, extra)
+    seen: dict[float, tuple[float, float]] = {}
+    search = max_re
+
+    def max_re(w):                       # every speed evaluated, for result["scan"] and --plot
+        try:
+            v = search(w)
+        except _NUMERIC as exc:          # the rotor's own matrices (an absurd mass, a speed far off)
+            raise StabilityError(f"the eigenvalues of the rotor '{system.rotor_instance}' in its bearings cannot "
+                                 f"be computed at {w / (2 * math.pi):.4g} Hz: {exc or type(exc).__name__}; check the "
+                                 "rotor's and the bearings' parameters, or give a --speeds LO:HI nearer the rotor's "
+                                 "running speeds") from exc
+        seen[float(w)] = v
+        return v
+
+    w_lo, w_hi = 2 * math.pi * lo, 2 * math.pi * hi
+    result: dict[str, Any] = {
+        "scenario": scenario.name, "file": str(scenario.source) if scenario.source else None,
+        "rotor": {"instance": system.rotor_instance, "model": system.rotor_model},
+        "film": film, "method": fn.method, "speed_range_hz": [lo, hi],
+        "threshold_hz": None, "whirl_hz": None, "whirl_ratio": None, "crossings": [], "bearings": {},
+        "notes": notes,
+    }
+    if n_scan is None:
+        n_scan = MC_SCAN if film == "mc" else 80
+    at = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result,
+                 xtol=2 * math.pi * 0.01 if film == "mc" else 1e-9)
+    from orchestrator.results.plots.stability import log_decrement
+    result["scan"] = [{"speed_hz": w / (2 * math.pi), "max_re_per_s": re, "whirl_hz": im / (2 * math.pi),
+                       "log_decrement": log_decrement(re, im)} for w, (re, im) in sorted(seen.items())]
+    eps = fn.eccentricities(at) if at is not None else [None] * len(system.bearings)
+    if at is not None and film == "hs" and not system.rings:
+        for b, share in zip(system.bearings, fn.contact_share(at)):
+            if share > 1e-3:
+                notes.append(f"bearing '{b.instance}': asperity contact carries {share:.1%} of its static load at "
+                             "the threshold (its coefficients are included, bearing_fmu/contact.py)")
+    points = fn.points(at) if at is not None and system.rings else [None] * len(system.bearings)
+    for b, e, ld, pt in zip(system.bearings, eps, total, points):
+        result["bearings"][b.instance] = _bearing_entry(b, film, ld, e, pt, at)
+    return result
+
+
+def _bearing_entry(b: Bearing, film: str, load, eps, point, at: float | None) -> dict:
+    """A bearing's part of the result: its static ``load`` (2,) [N], eccentricity ratio ``eps``
+    at the threshold speed ``at`` [rad/s] (None without one), and for a floating ring its steady
+    operating ``point`` there (a FloatingRing model, or None)."""
+    entry = {"station": b.station, "kind": b.kind, "load_n": float(np.hypot(*load)),
+             "load_vector_n": [float(load[0]), float(load[1])], "eps_at_threshold": eps}
+    if b.kind == "floating_ring":       # eps, clearance, cavitation, grid: of the inner film
+        inner, outer = b.params.inner, b.params.outer
+        entry.update(clearance_m=inner.psi * inner.R, cavitation=int(inner.cavitation),
+                     grid=[int(inner.n_phi), int(inner.n_z)],
+                     eps_outer_at_threshold=None if point is None else float(point.outputs["eps_outer"]),
+                     ring_speed_ratio_at_threshold=None if point is None else float(point.outputs["omega_ring"] / at),
+                     clearance_outer_m=outer.psi * outer.R, cavitation_outer=int(outer.cavitation),
+                     grid_outer=[int(outer.n_phi), int(outer.n_z)], m_ring_kg=float(b.params.m_ring),
+                     floating=int(b.params.floating))
+    else:
+        entry.update(clearance_m=b.params.psi * b.params.R, cavitation=int(b.params.cavitation),
+                     grid=[int(b.params.n_phi), int(b.params.n_z)] if film in ("hs", "mc") else None)
+    return entry
