@@ -121,6 +121,11 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9) -> float |
     return at
 
 
+def log_decrement(re: float, im: float) -> float | None:
+    """-2 pi Re / |Im| of an eigenvalue, None for a real one (no oscillation)."""
+    return None if im == 0.0 else -2.0 * math.pi * re / abs(im)
+
+
 def later_crossings(result: dict) -> list[dict]:
     """The crossings of a :func:`stability` result other than the threshold: after the first one
     when that is the threshold (status ``"threshold"``), else all of them (already unstable at the
@@ -212,7 +217,6 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         n_scan = MC_SCAN if film == "mc" else 80
     at = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result,
                  xtol=2 * math.pi * 0.01 if film == "mc" else 1e-9)
-    from orchestrator.results.plots.stability import log_decrement
     result["scan"] = [{"speed_hz": w / (2 * math.pi), "max_re_per_s": re, "whirl_hz": im / (2 * math.pi),
                        "log_decrement": log_decrement(re, im)} for w, (re, im) in sorted(seen.items())]
     eps = fn.eccentricities(at) if at is not None else [None] * len(system.bearings)

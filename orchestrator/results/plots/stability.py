@@ -11,7 +11,6 @@ speeds without a static equilibrium (grey crosses).
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -76,8 +75,3 @@ def draw(result: dict, path: Path | str) -> Path:
                                                                                     result.get("film"))
     fig.suptitle(f"{result.get('scenario')}: linear stability ({film})", fontsize=10)
     return save_figure(fig, path, dpi=DPI)
-
-
-def log_decrement(re: float, im: float) -> float | None:
-    """-2 pi Re / |Im| of an eigenvalue, None for a real one (no oscillation)."""
-    return None if im == 0.0 else -2.0 * math.pi * re / abs(im)
