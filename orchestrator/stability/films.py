@@ -1,7 +1,9 @@
 """The film models of ``rotorcosim stability``: each station's bearing linearised at its static
 equilibrium under its static load (module doc of :mod:`orchestrator.stability.system`), at a
-given speed. Each model has a ``method`` (the result's words for it), ``eccentricities(omega)``
-and either ``__call__(omega) -> (K, C)`` per station or ``max_re(omega)`` of the whole system.
+given speed. Each model (:func:`film_model` chooses it) has a ``method`` (the result's words for
+it), ``max_re(omega)`` (the largest real part of the rotor-bearing system's eigenvalues and |Im|
+there) and ``eccentricities(omega)``; the short and half-Sommerfeld films are given by their
+linear coefficients (K, C) at each station, ``__call__(omega)`` (:class:`_CoefficientFilms`).
 
 * ``film="short"`` (:class:`_ShortFilm`): the closed-form short-bearing (Ocvirk 1952, NACA TN
   2808) pi-film coefficients (:func:`rotor_fmu.stability.short_bearing_coefficients`) of each
@@ -58,7 +60,28 @@ def _failed(b: Bearing, omega: float | None, exc: BaseException) -> StabilityErr
                           "nearer the rotor's running speeds")
 
 
-class _ShortFilm:
+class _CoefficientFilms:
+    """Films given by their linear coefficients at each station, ``self(omega) -> (K, C)``
+    (n_stations, 2, 2) each: the rotor's eigenvalues with them added at its stations."""
+
+    system: System
+
+    def max_re(self, omega: float) -> tuple[float, float]:
+        """(largest real part [1/s], |Im| of that eigenvalue [rad/s]) at journal speed omega."""
+        from rotor_fmu.stability import max_real_eigenvalue
+        return max_real_eigenvalue(self.system.rotor, omega, self.finite_coefficients)
+
+    def finite_coefficients(self, omega):
+        """The film's (K, C) at omega, refused when not finite (NaN would read as "stable")."""
+        K, C = self(omega)
+        for b, k, c in zip(self.system.bearings, K, C):
+            if not (np.all(np.isfinite(k)) and np.all(np.isfinite(c))):
+                raise _failed(b, omega, ValueError(f"its linear coefficients are not finite (K = {k.tolist()}, "
+                                                   f"C = {c.tolist()})"))
+        return K, C
+
+
+class _ShortFilm(_CoefficientFilms):
     """Ocvirk coefficients of each station under its static load (closed form)."""
 
     method = ("short-bearing (Ocvirk) pi-film closed form (rotor_fmu/stability.py), at the static equilibrium "
@@ -91,7 +114,7 @@ class _ShortFilm:
         return out
 
 
-class _HSFilm:
+class _HSFilm(_CoefficientFilms):
     """Half-Sommerfeld film coefficients of each station's own bearing at its static equilibrium."""
 
     method = ("finite-length half-Sommerfeld film of each bearing (its parameters and grid), linearized by central "
@@ -294,3 +317,14 @@ class _MCFilm:
     def eccentricities(self, omega):
         self._films(omega)
         return [float(np.hypot(*q) / m.c) for q, m in zip(self.q, self.models)]
+
+
+def film_model(system: System, film: str, loads: np.ndarray, *, ring_spin: bool = False):
+    """The film model of ``film`` (one of ``"short"``, ``"hs"``, ``"mc"``; floating rings: their
+    half-Sommerfeld films, ``ring_spin`` as :class:`_RingFilms`) for the system's bearings under
+    their static ``loads`` (n_stations, 2) [N]."""
+    if system.rings:
+        return _RingFilms(system, loads, spin=ring_spin)
+    if film == "mc":
+        return _MCFilm(system, loads)
+    return _ShortFilm(system, loads) if film == "short" else _HSFilm(system, loads)

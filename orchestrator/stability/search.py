@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from orchestrator.scenario.analysis_clearance import BEARING_MODEL
-from orchestrator.stability.films import _NUMERIC, _failed, _HSFilm, _MCFilm, _RingFilms, _ShortFilm
+from orchestrator.stability.films import _NUMERIC, film_model
 from orchestrator.stability.system import Bearing, StabilityError, System, _static_loads, build_system
 
 FILMS = ("short", "hs", "mc")
@@ -91,13 +91,13 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9) -> float |
     for k0, k1 in zip(ok, ok[1:]):
         if (vals[k0] < 0.0) == (vals[k1] < 0.0):
             continue
+        becomes = "unstable" if vals[k0] < 0.0 else "stable"
         if k1 == k0 + 1:
             wc, nu = refine_crossing(max_re, ws[k0], ws[k1], xtol)
             result["crossings"].append({"speed_hz": wc / (2 * math.pi), "whirl_hz": nu / (2 * math.pi),
-                                        "becomes": "unstable" if vals[k0] < 0.0 else "stable"})
+                                        "becomes": becomes})
             continue
         between = [ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)]
-        becomes = "unstable" if vals[k0] < 0.0 else "stable"
         result["notes"].append(f"the largest real part changes sign between {between[0]:.4g} and "
                                f"{between[1]:.4g} Hz (it becomes {becomes}), across speeds without a static "
                                "equilibrium: that crossing is not located")
@@ -136,7 +136,9 @@ def later_crossings(result: dict) -> list[dict]:
 
 def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int | None = None,
               ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None) -> dict:
-    """The threshold result (a JSON-ready dict) of a loaded scenario; see the module doc.
+    """The threshold result (a JSON-ready dict) of a loaded scenario: the search of the module doc,
+    for the scenarios of :mod:`orchestrator.stability.system`, with the films of
+    :mod:`orchestrator.stability.films`.
 
     ``loads``: bearing instance -> static force (Fx, Fy) [N] the rotor puts on that bearing in
     addition to its share of the rotor's weight (``--load``: a gear or belt force, a magnetic pull,
@@ -144,8 +146,6 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     :func:`rotor_fmu.stability.static_bearing_loads` (down is -y). ``n_scan``: speeds of the scan
     (default 80; :data:`MC_SCAN` with ``film="mc"``, whose speeds cost about 20 s each at 40 x 40,
     and its crossings are refined to 0.01 Hz instead of 1e-9 rad/s)."""
-    from rotor_fmu.stability import max_real_eigenvalue
-
     if film not in FILMS:
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
     system = build_system(scenario)
@@ -172,31 +172,13 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
                              "`stability` has no operating point to linearize at, at any speed; it takes floating "
                              "rings (floating = 1) only")
     weight, extra, total = _static_loads(system, loads)
-    if system.rings:
-        fn = _RingFilms(system, total, spin=ring_spin)
-        max_re = fn.max_re
-    elif film == "mc":
-        fn = _MCFilm(system, total)
-        max_re = fn.max_re
-    else:
-        fn = _ShortFilm(system, total) if film == "short" else _HSFilm(system, total)
-
-        def coefficients(omega):
-            """The film's (K, C) at omega, refused when not finite (NaN would read as "stable")."""
-            K, C = fn(omega)
-            for b, k, c in zip(system.bearings, K, C):
-                if not (np.all(np.isfinite(k)) and np.all(np.isfinite(c))):
-                    raise _failed(b, omega, ValueError(f"its linear coefficients are not finite (K = {k.tolist()}, "
-                                                       f"C = {c.tolist()})"))
-            return K, C
-        max_re = lambda w: max_real_eigenvalue(system.rotor, w, coefficients)     # noqa: E731
+    fn = film_model(system, film, total, ring_spin=ring_spin)
     notes = _notes(system, film, ring_spin, weight, extra)
     seen: dict[float, tuple[float, float]] = {}
-    search = max_re
 
     def max_re(w):                       # every speed evaluated, for result["scan"] and --plot
         try:
-            v = search(w)
+            v = fn.max_re(w)
         except _NUMERIC as exc:          # the rotor's own matrices (an absurd mass, a speed far off)
             raise StabilityError(f"the eigenvalues of the rotor '{system.rotor_instance}' in its bearings cannot "
                                  f"be computed at {w / (2 * math.pi):.4g} Hz: {exc or type(exc).__name__}; check the "

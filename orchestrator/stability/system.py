@@ -215,10 +215,11 @@ def _static_loads(system: System, loads: dict | None) -> tuple[np.ndarray, np.nd
                                  "`stability` linearizes each film at its equilibrium under its static load and "
                                  f"has none to find it; give the rotor g > 0, or --load {b.instance}=FX,FY [N]")
     if system.rings:
-        sideways = [b.instance for b, ld in zip(system.bearings, total) if ld[0] != 0.0 or not ld[1] < 0.0]
+        sideways = [(b.instance, ld) for b, ld in zip(system.bearings, total) if ld[0] != 0.0 or not ld[1] < 0.0]
         if sideways:
-            raise StabilityError(f"the floating-ring bearing '{sideways[0]}' carries a static load of "
-                                 f"({total[names.index(sideways[0])][0]:g}, {total[names.index(sideways[0])][1]:g}) N: "
+            name, ld = sideways[0]
+            raise StabilityError(f"the floating-ring bearing '{name}' carries a static load of "
+                                 f"({ld[0]:g}, {ld[1]:g}) N: "
                                  "`stability` finds a ring's operating point only under a downward load (0, -W); "
                                  "give --load with an x component of 0 and a net downward force")
     return weight, extra, total
