@@ -190,6 +190,18 @@ def test_one_file_named_twice_is_carried_once_and_names_are_made_portable(tmp_pa
     assert list(blobs) == [MEMBER]
 
 
+def test_member_names_differ_on_a_file_system_that_ignores_case():
+    """Members that differ only in case (files R.yaml and r.yaml, or instances Rotor and rotor) are
+    one file when the archive is extracted on Windows or macOS: one parameter read the other's file.
+    Names Windows cannot create (a trailing dot, a device name) are changed too."""
+    from orchestrator.scenario.ssp import _member_name
+    assert _member_name("rotor", "r.yaml", {"resources/files/rotor/R.yaml": b""}) == "resources/files/rotor/r_2.yaml"
+    assert _member_name("Rotor", "x.yaml", {"resources/files/rotor/x.yaml": b""}) == "resources/files/Rotor/x_2.yaml"
+    assert _member_name("rotor", "rotor.", {}) == "resources/files/rotor/rotor"
+    assert _member_name("rotor", "con.yaml", {}) == "resources/files/rotor/_con.yaml"
+    assert _member_name("rotor", "console.yaml", {}) == "resources/files/rotor/console.yaml"
+
+
 def test_a_file_too_large_to_carry_keeps_its_value_and_is_said(turbo_ssp, tmp_path, monkeypatch):
     import orchestrator
     from orchestrator.scenario import ssp as ssp_mod

@@ -621,13 +621,22 @@ def _write_archive(out: Path, root: ET.Element, files: dict[str, Path], blobs: d
         raise
 
 
+#: names Windows reserves for devices (``con.yaml`` cannot be created there)
+_WINDOWS_DEVICES = {"CON", "PRN", "AUX", "NUL", *(f"COM{i}" for i in range(1, 10)), *(f"LPT{i}" for i in range(1, 10))}
+
+
 def _member_name(inst: str, filename: str, taken: Mapping[str, bytes]) -> str:
     """``resources/files/<inst>/<filename>``, the name made portable (letters, digits, ``._-``; no
-    leading dot) and unique among ``taken``."""
-    stem = re.sub(r"[^A-Za-z0-9._-]", "_", filename)[:100].lstrip(".") or "file"
+    leading or trailing dot, no Windows device name) and unique among ``taken`` ignoring case: on
+    Windows and macOS ``R.yaml`` and ``r.yaml`` (or instances ``Rotor`` and ``rotor``) extract to one
+    file, and one parameter would read the other's."""
+    stem = re.sub(r"[^A-Za-z0-9._-]", "_", filename)[:100].strip(".") or "file"
+    if stem.split(".")[0].upper() in _WINDOWS_DEVICES:
+        stem = f"_{stem}"
     base, dot, ext = stem.rpartition(".") if "." in stem else (stem, "", "")
+    folded = {t.casefold() for t in taken}
     member, n = f"{NAMED_FILES_DIR}/{inst}/{stem}", 1
-    while member in taken:
+    while member.casefold() in folded:
         n += 1
         member = f"{NAMED_FILES_DIR}/{inst}/{base}_{n}{dot}{ext}"
     return member
