@@ -402,3 +402,26 @@ def test_export_leaves_build_fmus_out_of_the_annotation_and_says_so(tmp_path):
     with zipfile.ZipFile(out) as zf:
         ssd = zf.read("SystemStructure.ssd").decode()
     assert "compare:\n  signals:\n  - rotor.x_1\n" in ssd and "build_fmus" not in ssd
+
+
+@pytest.mark.parametrize("baseline", ["/tmp/evil.json", "../../evil.json", "baselines/../../evil.json",
+                                      "..\\evil.json", "C:/evil.json"])
+def test_compare_of_an_ssp_refuses_a_baseline_outside_its_folder(tmp_path, baseline):
+    """`compare x.ssp --update-baseline` writes compare.baseline relative to the archive's folder; an
+    archive from elsewhere naming an absolute path or one with '..' wrote that file (any regular file
+    the user may write, e.g. ~/.bashrc, overwritten with the baseline's JSON)."""
+    import dataclasses
+
+    import orchestrator
+    from orchestrator.compare import CompareSpecError, load_compare
+    from orchestrator.scenario.ssp import export_ssp
+    from orchestrator.shipped import resolve
+    sc = orchestrator.load_scenario(resolve("quickstart"), build_fmus=True)
+    sc = dataclasses.replace(sc, compare={"signals": ["rotor.x_1"], "baseline": baseline,
+                                          "variants": [{"scheme": "jacobi", "macro_step": 1.0e-4}]})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = export_ssp(sc, tmp_path / "q.ssp")
+    with pytest.raises(CompareSpecError) as info:
+        load_compare(out)
+    assert f"'compare.baseline' = {baseline!r} is not a path inside the SSP's folder" in str(info.value), info.value

@@ -20,7 +20,7 @@ import math
 import os
 import stat
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any, Callable, Mapping
 
 import yaml
@@ -274,6 +274,14 @@ def _load_compare_ssp(path: Path, load_scenario) -> CompareSpec:
     if "scenario" in sec:
         problems.append(f"{where}: 'compare.scenario' must not be given in an SSP's annotation (the SSP itself is the "
                         "base); remove it")
+    baseline = sec.get("baseline")
+    if isinstance(baseline, str) and (PurePosixPath(baseline).is_absolute() or ".." in PurePosixPath(baseline).parts
+                                      or "\\" in baseline or ":" in baseline):
+        # --update-baseline writes it: an archive from elsewhere must not name a file outside its folder
+        problems.append(f"{where}: 'compare.baseline' = {baseline!r:.200} is not a path inside the SSP's folder "
+                        "(relative, no '..', no backslash or drive letter), and `compare --update-baseline` writes "
+                        "that file: give a path such as baselines/NAME.json, or compare with a comparison file whose "
+                        f"'compare.scenario: {path.name}' names the SSP")
     if problems:
         raise CompareSpecError(problems)
     return parse_compare(dict(sec), base, source=path)
