@@ -519,6 +519,18 @@ def test_a_goal_names_the_cheapest_good_enough_variant_without_failing_the_other
         load_compare(bad)
 
 
+def test_a_goal_finer_than_the_reference_resolves_fails_naming_the_goal(compare_files, tmp_path, capsys):
+    """A goal the reference cannot resolve (its convergence check changes it by ~5e-9) fails the
+    comparison as a tolerance does ("tighten the reference"), and names nothing; the message said
+    "the smallest tolerance in use" of a comparison that has no tolerance."""
+    path = compare_files("  goal: {max: 1.0e-10}", tol="{}")
+    assert main_compare(path, out_dir=tmp_path / "g", runner=fake_runner, workers=1) == 1
+    err = capsys.readouterr().err
+    assert ">= the smallest tolerance or goal in use 1e-10; tighten the reference" in err, err
+    doc = json.loads((tmp_path / "g" / "report.json").read_text())
+    assert doc["cheapest_within_tolerance"] is None and not doc["passed"]
+
+
 def test_a_missing_signals_list_is_answered_with_signals_to_write(compare_files):
     """A first comparison file often leaves `signals` out; the message now gives outputs the base
     scenario records to copy instead of only the type of the key."""

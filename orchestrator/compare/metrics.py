@@ -221,14 +221,14 @@ def check_report(report, spec, baseline: Mapping[str, Any] | None) -> list[str]:
             for m in spec.metrics:
                 if chk["errors"][m] >= small:
                     fails.append(f"reference: halving its tolerance/step changes the '{m}' error by "
-                                 f"{chk['errors'][m]:.3g} >= the smallest tolerance in use "
+                                 f"{chk['errors'][m]:.3g} >= the smallest tolerance or goal in use "
                                  f"{small:.3g}; tighten the reference")
         if chk["ok"]:   # a derived quantity with a tolerance: its own change below its smallest one
             for d, tol in (chk.get("derived_tolerances") or {}).items():
                 val = chk["errors"].get(d, math.inf)
                 if not val < tol:
                     fails.append(f"reference: halving its tolerance/step changes '{d}' by {val:.3g} "
-                                 f">= the smallest tolerance on it {tol:.3g}; tighten the reference")
+                                 f">= the smallest tolerance or goal on it {tol:.3g}; tighten the reference")
     for v in report.variants:
         for m, tol in v["tolerance"].items():
             val = v["errors"].get(m, math.inf)

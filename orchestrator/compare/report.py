@@ -53,7 +53,7 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
         chk_values = ", ".join(f"{d} = {_fmt(x, '{:.6g}')}" for d, x in (c.get("derived") or {}).items())
         lines += [f"Reference convergence check (`{c['changes']}`): change " + ", ".join(
             f"{m} {_fmt(c['errors'].get(m))}" for m in list(spec.metrics) + list(spec.derived)) +
-            f"; smallest tolerance in use {_fmt(c['smallest_tolerance'])}" +
+            f"; smallest tolerance or goal in use {_fmt(c['smallest_tolerance'])}" +
             "".join(f", on {d} {t:g}" for d, t in dtol.items()) +
             (f" (check run: {chk_values})" if chk_values else "") + ".", ""]
     head = (["variant", "scheme", "ext", "int", "h [s]"] + [f"{c} err" for c in cols] +
