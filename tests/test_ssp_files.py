@@ -419,9 +419,12 @@ def test_compare_of_an_ssp_refuses_a_baseline_outside_its_folder(tmp_path, basel
     sc = orchestrator.load_scenario(resolve("quickstart"), build_fmus=True)
     sc = dataclasses.replace(sc, compare={"signals": ["rotor.x_1"], "baseline": baseline,
                                           "variants": [{"scheme": "jacobi", "macro_step": 1.0e-4}]})
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         out = export_ssp(sc, tmp_path / "q.ssp")
+    said = [str(w.message) for w in caught if "compare.baseline" in str(w.message)]
+    assert len(said) == 1 and f"compare.baseline {baseline!r} is outside the comparison file's folder, which " \
+        f"`rotorcosim compare {out}` refuses" in said[0], said
     with pytest.raises(CompareSpecError) as info:
         load_compare(out)
     assert f"'compare.baseline' = {baseline!r} is not a path inside the SSP's folder" in str(info.value), info.value

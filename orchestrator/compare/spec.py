@@ -20,7 +20,7 @@ import math
 import os
 import stat
 from dataclasses import dataclass, field
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import yaml
@@ -258,6 +258,7 @@ def _load_compare_ssp(path: Path, load_scenario) -> CompareSpec:
     relative to the SSP's folder (``baseline``). Before, the section was written into every archive
     but never read: `compare x.ssp` was refused. An annotation is untrusted: ``build_fmus`` (Python
     sources built and imported) and ``scenario`` (the SSP is the base) are refused."""
+    from orchestrator.scenario.ssp_annotation import baseline_outside
     base = load_scenario(path, build_fmus=True)       # a comparison runs: building is its step
     sec = base.compare
     where = f"{path} (its org.rotorcosim.scenario annotation)"
@@ -275,8 +276,7 @@ def _load_compare_ssp(path: Path, load_scenario) -> CompareSpec:
         problems.append(f"{where}: 'compare.scenario' must not be given in an SSP's annotation (the SSP itself is the "
                         "base); remove it")
     baseline = sec.get("baseline")
-    if isinstance(baseline, str) and (PurePosixPath(baseline).is_absolute() or ".." in PurePosixPath(baseline).parts
-                                      or "\\" in baseline or ":" in baseline):
+    if isinstance(baseline, str) and baseline_outside(baseline):
         # --update-baseline writes it: an archive from elsewhere must not name a file outside its folder
         problems.append(f"{where}: 'compare.baseline' = {baseline!r:.200} is not a path inside the SSP's folder "
                         "(relative, no '..', no backslash or drive letter), and `compare --update-baseline` writes "

@@ -69,7 +69,8 @@ from typing import Any, Mapping
 from xml.etree import ElementTree as ET
 
 from orchestrator.errors import ScenarioError
-from orchestrator.scenario.ssp_annotation import ANNOTATION_TYPE, RC_NS, read_annotation, write_annotation
+from orchestrator.scenario.ssp_annotation import (ANNOTATION_TYPE, RC_NS, baseline_outside, read_annotation,
+                                                write_annotation)
 from orchestrator.untrusted import InputError, file_kind, parse_xml, read_bytes
 
 log = logging.getLogger(__name__)
@@ -775,6 +776,12 @@ def _warn_baseline(scenario, out: Path) -> None:
     does not carry it: --update-baseline writes it)."""
     baseline = (scenario.compare or {}).get("baseline")
     if not isinstance(baseline, str) or not baseline.strip() or scenario.source is None:
+        return
+    if baseline_outside(baseline):
+        warnings.warn(f"export-ssp: compare.baseline {baseline!r} is outside the comparison file's folder, which "
+                      f"`rotorcosim compare {out}` refuses (an archive's annotation must not name a file "
+                      "--update-baseline writes elsewhere); give a path such as baselines/NAME.json in the "
+                      "scenario, or compare the scenario file itself", stacklevel=3)
         return
     mine = (Path(scenario.source).parent / baseline).resolve()
     there = (out.parent / baseline).resolve()

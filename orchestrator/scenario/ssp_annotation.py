@@ -113,6 +113,15 @@ def scenario_annotation(scenario, files: Mapping[tuple[str, str], str] | None = 
     return doc
 
 
+def baseline_outside(baseline: str) -> bool:
+    """Whether an annotation's ``compare.baseline`` leaves the archive's folder (absolute, ``..``, a
+    backslash or drive letter): ``compare x.ssp`` refuses it, since ``--update-baseline`` writes that
+    file and an archive may come from anyone (``orchestrator.compare.spec``)."""
+    from pathlib import PurePosixPath
+    p = PurePosixPath(baseline)
+    return p.is_absolute() or ".." in p.parts or "\\" in baseline or ":" in baseline
+
+
 def write_annotation(root: ET.Element, scenario, files: Mapping[tuple[str, str], str] | None = None) -> None:
     """The rotorcosim annotation as the SSD's last element (``ssd:Annotations``), its content YAML
     text in an ``rc:Scenario`` element (``files``: see :func:`scenario_annotation`)."""
