@@ -202,6 +202,29 @@ def test_member_names_differ_on_a_file_system_that_ignores_case():
     assert _member_name("rotor", "console.yaml", {}) == "resources/files/rotor/console.yaml"
 
 
+def test_a_file_the_fmu_writes_is_not_carried(tmp_path, monkeypatch):
+    """The bearing's fields_file is written at fmi2Terminate; with a relative path it exists after a
+    first run. export-ssp carried that earlier output and set the parameter to the member, so the
+    run from the archive wrote its film fields into the temporary folder, removed when it ended."""
+    import numpy as np
+
+    import orchestrator
+    from orchestrator.scenario.ssp import export_ssp
+    from orchestrator.shipped import resolve
+    monkeypatch.chdir(tmp_path)
+    np.savez("fields.npz", phi=np.zeros(3))                 # an earlier run's output
+    sc = orchestrator.load_scenario(resolve("quickstart"), ["fmus.bearing1.parameters.fields_file=fields.npz"],
+                                    build_fmus=True)
+    assert not [f for f in sc.inputs if Path(f).name == "fields.npz"]       # nor an input of the run
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = export_ssp(sc, tmp_path / "q.ssp")
+    assert not [w for w in caught if "fields_file" in str(w.message)], [str(w.message) for w in caught]
+    with zipfile.ZipFile(out) as zf:
+        assert not [n for n in zf.namelist() if n.startswith("resources/files/")]
+    assert orchestrator.load_scenario(out).fmu("bearing1").parameters["fields_file"] == "fields.npz"
+
+
 def test_a_file_too_large_to_carry_keeps_its_value_and_is_said(turbo_ssp, tmp_path, monkeypatch):
     import orchestrator
     from orchestrator.scenario import ssp as ssp_mod

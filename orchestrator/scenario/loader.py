@@ -93,19 +93,27 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
     return scenario
 
 
+#: String parameters our FMUs write a file to, not read one from (the bearing's film fields at
+#: fmi2Terminate): an existing file there is an earlier run's output, neither an input of the run nor
+#: a file export-ssp carries (it would set the parameter to the extracted copy, and the run from the
+#: archive would write its fields into the temporary folder, removed when the command ends)
+WRITTEN_FILE_PARAMETERS = ("fields_file",)
+
+
 def named_files(scenario: Scenario, variables: dict) -> list[tuple[str, str, Path]]:
     """``(instance, parameter, path)`` of each existing regular file the scenario's String
     parameters name (a rotor file; ``variables``: instance -> {name: model variable}): the FMU
     reads them when the run starts, so they are inputs of the run as much as the YAML is, and an
     exported SSP does not carry them. A path is resolved as the FMU resolves it (relative to the
-    working directory); ``{out_dir}`` paths are the run's own outputs and are left out."""
+    working directory); ``{out_dir}`` paths are the run's own outputs and are left out, and so are
+    the files the FMU writes (:data:`WRITTEN_FILE_PARAMETERS`)."""
     from orchestrator.untrusted import OUT_DIR_FIELD
     found = []
     for spec in scenario.fmus:
         for name, value in spec.parameters.items():
             var = variables.get(spec.name, {}).get(name)
             if var is None or var.type != "String" or not isinstance(value, str) or not value.strip() \
-                    or OUT_DIR_FIELD in value:
+                    or OUT_DIR_FIELD in value or name in WRITTEN_FILE_PARAMETERS:
                 continue
             try:
                 candidate = Path(value).expanduser()
