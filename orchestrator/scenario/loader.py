@@ -61,7 +61,7 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
 
     The scenario's ``inputs`` are the files loading read (the YAML, an SSP and its .ssd/.ssv
     files, every FMU; :mod:`orchestrator.read_log`) and the existing files its String
-    parameters name: what ``sweep --resume`` compares.
+    parameters name (:func:`named_files`: not those the FMU writes): what ``sweep --resume`` compares.
 
     Raises
     ------
