@@ -439,11 +439,6 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
             stopped_by = signal.Signals(interrupt.signum or signal.SIGINT).name
             if futures:
                 client.cancel([f for f in futures if not f.done()], force=True)
-            for run in todo:                      # ended on a worker, result not gathered yet
-                if run.run_id not in records:
-                    rec = _recorded(runs_dir / run.run_id, run) or _in_progress(runs_dir / run.run_id, since)
-                    if rec is not None:
-                        records[run.run_id] = rec
         finally:
             stack.close()                         # Ctrl-C is Python's again
             bar.close()
@@ -451,6 +446,15 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
                 client.close()
             if cluster is not None:
                 cluster.close()
+        if interrupted:
+            # read the runs' folders only now: closing the local cluster stops the runs in
+            # progress, which then write their final summary (failed, stopped_by SIGTERM); read
+            # before, the rows said "still says running" of a summary that no longer did
+            for run in todo:                      # ended on a worker, result not gathered yet
+                if run.run_id not in records:
+                    rec = _recorded(runs_dir / run.run_id, run) or _in_progress(runs_dir / run.run_id, since)
+                    if rec is not None:
+                        records[run.run_id] = rec
     log.info("sweep of %d runs took %.1f s", len(todo), time.perf_counter() - t0)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
