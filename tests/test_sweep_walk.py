@@ -62,3 +62,96 @@ def test_interrupted_row_says_what_the_run_summary_says_after_the_run_stopped(sd
     assert "still says running" not in row["message"], (row["message"], final)
     assert "SIGTERM" in final["message"] and "SIGTERM" in row["message"], (row["message"], final)
     assert "--resume" in row["message"]
+
+
+REPO = Path(__file__).resolve().parents[1]
+JEFFCOTT_SWEEP = """sweep: 1
+scenario: {scenario}
+parameters:
+  - {{name: psi, set: [fmus.bearing1.parameters.psi, fmus.bearing2.parameters.psi], values: [2.8e-3]}}
+  - {{name: eta0, set: [fmus.bearing1.parameters.eta0, fmus.bearing2.parameters.eta0], values: [0.008, 0.016]}}
+  - {{name: tau, set: [coupling.macro_step], values: [1.0e-4]}}
+collect:
+  onset_hz: analysis.journals.bearing1.onset_speed_hz
+  max_eps: analysis.journals.bearing1.max_eps
+  steps: macro_steps
+  x_end: output.final.rotor.x_1
+"""
+
+
+def test_sweep_units_come_from_the_fmus_and_the_summary_paths(tmp_path):
+    """The maps' axes were the bare column names (psi, eta0, onset_hz): no unit anywhere, though
+    the FMU's modelDescription has them. sweep_units finds them: FMU parameters from the
+    modelDescription, the scenario's times in s, summary paths by their meaning; none where none
+    is known (macro_steps, a count)."""
+    from orchestrator.sweep import load_sweep
+    from orchestrator.sweep.plan import expand
+    from orchestrator.sweep.units import sweep_units
+    (tmp_path / "sw.yaml").write_text(JEFFCOTT_SWEEP.format(scenario=REPO / "scenarios" / "quickstart.yaml"))
+    spec = load_sweep(tmp_path / "sw.yaml")
+    params, collect = sweep_units(spec, expand(spec)[0].overrides)
+    assert params == {"psi": "1", "eta0": "Pa.s", "tau": "s"}
+    assert collect == {"onset_hz": "Hz", "max_eps": "1", "x_end": "m"}
+
+
+def _captured_figures(monkeypatch):
+    from orchestrator.sweep import plot
+    figs = {}
+    monkeypatch.setattr(plot, "save_figure", lambda fig, path: figs.__setitem__(Path(path).name, fig))
+    return figs
+
+
+def _sweep_folder(tmp_path, rows: str, units: bool) -> Path:
+    out = tmp_path / "o"
+    out.mkdir()
+    meta = {"sweep": 1, "scenario": "/x/jeffcott.yaml", "mode": "grid",
+            "parameters": [{"name": "psi", "set": ["fmus.b.parameters.psi"]},
+                           {"name": "eta0", "set": ["fmus.b.parameters.eta0"]}],
+            "collect": {"onset_hz": "analysis.journals.b.onset_speed_hz"}}
+    if units:
+        meta["parameters"][0]["unit"] = "1"
+        meta["parameters"][1]["unit"] = "Pa.s"
+        meta["collect_units"] = {"onset_hz": "Hz"}
+    (out / "sweep.json").write_text(json.dumps(meta))
+    (out / "sweep.csv").write_text("run_id,psi,eta0,onset_hz,status,message,wall_time_s,run_dir\n" + rows)
+    return out
+
+
+ROWS = ("a1,0.0024,0.008,{v1},finished,,1.0,runs/a1\na2,0.0024,0.016,{v2},finished,,1.0,runs/a2\n"
+        "a3,0.0032,0.008,{v3},finished,,1.0,runs/a3\na4,0.0032,0.016,,failed,x,1.0,runs/a4\n")
+
+
+def test_map_axes_carry_units_and_the_scenario(tmp_path, monkeypatch):
+    from orchestrator.sweep.plot import plot_sweep
+    figs = _captured_figures(monkeypatch)
+    plot_sweep(_sweep_folder(tmp_path, ROWS.format(v1=300.0, v2=290.0, v3=310.0), units=True))
+    fig = figs["sweep_onset_hz.png"]
+    ax, bar = fig.axes                                   # the map and its colour bar
+    assert ax.get_xlabel() == "psi [-]" and ax.get_ylabel() == "eta0 [Pa s]"
+    assert bar.get_ylabel() == "onset_hz [Hz]"
+    assert ax.get_title() == "onset_hz over psi and eta0 (jeffcott)"
+
+
+def test_map_of_a_sweep_folder_without_units_keeps_the_names(tmp_path, monkeypatch):
+    """A sweep.json written before units were recorded (or with a unit that is no short text)."""
+    from orchestrator.sweep.plot import plot_sweep
+    out = _sweep_folder(tmp_path, ROWS.format(v1=300.0, v2=290.0, v3=310.0), units=False)
+    meta = json.loads((out / "sweep.json").read_text())
+    meta["collect_units"] = {"onset_hz": "x" * 500}
+    (out / "sweep.json").write_text(json.dumps(meta))
+    figs = _captured_figures(monkeypatch)
+    plot_sweep(out)
+    ax, bar = figs["sweep_onset_hz.png"].axes
+    assert (ax.get_xlabel(), ax.get_ylabel(), bar.get_ylabel()) == ("psi", "eta0", "onset_hz")
+
+
+def test_map_without_any_value_has_no_made_up_colour_bar(tmp_path, monkeypatch):
+    """Every run finished without an onset (the whirl not reached by stop_time): the map had a
+    colour bar from -0.1 to 0.1 (matplotlib's default for no data), as if there were values.
+    Now no colour bar, and the title says no run computed a value."""
+    from orchestrator.sweep.plot import plot_sweep
+    figs = _captured_figures(monkeypatch)
+    plot_sweep(_sweep_folder(tmp_path, ROWS.format(v1="", v2="", v3=""), units=True))
+    axes = figs["sweep_onset_hz.png"].axes
+    assert len(axes) == 1
+    assert "no run computed a value" in axes[0].get_title()

@@ -24,6 +24,7 @@ from pathlib import Path
 from orchestrator.errors import CosimError, path_arg
 from orchestrator.results.safe_write import figure_folder, save_figure
 from orchestrator.sweep.table import read_table
+from orchestrator.sweep.units import MAX_UNIT_CHARS
 
 __all__ = ["plot_sweep", "is_sweep_dir"]
 
@@ -53,7 +54,7 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def _line(rows, p: str, col: str, path: Path) -> None:
+def _line(rows, p: str, col: str, path: Path, label: dict, title: str) -> None:
     fig = _figure()
     ax = fig.add_subplot()
     xs = sorted({r[p] for r in rows}, key=_order)
@@ -77,8 +78,9 @@ def _line(rows, p: str, col: str, path: Path) -> None:
         y0 = min((y for _, y in pts), default=0.0)
         ax.plot(bad, [y0] * len(bad), "x", color="C3", ms=9, mew=2,
                 label="no value (" + ", ".join(sorted({r["status"] for r in rows if r[col] is None})) + ")")
-    ax.set_xlabel(p)
-    ax.set_ylabel(col)
+    ax.set_xlabel(label[p])
+    ax.set_ylabel(label[col])
+    ax.set_title(title + ("" if pts else " (no run computed a value)"), fontsize=10)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -97,14 +99,14 @@ def _ticks(values) -> tuple[list[int], list[str]]:
     return at, [_fmt(values[k]) for k in at]
 
 
-def _heat(rows, p: str, q: str, col: str, path: Path) -> None:
+def _heat(rows, p: str, q: str, col: str, path: Path, label: dict, title: str) -> None:
     import numpy as np
     xs = sorted({r[p] for r in rows}, key=_order)
     ys = sorted({r[q] for r in rows}, key=_order)
     xi = {v: j for j, v in enumerate(xs)}
     yi = {v: i for i, v in enumerate(ys)}
     if len(xs) * len(ys) > MAX_MAP_CELLS:         # sparse (a random draw of a large grid): points
-        _scatter(rows, p, q, col, xs, ys, xi, yi, path)
+        _scatter(rows, p, q, col, xs, ys, xi, yi, path, label, title)
         return
     z = np.full((len(ys), len(xs)), np.nan)
     status = {}
@@ -123,8 +125,11 @@ def _heat(rows, p: str, q: str, col: str, path: Path) -> None:
     fig = _figure(size)
     ax = fig.add_subplot()
     im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
-    fig.colorbar(im, ax=ax, label=col)
     finite = z[np.isfinite(z)]
+    if finite.size:                               # a colour bar of no values showed a made-up -0.1..0.1
+        fig.colorbar(im, ax=ax, label=label[col])
+    else:
+        title += " (no run computed a value)"
     mid = 0.5 * (finite.min() + finite.max()) if finite.size else 0.0
     if labelled:
         for (i, j), st in status.items():
@@ -145,10 +150,10 @@ def _heat(rows, p: str, q: str, col: str, path: Path) -> None:
                     label="run stopped early: value up to its stop")
         if bad or early:
             ax.legend(fontsize=8, loc="upper right")
-    _finish_map(fig, ax, p, q, xs, ys, f"{col} over {p} and {q}", path)
+    _finish_map(fig, ax, label[p], label[q], xs, ys, title, path)
 
 
-def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path) -> None:
+def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path, label: dict, title: str) -> None:
     """The map of runs that cover a small part of a large grid: one coloured point per run with a
     value, a red cross per run without (memory per run, not per grid cell)."""
     fig = _figure((10.0, 8.0))
@@ -159,7 +164,7 @@ def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path) -> None
     if good:
         sc = ax.scatter([xi[r[p]] for r in good], [yi[r[q]] for r in good], c=[r[col] for r in good],
                         cmap="viridis", s=16)
-        fig.colorbar(sc, ax=ax, label=col)
+        fig.colorbar(sc, ax=ax, label=label[col])
     if bad:
         ax.plot([xi[r[p]] for r in bad], [yi[r[q]] for r in bad], "x", color="C3", ms=5, mew=1, label="no value")
     if early:
@@ -167,11 +172,12 @@ def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path) -> None
                 label="run stopped early: value up to its stop")
     if bad or early:
         ax.legend(fontsize=8, loc="upper right")
-    _finish_map(fig, ax, p, q, xs, ys, f"{col} over {p} and {q} ({len(rows)} runs)", path)
+    _finish_map(fig, ax, label[p], label[q], xs, ys, f"{title} ({len(rows)} runs)"
+                + ("" if good else " (no run computed a value)"), path)
 
 
 def _finish_map(fig, ax, p: str, q: str, xs, ys, title: str, path: Path) -> None:
-    """Ticks (turned when many), axis labels and title of a map over ``p`` and ``q``; saved."""
+    """Ticks (turned when many), axis labels ``p``, ``q`` and title of a map; saved."""
     ax.set_xticks(*_ticks(xs))
     ax.set_yticks(*_ticks(ys))
     if len(xs) > MAX_TICKS // 2:
@@ -186,6 +192,27 @@ def _finish_map(fig, ax, p: str, q: str, xs, ys, title: str, path: Path) -> None
 def _hatch(j, i):
     from matplotlib.patches import Rectangle
     return Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, hatch="xx", edgecolor="0.7", lw=0)
+
+
+def _unit_text(unit) -> str | None:
+    """A unit of sweep.json as an axis label shows it ('1' as '-', 'Pa.s' as 'Pa s'); None when
+    it is no short printable text (sweep.json may come from anyone)."""
+    if not isinstance(unit, str) or not unit or len(unit) > MAX_UNIT_CHARS or not unit.isprintable():
+        return None
+    return "-" if unit == "1" else unit.replace(".", " ")
+
+
+def _labels(meta: dict, params: list[str], values: list[str]) -> dict[str, str]:
+    """Axis label per column: its name and, when sweep.json has it, its unit (``eta0 [Pa s]``)."""
+    units = {e["name"]: e.get("unit") for e in meta["parameters"]}
+    collect_units = meta.get("collect_units")
+    if isinstance(collect_units, dict):
+        units.update({k: v for k, v in collect_units.items() if k in values})
+    label = {}
+    for name in params + values:
+        unit = _unit_text(units.get(name))
+        label[name] = f"{name} [{unit}]" if unit else name
+    return label
 
 
 def plot_sweep(out_dir: str | Path) -> list[Path]:
@@ -206,13 +233,16 @@ def plot_sweep(out_dir: str | Path) -> list[Path]:
                          f"and in this sweep the other parameters vary on their own; read sweep.csv (or "
                          "sweep.parquet) with pandas for other views")
     figure_folder(out_dir / "plots")
+    label = _labels(meta, params, values)
+    scenario = meta.get("scenario")
+    of = f" ({Path(scenario).stem[:60]})" if isinstance(scenario, str) and scenario else ""
     written = []
     for col in values:
         path = out_dir / "plots" / f"sweep_{col}.png"
         if (len(params) == 1 or len({r[params[1]] for r in rows}) == 1
                 or len({r[params[0]] for r in rows}) == len(rows)):     # the first alone identifies each run
-            _line(rows, params[0], col, path)
+            _line(rows, params[0], col, path, label, f"{col} over {params[0]}{of}")
         else:
-            _heat(rows, params[0], params[1], col, path)
+            _heat(rows, params[0], params[1], col, path, label, f"{col} over {params[0]} and {params[1]}{of}")
         written.append(path)
     return written

@@ -107,9 +107,10 @@ def build_rows(spec: SweepSpec, runs: list[RunPlan], records: dict[str, dict], o
     return rows
 
 
-def write_table(rows: list[dict], spec: SweepSpec, out_dir: Path) -> Path:
+def write_table(rows: list[dict], spec: SweepSpec, out_dir: Path, units: tuple[dict, dict] = ({}, {})) -> Path:
     """Write ``sweep.csv`` (always), ``sweep.parquet`` (when pyarrow is installed) and
-    ``sweep.json`` (the parameter and collect names, which ``rotorcosim plot`` reads)."""
+    ``sweep.json`` (the parameter and collect names, which ``rotorcosim plot`` reads, and the
+    ``units`` found for them, :func:`orchestrator.sweep.units.sweep_units`, for the map's labels)."""
     cols = columns(spec)
     path = out_dir / "sweep.csv"
     fh = io.StringIO(newline="")
@@ -119,8 +120,10 @@ def write_table(rows: list[dict], spec: SweepSpec, out_dir: Path) -> Path:
         w.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in cols})
     write_report_file(path, fh.getvalue())
     meta = {"sweep": 1, "source": str(spec.source), "scenario": str(spec.scenario), "mode": spec.mode,
-            "parameters": [{"name": p.name, "set": list(p.paths)} for p in spec.parameters],
-            "collect": dict(spec.collect)}
+            "parameters": [{"name": p.name, "set": list(p.paths), **({"unit": units[0][p.name]}
+                                                                      if p.name in units[0] else {})}
+                           for p in spec.parameters],
+            "collect": dict(spec.collect), "collect_units": dict(units[1])}
     write_report_file(out_dir / META_FILE, json.dumps(meta, indent=1))
     try:
         import pyarrow as pa
