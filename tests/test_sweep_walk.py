@@ -155,3 +155,21 @@ def test_map_without_any_value_has_no_made_up_colour_bar(tmp_path, monkeypatch):
     axes = figs["sweep_onset_hz.png"].axes
     assert len(axes) == 1
     assert "no run computed a value" in axes[0].get_title()
+
+
+@pytest.mark.filterwarnings("ignore:collect")
+def test_sweep_dataframe_column_without_any_value_is_float_nan(sdir):
+    """An onset column no run had a value in (the whirl not reached by stop_time) came back from
+    sweep() as an object column of None, so df.pivot(...) held None and arithmetic or a
+    comparison on it raised; it is now float NaN, as a column with some values already was."""
+    pd = pytest.importorskip("pandas")
+    from orchestrator.sweep import sweep
+    (sdir / "sweep.yaml").write_text(
+        "sweep: 1\nscenario: ramp.yaml\nparameters:\n"
+        "  - {name: t_fail, set: [fmus.f.parameters.t_fail], values: [1.0e6]}\n"
+        "collect: {onset_hz: analysis.journals.bearing1.onset_speed_hz, steps: macro_steps}\n")
+    df = sweep(sdir / "sweep.yaml", out_dir=sdir / "o", workers=1)
+    assert list(df["status"]) == ["finished"]
+    assert df["onset_hz"].dtype == float and df["onset_hz"].isna().all()
+    assert (df["onset_hz"] > 300.0).sum() == 0
+    assert pd.api.types.is_numeric_dtype(df["steps"]) and df["steps"].iloc[0] == 10

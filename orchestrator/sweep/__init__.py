@@ -74,4 +74,8 @@ def sweep(path: str | Path, out_dir: str | Path | None = None, *, scheduler: str
                         resume=resume, progress=progress, warm=warm)
     if outcome.interrupted:
         raise KeyboardInterrupt(f"sweep interrupted; finished runs are in {outcome.table}")
-    return pd.DataFrame(outcome.rows, columns=columns(spec))
+    df = pd.DataFrame(outcome.rows, columns=columns(spec))
+    for name, _ in spec.collect:                  # a column no run has a value in: NaN, not None objects
+        if df[name].isna().all():
+            df[name] = df[name].astype(float)
+    return df
