@@ -173,3 +173,44 @@ def test_sweep_dataframe_column_without_any_value_is_float_nan(sdir):
     assert df["onset_hz"].dtype == float and df["onset_hz"].isna().all()
     assert (df["onset_hz"] > 300.0).sum() == 0
     assert pd.api.types.is_numeric_dtype(df["steps"]) and df["steps"].iloc[0] == 10
+
+
+MISBEHAVING = """name: misbehaving
+stop_time: 0.01
+fmus:
+  bearing1: {path: MisbehavingBearing.fmu, parameters: {fault: 2, fault_step: 5}}
+  bearing2: {path: LinearBearing.fmu}
+connections:
+  - {from: bearing1.Fx, to: bearing2.x, gain: 1.0e-9}
+  - {from: bearing2.Fx, to: bearing1.x, gain: 1.0e-9, offset: 1.0e-6}
+coupling: {scheme: jacobi, macro_step: 1.0e-3, isolation: none}
+output: {interval: 1.0e-3, signals: [bearing1.Fx, bearing2.Fx]}
+"""
+
+
+@pytest.mark.integration
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed (native test FMU)")
+def test_fmu_crash_in_a_sweep_names_the_signal_and_the_isolation_that_keeps_the_rows(tmp_path):
+    """A sweep over isolation with an FMU that segfaults at its 5th step: the run with the FMU in
+    its own process is 'crashed' (no summary, no rows) and said only "killed by signal 11";
+    the row now names the signal (SIGSEGV) and the setting that turns the crash into a failed
+    run with its rows kept - which the isolated run of the same sweep shows."""
+    from tests.fmus_c.build_c_fmu import build_c_fmu
+
+    from orchestrator.sweep import prepare
+    from orchestrator.sweep.runner import run_sweep
+    build_c_fmu(tmp_path, "LinearBearing")
+    build_c_fmu(tmp_path, "MisbehavingBearing")
+    (tmp_path / "mis.yaml").write_text(MISBEHAVING)
+    (tmp_path / "sw.yaml").write_text(
+        "sweep: 1\nscenario: mis.yaml\nparameters:\n"
+        "  - {name: isolation, set: coupling.isolation, values: [none, process]}\n"
+        "collect: {steps: macro_steps}\n")
+    spec, runs = prepare(tmp_path / "sw.yaml")
+    rows = run_sweep(spec, runs, tmp_path / "o", workers=1, progress=False).rows
+    crashed, isolated = rows
+    assert crashed["status"] == "crashed", crashed
+    assert "killed by signal 11 (SIGSEGV), in 'bearing1' in fmi2DoStep" in crashed["message"]
+    assert "fmus.bearing1.isolation: process" in crashed["message"]
+    assert isolated["status"] == "failed" and isolated["steps"] == 4, isolated
+    assert "SIGSEGV" in isolated["message"] and "rows up to t=0.004 s are kept" in isolated["message"]

@@ -92,16 +92,32 @@ def _outcome(rc: int, summary: dict | None, stderr: str, run_dir: Path | None = 
     if summary is not None and summary.get("status") not in (None, "", "running"):
         return "failed", str(summary.get("message") or summary.get("status"))
     # no summary, or the one a run writes at its start ("running"): the process died mid-run
-    why = f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}"
+    why = f"killed by signal {-rc}{_signal_name(-rc)}" if rc < 0 else f"exit code {rc}"
     calls = []
     if run_dir is not None:        # where it died: the FMI call that never returned (fmi/call_record.py)
         from orchestrator.coupling.lifecycle import open_calls
         calls = open_calls(run_dir)
+    hint = ""
     if calls:
         from orchestrator.fmi.call_record import describe_calls
         why += f", in {describe_calls(calls)}"
+        # the FMU was in the run's own process (an isolated one's crash is a failed run with a summary)
+        names = sorted({n for n, _, _ in calls})
+        hint = ("; the FMU ran in the run's own process, so its crash took the run's summary and rows with it: "
+                + " or ".join(f"fmus.{n}.isolation: process" for n in names)
+                + " (or coupling.isolation: process) reports such a crash as a failed run and keeps the rows "
+                "before it (docs/coupling.md)")
     err = _tail(stderr)
-    return "crashed", f"the run's process ended without a summary ({why})" + (f": {err}" if err else "")
+    return "crashed", f"the run's process ended without a summary ({why})" + (f": {err}" if err else "") + hint
+
+
+def _signal_name(number: int) -> str:
+    """`` (SIGSEGV)`` for a known signal number, else nothing."""
+    import signal
+    try:
+        return f" ({signal.Signals(number).name})"
+    except ValueError:
+        return ""
 
 
 def execute_run(scenario: str, overrides: list[str], run_dir: str, *, timeout_s: float | None = None,
