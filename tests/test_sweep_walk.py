@@ -214,3 +214,63 @@ def test_fmu_crash_in_a_sweep_names_the_signal_and_the_isolation_that_keeps_the_
     assert "fmus.bearing1.isolation: process" in crashed["message"]
     assert isolated["status"] == "failed" and isolated["steps"] == 4, isolated
     assert "SIGSEGV" in isolated["message"] and "rows up to t=0.004 s are kept" in isolated["message"]
+
+
+RAMP_SWEEP = """sweep: 1
+scenario: ramp.yaml
+set: {stop_time: 0.1}
+parameters:
+  - name: t_fail
+    set: [fmus.f.parameters.t_fail]
+    values: [0.05, 0.5, 1.0]
+collect:
+  steps: macro_steps
+"""
+
+
+def test_sweep_off_a_terminal_prints_a_line_per_run(sdir):
+    """`rotorcosim sweep ... 2> log` (a batch job, nohup): the tqdm bar is off when stderr is no
+    terminal, and a sweep of hours said nothing until its end. Now a line per run done, with the
+    count of runs that did not finish; --no-progress still silences it."""
+    import subprocess
+    import sys
+    (sdir / "sweep.yaml").write_text(RAMP_SWEEP)
+    cmd = [sys.executable, "-m", "orchestrator", "sweep", str(sdir / "sweep.yaml"), "--workers", "1"]
+    proc = subprocess.run(cmd + ["--out", str(sdir / "o")], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 1, proc.stderr                  # the t_fail = 0.05 run fails
+    lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("sweep: ") and "runs done" in ln]
+    assert [ln.split(" runs done")[0] for ln in lines] == ["sweep: 1/3", "sweep: 2/3", "sweep: 3/3"], proc.stderr
+    assert lines[0].endswith("(1 not finished)") and "to go" in lines[0] and "to go" not in lines[-1]
+    proc = subprocess.run(cmd + ["--out", str(sdir / "o2"), "--no-progress"], capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 1 and "runs done" not in proc.stderr, proc.stderr
+
+
+def test_workers_zero_is_refused_before_the_runs_are_validated(sdir, capsys):
+    """--workers 0 was refused after every run's scenario had been validated and the sweep's
+    header printed (1-2 min for a large sweep); now first, like --workers with --scheduler."""
+    from orchestrator.cli import main
+    (sdir / "sweep.yaml").write_text(RAMP_SWEEP.replace("ramp.yaml", "missing.yaml"))
+    rc = main(["sweep", str(sdir / "sweep.yaml"), "--workers", "0"])
+    out, err = capsys.readouterr()
+    assert rc != 0
+    assert "--workers must be at least 1 (got 0)" in err and "missing.yaml" not in err, err
+    assert "runs of" not in out
+
+
+def test_scheduler_without_workers_is_said(capsys):
+    """An external scheduler with no worker took the runs and they waited for ever without a
+    word; the sweep now says where it connects and that no worker is there."""
+    distributed = pytest.importorskip("distributed")
+    from orchestrator.sweep.runner import connect
+    cluster = distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=None)
+    try:
+        client, owned = connect(cluster.scheduler_address, None)
+        client.close()
+    finally:
+        cluster.close()
+    assert owned is None
+    err = capsys.readouterr().err
+    assert f"connecting to the Dask scheduler at {cluster.scheduler_address}" in err
+    assert f"has no workers; the runs wait until one connects (start them with `dask worker " \
+           f"{cluster.scheduler_address} --nthreads 1`" in err

@@ -14,6 +14,7 @@ import contextlib
 import logging
 import os
 import signal
+import sys
 import threading
 import time
 import warnings
@@ -24,6 +25,7 @@ from orchestrator.errors import CosimError
 from orchestrator.sweep.plan import RunPlan
 from orchestrator.sweep.spec import SweepSpec
 from orchestrator.sweep.table import build_rows, write_table
+from orchestrator.sweep.progress import progress_bar as _progress
 from orchestrator.sweep.task import RUN_RECORD, execute_run
 from orchestrator.sweep.units import sweep_units
 
@@ -231,6 +233,8 @@ def check_cluster_options(scheduler: str | None, workers: int | None) -> str | N
     for a local one; :class:`CosimError` when ``workers`` is given with an external cluster (its size
     is set where its workers are started). Checked by :func:`run_sweep` before it writes anything."""
     address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    if workers is not None and not address:
+        local_size(workers)                       # --workers 0 was refused only after every run was validated
     if address and workers is not None:
         raise CosimError("--workers sets the size of the local cluster; with --scheduler (or "
                          "DASK_SCHEDULER_ADDRESS) the cluster has the workers started for it: drop --workers")
@@ -253,12 +257,20 @@ def connect(scheduler: str | None, workers: int | None):
     _quiet_dask()
     address = check_cluster_options(scheduler, workers)
     if address:
+        # an unreachable address used to be 20 s of silence; a scheduler without workers, runs
+        # that wait for ever without a word
+        print(f"sweep: connecting to the Dask scheduler at {address} (up to 20 s)", file=sys.stderr, flush=True)
         try:
-            return Client(address, timeout="20s"), None
+            client = Client(address, timeout="20s")
         except (OSError, TimeoutError) as exc:
             raise CosimError(f"cannot reach the Dask scheduler at {address} ({exc}); start it (`dask scheduler`) "
                              "and its workers (`dask worker ADDRESS`), or leave out --scheduler for a local "
                              "cluster") from None
+        if not client.scheduler_info().get("workers"):
+            print(f"warning: the Dask scheduler at {address} has no workers; the runs wait until one connects "
+                  f"(start them with `dask worker {address} --nthreads 1`, docs/sweeps.md section 2)",
+                  file=sys.stderr, flush=True)
+        return client, None
     n = local_size(workers)
     import dask
     with dask.config.set(QUIET_LOCAL_CLUSTER):
@@ -290,12 +302,6 @@ def _quiet_dask() -> None:
         # may find it already done and log a harmless traceback through tornado (the local
         # cluster's loop runs in this process); a run's failure is a row, not a log line
         logging.getLogger("tornado.application").setLevel(logging.CRITICAL)
-
-
-def _progress(total: int, enabled: bool | None):
-    from tqdm import tqdm
-    return tqdm(total=total, unit="run", desc="sweep", disable=not enabled if enabled is not None else None,
-                dynamic_ncols=True)
 
 
 def _submit(client, spec: SweepSpec, todo: list[RunPlan], runs_dir: Path, warm: bool) -> dict:
@@ -378,9 +384,9 @@ def _gather(futures: dict, records: dict, bar, interrupt: _Interrupt) -> None:
                 rec = {"status": "crashed", "message": f"the task failed on its worker: {type(exc).__name__}: "
                                                        f"{exc}{hint}", "wall_time_s": None, "summary": None}
             records[run.run_id] = rec
-            bar.update(1)
-            if rec["status"] != "finished":
+            if rec["status"] != "finished":       # before the update, which prints a line off a terminal
                 bar.set_postfix_str(f"{sum(r['status'] != 'finished' for r in records.values())} not finished")
+            bar.update(1)
             if _stopped_by_user(rec):
                 interrupt.requested = True
 
