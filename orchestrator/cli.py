@@ -462,6 +462,8 @@ def _cmd_sweep(args) -> int:
     counts = {s: sum(r["status"] == s for r in o.rows) for s in dict.fromkeys(r["status"] for r in o.rows)}
     print(f"table: {o.table}" + (f" ({o.skipped} runs resumed)" if o.skipped else ""))
     print("runs: " + ", ".join(f"{n} {s}" for s, n in counts.items()))
+    if spec.collect and not o.interrupted:
+        print(f"maps: `{PROG} plot {out}` draws each collected value over the parameters")
     for r in o.rows:
         if r["status"] != "finished" and (r["status"] != "cancelled" or not r["message"].startswith("not run")):
             print(f"  {r['run_id']} {r['status']}: {r['message']}", file=sys.stderr)

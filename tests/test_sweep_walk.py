@@ -241,6 +241,8 @@ def test_sweep_off_a_terminal_prints_a_line_per_run(sdir):
     lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("sweep: ") and "runs done" in ln]
     assert [ln.split(" runs done")[0] for ln in lines] == ["sweep: 1/3", "sweep: 2/3", "sweep: 3/3"], proc.stderr
     assert lines[0].endswith("(1 not finished)") and "to go" in lines[0] and "to go" not in lines[-1]
+    # the table's line is followed by what draws it (a sweep said nothing of `rotorcosim plot`)
+    assert f"maps: `rotorcosim plot {sdir / 'o'}` draws each collected value" in proc.stdout, proc.stdout
     proc = subprocess.run(cmd + ["--out", str(sdir / "o2"), "--no-progress"], capture_output=True, text=True,
                           timeout=600)
     assert proc.returncode == 1 and "runs done" not in proc.stderr, proc.stderr
