@@ -434,10 +434,12 @@ def _add_sweep(sub) -> None:
     p.add_argument("--out", metavar="DIR", type=_folder, help="output folder (default: runs/sweep_<file name>)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="address of a running Dask scheduler, e.g. "
                    "tcp://10.0.0.5:8786 (default: $DASK_SCHEDULER_ADDRESS, else a local cluster)")
-    p.add_argument("--workers", metavar="N", type=int, help="worker processes of the local cluster (default: "
-                   "one per core)")
+    p.add_argument("--workers", metavar="N", type=int, help="runs at once on the local cluster: its workers, "
+                   "threads of this process, each running its runs in a run process of its own (default: one "
+                   "per core)")
     p.add_argument("--resume", action="store_true", help="skip runs whose folder holds a finished summary")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (on a terminal) and no line per "
+                   "run done (otherwise)")
     p.add_argument("--fresh-processes", action="store_true", help="a new Python process for every run instead "
                    "of one warm run process per worker that runs many (slower; docs/sweeps.md section 2)")
     p.set_defaults(func=_cmd_sweep)

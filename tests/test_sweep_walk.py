@@ -276,3 +276,16 @@ def test_scheduler_without_workers_is_said(capsys):
     assert f"connecting to the Dask scheduler at {cluster.scheduler_address}" in err
     assert f"has no workers; the runs wait until one connects (start them with `dask worker " \
            f"{cluster.scheduler_address} --nthreads 1`" in err
+
+
+def test_sweep_help_describes_workers_and_progress_as_they_are(capsys):
+    """`--workers` said "worker processes of the local cluster": they are threads of the sweep's
+    process since the local cluster runs with processes=False (docs/sweeps.md section 2), each
+    handing its runs to a run process; --no-progress also silences the per-run lines."""
+    from orchestrator.cli import main
+    with pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "worker processes of the local cluster" not in text
+    assert "threads of this process, each running its runs in a run process of its own" in text
+    assert "no line per run done" in text
