@@ -316,11 +316,16 @@ def _newton_step_inside(q, K, f, c, max_ecc, who, why_singular=""):
             return q + lam * step
         lam *= 0.5
     raise HSEquilibriumError(f"{who}: no Newton step stays inside {max_ecc} c (eccentricity "
-                             f"{math.hypot(*q) / c:.4f})")
+                             f"{math.hypot(*q) / c:.4f})", eps=math.hypot(*q) / c)
 
 
 class HSEquilibriumError(RuntimeError):
-    """:func:`hs_static_equilibrium` found no journal position carrying the load."""
+    """:func:`hs_static_equilibrium` found no journal position carrying the load; ``eps``: the
+    eccentricity ratio where the search ended (None when not known)."""
+
+    def __init__(self, message: str, eps: float | None = None):
+        super().__init__(message)
+        self.eps = eps
 
 
 def hs_static_equilibrium(b, F_target, omega, *, guess=None, contact=None, ftol=1e-9, max_iter=60,
@@ -395,7 +400,7 @@ def hs_static_equilibrium(b, F_target, omega, *, guess=None, contact=None, ftol=
     raise HSEquilibriumError(
         f"hs_static_equilibrium: no journal position carries {W:.6g} N at omega = {omega:.6g} rad/s in "
         f"{max_iter} Newton steps (residual {np.max(np.abs(f)) / W:.3g} of the load at eccentricity "
-        f"{math.hypot(x, y) / c:.4f} before the last step; steps kept inside {max_ecc} c)")
+        f"{math.hypot(x, y) / c:.4f} before the last step; steps kept inside {max_ecc} c)", eps=math.hypot(x, y) / c)
 
 
 def _last_bdf(film):

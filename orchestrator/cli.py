@@ -569,7 +569,7 @@ def _add_stability(sub) -> None:
     p.add_argument("--ring-spin", action="store_true",
                    help="floating-ring bearings: add each ring's spin perturbation to the linear model (default: the "
                         "ring spin held at its steady value, as the classical analyses do)")
-    p.add_argument("--json", metavar="OUT", help="also write the result as JSON to this file")
+    p.add_argument("--json", metavar="OUT", type=_json_path, help="also write the result as JSON to this file")
     p.add_argument("--plot", metavar="PNG", type=_figure_path,
                    help="also draw the least-damped mode's logarithmic decrement and frequency over the speeds "
                         "searched into this PNG file")
@@ -587,9 +587,21 @@ def _speed_range(text: str) -> tuple[float, float]:
     return a, b
 
 
+def _json_path(text: str) -> str:
+    """``--json OUT``: not empty (``--json ''`` wrote nothing and said nothing, exit 0)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty file name: give the JSON file to write, e.g. --json "
+                                         "stability.json, or leave --json out")
+    return text
+
+
 def _figure_path(text: str) -> str:
     """A figure file whose suffix matplotlib can write (none: PNG); checked before the computation
-    (``--plot x.xyz`` ended, after it, in "internal error: ValueError: Format 'xyz' is not supported")."""
+    (``--plot x.xyz`` ended, after it, in "internal error: ValueError: Format 'xyz' is not supported";
+    ``--plot ''`` drew nothing and said nothing)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty file name: give the figure to write, e.g. --plot "
+                                         "stability.png, or leave --plot out")
     from matplotlib.backend_bases import FigureCanvasBase
     suffix = Path(text).suffix.lower().lstrip(".")
     formats = FigureCanvasBase.get_supported_filetypes()

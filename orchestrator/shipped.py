@@ -9,7 +9,6 @@ copies made by ``rotorcosim init DIR`` included.
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 from orchestrator.errors import CosimError
@@ -70,16 +69,34 @@ def resolve(arg: str) -> Path:
 
 
 def init(dest: str | Path, *, force: bool = False) -> list[Path]:
-    """Copy every shipped scenario into ``dest`` (created); existing files are kept unless ``force``."""
+    """Copy every shipped scenario into ``dest`` (created); existing files are kept unless ``force``.
+
+    A name in ``dest`` that is a symbolic link counts as an existing file and is replaced by the
+    copy (``force``), never written through: ``init DIR`` wrote the scenario into whatever file a
+    (dangling) link ``DIR/quickstart.yaml`` pointed to, without ``--force`` too. A folder, FIFO or
+    device under a scenario's name is refused."""
+    import os
+    import stat
+
+    from orchestrator.results.safe_write import write_report_file
+    from orchestrator.untrusted import file_kind
     dest = Path(dest)
     files = shipped()
-    clash = [dest / p.name for p in files.values() if (dest / p.name).exists()]
+    clash = []
+    for p in files.values():
+        try:
+            mode = os.lstat(dest / p.name).st_mode
+        except OSError:                          # a new name (or dest is no folder: mkdir says so)
+            continue
+        if not (stat.S_ISREG(mode) or stat.S_ISLNK(mode)):
+            raise CosimError(f"{dest / p.name}: is {file_kind(mode)}, where init would write the scenario "
+                             f"{p.name}; remove it or pick another folder")
+        clash.append(dest / p.name)
     if clash and not force:
         raise CosimError(f"{dest}: {len(clash)} scenario file(s) exist already ({', '.join(c.name for c in clash[:5])}"
                          f"{', ...' if len(clash) > 5 else ''}); remove them, pick another folder or use --force")
     dest.mkdir(parents=True, exist_ok=True)
     out = []
-    for p in files.values():
-        shutil.copyfile(p, dest / p.name)
-        out.append(dest / p.name)
+    for p in files.values():            # atomically, replacing a link at the name, never its target
+        out.append(write_report_file(dest / p.name, p.read_text(encoding="utf-8")))
     return out

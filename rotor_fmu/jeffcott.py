@@ -34,6 +34,7 @@ import numpy as np
 
 from .drive import make_profile
 from .linear_rotor import LinearRotor
+from .param_ranges import range_problems
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -58,18 +59,7 @@ class JeffcottParams:
     max_phase_per_substep: float = 0.25  # omega_max * h bound of the internal sub-steps [rad]
 
     def validate(self) -> None:
-        problems = []
-        for name in ("m_disc", "m_journal", "k_shaft"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                problems.append(f"JeffcottParams.{name} must be > 0 (got {v!r})")
-        for name in ("unbalance", "d_internal", "d_external", "g", "f_max", "t_ramp"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                problems.append(f"JeffcottParams.{name} must be >= 0 and finite (got {v!r})")
-        if not self.max_phase_per_substep > 0:
-            problems.append(f"JeffcottParams.max_phase_per_substep must be > 0 "
-                            f"(got {self.max_phase_per_substep!r}); 0.25 is a good value")
+        problems = range_problems(self, "JeffcottParams")      # the FMU declares the same ranges
         if problems:
             raise ValueError("; ".join(problems))
 

@@ -35,10 +35,12 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from pythonfmu.variables import Boolean
 
 from fmu_common.slave import (
-    POSITIVE, RealU, check_shipped_layout, fast_get_real, fast_set_real, check_step_start, exit_initialization_mode,
+    RealU, check_shipped_layout, fast_get_real, fast_set_real, check_step_start, exit_initialization_mode,
     finish_model_description,
     get_slave_state, guard_callbacks, input_setter, journal_kinematics, output_getter, param_setter, set_slave_state,
     scalar_default, setup_experiment, shipped_parameters, state_from_bytes, state_to_bytes, value_getter)
+
+from rotor_fmu.param_ranges import RANGES
 
 N_BEARINGS = 2
 
@@ -236,11 +238,7 @@ def rotor_ring_inputs(self):
 # Declared ranges of the parameters of both rotor FMUs (modelDescription.xml min/max, inclusive):
 # an importer refuses a bad value when it loads a scenario; JeffcottParams / TurbochargerParams
 # .validate check the same when the model is made. Names a rotor lacks are skipped.
-PARAMETER_RANGES: dict[str, tuple[Any, Any]] = {
-    **{n: (POSITIVE, None) for n in ("m_disc", "m_journal", "k_shaft", "max_phase_per_substep")},
-    **{n: (0.0, None) for n in ("unbalance", "d_internal", "d_external", "g", "f_max", "t_ramp")},
-    "n_modes": (0, None),
-}
+PARAMETER_RANGES: dict[str, tuple[Any, Any]] = {n: (lo, hi) for n, (lo, hi, _) in RANGES.items()}
 
 
 def rotor_to_xml(self, model_options: dict[str, str] = dict()) -> Element:  # noqa: B006

@@ -66,6 +66,8 @@ if KERNEL == "numba":
 # 32 MB for R. The Jeffcott rotor (n_dof 6) never gets there; the turbocharger (n_dof ~40) at
 # nsub > ~1250, i.e. only with a near-contact film through the interface Jacobian.
 DIRECT_SUBSTEP_SIZE = 2_000_000
+#: internal sub-steps of one macro step at most (n_substeps; the shipped run-ups take a few)
+MAX_SUBSTEPS = 10_000_000
 
 
 def _drive_eval(t, tt, ww, aa):
@@ -506,7 +508,14 @@ class LinearRotor:
         """Number of internal trapezoidal sub-steps used for a macro step dt."""
         n = self._nsub_cache.get(dt)
         if n is None:
-            n = max(1, int(math.ceil(self.omega_max * dt / self.max_phase_per_substep - 1e-12)))
+            want = self.omega_max * dt / self.max_phase_per_substep - 1e-12
+            if not want <= MAX_SUBSTEPS:        # also NaN; 1e300 sub-steps hung, or failed in numba
+                raise ValueError(
+                    f"{type(self).__name__}: a macro step of {dt:g} s needs {want:.3g} internal sub-steps "
+                    f"(highest natural frequency {self.omega_max:.4g} rad/s, max_phase_per_substep = "
+                    f"{self.max_phase_per_substep:g} rad), more than {MAX_SUBSTEPS}; use a smaller macro "
+                    "step or a larger max_phase_per_substep (0.25 is a good value)")
+            n = max(1, int(math.ceil(want)))
             self._nsub_cache[dt] = n
         return n
 

@@ -45,6 +45,33 @@ MAX_YAML_NODES = 100_000          # after aliases are expanded (an alias bomb is
 MAX_LIST_ITEMS = 1000             # materials, sections, discs, bearings
 MAX_ELEMENTS = 2000               # beam elements in all (the shipped rotor has 33)
 MAX_MODES = 500                   # Craig-Bampton modes per plane
+MAX_INT_DIGITS = 40               # of an integer literal (Python refuses more than 4300 digits)
+
+#: accepted range (inclusive), unit and meaning of each physical field of a rotor file: wide enough
+#: for any machine from a micro turbine to a turbogenerator, narrow enough to refuse a value in the
+#: wrong unit (E in GPa, rho in g/cm^3, a diameter in mm, a phase in degrees) or one that makes
+#: the element matrices overflow (E: 1e300, a length of 1e300 m)
+RANGES: dict[str, tuple[float, float, str, str]] = {
+    "E": (1e7, 1e14, "Pa", "Young's modulus in Pa: steel 2.1e11 (210 GPa)"),
+    "G": (1e6, 1e14, "Pa", "shear modulus in Pa: steel 8.1e10 (81 GPa)"),
+    "nu": (0.0, 0.5, "", "Poisson's ratio of an isotropic material: steel 0.3"),
+    "rho": (100.0, 3e4, "kg/m^3", "density in kg/m^3: steel 7850 (7.85 g/cm^3)"),
+    "length": (1e-6, 100.0, "m", "section length in m: 56 mm is 0.056"),
+    "d_outer": (1e-4, 5.0, "m", "outer diameter in m: 7 mm is 0.007"),
+    "d_inner": (0.0, 5.0, "m", "bore diameter in m (0: a solid section)"),
+    "z_start": (-1000.0, 1000.0, "m", "axial position of the first section's left end in m"),
+    "z": (-1000.0, 1000.0, "m", "axial position in m, on the shaft"),
+    "mass": (0.0, 1e6, "kg", "disc mass in kg"),
+    "Ip": (0.0, 1e7, "kg m^2", "polar moment of inertia in kg m^2"),
+    "Id": (0.0, 1e7, "kg m^2", "diametral moment of inertia in kg m^2"),
+    "unbalance": (0.0, 1e3, "kg m", "unbalance m e in kg m: 1.5 g mm is 1.5e-6"),
+    "unbalance_phase": (-2 * math.pi, 2 * math.pi, "rad", "phase in radians: 90 degrees is 1.5708"),
+    "internal_damping": (0.0, 0.1, "s", "stiffness-proportional rotating damping coefficient in s, "
+                                        "typically 1e-5 to 1e-3"),
+}
+#: largest eccentricity ``unbalance / mass`` of a disc [m] (a larger one is an unbalance in another
+#: unit: g mm for kg m)
+MAX_ECCENTRICITY = 0.1
 
 
 class RotorFileError(ValueError):
@@ -94,14 +121,14 @@ class RotorDefinition:
         return self.shaft_mass() + float(sum(d.mass for d in self.discs))
 
 
-_NUM = (int, float)
-
-
-def _num(d, key, where, problems, *, positive=False, nonneg=False, default=None):
+def _num(d, key, where, problems, *, positive=False, default=None):
+    """The number ``d[key]`` (``where``: the path of ``d`` in the file, '' at the top), checked
+    finite and, for a field of :data:`RANGES`, inside its range; NaN after a problem."""
+    name = f"{where}.{key}" if where else key
     if key not in d:
         if default is not None:
             return default
-        problems.append(f"'{where}.{key}' is required (a number in SI units)")
+        problems.append(f"'{name}' is required (a number in SI units)")
         return np.nan
     v = d[key]
     if isinstance(v, str):          # PyYAML reads 2.1e11 (no exponent sign) as a string
@@ -109,14 +136,24 @@ def _num(d, key, where, problems, *, positive=False, nonneg=False, default=None)
             v = float(v)
         except ValueError:
             pass
-    if isinstance(v, bool) or not isinstance(v, _NUM) or not np.isfinite(v):
-        problems.append(f"'{where}.{key}' must be a finite number (got {v!r})")
+    if isinstance(v, int) and not isinstance(v, bool):
+        v = float(v) if abs(v) < 1e300 else math.inf      # (at most 40 digits: load_rotor_file)
+    if isinstance(v, bool) or not isinstance(v, float) or not math.isfinite(v):
+        shown = repr(d[key])
+        problems.append(f"'{name}' must be a finite number in SI units (got "
+                        f"{shown if len(shown) <= 80 else shown[:80] + '...'})")
         return np.nan
     if positive and not v > 0:
-        problems.append(f"'{where}.{key}' must be > 0 (got {v!r})")
-    if nonneg and not v >= 0:
-        problems.append(f"'{where}.{key}' must be >= 0 (got {v!r})")
-    return float(v)
+        problems.append(f"'{name}' must be > 0 (got {v!r})")
+        return np.nan
+    if key in RANGES:
+        lo, hi, unit, what = RANGES[key]
+        if not lo <= v <= hi:
+            head = f"'{name}' must be > 0 (got {v:g}): it" if lo > 0 >= v else f"'{name}' = {v:g}"
+            problems.append(f"{head} is outside the accepted range [{lo:g}, {hi:g}]"
+                            f"{' ' + unit if unit else ''} ({what}); give a value inside the range")
+            return np.nan
+    return v
 
 
 def _mapping(d, key, problems) -> dict:
@@ -166,10 +203,10 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
             p.append(f"'materials.{mname}' must be a mapping with E, nu, rho")
             continue
         _unknown(m, {"E", "nu", "rho", "G"}, f"materials.{mname}", p)
-        E = _num(m, "E", f"materials.{mname}", p, positive=True)
+        E = _num(m, "E", f"materials.{mname}", p)
         nu = _num(m, "nu", f"materials.{mname}", p, default=0.3)
-        rho = _num(m, "rho", f"materials.{mname}", p, positive=True)
-        G = _num(m, "G", f"materials.{mname}", p, default=E / (2 * (1 + nu)))
+        rho = _num(m, "rho", f"materials.{mname}", p)
+        G = _num(m, "G", f"materials.{mname}", p, default=E / (2 * (1 + nu)))   # nu in [0, 0.5]: G in range
         mats[mname] = (E, G, rho, nu)
     if not mats:
         p.append("'materials' must define at least one material, e.g. steel: {E: 2.1e11, nu: 0.3, rho: 7850}")
@@ -183,6 +220,8 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
     _unknown(shaft, {"z_start", "max_element_length", "sections"}, "shaft", p)
     z0 = _num(shaft, "z_start", "shaft", p, default=0.0)
     hmax = _num(shaft, "max_element_length", "shaft", p, positive=True, default=np.inf)
+    if np.isnan(z0) or np.isnan(hmax):                 # the elements cannot be laid out
+        raise RotorFileError(source, p)
 
     # point features that must be nodes
     discs, dz = [], []
@@ -193,10 +232,13 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
             continue
         _unknown(d, {"name", "z", "mass", "Ip", "Id", "unbalance", "unbalance_phase"}, w, p)
         spec = DiscSpec(name=str(d.get("name", f"disc{i + 1}")), z=_num(d, "z", w, p),
-                        mass=_num(d, "mass", w, p, nonneg=True), Ip=_num(d, "Ip", w, p, nonneg=True),
-                        Id=_num(d, "Id", w, p, nonneg=True),
-                        unbalance=_num(d, "unbalance", w, p, nonneg=True, default=0.0),
+                        mass=_num(d, "mass", w, p), Ip=_num(d, "Ip", w, p), Id=_num(d, "Id", w, p),
+                        unbalance=_num(d, "unbalance", w, p, default=0.0),
                         unbalance_phase=_num(d, "unbalance_phase", w, p, default=0.0))
+        if spec.mass > 0 and spec.unbalance > MAX_ECCENTRICITY * spec.mass:
+            p.append(f"'{w}.unbalance' = {spec.unbalance:g} kg m on a disc of {spec.mass:g} kg is an "
+                     f"eccentricity of {spec.unbalance / spec.mass:g} m, more than {MAX_ECCENTRICITY:g} m: "
+                     "the unbalance is m e in kg m (1.5 g mm is 1.5e-6); give it in kg m")
         pos = re.fullmatch(r"disc(\d+)", spec.name)
         if pos and int(pos.group(1)) != i + 1:
             p.append(f"'{w}.name' is {spec.name!r}, the name of the outputs of the disc at position "
@@ -225,9 +267,9 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
             p.append(f"'{w}' must be a mapping")
             continue
         _unknown(s, {"length", "d_outer", "d_inner", "material", "n_elements"}, w, p)
-        L = _num(s, "length", w, p, positive=True)
-        do = _num(s, "d_outer", w, p, positive=True)
-        di = _num(s, "d_inner", w, p, nonneg=True, default=0.0)
+        L = _num(s, "length", w, p)
+        do = _num(s, "d_outer", w, p)
+        di = _num(s, "d_inner", w, p, default=0.0)
         if di >= do:
             p.append(f"'{w}.d_inner' must be < d_outer (got {di} >= {do})")
         mat = s.get("material")
@@ -268,7 +310,7 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
     bearing_nodes = [node_of(zz, f"bearings[{i}].z") for i, zz in enumerate(bz)]
     if len(set(bearing_nodes)) != len(bearing_nodes):
         p.append(f"'bearings' must be at distinct positions (got z={bz})")
-    beta = _num(data, "internal_damping", "<top>", p, nonneg=True, default=0.0)
+    beta = _num(data, "internal_damping", "", p, default=0.0)
     red = data.get("reduction") or {}
     if not isinstance(red, dict):
         p.append(f"'reduction' must be a mapping such as {{n_modes: 6}} (got {red!r})")
@@ -318,6 +360,10 @@ def load_rotor_file(path=None) -> RotorDefinition:
             if node is not None and _expanded_nodes(node) > MAX_YAML_NODES:
                 raise RotorFileError(str(path), [f"the YAML has more than {MAX_YAML_NODES} values with its "
                                                  "aliases expanded; write the rotor out plainly"])
+            if node is not None and (long := _long_integer(node)) is not None:
+                raise RotorFileError(str(path), [
+                    f"line {long.start_mark.line + 1}: an integer of {len(long.value)} digits (more than "
+                    f"{MAX_INT_DIGITS}); write the number in SI units, e.g. 2.1e11"])
             data = loader.construct_document(node) if node is not None else None
         finally:
             loader.dispose()
@@ -325,7 +371,65 @@ def load_rotor_file(path=None) -> RotorDefinition:
         raise RotorFileError(str(path), [f"not valid YAML: {exc}"]) from None
     except RecursionError:
         raise RotorFileError(str(path), ["the YAML is nested too deeply; write the rotor out plainly"]) from None
-    return parse_rotor(data, source=str(path))
+    try:
+        return parse_rotor(data, source=str(path))
+    except RotorFileError as exc:          # each problem with the line of the field it names
+        lines = _field_lines(node) if node is not None else {}
+        raise RotorFileError(exc.source, [_with_line(q, lines) for q in exc.problems]) from None
+
+
+def _field_lines(root) -> dict[str, int]:
+    """The line (1-based) of each field of the file by its path as the problems name it
+    (``materials.steel.E``, ``shaft.sections[2].length``); an alias's fields keep their anchor's
+    lines. At most :data:`MAX_YAML_NODES` paths (the file was counted before)."""
+    lines: dict[str, int] = {}
+    stack = [("", root)]
+    while stack and len(lines) <= MAX_YAML_NODES:
+        where, node = stack.pop()
+        if isinstance(node, yaml.MappingNode):
+            for key, value in node.value:
+                if isinstance(key, yaml.ScalarNode):
+                    name = f"{where}.{key.value}" if where else str(key.value)
+                    lines.setdefault(name, key.start_mark.line + 1)
+                    stack.append((name, value))
+        elif isinstance(node, yaml.SequenceNode):
+            for i, item in enumerate(node.value):
+                name = f"{where}[{i}]"
+                lines.setdefault(name, item.start_mark.line + 1)
+                stack.append((name, item))
+    return lines
+
+
+def _with_line(problem: str, lines: dict[str, int]) -> str:
+    """``problem`` as ``line N: problem`` when it starts with a quoted field path that the file
+    has (or, for a field that is missing, its mapping)."""
+    m = re.match(r"'([^']+)'", problem)
+    name = m.group(1) if m else ""
+    while name:
+        if name in lines:
+            return f"line {lines[name]}: {problem}"
+        name = re.sub(r"(\.[^.\[]*|\[\d+\])$", "", name) if re.search(r"[.\[]", name) else ""
+    return problem
+
+
+def _long_integer(root):
+    """The first integer scalar of more than :data:`MAX_INT_DIGITS` digits, or None (each node
+    visited once)."""
+    seen: set[int] = set()
+    stack = [root]
+    while stack:
+        node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.ScalarNode):
+            if node.tag == "tag:yaml.org,2002:int" and len(node.value) > MAX_INT_DIGITS:
+                return node
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend(node.value)
+        elif isinstance(node, yaml.MappingNode):
+            stack.extend(x for kv in node.value for x in kv)
+    return None
 
 
 def _expanded_nodes(root) -> int:

@@ -27,6 +27,7 @@ import scipy.linalg as sla
 from .beam import assemble
 from .drive import make_profile
 from .linear_rotor import LinearRotor
+from .param_ranges import range_problems
 from .rotor_file import RotorDefinition, load_rotor_file
 
 __all__ = ["TurbochargerParams", "TurbochargerRotor", "load_rotor_file", "craig_bampton"]
@@ -53,15 +54,8 @@ class TurbochargerParams:
     max_phase_per_substep: float = 0.25  # omega_max * h bound of the internal sub-steps [rad]
 
     def validate(self) -> None:
-        problems = []
-        for name in ("g", "f_max", "t_ramp"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                problems.append(f"TurbochargerParams.{name} must be >= 0 and finite (got {v!r})")
-        if not self.max_phase_per_substep > 0:
-            problems.append(f"TurbochargerParams.max_phase_per_substep must be > 0 "
-                            f"(got {self.max_phase_per_substep!r}); 0.25 is a good value")
-        if self.n_modes is not None and not (int(self.n_modes) == self.n_modes and self.n_modes >= 0):
+        problems = range_problems(self, "TurbochargerParams")      # the FMU declares the same ranges
+        if self.n_modes is not None and not (isinstance(self.n_modes, int) or float(self.n_modes).is_integer()):
             problems.append(f"TurbochargerParams.n_modes must be an integer >= 0 or None "
                             f"(got {self.n_modes!r})")
         if problems:

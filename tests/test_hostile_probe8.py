@@ -32,7 +32,8 @@ def _stability(capsys, *args):
     ("short", ["--set", "fmus.bearing1.parameters.B=1e6"]),          # eccentricity below 1e-12
     ("short", ["--set", "fmus.bearing1.parameters.B=1e-12"]),        # the film cannot carry the load
     ("short", ["--speeds", "1e-300:1e-299"]),
-    ("short", ["--set", "fmus.rotor.parameters.m_disc=1e300"]),
+    # m_disc=1e300 was here: it is now refused when the scenario is loaded (the rotor FMUs declare
+    # upper bounds too, tests/test_hostile_probe9.py)
     ("hs", ["--set", "fmus.bearing1.parameters.B=1e6"]),             # the HS solver divides by zero
 ])
 def test_stability_absurd_bearing_or_speed_is_named_not_an_internal_error(capsys, film, extra):
@@ -49,7 +50,10 @@ def test_stability_rotor_without_ramp_names_f_max_not_a_speeds_it_was_not_given(
 
 
 def test_stability_hs_film_at_absurd_speeds_does_not_advise_raising_the_lower_end(capsys):
-    code, out, err = _stability(capsys, JEFFCOTT_HS, *COARSE, "--speeds", "1e200:1e300")
+    # --speeds 1e200:1e300 is refused before any film since probe 9 (HI <= 1e7 Hz); a film far too
+    # stiff for its load at the speeds asked for is the same case inside that bound
+    code, out, err = _stability(capsys, JEFFCOTT_HS, *COARSE, "--speeds", "1e6:1e7",
+                                "--set", "fmus.bearing1.parameters.eta0=1e6")
     assert code == 1
     assert "no half-Sommerfeld static equilibrium" in err and "raise the lower end" not in err
 

@@ -21,7 +21,7 @@ from orchestrator.scenario.analysis_clearance import check_analysis_clearance
 from orchestrator.scenario.analysis_sampling import check_analysis_sampling
 from orchestrator.scenario.completion import Completion
 from orchestrator.scenario.model import ANALYSIS_KEYS, JOURNAL_KEYS
-from orchestrator.scenario.nodes import FLOAT_RE, article, did_you_mean, ranked
+from orchestrator.scenario.nodes import FLOAT_RE, article, did_you_mean, ranked, yaml_float
 
 log = logging.getLogger(__name__)
 
@@ -402,7 +402,7 @@ def convert(value, fmi_type: str):
     """``value`` as the Python type of an FMI variable type, or None if it does not fit."""
     if fmi_type == "Real":
         if isinstance(value, str) and FLOAT_RE.match(value.strip()):
-            return float(value.replace("_", ""))
+            return yaml_float(value)
         return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
     if fmi_type in ("Integer", "Enumeration"):
         if isinstance(value, float) and value.is_integer():

@@ -23,6 +23,20 @@ FLOAT_RE = re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
     |[-+]?\.[0-9_]+(?:[eE][-+]?[0-9]+)?
     |[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$""", re.X)
 
+
+
+def yaml_float(text: str) -> float:
+    """The number of a text that :data:`FLOAT_RE` matches, YAML's ``.inf``, ``-.inf`` and ``.nan``
+    included (Python's float() refuses those: a quoted ``".nan"`` ended in an internal error)."""
+    t = text.strip().replace("_", "")
+    low = t.lower()
+    if low in (".inf", "+.inf", "-.inf"):
+        return -math.inf if low.startswith("-") else math.inf
+    if low == ".nan":
+        return math.nan
+    return float(t)
+
+
 #: the longest text a message quotes as what came (``got``): a file that is not YAML (an XML
 #: system structure) reads as one string and was quoted whole, 1.4 kB for crane-fmu's OSP file
 GOT_CHARS = 80
@@ -153,7 +167,7 @@ class NodeReader:
     def number(self, node, what: str, *, positive=False, fix="") -> float | None:
         v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
         if isinstance(v, str) and FLOAT_RE.match(v.strip()):
-            v = float(v.replace("_", ""))
+            v = yaml_float(v)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             fix = fix or "write a number such as 1.0e-4"
             self.err(node, f"'{what}' must be a finite number (got {self.got(node)}); {fix}")

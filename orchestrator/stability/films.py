@@ -170,9 +170,11 @@ class _HSFilm(_CoefficientFilms):
         try:
             q = hs_static_equilibrium(m, target, omega, guess=q, max_iter=60, max_ecc=0.995)
         except HSEquilibriumError as exc:
-            # a non-finite film force is a film far stiffer than the load (speed, viscosity), not a speed too low
+            # a non-finite film force, or a search that ended near the centre, is a film far stiffer than
+            # the load (speed, viscosity), not a speed too low (raising the lower end made it worse)
+            stiff = "non-finite" in str(exc) or (exc.eps is not None and exc.eps < 0.01)
             fix = ("give a --speeds LO:HI nearer the rotor's running speeds, or check the bearing's parameters (R, B, "
-                   "psi, eta0) against the load" if "non-finite" in str(exc) else "raise the lower end of --speeds")
+                   "psi, eta0) against the load" if stiff else "raise the lower end of --speeds")
             raise StabilityError(f"bearing '{b.instance}': no half-Sommerfeld static equilibrium found at "
                                  f"{omega / (2 * math.pi):.4g} Hz under the load {np.hypot(*target):.4g} N "
                                  f"({exc}); {fix}") from None

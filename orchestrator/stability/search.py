@@ -24,6 +24,7 @@ from orchestrator.stability.films import _NUMERIC, film_model
 from orchestrator.stability.system import Bearing, StabilityError, System, _static_loads, build_system
 
 FILMS = ("short", "hs", "mc")
+MAX_SPEED_HZ = 1e7         # highest --speeds HI (600 million rpm: beyond any rotor; 2 pi HI must not overflow)
 MC_SCAN = 12            # speeds of the default scan with --film mc (about 20 s each at 40 x 40)
 
 
@@ -154,8 +155,9 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         raise StabilityError(f"the default speed range 0.1 f_max : f_max is {lo:g}:{hi:g} Hz, but the rotor "
                              f"'{system.rotor_instance}' has f_max = {system.f_max:g} Hz (no ramp to take the range "
                              "from); give the range: --speeds LO:HI in Hz, e.g. --speeds 50:800")
-    if not (0.0 < lo < hi and math.isfinite(hi)):
-        raise StabilityError(f"--speeds: need 0 < LO < HI in Hz (got {lo:g}:{hi:g})")
+    if not (0.0 < lo < hi <= MAX_SPEED_HZ):
+        raise StabilityError(f"--speeds: need 0 < LO < HI <= {MAX_SPEED_HZ:g} in Hz (got {lo:g}:{hi:g}); speeds "
+                             "in Hz, e.g. --speeds 50:800")
     if system.rings and film == "mc":
         raise StabilityError("--film mc: floating-ring bearings are linearized with their half-Sommerfeld films "
                              "(--film hs); the mass-conserving film impedance is for plain JournalBearings")

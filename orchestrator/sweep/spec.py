@@ -129,7 +129,7 @@ class _SweepReader(NodeReader):
         collect = self.collect(get("collect"), {p.name for p in params}) if "collect" in top else ()
         if mode != "zip":
             for p in params:
-                if len(set(map(repr, p.values))) != len(p.values):
+                if len(set(map(_same_as, p.values))) != len(p.values):
                     self.problems.append(f"{self.display}:{p.line}: the values of parameter '{p.name}' repeat "
                                          f"(got {list(p.values)}); in mode {mode!r} every value makes its own "
                                          "runs: remove the repetition")
@@ -250,8 +250,8 @@ class _SweepReader(NodeReader):
             return None
         if n == 1:
             return (a,)
-        if kind == "linspace":
-            return tuple(a + (b - a) * i / (n - 1) for i in range(n))
+        if kind == "linspace":          # a (1 - t) + b t: no overflow (b - a of -1e308 and 1e308 is inf)
+            return tuple(a * (1 - i / (n - 1)) + b * (i / (n - 1)) for i in range(n))
         return tuple(math.exp(math.log(a) + (math.log(b) - math.log(a)) * i / (n - 1)) for i in range(n))
 
     def random_keys(self, top, mode: str) -> tuple[int | None, int]:
@@ -285,6 +285,19 @@ class _SweepReader(NodeReader):
             if name is not None and path is not None:
                 out.append((name, path))
         return tuple(out)
+
+
+def _same_as(value) -> tuple:
+    """What a parameter value is to a scenario: 1, 1.0 and "1.0" are the same Real (the scenario
+    reads a number in a text as the number; ``values: [1, 1.0]`` made two runs of one value)."""
+    from orchestrator.scenario.nodes import FLOAT_RE, yaml_float
+    if isinstance(value, bool):
+        return ("bool", value)
+    if isinstance(value, (int, float)):
+        return ("number", float(value))
+    if isinstance(value, str) and FLOAT_RE.match(value.strip()):      # as checks.convert reads a Real
+        return ("number", yaml_float(value))
+    return ("text", value)
 
 
 def load_sweep(path: str | Path) -> SweepSpec:
