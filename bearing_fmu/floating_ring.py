@@ -77,7 +77,7 @@ import math
 
 import numpy as np
 
-from .floating_ring_statics import (RingParams, petroff_coefficient, petroff_ratio, shear_torques,
+from .floating_ring_statics import (MAX_RING_SUBSTEPS, RingParams, petroff_coefficient, petroff_ratio, shear_torques,
                                     static_equilibrium, step_coefficients)
 from .floating_ring_expm import expm_small
 from .linearize import linearization as film_linearization
@@ -261,7 +261,11 @@ class FloatingRing:
 
     def _advance(self, dt, journal):
         p = self.params
-        n = max(1, math.ceil(dt / p.h_ring - 1e-9))
+        want = dt / p.h_ring - 1e-9
+        if not want <= MAX_RING_SUBSTEPS:
+            raise ValueError(f"a step of {dt:g} s needs {want:.3g} ring sub-steps of at most h_ring = {p.h_ring:g} s, "
+                             f"more than {MAX_RING_SUBSTEPS}; use a larger h_ring or a smaller macro step")
+        n = max(1, math.ceil(want))
         h = dt / n
         if p.ring_integrator == 1:
             return self._advance_exponential(dt, journal, n)

@@ -213,6 +213,8 @@ class FloatingRingBearing(Fmi2Slave):
         ranges = {f"{n}_{side}": _jb.PARAMETER_RANGES[n] for n in (*_FILM_REAL, *_FILM_INT)
                   if n in _jb.PARAMETER_RANGES for side in ("inner", "outer")}
         ranges["p0"] = _jb.PARAMETER_RANGES["p0"]
+        from bearing_fmu.floating_ring_statics import RING_RANGES      # (at build time only)
+        ranges.update({n: (lo, hi) for n, (lo, hi, _) in RING_RANGES.items()})
         choices = {"init": _jb.STRING_CHOICES["init"], "ring_init": ("equilibrium", "given")}
         return finish_model_description(super().to_xml(model_options), units, _UNITS, ranges, choices)
 

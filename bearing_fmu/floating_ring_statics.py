@@ -17,6 +17,19 @@ import numpy as np
 
 from .model import BearingParams, BearingModel, StepFailed
 
+#: accepted ranges (inclusive) of the ring's own parameters, declared by the FloatingRingBearing FMU
+#: (modelDescription.xml min/max: refused when a scenario is loaded) and checked by RingParams:
+#: ``h_ring: 1e-300`` asked for 1e296 ring sub-steps per FMU step (the run hung), ``m_ring: 1e300``
+#: made `stability` say "raise the lower end of --speeds"
+RING_RANGES: dict[str, tuple[float, float, str]] = {
+    "m_ring": (1e-6, 1e3, "kg"),
+    "J_ring": (1e-12, 1e6, "kg m^2"),         # a test holds the spin with J_ring = 1e3
+    "h_ring": (1e-8, 1.0, "s"),
+    "gravity": (-1e4, 1e4, "m/s^2"),
+}
+#: ring sub-steps of one FMU step at most (ceil(dt / h_ring); the shipped run-ups take one or two)
+MAX_RING_SUBSTEPS = 1_000_000
+
 __all__ = ["RingParams", "shear_torques", "petroff_coefficient", "petroff_ratio",
            "static_equilibrium", "step_coefficients"]
 
@@ -61,10 +74,10 @@ class RingParams:
             elif v.contact:
                 problems.append(f"RingParams.{name}.contact must be 0: asperity contact is not "
                                 "modelled in the floating-ring bearing (got 1)")
-        for name in ("m_ring", "J_ring", "h_ring"):
+        for name, (lo, hi, unit) in RING_RANGES.items():
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                problems.append(f"RingParams.{name} must be a positive finite number (got {v!r})")
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
+                problems.append(f"RingParams.{name} must be a finite number in [{lo:g}, {hi:g}] {unit} (got {v!r})")
         if not (isinstance(self.jacobian_every, int) and self.jacobian_every >= 1):
             problems.append(f"RingParams.jacobian_every must be an integer >= 1 (got {self.jacobian_every!r})")
         if self.input_hold not in (0, 1, 2):
@@ -76,8 +89,6 @@ class RingParams:
         if self.floating not in (0, 1):
             problems.append(f"RingParams.floating must be 1 (full floating) or 0 (semi-floating) "
                             f"(got {self.floating!r})")
-        if not (isinstance(self.gravity, (int, float)) and math.isfinite(self.gravity)):
-            problems.append(f"RingParams.gravity must be a finite number [m/s^2] (got {self.gravity!r})")
         if not problems and self.outer.R <= self.inner.R * (1 + self.inner.psi):
             problems.append(f"RingParams: the ring's outer radius R_outer = {self.outer.R:g} m must exceed "
                             f"its bore R_inner (1 + psi_inner) = {self.inner.R * (1 + self.inner.psi):g} m")

@@ -248,3 +248,38 @@ def test_scenario_error_is_what_a_bad_rotor_parameter_raises_from_the_api():
     from orchestrator.scenario import load_scenario
     with pytest.raises(ScenarioError, match=r"'rotor.k_shaft' = 1e\+300 is outside"):
         load_scenario(JEFFCOTT_HS, ["fmus.rotor.parameters.k_shaft=1e300"])
+
+
+# --------------------------------------------------------------------------- floating rings
+RING_HS = REPO / "scenarios" / "jeffcott_runup_floating_ring_half_sommerfeld.yaml"
+
+
+@pytest.mark.parametrize("setting, words", [
+    # h_ring=1e-300: 1e296 ring sub-steps per FMU step, the run hung (a first SIGTERM did not stop it)
+    ("h_ring=1e-300", ["'bearing1.h_ring' = 1e-300 is outside its declared range [1e-08, 1.0]"]),
+    # m_ring=1e300: `stability` said "at low speed a ring's outer film may not carry its load; raise the
+    # lower end of --speeds"
+    ("m_ring=1e300", ["'bearing1.m_ring' = 1e+300 is outside its declared range [1e-06, 1000.0]"]),
+    ("J_ring=0", ["'bearing1.J_ring' = 0.0 is outside"]),
+    ("gravity=1e300", ["'bearing1.gravity' = 1e+300 is outside"]),
+])
+def test_floating_ring_parameters_are_bounded_when_the_scenario_is_loaded(capsys, setting, words):
+    rc, text = cli(capsys, "validate", RING_HS, "--no-build", "--set", f"fmus.bearing1.parameters.{setting}")
+    assert rc == 1, text
+    for w in words:
+        assert w in text, text
+
+
+def test_the_ring_model_checks_the_same_ranges_and_bounds_its_substeps():
+    from bearing_fmu.floating_ring import FloatingRing
+    from bearing_fmu.floating_ring_statics import MAX_RING_SUBSTEPS, RingParams
+    from bearing_fmu.model import BearingParams
+    films = {s: BearingParams(R=r, B=7.84e-3, psi=psi, eta0=0.012, n_phi=16, n_z=8, cavitation=0)
+             for s, r, psi in (("inner", 4.9e-3, 2.8e-3), ("outer", 7.84e-3, 3.5e-3))}
+    with pytest.raises(ValueError, match=r"RingParams.h_ring must be a finite number in \[1e-08, 1\] s"):
+        RingParams(**films, h_ring=1e-300)
+    m = FloatingRing(RingParams(**films, h_ring=1e-8))
+    journal = (1.7e-5, -1.7e-5, 0.0, 0.0, 2 * math.pi * 300)
+    m.initialize(*journal, ring="equilibrium")
+    with pytest.raises(ValueError, match=f"more than {MAX_RING_SUBSTEPS}; use a larger h_ring"):
+        m.step(1.0, *journal)
