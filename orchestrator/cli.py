@@ -595,6 +595,37 @@ def _json_path(text: str) -> str:
     return text
 
 
+def _check_json_target(out: str, scenario_file: str) -> None:
+    """``stability --json OUT`` replaces OUT only when it is an earlier JSON report (or empty, or a
+    link, which is replaced, not written through): ``--json s.yaml`` replaced the scenario itself
+    with the report. A folder, FIFO or device is refused when the report is written."""
+    import os
+    import stat
+
+    from orchestrator.untrusted import InputError, load_json
+    try:
+        st = os.lstat(out)
+    except OSError:                       # a new name: the write names a missing folder
+        return
+    if not stat.S_ISREG(st.st_mode) or st.st_size == 0:
+        return
+    why = None
+    if os.path.samefile(out, scenario_file):
+        why = "it is the scenario file"
+    else:
+        try:
+            old = load_json(out, what="file")
+        except InputError:
+            old, why = None, "it does not read as JSON, e.g. a scenario or a results file"
+        if why is None and not (isinstance(old, dict) and {"film", "speed_range_hz", "status"} <= set(old)):
+            why = "it is JSON of something else, e.g. a run's summary.json"
+    if why:
+        raise CosimError(f"{out}: exists and is not a stability report ({why}); --json replaces only an earlier "
+                         f"report of `stability --json` (or an empty file): give a new name, e.g. "
+                         f"{Path(out).with_suffix('.json') if Path(out).suffix != '.json' else 'stability.json'}"
+                         ", or remove the file first")
+
+
 def _figure_path(text: str) -> str:
     """A figure file whose suffix matplotlib can write (none: PNG); checked before the computation
     (``--plot x.xyz`` ended, after it, in "internal error: ValueError: Format 'xyz' is not supported";
@@ -642,6 +673,8 @@ def _cmd_stability(args) -> int:
     stability = _feature("orchestrator.stability", "stability", "stability")
 
     args.file = str(resolve(args.file))
+    if args.json:
+        _check_json_target(args.json, args.file)     # before the computation (minutes with --film mc)
     scenario = load_scenario(args.file, args.set, build_fmus=True)
     loads: dict[str, tuple[float, float]] = {}
     for name, fx, fy in args.load:          # repeated for one bearing: the forces add

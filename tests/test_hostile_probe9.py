@@ -283,3 +283,21 @@ def test_the_ring_model_checks_the_same_ranges_and_bounds_its_substeps():
     m.initialize(*journal, ring="equilibrium")
     with pytest.raises(ValueError, match=f"more than {MAX_RING_SUBSTEPS}; use a larger h_ring"):
         m.step(1.0, *journal)
+
+
+def test_stability_json_never_replaces_the_scenario_or_another_file(capsys, tmp_path):
+    # `stability s.yaml --json s.yaml` replaced the scenario itself with the report (as `export-ssp
+    # s.yaml s.yaml` once did); a run's summary.json was replaced the same way
+    scen = tmp_path / "s.yaml"
+    scen.write_text(JEFFCOTT_HS.read_text())
+    summary = tmp_path / "summary.json"
+    summary.write_text('{"status": "finished"}\n')
+    for target, why in ((scen, "it is the scenario file"), (summary, "it is JSON of something else")):
+        before = target.read_text()
+        code, out, err = run_verb(capsys, "stability", scen, "--film", "short", "--json", target)
+        assert code == 1 and target.read_text() == before, err
+        assert f"{target}: exists and is not a stability report ({why}" in err and "give a new name" in err, err
+    report = tmp_path / "r.json"
+    for _ in range(2):                      # a new name, then the earlier report: written both times
+        code, out, err = run_verb(capsys, "stability", scen, "--film", "short", "--json", report)
+        assert code == 0 and f"written: {report}" in out, err
