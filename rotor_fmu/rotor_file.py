@@ -239,6 +239,13 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
             p.append(f"'{w}.unbalance' = {spec.unbalance:g} kg m on a disc of {spec.mass:g} kg is an "
                      f"eccentricity of {spec.unbalance / spec.mass:g} m, more than {MAX_ECCENTRICITY:g} m: "
                      "the unbalance is m e in kg m (1.5 g mm is 1.5e-6); give it in kg m")
+        if re.fullmatch(r"\s*[0-9]+\s*", spec.name):     # x_1 ... are the bearing stations' outputs
+            p.append(f"'{w}.name' is {spec.name!r}, a number: the disc's outputs x_{spec.name.strip()}, ... would "
+                     f"be those of bearing station {spec.name.strip()} (and replace them); give it a name, "
+                     f"e.g. 'wheel{i + 1}'")
+        elif spec.name in [q.name for q in discs]:      # x_<name> would be the later disc's, silently
+            p.append(f"'{w}.name' is {spec.name!r}, the name of an earlier disc too: its outputs x_{spec.name}, "
+                     f"... would be this disc's only; give each disc its own name")
         pos = re.fullmatch(r"disc(\d+)", spec.name)
         if pos and int(pos.group(1)) != i + 1:
             p.append(f"'{w}.name' is {spec.name!r}, the name of the outputs of the disc at position "

@@ -78,6 +78,16 @@ def test_physical_fields_of_a_rotor_file_are_bounded(tmp_path, old, new, words):
     refused(rotor(tmp_path, old, new), *words)
 
 
+@pytest.mark.parametrize("old, new, words", [
+    # a disc named '1' made the FMU's y_1 (bearing station 1, coupled to bearing1) the compressor
+    # wheel's y, 4.5 clearances below the journal; two discs named 'comp' made y_comp the second one's
+    ("name: comp,", "name: '1',", ["line 58: 'discs[0].name' is '1', a number", "bearing station 1"]),
+    ("name: turb,", "name: comp,", ["line 59: 'discs[1].name' is 'comp', the name of an earlier disc too"]),
+])
+def test_disc_names_that_would_replace_other_outputs_are_refused(tmp_path, old, new, words):
+    refused(rotor(tmp_path, old, new), *words)
+
+
 @pytest.mark.parametrize("digits", [401, 5001])
 def test_a_huge_integer_in_a_rotor_file_is_named_by_its_line(tmp_path, digits):
     # 401 digits: "TypeError: ufunc 'isfinite' not supported"; 5001: "ValueError: Exceeds the limit
