@@ -311,3 +311,27 @@ def test_stability_json_never_replaces_the_scenario_or_another_file(capsys, tmp_
     for _ in range(2):                      # a new name, then the earlier report: written both times
         code, out, err = run_verb(capsys, "stability", scen, "--film", "short", "--json", report)
         assert code == 0 and f"written: {report}" in out, err
+
+
+# --------------------------------------------------------------------------- rounding of the span
+def test_a_step_or_interval_equal_to_the_run_up_to_rounding_is_accepted():
+    # stop_time 0.5002, start 0.5: the span is 0.00019999999999997797, and an output interval (or
+    # a macro step) of 2e-4 was refused as "must not exceed stop_time - start_time" (a sweep of short
+    # runs refused every run)
+    from orchestrator.scenario import load_scenario
+    quick = REPO / "scenarios" / "quickstart.yaml"
+    sc = load_scenario(quick, ["stop_time=0.5002", "output.interval=2e-4", "coupling.macro_step=2e-4"])
+    assert sc.coupling.macro_step == 2e-4
+    with pytest.raises(ScenarioError, match=r"'output.interval' must not exceed stop_time - start_time"):
+        load_scenario(quick, ["stop_time=0.5002", "output.interval=2.0001e-4"])
+
+
+def test_too_many_angle_bins_names_the_time_span_not_only_the_speed():
+    # a results.csv with a time column of 1e305 s per row at 280 Hz was blamed on the speed's unit
+    import numpy as np
+
+    from orchestrator.results.whirl import too_many_bins
+    t = np.arange(1000) * 1e305
+    why = too_many_bins(t, np.full(1000, 1759.29), 32)
+    assert "over 9.99e+307 s of recorded time" in why and "Is the time in s?" in why, why
+    assert "is the speed in rad/s?" in why

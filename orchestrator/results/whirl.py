@@ -188,17 +188,21 @@ def revolutions(t: np.ndarray, omega: np.ndarray) -> np.ndarray:
 
 def too_many_bins(t, omega, samples_per_rev: int) -> str | None:
     """Why the orbit cannot be resampled in angle (more than :data:`MAX_ORDER_BINS` bins), or None."""
-    r = revolutions(t, np.where(np.isfinite(np.asarray(omega, float)), omega, 0.0))
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"):           # an overflow to inf revolutions is the answer here
+        r = revolutions(t, np.where(np.isfinite(np.asarray(omega, float)), omega, 0.0))
         revs = float(np.nanmax(r, initial=0.0)) if r.size else 0.0
     bins = revs * int(samples_per_rev)
     if bins <= MAX_ORDER_BINS:
         return None
     top = float(np.nanmax(np.abs(np.asarray(omega, float)), initial=0.0))
-    return (f"the speed signal gives {revs:.3g} revolutions ({bins:.3g} angle bins of 1/{int(samples_per_rev)} "
-            f"revolution, at most {MAX_ORDER_BINS} are analysed; its largest |value| is {top:.6g} rad/s = "
-            f"{top / TWO_PI:.6g} Hz): is the speed in rad/s? (rpm or deg/s read as rad/s give 9.5x or 57x too "
-            "many); whirl not analysed")
+    t = np.asarray(t, float)
+    span = float(t[-1] - t[0]) if t.size else 0.0
+    # the revolutions grow with the recorded time too: a tampered time column of 1e305 s, at a
+    # plausible 280 Hz, was blamed on the speed's unit alone
+    return (f"the speed signal gives {revs:.3g} revolutions over {span:.6g} s of recorded time ({bins:.3g} angle "
+            f"bins of 1/{int(samples_per_rev)} revolution, at most {MAX_ORDER_BINS} are analysed; its largest "
+            f"|value| is {top:.6g} rad/s = {top / TWO_PI:.6g} Hz): is the speed in rad/s? (rpm or deg/s read as "
+            "rad/s give 9.5x or 57x too many) Is the time in s? whirl not analysed")
 
 
 def order_resample(t: np.ndarray, z: np.ndarray, r: np.ndarray, samples_per_rev: int):
