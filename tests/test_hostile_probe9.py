@@ -335,3 +335,22 @@ def test_too_many_angle_bins_names_the_time_span_not_only_the_speed():
     why = too_many_bins(t, np.full(1000, 1759.29), 32)
     assert "over 9.99e+307 s of recorded time" in why and "Is the time in s?" in why, why
     assert "is the speed in rad/s?" in why
+
+
+# --------------------------------------------------------------------------- results.csv rows
+def test_a_results_csv_longer_than_any_run_writes_is_refused(tmp_path, monkeypatch, capsys):
+    # no bound on the rows: a tampered results.csv of 10^9 short rows was read until the memory ran out
+    from orchestrator.results.run_directory import read_results
+    from orchestrator.scenario import limits
+    monkeypatch.setattr(limits, "MAX_OUTPUT_ROWS", 1000)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "results.csv").write_text("time,a.y\n" + "".join(f"{i * 1e-3},1.0\n" for i in range(300_000)))
+    with pytest.raises(ValueError) as exc:
+        read_results(run / "results.csv")
+    assert str(exc.value).startswith(f"{run / 'results.csv'}:1004: more than 1002 rows"), exc.value
+    assert "orchestrator.scenario.limits.MAX_OUTPUT_ROWS" in str(exc.value)
+    rc, text = cli(capsys, "plot", run)
+    assert rc == 1 and "more than 1002 rows" in text, text
+    (run / "results.csv").write_text("time,a.y\n" + "".join(f"{i * 1e-3},1.0\n" for i in range(1002)))
+    assert len(read_results(run / "results.csv")["time"]) == 1002

@@ -77,6 +77,13 @@ class _ResultsReader:
                          "is one row of numbers: this is not a results file of a run (or raise "
                          "orchestrator.results.run_directory.MAX_LINE_BYTES if you trust it)")
 
+    def too_many_rows(self, most: int) -> ValueError:
+        """A file longer than any run writes (a tampered one of 10^9 rows filled the memory)."""
+        from orchestrator.scenario import limits
+        return self.fail(most + 2, f"more than {most} rows; a run writes one row per output interval, at most "
+                         f"{limits.MAX_OUTPUT_ROWS:.0e} + 2 (orchestrator.scenario.limits.MAX_OUTPUT_ROWS): this is "
+                         "not the results file of a run (or raise that limit if you trust it)")
+
     def next_chunk(self) -> tuple[int, bytes, bool, int] | None:
         """``(number of the first line, the lines as bytes without the last line break, last
         line complete, number of lines)`` for the next chunk of whole lines; None at the end.
@@ -180,12 +187,16 @@ class _ResultsReader:
         self.text_seen: dict[int, tuple[int, str]] = {}  # column -> (line, value) of its first text value
         blocks: list[np.ndarray] = []
         blank = 0                                       # an empty line not yet followed by a row
+        from orchestrator.scenario import limits
+        most = limits.MAX_OUTPUT_ROWS + 2               # a run's rows: one per output interval, t0 and stop
         while True:
             if got is None:
                 got = self.next_chunk()
                 if got is None:
                     break
             first, data, complete, count = got
+            if first - 2 >= most:                       # (before parsing it: the file is read in chunks)
+                raise self.too_many_rows(most)
             got = None
             if not blank and not self.text_seen:
                 arr = self.parse_clean(data, count, n)
@@ -210,6 +221,8 @@ class _ResultsReader:
                                 f"{' as in its other rows' if self.numeric_seen[j] else ''}; the file is damaged "
                                 "or edited: rerun the scenario (or fix that line)")
         data = np.concatenate(blocks) if blocks else np.empty((0, n))
+        if len(data) > most:
+            raise self.too_many_rows(most)
         self.check_time(data[:, names.index("time")])
         return {h: data[:, j] for j, h in enumerate(names)}
 
