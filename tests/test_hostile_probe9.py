@@ -191,7 +191,8 @@ def test_init_never_writes_through_a_link_in_the_folder(capsys, tmp_path, force)
     rc, text = cli(capsys, "init", dest, *(["--force"] if force else []))
     if force:
         assert rc == 0 and victim.read_text() == "mine\n", text
-        assert not (dest / "quickstart.yaml").is_symlink() and "name: quickstart" in (dest / "quickstart.yaml").read_text()
+        copy = dest / "quickstart.yaml"
+        assert not copy.is_symlink() and "name: quickstart" in copy.read_text()
     else:
         assert rc == 1 and not victim.exists(), text
         assert "1 scenario file(s) exist already (quickstart.yaml)" in text and "--force" in text, text
