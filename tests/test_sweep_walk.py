@@ -157,6 +157,33 @@ def test_map_without_any_value_has_no_made_up_colour_bar(tmp_path, monkeypatch):
     assert "no run computed a value" in axes[0].get_title()
 
 
+def test_map_draws_dollar_signs_in_units_scenario_and_values_as_written(tmp_path, monkeypatch):
+    """sweep.json and sweep.csv come from anyone (a unit from a third-party FMU's modelDescription,
+    the scenario's file name, a text parameter value): with two '$' matplotlib parsed the text as
+    mathtext, and one it cannot parse ('$\\foo$', 'cost_$a_$') made drawing the map raise."""
+    from orchestrator.sweep import plot
+    drawn = {}
+
+    def draw(fig, path):
+        fig.canvas.draw()                                # where mathtext was parsed
+        drawn[Path(path).name] = fig
+    monkeypatch.setattr(plot, "save_figure", draw)
+    out = _sweep_folder(tmp_path, ROWS.format(v1=300.0, v2=290.0, v3=310.0), units=True)
+    meta = json.loads((out / "sweep.json").read_text())
+    meta["scenario"] = "/x/cost_$a_$.yaml"
+    meta["parameters"][1]["unit"] = "$\\foo$"
+    (out / "sweep.json").write_text(json.dumps(meta))
+    plot.plot_sweep(out)
+    ax = drawn["sweep_onset_hz.png"].axes[0]
+    assert ax.get_ylabel() == "eta0 [$\\foo$]" and ax.get_title().endswith("(cost_$a_$)")
+    (out / "sweep.csv").write_text("run_id,psi,eta0,onset_hz,status,message,wall_time_s,run_dir\n"
+                                   "a1,$\\foo$,0.008,1.0,finished,,1.0,runs/a1\n"
+                                   "a2,$b_$,0.008,2.0,finished,,1.0,runs/a2\n")
+    plot.plot_sweep(out)
+    labels = [t.get_text() for t in drawn["sweep_onset_hz.png"].axes[0].get_xticklabels()]
+    assert sorted(labels) == ["$\\foo$", "$b_$"]
+
+
 @pytest.mark.filterwarnings("ignore:collect")
 def test_sweep_dataframe_column_without_any_value_is_float_nan(sdir):
     """An onset column no run had a value in (the whirl not reached by stop_time) came back from

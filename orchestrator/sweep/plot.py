@@ -237,12 +237,16 @@ def plot_sweep(out_dir: str | Path) -> list[Path]:
     scenario = meta.get("scenario")
     of = f" ({Path(scenario).stem[:60]})" if isinstance(scenario, str) and scenario else ""
     written = []
-    for col in values:
-        path = out_dir / "plots" / f"sweep_{col}.png"
-        if (len(params) == 1 or len({r[params[1]] for r in rows}) == 1
-                or len({r[params[0]] for r in rows}) == len(rows)):     # the first alone identifies each run
-            _line(rows, params[0], col, path, label, f"{col} over {params[0]}{of}")
-        else:
-            _heat(rows, params[0], params[1], col, path, label, f"{col} over {params[0]} and {params[1]}{of}")
-        written.append(path)
+    import matplotlib
+    # every text drawn as written: a unit ('$\Omega$'), scenario name or text value from sweep.json or
+    # sweep.csv with two '$' was parsed as mathtext, and one it cannot parse made the map raise
+    with matplotlib.rc_context({"text.parse_math": False}):
+        for col in values:
+            path = out_dir / "plots" / f"sweep_{col}.png"
+            if (len(params) == 1 or len({r[params[1]] for r in rows}) == 1
+                    or len({r[params[0]] for r in rows}) == len(rows)):     # the first alone identifies each run
+                _line(rows, params[0], col, path, label, f"{col} over {params[0]}{of}")
+            else:
+                _heat(rows, params[0], params[1], col, path, label, f"{col} over {params[0]} and {params[1]}{of}")
+            written.append(path)
     return written
