@@ -275,6 +275,30 @@ def test_sweep_off_a_terminal_prints_a_line_per_run(sdir):
     assert proc.returncode == 1 and "runs done" not in proc.stderr, proc.stderr
 
 
+
+def test_progress_lines_off_a_terminal_are_bounded_on_a_large_sweep(monkeypatch, capsys):
+    """A sweep of 10 000 runs off a terminal wrote 10 000 progress lines into its log; now a line
+    each 1 % of the runs (and the last), or once a minute when runs are slow; a small sweep keeps
+    its line per run."""
+    from orchestrator.sweep import progress
+    clock = [0.0]
+    monkeypatch.setattr(progress.time, "monotonic", lambda: clock[0])
+
+    def lines(total: int, seconds_per_run: float) -> list[str]:
+        bar = progress._Lines(total)
+        for _ in range(total):
+            clock[0] += seconds_per_run
+            bar.update(1)
+        return [ln for ln in capsys.readouterr().err.splitlines() if "runs done" in ln]
+
+    fast = lines(10_000, 0.01)
+    assert len(fast) == 100 and fast[0].startswith("sweep: 100/10000 runs done")
+    assert fast[-1].startswith("sweep: 10000/10000 runs done") and "to go" not in fast[-1]
+    slow = lines(1000, 30.0)                              # 10 runs are 5 min: a line a minute
+    assert slow[0].startswith("sweep: 2/1000 runs done after 60 s") and len(slow) == 500
+    assert [ln.split(" runs done")[0] for ln in lines(3, 0.01)] == ["sweep: 1/3", "sweep: 2/3", "sweep: 3/3"]
+
+
 def test_workers_zero_is_refused_before_the_runs_are_validated(sdir, capsys):
     """--workers 0 was refused after every run's scenario had been validated and the sweep's
     header printed (1-2 min for a large sweep); now first, like --workers with --scheduler."""
