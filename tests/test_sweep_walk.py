@@ -13,18 +13,10 @@ from pathlib import Path
 
 import pytest
 
-SCENARIO = ("name: ramp\nstop_time: 0.1\nfmus:\n"
-            "  f: {path: fmus/Faulty.fmu, parameters: {t_fail: 1.0e6, mode: 1}}\n"
-            "  g: {path: fmus/Gain.fmu}\nconnections:\n  - {from: f.y, to: g.u}\ncoupling: {macro_step: 0.01}\n")
+from tests import test_sweep
 
-
-@pytest.fixture
-def sdir(tmp_path, test_fmus) -> Path:
-    (tmp_path / "fmus").mkdir()
-    for name in ("Faulty", "Gain"):
-        shutil.copy(test_fmus[name], tmp_path / "fmus" / f"{name}.fmu")
-    (tmp_path / "ramp.yaml").write_text(SCENARIO)
-    return tmp_path
+SWEEP = test_sweep.SWEEP          # the ramp scenario's sweep (its run at t_fail 0.05 fails)
+sdir = test_sweep.sdir            # fixture: the ramp scenario and its FMUs in tmp_path
 
 
 @pytest.mark.filterwarnings("ignore:collect")
@@ -243,25 +235,13 @@ def test_fmu_crash_in_a_sweep_names_the_signal_and_the_isolation_that_keeps_the_
     assert "SIGSEGV" in isolated["message"] and "rows up to t=0.004 s are kept" in isolated["message"]
 
 
-RAMP_SWEEP = """sweep: 1
-scenario: ramp.yaml
-set: {stop_time: 0.1}
-parameters:
-  - name: t_fail
-    set: [fmus.f.parameters.t_fail]
-    values: [0.05, 0.5, 1.0]
-collect:
-  steps: macro_steps
-"""
-
-
 def test_sweep_off_a_terminal_prints_a_line_per_run(sdir):
     """`rotorcosim sweep ... 2> log` (a batch job, nohup): the tqdm bar is off when stderr is no
     terminal, and a sweep of hours said nothing until its end. Now a line per run done, with the
     count of runs that did not finish; --no-progress still silences it."""
     import subprocess
     import sys
-    (sdir / "sweep.yaml").write_text(RAMP_SWEEP)
+    (sdir / "sweep.yaml").write_text(SWEEP)
     cmd = [sys.executable, "-m", "orchestrator", "sweep", str(sdir / "sweep.yaml"), "--workers", "1"]
     proc = subprocess.run(cmd + ["--out", str(sdir / "o")], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 1, proc.stderr                  # the t_fail = 0.05 run fails
@@ -303,7 +283,7 @@ def test_workers_zero_is_refused_before_the_runs_are_validated(sdir, capsys):
     """--workers 0 was refused after every run's scenario had been validated and the sweep's
     header printed (1-2 min for a large sweep); now first, like --workers with --scheduler."""
     from orchestrator.cli import main
-    (sdir / "sweep.yaml").write_text(RAMP_SWEEP.replace("ramp.yaml", "missing.yaml"))
+    (sdir / "sweep.yaml").write_text(SWEEP.replace("ramp.yaml", "missing.yaml"))
     rc = main(["sweep", str(sdir / "sweep.yaml"), "--workers", "0"])
     out, err = capsys.readouterr()
     assert rc != 0
