@@ -20,11 +20,14 @@ sdir = test_sweep.sdir            # fixture: the ramp scenario and its FMUs in t
 
 
 @pytest.mark.filterwarnings("ignore:collect")
-def test_interrupted_row_says_what_the_run_summary_says_after_the_run_stopped(sdir):
+@pytest.mark.parametrize("warm", [True, False], ids=["warm", "fresh-processes"])
+def test_interrupted_row_says_what_the_run_summary_says_after_the_run_stopped(sdir, warm):
     """Ctrl-C while a run is in progress: closing the local cluster stops that run, which then
     writes its final summary (failed, stopped_by SIGTERM). The row's message was composed
     before the cluster was closed and said "its summary.json still says running" while the
-    summary.json beside it said failed; now the folder is read after the run stopped."""
+    summary.json beside it said failed; now the folder is read after the run stopped. With
+    --fresh-processes the run was not stopped at all (its worker thread outlives the closed
+    cluster): the row said "still says running" and the run went on, here to 'finished'."""
     from orchestrator.sweep import prepare, runner
     (sdir / "sweep.yaml").write_text(
         "sweep: 1\nscenario: ramp.yaml\nset: {stop_time: 1000.0, coupling.macro_step: 1.0e-3}\n"
@@ -45,7 +48,7 @@ def test_interrupted_row_says_what_the_run_summary_says_after_the_run_stopped(sd
         os.kill(os.getpid(), signal.SIGINT)
 
     threading.Thread(target=interrupt_once_running, daemon=True).start()
-    outcome = runner.run_sweep(spec, runs, sdir / "o", workers=1, warm=True, progress=False)
+    outcome = runner.run_sweep(spec, runs, sdir / "o", workers=1, warm=warm, progress=False)
     assert outcome.interrupted
     row = outcome.rows[0]
     assert row["status"] == "cancelled"

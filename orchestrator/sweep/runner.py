@@ -454,6 +454,9 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
             if cluster is not None:
                 cluster.close()
         if interrupted:
+            if cluster is not None and not warm:  # fresh run processes outlive the closed cluster's threads
+                from orchestrator.sweep.task import stop_fresh
+                stop_fresh()
             # read the runs' folders only now: closing the local cluster stops the runs in
             # progress, which then write their final summary (failed, stopped_by SIGTERM); read
             # before, the rows said "still says running" of a summary that no longer did

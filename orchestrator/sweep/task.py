@@ -23,6 +23,7 @@ import json
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -158,19 +159,47 @@ def execute_run(scenario: str, overrides: list[str], run_dir: str, *, timeout_s:
     return record
 
 
+_FRESH: set[subprocess.Popen] = set()  # this process's fresh run processes running now (see stop_fresh)
+_FRESH_LOCK = threading.Lock()
+
+
 def _fresh(args: list[str], out: Path, timeout_s: float | None) -> tuple[int, str]:
     """``python -m orchestrator ARGS`` in a new process: (exit code, its stderr)."""
     env = run_env()
+    proc = subprocess.Popen([sys.executable, "-m", "orchestrator", *args], stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, errors="replace", env=env,
+                            preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+    with _FRESH_LOCK:
+        _FRESH.add(proc)
     try:
-        proc = subprocess.run([sys.executable, "-m", "orchestrator", *args], stdin=subprocess.DEVNULL,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, errors="replace",
-                              env=env, timeout=timeout_s,
-                              preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+        stdout, stderr = proc.communicate(timeout=timeout_s)
     except subprocess.TimeoutExpired as exc:
+        proc.kill()
+        proc.communicate()
         return -signal.SIGKILL, f"timed out after {exc.timeout:g} s"
-    (out / "run.log").write_text(proc.stdout + ("\n--- stderr ---\n" + proc.stderr if proc.stderr else ""),
-                                 encoding="utf-8")
-    return proc.returncode, proc.stderr
+    finally:
+        with _FRESH_LOCK:
+            _FRESH.discard(proc)
+    (out / "run.log").write_text(stdout + ("\n--- stderr ---\n" + stderr if stderr else ""), encoding="utf-8")
+    return proc.returncode, stderr
+
+
+def stop_fresh(timeout_s: float = 30.0) -> None:
+    """SIGTERM to the fresh run processes of this process's tasks still running, and wait until
+    they ended (the run stops as on SIGTERM and writes its final summary). For an interrupted
+    sweep on its local cluster, whose workers are threads of the sweep's process: closing the
+    cluster does not end a thread waiting for its run, so with ``--fresh-processes`` the runs
+    went on after the sweep said they were interrupted (the warm run processes are ended by
+    :func:`orchestrator.sweep.warm.close_warm` when their worker closes)."""
+    with _FRESH_LOCK:
+        procs = list(_FRESH)
+    for p in procs:
+        p.terminate()
+    for p in procs:
+        try:
+            p.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            p.kill()
 
 
 def _warm(args: list[str], out: Path, timeout_s: float | None) -> tuple[int, str]:
