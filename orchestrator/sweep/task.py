@@ -175,7 +175,7 @@ def _fresh(args: list[str], out: Path, timeout_s: float | None) -> tuple[int, st
         stdout, stderr = proc.communicate(timeout=timeout_s)
     except subprocess.TimeoutExpired as exc:
         proc.kill()
-        proc.communicate()
+        proc.wait()                    # as subprocess.run: not communicate, a grandchild may hold the pipes
         return -signal.SIGKILL, f"timed out after {exc.timeout:g} s"
     finally:
         with _FRESH_LOCK:
