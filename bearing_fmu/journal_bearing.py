@@ -462,6 +462,7 @@ class JournalBearing(Fmi2Slave):
                              f"'{getattr(self, 'instance_name', '?')}': " + "; ".join(problems)
                              + "; set them in the scenario (fmus.<instance>.parameters)")
         model = Model(params)
+        model.linearized = bool(self._values["linearize"])
         model.initialize(*self._inputs(), init=self._values["init"])
         self._model = model
         self._init_key = key

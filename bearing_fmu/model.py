@@ -123,6 +123,11 @@ def available_memory() -> int | None:
 #: an oil bath without a groove whose cavity pressure p0 - cav_width lies above half of p0 warns
 #: (gaseous cavities in oil sit at a fraction of ambient; the 1 kPa default is 0.99 p0)
 OIL_BATH_MIN_CAV_WIDTH = 0.5
+# A journal that left the clearance (eps >= 1, contact = 0): its message gives the film's static
+# load capacity at eps = CAPACITY_EPS and the current speed; with eta0 below THIN_OIL_ETA0 the
+# cause is named as the oil, not the coupling.
+CAPACITY_EPS = 0.95
+THIN_OIL_ETA0 = 1e-4        # Pa s: below every lubricating oil (water 1e-3, air 1.8e-5)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -392,6 +397,9 @@ class BearingModel:
         self._t = 0.0
         self._kin = None
         self._initialized = False
+        # set by the FMU when it passes film coefficients to the rotor (linearize >= 1): the
+        # blow-up message then does not advise turning interface-Jacobian coupling on
+        self.linearized = False
 
     # ----------------------------------------------------------- helpers
     def _kinematics(self, x, y, vx, vy, omega):
@@ -415,17 +423,52 @@ class BearingModel:
                     "contact_KE or sigma_rough, or lower contact_h_limit)")
         elif eps >= 1.0:
             where = (f"eps = {eps:.4f} (x = {x:g} m, y = {y:g} m, clearance c = {self.c:g} m)")
+            cap = self._capacity_clause(float(omega))
+            if self.params.eta0 < THIN_OIL_ETA0 and self._initialized:
+                raise StepFailed(
+                    f"BearingModel: the journal ran into the shell: {where}. The film cannot carry "
+                    f"the load: eta0 = {self.params.eta0:g} Pa s is far below any oil (about 0.005 "
+                    f"to 0.1 Pa s; water is 0.001); {cap}. This is not a coupling instability and "
+                    "no macro step helps: give eta0 in Pa s (0.012 for 12 mPa s), and check the "
+                    "clearance (psi, R) and the speed")
             if eps < 1.05:
                 raise StepFailed(
                     f"BearingModel: journal touches the shell: {where} >= 1; the rotor left "
                     "the clearance: reduce the macro step or check the loads, or set contact = 1 "
-                    "(asperity contact) if the journal really reaches the shell")
+                    f"(asperity contact) if the journal really reaches the shell; {cap}: if the "
+                    "load on this bearing (e.g. its share of the rotor's weight) is larger, the film "
+                    "cannot carry it and no macro step helps: check eta0 [Pa s], the clearance "
+                    "(psi, R) and the speed")
+            coupling = ("reduce the macro step (interface-Jacobian coupling is already on)"
+                        if self.linearized else
+                        "reduce the macro step or use interface-Jacobian coupling (linearize: 1)")
             raise StepFailed(
                 f"BearingModel: journal far outside the clearance: {where}; the coupled "
-                "simulation went unstable before this step (a blow-up, not a contact): reduce "
-                "the macro step or use interface-Jacobian coupling (linearize: 1), and check "
-                "the loads")
+                f"simulation went unstable before this step (a blow-up, not a contact): {coupling}, "
+                f"and check the loads: {cap}; if the load on this bearing (e.g. its share of the "
+                "rotor's weight) is larger, the film cannot carry it (check eta0 [Pa s], the "
+                "clearance (psi, R) and the speed) and no macro step helps")
         return self.gap(x, y, vx, vy) + (float(omega),)
+
+    def load_capacity(self, omega, eps=CAPACITY_EPS) -> float:
+        """Static half-Sommerfeld film force [N] of this bearing with the journal at rest at
+        eccentricity ``eps`` and speed ``omega`` [rad/s]: about the largest static load its film
+        carries (it grows without bound only as eps -> 1). Scales as eta0 omega B R / psi^2."""
+        from .linearize import hs_force       # linearize imports this module
+        return float(np.hypot(*hs_force(self, 0.0, -eps * self.c, 0.0, 0.0, float(omega))))
+
+    def _capacity_clause(self, omega: float) -> str:
+        """'the film's static load capacity ... is about X N ...' for the messages of a journal
+        that left the clearance (the load the film can hold at this viscosity and speed)."""
+        p = self.params
+        try:
+            cap = f"about {self.load_capacity(omega):.3g} N"
+        except Exception:       # noqa: BLE001 - a diagnosis must not hide the failure it explains
+            cap = "not computable"
+        return (f"the film's static load capacity at this viscosity and speed is {cap} at "
+                f"eps = {CAPACITY_EPS:g} (half-Sommerfeld, eta0 = {p.eta0:g} Pa s, omega = "
+                f"{omega:.4g} rad/s = {omega / (2 * math.pi):.4g} Hz, clearance c = psi R = "
+                f"{p.psi:g} x {p.R:g} m, B = {p.B:g} m; it scales as eta0 omega B R / psi^2)")
 
     def _start_outside_message(self, x, y) -> str:
         p, eps = self.params, math.hypot(x, y) / self.c

@@ -546,6 +546,9 @@ class MasterAlgorithm:
             # a status code FMI 2.0 does not have, or no state although fmi2OK
             return head + ("This breaks the FMI 2.0 standard (sec. 2.1.3, 2.1.8), whatever the macro step: "
                            "report it to the FMU's maker with the FMU's log above, or replace the FMU")
+        if "not a coupling instability" in str(e):     # the FMU named a cause no macro step changes
+            return head + ("Follow the fix the FMU's message gives: it names a cause (an input or parameter "
+                           "value) that a smaller coupling.macro_step or more substeps do not change")
         return head + ("Follow the fix the FMU's message gives, if any; a numerically unstable coupling shows up "
                        f"the same way, so also try a smaller coupling.macro_step (now "
                        f"{self.scenario.coupling.macro_step:g}) or more substeps for '{e.instance}', and check the "
