@@ -675,7 +675,8 @@ def _cmd_stability(args) -> int:
     args.file = str(resolve(args.file))
     if args.json:
         _check_json_target(args.json, args.file)     # before the computation (minutes with --film mc)
-    scenario = load_scenario(args.file, args.set, build_fmus=True)
+    # the linear threshold does not use analysis.journals.*.clearance: a --set psi is not refused for it
+    scenario = load_scenario(args.file, args.set, build_fmus=True, analysis_used=False)
     loads: dict[str, tuple[float, float]] = {}
     for name, fx, fy in args.load:          # repeated for one bearing: the forces add
         ox, oy = loads.get(name, (0.0, 0.0))

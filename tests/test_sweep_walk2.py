@@ -57,3 +57,61 @@ def test_load_capacity_scales_with_viscosity_and_speed():
     thin, thick = _bearing(1e-6), _bearing(1e-2)
     assert thick.load_capacity(W) == pytest.approx(1e4 * thin.load_capacity(W), rel=1e-9)
     assert thick.load_capacity(2 * W) == pytest.approx(2 * thick.load_capacity(W), rel=1e-9)
+
+
+# -- 2: the analysis clearance against a psi --set ----------------------------------------------
+
+from pathlib import Path  # noqa: E402
+
+from orchestrator.errors import ScenarioError  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+SEEDED = REPO / "scenarios" / "jeffcott_runup_half_sommerfeld_seeded.yaml"
+PSI_SETS = ["fmus.bearing1.parameters.psi=3.2e-3", "fmus.bearing2.parameters.psi=3.2e-3"]
+
+
+def test_a_run_refused_for_the_clearance_gives_the_exact_set_to_add():
+    from orchestrator import load_scenario
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(SEEDED, PSI_SETS)
+    text = str(info.value)
+    assert "--set fmus.bearing1.parameters.psi=3.2e-3 changed it: " \
+           "add --set analysis.journals.bearing1.clearance=1.568e-05" in text
+    assert "add --set analysis.journals.bearing2.clearance=1.568e-05" in text
+    sc = load_scenario(SEEDED, PSI_SETS + ["analysis.journals.bearing1.clearance=1.568e-05",
+                                           "analysis.journals.bearing2.clearance=1.568e-05"])
+    assert sc.analysis["journals"]["bearing1"]["clearance"] == pytest.approx(1.568e-5)
+
+
+def test_stability_loads_a_psi_set_whatever_the_analysis_clearance(capsys):
+    """The linear threshold does not use analysis.journals.*.clearance: `rotorcosim stability
+    SEEDED --set ...psi=3.2e-3` was refused for it."""
+    from orchestrator import load_scenario
+    sc = load_scenario(SEEDED, PSI_SETS, analysis_used=False)
+    assert sc.analysis["journals"]["bearing1"]["clearance"] == pytest.approx(3.2e-3 * 4.9e-3)
+    from hostile_builders import run_verb
+    code, text, err = run_verb(capsys, "stability", SEEDED, "--set", PSI_SETS[0], "--set", PSI_SETS[1])
+    assert code == 0, err
+    assert "threshold speed:" in text and "clearance" not in err
+
+
+@pytest.mark.parametrize("mode", ["grid", "zip"])
+def test_a_sweep_over_psi_is_refused_at_its_own_psi_line(tmp_path, mode):
+    from orchestrator.sweep import load_sweep
+    from orchestrator.sweep.plan import plan_sweep
+    from orchestrator.sweep.spec import SweepError
+    (tmp_path / "sw.yaml").write_text(
+        f"sweep: 1\nscenario: {SEEDED}\nmode: {mode}\nparameters:\n  - name: psi\n"
+        "    set: [fmus.bearing1.parameters.psi, fmus.bearing2.parameters.psi]\n"
+        "    values: [2.8e-3, 3.2e-3]\n")
+    with pytest.raises(SweepError) as info:
+        plan_sweep(load_sweep(tmp_path / "sw.yaml"), build_fmus=False)
+    problems = info.value.problems
+    assert len(problems) == 2
+    first = problems[0]
+    assert first.startswith(f"{tmp_path / 'sw.yaml'}:6: run psi=0.0032: ")
+    assert f"{SEEDED}:89:" in first                 # the scenario's clearance line, too
+    assert "the sweep's line 6 sets fmus.bearing1.parameters.psi" in first
+    assert "analysis.journals.bearing1.clearance to each run's psi R (here 1.568e-05)" in first
+    assert ("leave 'clearance' out" in first.split("the sweep's line")[1]) == (mode == "grid")
+    assert "--set" not in first.split("the sweep's line")[1]

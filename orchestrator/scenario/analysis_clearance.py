@@ -95,10 +95,26 @@ def check_analysis_clearance(loader, draft, params: dict) -> None:
         if isinstance(given, bool) or not isinstance(given, (int, float)) or not given > 0:
             continue                                   # check_analysis reports it
         if not math.isclose(given, c, rel_tol=CLEARANCE_RTOL):
+            if not getattr(loader, "analysis_used", True):
+                journal["clearance"] = c               # e.g. `stability`: no analysis is run with it
+                continue
             node = _child(jnode, "clearance") or jnode or draft.analysis_node
+            sets = _overrides_of(inst, getattr(loader, "overrides", ()))
+            hint = (f"; {' and '.join(sets)} changed it: add --set analysis.journals.{jname}.clearance={c:.6g}"
+                    if sets else "")
             loader.err(node, f"'analysis.journals.{jname}.clearance' is {given:g} m, but the bearing it "
                              f"analyses, '{inst}' ({how}), has the radial clearance c = psi R = {psi:g} x "
                              f"{R:g} m = {c:.6g} m ({given / c:.3g} times that); the whirl threshold and "
                              "every amplitude of the analysis are relative to this number, so the onset "
                              f"would be wrong; write clearance: {c:.6g}, or leave 'clearance' out and it is "
-                             f"taken from '{inst}' (a sweep over psi or R then needs no clearance column)")
+                             f"taken from '{inst}' (a sweep over psi or R then needs no clearance column)" + hint)
+
+
+def _overrides_of(inst: str, overrides) -> list[str]:
+    """The ``--set fmus.<inst>.parameters.psi=...`` / ``R`` overrides among ``overrides``, as written."""
+    found = []
+    for text in overrides:
+        key, sep, value = str(text).partition("=")
+        if sep and key.strip() in (f"fmus.{inst}.parameters.psi", f"fmus.{inst}.parameters.R"):
+            found.append(f"--set {key.strip()}={value.strip()}")
+    return found

@@ -41,7 +41,8 @@ class ScenarioLoader(FmuChecks, SectionReader):
         return draft.scenario(params)
 
 
-def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus: bool = False) -> Scenario:
+def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus: bool = False,
+                  analysis_used: bool = True) -> Scenario:
     """Load and validate a scenario file (format version 1).
 
     Parameters
@@ -58,6 +59,9 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
         missing or stale (``rotorcosim run``/``validate`` do; :func:`orchestrator.run`
         rebuilds stale ones before it runs). Building is a step between reading and
         checking, not part of loading.
+    analysis_used : ``False`` for a caller that runs no whirl analysis (``rotorcosim
+        stability``): an ``analysis.journals.<name>.clearance`` that is not the analysed
+        bearing's ``psi R`` (after a ``--set`` of psi) is replaced by ``psi R`` instead of refused.
 
     The scenario's ``inputs`` are the files loading read (the YAML, an SSP and its .ssd/.ssv
     files, every FMU; :mod:`orchestrator.read_log`) and the existing files its String
@@ -77,6 +81,7 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
         path = from_ssp(given)
         try:
             loader = ScenarioLoader(Path(path), overrides)
+            loader.analysis_used = analysis_used
             draft = loader.read_sections()
             if build_fmus and draft is not None and not loader.problems and draft.complete:
                 loader.build(draft)

@@ -171,7 +171,26 @@ def _where(spec: SweepSpec, problem: str, run: RunPlan) -> str:
     label = ", ".join(f"{k}={v!r}" for k, v in run.values.items())
     if m and m.group(1).strip() in spec.lines:
         return f"{spec.source}:{spec.lines[m.group(1).strip()]}: run {label}: {problem}"
+    c = _CLEARANCE_HINT.search(problem)
+    axes = [k for k in re.findall(r"--set ([^=\s]+)=", c.group("sets")) if spec.lines.get(k)] if c else []
+    if axes:
+        # the analysis clearance the scenario's line gives no longer fits the psi (or R) a sweep axis sets
+        axis, target, value = axes[0], c.group("target"), c.group("value")
+        line = spec.lines[axis]
+        fix = (f"the sweep's line {line} sets {axis}: add to the sweep a parameter that sets "
+               f"{target} to each run's psi R (here {value}), with as many values as the {axis} column"
+               if spec.mode == "zip" else
+               f"the sweep's line {line} sets {axis}: leave 'clearance' out of the scenario's "
+               f"analysis.journals (each run then takes psi R of its bearing), or use mode: zip with a "
+               f"parameter that sets {target} to each run's psi R (here {value})")
+        return (f"{spec.source}:{line}: run {label}: scenario {spec.scenario.name}: "
+                f"{problem[:c.start()]}; {fix}")
     return f"{spec.source}: run {label}: scenario {spec.scenario.name}: {problem}"
+
+
+#: the loader's hint when a --set of psi or R made the analysis clearance wrong
+#: (orchestrator/scenario/analysis_clearance.py)
+_CLEARANCE_HINT = re.compile(r"; (?P<sets>--set .*?) changed it: add --set (?P<target>[^=\s]+)=(?P<value>\S+)$")
 
 
 def run_inputs(scenario_file: Path, scenario, cache: dict) -> dict[str, Any]:
