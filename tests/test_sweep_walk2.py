@@ -115,3 +115,83 @@ def test_a_sweep_over_psi_is_refused_at_its_own_psi_line(tmp_path, mode):
     assert "analysis.journals.bearing1.clearance to each run's psi R (here 1.568e-05)" in first
     assert ("leave 'clearance' out" in first.split("the sweep's line")[1]) == (mode == "grid")
     assert "--set" not in first.split("the sweep's line")[1]
+
+
+# -- 3: the sweep maps: switch names, a constant map ---------------------------------------------
+
+import json  # noqa: E402
+
+from orchestrator.sweep import plot as sweep_plot  # noqa: E402
+
+
+def _sweep_folder(tmp_path, params, rows, value="max_eps"):
+    """sweep.csv and sweep.json of a finished sweep over ``params`` (name -> set paths)."""
+    d = tmp_path / "sw"
+    d.mkdir()
+    meta = {"sweep": 1, "source": "s.yaml", "scenario": "x.yaml", "mode": "grid",
+            "parameters": [{"name": n, "set": paths} for n, paths in params.items()],
+            "collect": {value: f"analysis.journals.bearing1.{value}"}}
+    head = ",".join(["run_id", *params, value, "status", "message", "wall_time_s", "run_dir"])
+    body = "".join(",".join([f"r{k}", *map(str, r), "finished", "", "1.0", f"runs/r{k}"]) + "\n"
+                   for k, r in enumerate(rows))
+    (d / "sweep.csv").write_text(head + "\n" + body)
+    (d / "sweep.json").write_text(json.dumps(meta))
+    return d
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    saved = []
+    real = sweep_plot.save_figure
+
+    def keep(fig, path):
+        saved.append(fig)
+        return real(fig, path)
+    monkeypatch.setattr(sweep_plot, "save_figure", keep)
+    return saved
+
+
+CAV = {"cavitation": ["fmus.bearing1.parameters.cavitation", "fmus.bearing2.parameters.cavitation"],
+       "eta0": ["fmus.bearing1.parameters.eta0", "fmus.bearing2.parameters.eta0"]}
+
+
+def test_a_cavitation_axis_is_labelled_with_the_model_names(tmp_path, figures):
+    rows = [(0, 0.008, 0.41), (1, 0.008, 0.52), (0, 0.012, 0.45), (1, 0.012, 0.60)]
+    sweep_plot.plot_sweep(_sweep_folder(tmp_path, CAV, rows))
+    ax = [a for a in figures[0].axes if a.images][0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["half-Sommerfeld (0)", "mass-conserving (1)"]
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["0.008", "0.012"]
+
+
+def test_a_cavitation_line_is_labelled_with_the_model_names(tmp_path, figures):
+    sweep_plot.plot_sweep(_sweep_folder(tmp_path, {"cavitation": CAV["cavitation"]}, [(0, 0.41), (1, 0.52)]))
+    ax = [a for a in figures[0].axes if a.get_xlabel()][0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["half-Sommerfeld (0)", "mass-conserving (1)"]
+
+
+def test_an_integer_axis_that_is_no_switch_keeps_its_numbers(tmp_path, figures):
+    n_phi = {"n_phi": ["fmus.bearing1.parameters.n_phi"], "eta0": CAV["eta0"]}
+    rows = [(40, 0.008, 0.41), (80, 0.008, 0.52), (40, 0.012, 0.45), (80, 0.012, 0.60)]
+    sweep_plot.plot_sweep(_sweep_folder(tmp_path, n_phi, rows))
+    ax = [a for a in figures[0].axes if a.images][0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["40", "80"]
+
+
+def test_a_map_of_one_value_has_a_one_colour_bar_labelled_with_it(tmp_path, figures):
+    """Every run 0.958: the colour bar showed 0.858 ... 1.058, a range no run has."""
+    rows = [(0, 0.008, 0.958), (1, 0.008, 0.958), (0, 0.012, 0.958), (1, 0.012, 0.958)]
+    sweep_plot.plot_sweep(_sweep_folder(tmp_path, CAV, rows))
+    fig = figures[0]
+    fig.canvas.draw()
+    bar = [a for a in fig.axes if a.get_label() == "<colorbar>"][0]
+    assert [t.get_text() for t in bar.get_yticklabels()] == ["0.958"]
+    assert "0.958 in every run" in bar.get_ylabel()
+    im = [a for a in fig.axes if a.images][0].images[0]
+    assert im.cmap.N == 1                            # one colour, not a gradient over a made-up range
+
+
+def test_a_map_of_different_values_keeps_its_gradient(tmp_path, figures):
+    rows = [(0, 0.008, 0.41), (1, 0.008, 0.52), (0, 0.012, 0.45), (1, 0.012, 0.60)]
+    sweep_plot.plot_sweep(_sweep_folder(tmp_path, CAV, rows))
+    im = [a for a in figures[0].axes if a.images][0].images[0]
+    assert im.cmap.N > 1 and im.norm.vmin == 0.41 and im.norm.vmax == 0.60

@@ -34,6 +34,16 @@ MAX_MAP_CELLS = 250_000       # a larger grid of the first two parameters is dra
 MAX_TICKS = 30                # tick labels per axis (every k-th value beyond)
 
 
+#: names of the values of our FMUs' integer switches (bearing_fmu/journal_bearing.py
+#: INTEGER_PARAMETERS), for the ticks of an axis that sets one: "half-Sommerfeld (0)", not "0"
+SWITCH_NAMES = {
+    "cavitation": {0: "half-Sommerfeld", 1: "mass-conserving"},
+    "axial_bc": {0: "oil bath", 1: "free to air"},
+    "theta_transport": {0: "upwind", 1: "MUSCL"},
+    "contact": {0: "no contact", 1: "asperity contact"},
+}
+
+
 def is_sweep_dir(path: str | Path) -> bool:
     return (Path(path) / "sweep.csv").is_file()
 
@@ -54,7 +64,7 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def _line(rows, p: str, col: str, path: Path, label: dict, title: str) -> None:
+def _line(rows, p: str, col: str, path: Path, label: dict, title: str, names: dict) -> None:
     fig = _figure()
     ax = fig.add_subplot()
     xs = sorted({r[p] for r in rows}, key=_order)
@@ -67,6 +77,8 @@ def _line(rows, p: str, col: str, path: Path, label: dict, title: str) -> None:
     early = [(x, y) for x, y, st in valued if st != "finished"]
     if at is not None:
         ax.set_xticks(*_ticks(xs))
+    elif names.get(p):                            # a switch: its values by name
+        ax.set_xticks(xs, [_tick_text(v, names[p]) for v in xs])
     if pts:
         ax.plot([x for x, _ in pts], [y for _, y in pts], "o-", color="C0", label=f"{col}")
     if early:
@@ -92,21 +104,51 @@ def _order(v):
     return (isinstance(v, str), v if isinstance(v, str) else float(v), str(v))
 
 
-def _ticks(values) -> tuple[list[int], list[str]]:
-    """Tick positions and labels, at most :data:`MAX_TICKS` of them (every k-th value)."""
+def _ticks(values, names: dict | None = None) -> tuple[list[int], list[str]]:
+    """Tick positions and labels, at most :data:`MAX_TICKS` of them (every k-th value);
+    ``names``: value -> name of a switch axis (:func:`_switch_names`)."""
     step = max(1, math.ceil(len(values) / MAX_TICKS))
     at = list(range(0, len(values), step))
-    return at, [_fmt(values[k]) for k in at]
+    return at, [_tick_text(values[k], names) for k in at]
 
 
-def _heat(rows, p: str, q: str, col: str, path: Path, label: dict, title: str) -> None:
+def _tick_text(v, names: dict | None) -> str:
+    if names and _as_int(v) in names:
+        return f"{names[_as_int(v)]} ({_fmt(v)})"
+    return _fmt(v)
+
+
+def _as_int(v):
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v != int(v):
+        return None
+    return int(v)
+
+
+def _switch_names(entry: dict, values) -> dict | None:
+    """{value: name} when a parameter of sweep.json sets one of our FMUs' integer switches
+    (:data:`SWITCH_NAMES`; every path ``fmus.<instance>.parameters.<switch>`` of the same
+    switch) and all its values are that switch's; else None."""
+    paths = entry.get("set")
+    if not isinstance(paths, list) or not paths:
+        return None
+    switches = {str(p).rsplit(".", 1)[-1] for p in paths
+                if isinstance(p, str) and p.startswith("fmus.") and ".parameters." in p}
+    if len(switches) != 1 or len(paths) != sum(isinstance(p, str) and ".parameters." in p for p in paths):
+        return None
+    names = SWITCH_NAMES.get(switches.pop())
+    if names is None or not all(_as_int(v) in names for v in values):
+        return None
+    return names
+
+
+def _heat(rows, p: str, q: str, col: str, path: Path, label: dict, title: str, names: dict) -> None:
     import numpy as np
     xs = sorted({r[p] for r in rows}, key=_order)
     ys = sorted({r[q] for r in rows}, key=_order)
     xi = {v: j for j, v in enumerate(xs)}
     yi = {v: i for i, v in enumerate(ys)}
     if len(xs) * len(ys) > MAX_MAP_CELLS:         # sparse (a random draw of a large grid): points
-        _scatter(rows, p, q, col, xs, ys, xi, yi, path, label, title)
+        _scatter(rows, p, q, col, xs, ys, xi, yi, path, label, title, names)
         return
     z = np.full((len(ys), len(xs)), np.nan)
     status = {}
@@ -124,10 +166,11 @@ def _heat(rows, p: str, q: str, col: str, path: Path, label: dict, title: str) -
         size = (10.0, 8.0)
     fig = _figure(size)
     ax = fig.add_subplot()
-    im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
     finite = z[np.isfinite(z)]
+    cmap, norm = _colours(finite)
+    im = ax.imshow(z, origin="lower", aspect="auto", cmap=cmap, norm=norm)
     if finite.size:                               # a colour bar of no values showed a made-up -0.1..0.1
-        fig.colorbar(im, ax=ax, label=label[col])
+        _colour_bar(fig, ax, im, label[col], finite)
     else:
         title += " (no run computed a value)"
     mid = 0.5 * (finite.min() + finite.max()) if finite.size else 0.0
@@ -150,10 +193,34 @@ def _heat(rows, p: str, q: str, col: str, path: Path, label: dict, title: str) -
                     label="run stopped early: value up to its stop")
         if bad or early:
             ax.legend(fontsize=8, loc="upper right")
-    _finish_map(fig, ax, label[p], label[q], xs, ys, title, path)
+    _finish_map(fig, ax, label[p], label[q], xs, ys, title, path, names.get(p), names.get(q))
 
 
-def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path, label: dict, title: str) -> None:
+def _colours(finite):
+    """(colour map, norm) of a map's values: viridis over their range; one colour when every
+    value is the same (matplotlib would spread it over a made-up value +- 0.1)."""
+    from matplotlib.colors import ListedColormap, Normalize
+    if finite.size and float(finite.min()) == float(finite.max()):
+        v = float(finite[0])
+        half = 0.5 * abs(v) if v != 0.0 and math.isfinite(0.5 * abs(v)) and v - 0.5 * abs(v) != v else 1.0
+        from matplotlib import colormaps
+        return ListedColormap([colormaps["viridis"](0.5)]), Normalize(v - half, v + half)
+    return "viridis", None
+
+
+def _colour_bar(fig, ax, mappable, label: str, finite) -> None:
+    """The colour bar; for a map whose values are all the same, a one-colour bar with one tick,
+    the value, and a label that says so."""
+    if float(finite.min()) == float(finite.max()):
+        v = float(finite[0])
+        bar = fig.colorbar(mappable, ax=ax, label=f"{label}: {_fmt(v)} in every run")
+        bar.set_ticks([v], labels=[_fmt(v)])
+    else:
+        fig.colorbar(mappable, ax=ax, label=label)
+
+
+def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path, label: dict, title: str,
+             names: dict) -> None:
     """The map of runs that cover a small part of a large grid: one coloured point per run with a
     value, a red cross per run without (memory per run, not per grid cell)."""
     fig = _figure((10.0, 8.0))
@@ -162,9 +229,11 @@ def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path, label: 
     bad = [r for r in rows if r[col] is None]
     early = [r for r in good if r["status"] != "finished"]
     if good:
-        sc = ax.scatter([xi[r[p]] for r in good], [yi[r[q]] for r in good], c=[r[col] for r in good],
-                        cmap="viridis", s=16)
-        fig.colorbar(sc, ax=ax, label=label[col])
+        import numpy as np
+        finite = np.array([r[col] for r in good], dtype=float)
+        cmap, norm = _colours(finite)
+        sc = ax.scatter([xi[r[p]] for r in good], [yi[r[q]] for r in good], c=finite, cmap=cmap, norm=norm, s=16)
+        _colour_bar(fig, ax, sc, label[col], finite)
     if bad:
         ax.plot([xi[r[p]] for r in bad], [yi[r[q]] for r in bad], "x", color="C3", ms=5, mew=1, label="no value")
     if early:
@@ -173,13 +242,14 @@ def _scatter(rows, p: str, q: str, col: str, xs, ys, xi, yi, path: Path, label: 
     if bad or early:
         ax.legend(fontsize=8, loc="upper right")
     _finish_map(fig, ax, label[p], label[q], xs, ys, f"{title} ({len(rows)} runs)"
-                + ("" if good else " (no run computed a value)"), path)
+                + ("" if good else " (no run computed a value)"), path, names.get(p), names.get(q))
 
 
-def _finish_map(fig, ax, p: str, q: str, xs, ys, title: str, path: Path) -> None:
-    """Ticks (turned when many), axis labels ``p``, ``q`` and title of a map; saved."""
-    ax.set_xticks(*_ticks(xs))
-    ax.set_yticks(*_ticks(ys))
+def _finish_map(fig, ax, p: str, q: str, xs, ys, title: str, path: Path, x_names=None, y_names=None) -> None:
+    """Ticks (turned when many; a switch's values by name), axis labels ``p``, ``q`` and title
+    of a map; saved."""
+    ax.set_xticks(*_ticks(xs, x_names))
+    ax.set_yticks(*_ticks(ys, y_names))
     if len(xs) > MAX_TICKS // 2:
         ax.tick_params(axis="x", labelrotation=60)
     ax.set_xlabel(p)
@@ -236,6 +306,7 @@ def plot_sweep(out_dir: str | Path) -> list[Path]:
     label = _labels(meta, params, values)
     scenario = meta.get("scenario")
     of = f" ({Path(scenario).stem[:60]})" if isinstance(scenario, str) and scenario else ""
+    names = {e["name"]: _switch_names(e, {r[e["name"]] for r in rows}) for e in meta["parameters"]}
     written = []
     import matplotlib
     # every text drawn as written: a unit ('$\Omega$'), scenario name or text value from sweep.json or
@@ -245,8 +316,9 @@ def plot_sweep(out_dir: str | Path) -> list[Path]:
             path = out_dir / "plots" / f"sweep_{col}.png"
             if (len(params) == 1 or len({r[params[1]] for r in rows}) == 1
                     or len({r[params[0]] for r in rows}) == len(rows)):     # the first alone identifies each run
-                _line(rows, params[0], col, path, label, f"{col} over {params[0]}{of}")
+                _line(rows, params[0], col, path, label, f"{col} over {params[0]}{of}", names)
             else:
-                _heat(rows, params[0], params[1], col, path, label, f"{col} over {params[0]} and {params[1]}{of}")
+                _heat(rows, params[0], params[1], col, path, label, f"{col} over {params[0]} and {params[1]}{of}",
+                      names)
             written.append(path)
     return written
