@@ -195,3 +195,17 @@ def test_a_map_of_different_values_keeps_its_gradient(tmp_path, figures):
     sweep_plot.plot_sweep(_sweep_folder(tmp_path, CAV, rows))
     im = [a for a in figures[0].axes if a.images][0].images[0]
     assert im.cmap.N > 1 and im.norm.vmin == 0.41 and im.norm.vmax == 0.60
+
+
+def test_a_run_with_too_thin_oil_says_so_and_gives_no_macro_step_advice(tmp_path, capsys):
+    """The walkthrough's run: eta0 = 1e-7 on both bearings of the seeded run-up (linearize: 1)."""
+    from hostile_builders import run_verb
+    code, text, err = run_verb(capsys, "run", SEEDED, "--out", tmp_path / "thin", "--no-progress",
+                               "--set", "fmus.bearing1.parameters.eta0=1e-7",
+                               "--set", "fmus.bearing2.parameters.eta0=1e-7", "--set", "stop_time=0.551")
+    assert code != 0
+    assert "status: failed" in text
+    assert "eta0 = 1e-07 Pa s is far below any oil" in err and "load capacity" in err
+    assert "went unstable" not in err and "linearize: 1" not in err
+    assert "a smaller coupling.macro_step or more substeps do not change" in err
+    assert "also try a smaller coupling.macro_step" not in err
