@@ -626,8 +626,42 @@ def _check_json_target(out: str, scenario_file: str) -> None:
                          ", or remove the file first")
 
 
+# the first bytes of a figure file matplotlib writes, by suffix (others are not checked)
+_FIGURE_MAGIC = {"png": (b"\x89PNG\r\n\x1a\n",), "pdf": (b"%PDF",), "svg": (b"<?xml", b"<svg"),
+                 "eps": (b"%!PS",), "ps": (b"%!PS",), "jpg": (b"\xff\xd8\xff",), "jpeg": (b"\xff\xd8\xff",),
+                 "tif": (b"II*\x00", b"MM\x00*"), "tiff": (b"II*\x00", b"MM\x00*"), "webp": (b"RIFF",)}
+
+
+def _check_plot_target(out: str, scenario_file: str) -> None:
+    """``stability --plot OUT`` replaces OUT only when it is an earlier figure of its suffix's format (or
+    empty, or a link, which is replaced): ``--plot s.yaml.png`` is fine, ``--plot s.yaml`` is refused by
+    its missing suffix, and ``--plot notes.png`` naming a text file is refused here, before the computation."""
+    import os
+    import stat
+    try:
+        st = os.lstat(out)
+    except OSError:
+        return
+    if not stat.S_ISREG(st.st_mode) or st.st_size == 0:
+        return
+    why = None
+    if os.path.samefile(out, scenario_file):
+        why = "it is the scenario file"
+    else:
+        suffix = Path(out).suffix.lower().lstrip(".")
+        magic = _FIGURE_MAGIC.get(suffix)
+        if magic:
+            with open(out, "rb") as fh:
+                head = fh.read(16)
+            if not head.startswith(magic):
+                why = f"its content is not a .{suffix} figure"
+    if why:
+        raise CosimError(f"{out}: exists and is not a figure ({why}); --plot replaces only an earlier figure "
+                         "(or an empty file): give a new name, e.g. stability.png, or remove the file first")
+
+
 def _figure_path(text: str) -> str:
-    """A figure file whose suffix matplotlib can write (none: PNG); checked before the computation
+    """A figure file whose suffix matplotlib can write (a name without one is refused); checked before the computation
     (``--plot x.xyz`` ended, after it, in "internal error: ValueError: Format 'xyz' is not supported";
     ``--plot ''`` drew nothing and said nothing)."""
     if not text.strip():
@@ -636,7 +670,10 @@ def _figure_path(text: str) -> str:
     from matplotlib.backend_bases import FigureCanvasBase
     suffix = Path(text).suffix.lower().lstrip(".")
     formats = FigureCanvasBase.get_supported_filetypes()
-    if suffix and suffix not in formats:
+    if not suffix:          # a PNG was written under that very name, over whatever file had it
+        raise argparse.ArgumentTypeError(f"{text!r}: no suffix; give the figure's format as its suffix, e.g. --plot "
+                                         f"{Path(text).name or 'stability'}.png")
+    if suffix not in formats:
         raise argparse.ArgumentTypeError(f"{text!r}: a figure cannot be written as '.{suffix}'; give a .png file (or "
                                          f"one of .{', .'.join(sorted(formats))})")
     return text
@@ -675,6 +712,8 @@ def _cmd_stability(args) -> int:
     args.file = str(resolve(args.file))
     if args.json:
         _check_json_target(args.json, args.file)     # before the computation (minutes with --film mc)
+    if args.plot:
+        _check_plot_target(args.plot, args.file)
     # the linear threshold does not use analysis.journals.*.clearance: a --set psi is not refused for it
     scenario = load_scenario(args.file, args.set, build_fmus=True, analysis_used=False)
     loads: dict[str, tuple[float, float]] = {}

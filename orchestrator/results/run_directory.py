@@ -332,8 +332,11 @@ def read_results_parquet(path: str | Path) -> dict[str, np.ndarray]:
         import pyarrow.parquet as pq
     except ImportError:
         raise ValueError(f"{path}: reading Parquet results needs pyarrow (pip install pyarrow)") from None
+    from orchestrator.scenario import limits
+    most = limits.MAX_OUTPUT_ROWS + 2                    # a run's rows: one per output interval, t0 and stop
     try:
-        table = pq.read_table(path)
+        rows = pq.ParquetFile(path).metadata.num_rows   # from the footer, before any row is read
+        table = pq.read_table(path) if rows <= most else None
     except Exception as exc:                 # pyarrow raises its own ArrowInvalid / OSError
         why = f"{type(exc).__name__}: {exc}"
         if "magic bytes not found in footer" in str(exc):
@@ -345,6 +348,10 @@ def read_results_parquet(path: str | Path) -> dict[str, np.ndarray]:
                              "killed again (a CSV file keeps every row written before the run was killed) "
                              f"({why})") from None
         raise ValueError(f"{path}: not a readable Parquet file ({why})") from None
+    if table is None:       # a tampered file of 10^9 rows would fill the memory, as a results.csv did
+        raise ValueError(f"{path}: {rows} rows, more than {most}; a run writes one row per output interval, at most "
+                         f"{limits.MAX_OUTPUT_ROWS:.0e} + 2 (orchestrator.scenario.limits.MAX_OUTPUT_ROWS): this is "
+                         "not the results file of a run (or raise that limit if you trust it)")
     if "time" not in table.column_names:
         raise ValueError(f"{path}: no 'time' column (columns: {', '.join(table.column_names[:8])})")
     import pyarrow as pa
