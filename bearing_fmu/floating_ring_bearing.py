@@ -68,6 +68,11 @@ REAL_PARAMETERS.update({
     "omega_ring0": (-1.0, "rad/s", "initial ring speed [rad/s]; < 0: the concentric Petroff ratio "
                                    "a/(a+b) times the initial journal speed"),
 })
+# the ring's start: positions as the rotor FMUs' journal_x0 (rotor_fmu.param_ranges); a speed up to
+# 1e6 rad/s (the rotors' f_max is at most 1e5 Hz, and a ring turns slower than its journal); any
+# value < 0 asks for the Petroff ratio
+START_RANGES: dict[str, tuple[float, float]] = {
+    "x_ring0": (-1.0, 1.0), "y_ring0": (-1.0, 1.0), "omega_ring0": (-1.0e6, 1.0e6)}
 INTEGER_PARAMETERS: dict[str, tuple[int, str]] = {
     f"{n}_{side}": (d[k], f"{side} film: {desc}")
     for n, (*d, desc) in _FILM_INT.items() for k, side in enumerate(("inner", "outer"))}
@@ -215,6 +220,7 @@ class FloatingRingBearing(Fmi2Slave):
         ranges["p0"] = _jb.PARAMETER_RANGES["p0"]
         from bearing_fmu.floating_ring_statics import RING_RANGES      # (at build time only)
         ranges.update({n: (lo, hi) for n, (lo, hi, _) in RING_RANGES.items()})
+        ranges.update(START_RANGES)
         choices = {"init": _jb.STRING_CHOICES["init"], "ring_init": ("equilibrium", "given")}
         return finish_model_description(super().to_xml(model_options), units, _UNITS, ranges, choices)
 

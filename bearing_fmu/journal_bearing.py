@@ -128,11 +128,18 @@ MAX_N_PHI, MAX_N_Z = 8192, 2048
 # (1.5 for 1.5e-3) and a clearance in metres (1.5e-5 for 15 um), both of which passed as psi > 0
 # before 2026-12-06 (the first with a film 100 x too thin). Keep equal to bearing_fmu.model's.
 PSI_MIN, PSI_MAX = 1.0e-4, 0.1
+# Physical values: wide enough for any real machine (a micro turbine's 0.1 mm radius to a hydro
+# generator's guide bearing of 4 m bore; gases to cold gear oil), narrow enough to refuse a value in
+# the wrong unit: R or B in mm (R: 25 for 25 mm was a 25 m journal), eta0 in mPa s (12 for 0.012),
+# sigma_rough in um, a pressure in bar is not caught (1 Pa is a valid pressure). eta0 goes down to
+# 1e-7 Pa s: below any gas, but the film then fails with its own message (docs/fmus.md).
+R_RANGE, B_RANGE, ETA0_RANGE = (1.0e-4, 2.0), (1.0e-4, 4.0), (1.0e-7, 10.0)
+PRESSURE_MAX, SIGMA_ROUGH_MAX = 1.0e8, 1.0e-4
 POS = POSITIVE
 PARAMETER_RANGES: dict[str, tuple[Any, Any]] = {
-    "R": (POS, None), "B": (POS, None), "psi": (PSI_MIN, PSI_MAX), "eta0": (POS, None), "p0": (0.0, None),
-    "p_feed": (0.0, None), "groove_width": (0.0, 2 * math.pi), "sigma_rough": (POS, None),
-    "contact_KE": (0.0, None), "mu_contact": (0.0, None), "contact_h_limit": (-6.0, 0.0),
+    "R": R_RANGE, "B": B_RANGE, "psi": (PSI_MIN, PSI_MAX), "eta0": ETA0_RANGE, "p0": (0.0, PRESSURE_MAX),
+    "p_feed": (0.0, PRESSURE_MAX), "groove_width": (0.0, 2 * math.pi), "sigma_rough": (POS, SIGMA_ROUGH_MAX),
+    "contact_KE": (0.0, 1.0e12), "mu_contact": (0.0, 10.0), "contact_h_limit": (-6.0, 0.0),
     "n_phi": (8, MAX_N_PHI), "n_z": (2, MAX_N_Z), "cavitation": (0, 1), "axial_bc": (0, 1),
     "theta_transport": (0, 1), "contact": (0, 1),
     "cav_width": (POS, None), "cav_smoothing": (POS, None), "penalty_a": (0.0, None), "penalty_b": (POS, None),

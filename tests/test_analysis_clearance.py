@@ -52,10 +52,14 @@ def test_other_bearing_clearance_is_an_error_at_the_clearance_line():
 
 
 def test_radius_in_millimetres_is_caught_by_the_clearance():
-    """R = 4.9 (mm meant, m read): c = psi R = 13.7 mm, 1000 times the analysis's clearance."""
+    """R = 4.9 (mm meant, m read): c = psi R = 13.7 mm, 1000 times the analysis's clearance; since
+    tests/test_hostile_probe9b.py R is also outside the bearing's declared range [1e-4, 2] m."""
     probs = _problems(QUICKSTART, ["fmus.bearing2.parameters.R=4.9"])
+    # (not also a clearance problem computed from the FMU's default R, as the refused value was dropped)
+    assert len(probs) == 1 and "outside its declared range [0.0001, 2.0]" in probs[0], probs
+    probs = _problems(QUICKSTART, ["fmus.bearing2.parameters.R=1.96"])    # a mm value inside the range
     assert len(probs) == 1 and "'analysis.journals.bearing2.clearance'" in probs[0], probs
-    assert "(0.001 times that)" in probs[0]
+    assert "(0.0025 times that)" in probs[0], probs
 
 
 def test_rounding_within_one_percent_is_accepted():

@@ -29,12 +29,13 @@ def _stability(capsys, *args):
 
 # --------------------------------------------------------------------------- stability
 @pytest.mark.parametrize("film, extra", [
-    ("short", ["--set", "fmus.bearing1.parameters.B=1e6"]),          # eccentricity below 1e-12
-    ("short", ["--set", "fmus.bearing1.parameters.B=1e-12"]),        # the film cannot carry the load
+    # eccentricity below 1e-12 (was B=1e6; B and eta0 are bounded since tests/test_hostile_probe9b.py)
+    ("short", ["--speeds", "500:800", "--set", "fmus.bearing1.parameters.B=4",
+               "--set", "fmus.bearing1.parameters.eta0=10"]),
     ("short", ["--speeds", "1e-300:1e-299"]),
     # m_disc=1e300 was here: it is now refused when the scenario is loaded (the rotor FMUs declare
-    # upper bounds too, tests/test_hostile_probe9.py)
-    ("hs", ["--set", "fmus.bearing1.parameters.B=1e6"]),             # the HS solver divides by zero
+    # upper bounds too, tests/test_hostile_probe9.py); so are B=1e-12 (the film cannot carry the load)
+    # and B=1e6 (the HS solver divided by zero), tests/test_hostile_probe9b.py
 ])
 def test_stability_absurd_bearing_or_speed_is_named_not_an_internal_error(capsys, film, extra):
     code, out, err = _stability(capsys, JEFFCOTT_HS, "--film", film, *COARSE, *extra)
@@ -53,7 +54,7 @@ def test_stability_hs_film_at_absurd_speeds_does_not_advise_raising_the_lower_en
     # --speeds 1e200:1e300 is refused before any film since probe 9 (HI <= 1e7 Hz); a film far too
     # stiff for its load at the speeds asked for is the same case inside that bound
     code, out, err = _stability(capsys, JEFFCOTT_HS, *COARSE, "--speeds", "1e6:1e7",
-                                "--set", "fmus.bearing1.parameters.eta0=1e6")
+                                "--set", "fmus.bearing1.parameters.eta0=10", "--set", "fmus.bearing1.parameters.B=4")
     assert code == 1
     assert "no half-Sommerfeld static equilibrium" in err and "raise the lower end" not in err
 
@@ -297,11 +298,13 @@ def test_export_ssp_refuses_a_control_character_xml_cannot_hold(tmp_path):
 
 
 def test_a_journal_radius_whose_clearance_underflows_is_named_not_an_internal_error(capsys):
-    # R = 5e-324 is inside the bearing's declared range (0, inf); psi R is 0.0 and the analysis clearance
-    # check divided by it: 'internal error: ZeroDivisionError' from validate, run and stability alike
+    # R = 5e-324 was inside the bearing's declared range (0, inf); psi R is 0.0 and the analysis clearance
+    # check divided by it: 'internal error: ZeroDivisionError' from validate, run and stability alike.
+    # Since tests/test_hostile_probe9b.py R is declared in [1e-4, 2] m: refused when the scenario is loaded
     code, out, err = _stability(capsys, JEFFCOTT_HS, "--film", "short", "--set", "fmus.bearing1.parameters.R=5e-324")
     assert code == 1 and "internal error" not in err, err
-    assert "radial clearance c = psi R" in err and "is 0 in floating point" in err and "journal radius" in err
+    assert "parameter 'bearing1.R' = 5e-324 is outside its declared range [0.0001, 2.0]" in err, err
+    assert "journal (bearing) radius R [m]" in err, err
 
 
 @pytest.mark.parametrize("stations", [1, 3])

@@ -59,3 +59,97 @@ def test_stability_plot_over_other_file_refused(capsys, tmp_path):
     svg.write_text("%PDF-1.4 not svg")
     rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--plot", svg)
     assert rc == 1 and "not a .svg figure" in text, text
+
+
+# --------------------------------------------------------------------------- bearing parameter ranges
+BEARING_SCENARIO = """\
+name: bounds
+start_time: 0.5
+stop_time: 0.502
+fmus:
+  rotor:
+    fmu: JeffcottRotor
+    parameters: {{f_max: 800.0, t_ramp: 2.0}}
+  bearing1:
+    fmu: JournalBearing
+    parameters:
+      R: {R}
+      B: {B}
+      psi: 2.8e-3
+      eta0: {eta0}
+      n_phi: 24
+      n_z: 12
+      cavitation: 0
+connections:
+  - {{from: rotor.x_1, to: bearing1.x}}
+  - {{from: bearing1.Fx, to: rotor.Fx_1}}
+coupling: {{scheme: gauss-seidel, macro_step: 1.0e-4}}
+"""
+
+
+@pytest.mark.parametrize("field, value, line, rng", [
+    ("R", "25", 11, "[0.0001, 2.0]"),          # R in mm: a 25 m journal
+    ("B", "32", 12, "[0.0001, 4.0]"),          # B in mm
+    ("eta0", "12", 14, "[1e-07, 10.0]"),       # eta0 in mPa s
+    ("R", "1e-6", 11, "[0.0001, 2.0]"),
+])
+def test_bearing_values_in_a_wrong_unit_are_refused_at_load(tmp_path, field, value, line, rng):
+    # R, B and eta0 had only a lower bound (> 0): R: 25 (meant: mm) ran as a 25 m journal
+    from orchestrator.errors import ScenarioError
+    from orchestrator.scenario import load_scenario
+    values = {"R": "4.9e-3", "B": "7.84e-3", "eta0": "0.012", field: value}
+    p = tmp_path / "s.yaml"
+    p.write_text(BEARING_SCENARIO.format(**values))
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(p)
+    msg = str(exc.value)
+    assert f"s.yaml:{line}" in msg and f"bearing1.{field}' = {float(value)!r}" in msg, msg
+    assert f"outside its declared range {rng}" in msg and "give a value inside the range" in msg, msg
+    p.write_text(BEARING_SCENARIO.format(**{**values, field: {"R": "0.5", "B": "1.0", "eta0": "1.0"}[field]}))
+    load_scenario(p)                              # a ship's shaft, cold oil: inside
+
+
+def test_bearing_fmus_declare_upper_bounds():
+    import zipfile
+
+    from orchestrator.fmi.model_description import parse_model_description
+    fmus = REPO / "fmus"
+
+    def variables(name):
+        with zipfile.ZipFile(fmus / f"{name}.fmu") as z:
+            return parse_model_description(z.read("modelDescription.xml")).variables
+    jb = variables("JournalBearing")
+    for name in ("R", "B", "eta0", "p0", "p_feed", "sigma_rough", "contact_KE", "mu_contact"):
+        assert jb[name].max is not None and jb[name].min <= jb[name].start <= jb[name].max, name
+    fr = variables("FloatingRingBearing")
+    for name in ("R_inner", "R_outer", "B_inner", "eta0_outer", "p_feed_inner", "p0", "omega_ring0",
+                 "x_ring0", "y_ring0"):
+        assert fr[name].max is not None and fr[name].min <= fr[name].start <= fr[name].max, name
+    assert (fr["x_ring0"].min, fr["x_ring0"].max) == (-1.0, 1.0)
+    assert fr["omega_ring0"].min < 0 < fr["omega_ring0"].max        # < 0: the Petroff ratio
+
+
+@pytest.mark.parametrize("value", ["B=1e6", "B=1e-12", "eta0=1e6"])
+def test_stability_absurd_bearing_is_refused_at_load(capsys, value):
+    # these reached the film solvers (tests/test_hostile_probe8.py): "eccentricity below 1e-12", the
+    # film unable to carry the load, the HS solver dividing by zero
+    rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", "--set", f"fmus.bearing1.parameters.{value}")
+    name = value.split("=")[0]
+    assert rc == 1 and f"--set fmus.bearing1.parameters.{value}: parameter 'bearing1.{name}'" in text, text
+    assert "outside its declared range" in text and "linearly stable" not in text, text
+
+
+@pytest.mark.parametrize("line, value", [("omega_ring0: 1317.84", "omega_ring0: 1.0e9"),
+                                         ("omega_ring0: 1317.84", "x_ring0: 10.6, omega_ring0: 1317.84")])  # um
+def test_floating_ring_start_values_are_bounded(tmp_path, line, value):
+    from orchestrator.errors import ScenarioError
+    from orchestrator.scenario import load_scenario
+    src = (REPO / "scenarios" / "jeffcott_runup_floating_ring_half_sommerfeld_seeded.yaml").read_text()
+    assert line in src, line
+    p = tmp_path / "s.yaml"
+    p.write_text(src.replace(line, value, 1))
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(p)
+    msg = str(exc.value)
+    lineno = src[:src.index(line)].count("\n") + 1
+    assert f"s.yaml:{lineno}" in msg and "outside its declared range" in msg, msg

@@ -77,6 +77,9 @@ def check_analysis_clearance(loader, draft, params: dict) -> None:
         if found is None:
             continue
         inst, how = found
+        raw = next((f.get("parameters") for f in draft.fmus if f.get("name") == inst), None)
+        if isinstance(raw, dict) and any(n in raw and n not in params.get(inst, {}) for n in ("R", "psi")):
+            continue               # refused by the parameter checks (e.g. outside its range): not the FMU's start
         R, psi = parameter_value(inst, "R", params, loader.mds), parameter_value(inst, "psi", params, loader.mds)
         if R is None or psi is None or not (R > 0 and psi > 0):
             continue                                   # the parameter checks report bad values
