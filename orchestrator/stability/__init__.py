@@ -7,8 +7,8 @@ where the system crosses into instability over the speed range and assembles the
 """
 
 from orchestrator.stability.films import _failed, _HSFilm, _MCFilm, _ShortFilm  # noqa: F401 (tests, docs/scripts)
-from orchestrator.stability.search import FILMS, MC_SCAN, later_crossings, stability
+from orchestrator.stability.search import FILMS, MAX_SPEED_HZ, MC_SCAN, later_crossings, stability
 from orchestrator.stability.system import RING_MODEL, SUPPORTED, Bearing, StabilityError, System, build_system
 
-__all__ = ["FILMS", "MC_SCAN", "RING_MODEL", "SUPPORTED", "Bearing", "StabilityError", "System", "build_system",
+__all__ = ["FILMS", "MAX_SPEED_HZ", "MC_SCAN", "RING_MODEL", "SUPPORTED", "Bearing", "StabilityError", "System", "build_system",
            "later_crossings", "stability"]
