@@ -635,16 +635,37 @@ class MCFilmLinear:
                          if prm.contact else None)
 
     def impedance(self, s):
-        """Z(s) (2, 2) complex [N/m] at complex s [1/s] (:func:`mc_impedance`)."""
-        import scipy.sparse as sp
+        """Z(s) (2, 2) complex [N/m] at complex s [1/s] (:func:`mc_impedance`): one sparse complex LU
+        of ``s M + J_s``, assembled into a kept copy of ``J_s``'s pattern (its diagonal added)."""
         import scipy.sparse.linalg as spla
         s = complex(s)
-        A = (self.Js + s * sp.diags(self.Mdiag)).tocsc().astype(complex)
-        X = spla.splu(A).solve((self.Rq + s * self.Rv).astype(complex))
+        X = spla.splu(self._shifted(s)).solve(np.asarray(self.Rq + s * self.Rv, dtype=complex))
         Z = -(self.Fq + s * self.Fv) + self.Fu @ X
         if self.contact is not None:
             Z = Z + self.contact[0] + s * self.contact[1]
         return Z
+
+    def _shifted(self, s: complex):
+        """``J_s + s diag(M)`` (complex CSC) in one kept matrix: the pattern of ``J_s`` with every
+        diagonal entry stored, its values ``J_s`` plus ``s M`` on the diagonal (the matrix is reused
+        by the next call; splu copies it)."""
+        import scipy.sparse as sp
+        t = getattr(self, "_template", None)
+        if t is None:
+            n = self.Js.shape[0]
+            J = self.Js.tocoo()
+            i = np.arange(n)                   # explicit zeros on the diagonal keep its entries stored
+            A = sp.csc_matrix((np.concatenate([J.data, np.zeros(n)]).astype(complex),
+                               (np.concatenate([J.row, i]), np.concatenate([J.col, i]))), shape=(n, n))
+            A.sum_duplicates()
+            A.sort_indices()
+            cols = np.repeat(i, np.diff(A.indptr))
+            diag = np.flatnonzero(A.indices == cols)
+            t = self._template = (A, A.data.copy(), diag[np.argsort(cols[diag])])
+        A, base, diag = t
+        A.data[:] = base
+        A.data[diag] += s * self.Mdiag
+        return A
 
     def quasi_steady(self):
         """(K, C) of the quasi-steady film: ``-dF/dq``, ``-dF/dv`` of steady solves (theta

@@ -297,36 +297,11 @@ def film_system_eigenvalues(rotor, omega, films):
 
     The descriptor system ``E x' = A x``, ``x = (q, q', u_1, u_2, ...)``: the rotor
     ``M q'' + C q' + K q = sum P_j^T (F_u u_j + F_q P_j q + F_v P_j q')`` and each film
-    ``M_j u_j' = -J_s u_j - R_q P_j q - R_v P_j q'``. Eliminating the u_j gives
-    ``det(s^2 M + s C + K + sum P_j^T Z_j(s) P_j) = 0`` with the film impedances Z_j
+    ``M_j u_j' = -J_s u_j - R_q P_j q - R_v P_j q'`` (:func:`rotor_fmu.film_system.pencil`). Eliminating
+    the u_j gives ``det(s^2 M + s C + K + sum P_j^T Z_j(s) P_j) = 0`` with the film impedances Z_j
     (:func:`bearing_fmu.linearize.mc_impedance`), so these are exactly its roots; solved densely
-    (all roots: the least damped one cannot be missed), the infinite ones (algebraic full-film
-    cells, M = 0) dropped."""
-    import scipy.linalg as sl
-    M, C, K = rotor.system_matrices(omega)
-    n = M.shape[0]
-    sizes = [f.Js.shape[0] for f in films]
-    N = 2 * n + sum(sizes)
-    A, E = np.zeros((N, N)), np.zeros((N, N))
-    A[:n, n:2 * n] = E[:n, :n] = np.eye(n)
-    A[n:2 * n, :n], A[n:2 * n, n:2 * n], E[n:2 * n, n:2 * n] = -K, -C, M
-    o = 2 * n
-    for f, (ix, iy), m in zip(films, rotor.bearing_dofs, sizes):
-        P = np.zeros((2, n))
-        P[0, ix] = P[1, iy] = 1.0
-        A[n:2 * n, o:o + m] = P.T @ f.Fu
-        A[n:2 * n, :n] += P.T @ f.Fq @ P
-        A[n:2 * n, n:2 * n] += P.T @ f.Fv @ P
-        if getattr(f, "contact", None) is not None:      # asperity contact: -K_c q - C_c q'
-            Kc, Cc = f.contact
-            A[n:2 * n, :n] -= P.T @ Kc @ P
-            A[n:2 * n, n:2 * n] -= P.T @ Cc @ P
-        A[o:o + m, o:o + m] = -f.Js.toarray()
-        A[o:o + m, :n] = -f.Rq @ P
-        A[o:o + m, n:2 * n] = -f.Rv @ P
-        E[o:o + m, o:o + m] = np.diag(f.Mdiag)
-        o += m
-    lam = sl.eigvals(A, E)
-    lam = lam[np.isfinite(lam) & (np.abs(lam) < 1e8)]
-    return lam[np.argsort(-lam.real)]
-
+    (all roots: the least damped one cannot be missed; the reference of
+    :func:`rotor_fmu.film_system.rightmost`, which finds the least-damped ones ~50 x faster), the
+    infinite ones (algebraic full-film cells, M = 0) dropped."""
+    from .film_system import eigenvalues_dense
+    return eigenvalues_dense(rotor, omega, films)

@@ -40,6 +40,8 @@ import numpy as np
 
 from orchestrator.stability.system import Bearing, StabilityError, System
 
+MC_SOLVERS = ("counted", "dense")   # the --film mc eigenvalue solvers (_MCFilm)
+
 
 def _short(p) -> dict:
     """The short-bearing closed form's geometry and viscosity of a bearing's BearingParams."""
@@ -262,29 +264,40 @@ class _RingFilms:
 
 class _MCFilm:
     """Each station's own mass-conserving film, linearised about its steady state with its cavity
-    (theta) dynamics: the rotor and the films as one descriptor system
-    (:func:`rotor_fmu.stability.film_system_eigenvalues`, :class:`bearing_fmu.linearize.MCFilmLinear`;
+    (theta) dynamics: the rotor and the films as one descriptor system, its least-damped eigenvalue
+    by sparse shift-invert Arnoldi counted by the argument principle (:func:`rotor_fmu.film_system.rightmost`,
+    ``solver="counted"``) or from all eigenvalues by dense QZ (``solver="dense"``,
+    :func:`rotor_fmu.stability.film_system_eigenvalues`, the reference); :class:`bearing_fmu.linearize.MCFilmLinear`;
     docs/analysis.md, "Linear threshold of the mass-conserving film")."""
 
-    method = ("each bearing's own mass-conserving film (its parameters and grid) linearised about its steady "
-              "state with its cavity (theta) dynamics, i.e. its film impedance Z(s) (bearing_fmu/linearize.py "
-              "MCFilmLinear), at the static equilibrium of the steady film under its static load; the finite "
-              "eigenvalues of the rotor and films as one descriptor system (rotor_fmu/stability.py "
-              "film_system_eigenvalues)")
-
-    def __init__(self, system: System, loads: np.ndarray):
+    def __init__(self, system: System, loads: np.ndarray, solver: str = "counted"):
         from bearing_fmu.model import BearingModel
         plain = [b.instance for b in system.bearings if b.params.cavitation != 1]
         if plain:
             raise StabilityError(f"--film mc linearises a mass-conserving film (cavitation = 1), but the bearing "
                                  f"'{plain[0]}' is half-Sommerfeld (cavitation = 0): use --film hs")
-        self.system, self.loads = system, loads
+        if solver not in MC_SOLVERS:
+            raise StabilityError(f"the mass-conserving film's eigenvalue solver must be one of "
+                                 f"{', '.join(MC_SOLVERS)} (got {solver!r})")
+        self.system, self.loads, self.solver = system, loads, solver
         self.models = [BearingModel(b.params) for b in system.bearings]
         self.q: list = [None] * len(self.models)
         self._at: tuple[float, list] | None = None
+        self._hint: tuple = ()
+        self.dense_speeds: list[float] = []      # speeds the counted solver left to the dense one
+        ident = "the least-damped eigenvalues of the rotor and films as one descriptor system ("
+        self.method = ("each bearing's own mass-conserving film (its parameters and grid) linearised about its "
+                       "steady state with its cavity (theta) dynamics, i.e. its film impedance Z(s) "
+                       "(bearing_fmu/linearize.py MCFilmLinear), at the static equilibrium of the steady film under "
+                       "its static load; " + ident
+                       + ("sparse shift-invert Arnoldi, all of them right of a line just left of the least-damped "
+                          "one counted by the argument principle on det(s^2 M + s C + K + sum P^T Z(s) P), "
+                          "rotor_fmu/film_system.py rightmost)" if solver == "counted" else
+                          "all finite eigenvalues by dense QZ, rotor_fmu/stability.py film_system_eigenvalues)"))
 
     def _films(self, omega: float) -> list:
-        """Each station's MCFilmLinear at its equilibrium at omega (the last speed's kept)."""
+        """Each station's MCFilmLinear at its equilibrium at omega (the last speed's kept); a station
+        whose bearing and static load equal an earlier one's (a symmetric rotor) shares its film."""
         from bearing_fmu.linearize import HSEquilibriumError, mc_static_equilibrium
         from bearing_fmu.model import StepFailed
         from rotor_fmu.stability import short_bearing_equilibrium
@@ -292,6 +305,12 @@ class _MCFilm:
             return self._at[1]
         films = []
         for j, (b, m, ld) in enumerate(zip(self.system.bearings, self.models, self.loads)):
+            same = next((k for k in range(j) if self.system.bearings[k].params == b.params
+                         and np.array_equal(self.loads[k], ld)), None)
+            if same is not None:
+                self.q[j] = self.q[same]
+                films.append(films[same])
+                continue
             guess = self.q[j]
             if guess is None:           # the short-bearing equilibrium, kept inside 0.8 c
                 try:
@@ -311,9 +330,18 @@ class _MCFilm:
         return films
 
     def max_re(self, omega: float) -> tuple[float, float]:
-        from rotor_fmu.stability import film_system_eigenvalues
-        lam = film_system_eigenvalues(self.system.rotor, omega, self._films(omega))
+        films = self._films(omega)
+        if self.solver == "dense":
+            from rotor_fmu.stability import film_system_eigenvalues
+            lam = film_system_eigenvalues(self.system.rotor, omega, films)
+        else:
+            from rotor_fmu.film_system import rightmost
+            found = rightmost(self.system.rotor, omega, films, hint=self._hint)
+            lam = found.eigenvalues
+            if found.method == "dense":
+                self.dense_speeds.append(omega)
         k = int(np.argmax(lam.real))
+        self._hint = (lam[k],)            # where the next speed's search starts
         return float(lam.real[k]), float(abs(lam.imag[k]))
 
     def eccentricities(self, omega):
@@ -321,12 +349,13 @@ class _MCFilm:
         return [float(np.hypot(*q) / m.c) for q, m in zip(self.q, self.models)]
 
 
-def film_model(system: System, film: str, loads: np.ndarray, *, ring_spin: bool = False):
+def film_model(system: System, film: str, loads: np.ndarray, *, ring_spin: bool = False,
+               mc_solver: str = "counted"):
     """The film model of ``film`` (one of ``"short"``, ``"hs"``, ``"mc"``; floating rings: their
-    half-Sommerfeld films, ``ring_spin`` as :class:`_RingFilms`) for the system's bearings under
-    their static ``loads`` (n_stations, 2) [N]."""
+    half-Sommerfeld films, ``ring_spin`` as :class:`_RingFilms`; ``mc_solver`` as :class:`_MCFilm`)
+    for the system's bearings under their static ``loads`` (n_stations, 2) [N]."""
     if system.rings:
         return _RingFilms(system, loads, spin=ring_spin)
     if film == "mc":
-        return _MCFilm(system, loads)
+        return _MCFilm(system, loads, mc_solver)
     return _ShortFilm(system, loads) if film == "short" else _HSFilm(system, loads)

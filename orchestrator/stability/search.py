@@ -136,7 +136,8 @@ def later_crossings(result: dict) -> list[dict]:
 
 
 def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int | None = None,
-              ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None) -> dict:
+              ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None,
+              mc_solver: str = "counted") -> dict:
     """The threshold result (a JSON-ready dict) of a loaded scenario: the search of the module doc,
     for the scenarios of :mod:`orchestrator.stability.system`, with the films of
     :mod:`orchestrator.stability.films`.
@@ -145,8 +146,10 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     addition to its share of the rotor's weight (``--load``: a gear or belt force, a magnetic pull,
     a horizontal rotor's load with g = 0), in the convention of
     :func:`rotor_fmu.stability.static_bearing_loads` (down is -y). ``n_scan``: speeds of the scan
-    (default 80; :data:`MC_SCAN` with ``film="mc"``, whose speeds cost about 20 s each at 40 x 40,
-    and its crossings are refined to 0.01 Hz instead of 1e-9 rad/s)."""
+    (default 80; :data:`MC_SCAN` with ``film="mc"``, whose crossings are refined to 0.01 Hz instead
+    of 1e-9 rad/s). ``mc_solver`` (``film="mc"``): ``"counted"`` (sparse, its least-damped eigenvalue
+    counted, :func:`rotor_fmu.film_system.rightmost`) or ``"dense"`` (all eigenvalues by QZ, the
+    reference: the same roots, ~50 x slower at 40 x 40)."""
     if film not in FILMS:
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
     system = build_system(scenario)
@@ -174,7 +177,7 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
                              "`stability` has no operating point to linearize at, at any speed; it takes floating "
                              "rings (floating = 1) only")
     weight, extra, total = _static_loads(system, loads)
-    fn = film_model(system, film, total, ring_spin=ring_spin)
+    fn = film_model(system, film, total, ring_spin=ring_spin, mc_solver=mc_solver)
     notes = _notes(system, film, ring_spin, weight, extra)
     seen: dict[float, tuple[float, float]] = {}
 
@@ -201,6 +204,9 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         n_scan = MC_SCAN if film == "mc" else 80
     at = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result,
                  xtol=2 * math.pi * 0.01 if film == "mc" else 1e-9)
+    if film == "mc" and fn.dense_speeds:
+        notes.append(f"at {len(fn.dense_speeds)} of the {len(seen)} speeds evaluated the argument-principle count "
+                     "found eigenvalues the Arnoldi runs had not: there all eigenvalues were computed densely")
     result["scan"] = [{"speed_hz": w / (2 * math.pi), "max_re_per_s": re, "whirl_hz": im / (2 * math.pi),
                        "log_decrement": log_decrement(re, im)} for w, (re, im) in sorted(seen.items())]
     eps = fn.eccentricities(at) if at is not None else [None] * len(system.bearings)
