@@ -634,13 +634,21 @@ class MCFilmLinear:
         self.contact = (contact_coefficients(x, y, vx, vy, omega, **b.contact_kw)
                          if prm.contact else None)
 
-    def impedance(self, s):
+    def impedance(self, s, *, slope=False):
         """Z(s) (2, 2) complex [N/m] at complex s [1/s] (:func:`mc_impedance`): one sparse complex LU
-        of ``s M + J_s``, assembled into a kept copy of ``J_s``'s pattern (its diagonal added)."""
+        of ``s M + J_s``, assembled into a kept copy of ``J_s``'s pattern (its diagonal added). With
+        ``slope``: (Z(s), dZ/ds), ``dZ/ds = -F_v + F_u (s M + J_s)^-1 (R_v - M X)``,
+        ``X = (s M + J_s)^-1 (R_q + s R_v)``, from the same LU."""
         import scipy.sparse.linalg as spla
         s = complex(s)
-        X = spla.splu(self._shifted(s)).solve(np.asarray(self.Rq + s * self.Rv, dtype=complex))
+        lu = spla.splu(self._shifted(s))
+        X = lu.solve(np.asarray(self.Rq + s * self.Rv, dtype=complex))
         Z = -(self.Fq + s * self.Fv) + self.Fu @ X
+        if slope:
+            dZ = -self.Fv + self.Fu @ lu.solve(self.Rv - self.Mdiag[:, None] * X)
+            if self.contact is not None:
+                return Z + self.contact[0] + s * self.contact[1], dZ + self.contact[1]
+            return Z, dZ
         if self.contact is not None:
             Z = Z + self.contact[0] + s * self.contact[1]
         return Z
