@@ -555,11 +555,11 @@ def _add_stability(sub) -> None:
     p.add_argument("--film", choices=("short", "hs", "mc"), default="hs",
                    help="bearing coefficients: hs = each bearing's own finite-length half-Sommerfeld film on its "
                         "grid (default); short = the short-bearing (Ocvirk) closed form; mc = each mass-conserving "
-                        "bearing's own film with its cavity dynamics (film impedance; about 20 s a speed at 40 x 40, "
-                        "12 speeds by default)")
+                        "bearing's own film with its cavity dynamics (film impedance; its least-damped eigenvalue "
+                        "counted by the argument principle, about 0.5 s a speed at 40 x 40)")
     p.add_argument("--scan", metavar="N", type=_scan_count,
                    help="number of speeds of the scan over the range before the crossings are refined "
-                        "(default 80; 12 with --film mc)")
+                        "(default 80)")
     p.add_argument("--speeds", metavar="LO:HI", type=_speed_range,
                    help="speed range [Hz] searched (default: 0.1 f_max : f_max of the rotor's ramp)")
     p.add_argument("--load", metavar="BEARING=FX,FY", action="append", default=[], type=_bearing_load,
