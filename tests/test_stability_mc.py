@@ -2,7 +2,8 @@
 linearisation, cavity (theta) dynamics included (orchestrator/stability.py ``_MCFilm``).
 
 The film impedance itself is checked in tests/test_mc_impedance.py (against steady solves and the
-transient film in the time domain). Here: the descriptor system the command solves
+transient film in the time domain); the command's sparse counted solver against the dense one in
+tests/test_film_system.py. Here: the descriptor system's eigenvalues
 (rotor_fmu.stability.film_system_eigenvalues) against the other formulation of the same
 characteristic equation, det(s^2 M + s C + K + sum P^T Z(s) P) = 0 with Z(s) from
 MCFilmLinear.impedance (a sparse LU per s); and the documented threshold of the oil-bath
