@@ -285,15 +285,15 @@ class _MCFilm:
         self._at: tuple[float, list] | None = None
         self._hint: tuple = ()
         self.dense_speeds: list[float] = []      # speeds the counted solver left to the dense one
-        ident = "the least-damped eigenvalues of the rotor and films as one descriptor system ("
         self.method = ("each bearing's own mass-conserving film (its parameters and grid) linearised about its "
                        "steady state with its cavity (theta) dynamics, i.e. its film impedance Z(s) "
                        "(bearing_fmu/linearize.py MCFilmLinear), at the static equilibrium of the steady film under "
-                       "its static load; " + ident
-                       + ("sparse shift-invert Arnoldi, all of them right of a line just left of the least-damped "
-                          "one counted by the argument principle on det(s^2 M + s C + K + sum P^T Z(s) P), "
-                          "rotor_fmu/film_system.py rightmost)" if solver == "counted" else
-                          "all finite eigenvalues by dense QZ, rotor_fmu/stability.py film_system_eigenvalues)"))
+                       "its static load; the least-damped eigenvalues of the rotor and films as one descriptor "
+                       "system (" + ("sparse shift-invert Arnoldi, all of them right of a line just left of the "
+                                     "least-damped one counted by the argument principle on det(s^2 M + s C + K + "
+                                     "sum P^T Z(s) P), rotor_fmu/film_system.py rightmost)" if solver == "counted" else
+                                     "all finite eigenvalues by dense QZ, rotor_fmu/stability.py "
+                                     "film_system_eigenvalues)"))
 
     def _films(self, omega: float) -> list:
         """Each station's MCFilmLinear at its equilibrium at omega (the last speed's kept); a station

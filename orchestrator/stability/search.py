@@ -149,7 +149,7 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     (default 80, :data:`MC_SCAN` with ``film="mc"``, whose crossings are refined to 0.01 Hz instead
     of 1e-9 rad/s). ``mc_solver`` (``film="mc"``): ``"counted"`` (sparse, its least-damped eigenvalue
     counted, :func:`rotor_fmu.film_system.rightmost`) or ``"dense"`` (all eigenvalues by QZ, the
-    reference: the same roots, ~50 x slower at 40 x 40)."""
+    reference: the same roots, ~30 x slower at 40 x 40)."""
     if film not in FILMS:
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
     system = build_system(scenario)
@@ -206,7 +206,7 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
                  xtol=2 * math.pi * 0.01 if film == "mc" else 1e-9)
     if film == "mc" and fn.dense_speeds:
         notes.append(f"at {len(fn.dense_speeds)} of the {len(seen)} speeds evaluated the argument-principle count "
-                     "found eigenvalues the Arnoldi runs had not: there all eigenvalues were computed densely")
+                     "disagreed with the eigenvalues the Arnoldi runs found: there all were computed densely")
     result["scan"] = [{"speed_hz": w / (2 * math.pi), "max_re_per_s": re, "whirl_hz": im / (2 * math.pi),
                        "log_decrement": log_decrement(re, im)} for w, (re, im) in sorted(seen.items())]
     eps = fn.eccentricities(at) if at is not None else [None] * len(system.bearings)
