@@ -6,9 +6,10 @@ their static loads), ``films.py`` linearises each station's film at a speed, ``s
 where the system crosses into instability over the speed range and assembles the result.
 """
 
+from orchestrator.stability.films import MC_SOLVERS
 from orchestrator.stability.films import _failed, _HSFilm, _MCFilm, _ShortFilm  # noqa: F401 (tests, docs/scripts)
 from orchestrator.stability.search import FILMS, MAX_SPEED_HZ, MC_SCAN, later_crossings, stability
 from orchestrator.stability.system import RING_MODEL, SUPPORTED, Bearing, StabilityError, System, build_system
 
-__all__ = ["FILMS", "MAX_SPEED_HZ", "MC_SCAN", "RING_MODEL", "SUPPORTED", "Bearing", "StabilityError", "System", "build_system",
-           "later_crossings", "stability"]
+__all__ = ["FILMS", "MAX_SPEED_HZ", "MC_SCAN", "MC_SOLVERS", "RING_MODEL", "SUPPORTED", "Bearing", "StabilityError",
+           "System", "build_system", "later_crossings", "stability"]
