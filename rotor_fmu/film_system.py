@@ -354,7 +354,8 @@ def _film_poles(det: ImpedanceDeterminant, alpha: float, scale: float) -> np.nda
 
 
 def rightmost(rotor, omega, films, *, hint=(), margin=50.0, retries=2) -> Rightmost:
-    """The least-damped eigenvalues of the rotor-film system: all those right of a line
+    """The least-damped eigenvalues of the rotor-film system (``films``: one
+    :class:`~bearing_fmu.linearize.MCFilmLinear` per station): all those right of a line
     ``Re s = alpha`` (module doc). Shift-invert Arnoldi on the sparse pencil at the shifts of
     :func:`_shifts` (and at ``hint``, e.g. the last speed's least-damped eigenvalue); ``alpha``
     halfway between the largest real part found and the next (at most ``margin`` [1/s] below it);
@@ -376,6 +377,8 @@ def _rightmost(rotor, omega, films, hint, margin, retries) -> Rightmost:
     is needed)."""
     A, E = pencil(rotor, omega, films)
     det = ImpedanceDeterminant(rotor, omega, films)
+    if not (abs(det.det_m) > 0.0 and math.isfinite(det.det_m)):    # a massless degree of freedom: no
+        return Rightmost(np.empty(0, complex), "dense", math.nan, 0, [])    # s^(2n) to count against
     modes = _rotor_modes(det)
     shifts = _shifts(modes, omega, hint)
     found = _Found()

@@ -116,3 +116,18 @@ def test_threshold_of_both_solvers():
     assert abs(a["whirl_hz"] - b["whirl_hz"]) < 0.01
     assert "argument principle" in a["method"] and "dense QZ" in b["method"]
     assert not any("densely" in n for n in a["notes"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, f", [("jeffcott_runup_oil_bath", 182.45), ("jeffcott_runup_oil_bath", 800.0),
+                                     ("turbocharger_runup_oil_bath", 48.0)])
+def test_rightmost_on_the_shipped_40x40_films(name, f):
+    """The shipped 40 x 40 films (1612 unknowns with the Jeffcott rotor, the dense QZ ~20 s): the
+    same least-damped root, the count's eigenvalues those of the dense solve right of its line."""
+    rotor, films = _films(name, [])
+    w = 2 * math.pi * f
+    lins = films._films(w)
+    r = fs.rightmost(rotor, w, lins)
+    lam = fs.eigenvalues_dense(rotor, w, lins)
+    assert r.method == "counted" and _same_root(r.eigenvalues[0], lam[0])
+    assert r.eigenvalues.size == int((lam.real > r.alpha).sum())
