@@ -124,3 +124,58 @@ def test_turbocharger_runups_start_at_the_journal_equilibria(loaded, tmp_path):
         x, y = (np.asarray(res.outputs[f"rotor.{k}_{j}"]) for k in "xy")
         assert math.hypot(x[0], y[0]) / c == pytest.approx(eps0, abs=2e-3)
         assert np.max(np.hypot(x - x[0], y - y[0])) < 0.01 * c
+
+
+def _half_unit(v: float) -> float:
+    """Half a unit in the last digit of ``v`` as the scenario writes it (the shortest repr of the
+    float read from YAML gives those digits; a written trailing zero is lost, which only widens it)."""
+    mant, _, exp = repr(float(v)).lower().partition("e")
+    return 0.5 * 10.0 ** ((int(exp) if exp else 0) - len(mant.partition(".")[2]))
+
+
+# scenario -> the start's offset of station 1 from its static equilibrium, in +x [c]; the other
+# variants of each run-up (free to air, oil bath) start where its half-Sommerfeld scenario does
+STATIC_STARTS = {"jeffcott_runup_half_sommerfeld": 0.0, "turbocharger_runup_half_sommerfeld": 0.0,
+                 "jeffcott_runup_half_sommerfeld_seeded": 0.02, "turbocharger_runup_half_sommerfeld_seeded": 0.02,
+                 "quickstart": 0.04}
+
+
+@pytest.mark.parametrize("name", sorted(STATIC_STARTS))
+def test_runups_start_at_todays_static_equilibrium(loaded, name):
+    """The starts written as static equilibria (docs/runups.md, docs/rotor-models.md) are those of
+    today's film: each journal's half-Sommerfeld equilibrium under its static load on the scenario's
+    own film at the start speed (bearing_fmu.linearize.hs_static_equilibrium, what
+    docs/turbocharger_threshold.py --equilibrium-hz and docs/paper_cases_radius.py print), plus the
+    seed, to the digits written. Until 2026-12-07 the turbocharger scenarios started bearing 2 at the
+    equilibrium of the force quadrature before 39f4995, 1.9e-9 m (1.4e-4 c, 19 half-units of the
+    last digit) away."""
+    from bearing_fmu.linearize import hs_static_equilibrium
+    from bearing_fmu.model import BearingModel
+    from orchestrator.stability import build_system
+    from rotor_fmu.stability import static_bearing_loads
+    sc = loaded[name]
+    p = sc.fmu("rotor").parameters
+    omega = 2 * math.pi * p["f_max"] * min(sc.start_time, p["t_ramp"]) / p["t_ramp"]
+    x1, y1 = p["journal_x0"], p["journal_y0"]
+    starts = [(x1, y1, _half_unit(x1), _half_unit(y1))]
+    seeded = [STATIC_STARTS[name], 0.0]
+    if "journal_dx0_2" in p:          # turbocharger: station 2 = station 1 + (dx0_2, dy0_2), at its equilibrium
+        dx, dy = p["journal_dx0_2"], p["journal_dy0_2"]
+        starts.append((x1 + dx, y1 + dy, _half_unit(x1) + _half_unit(dx), _half_unit(y1) + _half_unit(dy)))
+    else:                             # Jeffcott: both journals at (journal_x0, journal_y0), both seeded
+        starts.append(starts[0])
+        seeded[1] = seeded[0]
+    system = build_system(sc)
+    for j, (b, load, (x, y, tol_x, tol_y)) in enumerate(zip(system.bearings, static_bearing_loads(system.rotor),
+                                                            starts)):
+        m = BearingModel(b.params)
+        m.initialize(0.0, -0.5 * m.c, 0.0, 0.0, 1.0)
+        q = hs_static_equilibrium(m, -np.asarray(load, float), omega)
+        q = q + np.array([seeded[j] * m.c, 0.0])
+        assert abs(x - q[0]) <= tol_x + 1e-13 and abs(y - q[1]) <= tol_y + 1e-13, (b.instance, (x, y), q.tolist())
+    for variant in ("free_to_air", "oil_bath"):     # the seeded variants start off their own films' equilibria
+        other = name.replace("half_sommerfeld", variant)
+        if other != name and other in loaded and not name.endswith("_seeded"):
+            assert loaded[other].start_time == sc.start_time
+            for k in ("journal_x0", "journal_y0", "journal_dx0_2", "journal_dy0_2"):
+                assert loaded[other].fmu("rotor").parameters.get(k) == p.get(k), (other, k)
