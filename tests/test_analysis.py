@@ -373,6 +373,38 @@ def test_growth_rate_and_threshold_units():
     assert t_th is None and "growth_min_factor" in why
 
 
+def test_growth_rate_belongs_to_the_centre_of_its_fit():
+    # within half a fit of either end the fit is one-sided: its slope is the growth rate at the
+    # mean time of its frames, not at the frame's own time
+    t = np.linspace(0.0, 1.0, 101)
+    a = 1e-3 * np.exp(10.0 * (t - 0.0237) ** 2)             # sigma = 20 (t - 0.0237): zero at 0.0237
+    sig, t_fit = growth_rate(t, a, 9, centres=True)
+    assert np.allclose(sig, 20.0 * (t_fit - 0.0237), atol=1e-9)   # every value, the ends included
+    assert np.allclose(t_fit[4:-4], t[4:-4])
+    assert t_fit[0] == pytest.approx(0.02) and t_fit[-1] == pytest.approx(0.98)
+    assert np.array_equal(sig, growth_rate(t, a, 9))
+    t_th, why = growth_threshold(t, a, sig, t.size, 10.0, t_sigma=t_fit)
+    assert why is None and t_th == pytest.approx(0.0237, abs=1e-9)
+    t_th, _ = growth_threshold(t, a, sig, t.size, 10.0)       # the frames' own times: 0.0074
+    assert t_th < 0.01
+
+
+def test_threshold_near_the_start_of_the_data():
+    # a run-up whose data start shortly below the threshold (a seeded scenario): the crossing
+    # lies in the first frames, whose growth-rate fits are one-sided. Attributed to the fits'
+    # centres it is the true one; attributed to the frames (as until this change) it was 5.6 Hz low
+    # (250.4 Hz), within the window tolerance but biased, always towards the start.
+    f_th = 256.0
+    z, t, om = growing_mode(f_th, 3e-2, sync=0.015)
+    keep = t >= 236.0 / A_RAMP                              # first frame centred at 249 Hz
+    r = run_case(z[keep], t[keep], om[keep])
+    s = order_spectra(t[keep], z[keep], om[keep], P)
+    assert s.speed_hz[0] < f_th < s.speed_hz[4]             # inside the one-sided fits
+    hop_hz = float(np.median(np.diff(s.speed_hz[:8])))
+    assert r["threshold_speed_hz"] == pytest.approx(f_th, abs=hop_hz / 3), r["threshold_speed_hz"]
+    assert r["threshold_snr"] >= 3.0
+
+
 def test_invalid_growth_params_listed():
     with pytest.raises(ValueError, match="growth_band"):
         WhirlParams.from_mapping({"growth_band": [0.8, 0.3]})

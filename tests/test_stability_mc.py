@@ -8,7 +8,8 @@ tests/test_film_system.py. Here: the descriptor system's eigenvalues
 characteristic equation, det(s^2 M + s C + K + sum P^T Z(s) P) = 0 with Z(s) from
 MCFilmLinear.impedance (a sparse LU per s); and the documented threshold of the oil-bath
 Jeffcott rotor on its 40 x 40 films (slow), which the shipped run-up's growth-rate estimate
-(181.84 Hz) confirms within 0.3 % (docs/analysis.md, "Linear threshold of the mass-conserving film").
+(181.48 Hz since the growth rates belong to their fits' centres, 2026-12-07; 181.84 Hz before)
+confirms within 0.6 % (docs/analysis.md, "Linear threshold of the mass-conserving film").
 """
 
 from __future__ import annotations
@@ -93,6 +94,6 @@ def test_oil_bath_mc_threshold_40x40():
     r = stability(load_scenario(str(BATH), [], build_fmus=True), film="mc", speeds=(175.0, 200.0), n_scan=2)
     assert r["threshold_hz"] == pytest.approx(182.45, abs=0.02)
     # the independent reference: the shipped run-up's growth-rate threshold estimate (docs/runups.md)
-    assert abs(r["threshold_hz"] / 181.84 - 1.0) < 0.01
+    assert abs(r["threshold_hz"] / 181.48 - 1.0) < 0.01
     assert r["whirl_ratio"] == pytest.approx(0.485, abs=0.001)
     assert r["bearings"]["bearing1"]["eps_at_threshold"] == pytest.approx(0.288, abs=0.001)

@@ -30,10 +30,11 @@ from runup_credibility import subsync_series  # noqa: E402
 
 
 def series(d: Path, journal: str):
-    """(speed_hz, amplitude / c, growth rate [1/s], onset_hz, threshold_hz) of one run."""
+    """(speed_hz, amplitude / c, (speed_hz of each growth rate, growth rate [1/s]), onset_hz,
+    threshold_hz) of one run; each growth rate drawn at the speed its fit belongs to."""
     res = json.loads((d / "summary.json").read_text())["analysis"]["journals"][journal]
-    s, amp, sig = subsync_series(d, journal)
-    return s.speed_hz, amp, sig, res.get("onset_speed_hz"), res.get("threshold_speed_hz")
+    s, amp, sig, sig_hz = subsync_series(d, journal, centres=True)
+    return s.speed_hz, amp, (sig_hz, sig), res.get("onset_speed_hz"), res.get("threshold_speed_hz")
 
 
 def main(argv=None):
@@ -55,7 +56,7 @@ def main(argv=None):
         c = colours[i % len(colours)]
         lab = label or Path(d).name
         ax1.semilogy(f, amp, color=c, label=f"{lab}: onset {on:.2f} Hz" if on else f"{lab}: no onset")
-        ax2.plot(f, sig, color=c, label=f"{lab}: threshold {th:.2f} Hz" if th else f"{lab}: no threshold")
+        ax2.plot(*sig, color=c, label=f"{lab}: threshold {th:.2f} Hz" if th else f"{lab}: no threshold")
         if on:
             ax1.axvline(on, color=c, ls=":", lw=1)
         if th:

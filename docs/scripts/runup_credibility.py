@@ -25,10 +25,12 @@ from orchestrator.results.whirl import (WhirlParams, analyze_run, growth_rate,  
                                         order_spectra)
 
 
-def subsync_series(d: Path, journal: str = "bearing1", p: WhirlParams | None = None):
+def subsync_series(d: Path, journal: str = "bearing1", p: WhirlParams | None = None, centres: bool = False):
     """(order spectra, amplitude / c, growth rate [1/s]) of ``journal``'s forward sub-synchronous
     motion in the growth band of a finished run ``d`` (16-revolution windows, slope over
-    ``growth_fit_revs``), as the whirl analysis computes them."""
+    ``growth_fit_revs``), as the whirl analysis computes them; with ``centres=True`` a fourth item,
+    the rotor speed [Hz] each growth rate belongs to (its fit's mean time: the frame's own speed
+    except within half a fit of the ends, where the fit is one-sided, docs/analysis.md step 6)."""
     p = p or WhirlParams()
     spec = json.loads((d / "summary.json").read_text())["analysis"]["spec"]
     js = spec["journals"][journal]
@@ -36,7 +38,10 @@ def subsync_series(d: Path, journal: str = "bearing1", p: WhirlParams | None = N
     s = order_spectra(cols["time"], cols[js["x"]] + 1j * cols[js["y"]], cols[spec["speed"]], p)
     amp = s.band_amplitude(*p.growth_band) / js["clearance"]
     fit = 2 * max(int(round(p.growth_fit_revs / p.hop_revs / 2)), 1) + 1
-    return s, amp, growth_rate(s.t, amp, fit)
+    sig, t_fit = growth_rate(s.t, amp, fit, centres=True)
+    if not centres:
+        return s, amp, sig
+    return s, amp, sig, np.interp(t_fit, s.t, s.speed_hz) if s.n_frames else np.empty(0)
 
 
 def main(argv=None):
@@ -56,12 +61,13 @@ def main(argv=None):
         spec = sm["analysis"]["spec"]
         old = sm["analysis"]["journals"][a.journal]
         new = analyze_run(d, spec)["journals"][a.journal]
-        s, amp, sig = subsync_series(d, a.journal, p)
+        s, amp, sig, sig_hz = subsync_series(d, a.journal, p, centres=True)
         cells = []
         for f in speeds:
             if s.n_frames and s.speed_hz.min() <= f <= s.speed_hz.max():
                 k = int(np.argmin(np.abs(s.speed_hz - f)))
-                cells.append(f"{sig[k]:+.1f}, {amp[k]:.2e}")
+                ks = int(np.nanargmin(np.abs(sig_hz - f)))      # the growth rate that belongs to f
+                cells.append(f"{sig[ks]:+.1f}, {amp[k]:.2e}")
             else:
                 cells.append("-")
         macro = sm.get("macro_step") or (sm.get("coupling") or {}).get("macro_step")

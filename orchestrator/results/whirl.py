@@ -39,10 +39,13 @@ the clearance", with a time uncertainty of about half a window
 6. Instability threshold (:func:`growth_threshold`): the growth rate
    ``sigma = d ln(a) / dt`` is the least-squares slope of the log
    amplitude ``a`` in the order band ``growth_band`` over sliding fits of ``growth_fit_revs``
-   revolutions of frames. Before the first onset (or to the end of the data
-   when there is none), the threshold is where ``sigma`` last changes sign from
-   <= 0 to > 0 and stays positive, with the amplitude growing by at least
-   ``growth_min_factor`` from there; interpolated linearly between frames. For a
+   revolutions of frames, each value belonging to the mean time of the frames of its fit
+   (about the frame's own time where the fit is centred on it; later / earlier within half a
+   fit of the start / end of the data, where the fit is one-sided). Before the first onset (or
+   to the end of the data when there is none), the threshold is where ``sigma`` last changes
+   sign from <= 0 to > 0 and stays positive, with the amplitude growing by at least
+   ``growth_min_factor`` from there; interpolated linearly between the times of the two
+   growth rates. For a
    linear(ised) rotor whose least-damped forward mode has the real part
    ``sigma(t)``, this is where that mode crosses into the right half plane:
    unlike the onset it does not depend on how small the seed of the whirl is.
@@ -425,16 +428,26 @@ def detect_episodes(t, amp, on: float, off: float, persist: int) -> list[tuple[f
     return out
 
 
-def growth_rate(t, amp, fit_frames: int) -> np.ndarray:
+def growth_rate(t, amp, fit_frames: int, *, centres: bool = False):
     """Growth rate ``d ln(amp) / dt`` [1/s] per frame: least-squares slope of ``ln(amp)``
     against ``t`` over the ``fit_frames`` frames centred on each frame (odd count;
-    shortened at the ends, NaN where fewer than 3 finite positive frames fit)."""
+    shortened at the ends, NaN where fewer than 3 finite positive frames fit).
+
+    A fit measures the growth rate at the mean time of the frames it uses (exactly, for a
+    growth rate that varies linearly in time), which is about frame ``k``'s own time only where
+    the fit is centred on it (frames equally spaced in revolutions are not quite equally spaced in
+    time on a ramp): within ``fit_frames // 2`` frames of either end of the data (and next
+    to frames without a finite positive amplitude) it is shortened to one side, and its slope is
+    that of a later (earlier) time. With ``centres=True`` the function returns ``(sigma,
+    t_fit)``, ``t_fit[k]`` the mean time of frame ``k``'s fit, the time each value belongs to;
+    :func:`growth_threshold` places the zero crossing with it."""
     t = np.asarray(t, float)
     with np.errstate(divide="ignore", invalid="ignore"):
         la = np.log(np.asarray(amp, float))
     ok = np.isfinite(la) & np.isfinite(t)
     half = max(int(fit_frames) // 2, 1)
     sig = np.full(t.size, np.nan)
+    t_fit = np.full(t.size, np.nan)
     for k in range(t.size):
         sl = slice(max(k - half, 0), min(k + half + 1, t.size))
         m = ok[sl]
@@ -445,10 +458,11 @@ def growth_rate(t, amp, fit_frames: int) -> np.ndarray:
         den = float(np.sum(tc * tc))
         if den > 0:
             sig[k] = float(np.sum(tc * (yy - yy.mean())) / den)
-    return sig
+            t_fit[k] = float(tt.mean())
+    return (sig, t_fit) if centres else sig
 
 
-def growth_threshold(t, amp, sigma, k_end: int, min_factor: float):
+def growth_threshold(t, amp, sigma, k_end: int, min_factor: float, *, t_sigma=None):
     """Instability threshold from the growth rate (module doc, step 6).
 
     Among frames ``0 .. k_end - 1`` (``k_end``: first frame of the first whirl
@@ -456,10 +470,13 @@ def growth_threshold(t, amp, sigma, k_end: int, min_factor: float):
     ``sigma[k] <= 0``; every later finite ``sigma`` up to ``k_end`` must be > 0 and
     ``amp`` must grow by ``min_factor`` from frame ``k`` to its maximum after it
     (whirl included; else the sign change is noise). Returns ``(t_threshold, reason)``:
-    the crossing time interpolated linearly between frames ``k`` and ``k + 1``, or
-    None and why not.
+    the crossing time interpolated linearly between the times of ``sigma[k]`` and
+    ``sigma[k + 1]``, or None and why not. ``t_sigma``: the time each ``sigma`` value
+    belongs to (the mean time of its fit, ``growth_rate(..., centres=True)``); default ``t``,
+    right only where every fit is centred on its frame.
     """
     t = np.asarray(t, float)
+    ts = t if t_sigma is None else np.asarray(t_sigma, float)
     sigma = np.asarray(sigma, float)
     amp = np.asarray(amp, float)
     k_end = min(int(k_end), t.size)
@@ -483,7 +500,7 @@ def growth_threshold(t, amp, sigma, k_end: int, min_factor: float):
                       "growth rate: no threshold")
     s0, s1 = sigma[k], sigma[k1]
     f = 0.0 if s1 == s0 else min(max(-s0 / (s1 - s0), 0.0), 1.0)
-    return float(t[k] + f * (t[k1] - t[k])), None
+    return float(ts[k] + f * (ts[k1] - ts[k])), None
 
 
 def analyze_journal(t, x, y, omega, clearance: float, *, eps=None,
@@ -612,9 +629,9 @@ def _threshold(res, s, eps_list, p, clearance, spd) -> None:
     warn = res["warnings"]
     fit_frames = 2 * max(int(round(p.growth_fit_revs / p.hop_revs / 2)), 1) + 1
     gsub = s.band_amplitude(*p.growth_band) / clearance
-    sigma = growth_rate(s.t, gsub, fit_frames)
+    sigma, t_fit = growth_rate(s.t, gsub, fit_frames, centres=True)
     k_end = eps_list[0][2] if eps_list else s.n_frames
-    t_th, why = growth_threshold(s.t, gsub, sigma, k_end, p.growth_min_factor)
+    t_th, why = growth_threshold(s.t, gsub, sigma, k_end, p.growth_min_factor, t_sigma=t_fit)
     if t_th is None:
         warn.append(f"threshold_speed_hz not estimated: {why}")
         return
