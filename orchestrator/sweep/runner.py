@@ -446,6 +446,9 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
             stopped_by = signal.Signals(interrupt.signum or signal.SIGINT).name
             if futures:
                 client.cancel([f for f in futures if not f.done()], force=True)
+            if cluster is not None and not warm:  # fresh run processes outlive the closed cluster's threads,
+                from orchestrator.sweep.task import stop_fresh      # and closing it waits for those threads:
+                stop_fresh()                      # stopped first, or the close waits for the runs to finish
         finally:
             stack.close()                         # Ctrl-C is Python's again
             bar.close()
@@ -454,9 +457,6 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
             if cluster is not None:
                 cluster.close()
         if interrupted:
-            if cluster is not None and not warm:  # fresh run processes outlive the closed cluster's threads
-                from orchestrator.sweep.task import stop_fresh
-                stop_fresh()
             # read the runs' folders only now: closing the local cluster stops the runs in
             # progress, which then write their final summary (failed, stopped_by SIGTERM); read
             # before, the rows said "still says running" of a summary that no longer did
