@@ -285,8 +285,8 @@ class _MCFilm:
         self._at: tuple[float, list] | None = None
         self._hint: tuple = ()
         self.dense_speeds: list[float] = []      # speeds the counted solver left to the dense one
-        self.method = ("each bearing's own mass-conserving film (its parameters and grid) linearised about its "
-                       "steady state with its cavity (theta) dynamics, i.e. its film impedance Z(s) "
+        self.method = ("bearing's own mass-conserving film at each station (its parameters and grid) linearised "
+                       "about its steady state with its cavity (theta) dynamics, i.e. its film impedance Z(s) "
                        "(bearing_fmu/linearize.py MCFilmLinear), at the static equilibrium of the steady film under "
                        "its static load; the least-damped eigenvalues of the rotor and films as one descriptor "
                        "system (" + ("sparse shift-invert Arnoldi, all of them right of a line just left of the "
