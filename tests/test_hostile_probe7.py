@@ -100,7 +100,9 @@ def test_sigterm_to_a_sweep_writes_its_table_and_says_how_to_resume(tmp_path, te
     for name in ("Faulty", "Gain"):
         shutil.copy(test_fmus[name], tmp_path / "fmus" / f"{name}.fmu")
     (tmp_path / "ramp.yaml").write_text(SCENARIO)
-    (tmp_path / "long.yaml").write_text(SWEEP.replace("[0.05, 0.5, 1.0]", "[2.0, 3.0, 4.0, 5.0]")
+    # t_fail beyond stop_time: no run can fail on its own before the signal is handled (with
+    # t_fail 2.0 the first run's 10000 steps could reach its failure first on a fast host: CI, 9ac42e7)
+    (tmp_path / "long.yaml").write_text(SWEEP.replace("[0.05, 0.5, 1.0]", "[200.0, 300.0, 400.0, 500.0]")
                                         .replace("stop_time: 0.1", "stop_time: 100.0, coupling.macro_step: 2.0e-4"))
     out = tmp_path / "o"
     proc = subprocess.Popen([sys.executable, "-m", "orchestrator", "sweep", str(tmp_path / "long.yaml"), "--out",
