@@ -12,15 +12,14 @@ import pytest
 
 from hostile_builders import cli, run_verb
 from orchestrator.errors import ScenarioError
-from rotor_fmu import rotor_file
-from rotor_fmu.rotor_file import RANGES, RotorFileError, load_rotor_file
+from rotor_fmu.rotor_file import RANGES, load_rotor_file
+from tests.test_rotor_file_hostile import GOOD, refused
 
 REPO = Path(__file__).resolve().parents[1]
 JEFFCOTT_HS = REPO / "scenarios" / "jeffcott_runup_half_sommerfeld.yaml"
 TURBO_HS = REPO / "scenarios" / "turbocharger_runup_half_sommerfeld.yaml"
 COARSE = [a for b in ("bearing1", "bearing2") for a in
           ("--set", f"fmus.{b}.parameters.n_phi=16", "--set", f"fmus.{b}.parameters.n_z=8")]
-GOOD = (rotor_file.DATA_DIR / "turbocharger.yaml").read_text()
 
 
 def rotor(tmp_path, old: str, new: str, name: str = "r.yaml") -> Path:
@@ -29,16 +28,6 @@ def rotor(tmp_path, old: str, new: str, name: str = "r.yaml") -> Path:
     p = tmp_path / name
     p.write_text(GOOD.replace(old, new, 1))
     return p
-
-
-def refused(path, *words) -> str:
-    with pytest.raises(RotorFileError) as exc:
-        load_rotor_file(path)
-    msg = str(exc.value)
-    assert msg.startswith(f"invalid rotor file {path}:"), msg
-    for w in words:
-        assert w in msg, msg
-    return msg
 
 
 # --------------------------------------------------------------------------- rotor files

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from hostile_builders import cli
+from tests.test_fmu_param_bounds import scenario, variables
 
 REPO = Path(__file__).resolve().parents[1]
 JEFFCOTT_HS = REPO / "scenarios" / "jeffcott_runup_half_sommerfeld.yaml"
@@ -62,29 +63,10 @@ def test_stability_plot_over_other_file_refused(capsys, tmp_path):
 
 
 # --------------------------------------------------------------------------- bearing parameter ranges
-BEARING_SCENARIO = """\
-name: bounds
-start_time: 0.5
-stop_time: 0.502
-fmus:
-  rotor:
-    fmu: JeffcottRotor
-    parameters: {{f_max: 800.0, t_ramp: 2.0}}
-  bearing1:
-    fmu: JournalBearing
-    parameters:
-      R: {R}
-      B: {B}
-      psi: 2.8e-3
-      eta0: {eta0}
-      n_phi: 24
-      n_z: 12
-      cavitation: 0
-connections:
-  - {{from: rotor.x_1, to: bearing1.x}}
-  - {{from: bearing1.Fx, to: rotor.Fx_1}}
-coupling: {{scheme: gauss-seidel, macro_step: 1.0e-4}}
-"""
+def bearing_block(R, B, eta0) -> str:
+    """The bearing's parameters one per line (R on line 11 of test_fmu_param_bounds' scenario)."""
+    return "\n      ".join(f"{k}: {v}" for k, v in dict(R=R, B=B, psi="2.8e-3", eta0=eta0, n_phi=24, n_z=12,
+                                                          cavitation=0).items())
 
 
 @pytest.mark.parametrize("field, value, line, rng", [
@@ -98,26 +80,16 @@ def test_bearing_values_in_a_wrong_unit_are_refused_at_load(tmp_path, field, val
     from orchestrator.errors import ScenarioError
     from orchestrator.scenario import load_scenario
     values = {"R": "4.9e-3", "B": "7.84e-3", "eta0": "0.012", field: value}
-    p = tmp_path / "s.yaml"
-    p.write_text(BEARING_SCENARIO.format(**values))
+    p = scenario(tmp_path, bearing_block(**values))
     with pytest.raises(ScenarioError) as exc:
         load_scenario(p)
     msg = str(exc.value)
     assert f"s.yaml:{line}" in msg and f"bearing1.{field}' = {float(value)!r}" in msg, msg
     assert f"outside its declared range {rng}" in msg and "give a value inside the range" in msg, msg
-    p.write_text(BEARING_SCENARIO.format(**{**values, field: {"R": "0.5", "B": "1.0", "eta0": "1.0"}[field]}))
-    load_scenario(p)                              # a ship's shaft, cold oil: inside
+    load_scenario(scenario(tmp_path, bearing_block(**{**values, field: {"R": "0.5", "B": "1.0", "eta0": "1.0"}[field]})))                              # a ship's shaft, cold oil: inside
 
 
 def test_bearing_fmus_declare_upper_bounds():
-    import zipfile
-
-    from orchestrator.fmi.model_description import parse_model_description
-    fmus = REPO / "fmus"
-
-    def variables(name):
-        with zipfile.ZipFile(fmus / f"{name}.fmu") as z:
-            return parse_model_description(z.read("modelDescription.xml")).variables
     jb = variables("JournalBearing")
     for name in ("R", "B", "eta0", "p0", "p_feed", "sigma_rough", "contact_KE", "mu_contact"):
         assert jb[name].max is not None and jb[name].min <= jb[name].start <= jb[name].max, name
