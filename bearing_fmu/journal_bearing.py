@@ -120,26 +120,16 @@ LINEARIZATION_OUTPUTS: dict[str, tuple[str, str]] = {
 # relations between parameters (p_feed >= p0, h_min <= h_init <= h_max, the film's cells).
 # The film grid is bounded: a film of n_phi x n_z cells takes memory and time in proportion
 # (n_phi: 10^9 took 23 GB before failing); the largest grids we use are 1536 x 40 (issue 16
-# phi refinement), 40 x 320 (its axial one) and 160 x 160. Keep MAX_N_PHI / MAX_N_Z equal
-# to bearing_fmu.model's (tests/test_fmu_param_bounds.py checks it; model.py is not imported
-# here: the FMU loads its code in __init__, see use_stable_code_copy).
-MAX_N_PHI, MAX_N_Z = 8192, 2048
-# psi = C/R: journal bearings have 0.3 to 3 per mille; 1e-4 .. 0.1 refuses a value in per mille
-# (1.5 for 1.5e-3) and a clearance in metres (1.5e-5 for 15 um), both of which passed as psi > 0
-# before 2026-12-06 (the first with a film 100 x too thin). Keep equal to bearing_fmu.model's.
-PSI_MIN, PSI_MAX = 1.0e-4, 0.1
-# Physical values: wide enough for any real machine (a micro turbine's 0.1 mm radius to a hydro
-# generator's guide bearing of 4 m bore; gases to cold gear oil), narrow enough to refuse a value in
-# the wrong unit: R or B in mm (R: 25 for 25 mm was a 25 m journal), eta0 in mPa s (12 for 0.012),
-# sigma_rough in um, a pressure in bar is not caught (1 Pa is a valid pressure). eta0 goes down to
-# 1e-7 Pa s: below any gas, but the film then fails with its own message (docs/fmus.md).
-R_RANGE, B_RANGE, ETA0_RANGE = (1.0e-4, 2.0), (1.0e-4, 4.0), (1.0e-7, 10.0)
-PRESSURE_MAX, SIGMA_ROUGH_MAX = 1.0e8, 1.0e-4
+# phi refinement), 40 x 320 (its axial one) and 160 x 160. The ranges live in bearing_fmu.limits,
+# shared with BearingParams (model.py itself is not imported here: the FMU loads its code in
+# __init__, see use_stable_code_copy).
+from bearing_fmu.limits import (B_RANGE, CONTACT_KE_MAX, ETA0_RANGE, MAX_N_PHI, MAX_N_Z, MU_CONTACT_MAX,  # noqa: E402
+                                PRESSURE_MAX, PSI_MAX, PSI_MIN, R_RANGE, SIGMA_ROUGH_MAX)
 POS = POSITIVE
 PARAMETER_RANGES: dict[str, tuple[Any, Any]] = {
     "R": R_RANGE, "B": B_RANGE, "psi": (PSI_MIN, PSI_MAX), "eta0": ETA0_RANGE, "p0": (0.0, PRESSURE_MAX),
     "p_feed": (0.0, PRESSURE_MAX), "groove_width": (0.0, 2 * math.pi), "sigma_rough": (POS, SIGMA_ROUGH_MAX),
-    "contact_KE": (0.0, 1.0e12), "mu_contact": (0.0, 10.0), "contact_h_limit": (-6.0, 0.0),
+    "contact_KE": (0.0, CONTACT_KE_MAX), "mu_contact": (0.0, MU_CONTACT_MAX), "contact_h_limit": (-6.0, 0.0),
     "n_phi": (8, MAX_N_PHI), "n_z": (2, MAX_N_Z), "cavitation": (0, 1), "axial_bc": (0, 1),
     "theta_transport": (0, 1), "contact": (0, 1),
     "cav_width": (POS, None), "cav_smoothing": (POS, None), "penalty_a": (0.0, None), "penalty_b": (POS, None),

@@ -46,6 +46,8 @@ from .contact import average_gap, contact_force
 from .film import hs_force_pressure, integrals
 from .grid import groove_columns, make_grid
 from .hs import HalfSommerfeld
+from .limits import (B_RANGE, CONTACT_KE_MAX, ETA0_RANGE, MAX_FILM_CELLS, MAX_N_PHI, MAX_N_Z,  # noqa: F401
+                     MU_CONTACT_MAX, PRESSURE_MAX, PSI_MAX, PSI_MIN, R_RANGE, SIGMA_ROUGH_MAX)
 from .solver import StepFailed, TransientFilm
 
 __all__ = ["BearingParams", "BearingModel", "StepFailed", "film_memory_estimate", "solve_stationary"]
@@ -54,14 +56,10 @@ __all__ = ["BearingParams", "BearingModel", "StepFailed", "film_memory_estimate"
 # Bounds of the film grid (checked before anything is allocated): memory and time grow with the
 # cells, n_phi = 10^9 took 23 GB before failing. The finest grids we use are 1536 x 40 (the
 # phi refinement of docs/bearing-validation.md), 40 x 320 (its axial one) and 160 x 160; the
-# bounds leave at least 4 times that. bearing_fmu.journal_bearing declares MAX_N_PHI / MAX_N_Z
-# as the FMU parameters' max (keep them equal). At MAX_FILM_CELLS the mass-conserving film needs
+# bounds leave at least 4 times that (bearing_fmu.limits; bearing_fmu.journal_bearing declares the
+# same as the FMU parameters' max). At MAX_FILM_CELLS the mass-conserving film needs
 # 0.1-3.2 GiB (its band matrix; film_memory_estimate) and about a minute per internal step on a
 # square grid (BENCHMARKS.md session 19): time, not memory, is what limits it.
-MAX_N_PHI = 8192
-MAX_N_Z = 2048
-PSI_MIN, PSI_MAX = 1.0e-4, 0.1   # relative clearance C/R (journal_bearing.PSI_MIN/MAX: the FMU's declared range)
-MAX_FILM_CELLS = 2**18       # n_phi * n_z (262 144 cells; 1536 x 40 is 61 440)
 
 
 def film_band(n_phi: int, n_z: int, cavitation: int, groove_width: float,
@@ -253,6 +251,19 @@ class BearingParams:
                 f"journal radius) in [{PSI_MIN:g}, {PSI_MAX:g}], typically 1e-3 to 3e-3 (got {self.psi!r} = "
                 f"{self.psi * 1e3:.4g} per mille): a value in per mille is 1000 times too large (1.5 per mille "
                 f"is psi = 1.5e-3); a clearance C in m is not psi (psi = C / R, e.g. 15e-6 m / 10e-3 m = 1.5e-3)")
+        # the same upper bounds as the FMU declares (bearing_fmu.limits): a value in the wrong unit
+        # (R in mm, eta0 in mPa s) is refused here too, not only by a scenario's loader
+        for name, (lo, hi), unit in (("R", R_RANGE, "m"), ("B", B_RANGE, "m"), ("eta0", ETA0_RANGE, "Pa s")):
+            v = getattr(self, name)
+            if isinstance(v, (int, float)) and math.isfinite(v) and v > 0 and not lo <= v <= hi:
+                problems.append(f"BearingParams.{name} must be in [{lo:g}, {hi:g}] [{unit}]{what[name][len(f' [{unit}]'):]} "
+                                f"(got {v!r})")
+        for name, hi, unit in (("p0", PRESSURE_MAX, "Pa"), ("p_feed", PRESSURE_MAX, "Pa"),
+                               ("sigma_rough", SIGMA_ROUGH_MAX, "m (a value in um is 1e6 times too large)"),
+                               ("contact_KE", CONTACT_KE_MAX, "Pa"), ("mu_contact", MU_CONTACT_MAX, "[-]")):
+            v = getattr(self, name)
+            if isinstance(v, (int, float)) and math.isfinite(v) and v > hi:
+                problems.append(f"BearingParams.{name} must be at most {hi:g} {unit} (got {v!r})")
         for name in ("p0", "p_feed", "groove_width", "groove_angle", "penalty_a",
                      "newton_rtol"):
             v = getattr(self, name)

@@ -9,6 +9,7 @@ import zipfile
 
 import pytest
 
+from fmu_common.slave import POSITIVE
 from hostile_builders import cli
 from orchestrator.errors import ScenarioError
 from orchestrator.fmi.build import FMU_DIR
@@ -313,3 +314,36 @@ def test_bearing_params_psi_message_in_per_mille():
         assert shown in msg and "1.5 per mille is psi = 1.5e-3" in msg and "C / R" in msg, msg
     with pytest.raises(ValueError, match=r"BearingParams.R must be a positive finite number \[m\], the journal radius"):
         BearingParams(R=0.0)
+
+
+def _outside(lo, hi, integer):
+    """Values just outside a declared [lo, hi] (None: open); POSITIVE as lo is "> 0", tested elsewhere."""
+    out = []
+    if lo is not None and lo != POSITIVE:
+        out.append(lo - 1 if integer or lo <= 0 else lo / 10)
+    if hi is not None:
+        out.append(hi + 1 if integer or hi <= 0 else hi * 10)
+    return out
+
+
+def test_bearing_params_refuse_every_value_the_fmu_declares_out_of_range():
+    """The Python API (BearingParams) and the FMU's declaration accept the same range of every
+    parameter: R = 25 (mm meant) was refused by a scenario's loader but built a 25 m journal through
+    BearingParams (stop 44, leftover of probe 9b)."""
+    import dataclasses
+
+    from bearing_fmu import journal_bearing as jb
+    from bearing_fmu.model import BearingParams
+    fields = {f.name for f in dataclasses.fields(BearingParams)}
+    base = {"axial_bc": 1}                       # free to air: no oil-bath warning
+    checked = 0
+    for fmu_name, (lo, hi) in jb.PARAMETER_RANGES.items():
+        name = jb.RENAMED.get(fmu_name, fmu_name)
+        assert name in fields, fmu_name
+        integer = fmu_name in jb.INTEGER_PARAMETERS or isinstance(getattr(BearingParams(**base), name), int)
+        for v in _outside(lo, hi, integer):
+            v = int(v) if integer else float(v)
+            with pytest.raises(ValueError, match=rf"BearingParams\.{name} must"):
+                BearingParams(**{**base, name: v})
+            checked += 1
+    assert checked >= 30, checked
