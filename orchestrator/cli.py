@@ -573,6 +573,8 @@ def _add_stability(sub) -> None:
     p.add_argument("--plot", metavar="PNG", type=_figure_path,
                    help="also draw the least-damped mode's logarithmic decrement and frequency over the speeds "
                         "searched into this PNG file")
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="show the scan's progress (default: when stderr is a terminal and it takes a few seconds)")
     p.set_defaults(func=_cmd_stability)
 
 
@@ -721,7 +723,7 @@ def _cmd_stability(args) -> int:
         ox, oy = loads.get(name, (0.0, 0.0))
         loads[name] = (ox + fx, oy + fy)
     r = stability(scenario, film=args.film, speeds=args.speeds, ring_spin=args.ring_spin, loads=loads,
-                  n_scan=args.scan)
+                  n_scan=args.scan, progress=args.progress)
     lo, hi = r["speed_range_hz"]
     print(f"linear stability of {r['scenario']} ({args.file}): rotor '{r['rotor']['instance']}' "
           f"({r['rotor']['model']}), {lo:g} - {hi:g} Hz")
@@ -732,6 +734,8 @@ def _cmd_stability(args) -> int:
         print(f"threshold speed: {r['threshold_hz']:.2f} Hz (an eigenvalue crosses into the right half plane)")
         print(f"whirl frequency: {r['whirl_hz']:.2f} Hz, whirl frequency ratio {r['whirl_ratio']:.3f}")
         for name, b in r["bearings"].items():
+            if b["eps_at_threshold"] is None:         # a search stopped before (r["stopped"])
+                continue
             ring = ("" if b["kind"] != "floating_ring" else
                     f", outer film {b['eps_outer_at_threshold']:.3f}, ring speed "
                     f"{b['ring_speed_ratio_at_threshold']:.3f} x journal speed")
@@ -740,6 +744,9 @@ def _cmd_stability(args) -> int:
     from orchestrator.stability import later_crossings
     for c in later_crossings(r):
         print(f"then {c['becomes']} from {c['speed_hz']:.2f} Hz on (the least-damped mode at {c['whirl_hz']:.2f} Hz)")
+    if r["stopped"]:                        # Ctrl-C, SIGTERM, an error at one speed: what was done
+        from orchestrator.stability.partial import scan_table, stop_message
+        print(scan_table(r))
     if args.json:
         from orchestrator.results.safe_write import write_report_file
         write_report_file(args.json, json.dumps(r, indent=2) + "\n")   # as compare/sweep: atomic, disk full named
@@ -747,6 +754,9 @@ def _cmd_stability(args) -> int:
     if args.plot:
         from orchestrator.results.plots.stability import draw
         print(f"written: {draw(r, args.plot)}")
+    if r["stopped"]:
+        print(stop_message(r, kept=[f for f in (args.json, args.plot) if f]), file=sys.stderr)
+        return r["stopped"]["exit_code"]
     if r["status"] == "stable":
         print(f"error: no eigenvalue crosses into the right half plane between {lo:g} and {hi:g} Hz: the system is "
               "linearly stable in that range; give a wider --speeds LO:HI", file=sys.stderr)

@@ -121,6 +121,52 @@ def _raise_stopped(signum, frame):
     raise RunStopped(signum)
 
 
+class StopRequests:
+    """Ctrl-C (SIGINT) and SIGTERM as a flag that a loop checks between its pieces of work, not a
+    KeyboardInterrupt raised wherever the main thread happens to be (``with StopRequests() as
+    stop: ... if stop.requested: ...``).
+
+    The first signal sets :attr:`requested` and :attr:`signum` (and, with ``notice``, says on
+    stderr "interrupt: stopping after NOTICE (Ctrl-C again to stop at once)"); the loop then
+    stops where it can keep what it did. A second one raises :class:`RunStopped` (a
+    KeyboardInterrupt, exit code 128 + the signal) at once. Outside the main thread (the Python
+    API called from a thread) Python delivers no signals and nothing is installed. The previous
+    handlers are back when the block is left.
+
+    Users: the sweep (:mod:`orchestrator.sweep.runner`: Python raised KeyboardInterrupt inside
+    Dask's client code, where it was printed and dropped, and SIGTERM killed the sweep outright)
+    and ``rotorcosim stability``'s scan (:mod:`orchestrator.stability.search`: a stop kept none of
+    the speeds done). A run's master has its own (:meth:`RunFolder.stop_signals`).
+    """
+
+    def __init__(self, notice: str | None = None):
+        self.requested = False
+        self.signum: int | None = None
+        self.notice = notice
+        self._previous: dict = {}
+
+    def __enter__(self) -> "StopRequests":
+        if threading.current_thread() is threading.main_thread():
+            self._previous = {s: signal.signal(s, self._handler) for s in (signal.SIGINT, signal.SIGTERM)}
+        return self
+
+    def _handler(self, signum, frame):
+        if self.requested:
+            raise RunStopped(signum)
+        self.requested = True
+        self.signum = signum
+        if self.notice:
+            what = "interrupt" if signum == signal.SIGINT else signal.Signals(signum).name
+            again = "Ctrl-C" if signum == signal.SIGINT else "the signal"
+            print(f"\n{what}: stopping after {self.notice} ({again} again to stop at once)", file=sys.stderr,
+                  flush=True)
+
+    def __exit__(self, *exc) -> None:
+        for s, h in self._previous.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+        self._previous = {}
+
+
 def _now() -> str:
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 

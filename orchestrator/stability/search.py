@@ -14,13 +14,17 @@ the film model the ``film`` argument names (:mod:`orchestrator.stability.films`)
 
 from __future__ import annotations
 
+import contextlib
 import math
+import sys
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from orchestrator.scenario.analysis_clearance import BEARING_MODEL
 from orchestrator.stability.films import _NUMERIC, film_model
+from orchestrator.stability.partial import SpeedStopped, Stop, bracket, stop_of, widened
 from orchestrator.stability.system import Bearing, StabilityError, System, _static_loads, build_system
 
 FILMS = ("short", "hs", "mc")
@@ -60,10 +64,28 @@ def _notes(system: System, film: str, ring_spin: bool, weight: np.ndarray, extra
     return notes
 
 
-def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9) -> float | None:
-    """Fill ``result`` (its ``crossings``, ``status``, the threshold's entries, ``notes``) from
-    ``max_re(omega) -> (largest real part, |Im| there)`` at the speeds ``ws`` [rad/s] and between
-    them; return the threshold speed [rad/s], or None without one."""
+@dataclass
+class Searched:
+    """What :func:`_search` found: the threshold speed ``at`` [rad/s] (None without one, or when
+    it was stopped before locating it) and, for a search that stopped before its end (a stop
+    signal, an error at one speed), ``stop`` (:class:`orchestrator.stability.partial.Stop`; None
+    for a whole search). The rest is in the result dict it filled."""
+
+    at: float | None
+    stop: Stop | None = None
+
+
+class _NoStop:
+    requested = False
+    signum = None
+
+
+def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=None, bar=None) -> Searched:
+    """Fill ``result`` (its ``crossings``, ``crossings_bracketed``, ``status``, the threshold's
+    entries, ``notes``) from ``max_re(omega) -> (largest real part, |Im| there)`` at the speeds
+    ``ws`` [rad/s] and between them. ``stop``: a :class:`orchestrator.coupling.lifecycle.StopRequests`
+    looked at before each speed (scan and refinement; :mod:`orchestrator.stability.partial`);
+    ``bar``: a progress bar (tqdm's calls) advanced by each speed of the scan."""
     from rotor_fmu.stability import refine_crossing
     # the whole range on a geometric grid, then Brent on every sign change of the largest real part
     # between neighbouring speeds (rotor_fmu.stability.refine_crossing, as threshold_speed refines
@@ -72,54 +94,103 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9) -> float |
     # A speed without a static equilibrium (a load a film cannot carry there inside its clearance,
     # e.g. a floating ring's outer film at low speed) is left out, and no crossing is sought across it:
     # a sign change across such speeds is named (status "threshold_not_located" when it is the first).
+    # A stop (signal, error) ends it where it is: nothing more is computed, the sign changes between
+    # speeds done are kept as brackets (partial.py).
+    requests = stop if stop is not None else _NoStop
+    evals: dict[float, float] = {}           # every speed evaluated -> largest real part (brackets)
+    current: list = [None]                   # the speed being evaluated
+
+    def checked(w):
+        current[0] = w
+        if requests.requested:
+            raise SpeedStopped(w)
+        v = max_re(w)
+        evals[float(w)] = v[0]
+        return v
+
     vals: list[float | None] = []
     failed: list[tuple[float, StabilityError]] = []
+    halt: Stop | None = None
     for w in ws:
         try:
-            vals.append(max_re(w)[0])
+            vals.append(checked(w)[0])
         except StabilityError as exc:
             vals.append(None)
             failed.append((w, exc))
+        except (Exception, KeyboardInterrupt) as exc:     # a stop request, or an error at this speed
+            halt = stop_of(exc, requests.signum, w, "scan")
+            break
+        if bar is not None:
+            bar.update(1)
+    done = len(vals)
     ok = [k for k, v in enumerate(vals) if v is not None]
-    if not ok:
+    if not ok and halt is None:
         raise failed[0][1]
     if failed:
         where = ", ".join(f"{w / (2 * math.pi):.4g}" for w, _ in failed[:6]) + (" ..." if len(failed) > 6 else "")
-        result["notes"].append(f"no static equilibrium at {len(failed)} of the {len(ws)} speeds searched ({where} Hz), "
+        result["notes"].append(f"no static equilibrium at {len(failed)} of the {done} speeds searched ({where} Hz), "
                                f"left out: {failed[0][1]}".replace("; raise the lower end of --speeds", ""))
         result["speeds_without_equilibrium_hz"] = [w / (2 * math.pi) for w, _ in failed]
     unlocated = None          # the first sign change, when it lies across speeds without equilibrium
+    brackets = result["crossings_bracketed"]
     for k0, k1 in zip(ok, ok[1:]):
         if (vals[k0] < 0.0) == (vals[k1] < 0.0):
             continue
         becomes = "unstable" if vals[k0] < 0.0 else "stable"
         if k1 == k0 + 1:
-            wc, nu = refine_crossing(max_re, ws[k0], ws[k1], xtol)
-            result["crossings"].append({"speed_hz": wc / (2 * math.pi), "whirl_hz": nu / (2 * math.pi),
-                                        "becomes": becomes})
+            if halt is None:
+                if bar is not None:
+                    bar.set_postfix_str(f"refining the crossing between {ws[k0] / (2 * math.pi):.4g} and "
+                                        f"{ws[k1] / (2 * math.pi):.4g} Hz")
+                try:
+                    wc, nu = refine_crossing(checked, ws[k0], ws[k1], xtol)
+                except (Exception, KeyboardInterrupt) as exc:     # a stop request, or an error at a step
+                    halt = stop_of(exc, requests.signum, current[0], "refine")
+                else:
+                    result["crossings"].append({"speed_hz": wc / (2 * math.pi), "whirl_hz": nu / (2 * math.pi),
+                                                "becomes": becomes})
+                    continue
+            a, b = (x / (2 * math.pi) for x in bracket(evals, ws[k0], ws[k1]))
+            brackets.append({"between_hz": [a, b], "width_hz": b - a, "becomes": becomes})
             continue
         between = [ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)]
         result["notes"].append(f"the largest real part changes sign between {between[0]:.4g} and "
                                f"{between[1]:.4g} Hz (it becomes {becomes}), across speeds without a static "
                                "equilibrium: that crossing is not located")
-        if unlocated is None and not result["crossings"]:
+        if unlocated is None and not result["crossings"] and not brackets:
             unlocated = between
     vals = [vals[k] for k in ok]
     at = None
-    if vals[0] >= 0.0:
+    if not vals:                       # stopped before a speed with an equilibrium was done
+        status = "incomplete"
+    elif vals[0] >= 0.0:
         status = "unstable_at_lower_bound"
     elif unlocated is not None:        # stable below, unstable above, speeds without equilibrium between
         status = "threshold_not_located"
         result["threshold_between_hz"] = unlocated
-    elif not result["crossings"]:
-        status = "stable"
-    else:
+    elif result["crossings"]:
         first = result["crossings"][0]
         status, at = "threshold", 2 * math.pi * first["speed_hz"]
         result.update(threshold_hz=first["speed_hz"], whirl_hz=first["whirl_hz"],
                       whirl_ratio=first["whirl_hz"] / first["speed_hz"])
+    elif brackets:                     # stopped before the threshold's bracket was refined
+        status = "threshold_bracketed"
+        result.update(threshold_between_hz=brackets[0]["between_hz"],
+                      threshold_bracket_width_hz=brackets[0]["width_hz"])
+    elif halt is not None:             # stable in the speeds done
+        status = "incomplete"
+    else:
+        status = "stable"
     result["status"] = status
-    return at
+    if halt is not None:
+        halt.done, halt.planned = done, len(ws)
+        lo, hi = result.get("speed_range_hz") or (ws[0] / (2 * math.pi), ws[-1] / (2 * math.pi))
+        if halt.phase == "scan":       # from the last speed done (rounded down): a crossing just after it is found
+            last = math.floor(ws[done - 1] / (2 * math.pi) * 1e3) / 1e3 if done else lo
+            halt.rest = (lo, hi, len(ws)) if done == 0 else (max(last, lo), hi, len(ws) - done + 1)
+        elif brackets:
+            halt.rest = (*widened(*brackets[0]["between_hz"]), 2)
+    return Searched(at, halt)
 
 
 def log_decrement(re: float, im: float) -> float | None:
@@ -137,7 +208,7 @@ def later_crossings(result: dict) -> list[dict]:
 
 def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int | None = None,
               ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None,
-              mc_solver: str = "counted") -> dict:
+              mc_solver: str = "counted", progress: bool | None = None) -> dict:
     """The threshold result (a JSON-ready dict) of a loaded scenario: the search of the module doc,
     for the scenarios of :mod:`orchestrator.stability.system`, with the films of
     :mod:`orchestrator.stability.films`.
@@ -149,7 +220,15 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     (default 80, :data:`MC_SCAN` with ``film="mc"``, whose crossings are refined to 0.01 Hz instead
     of 1e-9 rad/s). ``mc_solver`` (``film="mc"``): ``"counted"`` (sparse, its least-damped eigenvalue
     counted, :func:`rotor_fmu.film_system.rightmost`) or ``"dense"`` (all eigenvalues by QZ, the
-    reference: the same roots, ~30 x slower at 40 x 40)."""
+    reference: the same roots, ~30 x slower at 40 x 40). ``progress``: a progress bar of the scan on
+    stderr (tqdm): None (default) when stderr is a terminal and the scan lasts more than a few
+    seconds, True always (after those seconds), False never.
+
+    Ctrl-C or SIGTERM (in the main thread; :class:`orchestrator.coupling.lifecycle.StopRequests`)
+    stops the search after the speed being computed (a second one at once), and an error at one
+    speed (other than no static equilibrium there) stops it at that speed: the result then holds
+    what was done, ``complete`` False and ``stopped`` (why, where, and the ``--speeds``/``--scan``
+    of the rest; :mod:`orchestrator.stability.partial`), and nothing is computed after the stop."""
     if film not in FILMS:
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
     system = build_system(scenario)
@@ -176,6 +255,37 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
                              "spin and carries no static load in the quasi-static (half-Sommerfeld) film, so "
                              "`stability` has no operating point to linearize at, at any speed; it takes floating "
                              "rings (floating = 1) only")
+    if n_scan is None:
+        n_scan = MC_SCAN if film == "mc" else 80
+    from orchestrator.coupling.lifecycle import StopRequests
+    with StopRequests(notice="this speed") as requests, _progress_bar(n_scan, progress) as bar:
+        return _threshold(scenario, system, film=film, lo=lo, hi=hi, n_scan=n_scan, ring_spin=ring_spin, loads=loads,
+                          mc_solver=mc_solver, requests=requests, bar=bar)
+
+
+@contextlib.contextmanager
+def _progress_bar(n_scan: int, progress: bool | None):
+    """A tqdm bar of the scan's speeds on stderr, as `rotorcosim run`'s (coupling/observers.py
+    Progress): with ``progress`` None only when stderr is a terminal, and shown once the scan has
+    lasted 2 s; None when off."""
+    if progress is None:
+        progress = bool(getattr(sys.stderr, "isatty", lambda: False)())
+    if not progress:
+        yield None
+        return
+    from tqdm import tqdm
+    bar = tqdm(total=n_scan, unit="speed", desc="stability scan", file=sys.stderr, dynamic_ncols=True,
+               mininterval=0.5, delay=2.0)
+    try:
+        yield bar
+    finally:
+        bar.close()
+
+
+def _threshold(scenario, system: System, *, film: str, lo: float, hi: float, n_scan: int, ring_spin: bool,
+               loads, mc_solver: str, requests, bar) -> dict:
+    """The search of :func:`stability` on its checked arguments (``requests``: the stop requests
+    looked at before each speed; ``bar``: the progress bar or None)."""
     weight, extra, total = _static_loads(system, loads)
     fn = film_model(system, film, total, ring_spin=ring_spin, mc_solver=mc_solver)
     notes = _notes(system, film, ring_spin, weight, extra)
@@ -196,26 +306,37 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     result: dict[str, Any] = {
         "scenario": scenario.name, "file": str(scenario.source) if scenario.source else None,
         "rotor": {"instance": system.rotor_instance, "model": system.rotor_model},
-        "film": film, "method": fn.method, "speed_range_hz": [lo, hi],
-        "threshold_hz": None, "whirl_hz": None, "whirl_ratio": None, "crossings": [], "bearings": {},
-        "notes": notes,
+        "film": film, "method": fn.method, "speed_range_hz": [lo, hi], "complete": True, "stopped": None,
+        "threshold_hz": None, "whirl_hz": None, "whirl_ratio": None, "crossings": [], "crossings_bracketed": [],
+        "bearings": {}, "notes": notes,
     }
-    if n_scan is None:
-        n_scan = MC_SCAN if film == "mc" else 80
-    at = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result,
-                 xtol=2 * math.pi * 0.01 if film == "mc" else 1e-9)
+    searched = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result,
+                       xtol=2 * math.pi * 0.01 if film == "mc" else 1e-9, stop=requests, bar=bar)
+    at, stop = searched.at, searched.stop
     if film == "mc" and fn.dense_speeds:
         notes.append(f"at {len(fn.dense_speeds)} of the {len(seen)} speeds evaluated the argument-principle count "
                      "disagreed with the eigenvalues the Arnoldi runs found: there all were computed densely")
     result["scan"] = [{"speed_hz": w / (2 * math.pi), "max_re_per_s": re, "whirl_hz": im / (2 * math.pi),
                        "log_decrement": log_decrement(re, im)} for w, (re, im) in sorted(seen.items())]
-    eps = fn.eccentricities(at) if at is not None else [None] * len(system.bearings)
-    if at is not None and film == "hs" and not system.rings:
-        for b, share in zip(system.bearings, fn.contact_share(at)):
-            if share > 1e-3:
-                notes.append(f"bearing '{b.instance}': asperity contact carries {share:.1%} of its static load at "
-                             "the threshold (its coefficients are included, bearing_fmu/contact.py)")
-    points = fn.points(at) if at is not None and system.rings else [None] * len(system.bearings)
+    none = [None] * len(system.bearings)
+    eps, points = none, none
+    if at is not None and stop is None:         # nothing is computed after a stop
+        try:
+            if requests.requested:
+                raise SpeedStopped(at)
+            eps = fn.eccentricities(at)
+            if film == "hs" and not system.rings:
+                for b, share in zip(system.bearings, fn.contact_share(at)):
+                    if share > 1e-3:
+                        notes.append(f"bearing '{b.instance}': asperity contact carries {share:.1%} of its static "
+                                     "load at the threshold (its coefficients are included, bearing_fmu/contact.py)")
+            points = fn.points(at) if system.rings else none
+        except (Exception, KeyboardInterrupt) as exc:     # a stop request, or an error there
+            eps, points = none, none
+            stop = stop_of(exc, requests.signum, at, "threshold")
+            stop.done = stop.planned = n_scan
+    if stop is not None:
+        result.update(complete=False, stopped=stop.as_dict())
     for b, e, ld, pt in zip(system.bearings, eps, total, points):
         result["bearings"][b.instance] = _bearing_entry(b, film, ld, e, pt, at)
     return result

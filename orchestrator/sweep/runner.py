@@ -15,7 +15,6 @@ import logging
 import os
 import signal
 import sys
-import threading
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -314,44 +313,6 @@ def _submit(client, spec: SweepSpec, todo: list[RunPlan], runs_dir: Path, warm: 
     return futures
 
 
-class _Interrupt:
-    """Ctrl-C (and SIGTERM) as a flag the sweep's loop checks, not a KeyboardInterrupt raised
-    wherever the main thread happens to be.
-
-    Python raises KeyboardInterrupt in the main thread at its next bytecode. In a sweep that is
-    mostly Dask's client code, and an exception raised inside a finaliser or a callback there
-    is printed and dropped ("Exception ignored in ..."): the sweep then carried on and ended
-    with exit 1, its interrupted run a ``failed`` row. Here the handler only sets
-    :attr:`requested`; :func:`_gather` looks at it every :data:`_POLL_S` and raises the
-    KeyboardInterrupt itself, from its own code. A second Ctrl-C raises at once. SIGTERM (a
-    batch system or ``kill`` stopping the sweep) is handled the same way: it killed the sweep
-    outright before, with no sweep.csv and no message, exit -15 (its run processes stopped only
-    once they noticed their worker was gone). :attr:`signum` is the first signal. Outside the main thread (the
-    Python API called from a thread) Python delivers no signals and nothing is installed.
-    """
-
-    def __init__(self):
-        self.requested = False
-        self.signum: int | None = None
-        self._previous: dict = {}
-
-    def __enter__(self) -> "_Interrupt":
-        if threading.current_thread() is threading.main_thread():
-            self._previous = {s: signal.signal(s, self._handler) for s in (signal.SIGINT, signal.SIGTERM)}
-        return self
-
-    def _handler(self, signum, frame):
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-        self.signum = signum
-
-    def __exit__(self, *exc) -> None:
-        for s, h in self._previous.items():
-            signal.signal(s, h)
-        self._previous = {}
-
-
 _POLL_S = 0.2
 
 
@@ -362,7 +323,7 @@ def _stopped_by_user(rec: dict) -> bool:
     return rec.get("status") == "cancelled" and summary.get("stopped_by") == "SIGINT"
 
 
-def _gather(futures: dict, records: dict, bar, interrupt: _Interrupt) -> None:
+def _gather(futures: dict, records: dict, bar, interrupt) -> None:
     """Collect finished tasks into ``records`` (run_id -> record) as they complete; raise
     KeyboardInterrupt when the user interrupted (``interrupt``, or a run stopped by Ctrl-C)."""
     from distributed import as_completed
@@ -427,7 +388,15 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
         client = cluster = futures = None
         bar = _progress(len(todo), progress)
         stack = contextlib.ExitStack()
-        interrupt = _Interrupt()
+        # Ctrl-C (and SIGTERM) as a flag (lifecycle.StopRequests), not a KeyboardInterrupt raised wherever
+        # the main thread happens to be: in a sweep that is mostly Dask's client code, and an exception
+        # raised inside a finaliser or a callback there is printed and dropped ("Exception ignored in
+        # ..."): the sweep then carried on and ended with exit 1, its interrupted run a ``failed`` row.
+        # _gather looks at the flag every _POLL_S and raises the KeyboardInterrupt itself, from its own
+        # code; a second Ctrl-C raises at once. SIGTERM (a batch system or ``kill``) the same way: it
+        # killed the sweep outright before, with no sweep.csv and no message, exit -15.
+        from orchestrator.coupling.lifecycle import StopRequests
+        interrupt = StopRequests()
         try:
             stack.enter_context(interrupt)
             if warm and not (scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")):

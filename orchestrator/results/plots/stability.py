@@ -6,7 +6,9 @@ and Brent's steps, ``result["scan"]``): the logarithmic decrement of the least-d
 crosses 0; API 684's measure of a stability margin), and its frequency against 0.5 x speed (a
 film whirl sits just below it). The threshold and its whirl frequency are marked, so is every
 other crossing (stable again, or, already unstable at the lower end, stable from there), and
-speeds without a static equilibrium (grey crosses).
+speeds without a static equilibrium (grey crosses). The figure of a search that was stopped
+(``result["stopped"]``: Ctrl-C, SIGTERM, an error at one speed) draws the speeds done, its
+unrefined crossings as their brackets (shaded), and says where it stopped.
 """
 
 from __future__ import annotations
@@ -49,12 +51,24 @@ def draw(result: dict, path: Path | str) -> Path:
         for ax in (ax1, ax2):
             ax.axvline(c["speed_hz"], color="C2" if c["becomes"] == "stable" else "C3", ls=":", lw=1.2,
                        label=lab if ax is ax1 else None)
+    for k, c in enumerate(result.get("crossings_bracketed") or []):   # a stopped search's unrefined crossings
+        a, b = c["between_hz"]
+        lab = f"{c['becomes']} from between {a:.5g} and {b:.5g} Hz (not refined)"
+        for ax in (ax1, ax2):
+            ax.axvspan(a, b, color="C3" if c["becomes"] == "unstable" else "C2", alpha=0.25,
+                       label=lab if ax is ax1 and k < 3 else None)
     bad = result.get("speeds_without_equilibrium_hz") or []
     if bad:
         for ax in (ax1, ax2):
             ax.plot(bad, np.zeros(len(bad)) if ax is ax1 else 0.5 * np.asarray(bad), "x", color="0.5", ms=4,
                     label="no static equilibrium" if ax is ax1 else None)
-    if result.get("status") == "stable":
+    stop = result.get("stopped")
+    if stop:
+        where = f" at {stop['at_speed_hz']:.4g} Hz" if stop.get("at_speed_hz") is not None else ""
+        why = {"SIGINT": "interrupted", "SIGTERM": "terminated (SIGTERM)"}.get(stop["by"], "stopped by an error")
+        ax1.set_title(f"incomplete: {why}{where} ({stop['phase']}, {stop['speeds_done']} of "
+                      f"{stop['speeds_planned']} speeds of the scan done)", fontsize=9)
+    elif result.get("status") == "stable":
         ax1.set_title("no crossing in the range: stable there", fontsize=9)
     elif result.get("status") == "unstable_at_lower_bound":
         ax1.set_title("unstable already at the lower end of the range", fontsize=9)
