@@ -3,7 +3,9 @@
 
 ``system.py`` reads what is linearised from the scenario (the rotor, the bearing at each station,
 their static loads), ``films.py`` linearises each station's film at a speed, ``search.py`` finds
-where the system crosses into instability over the speed range and assembles the result.
+where the system crosses into instability over the speed range and assembles the result,
+``partial.py`` says why and where a search stopped before its end (Ctrl-C, SIGTERM, an error at
+one speed) and what it kept.
 """
 
 from orchestrator.stability.films import MC_SOLVERS
