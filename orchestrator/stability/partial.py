@@ -148,8 +148,8 @@ def stop_message(result: dict, *, kept: list[str] | tuple = ()) -> str:
         a, b = result["threshold_between_hz"]
         lo, hi = widened(a, b)
         how = f"; `--speeds {lo:.10g}:{hi:.10g} --scan 2` refines it" if s["phase"] == "scan" else ""
-        parts.append(f"the threshold lies between {_pair(a, b)} Hz ({result['threshold_bracket_width_hz']:.3g} Hz wide, "
-                     f"not refined{how})")
+        width = result["threshold_bracket_width_hz"]
+        parts.append(f"the threshold lies between {_pair(a, b)} Hz ({width:.3g} Hz wide, not refined{how})")
     elif status == "unstable_at_lower_bound":
         parts.append(f"already unstable at the lower end of the range ({result['speed_range_hz'][0]:g} Hz): the "
                      "threshold is below it")
