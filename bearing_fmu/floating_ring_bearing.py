@@ -49,10 +49,13 @@ _FILM_REAL = {   # per film (suffix _inner / _outer): name -> (inner default, ou
 _FILM_INT = {
     "n_phi": (40, 40, "grid cells in the circumferential direction [-]"),
     "n_z": (40, 40, "grid cells in the axial direction [-]"),
-    "cavitation": (1, 1, "0 half-Sommerfeld (quasi-static), 1 mass-conserving two-phase (transient)"),
-    "axial_bc": (0, 0, "0 oil bath (Dirichlet p0), 1 free to air (Neumann penalty)"),
-    "theta_transport": (0, 0, "Couette transport of the fluid fraction (cavitation 1): 0 first-order "
-                              "upwind, 1 limited second order (MUSCL)"),
+    # a switch's description ends with the names of its values (journal_bearing.INTEGER_PARAMETERS)
+    "cavitation": (1, 1, "cavitation model: the quasi-static half-Sommerfeld film or the transient "
+                         "mass-conserving two-phase film (0 = half-Sommerfeld, 1 = mass-conserving)"),
+    "axial_bc": (0, 0, "axial boundary condition: oil bath is Dirichlet p0, free to air a Neumann penalty "
+                       "(0 = oil bath, 1 = free to air)"),
+    "theta_transport": (0, 0, "Couette transport of the fluid fraction (cavitation 1): first-order upwind or "
+                              "limited second order MUSCL (0 = upwind, 1 = MUSCL)"),
 }
 REAL_PARAMETERS: dict[str, tuple[float, str, str]] = {
     f"{n}_{side}": (d[k], unit, f"{side} film: {desc}")
@@ -77,16 +80,18 @@ INTEGER_PARAMETERS: dict[str, tuple[int, str]] = {
     f"{n}_{side}": (d[k], f"{side} film: {desc}")
     for n, (*d, desc) in _FILM_INT.items() for k, side in enumerate(("inner", "outer"))}
 INTEGER_PARAMETERS.update({
-    "floating": (1, "1 full floating (ring spin free), 0 semi-floating (spin locked, translation free)"),
+    "floating": (1, "ring spin: locked with the translation free (semi-floating) or free (full floating) "
+                    "(0 = semi-floating, 1 = full floating)"),
     "linearize": (0, "N >= 1: output kxx..cyy of the whole ring bearing, refreshed every N-th step; 0: outputs 0"),
     "jacobian_every": (1, "the films' coefficients used by the ring integration are recomputed after "
                           "every N-th step [-]"),
-    "input_hold": (2, "journal inputs inside a step: 0 zero-order hold (FMI semantics), 1 first-order hold "
-                      "from the previous step's input (second order when stepped after the rotor, Gauss-Seidel), "
-                      "2 cubic Hermite of the previous and new position and velocity (ring_integrator 1; "
-                      "BDF2 uses it as 1)"),
-    "ring_integrator": (1, "ring translation inside a step: 0 linearly implicit BDF2, 1 exponential (the "
-                           "linearised ring ODE integrated exactly for the journal input, docs/floating-ring.md)"),
+    "input_hold": (2, "journal inputs inside a step: the new input (FMI semantics), first-order hold from the "
+                      "previous step's input (second order when stepped after the rotor, Gauss-Seidel) or cubic "
+                      "Hermite of the previous and new position and velocity, which ring_integrator 0 uses as "
+                      "first-order hold (0 = zero-order hold, 1 = first-order hold, 2 = cubic Hermite)"),
+    "ring_integrator": (1, "ring translation inside a step: linearly implicit BDF2, or exponential: the "
+                           "linearised ring ODE integrated exactly for the journal input, docs/floating-ring.md "
+                           "(0 = BDF2, 1 = exponential)"),
 })
 STRING_PARAMETERS: dict[str, tuple[str, str]] = {
     "init": ("flooded", "initial film of the mass-conserving films: 'flooded' or 'stationary'"),

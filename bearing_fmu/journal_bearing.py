@@ -86,12 +86,16 @@ REAL_PARAMETERS: dict[str, tuple[float, str, str]] = {
 INTEGER_PARAMETERS: dict[str, tuple[int, str]] = {
     "n_phi": (40, "number of grid cells in the circumferential direction [-]"),
     "n_z": (40, "number of grid cells in the axial direction [-]"),
-    "cavitation": (1, "cavitation model: 0 half-Sommerfeld (quasi-static), 1 mass-conserving two-phase (transient)"),
-    "axial_bc": (0, "axial boundary condition: 0 oil bath (Dirichlet p0), 1 free to air (Neumann penalty)"),
-    "theta_transport": (0, "Couette transport of the fluid fraction (mass-conserving film): "
-                           "0 first-order upwind, 1 limited second order (MUSCL)"),
-    "contact": (0, "asperity contact of journal and shell: 0 none, 1 Greenwood-Tripp contact with "
-                   "boundary friction added to the film force (bearing_fmu/contact.py)"),
+    # a switch's description ends with the names of its values, "(0 = NAME, 1 = NAME)": rotorcosim
+    # reads them for plot axes (orchestrator.fmi.model_description.value_names, docs/fmus.md)
+    "cavitation": (1, "cavitation model: the quasi-static half-Sommerfeld film or the transient mass-conserving "
+                      "two-phase film (0 = half-Sommerfeld, 1 = mass-conserving)"),
+    "axial_bc": (0, "axial boundary condition: oil bath is Dirichlet p0, free to air a Neumann penalty "
+                    "(0 = oil bath, 1 = free to air)"),
+    "theta_transport": (0, "Couette transport of the fluid fraction of the mass-conserving film: first-order "
+                           "upwind or limited second order MUSCL (0 = upwind, 1 = MUSCL)"),
+    "contact": (0, "asperity contact of journal and shell: none, or Greenwood-Tripp contact with boundary "
+                   "friction added to the film force, bearing_fmu/contact.py (0 = no contact, 1 = asperity contact)"),
 }
 INPUTS: dict[str, tuple[str, str]] = journal_kinematics()
 OUTPUTS: dict[str, tuple[str, str]] = {

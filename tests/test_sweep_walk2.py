@@ -124,12 +124,29 @@ import json  # noqa: E402
 from orchestrator.sweep import plot as sweep_plot  # noqa: E402
 
 
+def _value_names(tmp_path, params, rows) -> dict:
+    """The names of the swept values that a sweep over ``params`` of SEEDED records in sweep.json:
+    those its bearing FMU declares (orchestrator.sweep.units.sweep_labels)."""
+    from orchestrator.sweep import load_sweep
+    from orchestrator.sweep.plan import expand
+    from orchestrator.sweep.units import sweep_labels
+    lines = "".join(f"  - {{name: {n}, set: [{', '.join(paths)}], values: {sorted({r[k] for r in rows})}}}\n"
+                    for k, (n, paths) in enumerate(params.items()))
+    (tmp_path / "sw.yaml").write_text(f"sweep: 1\nscenario: {SEEDED}\nparameters:\n{lines}")
+    spec = load_sweep(tmp_path / "sw.yaml")
+    return sweep_labels(spec, expand(spec)[0].overrides)[2]
+
+
 def _sweep_folder(tmp_path, params, rows, value="max_eps"):
-    """sweep.csv and sweep.json of a finished sweep over ``params`` (name -> set paths)."""
+    """sweep.csv and sweep.json of a finished sweep over ``params`` (name -> set paths) of
+    SEEDED, with the names of the values its FMU declares (before 2026-12-07 the plot took them
+    from a table of our bearing's switches, matched by the parameter's name)."""
+    names = _value_names(tmp_path, params, rows)
     d = tmp_path / "sw"
     d.mkdir()
-    meta = {"sweep": 1, "source": "s.yaml", "scenario": "x.yaml", "mode": "grid",
-            "parameters": [{"name": n, "set": paths} for n, paths in params.items()],
+    meta = {"sweep": 1, "source": "s.yaml", "scenario": str(SEEDED), "mode": "grid",
+            "parameters": [{"name": n, "set": paths, **({"value_names": {str(v): t for v, t in names[n].items()}}
+                                                        if n in names else {})} for n, paths in params.items()],
             "collect": {value: f"analysis.journals.bearing1.{value}"}}
     head = ",".join(["run_id", *params, value, "status", "message", "wall_time_s", "run_dir"])
     body = "".join(",".join([f"r{k}", *map(str, r), "finished", "", "1.0", f"runs/r{k}"]) + "\n"

@@ -413,6 +413,74 @@ def _choices(sv) -> tuple[str, ...]:
     return tuple(c.get("value") for c in tool.iter("Choice") if c.get("value") is not None)[:MAX_CHOICES]
 
 
+# --------------------------------------------------------------------------- names of switch values
+MAX_VALUE_NAMES = 32               # values of one switch that get names
+MAX_VALUE_NAME_CHARS = 40          # one name
+MAX_VALUE_LIST_CHARS = 2048        # the list, brackets included (32 of the longest items fit)
+_NAMED_VALUE = re.compile(r"\s*(-?[0-9]{1,10})\s*=(.*)", re.DOTALL)
+_NOT_IN_NAMES = frozenset("(),=")
+
+
+def value_names(var: Variable) -> dict[int, str]:
+    """``{value: name}`` of the values of an Integer switch as its FMU declares them, or of an
+    Enumeration's items; ``{}`` when there is no declaration, or a malformed one.
+
+    An Integer declares them at the end of its ``description`` (docs/fmus.md, "Names of switch
+    values"): a parenthesised, comma-separated list of ``VALUE = NAME`` as the last thing in
+    it, e.g. ``cavitation model: ... (0 = half-Sommerfeld, 1 = mass-conserving)``. FMI 2.0 has
+    no other place for them (a ``<SimpleType>`` with ``<Item>``s belongs to Enumeration
+    variables only). Parsed strictly, as the model description is untrusted: at least two and at
+    most :data:`MAX_VALUE_NAMES` items, each value a decimal 32-bit integer, each name a
+    printable text of at most :data:`MAX_VALUE_NAME_CHARS` characters without ``( ) , =``, no
+    value and no name twice; anything else gives no names (never an error: the names label a
+    plot axis, nothing depends on them). The list, brackets included, is at most
+    :data:`MAX_VALUE_LIST_CHARS` characters; only that much of the end of a description is read,
+    whatever its length.
+
+    An Enumeration's names are the ``<Item>`` names of its declared type, by the same rules
+    (at least one item)."""
+    if var.type == "Enumeration":
+        if len(var.items) > MAX_VALUE_NAMES:
+            return {}
+        return checked_value_names([(value, name) for name, value, _ in var.items], least=1)
+    if var.type != "Integer":
+        return {}
+    text = var.description[-MAX_VALUE_LIST_CHARS:].rstrip()   # a name can hold no '(': the last one opens
+    start = text.rfind("(")                                   # the list, and a list is no longer than this
+    if start < 0 or not text.endswith(")"):
+        return {}
+    pairs = []
+    for item in text[start + 1:-1].split(","):
+        m = _NAMED_VALUE.fullmatch(item)
+        if m is None:
+            return {}
+        pairs.append((int(m.group(1)), m.group(2).strip()))
+    return checked_value_names(pairs)
+
+
+def checked_value_names(pairs, least: int = 2) -> dict[int, str]:
+    """``pairs`` ((value, name), ...) as ``{value: name}`` when they follow the rules of
+    :func:`value_names` (at least ``least`` of them), else ``{}``. Also for the names a
+    sweep.json carries (``orchestrator.sweep.plot``)."""
+    out: dict[int, str] = {}
+    for value, name in pairs:
+        if (isinstance(value, bool) or not isinstance(value, int) or not _INT32[0] <= value <= _INT32[1]
+                or value in out or not is_value_name(name)):
+            return {}
+        out[value] = name
+    if not least <= len(out) <= MAX_VALUE_NAMES or len(set(out.values())) != len(out):
+        return {}
+    return out
+
+
+def is_value_name(name) -> bool:
+    """A name of a switch value may label a plot axis: a printable text (no control, format or
+    separator characters other than the space) of 1 to :data:`MAX_VALUE_NAME_CHARS` characters,
+    without blanks around it and without ``( ) , =``."""
+    return (isinstance(name, str) and 0 < len(name) <= MAX_VALUE_NAME_CHARS and name == name.strip()
+            and name.isprintable() and not _NOT_IN_NAMES.intersection(name))
+
+
 # --------------------------------------------------------------------------- ModelStructure
 DEPENDENCY_KINDS = ("dependent", "constant", "fixed", "tunable", "discrete")
 _KIND = {k: k for k in DEPENDENCY_KINDS}

@@ -12,12 +12,15 @@ maximum up to its stop. With more parameters the map is over the first two, whic
 then identify each run (the others derived from them, as in a zip sweep that also sets a
 seed or a clearance per point); when the first parameter alone identifies each run (a zip
 sweep along one parameter with derived columns such as seeds) the plot is a line over it.
+An axis of a parameter that sets an FMU's switch shows the names that FMU declares for the
+values (``half-Sommerfeld (0)``), which the sweep recorded in sweep.json; other axes show numbers.
 PNGs go to ``DIR/plots/sweep_<value>.png``. matplotlib's object API with the Agg canvas.
 """
 
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from pathlib import Path
 
@@ -32,16 +35,7 @@ DPI = 110
 MAX_LABELLED_CELLS = 400      # heat maps with more cells get no numbers in them and a fixed size
 MAX_MAP_CELLS = 250_000       # a larger grid of the first two parameters is drawn as points, one per run
 MAX_TICKS = 30                # tick labels per axis (every k-th value beyond)
-
-
-#: names of the values of our FMUs' integer switches (bearing_fmu/journal_bearing.py
-#: INTEGER_PARAMETERS), for the ticks of an axis that sets one: "half-Sommerfeld (0)", not "0"
-SWITCH_NAMES = {
-    "cavitation": {0: "half-Sommerfeld", 1: "mass-conserving"},
-    "axial_bc": {0: "oil bath", 1: "free to air"},
-    "theta_transport": {0: "upwind", 1: "MUSCL"},
-    "contact": {0: "no contact", 1: "asperity contact"},
-}
+_VALUE_KEY = re.compile(r"-?(0|[1-9][0-9]{0,9})")    # a value of a switch as sweep.json writes it
 
 
 def is_sweep_dir(path: str | Path) -> bool:
@@ -106,7 +100,7 @@ def _order(v):
 
 def _ticks(values, names: dict | None = None) -> tuple[list[int], list[str]]:
     """Tick positions and labels, at most :data:`MAX_TICKS` of them (every k-th value);
-    ``names``: value -> name of a switch axis (:func:`_switch_names`)."""
+    ``names``: value -> name of a switch axis (:func:`_value_names`)."""
     step = max(1, math.ceil(len(values) / MAX_TICKS))
     at = list(range(0, len(values), step))
     return at, [_tick_text(values[k], names) for k in at]
@@ -124,19 +118,24 @@ def _as_int(v):
     return int(v)
 
 
-def _switch_names(entry: dict, values) -> dict | None:
-    """{value: name} when a parameter of sweep.json sets one of our FMUs' integer switches
-    (:data:`SWITCH_NAMES`; every path ``fmus.<instance>.parameters.<switch>`` of the same
-    switch) and all its values are that switch's; else None."""
-    paths = entry.get("set")
-    if not isinstance(paths, list) or not paths:
+def _value_names(entry: dict, values) -> dict | None:
+    """{value: name} of a parameter of sweep.json whose entry carries the names its FMU declares
+    for the values of the switch it sets (``"value_names": {"0": "half-Sommerfeld", ...}``,
+    written by the sweep: :func:`orchestrator.sweep.units.sweep_labels`), when every value the
+    runs have is named; else None (the axis keeps the numbers). sweep.json may come from anyone:
+    the names are checked by the rules of the FMU's declaration
+    (:func:`orchestrator.fmi.model_description.checked_value_names`) and any problem gives none."""
+    from orchestrator.fmi.model_description import MAX_VALUE_NAMES, checked_value_names
+    raw = entry.get("value_names")
+    if not isinstance(raw, dict) or len(raw) > MAX_VALUE_NAMES:
         return None
-    switches = {str(p).rsplit(".", 1)[-1] for p in paths
-                if isinstance(p, str) and p.startswith("fmus.") and ".parameters." in p}
-    if len(switches) != 1 or len(paths) != sum(isinstance(p, str) and ".parameters." in p for p in paths):
-        return None
-    names = SWITCH_NAMES.get(switches.pop())
-    if names is None or not all(_as_int(v) in names for v in values):
+    pairs = []
+    for key, name in raw.items():
+        if not isinstance(key, str) or not _VALUE_KEY.fullmatch(key):
+            return None
+        pairs.append((int(key), name))
+    names = checked_value_names(pairs, least=1)
+    if not names or not all(_as_int(v) in names for v in values):
         return None
     return names
 
@@ -306,7 +305,7 @@ def plot_sweep(out_dir: str | Path) -> list[Path]:
     label = _labels(meta, params, values)
     scenario = meta.get("scenario")
     of = f" ({Path(scenario).stem[:60]})" if isinstance(scenario, str) and scenario else ""
-    names = {e["name"]: _switch_names(e, {r[e["name"]] for r in rows}) for e in meta["parameters"]}
+    names = {e["name"]: _value_names(e, {r[e["name"]] for r in rows}) for e in meta["parameters"]}
     written = []
     import matplotlib
     # every text drawn as written: a unit ('$\Omega$'), scenario name or text value from sweep.json or

@@ -26,7 +26,7 @@ from orchestrator.sweep.spec import SweepSpec
 from orchestrator.sweep.table import build_rows, write_table
 from orchestrator.sweep.progress import progress_bar as _progress
 from orchestrator.sweep.task import RUN_RECORD, execute_run
-from orchestrator.sweep.units import sweep_units
+from orchestrator.sweep.units import sweep_labels
 
 __all__ = ["SweepOutcome", "run_sweep", "resumable", "connect"]
 
@@ -438,7 +438,8 @@ def run_sweep(spec: SweepSpec, runs: list[RunPlan], out_dir: str | Path, *, sche
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         rows = build_rows(spec, runs, records, out_dir)
-    table = write_table(rows, spec, out_dir, sweep_units(spec, runs[0].overrides) if runs else ({}, {}))
+    param_units, collect_units, value_names = sweep_labels(spec, runs[0].overrides) if runs else ({}, {}, {})
+    table = write_table(rows, spec, out_dir, (param_units, collect_units), value_names)
     texts = [str(w.message) for w in caught]
     for text in texts:
         warnings.warn(text, stacklevel=2)

@@ -107,10 +107,13 @@ def build_rows(spec: SweepSpec, runs: list[RunPlan], records: dict[str, dict], o
     return rows
 
 
-def write_table(rows: list[dict], spec: SweepSpec, out_dir: Path, units: tuple[dict, dict] = ({}, {})) -> Path:
+def write_table(rows: list[dict], spec: SweepSpec, out_dir: Path, units: tuple[dict, dict] = ({}, {}),
+                value_names: dict[str, dict[int, str]] | None = None) -> Path:
     """Write ``sweep.csv`` (always), ``sweep.parquet`` (when pyarrow is installed) and
     ``sweep.json`` (the parameter and collect names, which ``rotorcosim plot`` reads, and the
-    ``units`` found for them, :func:`orchestrator.sweep.units.sweep_units`, for the map's labels)."""
+    ``units`` and ``value_names`` found for them, :func:`orchestrator.sweep.units.sweep_labels`,
+    for the map's labels: ``"value_names": {"0": "half-Sommerfeld", "1": "mass-conserving"}`` in
+    the entry of a parameter that sets a switch whose FMU names its values)."""
     cols = columns(spec)
     path = out_dir / "sweep.csv"
     fh = io.StringIO(newline="")
@@ -119,9 +122,12 @@ def write_table(rows: list[dict], spec: SweepSpec, out_dir: Path, units: tuple[d
     for row in rows:
         w.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in cols})
     write_report_file(path, fh.getvalue())
+    names = value_names or {}
     meta = {"sweep": 1, "source": str(spec.source), "scenario": str(spec.scenario), "mode": spec.mode,
-            "parameters": [{"name": p.name, "set": list(p.paths), **({"unit": units[0][p.name]}
-                                                                      if p.name in units[0] else {})}
+            "parameters": [{"name": p.name, "set": list(p.paths),
+                            **({"unit": units[0][p.name]} if p.name in units[0] else {}),
+                            **({"value_names": {str(v): n for v, n in sorted(names[p.name].items())}}
+                               if names.get(p.name) else {})}
                            for p in spec.parameters],
             "collect": dict(spec.collect), "collect_units": dict(units[1])}
     write_report_file(out_dir / META_FILE, json.dumps(meta, indent=1))
