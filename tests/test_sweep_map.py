@@ -25,12 +25,13 @@ PUMP = [("r1", 1.0e-3, 4.266e-07, 355.46, "finished"), ("r2", 1.5e-3, 9.695e-07,
         ("r3", 2.0e-3, 1.9e-06, 270.11, "failed"), ("r4", 2.5e-3, 3.322e-06, 249.76, "failed")]
 
 
-def _folder(tmp_path: Path, rows, meta=META) -> Path:
+def _folder(tmp_path: Path, rows, meta=META, header=HEADER) -> Path:
+    """A sweep folder: ``rows`` are (run id, swept values..., collected value or None, status)."""
     d = tmp_path / "sw"
     d.mkdir()
-    text = HEADER + "".join(f"{i},{a},{b},{'' if v is None else v},{st},"
+    text = header + "".join(f"{i},{','.join(map(str, vals))},{'' if v is None else v},{st},"
                             f"{'' if st == 'finished' else 'journal touches the shell'},1.0,runs/{i}\n"
-                            for i, a, b, v, st in rows)
+                            for i, *vals, v, st in rows)
     (d / "sweep.csv").write_text(text)
     (d / "sweep.json").write_text(json.dumps(meta))
     return d

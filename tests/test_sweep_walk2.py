@@ -122,6 +122,7 @@ def test_a_sweep_over_psi_is_refused_at_its_own_psi_line(tmp_path, mode):
 import json  # noqa: E402
 
 from orchestrator.sweep import plot as sweep_plot  # noqa: E402
+from tests.test_sweep_map import _folder, figures  # noqa: E402,F401  (figures: a fixture)
 
 
 def _value_names(tmp_path, params, rows) -> dict:
@@ -142,30 +143,12 @@ def _sweep_folder(tmp_path, params, rows, value="max_eps"):
     SEEDED, with the names of the values its FMU declares (before 2026-12-07 the plot took them
     from a table of our bearing's switches, matched by the parameter's name)."""
     names = _value_names(tmp_path, params, rows)
-    d = tmp_path / "sw"
-    d.mkdir()
     meta = {"sweep": 1, "source": "s.yaml", "scenario": str(SEEDED), "mode": "grid",
             "parameters": [{"name": n, "set": paths, **({"value_names": {str(v): t for v, t in names[n].items()}}
                                                         if n in names else {})} for n, paths in params.items()],
             "collect": {value: f"analysis.journals.bearing1.{value}"}}
-    head = ",".join(["run_id", *params, value, "status", "message", "wall_time_s", "run_dir"])
-    body = "".join(",".join([f"r{k}", *map(str, r), "finished", "", "1.0", f"runs/r{k}"]) + "\n"
-                   for k, r in enumerate(rows))
-    (d / "sweep.csv").write_text(head + "\n" + body)
-    (d / "sweep.json").write_text(json.dumps(meta))
-    return d
-
-
-@pytest.fixture
-def figures(monkeypatch):
-    saved = []
-    real = sweep_plot.save_figure
-
-    def keep(fig, path):
-        saved.append(fig)
-        return real(fig, path)
-    monkeypatch.setattr(sweep_plot, "save_figure", keep)
-    return saved
+    head = ",".join(["run_id", *params, value, "status", "message", "wall_time_s", "run_dir"]) + "\n"
+    return _folder(tmp_path, [(f"r{k}", *r, "finished") for k, r in enumerate(rows)], meta, head)
 
 
 CAV = {"cavitation": ["fmus.bearing1.parameters.cavitation", "fmus.bearing2.parameters.cavitation"],
