@@ -65,3 +65,18 @@ def our_fmus_built():
 def test_fmus(tmp_path_factory) -> dict[str, Path]:
     """Paths of the test FMUs (LeftMass, RightMass, Gain, Integrator, Faulty, Trivial, Params)."""
     return build_test_fmus(tmp_path_factory.mktemp("test_fmus"))
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """The figures ``orchestrator.sweep.plot`` saves (still saved for real), for tests that look at
+    the axes of a sweep map."""
+    from orchestrator.sweep import plot as sweep_plot
+    saved = []
+    real = sweep_plot.save_figure
+
+    def keep(fig, path):
+        saved.append(fig)
+        return real(fig, path)
+    monkeypatch.setattr(sweep_plot, "save_figure", keep)
+    return saved

@@ -12,8 +12,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import pytest
-
 from orchestrator.sweep import plot as sweep_plot
 
 META = {"sweep": 1, "source": "pump_psi_map.yaml", "scenario": "pump_hs_map.yaml", "mode": "zip",
@@ -35,19 +33,6 @@ def _folder(tmp_path: Path, rows, meta=META, header=HEADER) -> Path:
     (d / "sweep.csv").write_text(text)
     (d / "sweep.json").write_text(json.dumps(meta))
     return d
-
-
-@pytest.fixture
-def figures(monkeypatch):
-    """The figures plot_sweep saves (saved for real as well)."""
-    saved = []
-    real = sweep_plot.save_figure
-
-    def keep(fig, path):
-        saved.append(fig)
-        return real(fig, path)
-    monkeypatch.setattr(sweep_plot, "save_figure", keep)
-    return saved
 
 
 def test_a_zip_sweep_along_one_parameter_is_a_line_with_every_onset(tmp_path, figures):

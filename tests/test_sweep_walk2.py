@@ -119,10 +119,9 @@ def test_a_sweep_over_psi_is_refused_at_its_own_psi_line(tmp_path, mode):
 
 # -- 3: the sweep maps: switch names, a constant map ---------------------------------------------
 
-import json  # noqa: E402
 
 from orchestrator.sweep import plot as sweep_plot  # noqa: E402
-from tests.test_sweep_map import _folder, figures  # noqa: E402,F401  (figures: a fixture)
+from tests.test_sweep_map import _folder  # noqa: E402
 
 
 def _value_names(tmp_path, params, rows) -> dict:

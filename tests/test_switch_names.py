@@ -213,19 +213,6 @@ def _ticks(fig):
     return [t.get_text() for t in ax.get_xticklabels()], [t.get_text() for t in ax.get_yticklabels()]
 
 
-@pytest.fixture
-def figures(monkeypatch):
-    from orchestrator.sweep import plot
-    saved = []
-    real = plot.save_figure
-
-    def keep(fig, path):
-        saved.append(fig)
-        return real(fig, path)
-    monkeypatch.setattr(plot, "save_figure", keep)
-    return saved
-
-
 @pytest.mark.filterwarnings("ignore:collect")
 def test_a_sweep_over_third_party_switches_shows_their_own_names_or_numbers(swdir, figures):
     """A real sweep: the heat map over NamedSwitches' contact (its own names, not our bearing's)
