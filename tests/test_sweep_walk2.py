@@ -119,7 +119,6 @@ def test_a_sweep_over_psi_is_refused_at_its_own_psi_line(tmp_path, mode):
 
 # -- 3: the sweep maps: switch names, a constant map ---------------------------------------------
 
-
 from orchestrator.sweep import plot as sweep_plot  # noqa: E402
 from tests.test_sweep_map import _folder  # noqa: E402
 
