@@ -11,6 +11,8 @@ from pathlib import Path
 import pytest
 
 from orchestrator import cli
+from orchestrator.cli import common as cli_common
+from orchestrator.cli import run as cli_run
 from orchestrator.cli import main
 from test_scenario_loader import scenario_dir
 
@@ -217,11 +219,11 @@ def test_plot_of_a_comparison_folder_names_its_figure_and_runs(tmp_path, capsys)
 
 
 def test_missing_feature_module_is_reported_cleanly(capsys, monkeypatch):
-    real = cli._feature
+    real = cli_common._feature
 
     def fake_feature(module, attr, verb):
         return real("orchestrator.no_such_module_xyz", attr, verb)
-    monkeypatch.setattr(cli, "_feature", fake_feature)
+    monkeypatch.setattr(cli_common, "_feature", fake_feature)
     assert main(["build-fmus"]) == 1
     err = capsys.readouterr().err
     assert err.startswith("error: `rotorcosim build-fmus` is not available in this installation: the module "
@@ -234,8 +236,8 @@ def test_missing_dependency_is_named(monkeypatch):
     def fake_import(name):
         raise ModuleNotFoundError("No module named 'matplotlib.pyplot'", name="matplotlib.pyplot")
     monkeypatch.setattr(importlib, "import_module", fake_import)
-    with pytest.raises(cli._Unavailable, match=r"needs the Python package 'matplotlib'.*pip install matplotlib"):
-        cli._feature("orchestrator.results.plots", "plot_run", "plot")
+    with pytest.raises(cli_common._Unavailable, match=r"needs the Python package 'matplotlib'.*pip install matplotlib"):
+        cli_common._feature("orchestrator.results.plots", "plot_run", "plot")
 
 
 def test_verbs_call_the_owners_functions(monkeypatch, tmp_path, capsys):
@@ -246,7 +248,7 @@ def test_verbs_call_the_owners_functions(monkeypatch, tmp_path, capsys):
             calls.append((module, attr, a, kw))
             return 3 if attr == "main_compare" else [tmp_path / "a.png"]
         return fn
-    monkeypatch.setattr(cli, "_feature", feature)
+    monkeypatch.setattr(cli_common, "_feature", feature)
     assert main(["build-fmus", "--force", "--out", str(tmp_path)]) == 0
     assert calls[-1] == ("orchestrator.fmi.build", "build_fmus", (), {"out_dir": str(tmp_path), "force": True})
     assert main(["plot", str(tmp_path)]) == 0
@@ -260,7 +262,7 @@ def test_verbs_call_the_owners_functions(monkeypatch, tmp_path, capsys):
 def test_unexpected_exception_is_one_line_unless_debug(monkeypatch, capsys):
     def boom(args):
         raise ZeroDivisionError("oops")
-    monkeypatch.setattr(cli, "_cmd_validate", boom)
+    monkeypatch.setattr(cli_run, "_cmd_validate", boom)
     parser_func = cli.build_parser
     monkeypatch.setattr(cli, "build_parser", lambda: _with_func(parser_func(), boom))
     assert main(["validate", "x.yaml"]) == 1
@@ -299,7 +301,7 @@ def test_run_prints_the_whirl_analysis():
                      "max_eps": 0.81, "max_eps_speed_hz": 400.0, "warnings": []},
         "bearing2": {"whirl": False, "max_eps": 0.2, "max_eps_speed_hz": 100.0},
         "bearing3": {"error": "no signal rotor.x_3"}}}
-    lines = cli._analysis_lines(analysis)
+    lines = cli_run._analysis_lines(analysis)
     assert lines[1] == ("  bearing1: onset at 256.0 Hz (t = 0.6400 s), whirl/speed ratio 0.47, vanishes at "
                         "560.0 Hz; max eps 0.810 at 400.0 Hz")
     assert lines[2] == ("    (the onset is where the whirl orbit reached the detection level "
@@ -307,7 +309,7 @@ def test_run_prints_the_whirl_analysis():
                         "in summary.json)")
     assert lines[3] == "  bearing2: no sub-synchronous whirl; max eps 0.200 at 100.0 Hz"
     assert lines[4] == "  bearing3: not analysed: no signal rotor.x_3"
-    assert cli._analysis_lines({"error": "results.csv: not found"}) == [
+    assert cli_run._analysis_lines({"error": "results.csv: not found"}) == [
         "analysis: not available: results.csv: not found"]
 
 
@@ -318,11 +320,11 @@ def test_run_prints_the_instability_threshold_beside_the_onset():
     j = {"whirl": True, "onset": {"present_at_start": False}, "onset_speed_hz": 325.70, "onset_time_s": 1.6285,
          "dominant_ratio": 0.499, "vanish_speed_hz": None, "max_eps": 0.97, "max_eps_speed_hz": 370.7,
          "threshold_speed_hz": 249.18, "threshold_time_s": 1.2459, "threshold_snr": 4.6, "warnings": []}
-    lines = cli._analysis_lines({"parameters": {"threshold": 0.05}, "journals": {"bearing1": j}})
+    lines = cli_run._analysis_lines({"parameters": {"threshold": 0.05}, "journals": {"bearing1": j}})
     assert lines[2] == ("    (the onset is where the whirl orbit reached 5 % of the clearance; it became unstable "
                         "earlier: the whirl's growth rate turns positive at 249.2 Hz (t = 1.2459 s), the "
                         "estimate of the linear stability threshold)")
-    weak = cli._analysis_lines({"parameters": {"threshold": 0.05},
+    weak = cli_run._analysis_lines({"parameters": {"threshold": 0.05},
                                 "journals": {"b": dict(j, threshold_snr=1.9)}})[2]
     assert weak.endswith("threshold; unreliable, the growing mode is within the noise floor there "
                          "(threshold_snr 1.9 < 3))")

@@ -226,10 +226,10 @@ def test_run_says_when_our_kernels_are_compiled_first(tmp_path, monkeypatch):
     # the note in the CLI's words
     monkeypatch.setenv("ROTORCOSIM_NUMBA_CACHE", str(tmp_path / "empty"))
     (tmp_path / "empty").mkdir()
-    from orchestrator import cli
+    from orchestrator.cli import run as cli_run
     import io
     import contextlib
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        cli._first_compile_note(sc)
+        cli_run._first_compile_note(sc)
     assert buf.getvalue().startswith("note: first run of these ") and "numba compiles their kernels" in buf.getvalue()

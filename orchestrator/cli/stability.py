@@ -1,0 +1,182 @@
+"""The ``stability`` verb: the linear stability threshold of a scenario's rotor in its bearings
+(docs/analysis.md, "Linear stability threshold"), with its options' argument types."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from orchestrator.cli import common
+from orchestrator.cli.common import _add_set
+from orchestrator.cli.targets import _check_json_target, _check_plot_target
+
+
+def _add_stability(sub) -> None:
+    p = sub.add_parser("stability", help="linear stability threshold of a scenario's rotor in its bearings",
+                       description=(
+        "The lowest speed at which the scenario's rotor (our JeffcottRotor or TurbochargerRotor) with the linear "
+        "film coefficients of its JournalBearings (or FloatingRingBearings, with the rings' degrees of freedom), "
+        "at their static equilibrium under gravity (plus any --load), has an eigenvalue "
+        "in the right half plane; the whirl frequency ratio of that mode and each bearing's eccentricity there "
+        "(docs/analysis.md, \"Linear stability threshold\"). Exit status 1 when no threshold is located in the "
+        "speed range (stable throughout, already unstable at its lower end, or unstable from between speeds "
+        "without a static equilibrium)."))
+    p.add_argument("file", metavar="FILE", help="scenario YAML file, or the name of a shipped scenario")
+    _add_set(p)
+    p.add_argument("--film", choices=("short", "hs", "mc"), default="hs",
+                   help="bearing coefficients: hs = each bearing's own finite-length half-Sommerfeld film on its "
+                        "grid (default); short = the short-bearing (Ocvirk) closed form; mc = each mass-conserving "
+                        "bearing's own film with its cavity dynamics (film impedance; its least-damped eigenvalue "
+                        "counted by the argument principle, about 0.5 s a speed at 40 x 40)")
+    p.add_argument("--scan", metavar="N", type=_scan_count,
+                   help="number of speeds of the scan over the range before the crossings are refined "
+                        "(default 80)")
+    p.add_argument("--speeds", metavar="LO:HI", type=_speed_range,
+                   help="speed range [Hz] searched (default: 0.1 f_max : f_max of the rotor's ramp)")
+    p.add_argument("--load", metavar="BEARING=FX,FY", action="append", default=[], type=_bearing_load,
+                   help="a static force [N] on that bearing instance in addition to its share of the rotor's weight "
+                        "(the force the rotor puts on it, down is -y: a gear or belt force, a magnetic pull, a "
+                        "horizontal rotor with g = 0), e.g. --load bearing1=0,-150 (repeatable)")
+    p.add_argument("--ring-spin", action="store_true",
+                   help="floating-ring bearings: add each ring's spin perturbation to the linear model (default: the "
+                        "ring spin held at its steady value, as the classical analyses do)")
+    p.add_argument("--json", metavar="OUT", type=_json_path, help="also write the result as JSON to this file")
+    p.add_argument("--plot", metavar="PNG", type=_figure_path,
+                   help="also draw the least-damped mode's logarithmic decrement and frequency over the speeds "
+                        "searched into this PNG file")
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="show the scan's progress (default: when stderr is a terminal and it takes a few seconds)")
+    p.set_defaults(func=_cmd_stability)
+
+
+def _speed_range(text: str) -> tuple[float, float]:
+    lo, sep, hi = text.partition(":")
+    try:
+        a, b = float(lo), float(hi)
+    except ValueError:
+        a = b = math.nan
+    if not sep or not (0.0 < a < b < math.inf):
+        raise argparse.ArgumentTypeError(f"expected LO:HI in Hz with 0 < LO < HI, e.g. 50:800 (got {text!r})")
+    return a, b
+
+
+def _json_path(text: str) -> str:
+    """``--json OUT``: not empty (``--json ''`` wrote nothing and said nothing, exit 0)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty file name: give the JSON file to write, e.g. --json "
+                                         "stability.json, or leave --json out")
+    return text
+
+
+def _figure_path(text: str) -> str:
+    """A figure file whose suffix matplotlib can write (a name without one is refused); checked before the computation
+    (``--plot x.xyz`` ended, after it, in "internal error: ValueError: Format 'xyz' is not supported";
+    ``--plot ''`` drew nothing and said nothing)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty file name: give the figure to write, e.g. --plot "
+                                         "stability.png, or leave --plot out")
+    from matplotlib.backend_bases import FigureCanvasBase
+    suffix = Path(text).suffix.lower().lstrip(".")
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if not suffix:          # a PNG was written under that very name, over whatever file had it
+        raise argparse.ArgumentTypeError(f"{text!r}: no suffix; give the figure's format as its suffix, e.g. --plot "
+                                         f"{Path(text).name or 'stability'}.png")
+    if suffix not in formats:
+        raise argparse.ArgumentTypeError(f"{text!r}: a figure cannot be written as '.{suffix}'; give a .png file (or "
+                                         f"one of .{', .'.join(sorted(formats))})")
+    return text
+
+
+def _scan_count(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if not 2 <= n <= 2000:
+        raise argparse.ArgumentTypeError(f"expected a whole number of speeds from 2 to 2000 (got {text!r})")
+    return n
+
+
+def _bearing_load(text: str) -> tuple[str, float, float]:
+    name, sep, value = text.partition("=")
+    parts = value.split(",")
+    try:
+        fx, fy = (float(v) for v in parts)
+    except ValueError:
+        fx = fy = math.nan
+    if not sep or not name.strip() or not (math.isfinite(fx) and math.isfinite(fy)):
+        raise argparse.ArgumentTypeError("expected BEARING=FX,FY with the bearing instance and two finite forces in "
+                                         f"N, e.g. bearing1=0,-150 (got {text!r})")
+    return name.strip(), fx, fy
+
+
+def _cmd_stability(args) -> int:
+    import json
+
+    from orchestrator.scenario import load_scenario
+    from orchestrator.shipped import resolve
+    stability = common._feature("orchestrator.stability", "stability", "stability")
+
+    args.file = str(resolve(args.file))
+    if args.json:
+        _check_json_target(args.json, args.file)     # before the computation (minutes with --film mc)
+    if args.plot:
+        _check_plot_target(args.plot, args.file)
+    # the linear threshold does not use analysis.journals.*.clearance: a --set psi is not refused for it
+    scenario = load_scenario(args.file, args.set, build_fmus=True, analysis_used=False)
+    loads: dict[str, tuple[float, float]] = {}
+    for name, fx, fy in args.load:          # repeated for one bearing: the forces add
+        ox, oy = loads.get(name, (0.0, 0.0))
+        loads[name] = (ox + fx, oy + fy)
+    r = stability(scenario, film=args.film, speeds=args.speeds, ring_spin=args.ring_spin, loads=loads,
+                  n_scan=args.scan, progress=args.progress)
+    lo, hi = r["speed_range_hz"]
+    print(f"linear stability of {r['scenario']} ({args.file}): rotor '{r['rotor']['instance']}' "
+          f"({r['rotor']['model']}), {lo:g} - {hi:g} Hz")
+    print(f"method: eigenvalues of the rotor's linear model with the bearing coefficients of the {r['method']}")
+    for note in r["notes"]:
+        print(f"note: {note}")
+    if r["status"] == "threshold":
+        print(f"threshold speed: {r['threshold_hz']:.2f} Hz (an eigenvalue crosses into the right half plane)")
+        print(f"whirl frequency: {r['whirl_hz']:.2f} Hz, whirl frequency ratio {r['whirl_ratio']:.3f}")
+        for name, b in r["bearings"].items():
+            if b["eps_at_threshold"] is None:         # a search stopped before (r["stopped"])
+                continue
+            ring = ("" if b["kind"] != "floating_ring" else
+                    f", outer film {b['eps_outer_at_threshold']:.3f}, ring speed "
+                    f"{b['ring_speed_ratio_at_threshold']:.3f} x journal speed")
+            print(f"  {name} (station {b['station']}): static eccentricity ratio {b['eps_at_threshold']:.3f} at the "
+                  f"threshold{ring}, load {b['load_n']:.4g} N")
+    from orchestrator.stability import later_crossings
+    for c in later_crossings(r):
+        print(f"then {c['becomes']} from {c['speed_hz']:.2f} Hz on (the least-damped mode at {c['whirl_hz']:.2f} Hz)")
+    if r["stopped"]:                        # Ctrl-C, SIGTERM, an error at one speed: what was done
+        from orchestrator.stability.partial import scan_table, stop_message
+        print(scan_table(r))
+    if args.json:
+        from orchestrator.results.safe_write import write_report_file
+        write_report_file(args.json, json.dumps(r, indent=2) + "\n")   # as compare/sweep: atomic, disk full named
+        print(f"written: {args.json}")
+    if args.plot:
+        from orchestrator.results.plots.stability import draw
+        print(f"written: {draw(r, args.plot)}")
+    if r["stopped"]:
+        print(stop_message(r, kept=[f for f in (args.json, args.plot) if f]), file=sys.stderr)
+        return r["stopped"]["exit_code"]
+    if r["status"] == "stable":
+        print(f"error: no eigenvalue crosses into the right half plane between {lo:g} and {hi:g} Hz: the system is "
+              "linearly stable in that range; give a wider --speeds LO:HI", file=sys.stderr)
+        return 1
+    if r["status"] == "threshold_not_located":
+        a, b = r["threshold_between_hz"]
+        print(f"error: the system becomes unstable between {a:.4g} and {b:.4g} Hz, across speeds where a film has no "
+              "static equilibrium, so the threshold is not located; give a --speeds LO:HI on one side of them, or "
+              "bearing parameters that carry the load there", file=sys.stderr)
+        return 1
+    if r["status"] == "unstable_at_lower_bound":
+        print(f"error: already unstable at the lower end of the range ({lo:g} Hz), so the threshold is below it; "
+              "give a lower --speeds LO", file=sys.stderr)
+        return 1
+    return 0
