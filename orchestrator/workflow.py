@@ -20,6 +20,7 @@ from orchestrator.fmi import build
 from orchestrator.results.result import CoSimResult, Status
 from orchestrator.results.run_directory import RunDirectory
 from orchestrator.results.summary import cosim_stats, make_summary
+from orchestrator.scenario.analysis_clearance import check_analysis_clearance
 
 log = logging.getLogger(__name__)
 
@@ -76,7 +77,10 @@ def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, 
 
     Numerical failure during the run is reported in the result's ``status`` /
     ``message`` (and summary.json), not raised. Bad scenarios or FMUs raise
-    :class:`orchestrator.errors.CosimError` subclasses.
+    :class:`orchestrator.errors.CosimError` subclasses; so does an analysis whose journal
+    clearance is not its bearing's ``psi R`` (:class:`~orchestrator.errors.ScenarioError` from
+    :func:`orchestrator.scenario.analysis_clearance.check_analysis_clearance`, before ``out_dir``
+    is made).
 
     ``coupling.scheme == "monolithic"`` is delegated to
     :func:`orchestrator.reference.monolithic.run_monolithic`. When the scenario has an
@@ -84,6 +88,8 @@ def run(scenario, out_dir: str | Path = "out", progress: bool | None = None, *, 
     afterwards and its dict stored under ``"analysis"`` in summary.json.
     """
     _check_scenario(scenario)
+    if scenario.analysis:
+        check_analysis_clearance(scenario)        # the analysis is planned here: refused before the folder is made
     out_dir = path_arg(out_dir, "run(out_dir=...)", "run(scenario, out_dir='runs/x')")
     if progress is not None and not isinstance(progress, bool):
         raise TypeError(f"run(progress=...) takes True, False or None (got {progress!r}); None: a progress bar "

@@ -3,9 +3,11 @@
 Every amplitude of the whirl analysis is relative to ``analysis.journals.<j>.clearance``, which
 the scenario gave separately from the bearings' ``R`` and ``psi``: a scenario copied from a
 shipped one and given other bearings (or a sweep over psi without a clearance column) was
-analysed with the old clearance and printed a wrong onset speed without any warning. The
-loader now compares it with ``psi R`` of the JournalBearing the journal's x signal is connected
-to (orchestrator/scenario/analysis_clearance.py), and fills it in when it is left out.
+analysed with the old clearance and printed a wrong onset speed without any warning. It is now
+compared with ``psi R`` of the JournalBearing the journal's x signal is connected to where the
+analysis is planned (``check_analysis_clearance``, after loading: run, validate, sweep planning,
+compare, export-ssp; orchestrator/scenario/analysis_clearance.py), at the line the loader recorded;
+the loader fills it in when it is left out.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import pytest
 
 from orchestrator import load_scenario
 from orchestrator.errors import ScenarioError
+from orchestrator.scenario.analysis_clearance import check_analysis_clearance
 
 pytestmark = pytest.mark.integration
 
@@ -24,8 +27,9 @@ R, PSI = 4.9e-3, 2.8e-3               # quickstart's bearings
 
 
 def _problems(path, overrides) -> list[str]:
+    """The loader's problems, or, for a scenario that loads, the analysis clearance check's."""
     with pytest.raises(ScenarioError) as info:
-        load_scenario(path, overrides, build_fmus=True)
+        check_analysis_clearance(load_scenario(path, overrides, build_fmus=True))
     return info.value.problems
 
 
@@ -49,6 +53,22 @@ def test_other_bearing_clearance_is_an_error_at_the_clearance_line():
     assert "'bearing1' (its input x is connected from rotor.x_1)" in msg
     assert f"c = psi R = 0.002 x {R:g} m = {2.0e-3 * R:.6g} m" in msg
     assert f"write clearance: {2.0e-3 * R:.6g}" in msg and "leave 'clearance' out" in msg
+
+
+def test_the_clearance_is_checked_where_the_analysis_is_planned_not_when_loading(tmp_path):
+    """Loading does not know its consumer (`stability` runs no analysis); orchestrator.run() refuses
+    the scenario before its folder is made, with the line the loader recorded."""
+    from orchestrator import run
+    sc = load_scenario(QUICKSTART, ["fmus.bearing1.parameters.psi=2.0e-3"], build_fmus=True)
+    line = _line(QUICKSTART, "bearing1: {x: rotor.x_1")
+    assert sc.analysis_origins["analysis.journals.bearing1.clearance"] == f"{QUICKSTART}:{line}"
+    with pytest.raises(ScenarioError) as info:
+        run(sc, out_dir=tmp_path / "run")
+    (msg,) = info.value.problems
+    assert msg.startswith(f"{QUICKSTART}:{line}: 'analysis.journals.bearing1.clearance' is 1.372e-05 m"), msg
+    assert msg.endswith("; --set fmus.bearing1.parameters.psi=2.0e-3 changed it: add --set "
+                        f"analysis.journals.bearing1.clearance={2.0e-3 * R:.6g}"), msg
+    assert not (tmp_path / "run").exists()
 
 
 def test_radius_in_millimetres_is_caught_by_the_clearance():

@@ -123,10 +123,12 @@ def _add_export_ssp(sub) -> None:
 
 def _cmd_export_ssp(args) -> int:
     from orchestrator.scenario import load_scenario
+    from orchestrator.scenario.analysis_clearance import check_analysis_clearance
     from orchestrator.shipped import resolve
     from orchestrator.scenario.ssp import check_output_path, export_ssp
 
     check_output_path(args.out)          # before loading (and maybe building FMUs): a bad OUT fails at once
     scenario = load_scenario(str(resolve(args.file)), args.set, build_fmus=True)
+    check_analysis_clearance(scenario)   # the archive carries the analysis section: a run of it would refuse it
     print(export_ssp(scenario, args.out))
     return 0

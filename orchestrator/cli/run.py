@@ -45,10 +45,12 @@ def _first_compile_note(scenario) -> None:
 def _cmd_run(args) -> int:
     from orchestrator.results.run_directory import RunDirectory
     from orchestrator.scenario import load_scenario
+    from orchestrator.scenario.analysis_clearance import check_analysis_clearance
     from orchestrator.shipped import resolve
 
     args.file = str(resolve(args.file))
     scenario = load_scenario(args.file, args.set, build_fmus=True)
+    check_analysis_clearance(scenario)             # the run analyses its run-up: refused before any line
     out_dir = Path(args.out) if args.out else Path("runs") / scenario.name
     run = _run_function()
     print(f"running {scenario.name} ({args.file}): {scenario.start_time:g} s -> {scenario.stop_time:g} s, "
@@ -157,11 +159,13 @@ def _add_validate(sub) -> None:
 
 def _cmd_validate(args) -> int:
     from orchestrator.scenario import load_scenario
+    from orchestrator.scenario.analysis_clearance import check_analysis_clearance
     from orchestrator.shipped import resolve
 
     args.file = str(resolve(args.file))
     try:
         scenario = load_scenario(args.file, args.set, build_fmus=not args.no_build)
+        check_analysis_clearance(scenario)         # what the run's analysis refuses, listed as the loader's problems
     except ScenarioError as exc:
         for problem in exc.problems:
             print(problem)

@@ -125,7 +125,7 @@ def _cmd_stability(args) -> int:
     if args.plot:
         _check_plot_target(args.plot, args.file)
     # the linear threshold does not use analysis.journals.*.clearance: a --set psi is not refused for it
-    scenario = load_scenario(args.file, args.set, build_fmus=True, analysis_used=False)
+    scenario = load_scenario(args.file, args.set, build_fmus=True)
     loads: dict[str, tuple[float, float]] = {}
     for name, fx, fy in args.load:          # repeated for one bearing: the forces add
         ox, oy = loads.get(name, (0.0, 0.0))

@@ -29,6 +29,7 @@ from orchestrator.compare.capabilities import check_run_capabilities
 from orchestrator.compare.metrics import METRICS
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario import SCHEMES, Scenario
+from orchestrator.scenario.analysis_clearance import check_analysis_clearance
 from orchestrator.scenario.limits import MAX_SUBSTEPS, limit_problems
 from orchestrator.scenario.nodes import YamlLoader as ScenarioYamlLoader   # same YAML number rules
 from orchestrator.untrusted import (InputError, check_name, construct_yaml, file_kind, format_template,
@@ -247,6 +248,7 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
             raise CompareSpecError(f"{path}{_line(sec, 'scenario')}: 'compare.scenario' must be the path of the "
                                    f"base scenario, relative to this file (got {sec['scenario']!r})")
         base = load_scenario((path.parent / sec["scenario"]).resolve(), build_fmus=True)
+    check_analysis_clearance(base)                    # its runs analyse their run-ups
     spec = parse_compare(sec, base, source=path)
     return dataclasses.replace(spec, reference_models=reference_models) if reference_models else spec
 
@@ -260,6 +262,7 @@ def _load_compare_ssp(path: Path, load_scenario) -> CompareSpec:
     sources built and imported) and ``scenario`` (the SSP is the base) are refused."""
     from orchestrator.scenario.ssp_annotation import baseline_outside
     base = load_scenario(path, build_fmus=True)       # a comparison runs: building is its step
+    check_analysis_clearance(base)                    # its runs analyse their run-ups
     sec = base.compare
     where = f"{path} (its org.rotorcosim.scenario annotation)"
     if not sec:

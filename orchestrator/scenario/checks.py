@@ -17,7 +17,7 @@ from orchestrator.fmi.archive import cached_model_description
 from orchestrator.scenario.coupling_sections import (check_atol_patterns, check_capabilities, interpolated_inputs,
                                                        interpolation_warning)
 from orchestrator.fmi.values import check_value, declared_range, settable_problem
-from orchestrator.scenario.analysis_clearance import check_analysis_clearance
+from orchestrator.scenario.analysis_clearance import complete_analysis_clearance
 from orchestrator.scenario.analysis_sampling import check_analysis_sampling
 from orchestrator.scenario.completion import Completion
 from orchestrator.scenario.model import ANALYSIS_KEYS, JOURNAL_KEYS
@@ -68,7 +68,8 @@ class FmuChecks(Completion):
             self.check_row_width(draft)
         if draft.analysis_node is not None and isinstance(draft.kw.get("analysis"), dict):
             self.check_analysis(draft.analysis_node, draft.signals)
-            check_analysis_clearance(self, draft, params)
+            draft.kw["analysis_origins"] = self.key_origins(draft.analysis_node, "analysis")
+            complete_analysis_clearance(self, draft, params)
             check_analysis_sampling(self, draft, params, warn_once)
         return params
 

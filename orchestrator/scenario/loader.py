@@ -7,7 +7,6 @@ problem with ``file:line``; :func:`validate_scenario` returns them as lines.
 from __future__ import annotations
 
 import os
-import re
 from pathlib import Path
 from typing import Sequence
 
@@ -17,7 +16,7 @@ from orchestrator.errors import ScenarioError, path_arg
 from orchestrator.scenario.checks import FmuChecks
 from orchestrator.scenario.limits import check_overrides
 from orchestrator.scenario.model import Scenario
-from orchestrator.scenario.nodes import GENERATED, YamlLoader
+from orchestrator.scenario.nodes import GENERATED, YamlLoader, line_order
 from orchestrator.scenario.sections import Draft, SectionReader
 
 
@@ -41,8 +40,7 @@ class ScenarioLoader(FmuChecks, SectionReader):
         return draft.scenario(params)
 
 
-def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus: bool = False,
-                  analysis_used: bool = True) -> Scenario:
+def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus: bool = False) -> Scenario:
     """Load and validate a scenario file (format version 1).
 
     Parameters
@@ -59,9 +57,6 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
         missing or stale (``rotorcosim run``/``validate`` do; :func:`orchestrator.run`
         rebuilds stale ones before it runs). Building is a step between reading and
         checking, not part of loading.
-    analysis_used : ``False`` for a caller that runs no whirl analysis (``rotorcosim
-        stability``): an ``analysis.journals.<name>.clearance`` that is not the analysed
-        bearing's ``psi R`` (after a ``--set`` of psi) is replaced by ``psi R`` instead of refused.
 
     The scenario's ``inputs`` are the files loading read (the YAML, an SSP and its .ssd/.ssv
     files, every FMU; :mod:`orchestrator.read_log`) and the existing files its String
@@ -81,7 +76,6 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
         path = from_ssp(given)
         try:
             loader = ScenarioLoader(Path(path), overrides)
-            loader.analysis_used = analysis_used
             draft = loader.read_sections()
             if build_fmus and draft is not None and not loader.problems and draft.complete:
                 loader.build(draft)
@@ -251,25 +245,19 @@ def _origins(text: str, ssp: Path, overlay_file: Path, user: dict[tuple, int],
     return out
 
 
-def line_order(problem: str) -> tuple[int, int]:
-    """Sort key: ``--set`` problems first, then by line number in the file."""
-    if problem.startswith("--set"):
-        return (0, 0)
-    m = re.match(r"^.*?:(\d+)(?::\d+)?: ", problem)
-    return (1, int(m.group(1)) if m else 0)
-
-
 def validate_scenario(path: str | Path, overrides: Sequence[str] = (), *,
                       build_fmus: bool = True) -> list[str]:
     """Every problem of a scenario file as readable lines (empty: the scenario is valid).
 
     Validation is a step of a run, so unlike :func:`load_scenario` it first builds
     our own FMUs that are missing or stale (``build_fmus=False``: only check, and
-    report a missing FMU with the command that builds it).
+    report a missing FMU with the command that builds it), and it checks what the run's
+    analysis would refuse (:func:`check_analysis_clearance`).
     """
+    from orchestrator.scenario.analysis_clearance import check_analysis_clearance
     path_arg(path, "validate_scenario(path)", "validate_scenario('scenarios/quickstart.yaml')")
     try:
-        load_scenario(path, overrides, build_fmus=build_fmus)
+        check_analysis_clearance(load_scenario(path, overrides, build_fmus=build_fmus))
     except ScenarioError as exc:
         return list(exc.problems)
     return []

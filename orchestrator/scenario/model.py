@@ -186,6 +186,9 @@ class Scenario:
     analysis: Mapping[str, Any] | None = None  # optional run-up analysis section (see docs/scenario-format.md)
     compare: Mapping[str, Any] | None = None   # optional compare section (see docs/compare.md)
     defaults: Mapping[str, str] = field(default_factory=dict)  # values taken from the FMUs' DefaultExperiment
+    # where the analysis section's keys are written: dotted key ("analysis.journals.bearing1.clearance") ->
+    # "file:line" or "--set ...", for the checks of the analysis where it is planned (analysis_clearance.py)
+    analysis_origins: Mapping[str, str] = field(default_factory=dict, compare=False)
     # the files loading read (the YAML, an SSP and its .ssd/.ssv, every FMU) and the existing files
     # String parameters name (a rotor file): absolute paths, for sweep --resume (orchestrator.read_log)
     inputs: tuple[str, ...] = field(default=(), compare=False)

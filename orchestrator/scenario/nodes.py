@@ -113,6 +113,17 @@ class NodeReader:
     def err(self, node, text: str) -> None:
         self.problems.append(f"{self.loc(node)}: {text}")
 
+    def key_origins(self, node, key: str) -> dict[str, str]:
+        """Where ``key`` (whose value is ``node``) and every key under it are written: dotted key ->
+        place as :meth:`loc` gives it (``file:line``, ``--set k=v``, the origin in an SSP), for the
+        checks made after loading (:attr:`Scenario.analysis_origins`)."""
+        found = {key: self.loc(node)}
+        if isinstance(node, yaml.MappingNode):
+            for k, v in node.value:
+                if isinstance(k, yaml.ScalarNode):
+                    found.update(self.key_origins(v, f"{key}.{k.value}"))
+        return found
+
     def value(self, node):
         try:
             return self.ctor.construct_object(node, deep=True)
@@ -246,3 +257,10 @@ def unshared(node):
         node.value = list(node.value)
     return node
 
+
+def line_order(problem: str) -> tuple[int, int]:
+    """Sort key: ``--set`` problems first, then by line number in the file."""
+    if problem.startswith("--set"):
+        return (0, 0)
+    m = re.match(r"^.*?:(\d+)(?::\d+)?: ", problem)
+    return (1, int(m.group(1)) if m else 0)

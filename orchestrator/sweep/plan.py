@@ -188,7 +188,7 @@ def _where(spec: SweepSpec, problem: str, run: RunPlan) -> str:
     return f"{spec.source}: run {label}: scenario {spec.scenario.name}: {problem}"
 
 
-#: the loader's hint when a --set of psi or R made the analysis clearance wrong
+#: the hint of the analysis clearance check when a --set of psi or R made the clearance wrong
 #: (orchestrator/scenario/analysis_clearance.py)
 _CLEARANCE_HINT = re.compile(r"; (?P<sets>--set .*?) changed it: add --set (?P<target>[^=\s]+)=(?P<value>\S+)$")
 
@@ -231,6 +231,7 @@ def plan_sweep(spec: SweepSpec, *, build_fmus: bool = True, progress: bool | Non
     from tqdm import tqdm
 
     from orchestrator import load_scenario
+    from orchestrator.scenario.analysis_clearance import check_analysis_clearance
 
     runs = expand(spec)
     problems: list[str] = []
@@ -240,6 +241,7 @@ def plan_sweep(spec: SweepSpec, *, build_fmus: bool = True, progress: bool | Non
     for k, run in enumerate(bar):
         try:
             sc = load_scenario(spec.scenario, list(run.overrides), build_fmus=build_fmus and k == 0)
+            check_analysis_clearance(sc)          # each run analyses its run-up
             run.inputs.update(run_inputs(spec.scenario, sc, digests))
         except ScenarioError as exc:
             for p in exc.problems:
