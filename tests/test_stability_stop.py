@@ -131,7 +131,7 @@ def test_an_error_at_one_speed_stops_the_scan_there():
 # ----------------------------------------------------------------------------- stability() in this process
 def _scenario():
     from orchestrator.scenario import load_scenario
-    return load_scenario(str(JEFFCOTT_HS), [], build_fmus=True, analysis_used=False)
+    return load_scenario(str(JEFFCOTT_HS), [], build_fmus=True)
 
 
 class _Unhandled(Exception):
