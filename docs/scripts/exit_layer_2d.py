@@ -15,11 +15,33 @@ The bearing, journal position and Newton tolerances are those of grid_convergenc
 3. the residual of every film cell gains ``dz (Delta_east - Delta_west)`` (all rows alike),
    a constant: the Jacobian is unchanged.
 
-Run: ``nice -n 10 .venv/bin/python docs/scripts/exit_layer_2d.py [phi] [fine] [square] [flux]``
+Run: ``nice -n 10 .venv/bin/python docs/scripts/exit_layer_2d.py [phi] [fine] [square] [flux]
+[shift] [points] [coef] [--tt 1]``
 (``phi``: n_phi = 48 ... 768 at n_z = 40, about 2 minutes; ``fine``: 1536 and 3072 at n_z =
 40, about 8 minutes; ``square``: 20 ... 160 square grids, about 3 minutes; prints markdown
 tables of Fx, Fy without and with the correction; ``flux``: the cavity flux Q of the corrected
 film on 96 ... 768 x 40 against the layer model's, about a minute).
+
+Added 2026-12-07 (issue 16 item 2, the decision whether to build the correction into the
+library):
+
+* ``--tt 1``: the films with the limited second-order theta transport (``theta_transport =
+  1``); the correction then takes the film's MUSCL face value on the layer profile
+  (film.py ``face_theta``: first order at the groove-exit face, limited from the first film
+  face on, whose upwind-upwind cell is the groove column at theta_feed).
+* ``shift``: the same physical problem on grids shifted by a fraction of a cell (groove and
+  journal rotated by alpha, the force rotated back; groove_cut_study.py's trick): the film
+  cell after the groove exit starts 0.1 ... 0.9 cells after the exit; n_phi = 40 ... 320 at
+  n_z = 40, without and with the correction. The spread is the part of the error that
+  depends on where the grid cuts the film, which no 20/40/80/160 sequence can make monotone.
+* ``points``: the row-mean pressure at the cell centres common to the 48 * 2^k grids (every
+  7.5 deg), n_phi = 48 ... 768 at n_z = 40, corrected film: where the remaining
+  circumferential change sits.
+* ``coef``: square grids 20 ... 160, force and the eight quasi-steady coefficients
+  (grid_convergence.py ``air``: central differences of the steady film, step 1e-3 c and
+  1e-3 c omega), without and with the correction; the correction is recomputed at every
+  perturbed state, with the squeeze term in the layer for the velocity perturbations
+  (:func:`layer_solution_squeeze`).
 """
 
 from __future__ import annotations
@@ -37,30 +59,111 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import grid_convergence as gc  # noqa: E402
 import reformation_front_1d as rf  # noqa: E402
-from bearing_fmu.film import groove_exit  # noqa: E402
+from bearing_fmu.film import groove_exit, limiter  # noqa: E402
 from bearing_fmu.model import BearingModel  # noqa: E402
 
 
-def exit_correction(b, kin, xy):
+def layer_solution_squeeze(gap, gap_dot, dH, a0, a, omega, law, p_feed, n_len=8.0):
+    """:func:`reformation_front_1d.layer_solution` with the squeeze term: in the steady film
+    with the journal moving, ``dq/dphi = -2 theta dH/dt`` (film.py's cell balance without
+    the time term and axial flow), so the layer's flux varies along phi. The state (u, q) is
+    integrated backward from phi_far (u on the cavity's manifold ``theta(u) = q / (omega
+    H)``), and q(phi_far) is the root of p(a0) = p_feed. Returns (P0, sol, phi_far) with
+    ``P0 = q(a0) - omega H(a0) theta_feed`` and ``sol(phi)`` = [u, q]."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import brentq
+    Hg = float(gap(a0))
+    c = a * Hg ** 3
+    L = math.sqrt(2 * c * law.width / (omega * dH))
+    phi_far = a0 + n_len * L
+    u_feed = float(law.u_from_p(p_feed))
+    th_feed = float(rf.evaluate(np.array([u_feed]), law)[2][0])
+    buf = [np.empty(1) for _ in range(4)]
+    ua = np.empty(1)
+    from bearing_fmu.cavitation import law_eval
+
+    def ev(v):
+        ua[0] = v
+        law_eval(ua, law.p_cav, law.K, law.delta, *buf)
+        return buf[1][0], buf[2][0], buf[3][0]
+
+    def rhs(phi, y):
+        dp, th, _ = ev(y[0])
+        H = gap(phi)
+        return [(omega * H * th - y[1]) / (a * H ** 3 * dp), -2.0 * th * gap_dot(phi)]
+
+    def jac(phi, y):
+        dp, th, dth = ev(y[0])
+        H = gap(phi)
+        d2p = dp * (1.0 - dp / law.K) / law.delta
+        return [[(omega * H * dth * dp - (omega * H * th - y[1]) * d2p) / (a * H ** 3 * dp * dp),
+                 -1.0 / (a * H ** 3 * dp)],
+                [-2.0 * dth * gap_dot(phi), 0.0]]
+
+    def u_on_manifold(q):
+        target = q / (omega * float(gap(phi_far)))
+        return brentq(lambda v: ev(v)[1] - target, -5.0, 1e3, xtol=1e-14)
+
+    def run(q_far, dense=False):
+        return solve_ivp(rhs, (phi_far, a0), [u_on_manifold(q_far), q_far], method="Radau",
+                         rtol=rf.RTOL, atol=0.1 * rf.RTOL, dense_output=dense, jac=jac)
+    P_jfo = math.sqrt(2 * c * omega * dH * law.width)
+    # the static layer's q, shifted by the squeeze source over the layer (theta ~ 1)
+    from scipy.integrate import quad
+    q0 = omega * Hg * th_feed - 2.0 * quad(gap_dot, a0, phi_far)[0]
+    lo, hi = q0 - 2 * P_jfo, q0 + 3 * P_jfo
+
+    def f(q_far):
+        return run(q_far).y[0, -1] - u_feed
+    while f(lo) > 0:
+        lo -= 2 * P_jfo
+    while f(hi) < 0:
+        hi += 2 * P_jfo
+    q_far = brentq(f, lo, hi, xtol=1e-13 * P_jfo)
+    sol = run(q_far, dense=True).sol
+    return float(sol(a0)[1]) - omega * Hg * th_feed, sol, phi_far
+
+
+def exit_correction(b, kin, xy, vel=(0.0, 0.0)):
     """(n,) residual correction of the film of BearingModel ``b`` at kinematics ``kin``
-    (journal at ``xy``), and (P0, phi_far, number of corrected faces)."""
+    (journal at ``xy``, moving at ``vel``), and (P0, phi_far, number of corrected faces).
+    With ``theta_transport = 1`` the scheme's face flux on the layer profile takes film.py's
+    limited face value (``face_theta``)."""
     g, prm, law = b.grid, b.params, b.law
     H, He, Hdot, omega = kin
     x, y = xy
+    vx, vy = vel
     c = b.c
     n_phi = g.n_phi
     groove = g.groove
+    muscl = prm.theta_transport == 1
     i0 = next(i for i in range(n_phi) if groove[i - 1] and not groove[i])   # first film column
     a0 = prm.groove_angle + 0.5 * prm.groove_width
 
     def gap(phi):
         return 1.0 - (x * np.cos(phi) + y * np.sin(phi)) / c
     dH = (x * math.sin(a0) - y * math.cos(a0)) / c
-    P0, sol, phi_far = rf.layer_solution(gap, dH, a0, b.a_phi, omega, law, prm.p_feed)
     u_feed = float(law.u_from_p(prm.p_feed))
     th_feed = float(rf.evaluate(np.array([u_feed]), law)[2][0])
     fe = i0 - 1                                  # the exit face: east face of the groove column
-    q_L = omega * He[fe] * th_feed + P0
+    if vx == 0.0 and vy == 0.0:
+        P0, sol, phi_far = rf.layer_solution(gap, dH, a0, b.a_phi, omega, law, prm.p_feed)
+        q_L = omega * He[fe] * th_feed + P0
+
+        def q_at(phi):
+            return q_L
+    else:
+        def gap_dot(phi):
+            return -(vx * np.cos(phi) + vy * np.sin(phi)) / c
+        P0, sol2, phi_far = layer_solution_squeeze(gap, gap_dot, dH, a0, b.a_phi, omega, law,
+                                                   prm.p_feed)
+        q_L = omega * He[fe] * th_feed + P0
+
+        def sol(phi):
+            return sol2(phi)[:1]
+
+        def q_at(phi):
+            return float(sol2(phi)[1])
     # film columns after the exit whose centres lie inside the layer
     cols = []
     i = i0
@@ -80,8 +183,14 @@ def exit_correction(b, kin, xy):
         for k in range(len(cols) - 1):           # faces between two columns inside
             i = cols[k]
             cond = b.a_phi * He[i] ** 3 / (g.dphi * fr[i])
-            F = omega * He[i] * th[k] - cond * (p[k + 1] - p[k])
-            delta[i] = q_L - F
+            if muscl:       # film.py face_theta; upwind-upwind of the first face: the groove
+                thw = th[k - 1] if k > 0 else th_feed
+                lim = limiter(th[k] - thw, th[k + 1] - th[k])[0]
+                thf = th[k] + 0.5 * lim
+            else:
+                thf = th[k]
+            F = omega * He[i] * thf - cond * (p[k + 1] - p[k])
+            delta[i] = q_at(a0 + (g.phi_e[i] - a0) % (2 * math.pi)) - F
     corr = np.zeros(g.n_z * n_phi)
     per_col = np.zeros(n_phi)
     for i in range(n_phi):
@@ -105,25 +214,90 @@ def cavity_flux(b, deg=180.0):
                                 * (p[:, (i + 1) % g.n_phi] - p[:, i]) / d)))
 
 
-def solve(n_phi, n_z, q, omega, corrected, model=False):
-    b = BearingModel(gc.params("air", n_phi, n_z))
-    info = None
+#: BearingParams overrides of the films (``--tt``: theta_transport)
+TT: dict = {}
+
+
+def corrected_model(n_phi, n_z, corrected, alpha=0.0):
+    """(model, prepare): a BearingModel of grid_convergence.py's ``air`` case (groove and
+    journal frame rotated by ``alpha``) whose film residual gains the correction that
+    ``prepare(kin, xy, vel)`` computes for the kinematics about to be solved (nothing if not
+    ``corrected``); ``prepare`` returns exit_correction's info."""
+    prm = gc.params("air", n_phi, n_z, **TT)
+    if alpha:
+        prm = prm.replace(groove_angle=prm.groove_angle + alpha)
+    b = BearingModel(prm)
+    box = {"corr": None}
     if corrected:
-        kin = b._kinematics(q[0], q[1], 0.0, 0.0, omega)
-        corr, info = exit_correction(b, kin, q)
         f = b.film
         orig = f.residual
 
         def residual(*args, **kw):
             r = orig(*args, **kw)
-            r += corr
+            r += box["corr"]
             return r
         f.residual = residual
         f.fused = False                 # any Newton of this film goes through f.residual
+
+    def prepare(kin, xy, vel=(0.0, 0.0)):
+        if not corrected:
+            return None
+        box["corr"], info = exit_correction(b, kin, xy, vel)
+        return info
+    return b, prepare
+
+
+def solve(n_phi, n_z, q, omega, corrected, model=False, alpha=0.0):
+    b, prepare = corrected_model(n_phi, n_z, corrected, alpha)
+    info = prepare(b._kinematics(q[0], q[1], 0.0, 0.0, omega), q)
     b.initialize(q[0], q[1], 0.0, 0.0, omega, init="stationary")
     if model:
         return b
     return b.outputs["Fx"], b.outputs["Fy"], info
+
+
+def quantities(n, q, omega, corrected, rel=1e-3):
+    """Force and the eight quasi-steady coefficients on n x n cells, as grid_convergence.py
+    ``mc_quantities`` (central differences of the steady film, warm-started), with the
+    correction recomputed at every perturbed state."""
+    from bearing_fmu.linearize import _force
+    b, prepare = corrected_model(n, n, corrected)
+    prepare(b._kinematics(q[0], q[1], 0.0, 0.0, omega), q)
+    b.initialize(q[0], q[1], 0.0, 0.0, omega, init="stationary")
+    u0 = b.film.u.copy()
+    F0 = np.array([b.outputs["Fx"], b.outputs["Fy"]])
+    c = b.c
+    steps = [rel * c, rel * c, rel * c * omega, rel * c * omega]
+    D = np.empty((2, 4))
+    for j in range(4):
+        fs = []
+        for sgn in (1, -1):
+            z = [q[0], q[1], 0.0, 0.0]
+            z[j] += sgn * steps[j]
+            kin = b._kinematics(z[0], z[1], z[2], z[3], omega)
+            prepare(kin, (z[0], z[1]), (z[2], z[3]))
+            u, _ = b._steady_newton(kin, u0, np.zeros_like(u0), 40)
+            if u is None:
+                u = b._steady(kin, u0)
+            p, th = b.law.p_theta(u)
+            fs.append(_force(b, p, th, kin))
+        D[:, j] = -(fs[0] - fs[1]) / (2 * steps[j])
+    return np.concatenate([F0, D[:, :2].ravel(), D[:, 2:].ravel()])
+
+
+def shifted_force(n_phi, n_z, q, omega, corrected, frac):
+    """(Fx, Fy) in the journal frame of the film whose grid is shifted so that the first film
+    cell's centre after the groove exit lies ``frac`` cells after the exit (groove and journal
+    rotated by alpha, the force rotated back: the same physical problem)."""
+    prm = gc.params("air", n_phi, n_z)
+    dphi = 2 * math.pi / n_phi
+    edge0 = prm.groove_angle + 0.5 * prm.groove_width
+    i = math.ceil(edge0 / dphi + 1e-9)
+    alpha = (i - frac) * dphi - edge0
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    xy = (ca * q[0] - sa * q[1], sa * q[0] + ca * q[1])
+    fx, fy, _ = solve(n_phi, n_z, xy, omega, corrected, alpha=alpha)
+    return ca * fx + sa * fy, -sa * fx + ca * fy
 
 
 def table(grids, n_z, q, omega):
@@ -142,7 +316,17 @@ def table(grids, n_z, q, omega):
     return res
 
 
+def orders(vals):
+    d = np.diff(vals)
+    return [math.log2(d[i] / d[i + 1]) if d[i + 1] != 0 and d[i] / d[i + 1] > 0
+            else float("nan") for i in range(len(d) - 1)]
+
+
 def main(argv):
+    if "--tt" in argv:
+        k = argv.index("--tt")
+        TT["theta_transport"] = int(argv[k + 1])
+        argv = argv[:k] + argv[k + 2:]
     parts = argv or ["phi"]
     q = gc.hs_equilibrium(40)
     omega = 2 * math.pi * gc.F_HZ
@@ -169,6 +353,56 @@ def main(argv):
     if "square" in parts:
         print("\n### square grids\n")
         table([20, 40, 80, 160], None, q, omega)
+    if "shift" in parts:
+        print(f"\n### grid shifted by a fraction of a cell, n_z = 40 ({TT or 'theta_transport 0'})\n")
+        fracs = (0.1, 0.3, 0.5, 0.7, 0.9)
+        print("| n_phi | correction | Fx at " + " / ".join(str(f) for f in fracs)
+              + " | Fx spread | Fy at the same | Fy spread |")
+        print("|---|---|---|---|---|---|")
+        for n in (40, 80, 160, 320):
+            for corrected in (False, True):
+                v = np.array([shifted_force(n, 40, q, omega, corrected, f) for f in fracs])
+                sp = 100 * np.ptp(v, axis=0) / np.abs(v.mean(axis=0))
+                print(f"| {n} | {'yes' if corrected else 'no'} | "
+                      + " / ".join(f"{x:.5f}" for x in v[:, 0]) + f" | {sp[0]:.3f} % | "
+                      + " / ".join(f"{x:.5f}" for x in v[:, 1]) + f" | {sp[1]:.3f} % |",
+                      flush=True)
+    if "points" in parts:
+        grids = [48, 96, 192, 384, 768]
+        print(f"\n### corrected film, n_z = 40 ({TT or 'theta_transport 0'}): row-mean p - p0 "
+              "at the common cell centres [Pa], change to the 768 x 40 film\n")
+        mean = {}
+        for n in grids:
+            b = solve(n, 40, q, omega, True, model=True)
+            g = b.grid
+            p = b.law.p_theta(b.film.u)[0].reshape(g.n_z, n) - b.p0
+            mean[n] = p.mean(axis=0)[:: n // 48]
+            print(f"{n} x 40: Fx {b.outputs['Fx']:.6f}, Fy {b.outputs['Fy']:.6f}", flush=True)
+        print("\n| phi [deg] | p(768) - p0 | " + " | ".join(f"p(768) - p({n})" for n in grids[:-1])
+              + " |")
+        print("|---|---|" + "---|" * (len(grids) - 1))
+        for k in range(48):
+            deg = 7.5 * k
+            if deg >= 300 or deg <= 30 or 195 <= deg <= 270:
+                print(f"| {deg:.1f} | {mean[768][k]:.1f} | "
+                      + " | ".join(f"{mean[768][k] - mean[n][k]:+.1f}" for n in grids[:-1]) + " |")
+    if "coef" in parts:
+        grids = [20, 40, 80, 160]
+        print(f"\n### square grids, force and coefficients ({TT or 'theta_transport 0'})\n")
+        for corrected in (False, True):
+            rows = []
+            for n in grids:
+                t = time.time()
+                rows.append(quantities(n, q, omega, corrected))
+                print(f"  {n} x {n} {'corrected' if corrected else 'today'}: "
+                      f"{time.time() - t:.0f} s", flush=True)
+            print(f"\n{'corrected' if corrected else 'today'}:\n")
+            print("| quantity | " + " | ".join(str(n) for n in grids) + " | orders |")
+            print("|---|" + "---|" * (len(grids) + 1))
+            for k, name in enumerate(gc.NAMES):
+                vals = [r[k] for r in rows]
+                print(f"| {name} | " + " | ".join(f"{v:.6g}" for v in vals) + " | "
+                      + ", ".join(f"{o:.2f}" for o in orders(vals)) + " |", flush=True)
 
 
 if __name__ == "__main__":

@@ -32,6 +32,13 @@ the root of ``p(groove east edge) = p_feed`` (brentq).
 
 Run: ``nice -n 10 .venv/bin/python docs/scripts/reformation_front_1d.py [check] [widths]
 [split]`` (all three by default, about two minutes; prints markdown tables).
+
+``free`` (not in the default set; 2026-12-07, about two minutes): the same film with the groove
+at the MAXIMUM gap (``phi_hmax = 0``), so that the full film leaving the groove runs through
+the minimum gap and ruptures freely after it (at 212.8 deg for 1 kPa), the Swift-Stieber
+rupture that the 2-D free-to-air film has near its minimum gap and the default problem above
+lacks (its full film ends at the groove). Load and q errors against the semi-analytic
+solution, both transports, cav_width 1 kPa and 100 Pa.
 """
 
 from __future__ import annotations
@@ -556,6 +563,24 @@ def main(argv):
                       + ", ".join(f"{x:.2f}" for x in o) + " |")
                 print(f"| | | q | " + " | ".join(f"{r[2] / qs - 1:+.1e}" for r in rows)
                       + " | |", flush=True)
+    if "free" in parts:
+        print("\n### Free rupture: groove at the maximum gap (phi_hmax = 0); errors against the "
+              "semi-analytic solution\n")
+        grids = GRIDS[:-1]
+        print("| cav_width | transport | quantity | " + " | ".join(str(n) for n in grids)
+              + " | orders (successive) |")
+        print("|---|---|---|" + "---|" * (len(grids) + 1))
+        for w in (1e3, 1e2):
+            prob = replace(base, phi_hmax=0.0, cav_width=w)
+            for muscl in (False, True):
+                qs, Ws, sol, rows = study(prob, muscl, grids)
+                for key, k in (("Wx", 0), ("Wy", 1)):
+                    vals = [r[1][k] for r in rows]
+                    print(f"| {w:g} Pa | {'MUSCL' if muscl else 'upwind'} | {key} | "
+                          + " | ".join(f"{v / Ws[k] - 1:+.2e}" for v in vals) + " | "
+                          + ", ".join(f"{x:.2f}" for x in orders(vals)) + " |")
+                print("| | | q | " + " | ".join(f"{r[2] / qs - 1:+.1e}" for r in rows) + " | |",
+                      flush=True)
     if "points" in parts:
         print("\n### Pressure at fixed points, cav_width 1 kPa, MUSCL: p - p_exact [Pa] "
               "(linear interpolation of the cell values)\n")
