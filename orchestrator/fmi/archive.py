@@ -133,15 +133,19 @@ def check_archive(path: Path | str, *, required: str = "modelDescription.xml") -
     if len(infos) > MAX_MEMBERS:
         raise _fail(path, f"has {len(infos)} members (limit {MAX_MEMBERS})",
                     "this is not a plausible FMU; raise orchestrator.fmi.archive.MAX_MEMBERS if you trust it")
-    seen = set()
+    seen: dict[tuple[str, ...], str] = {}
     total = 0
     for info in infos:
         name = info.filename
-        _check_name(path, name)
-        key = name.rstrip("/")
+        # by the path it is extracted to: 'a//b' and 'a/./b' are 'a/b' (the later one replaced the earlier)
+        key = _check_name(path, name).parts
+        if not key:          # '.', './': the extraction folder itself (IsADirectoryError naming a temporary folder)
+            raise _fail(path, f"member {name!r} names no file (the archive's top folder itself)",
+                        "the archive is malformed: export or zip it again")
         if key in seen:
-            raise _fail(path, f"member {name!r} appears twice in the archive", "rebuild the FMU")
-        seen.add(key)
+            twice = "" if seen[key] == name else f" (as {seen[key]!r} and {name!r})"
+            raise _fail(path, f"member {name!r} appears twice in the archive{twice}", "rebuild the FMU")
+        seen[key] = name
         mode = info.external_attr >> 16
         ftype = stat.S_IFMT(mode)
         if ftype and ftype not in (stat.S_IFREG, stat.S_IFDIR):
@@ -167,6 +171,7 @@ def check_archive(path: Path | str, *, required: str = "modelDescription.xml") -
         if total > MAX_TOTAL_BYTES:
             raise _fail(path, f"members add up to more than {MAX_TOTAL_BYTES} bytes uncompressed",
                         "raise orchestrator.fmi.archive.MAX_TOTAL_BYTES if you trust this FMU")
+    _file_in_the_way(path, infos, seen)
     if total > ARCHIVE_RATIO_MIN_BYTES:
         packed = max(sum(i.compress_size for i in infos), 1)
         if total > MAX_ARCHIVE_RATIO * packed:
@@ -183,6 +188,18 @@ def check_archive(path: Path | str, *, required: str = "modelDescription.xml") -
         raise _fail(path, f"has a folder named {required}/, not a file",
                     "this is not a valid archive; export it again")
     return infos
+
+
+def _file_in_the_way(path: Path, infos: list[zipfile.ZipInfo], seen: dict[tuple[str, ...], str]) -> None:
+    """A file member that another member needs as its folder ('zz' and 'zz/y'): extracting both
+    failed with the OS's "File exists" / "Is a directory" naming a temporary folder and advising to
+    remove a file there. ``seen``: each member's path parts -> its name."""
+    folders = {k[:i]: name for k, name in seen.items() for i in range(1, len(k))}
+    for info in infos:
+        key = PurePosixPath(info.filename).parts
+        if not info.is_dir() and key in folders:
+            raise _fail(path, f"member {info.filename!r} is a file, and member {folders[key]!r} needs it as its "
+                        "folder", "the archive is malformed: export or zip it again")
 
 
 def _read_member(zf: zipfile.ZipFile, path: Path, info: zipfile.ZipInfo, limit: int) -> bytes:
