@@ -35,6 +35,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from fmu_common.safe_yaml import SafeLoader
+
 from .beam import Disc, Element
 
 DATA_DIR = Path(__file__).parent / "data"
@@ -199,6 +201,10 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
     materials = _mapping(data, "materials", p)
     discs_in, bearings_in = _list(data, "discs", p), _list(data, "bearings", p)
     for mname, m in materials.items():
+        if not isinstance(mname, str):          # a section names it by a text ('1:' is the number 1)
+            p.append(f"'materials': the name {mname!r:.40} is not a text; name each material, e.g. steel, or quote "
+                     f"it: '{mname!s:.40}'")
+            continue
         if not isinstance(m, dict):
             p.append(f"'materials.{mname}' must be a mapping with E, nu, rho")
             continue
@@ -280,8 +286,10 @@ def parse_rotor(data: dict, source: str = "<dict>") -> RotorDefinition:
         if di >= do:
             p.append(f"'{w}.d_inner' must be < d_outer (got {di} >= {do})")
         mat = s.get("material")
-        if mat not in mats:
-            p.append(f"'{w}.material' must be one of {sorted(mats)} (got {mat!r})")
+        if not isinstance(mat, str) or mat not in mats:          # a mapping or list: no name (unhashable)
+            shown = repr(mat)
+            p.append(f"'{w}.material' must be one of {sorted(mats)} (got "
+                     f"{shown if len(shown) <= 80 else shown[:80] + '...'})")
             continue
         nel = s.get("n_elements")
         if nel is not None and (isinstance(nel, bool) or not isinstance(nel, int) or not 1 <= nel <= MAX_ELEMENTS):
@@ -361,7 +369,7 @@ def load_rotor_file(path=None) -> RotorDefinition:
     except UnicodeDecodeError as exc:
         raise RotorFileError(str(path), [f"the file is not UTF-8 text (byte {exc.start}); save it as UTF-8"]) from None
     try:
-        loader = yaml.SafeLoader(text)
+        loader = SafeLoader(text)      # unreadable tagged values: YAMLError
         try:
             node = loader.get_single_node()
             if node is not None and _expanded_nodes(node) > MAX_YAML_NODES:
@@ -374,6 +382,12 @@ def load_rotor_file(path=None) -> RotorDefinition:
             data = loader.construct_document(node) if node is not None else None
         finally:
             loader.dispose()
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        if isinstance(exc, yaml.constructor.ConstructorError) and mark is not None:     # a value: its line
+            raise RotorFileError(str(path), [f"line {mark.line + 1}: cannot read this value ({exc.problem}); write "
+                                             "a plain number, text, list or mapping"]) from None
+        raise RotorFileError(str(path), [f"not valid YAML: {exc}"]) from None
     except yaml.YAMLError as exc:
         raise RotorFileError(str(path), [f"not valid YAML: {exc}"]) from None
     except RecursionError:

@@ -14,6 +14,7 @@ from typing import Any
 
 import yaml
 
+from fmu_common.safe_yaml import SafeLoader
 from orchestrator.errors import ScenarioError
 
 MAP_TAG, SEQ_TAG, STR_TAG = "tag:yaml.org,2002:map", "tag:yaml.org,2002:seq", "tag:yaml.org,2002:str"
@@ -42,8 +43,10 @@ def yaml_float(text: str) -> float:
 GOT_CHARS = 80
 
 
-class YamlLoader(yaml.SafeLoader):
-    """Safe YAML loader that also reads ``1e-4`` as a float (YAML 1.2 style)."""
+class YamlLoader(SafeLoader):
+    """Safe YAML loader that also reads ``1e-4`` as a float (YAML 1.2 style); a value its tag
+    cannot read (``!!int zz``, the date ``2001-13-45``) is a ``yaml.YAMLError`` with its line
+    (:mod:`fmu_common.safe_yaml`), not an internal error."""
 
 
 YamlLoader.add_implicit_resolver("tag:yaml.org,2002:float", FLOAT_RE, list("-+0123456789."))
