@@ -217,7 +217,9 @@ def load_compare(path: str | os.PathLike) -> CompareSpec:
         raise CompareSpecError(str(exc)) from None
     except yaml.YAMLError as exc:                   # e.g. an unknown !!tag or an unhashable key
         problem = getattr(exc, "problem", None) or exc
-        raise CompareSpecError(f"{path}: cannot read the comparison file ({problem}); write plain numbers, "
+        mark = getattr(exc, "problem_mark", None)
+        where = f"{path}:{mark.line + 1}" if mark is not None else f"{path}"
+        raise CompareSpecError(f"{where}: cannot read the comparison file ({problem}); write plain numbers, "
                                "texts, lists and mappings") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("compare"), dict):
         raise CompareSpecError(f"{path}: expected a mapping with a 'compare:' section "
@@ -352,7 +354,7 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
         if k not in _TOP_KEYS:
             bad(k, f"is not a known key; valid keys: {sorted(_TOP_KEYS)}")
     name = _name(sec, source, base, bad)
-    common = _changes(sec.get("set") or {}, "set", bad)
+    common = _changes(_given(sec.get("set")), "set", bad)
     try:
         base = apply_changes(base, common)
     except (KeyError, ValueError, TypeError) as exc:
@@ -362,10 +364,10 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
         bad("metrics", f"must be a list drawn from {list(METRICS)} (got {metrics!r})")
         metrics = list(METRICS)
     signals = _signals(sec.get("signals"), bad, base)
-    derived = _derived(sec.get("derived") or {}, bad)
+    derived = _derived(_given(sec.get("derived")), bad)
     known = set(metrics) | set(derived)
-    default_tol = _tolerance(sec.get("tolerance") or {}, known, "tolerance", bad)
-    default_goal = _tolerance(sec.get("goal") or {}, known, "goal", bad)
+    default_tol = _tolerance(_given(sec.get("tolerance")), known, "tolerance", bad)
+    default_goal = _tolerance(_given(sec.get("goal")), known, "goal", bad)
     group_of: dict[str, int] = {}
     variants = _variants(sec, base, default_tol, known, bad, group_of, default_goal)
     reference = _reference(sec.get("reference") or {"scheme": "monolithic"}, bad)
@@ -455,7 +457,7 @@ def _reference(ref, bad) -> ReferenceSpec:
         bad("reference", "must be a mapping, e.g. {scheme: monolithic} or {macro_step: 1e-5}")
         ref = {"scheme": "monolithic"}
     ref_changes = _changes({f"coupling.{k}": v for k, v in ref.items() if k in COUPLING_KEYS}, "reference", bad)
-    ref_changes.update(_changes(ref.get("set") or {}, "reference.set", bad))
+    ref_changes.update(_changes(_given(ref.get("set")), "reference.set", bad))
     if not isinstance(ref.get("check", True), bool):
         bad("reference", f"'check' must be true or false (got {ref['check']!r})")
     for k in ref:
@@ -666,6 +668,13 @@ def _change_problem(key: str, v) -> str | None:
     return None
 
 
+def _given(value):
+    """A mapping key's value, ``{}`` when it is left empty (``goal:``): a falsy value of another type
+    (``goal: 0``, ``[]``, ``''``, ``false``) is checked as given, not taken for no entries (``x or {}``
+    did, without a word)."""
+    return {} if value is None else value
+
+
 def _changes(m, key, bad) -> dict[str, Any]:
     if not isinstance(m, dict):
         bad(key, f"must be a mapping of dotted keys to values, e.g. {{stop_time: 0.1}} (got {m!r})")
@@ -772,10 +781,10 @@ def expand_variants(group: Mapping[str, Any], base: Scenario, default_tol: Mappi
                 vals = []
             axes.append((k, vals))
     tol = dict(default_tol)
-    tol.update(_tolerance(group.get("tolerance") or {}, known, "tolerance", bad))
+    tol.update(_tolerance(_given(group.get("tolerance")), known, "tolerance", bad))
     goal = dict(default_goal or {})
-    goal.update(_tolerance(group.get("goal") or {}, known, "goal", bad))
-    extra = _changes(group.get("set") or {}, "set", bad)
+    goal.update(_tolerance(_given(group.get("goal")), known, "goal", bad))
+    extra = _changes(_given(group.get("set")), "set", bad)
     expect = group.get("expect_order")
     if expect is not None and not _finite(expect):
         bad("expect_order", f"must be a finite number, the expected order of convergence (got {expect!r}); "

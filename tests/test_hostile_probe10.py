@@ -1,0 +1,144 @@
+"""Hostile-input probe 10: the surfaces of 2026-12-05 to 12-07 as a careless or hostile user hits
+them (`stability` stopped halfway, sweep value names, export-ssp's carried files and hostile .ssp
+archives, compare goals, rotor files and bearing parameter ranges). One test per finding, each
+failing on the code before its fix; its docstring says what happened before.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from hostile_builders import cli, two_mass_dir, write_fmu
+
+REPO = Path(__file__).resolve().parents[1]
+JEFFCOTT_HS = REPO / "scenarios" / "jeffcott_runup_half_sommerfeld.yaml"
+QUICKSTART = REPO / "scenarios" / "quickstart.yaml"
+posix_only = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
+
+
+# ----------------------------------------------------------------------------- archives (FMU, SSP)
+@pytest.mark.parametrize("members, words", [
+    ([("zz", b"x"), ("zz/y", b"y")], "member 'zz' is a file, and member 'zz/y' needs it as its folder"),
+    ([("zz/y", b"y"), ("zz", b"x")], "member 'zz' is a file, and member 'zz/y' needs it as its folder"),
+    ([(".", b"x")], "member '.' names no file"),
+    ([("resources//a.txt", b"x"), ("resources/a.txt", b"y")],
+     "member 'resources/a.txt' appears twice in the archive (as 'resources//a.txt' and 'resources/a.txt')"),
+], ids=["file-then-folder", "folder-then-file", "dot", "same-path-twice"])
+def test_archive_members_that_collide_on_extraction_are_refused_naming_the_archive(tmp_path, capsys, members,
+                                                                                 words):
+    """Members of an SSP (or FMU) that land on one path when extracted ('zz' and 'zz/y', a member
+    named '.', 'a//b' beside 'a/b') passed the archive checks: extraction then failed with the OS's
+    "/tmp/rotorcosim-ssp-xxxx/ssp/zz: File exists; ... remove it or choose another name" (a
+    temporary folder gone when the command ended, and a fix for the wrong file), or the second
+    member silently replaced the first."""
+    from hostile_builders import tampered_quickstart_ssp
+    good = tampered_quickstart_ssp(tmp_path, lambda t: t).with_name("q.ssp")
+    bad = tmp_path / "collide.ssp"
+    with zipfile.ZipFile(good) as zin, zipfile.ZipFile(bad, "w") as zout:
+        for item in zin.infolist():
+            zout.writestr(item, zin.read(item))
+        for name, data in members:
+            zout.writestr(name, data)
+    rc, text = cli(capsys, "validate", bad)
+    assert rc == 1 and f"{bad}: {words}" in text, text
+    assert "rotorcosim-ssp-" not in text and "remove it" not in text, text
+    # the same rule for an FMU (one archive check for both)
+    from orchestrator.errors import FmuError
+    from orchestrator.fmi.archive import safe_extract
+    fmu = write_fmu(tmp_path / "m.fmu", members=members)
+    with pytest.raises(FmuError) as exc:
+        safe_extract(fmu, tmp_path / "x")
+    assert f"{fmu}: {words}" in str(exc.value)
+
+
+# ----------------------------------------------------------------------------- YAML tags
+@pytest.mark.parametrize("value", ["!!int zz", "!!float .", "!!bool maybe", "!!timestamp xx", "!!int 0b2",
+                                   "2001-13-45"])
+def test_a_yaml_value_its_tag_cannot_read_is_named_with_its_line(tmp_path, capsys, value):
+    """A value whose YAML tag's constructor cannot read it (an explicit ``!!int zz``, ``!!bool maybe``,
+    ``!!timestamp xx``, or a date that is none, ``2001-13-45``) ended every reader of YAML in
+    "internal error: ValueError: invalid literal for int()" (KeyError 'maybe', AttributeError
+    'NoneType' object has no attribute 'groupdict', ValueError: month must be in 1..12): the
+    scenario, --set, a comparison file and a rotor file."""
+    text = QUICKSTART.read_text()
+    scen = tmp_path / "s.yaml"
+    scen.write_text(text.replace("name: quickstart", f"name: {value}", 1))
+    rc, out = cli(capsys, "validate", scen)
+    assert rc == 1 and f"{scen}:1: " in out and "cannot read" in out, out
+    rc, out = cli(capsys, "validate", QUICKSTART, "--set", f"fmus.bearing1.parameters.eta0={value}")
+    assert rc == 1 and f"--set fmus.bearing1.parameters.eta0={value}" in out and "cannot read" in out, out
+    from orchestrator.compare import load_compare
+    from orchestrator.compare.spec import CompareSpecError
+    from tests.test_compare_hostile import compare_file
+    tmp = tmp_path / "cmp"
+    tmp.mkdir()
+    cmp = compare_file(tmp, f"  name: {value}\n")
+    with pytest.raises(CompareSpecError) as exc:
+        load_compare(cmp)
+    assert f"{cmp}:6" in str(exc.value) and "cannot read" in str(exc.value), str(exc.value)
+    from rotor_fmu import rotor_file
+    rotor = tmp_path / "r.yaml"
+    rotor.write_text((rotor_file.DATA_DIR / "turbocharger.yaml").read_text().replace(
+        "reduction: {n_modes: 4}", f"reduction: {{n_modes: {value}}}", 1))
+    with pytest.raises(rotor_file.RotorFileError) as exc:
+        rotor_file.load_rotor_file(rotor)
+    line = next(i for i, t in enumerate(rotor.read_text().splitlines(), 1) if t.startswith("reduction:"))
+    assert f"line {line}: " in str(exc.value) and "cannot read" in str(exc.value), str(exc.value)
+
+
+# ----------------------------------------------------------------------------- rotor files
+@pytest.mark.parametrize("edits, words", [
+    ([("material: steel}    # compressor stub", "material: {}}    # compressor stub")],
+     "'shaft.sections[0].material' must be one of ['steel'] (got {})"),
+    ([("material: steel}    # compressor stub", "material: [steel]}    # compressor stub")],
+     "'shaft.sections[0].material' must be one of ['steel'] (got ['steel'])"),
+    ([("  steel: {E: 2.1e11, nu: 0.3, rho: 7850.0}", "  steel: {E: 2.1e11, nu: 0.3, rho: 7850.0}\n  1: {E: 2.1e11, "
+       "rho: 7850.0}"), ("material: steel}    # compressor stub", "material: x}    # compressor stub")],
+     "'materials': the name 1 is not a text"),
+], ids=["mapping", "list", "number-name"])
+def test_a_rotor_file_material_that_is_no_name_is_named(tmp_path, edits, words):
+    """A section's ``material`` given as a mapping or a list (``material: {}``) raised "TypeError:
+    unhashable type: 'dict'" out of load_rotor_file, and a material named by a number beside one
+    named by a text (``1:`` and ``steel:``) raised "TypeError: '<' not supported between instances of
+    'str' and 'int'" while the message listing the materials was written."""
+    from rotor_fmu import rotor_file
+    text = (rotor_file.DATA_DIR / "turbocharger.yaml").read_text()
+    for old, new in edits:
+        assert old in text
+        text = text.replace(old, new, 1)
+    path = tmp_path / "r.yaml"
+    path.write_text(text)
+    with pytest.raises(rotor_file.RotorFileError) as exc:
+        rotor_file.load_rotor_file(path)
+    assert words in str(exc.value), str(exc.value)
+
+
+# ----------------------------------------------------------------------------- compare goals
+@pytest.fixture
+def two_mass(tmp_path, test_fmus):
+    return two_mass_dir(tmp_path, test_fmus)
+
+
+@pytest.mark.parametrize("key", ["goal", "tolerance", "set", "derived"])
+@pytest.mark.parametrize("value", ["0", "[]", "''", "false"])
+def test_a_compare_goal_that_is_no_mapping_is_refused_even_when_it_reads_as_false(two_mass, key, value):
+    """``goal: 0``, ``goal: []``, ``goal: ''`` or ``goal: false`` (top level or in a variant) was taken
+    for no goal without a word and the comparison ran (``goal: 0.01`` was refused: a mapping metric ->
+    error is expected); so were ``tolerance``, ``set`` and ``derived`` given so (``x or {}``)."""
+    from orchestrator.compare import load_compare
+    from orchestrator.compare.spec import CompareSpecError
+    from tests.test_compare_hostile import compare_file
+    for where in ("compare", "compare.variants[0]"):
+        if where != "compare" and key == "derived":
+            continue                                   # a top-level key only
+        path = (compare_file(two_mass, f"  {key}: {value}\n") if where == "compare" else
+                compare_file(two_mass, "", variants=f"[{{macro_step: 1.0e-3, {key}: {value}}}]"))
+        with pytest.raises(CompareSpecError) as exc:
+            load_compare(path)
+        assert f"'{where}.{key}' must be a mapping" in str(exc.value), str(exc.value)
