@@ -15,11 +15,66 @@ from pathlib import Path
 import pytest
 
 from hostile_builders import cli, two_mass_dir, write_fmu
+from tests.test_stability_stop import _signal_at, safety_net  # noqa: F401 (a fixture)
 
 REPO = Path(__file__).resolve().parents[1]
 JEFFCOTT_HS = REPO / "scenarios" / "jeffcott_runup_half_sommerfeld.yaml"
 QUICKSTART = REPO / "scenarios" / "quickstart.yaml"
 posix_only = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
+
+
+# ----------------------------------------------------------------------------- stability stopped halfway
+@posix_only
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize("during", ["plot", "json"])
+def test_a_second_signal_while_the_result_is_written_lets_it_finish(tmp_path, capsys, monkeypatch, safety_net,
+                                                                     signum, during):
+    """Ctrl-C pressed twice quickly: the first stops the scan after its speed, the second landed
+    after the search, while --plot was drawn (or --json written), where the handlers were gone: no
+    figure, no stop message and no ``--speeds`` of the rest, only "interrupted" (exit 130); a
+    second SIGTERM there killed the process without a word."""
+    import orchestrator.results.plots.stability as plots
+    import orchestrator.results.safe_write as safe_write
+    calls = _signal_at(monkeypatch, 10, [signum])               # the first: during speed 10 of the scan
+    module, name = (plots, "draw") if during == "plot" else (safe_write, "write_report_file")
+    real = getattr(module, name)
+
+    def second(*a, **kw):                                        # the second: as the output starts
+        os.kill(os.getpid(), signum)
+        time.sleep(0)
+        return real(*a, **kw)
+    monkeypatch.setattr(module, name, second)
+    out, png = tmp_path / "r.json", tmp_path / "r.png"
+    rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", "--speeds", "100:800", "--json", out,
+                   "--plot", png)
+    assert rc == 128 + signum and calls[0] == 10, text
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    import json
+    r = json.loads(out.read_text())
+    assert r["stopped"]["speeds_done"] == 10 and len(r["scan"]) == 10
+    assert "stopping after writing what was computed" in text, text
+    assert f"for the rest of the range run the same command with {r['stopped']['rest']['args']}" in text, text
+
+
+@posix_only
+def test_a_signal_while_a_complete_result_is_written_says_it_is_complete(tmp_path, capsys, monkeypatch,
+                                                                          safety_net):
+    """A complete search whose output (here the figure) got a Ctrl-C lost the figure and ended
+    "interrupted" (exit 130) without saying that the result printed and written is complete."""
+    import orchestrator.results.plots.stability as plots
+    real = plots.draw
+
+    def interrupted(*a, **kw):
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0)
+        return real(*a, **kw)
+    monkeypatch.setattr(plots, "draw", interrupted)
+    png = tmp_path / "r.png"
+    rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", "--speeds", "100:800", "--scan", "8",
+                   "--plot", png)
+    assert rc == 130 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", text
+    assert "threshold speed: 262.14 Hz" in text
+    assert "interrupted while the result was written: the result above is complete" in text, text
 
 
 # ----------------------------------------------------------------------------- archives (FMU, SSP)

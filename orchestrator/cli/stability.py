@@ -113,8 +113,6 @@ def _bearing_load(text: str) -> tuple[str, float, float]:
 
 
 def _cmd_stability(args) -> int:
-    import json
-
     from orchestrator.scenario import load_scenario
     from orchestrator.shipped import resolve
     stability = common._feature("orchestrator.stability", "stability", "stability")
@@ -132,6 +130,13 @@ def _cmd_stability(args) -> int:
         loads[name] = (ox + fx, oy + fy)
     r = stability(scenario, film=args.film, speeds=args.speeds, ring_spin=args.ring_spin, loads=loads,
                   n_scan=args.scan, progress=args.progress)
+    from orchestrator.stability.partial import written_holding_signals     # a signal while writing: after it
+    return written_holding_signals(lambda: _stability_report(args, r), r)
+
+
+def _stability_report(args, r: dict) -> int:
+    """``rotorcosim stability``'s output of the result ``r`` (stdout, --json, --plot, stderr); the exit code."""
+    import json
     lo, hi = r["speed_range_hz"]
     print(f"linear stability of {r['scenario']} ({args.file}): rotor '{r['rotor']['instance']}' "
           f"({r['rotor']['model']}), {lo:g} - {hi:g} Hz")
