@@ -27,8 +27,8 @@ posix_only = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
 @posix_only
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 @pytest.mark.parametrize("during", ["plot", "json"])
-def test_a_second_signal_while_the_result_is_written_lets_it_finish(tmp_path, capsys, monkeypatch, safety_net,
-                                                                     signum, during):
+@pytest.mark.usefixtures("safety_net")
+def test_a_second_signal_while_the_result_is_written_lets_it_finish(tmp_path, capsys, monkeypatch, signum, during):
     """Ctrl-C pressed twice quickly: the first stops the scan after its speed, the second landed
     after the search, while --plot was drawn (or --json written), where the handlers were gone: no
     figure, no stop message and no ``--speeds`` of the rest, only "interrupted" (exit 130); a
@@ -57,8 +57,8 @@ def test_a_second_signal_while_the_result_is_written_lets_it_finish(tmp_path, ca
 
 
 @posix_only
-def test_a_signal_while_a_complete_result_is_written_says_it_is_complete(tmp_path, capsys, monkeypatch,
-                                                                          safety_net):
+@pytest.mark.usefixtures("safety_net")
+def test_a_signal_while_a_complete_result_is_written_says_it_is_complete(tmp_path, capsys, monkeypatch):
     """A complete search whose output (here the figure) got a Ctrl-C lost the figure and ended
     "interrupted" (exit 130) without saying that the result printed and written is complete."""
     import orchestrator.results.plots.stability as plots
@@ -75,6 +75,20 @@ def test_a_signal_while_a_complete_result_is_written_says_it_is_complete(tmp_pat
     assert rc == 130 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", text
     assert "threshold speed: 262.14 Hz" in text
     assert "interrupted while the result was written: the result above is complete" in text, text
+
+
+@pytest.mark.parametrize("json_name, plot_name", [("r.png", "r.png"), ("r.png", "./sub/../r.png")])
+def test_stability_json_and_plot_naming_one_file_are_refused_before_the_computation(tmp_path, capsys, monkeypatch,
+                                                                                     json_name, plot_name):
+    """``--json r.png --plot r.png`` wrote the JSON report, then the figure over it ("written: r.png"
+    twice, exit 0): the report was lost without a word."""
+    (tmp_path / "sub").mkdir()
+    monkeypatch.chdir(tmp_path)
+    import orchestrator.stability as st
+    monkeypatch.setattr(st, "stability", lambda *a, **kw: pytest.fail("computed"))
+    rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", "--json", json_name, "--plot", plot_name)
+    assert rc == 1 and "--json and --plot name one file" in text and "--json stability.json" in text, text
+    assert not (tmp_path / "r.png").exists()
 
 
 # ----------------------------------------------------------------------------- archives (FMU, SSP)

@@ -11,6 +11,7 @@ from pathlib import Path
 from orchestrator.cli import common
 from orchestrator.cli.common import _add_set
 from orchestrator.cli.targets import _check_json_target, _check_plot_target
+from orchestrator.errors import CosimError
 
 
 def _add_stability(sub) -> None:
@@ -122,6 +123,9 @@ def _cmd_stability(args) -> int:
         _check_json_target(args.json, args.file)     # before the computation (minutes with --film mc)
     if args.plot:
         _check_plot_target(args.plot, args.file)
+    if args.json and args.plot and Path(args.json).resolve() == Path(args.plot).resolve():   # the figure replaced it
+        raise CosimError(f"--json and --plot name one file ({args.plot}): the figure would replace the report; give "
+                         "each its own, e.g. --json stability.json --plot stability.png")
     # the linear threshold does not use analysis.journals.*.clearance: a --set psi is not refused for it
     scenario = load_scenario(args.file, args.set, build_fmus=True)
     loads: dict[str, tuple[float, float]] = {}
