@@ -141,9 +141,11 @@ def _cmd_stability(args) -> int:
 def _stability_report(args, r: dict) -> int:
     """``rotorcosim stability``'s output of the result ``r`` (stdout, --json, --plot, stderr); the exit code."""
     import json
+
+    from orchestrator.stability.partial import speed_range
     lo, hi = r["speed_range_hz"]
     print(f"linear stability of {r['scenario']} ({args.file}): rotor '{r['rotor']['instance']}' "
-          f"({r['rotor']['model']}), {lo:g} - {hi:g} Hz")
+          f"({r['rotor']['model']}), {speed_range(lo, hi)} Hz")
     print(f"method: eigenvalues of the rotor's linear model with the bearing coefficients of the {r['method']}")
     for note in r["notes"]:
         print(f"note: {note}")
@@ -175,8 +177,8 @@ def _stability_report(args, r: dict) -> int:
         print(stop_message(r, kept=[f for f in (args.json, args.plot) if f]), file=sys.stderr)
         return r["stopped"]["exit_code"]
     if r["status"] == "stable":
-        print(f"error: no eigenvalue crosses into the right half plane between {lo:g} and {hi:g} Hz: the system is "
-              "linearly stable in that range; give a wider --speeds LO:HI", file=sys.stderr)
+        print(f"error: no eigenvalue crosses into the right half plane between {speed_range(lo, hi, ' and ')} Hz: the "
+              "system is linearly stable in that range; give a wider --speeds LO:HI", file=sys.stderr)
         return 1
     if r["status"] == "threshold_not_located":
         a, b = r["threshold_between_hz"]

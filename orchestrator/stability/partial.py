@@ -102,10 +102,16 @@ def bracket(evals: dict[float, float], w0: float, w1: float) -> tuple[float, flo
     return w0, w1
 
 
-def _pair(a: float, b: float) -> str:
+def _pair(a: float, b: float, sep: str = " and ") -> str:
     """'a and b' with the digits that tell them apart (a bracket Brent narrowed to 1e-7 Hz)."""
     digits = 6 if b <= a or a <= 0.0 else min(15, max(6, math.ceil(math.log10(b / (b - a))) + 2))
-    return f"{a:.{digits}g} and {b:.{digits}g}"
+    return f"{a:.{digits}g}{sep}{b:.{digits}g}"
+
+
+def speed_range(lo: float, hi: float, sep: str = " - ") -> str:
+    """The speed range [Hz] as the command prints it, with the digits that tell its ends apart: the
+    ``--speeds 262.144607:262.144608`` a stopped refinement gives read "262.145 - 262.145 Hz"."""
+    return _pair(lo, hi, sep)
 
 
 def scan_table(result: dict) -> str:
