@@ -128,6 +128,29 @@ CAPACITY_EPS = 0.95
 THIN_OIL_ETA0 = 1e-4        # Pa s: below every lubricating oil (water 1e-3, air 1.8e-5)
 
 
+def _type_problems(params) -> list[str]:
+    """One line per field of the dataclass ``params`` whose value is not of its declared kind: a
+    ``float`` field a real number (an int is fine), an ``int`` field an integer, a ``str`` field a
+    text; a boolean is neither (``R=True`` was a 1 m journal). A text or None reached the range
+    checks, which raised a bare TypeError ('>=' not supported between 'str' and 'int')."""
+    import numbers
+    out = []
+    for f in dc_fields(params):
+        v, kind = getattr(params, f.name), str(f.type)
+        if kind == "float":
+            ok, what = isinstance(v, numbers.Real) and not isinstance(v, bool), "a number"
+        elif kind == "int":
+            ok, what = isinstance(v, int) and not isinstance(v, bool), "an integer"
+        elif kind == "str":
+            ok, what = isinstance(v, str), "a text"
+        else:
+            continue
+        if not ok:
+            shown = repr(v) if len(repr(v)) <= 80 else repr(v)[:80] + "..."
+            out.append(f"{type(params).__name__}.{f.name} must be {what} (got {shown}, a {type(v).__name__})")
+    return out
+
+
 @dataclass(frozen=True, kw_only=True)
 class BearingParams:
     """Bearing geometry, lubricant, grid and solver settings (SI units).
@@ -227,6 +250,9 @@ class BearingParams:
     linear_solver: str = "band"
 
     def __post_init__(self):
+        wrong = _type_problems(self)            # before the checks below compare them with numbers
+        if wrong:
+            raise ValueError("invalid bearing parameters:\n  " + "\n  ".join(wrong))
         problems = []
 
         def need(name, ok, expected):

@@ -91,6 +91,19 @@ def test_stability_json_and_plot_naming_one_file_are_refused_before_the_computat
     assert not (tmp_path / "r.png").exists()
 
 
+def test_the_rest_command_of_a_stopped_refinement_prints_its_range_with_the_digits_that_tell_it_apart(capsys):
+    """The ``--speeds 262.144607:262.144608 --scan 2`` that a stopped refinement gives, pasted back,
+    printed its range as "262.145 - 262.145 Hz" (and a stable one "between 262.145 and 262.145 Hz:
+    ... give a wider --speeds"): a range that reads as empty."""
+    rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", "--speeds", "262.144607:262.144608",
+                   "--scan", "2")
+    assert rc == 0 and "(JeffcottRotor), 262.144607 - 262.144608 Hz" in text, text
+    assert "threshold speed: 262.14 Hz" in text
+    rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", "--speeds", "262.1446:262.1446073", "--scan",
+                   "2")
+    assert rc == 1 and "between 262.1446 and 262.1446073 Hz: the system is linearly stable" in text, text
+
+
 # ----------------------------------------------------------------------------- archives (FMU, SSP)
 @pytest.mark.parametrize("members, words", [
     ([("zz", b"x"), ("zz/y", b"y")], "member 'zz' is a file, and member 'zz/y' needs it as its folder"),
@@ -211,3 +224,26 @@ def test_a_compare_goal_that_is_no_mapping_is_refused_even_when_it_reads_as_fals
         with pytest.raises(CompareSpecError) as exc:
             load_compare(path)
         assert f"'{where}.{key}' must be a mapping" in str(exc.value), str(exc.value)
+
+
+# ----------------------------------------------------------------------------- bearing parameters (Python API)
+@pytest.mark.parametrize("field, value, words", [
+    ("p0", "1e5", "BearingParams.p0 must be a number (got '1e5', a str)"),
+    ("p_feed", None, "BearingParams.p_feed must be a number (got None, a NoneType)"),
+    ("groove_width", "0", "BearingParams.groove_width must be a number (got '0', a str)"),
+    ("cav_width", [1.0], "BearingParams.cav_width must be a number (got [1.0], a list)"),
+    ("R", True, "BearingParams.R must be a number (got True, a bool)"),
+    ("cavitation", True, "BearingParams.cavitation must be an integer (got True, a bool)"),
+    ("linear_solver", 1, "BearingParams.linear_solver must be a text (got 1, a int)"),
+])
+def test_bearing_params_of_the_wrong_type_are_named_not_a_type_error(field, value, words):
+    """BearingParams(p0="1e5") (or p_feed=None, groove_width="0", ...) raised a bare "TypeError: '>='
+    not supported between instances of 'str' and 'int'" from its own checks, and a boolean passed
+    as a number (R=True: a 1 m journal; cavitation=True) was taken without a word."""
+    from bearing_fmu.model import BearingParams
+    with pytest.raises(ValueError) as exc:
+        BearingParams(**{field: value})
+    assert words in str(exc.value), str(exc.value)
+    # ints where floats are expected, and every bound itself, are fine
+    BearingParams(R=2, B=4, eta0=10, psi=0.1, p0=100_000, p_feed=100_000, cav_width=1000, mu_contact=10,
+                  sigma_rough=1e-4, contact_KE=10**12, n_phi=8192, n_z=32, cavitation=0)
