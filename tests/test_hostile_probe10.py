@@ -247,3 +247,24 @@ def test_bearing_params_of_the_wrong_type_are_named_not_a_type_error(field, valu
     # ints where floats are expected, and every bound itself, are fine
     BearingParams(R=2, B=4, eta0=10, psi=0.1, p0=100_000, p_feed=100_000, cav_width=1000, mu_contact=10,
                   sigma_rough=1e-4, contact_KE=10**12, n_phi=8192, n_z=32, cavitation=0)
+
+
+# ----------------------------------------------------------------------------- texts drawn in figures
+def test_names_with_dollar_signs_are_drawn_as_written_in_run_and_stability_figures(tmp_path, capsys):
+    """A scenario named 'a$_$b' (a folder name may hold '$'), or a signal from a third-party FMU
+    named 'x$_$', was parsed as matplotlib mathtext in the figure's title or label: `rotorcosim plot`
+    of the run ended in "internal error: ParseSyntaxException" and `stability --plot` did so after
+    the whole computation, the figure not written (sweep maps were fixed the same way on 12-06)."""
+    run = tmp_path / "a$_$b"
+    run.mkdir()
+    (run / "results.csv").write_text("time,o$s$c.x$_$,osc.v\n" + "".join(f"{i * 1e-3!r},{i % 7}.5,{i % 3}.25\n"
+                                                                      for i in range(40)))
+    rc, text = cli(capsys, "plot", run)
+    assert rc == 0 and (run / "plots").is_dir() and list((run / "plots").glob("signals_*.png")), text
+    from orchestrator.results.plots.stability import draw
+    result = {"scenario": "cost_$a_$", "film": "short", "status": "stable", "speed_range_hz": [100.0, 200.0],
+              "scan": [{"speed_hz": 100.0, "max_re_per_s": -5.0, "whirl_hz": 45.0, "log_decrement": 0.7},
+                       {"speed_hz": 200.0, "max_re_per_s": -3.0, "whirl_hz": 90.0, "log_decrement": 0.2}],
+              "crossings": [], "crossings_bracketed": [], "stopped": None, "threshold_hz": None}
+    png = draw(result, tmp_path / "s.png")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

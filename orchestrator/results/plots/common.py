@@ -192,8 +192,17 @@ def span_problem(values) -> str | None:
             "marker such as DBL_MAX?)")
 
 
+def plain(text: Any) -> str:
+    """``text`` as a figure draws it as written: each ``$`` escaped, so that no name from a run
+    folder, a scenario or an FMU (a scenario named 'a$_$b', a variable 'x$_$') is parsed as
+    matplotlib mathtext, which drew it wrong or raised ParseSyntaxException (an internal error of
+    `rotorcosim plot` and `stability --plot`). Our own labels keep their mathtext."""
+    return str(text).replace("$", r"\$")
+
+
 def trace(ax, xv, yv, color, label) -> None:
     """Line plot; long dense signals as a min/max envelope over ``MAX_TRACE_POINTS/2`` bins."""
+    label = plain(label)
     n = xv.size
     if n <= MAX_TRACE_POINTS or not np.all(np.diff(xv) >= 0):
         ax.plot(xv, yv, lw=0.7, color=color, label=label)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from orchestrator.results.plots.common import PlotContext, trace
+from orchestrator.results.plots.common import PlotContext, plain, trace
 from orchestrator.results.whirl import TWO_PI
 
 
@@ -41,7 +41,7 @@ def draw(ctx: PlotContext) -> None:
     if not n:
         return
     axes[0].set_xlabel("time t [s]")
-    axes[0].set_title(f"{ctx.name}: journal eccentricity")
+    axes[0].set_title(f"{plain(ctx.name)}: journal eccentricity")
     if ramp:
         axes[1].set_xlabel("rotor speed [Hz]")
     for ax in axes:

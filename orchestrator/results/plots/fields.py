@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.results.plots.common import PlotContext, safe_name
+from orchestrator.results.plots.common import PlotContext, plain, safe_name
 
 
 def draw(ctx: PlotContext) -> None:
@@ -133,7 +133,7 @@ def field_plot(ctx: PlotContext, path: Path) -> None:
     P_, Z_ = np.degrees(phi), zz * 1e3
     cp = axes[0].contourf(P_, Z_, p / 1e5, levels=30, cmap="viridis")
     fig.colorbar(cp, ax=axes[0], label="pressure p [bar]")
-    title = (f"{ctx.name}: {path.stem}  (p_max {p.max() / 1e5:.4g} bar, "
+    title = (f"{plain(ctx.name)}: {plain(path.stem)}  (p_max {p.max() / 1e5:.4g} bar, "
              f"p_min {p.min() / 1e5:.4g} bar)")
     if hs:
         p0 = float(d["p0"]) if "p0" in d else float(p.min())

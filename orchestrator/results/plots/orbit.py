@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from orchestrator.results.plots.common import MAX_ORBIT_POINTS, ORBIT_REVS, PlotContext, safe_name
+from orchestrator.results.plots.common import MAX_ORBIT_POINTS, ORBIT_REVS, PlotContext, plain, safe_name
 from orchestrator.results.whirl import TWO_PI
 
 
@@ -52,7 +52,7 @@ def draw(ctx: PlotContext, jn: str) -> None:
         ax.set_xlabel("x" + unit)
         ax.set_ylabel("y" + unit)
         fig.colorbar(lc, ax=ax, label="time [s]", shrink=0.7)
-    fig.suptitle(f"{ctx.name}: orbit of journal '{jn}'")
+    fig.suptitle(f"{plain(ctx.name)}: orbit of journal '{plain(jn)}'")
     ctx.save(fig, f"orbit_{safe_name(jn)}.png")
 
 

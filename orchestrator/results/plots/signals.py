@@ -20,7 +20,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from orchestrator.results.plots.common import span_problem
+from orchestrator.results.plots.common import plain, span_problem
 from orchestrator.results.safe_write import save_figure
 
 MAX_PANELS = 8
@@ -106,11 +106,11 @@ def plot_signals(cols: dict[str, np.ndarray], out_dir: Path, title: str,
                     else:
                         ax.ticklabel_format(axis="y", useOffset=False)
                 unit = units.get(c)
-                ax.set_ylabel(c.split(".", 1)[-1] + (f" [{unit}]" if unit else ""), rotation=0, ha="right",
+                ax.set_ylabel(plain(c.split(".", 1)[-1]) + (f" [{unit}]" if unit else ""), rotation=0, ha="right",
                               va="center")
                 ax.grid(True, lw=0.3)
             axes[-1].set_xlabel("time [s]")
-            fig.suptitle(f"{title}: {inst}")
+            fig.suptitle(f"{plain(title)}: {plain(inst)}")
             path = out_dir / f"signals_{_safe(inst)}{'' if k == 0 else f'_{k // MAX_PANELS + 1}'}.png"
             save_figure(fig, path, dpi=DPI)
             written.append(path)

@@ -87,5 +87,6 @@ def draw(result: dict, path: Path | str) -> Path:
         ax.legend(fontsize=8, loc="best")
     film = {"hs": "half-Sommerfeld films", "short": "short-bearing closed form"}.get(result.get("film"),
                                                                                     result.get("film"))
-    fig.suptitle(f"{result.get('scenario')}: linear stability ({film})", fontsize=10)
+    from orchestrator.results.plots.common import plain
+    fig.suptitle(f"{plain(result.get('scenario'))}: linear stability ({film})", fontsize=10)
     return save_figure(fig, path, dpi=DPI)

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from orchestrator.results.plots.common import PlotContext, edges, safe_name
+from orchestrator.results.plots.common import PlotContext, edges, plain, safe_name
 from orchestrator.results.whirl import WhirlParams, too_many_bins, waterfall
 
 
@@ -86,6 +86,6 @@ def draw(ctx: PlotContext, jn: str) -> None:
         ax.set_ylabel("order (frequency / rotor speed) [-]")
     fig.colorbar(m, ax=ax, label=unit)
     ax.legend(fontsize=8, loc="upper left")
-    ax.set_title(f"{ctx.name}: waterfall of journal '{jn}' "
+    ax.set_title(f"{plain(ctx.name)}: waterfall of journal '{plain(jn)}' "
                  f"({params.window_revs}-revolution windows)")
     ctx.save(fig, f"waterfall_{safe_name(jn)}.png")
