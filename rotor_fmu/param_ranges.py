@@ -40,10 +40,10 @@ def range_problems(params, cls_name: str) -> list[str]:
     problems = []
     for name, (lo, hi, unit) in RANGES.items():
         v = getattr(params, name, None)
-        if v is None or isinstance(v, bool):
+        if v is None:
             continue
-        try:
-            bad = not (math.isfinite(v) and v >= lo and (hi is None or v <= hi))
+        try:            # a boolean is no number here (m_disc=True was a 1 kg disc)
+            bad = isinstance(v, bool) or not (math.isfinite(v) and v >= lo and (hi is None or v <= hi))
         except TypeError:
             bad = True
         if bad:

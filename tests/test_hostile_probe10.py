@@ -268,3 +268,15 @@ def test_names_with_dollar_signs_are_drawn_as_written_in_run_and_stability_figur
               "crossings": [], "crossings_bracketed": [], "stopped": None, "threshold_hz": None}
     png = draw(result, tmp_path / "s.png")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("field, value", [("m_disc", True), ("k_shaft", False), ("g", True)])
+def test_rotor_params_refuse_a_boolean_for_a_number(field, value):
+    """JeffcottParams(m_disc=True) built a rotor with a 1 kg disc (k_shaft=False: a shaft of
+    stiffness 0, below the declared 1 N/m): range_problems skipped booleans, so a flag passed for a
+    number through the Python API was taken as 1 or 0 without a word."""
+    from rotor_fmu.jeffcott import JeffcottModel, JeffcottParams
+    with pytest.raises(ValueError) as exc:
+        JeffcottModel(JeffcottParams(**{field: value}))
+    assert f"JeffcottParams.{field} must be" in str(exc.value) and f"(got {value!r})" in str(exc.value)
+    JeffcottModel(JeffcottParams(m_disc=1, k_shaft=10**13, g=0, unbalance_phase=-6.283185307179586))   # bounds, ints
