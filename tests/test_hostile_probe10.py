@@ -280,3 +280,19 @@ def test_rotor_params_refuse_a_boolean_for_a_number(field, value):
         JeffcottModel(JeffcottParams(**{field: value}))
     assert f"JeffcottParams.{field} must be" in str(exc.value) and f"(got {value!r})" in str(exc.value)
     JeffcottModel(JeffcottParams(m_disc=1, k_shaft=10**13, g=0, unbalance_phase=-6.283185307179586))   # bounds, ints
+
+
+def test_an_fmus_section_over_its_bound_is_not_followed_by_a_sequence_of_unknown_instances(tmp_path, capsys):
+    """An SSP (or scenario) listing more FMU instances than MAX_FMU_INSTANCES was refused for that,
+    then told "'coupling.sequence' must list every instance exactly once ('rotor' is not an instance
+    (instances: ); ...); e.g. []": the sequence checked against the instances of the refused
+    section, none, with an empty list as the fix."""
+    from orchestrator.scenario.limits import MAX_FMU_INSTANCES
+    write_fmu(tmp_path / "m.fmu")
+    many = "".join(f"  g{i}: {{path: m.fmu}}\n" for i in range(MAX_FMU_INSTANCES + 1))
+    scen = tmp_path / "s.yaml"
+    scen.write_text(f"name: many\nstop_time: 0.01\nfmus:\n{many}coupling:\n  scheme: gauss-seidel\n"
+                    "  sequence: [g0, g1]\n  macro_step: 1.0e-3\n")
+    rc, text = cli(capsys, "validate", scen)
+    assert rc == 1 and f"more than {MAX_FMU_INSTANCES}" in text, text
+    assert "coupling.sequence" not in text and "e.g. []" not in text, text

@@ -339,6 +339,8 @@ class SectionReader(NodeReader):
 
     def load_sequence(self, node, names: list[str]) -> tuple[str, ...] | None:
         """``coupling.sequence``: every instance exactly once (None: problem reported)."""
+        if not names:           # 'fmus' refused (reported): every entry read "not an instance (instances: )"
+            return None
         seq = self.strings(node, "coupling.sequence", "list every instance once")
         if seq is None:
             return None
