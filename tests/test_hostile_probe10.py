@@ -104,6 +104,24 @@ def test_the_rest_command_of_a_stopped_refinement_prints_its_range_with_the_digi
     assert rc == 1 and "between 262.1446 and 262.1446073 Hz: the system is linearly stable" in text, text
 
 
+@pytest.mark.parametrize("option, name", [("--json", "r.json"), ("--plot", "r.png")])
+@pytest.mark.parametrize("folder", ["missing", "a-file"])
+def test_stability_outputs_into_a_folder_that_is_none_are_refused_before_the_computation(tmp_path, capsys,
+                                                                                        monkeypatch, option, name,
+                                                                                        folder):
+    """``--json nosuch/r.json`` (or ``--plot``, or a folder part that is a file) was found only when
+    the result was written, after the whole search (minutes with --film mc, and the JSON of a
+    stopped search is what keeps it): "cannot write nosuch/r.json (No such file or directory)"."""
+    import orchestrator.stability as st
+    monkeypatch.setattr(st, "stability", lambda *a, **kw: pytest.fail("computed"))
+    if folder == "a-file":
+        (tmp_path / "a-file").write_text("x")
+    out = tmp_path / folder / name
+    rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", option, out)
+    assert rc == 1 and f"{option} {out}: " in text and str(tmp_path / folder) in text, text
+    assert ("does not exist" if folder == "missing" else "is not a folder") in text, text
+
+
 # ----------------------------------------------------------------------------- archives (FMU, SSP)
 @pytest.mark.parametrize("members, words", [
     ([("zz", b"x"), ("zz/y", b"y")], "member 'zz' is a file, and member 'zz/y' needs it as its folder"),

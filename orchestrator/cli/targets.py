@@ -21,7 +21,7 @@ def _why_not_replaced(out: str, scenario_file: str, not_of_its_format: Callable[
     format's own check, for a regular non-empty file) returns None, else its reason."""
     try:
         st = os.lstat(out)
-    except OSError:                       # a new name: the write names a missing folder
+    except OSError:                       # a new name (its folder: _check_folder_of)
         return None
     if not stat.S_ISREG(st.st_mode) or st.st_size == 0:
         return None
@@ -30,10 +30,20 @@ def _why_not_replaced(out: str, scenario_file: str, not_of_its_format: Callable[
     return not_of_its_format(out)
 
 
+def _check_folder_of(option: str, out: str) -> None:
+    """The folder of ``out`` is there (``--json nosuch/r.json`` was found only when the result was
+    written, after the whole search: minutes with --film mc, and a stopped search's JSON lost)."""
+    from orchestrator.results.safe_write import folder_problem
+    why = folder_problem(out)
+    if why:
+        raise CosimError(f"{option} {out}: {why}")
+
+
 def _check_json_target(out: str, scenario_file: str) -> None:
     """``stability --json OUT`` replaces OUT only when it is an earlier JSON report (or empty, or a
     link, which is replaced, not written through): ``--json s.yaml`` replaced the scenario itself
     with the report. A folder, FIFO or device is refused when the report is written."""
+    _check_folder_of("--json", out)
     why = _why_not_replaced(out, scenario_file, _not_a_report)
     if why:
         raise CosimError(f"{out}: exists and is not a stability report ({why}); --json replaces only an earlier "
@@ -64,6 +74,7 @@ def _check_plot_target(out: str, scenario_file: str) -> None:
     """``stability --plot OUT`` replaces OUT only when it is an earlier figure of its suffix's format (or
     empty, or a link, which is replaced): ``--plot s.yaml.png`` is fine, ``--plot s.yaml`` is refused by
     its missing suffix, and ``--plot notes.png`` naming a text file is refused here, before the computation."""
+    _check_folder_of("--plot", out)
     why = _why_not_replaced(out, scenario_file, _not_a_figure)
     if why:
         raise CosimError(f"{out}: exists and is not a figure ({why}); --plot replaces only an earlier figure "

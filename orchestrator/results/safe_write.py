@@ -93,6 +93,17 @@ def write_report_file(path: Path | str, text: str) -> Path:
     return path
 
 
+def folder_problem(path: Path | str) -> str | None:
+    """Why a new file ``path`` cannot be written because of its folder (missing, or not a folder),
+    or None: for an output option checked before a long computation, not after it."""
+    folder = Path(path).parent
+    if not folder.exists():
+        return f"its folder {folder} does not exist; create it first, or give a file in an existing folder"
+    if not folder.is_dir():
+        return f"{folder} is not a folder; give a file in a folder"
+    return None
+
+
 def figure_folder(path: Path | str) -> Path:
     """The folder figures go into (``DIR/plots``), created when missing; a symbolic link there is
     refused (:class:`~orchestrator.errors.LifecycleError`). A run or sweep folder from someone else
