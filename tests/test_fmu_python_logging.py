@@ -67,15 +67,18 @@ def test_an_fmus_python_log_lines_name_the_instance_and_are_capped(tmp_path, cha
 @pytest.mark.parametrize("isolation", ["none", "process"])
 def test_an_fmus_python_warnings_name_the_instance(tmp_path, chatty, isolation):
     """``warnings.warn`` in the FMU printed ``warning: python warning 0 at t=0``, the form of
-    rotorcosim's own warnings; now the text starts with the instance (in a worker process the
-    warning keeps Python's own format, on the worker's stderr)."""
+    rotorcosim's own warnings; now the text starts with the instance. In a worker process the
+    warning was printed on the worker's stderr in Python's own format, with the worker's temporary
+    path and the source line that raised it (``/tmp/rotorcosim-.../resources/x.py:457: UserWarning:
+    ...`` and the line, stop 45); now it is sent to the master and shown as in the master's own
+    process."""
     rc, text = _run(tmp_path, chatty, isolation, 0, n_warnings=1)
     assert rc == 0, text[-2000:]
     assert "python warning 0 at t=0.2" in text
-    shown = [ln for ln in text.splitlines() if "python warning 0 at t=" in ln and "warnings.warn(" not in ln]
-    assert len(shown) == 3 and all("talker: python warning 0 at t=" in ln for ln in shown), text
-    if isolation == "none":
-        assert "warning: talker: python warning 0 at t=0.1" in shown, text
+    shown = [ln for ln in text.splitlines() if "python warning 0 at t=" in ln]
+    assert len(shown) == 3 and all(ln.startswith("warning: talker: python warning 0 at t=") for ln in shown), text
+    assert "warning: talker: python warning 0 at t=0.1" in shown, text
+    assert "UserWarning" not in text and "warnings.warn(" not in text, text
 
 
 def test_only_records_of_other_loggers_made_during_an_fmu_call_are_attributed(caplog):

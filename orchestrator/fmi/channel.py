@@ -11,6 +11,7 @@ master can start several workers and send their first messages before any is up.
 
 from __future__ import annotations
 
+import builtins
 import logging
 import mmap
 import os
@@ -21,6 +22,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import warnings
 import weakref
 from multiprocessing import connection as mp_connection
 from pathlib import Path
@@ -35,6 +37,7 @@ log = logging.getLogger(__name__)
 
 ARENA_BYTES = 1 << 20            # least shared memory of one worker: 131 056 doubles after the call register
 REGISTER_BYTES = 16                    # call register: int64 function code, float64 simulation time
+WARNING_LOGGER = "rotorcosim.worker_warning"  # log records of warnings raised in a worker: shown by the master as warnings
 # command -> FMI function (for the call register and error messages)
 FUNCTIONS = ("idle", "fmi2Instantiate", "fmi2Set* (parameters)", "fmi2SetupExperiment",
              "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2SetReal", "fmi2GetReal",
@@ -338,7 +341,20 @@ class WorkerChannel:
     @staticmethod
     def _relog(records) -> None:
         for name, level, text in records:
-            logging.getLogger(name).log(level, "%s", text)
+            head, _, category = name.rpartition(".")
+            if head == WARNING_LOGGER:                 # a warning in the worker (worker_main._warning_to_master)
+                kind = getattr(builtins, category, None)
+                from orchestrator.fmi import fmu_logging
+                running = getattr(fmu_logging._running, "name", None)
+                fmu_logging.leave()                    # attributed to its instance (and capped) in the worker
+                try:
+                    warnings.warn(text, kind if isinstance(kind, type) and issubclass(kind, Warning) else UserWarning,
+                                  stacklevel=2)
+                finally:
+                    if running is not None:
+                        fmu_logging.enter(running)
+            else:
+                logging.getLogger(name).log(level, "%s", text)
 
     def _rebuild(self, kind: str, payload, cmd: tuple) -> CosimError:
         function = FUNCTIONS[CODES.get(cmd[0], 0)] if cmd[0] != "init" else "fmi2Instantiate"

@@ -18,6 +18,7 @@ import select
 import signal
 import sys
 import traceback
+import warnings
 from multiprocessing import connection as mp_connection
 from typing import Any
 
@@ -25,7 +26,7 @@ import numpy as np
 
 from orchestrator.errors import FmuCallError, ScenarioError
 from orchestrator.fmi.subsystem import RealBatch
-from .channel import CODES, spin_poll
+from .channel import CODES, WARNING_LOGGER, spin_poll
 from .worker import SLOTS
 
 class ArenaViews:
@@ -119,7 +120,19 @@ def _worker_setup() -> _Collect:
     root = logging.getLogger()
     root.addHandler(handler)
     root.setLevel(logging.WARNING)
+    warnings.showwarning = _warning_to_master
     return handler
+
+
+def _warning_to_master(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning raised in the worker (an FMU's own, e.g. BearingParams' note on an oil bath without
+    a groove) goes to the master with its text and category only; it was printed on the worker's
+    stderr with the worker's temporary path and the source line that raised it. The master shows it
+    as its own warnings (:meth:`WorkerChannel._relog`)."""
+    # a LogRecord made here, not by the record factory: fmu_logging's showwarning has already put the
+    # instance's name in front of the text (and counted it toward its cap); the factory would again
+    logger = logging.getLogger(f"{WARNING_LOGGER}.{category.__name__}")
+    logger.handle(logging.LogRecord(logger.name, logging.WARNING, filename, lineno, "%s", (str(message),), None))
 
 
 def _serve(conn_fd: int, arena_fd: int, name: str, fmu_path: str, work_dir: str, spin: float = 0.0) -> None:
