@@ -37,7 +37,8 @@ log = logging.getLogger(__name__)
 
 ARENA_BYTES = 1 << 20            # least shared memory of one worker: 131 056 doubles after the call register
 REGISTER_BYTES = 16                    # call register: int64 function code, float64 simulation time
-WARNING_LOGGER = "rotorcosim.worker_warning"  # log records of warnings raised in a worker: shown by the master as warnings
+# log records of warnings raised in a worker (worker_main._warning_to_master): shown by the master as warnings
+WARNING_LOGGER = "rotorcosim.worker_warning"
 # command -> FMI function (for the call register and error messages)
 FUNCTIONS = ("idle", "fmi2Instantiate", "fmi2Set* (parameters)", "fmi2SetupExperiment",
              "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2SetReal", "fmi2GetReal",
