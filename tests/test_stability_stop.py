@@ -126,6 +126,13 @@ def test_an_error_at_one_speed_stops_the_scan_there():
     assert s.at_hz == pytest.approx(ws[7] / (2 * math.pi))
     assert s.reason == "RuntimeError: ARPACK did not converge (made to fail here)"
     assert result["status"] == "incomplete"
+    # the rest starts at the last speed done, so it computes the failing one again: the message says so
+    from orchestrator.stability.partial import stop_message
+    result["stopped"] = s.as_dict()
+    text = stop_message(result)
+    assert text.startswith(f"error: the scan stopped at {s.at_hz:.4g} Hz after 7 of its 40 speeds: RuntimeError")
+    assert f"{s.rest_args} (in place of its --speeds and --scan) once the cause is mended: it computes " \
+           f"{s.at_hz:.4g} Hz again" in text, text
 
 
 # ----------------------------------------------------------------------------- stability() in this process

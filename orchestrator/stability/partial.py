@@ -171,8 +171,10 @@ def stop_message(result: dict, *, kept: list[str] | tuple = ()) -> str:
         parts.append(f"then {c['becomes']} from between {_pair(*c['between_hz'])} Hz (not refined)")
     if s["rest"] is not None:
         what = "the rest of the range" if s["phase"] == "scan" else "the crossing it was refining"
+        again = (f" once the cause is mended: it computes {s['at_speed_hz']:.4g} Hz again, which fails the same way "
+                 "until then" if s["by"] == "error" and s["at_speed_hz"] is not None else "")
         parts.append(f"for {what} run the same command with {s['rest']['args']} (in place of its --speeds and "
-                     "--scan)")
+                     f"--scan){again}")
     return "; ".join(parts)
 
 
