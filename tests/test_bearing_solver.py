@@ -236,6 +236,59 @@ def test_band_lu_without_interchanges_and_its_fallback():
     assert np.max(np.abs(lu.solve(b) - x)) <= 1e-10 * np.max(np.abs(x))
 
 
+def test_blocked_band_lu_is_the_rank1_elimination_bit_for_bit():
+    """solver._band_lu_from (panels of LU_PANEL pivots, issue 16 speed) gives the factors of
+    the one-pivot-at-a-time elimination bit for bit, from column 0 and from a later column
+    (the partial refactorisation), on random band matrices of many sizes and bandwidths
+    (the panels, the columns a panel reaches only in part, the rank-1 end, bw < 4), with
+    zeros in the band (the skipped updates) and entries of both signs; a pivot that fails
+    the threshold is reported at the same column."""
+    from bearing_fmu.solver import _band_lu_from, _band_lu_rank1_from
+    rng = np.random.default_rng(16)
+    for n, bw in [(1, 1), (5, 1), (9, 2), (13, 3), (8, 4), (9, 4), (11, 4), (30, 4), (31, 5),
+                  (40, 7), (57, 8), (100, 13), (203, 20), (800, 40), (101, 50), (120, 40)]:
+        A = np.zeros((n, n))
+        for i in range(n):
+            for j in range(max(0, i - bw), min(n, i + bw + 1)):
+                if rng.uniform() < 0.8:
+                    A[i, j] = rng.uniform(-1, 1)
+        A += np.diag(2.0 * np.abs(A).sum(axis=0) + 0.1)
+        for k_from in sorted({0, n // 3, max(n - bw - 2, 0)}):
+            ref = _band_storage(A, bw)
+            assert _band_lu_rank1_from(ref, bw, 0.1, 0) == 0
+            new = _band_storage(A, bw)
+            _partial_rank1(new, bw, k_from)      # the state a partial refactorisation continues
+            assert _band_lu_from(new, bw, 0.1, k_from) == 0
+            assert np.array_equal(new[bw:], ref[bw:]), (n, bw, k_from)
+        if n >= 3:          # column c: no updates reach it (zero above), its pivot fails
+            c = n // 2 + 1 if n // 2 + 2 < n else n // 2
+            B = A.copy()
+            B[:c, c] = 0.0
+            B[c, c] = 1e-3
+            B[c + 1, c] = 1.0
+            assert _band_lu_rank1_from(_band_storage(B, bw), bw, 0.1, 0) == c + 1
+            assert _band_lu_from(_band_storage(B, bw), bw, 0.1, 0) == c + 1
+
+
+def _partial_rank1(ab, bw, k_stop):
+    """The first ``k_stop`` pivots of the rank-1 elimination (the state a partial
+    refactorisation continues from)."""
+    rows, n = ab.shape
+    a = ab.T.ravel()
+    d = 2 * bw
+    for k in range(k_stop):
+        ck = k * rows + d
+        m = min(bw, n - 1 - k)
+        a[ck + 1:ck + 1 + m] *= 1.0 / a[ck]
+        col = a[ck + 1:ck + 1 + m].copy()
+        for j in range(1, m + 1):
+            cj = (k + j) * rows + d - j
+            akj = a[cj]
+            if akj != 0.0:
+                for i in range(m):
+                    a[cj + 1 + i] += -akj * col[i]
+
+
 # ------------------------------------------------------------------ step API
 def orbit(c, w, t):
     return (0.15 * c * math.cos(w * t), -0.5 * c + 0.15 * c * math.sin(w * t),
