@@ -581,10 +581,12 @@ def refactor_partial(jst, jst_f, n_phi, pos, bw, ab, thresh, bound):
     a = ab.T.ravel()
     d = 2 * bw
     k0 = kmin - bw
-    # zero the entries of the rows >= kmin (columns k0 .. n-1) and scatter them anew
+    col = np.empty(bw)
+    # zero the entries of the rows >= kmin (columns k0 .. n-1) and scatter them anew (each
+    # column's part is contiguous: one slice assignment, a memset)
     for j in range(k0, n):
-        for i in range(max(kmin, j - bw), min(n - 1, j + bw) + 1):
-            a[j * rows + d + i - j] = 0.0
+        base = j * rows + d - j
+        a[base + max(kmin, j - bw):base + min(n - 1, j + bw) + 1] = 0.0
     stencil_rows_to_band(jst, n_phi, pos, bw, ab, kmin)
     for g in range(n):
         if pos[g] >= kmin:
@@ -605,14 +607,12 @@ def refactor_partial(jst, jst_f, n_phi, pos, bw, ab, thresh, bound):
         inv = 1.0 / piv
         for i in range(s + 1, m + 1):
             a[ck + i] *= inv
+            col[i - 1 - s] = a[ck + i]     # the multipliers of the rows >= kmin, apart (SIMD)
         for j in range(1, m + 1):
             cj = (k + j) * rows + d - j    # flat index of U[k, k + j]
             ukj = a[cj]
             if ukj != 0.0:
-                seg = a[cj + 1 + s:cj + 1 + m]
-                mult = a[ck + 1 + s:ck + 1 + m]
-                for i in range(m - s):
-                    seg[i] -= ukj * mult[i]
+                _axpy(a, cj + 1 + s, col, m - s, -ukj)     # a - u l, as a + (-u) l: the same
     return _band_lu_from(ab, bw, thresh, kmin), kmin
 
 
