@@ -403,8 +403,19 @@ def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_ph
     cf, leaves = _column_terms(H, He, Hdot, groove, th_dot0, omega, a_phi, a_z, dphi, dz,
                                wr, fr, wrel is not None)
     up_e = omega >= 0.0
+    # the east face of each column of a row, once: the cells on both sides of a face read it
+    # (face_theta is a function of theta alone, so the values are those each cell computed
+    # for itself before, bit for bit; half the limiter evaluations, issue 16 speed)
+    f_th = np.empty(n_phi)
+    f_k = np.empty((n_phi, 3), dtype=np.int64)
+    f_d = np.empty((n_phi, 3))
     for j in range(n_z):
         row = j * n_phi
+        for fi in range(n_phi):
+            thf, k1, k2, k3, d1, d2, d3 = face_theta(th, groove, fi, row, n_phi, up_e)
+            f_th[fi] = thf
+            f_k[fi, 0], f_k[fi, 1], f_k[fi, 2] = k1, k2, k3
+            f_d[fi, 0], f_d[fi, 1], f_d[fi, 2] = d1, d2, d3
         for i in range(n_phi):
             g = row + i
             if want_jac:
@@ -426,7 +437,9 @@ def assemble_muscl(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_ph
                     i2 = i - 1 if i > 0 else n_phi - 1
                     fi = i2
                 g2 = row + i2
-                thf, k1, k2, k3, d1, d2, d3 = face_theta(th, groove, fi, row, n_phi, up_e)
+                thf = f_th[fi]
+                k1, k2, k3 = f_k[fi, 0], f_k[fi, 1], f_k[fi, 2]
+                d1, d2, d3 = f_d[fi, 0], f_d[fi, 1], f_d[fi, 2]
                 # where the film leaves the groove: the upwind-consistent edge flux (groove_exit)
                 pq, dd = _poiseuille_out(He, n_phi, i, side, cf, dphi, dz, omega, a_phi, p, dp,
                                          dth, g, g2, K, delta, leaves[i, side])

@@ -285,3 +285,91 @@ def test_linear_solvers_agree(krylov):
             b.step(2e-5, *orbit(p.c, W100, (k + 1) * 2e-5))
         out.append(b.outputs["Fy"])
     assert out[0] == pytest.approx(out[1], rel=1e-5)
+
+
+def _assemble_muscl_per_cell(u, th_dot0, th_dot1, H, He, Hdot, groove, u_feed, omega, a_phi, a_z,
+                             dphi, dz, bath, p0, p_cav, K, delta, pa, pb, s_pen, r, want_jac, jst,
+                             p, dp, th, dth, sym, wrel, frel):
+    """film.assemble_muscl as it was before its faces were evaluated once per row (each cell
+    evaluating both its faces itself), in Python over the same compiled pieces: the reference
+    of the test below."""
+    from bearing_fmu import film as F
+    from bearing_fmu.cavitation import law_eval
+    n_phi = H.size
+    n_z = u.size // n_phi
+    wr, fr = F._weights(wrel, frel, n_phi)
+    law_eval(u, p_cav, K, delta, p, dp, th, dth)
+    cf, leaves = F._column_terms(H, He, Hdot, groove, th_dot0, omega, a_phi, a_z, dphi, dz,
+                                 wr, fr, wrel is not None)
+    up_e = omega >= 0.0
+    for j in range(n_z):
+        row = j * n_phi
+        for i in range(n_phi):
+            g = row + i
+            if want_jac:
+                jst[g, 1:] = 0.0
+            if groove[i]:
+                r[g] = u[g] - u_feed
+                if want_jac:
+                    jst[g, 0] = 1.0
+                continue
+            res = cf[i, F.C_AREA] * (cf[i, F.C_2H] * (th_dot0 * th[g] + th_dot1[g])
+                                     + cf[i, F.C_2HDOT] * th[g])
+            diag = cf[i, F.C_DIAG_T] * dth[g]
+            for side in range(2):
+                i2 = (i + 1) % n_phi if side == 0 else (i - 1) % n_phi
+                fi = i if side == 0 else i2
+                g2 = row + i2
+                thf, k1, k2, k3, d1, d2, d3 = face_theta(th, groove, fi, row, n_phi, up_e)
+                pq, dd = F._poiseuille_out(He, n_phi, i, side, cf, dphi, dz, omega, a_phi, p, dp,
+                                           dth, g, g2, K, delta, leaves[i, side])
+                res += dz * (cf[i, F.C_SOM + side] * thf - pq)
+                diag += dd
+                if want_jac:
+                    if not groove[i2]:
+                        jst[g, 1 + side] += cf[i, F.C_MDZC + side] * dp[g2]
+                    cfs = cf[i, F.C_DZSOM + side]
+                    for kk, dk in ((k1, d1), (k2, d2), (k3, d3)):
+                        if kk >= 0 and dk != 0.0 and not groove[kk - row]:
+                            col = F._col(kk, g, n_phi)
+                            if col == 0:
+                                diag += cfs * dk * dth[kk]
+                            else:
+                                jst[g, col] += cfs * dk * dth[kk]
+            r[g] = res
+            if want_jac:
+                jst[g, 0] = diag
+    F._axial_faces(r, jst, want_jac, cf, p, dp, groove, n_phi, n_z, p0, bath, sym, pa, pb, s_pen, a_z)
+
+
+@pytest.mark.parametrize("kw", [dict(axial_bc=0, groove_width=0.0, cav_width=9e4),
+                                dict(axial_bc=1, groove_width=math.radians(30), n_phi=14, n_z=7)])
+def test_assemble_muscl_faces_once_per_row_bit_for_bit(kw):
+    """film.assemble_muscl evaluates each face's theta once per row (issue 16 speed): residual
+    and stencil Jacobian are those of each cell evaluating both its faces itself, bit for bit,
+    on perturbed states (cavity and full film), both rotation senses, with and without the
+    Jacobian."""
+    from bearing_fmu.film import assemble_muscl
+    prm = dict(R=4.9e-3, B=7.84e-3, psi=2.8e-3, eta0=0.012, p0=1e5, p_feed=1e5, n_phi=12, n_z=8,
+               cavitation=1, theta_transport=1)
+    prm.update(kw)
+    b = BearingModel(BearingParams(**prm))
+    c = b.c
+    b.initialize(0.4 * c, -0.5 * c, 0.01, 0.02, 2 * math.pi * 300, init="stationary")
+    f, g = b.film, b.grid
+    H, He, Hdot, om = b._kin
+    rng = np.random.default_rng(16)
+    for trial in range(6):
+        u = f.u + rng.standard_normal(f.n) * (0.05 if trial % 2 else 0.5)
+        th_dot1 = rng.standard_normal(f.n)
+        omega = -om if trial >= 4 else om
+        want_jac = trial != 3
+        out = []
+        for fn in (assemble_muscl, _assemble_muscl_per_cell):
+            r, jst = np.empty(f.n), np.full((f.n, 7), 7.0)
+            bufs = [np.empty(f.n) for _ in range(4)]
+            fn(u, 3e4, th_dot1, H, He, Hdot, g.groove, b.u_feed, omega, b.a_phi, b.a_z, g.dphi, g.dz,
+               b.bath, b.p0, b.law.p_cav, b.law.K, b.law.delta, b.params.penalty_a, b.params.penalty_b,
+               b.params.penalty_smoothing, r, want_jac, jst, *bufs, b.sym, g.wrel, g.frel)
+            out.append((r, jst))
+        assert np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1]), trial
