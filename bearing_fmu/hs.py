@@ -131,83 +131,122 @@ def _tangent_kernel(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat
     directional derivatives of the east-face conductances, H^3 and the right-hand side).
     Each mode's system is factored once (Thomas with Sherman-Morrison, Press et al.,
     Numerical Recipes, sec. 2.7, reciprocal pivots) and solved for the m derivative
-    right-hand sides together (independent recurrences side by side)."""
+    right-hand sides together. The modes are independent, so their recurrences run side by
+    side, one lane per mode (the innermost loops, which the compiler vectorises): each mode
+    sees the same operations in the same order as when the modes were solved one after the
+    other, so the values are the same bit for bit; the recurrences over the columns are
+    sequential, and side by side their latency is shared (issue 16 speed: 0.4x the time at
+    n_z = n_phi = 40)."""
     n = ce.size
     m = dce.shape[0]
     n_z = lam.size
-    a = np.empty(n)
-    b = np.empty(n)
-    c = np.empty(n)
-    cp = np.empty(n)
-    inv = np.empty(n)
-    zz = np.empty(n)
-    y = np.empty((n, m + 1))
-    db = np.empty((m, n))
-    for r in range(m):
-        for i in range(n):
-            iw = i - 1 if i > 0 else n - 1
-            db[r, i] = dce[r, i] + dce[r, iw]
+    nm = 0                          # the modes something drives (the others are exactly zero)
     for k in range(n_z):
         if ck[k] == 0.0 and feed_hat[k] == 0.0:
             # a mode odd about the mid-plane: nothing drives it (the gap, and so every
             # right-hand side, is uniform in z), so it and its derivatives are zero
             x[:, k, :] = 0.0
-            continue
+        else:
+            nm += 1
+    modes = np.empty(nm, dtype=np.int64)
+    q = 0
+    for k in range(n_z):
+        if not (ck[k] == 0.0 and feed_hat[k] == 0.0):
+            modes[q] = k
+            q += 1
+    lam_m = np.empty(nm)
+    ck_m = np.empty(nm)
+    fh_m = np.empty(nm)
+    lk = np.empty(nm)
+    for q in range(nm):
+        lam_m[q] = lam[modes[q]]
+        ck_m[q] = ck[modes[q]]
+        fh_m[q] = feed_hat[modes[q]]
+        lk[q] = coef * lam_m[q]
+    a = np.empty(n)
+    c = np.empty(n)
+    b = np.empty((n, nm))
+    cp = np.empty((n, nm))
+    inv = np.empty((n, nm))
+    zz = np.empty((n, nm))
+    y = np.empty((m + 1, n, nm))
+    x0 = np.empty((n, nm))
+    gamma = np.empty(nm)
+    zden = np.empty(nm)
+    fact = np.empty(nm)
+    db = np.empty((m, n))
+    for r in range(m):
         for i in range(n):
             iw = i - 1 if i > 0 else n - 1
-            if groove[i]:
-                a[i] = 0.0
-                c[i] = 0.0
-                b[i] = 1.0
-            else:
-                a[i] = -ce[iw]
-                c[i] = -ce[i]
-                b[i] = (ce[i] + ce[iw]) + coef * (lam[k] * H3[i])
-        alpha = c[n - 1]
-        beta = a[0]
-        gamma = -b[0]
-        # the modified tridiagonal system factored once (Sherman-Morrison for the corners)
-        den = b[0] - gamma
-        inv[0] = 1.0 / den
-        cp[0] = c[0] * inv[0]
-        zz[0] = gamma * inv[0]
-        for i in range(1, n):
-            den = (b[i] - alpha * beta / gamma if i == n - 1 else b[i]) - a[i] * cp[i - 1]
-            inv[i] = 1.0 / den
-            cp[i] = c[i] * inv[i]
-            ui = alpha if i == n - 1 else 0.0
-            zz[i] = (ui - a[i] * zz[i - 1]) * inv[i]
-        for i in range(n - 2, -1, -1):
-            zz[i] -= cp[i] * zz[i + 1]
-        zden = 1.0 + zz[0] + beta * zz[n - 1] / gamma
-        # the base right-hand side first: the derivative ones need its solution x0
-        for i in range(n):
-            d0 = feed_hat[k] if groove[i] else ck[k] * rhs[i]
-            y[i, 0] = (d0 - a[i] * y[i - 1, 0]) * inv[i] if i > 0 else d0 * inv[0]
-        for i in range(n - 2, -1, -1):
-            y[i, 0] -= cp[i] * y[i + 1, 0]
-        fact = (y[0, 0] + beta * y[n - 1, 0] / gamma) / zden
-        for i in range(n):
-            x[0, k, i] = y[i, 0] - fact * zz[i]
-        lk = coef * lam[k]
+            db[r, i] = dce[r, i] + dce[r, iw]
+    for i in range(n):
+        iw = i - 1 if i > 0 else n - 1
+        if groove[i]:
+            a[i] = 0.0
+            c[i] = 0.0
+            for q in range(nm):
+                b[i, q] = 1.0
+        else:
+            a[i] = -ce[iw]
+            c[i] = -ce[i]
+            for q in range(nm):
+                b[i, q] = (ce[i] + ce[iw]) + coef * (lam_m[q] * H3[i])
+    alpha = c[n - 1]
+    beta = a[0]
+    # the modified tridiagonal systems factored once (Sherman-Morrison for the corners)
+    for q in range(nm):
+        gamma[q] = -b[0, q]
+        den = b[0, q] - gamma[q]
+        inv[0, q] = 1.0 / den
+        cp[0, q] = c[0] * inv[0, q]
+        zz[0, q] = gamma[q] * inv[0, q]
+    for i in range(1, n):
+        ui = alpha if i == n - 1 else 0.0
+        for q in range(nm):
+            den = (b[i, q] - alpha * beta / gamma[q] if i == n - 1 else b[i, q]) - a[i] * cp[i - 1, q]
+            inv[i, q] = 1.0 / den
+            cp[i, q] = c[i] * inv[i, q]
+            zz[i, q] = (ui - a[i] * zz[i - 1, q]) * inv[i, q]
+    for i in range(n - 2, -1, -1):
+        for q in range(nm):
+            zz[i, q] -= cp[i, q] * zz[i + 1, q]
+    for q in range(nm):
+        zden[q] = 1.0 + zz[0, q] + beta * zz[n - 1, q] / gamma[q]
+    # the base right-hand side first: the derivative ones need its solution x0
+    y0 = y[0]
+    for i in range(n):
+        for q in range(nm):
+            d0 = fh_m[q] if groove[i] else ck_m[q] * rhs[i]
+            y0[i, q] = (d0 - a[i] * y0[i - 1, q]) * inv[i, q] if i > 0 else d0 * inv[0, q]
+    for i in range(n - 2, -1, -1):
+        for q in range(nm):
+            y0[i, q] -= cp[i, q] * y0[i + 1, q]
+    for q in range(nm):
+        fact[q] = (y0[0, q] + beta * y0[n - 1, q] / gamma[q]) / zden[q]
+    for i in range(n):
+        for q in range(nm):
+            x0[i, q] = y0[i, q] - fact[q] * zz[i, q]
+            x[0, modes[q], i] = x0[i, q]
+    for r in range(m):
+        yr = y[1 + r]
         for i in range(n):
             iw = i - 1 if i > 0 else n - 1
             ie = i + 1 if i + 1 < n else 0
-            xw, xc, xe = x[0, k, iw], x[0, k, i], x[0, k, ie]
-            for r in range(m):
+            for q in range(nm):
                 if groove[i]:
                     d = 0.0
                 else:       # dd - dM x0 (dM: the derivatives of a, b, c; 0 on groove rows)
-                    d = (ck[k] * drhs[r, i] + dce[r, iw] * xw - (db[r, i] + lk * dH3[r, i]) * xc
-                         + dce[r, i] * xe)
-                y[i, 1 + r] = (d - a[i] * y[i - 1, 1 + r]) * inv[i] if i > 0 else d * inv[0]
+                    d = (ck_m[q] * drhs[r, i] + dce[r, iw] * x0[iw, q]
+                         - (db[r, i] + lk[q] * dH3[r, i]) * x0[i, q] + dce[r, i] * x0[ie, q])
+                yr[i, q] = (d - a[i] * yr[i - 1, q]) * inv[i, q] if i > 0 else d * inv[0, q]
         for i in range(n - 2, -1, -1):
-            for r in range(m):
-                y[i, 1 + r] -= cp[i] * y[i + 1, 1 + r]
-        for r in range(m):
-            fact = (y[0, 1 + r] + beta * y[n - 1, 1 + r] / gamma) / zden
-            for i in range(n):
-                x[1 + r, k, i] = y[i, 1 + r] - fact * zz[i]
+            for q in range(nm):
+                yr[i, q] -= cp[i, q] * yr[i + 1, q]
+        for q in range(nm):
+            fact[q] = (yr[0, q] + beta * yr[n - 1, q] / gamma[q]) / zden[q]
+        for i in range(n):
+            for q in range(nm):
+                x[1 + r, modes[q], i] = yr[i, q] - fact[q] * zz[i, q]
 
 
 @nb.njit(cache=True, nogil=True)

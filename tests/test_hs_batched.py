@@ -176,3 +176,80 @@ def test_with_contact_the_tangent_solve_serves_where_the_roughness_leaves_the_ga
     near = (e_near, 0.0, 0.0, 0.0, 2 * math.pi * 400)
     hs_linearization(b, *near)
     assert calls == [(e_near, 0.0)]
+
+
+def _tangent_kernel_per_mode(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat, x):
+    """hs._tangent_kernel as it was before its modes ran side by side (one mode after the
+    other), in plain Python: the reference of the test below."""
+    n, m, n_z = ce.size, dce.shape[0], lam.size
+    a, b, c, cp, inv, zz = (np.empty(n) for _ in range(6))
+    y = np.empty((n, m + 1))
+    db = np.array([[dce[r, i] + dce[r, i - 1 if i > 0 else n - 1] for i in range(n)] for r in range(m)])
+    for k in range(n_z):
+        if ck[k] == 0.0 and feed_hat[k] == 0.0:
+            x[:, k, :] = 0.0
+            continue
+        for i in range(n):
+            iw = i - 1 if i > 0 else n - 1
+            if groove[i]:
+                a[i], c[i], b[i] = 0.0, 0.0, 1.0
+            else:
+                a[i], c[i] = -ce[iw], -ce[i]
+                b[i] = (ce[i] + ce[iw]) + coef * (lam[k] * H3[i])
+        alpha, beta, gamma = c[n - 1], a[0], -b[0]
+        inv[0] = 1.0 / (b[0] - gamma)
+        cp[0] = c[0] * inv[0]
+        zz[0] = gamma * inv[0]
+        for i in range(1, n):
+            den = (b[i] - alpha * beta / gamma if i == n - 1 else b[i]) - a[i] * cp[i - 1]
+            inv[i] = 1.0 / den
+            cp[i] = c[i] * inv[i]
+            zz[i] = ((alpha if i == n - 1 else 0.0) - a[i] * zz[i - 1]) * inv[i]
+        for i in range(n - 2, -1, -1):
+            zz[i] -= cp[i] * zz[i + 1]
+        zden = 1.0 + zz[0] + beta * zz[n - 1] / gamma
+        for i in range(n):
+            d0 = feed_hat[k] if groove[i] else ck[k] * rhs[i]
+            y[i, 0] = (d0 - a[i] * y[i - 1, 0]) * inv[i] if i > 0 else d0 * inv[0]
+        for i in range(n - 2, -1, -1):
+            y[i, 0] -= cp[i] * y[i + 1, 0]
+        fact = (y[0, 0] + beta * y[n - 1, 0] / gamma) / zden
+        for i in range(n):
+            x[0, k, i] = y[i, 0] - fact * zz[i]
+        lk = coef * lam[k]
+        for i in range(n):
+            iw, ie = (i - 1 if i > 0 else n - 1), (i + 1 if i + 1 < n else 0)
+            xw, xc, xe = x[0, k, iw], x[0, k, i], x[0, k, ie]
+            for r in range(m):
+                d = 0.0 if groove[i] else (ck[k] * drhs[r, i] + dce[r, iw] * xw
+                                           - (db[r, i] + lk * dH3[r, i]) * xc + dce[r, i] * xe)
+                y[i, 1 + r] = (d - a[i] * y[i - 1, 1 + r]) * inv[i] if i > 0 else d * inv[0]
+        for i in range(n - 2, -1, -1):
+            for r in range(m):
+                y[i, 1 + r] -= cp[i] * y[i + 1, 1 + r]
+        for r in range(m):
+            fact = (y[0, 1 + r] + beta * y[n - 1, 1 + r] / gamma) / zden
+            for i in range(n):
+                x[1 + r, k, i] = y[i, 1 + r] - fact * zz[i]
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_tangent_kernel_modes_side_by_side_bit_for_bit(case):
+    """hs._tangent_kernel solves the modes side by side (issue 16 speed): the base modes and
+    their derivatives are those of solving one mode after the other, bit for bit."""
+    from bearing_fmu.hs import _tangent_kernel
+    b = bearing(**CASES[case])
+    g, hs = b.grid_full, b.hs
+    rng = np.random.default_rng(7)
+    n, m = g.n_phi, 4
+    for k in KINS:
+        H, He, Hdot = g.gap(*k[:4], b.c)
+        ce = g.dz * hs.a_phi * He ** 3 / g.dphi
+        rhs = -(g.dz * k[4] * (He - np.roll(He, 1)) + 2.0 * g.dphi * g.dz * Hdot)
+        dce, dH3, drhs = (rng.standard_normal((m, n)) for _ in range(3))
+        args = (ce, H ** 3, rhs, dce, dH3, drhs, hs.lam, hs.ck, g.dphi * hs.a_z / g.dz, hs.gr,
+                hs.feed_hat)
+        x, ref = np.full((m + 1, g.n_z, n), 7.0), np.full((m + 1, g.n_z, n), 7.0)
+        _tangent_kernel(*args, x)
+        _tangent_kernel_per_mode(*args, ref)
+        assert np.array_equal(x, ref)
