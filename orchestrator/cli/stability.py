@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 from pathlib import Path
 
@@ -114,6 +115,26 @@ def _bearing_load(text: str) -> tuple[str, float, float]:
 
 
 def _cmd_stability(args) -> int:
+    # one holder of Ctrl-C and SIGTERM from here to the last line of output, never a gap between two
+    # (SIGTERM there killed the command without a word, a second Ctrl-C ended in a bare "interrupted"):
+    # until the first speed a signal stops at once (nothing to keep), then the search's (stability()),
+    # then the output's (written_holding_signals)
+    from orchestrator.coupling.lifecycle import RunStopped, StopRequests
+    stage = ["loading the scenario"]
+    with StopRequests(at_once=True) as requests:
+        try:
+            r = _computed(args, requests, stage)
+        except RunStopped as exc:
+            if not requests.at_once:         # past the first speed: the search keeps what it did
+                raise
+            return _stopped_before_any_speed(args, exc, stage[0])
+        from orchestrator.stability.partial import written_holding_signals     # a signal while writing: after it
+        return written_holding_signals(lambda: _stability_report(args, r), r, requests)
+
+
+def _computed(args, requests, stage: list) -> dict:
+    """The threshold search of the command's arguments (``requests``: the command's stop requests;
+    ``stage``: set to what is being done before the first speed)."""
     from orchestrator.scenario import load_scenario
     from orchestrator.shipped import resolve
     stability = common._feature("orchestrator.stability", "stability", "stability")
@@ -128,14 +149,25 @@ def _cmd_stability(args) -> int:
                          "each its own, e.g. --json stability.json --plot stability.png")
     # the linear threshold does not use analysis.journals.*.clearance: a --set psi is not refused for it
     scenario = load_scenario(args.file, args.set, build_fmus=True)
+    stage[0] = "setting up the linear model of the rotor in its bearings"
     loads: dict[str, tuple[float, float]] = {}
     for name, fx, fy in args.load:          # repeated for one bearing: the forces add
         ox, oy = loads.get(name, (0.0, 0.0))
         loads[name] = (ox + fx, oy + fy)
-    r = stability(scenario, film=args.film, speeds=args.speeds, ring_spin=args.ring_spin, loads=loads,
-                  n_scan=args.scan, progress=args.progress)
-    from orchestrator.stability.partial import written_holding_signals     # a signal while writing: after it
-    return written_holding_signals(lambda: _stability_report(args, r), r)
+    return stability(scenario, film=args.film, speeds=args.speeds, ring_spin=args.ring_spin, loads=loads,
+                     n_scan=args.scan, progress=args.progress, requests=requests)
+
+
+def _stopped_before_any_speed(args, exc, stage: str) -> int:
+    """A signal before the first speed: one line on stderr (nothing was computed, so nothing is kept
+    and no --json or --plot written); the exit code 128 + the signal."""
+    name = signal.Signals(exc.signum).name
+    head = "interrupted" if name == "SIGINT" else f"terminated by signal {name}"
+    files = [f"{option} {out}" for option, out in (("--json", args.json), ("--plot", args.plot)) if out]
+    unwritten = f" ({' and '.join(files)} not written)" if files else ""
+    print(f"{head} while {stage}: stopped before any speed was computed, nothing to keep{unwritten}",
+          file=sys.stderr)
+    return exc.exit_code
 
 
 def _stability_report(args, r: dict) -> int:

@@ -133,16 +133,34 @@ class StopRequests:
     API called from a thread) Python delivers no signals and nothing is installed. The previous
     handlers are back when the block is left.
 
+    One object can see a command through its parts (``rotorcosim stability``: loading, the
+    search, writing what it computed), so that no signal lands between two handlers (where
+    SIGTERM killed the process without a word and Ctrl-C ended in a bare "interrupted"):
+
+    * :attr:`at_once` True (``at_once=True``): the first signal too raises RunStopped at once,
+      for the part before anything worth keeping is computed (loading, building);
+    * :attr:`abandon` False: a later signal is held as well (counted, nothing raised), for the
+      bookkeeping between the pieces of work, which ends at the next check of :attr:`requested`
+      anyway; the loop sets it True around a piece of work that a second signal abandons
+      (:meth:`abandoning`);
+    * :meth:`phase`: a new part with its own notice, whose first signal is held again (the
+      signals before stay in :attr:`requested`, :attr:`signum` and :attr:`received`).
+
     Users: the sweep (:mod:`orchestrator.sweep.runner`: Python raised KeyboardInterrupt inside
     Dask's client code, where it was printed and dropped, and SIGTERM killed the sweep outright)
-    and ``rotorcosim stability``'s scan (:mod:`orchestrator.stability.search`: a stop kept none of
-    the speeds done). A run's master has its own (:meth:`RunFolder.stop_signals`).
+    and ``rotorcosim stability`` (:mod:`orchestrator.cli.stability`, the scan of
+    :mod:`orchestrator.stability.search`: a stop kept none of the speeds done). A run's master
+    has its own (:meth:`RunFolder.stop_signals`).
     """
 
-    def __init__(self, notice: str | None = None):
+    def __init__(self, notice: str | None = None, *, at_once: bool = False):
         self.requested = False
         self.signum: int | None = None
         self.notice = notice
+        self.at_once = at_once          # the first signal stops at once too (nothing to keep yet)
+        self.abandon = True             # a second signal (of the phase) stops at once; False: held
+        self.received = 0               # stop signals seen
+        self._in_phase = 0              # of them, since the last phase()
         self._previous: dict = {}
 
     def __enter__(self) -> "StopRequests":
@@ -150,12 +168,32 @@ class StopRequests:
             self._previous = {s: signal.signal(s, self._handler) for s in (signal.SIGINT, signal.SIGTERM)}
         return self
 
+    def phase(self, notice: str | None, *, at_once: bool = False) -> None:
+        """Begin a new part of the work: ``notice`` is what the next first signal waits for, and
+        the next signal counts as the first of this part (held, unless ``at_once``)."""
+        self.notice, self.at_once, self.abandon, self._in_phase = notice, at_once, True, 0
+
+    @contextlib.contextmanager
+    def abandoning(self):
+        """A piece of work that a second signal abandons (raises :class:`RunStopped` in it), while
+        :attr:`abandon` is False around it."""
+        before = self.abandon
+        self.abandon = True
+        try:
+            yield
+        finally:
+            self.abandon = before
+
     def _handler(self, signum, frame):
-        if self.requested:
+        self.received += 1
+        self._in_phase += 1
+        first = not self.requested
+        if first:
+            self.requested = True
+            self.signum = signum
+        if self.at_once or (self._in_phase > 1 and self.abandon):
             raise RunStopped(signum)
-        self.requested = True
-        self.signum = signum
-        if self.notice:
+        if self.notice and self._in_phase == 1:
             what = "interrupt" if signum == signal.SIGINT else signal.Signals(signum).name
             again = "Ctrl-C" if signum == signal.SIGINT else "the signal"
             print(f"\n{what}: stopping after {self.notice} ({again} again to stop at once)", file=sys.stderr,

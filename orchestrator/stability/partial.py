@@ -178,20 +178,27 @@ def stop_message(result: dict, *, kept: list[str] | tuple = ()) -> str:
     return "; ".join(parts)
 
 
-def written_holding_signals(write: Callable[[], int], result: dict) -> int:
+def written_holding_signals(write: Callable[[], int], result: dict, requests=None) -> int:
     """``write()`` (the command's output of ``result``: the table, --json, --plot, the stop
     message; returns the exit code) with Ctrl-C and SIGTERM held until it is done. After the
     search the handlers of :class:`orchestrator.coupling.lifecycle.StopRequests` were gone, so a
     second Ctrl-C pressed quickly (the first one stopped the scan) landed while the figure was
     drawn: no figure, no stop message, no ``--speeds`` of the rest, only "interrupted"; a second
     SIGTERM killed the process without a word. Now a signal there lets the output finish (the
-    next one stops at once), and the exit code is the signal's (130, 143)."""
-    from orchestrator.coupling.lifecycle import StopRequests
-    with StopRequests(notice="writing what was computed") as late:
-        code = write()
-    if late.requested and not result.get("stopped"):
-        name = signal.Signals(late.signum).name
+    next one stops at once), and the exit code is the signal's (130, 143).
+
+    ``requests``: the command's StopRequests, already entered (the search's: a signal between
+    the search and its output is held by it, and counts here), which this puts into its writing
+    phase; None: one of its own around ``write()``."""
+    if requests is None:
+        from orchestrator.coupling.lifecycle import StopRequests
+        with StopRequests() as own:
+            return written_holding_signals(write, result, own)
+    requests.phase("writing what was computed")
+    code = write()
+    if requests.requested and not result.get("stopped"):
+        name = signal.Signals(requests.signum).name
         print(f"{'interrupted' if name == 'SIGINT' else f'terminated by signal {name}'} while the result was "
               "written: the result above is complete", file=sys.stderr)
-        return EXIT_CODES.get(name, 128 + int(late.signum))
+        return EXIT_CODES.get(name, 128 + int(requests.signum))
     return code

@@ -78,6 +78,7 @@ class Searched:
 class _NoStop:
     requested = False
     signum = None
+    abandon = True
 
 
 def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=None, bar=None) -> Searched:
@@ -97,6 +98,11 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     # A stop (signal, error) ends it where it is: nothing more is computed, the sign changes between
     # speeds done are kept as brackets (partial.py).
     requests = stop if stop is not None else _NoStop
+    # a second signal abandons the speed being computed (StopRequests.abandoning), and only that: one
+    # landing between two speeds (the progress bar, the bookkeeping after the scan, a stop's own
+    # handling) is held, and the next check of requests.requested stops there; it raised
+    # KeyboardInterrupt out of the search, which ended with a bare "interrupted" and no table
+    abandoning = getattr(requests, "abandoning", None) or contextlib.nullcontext
     evals: dict[float, float] = {}           # every speed evaluated -> largest real part (brackets)
     current: list = [None]                   # the speed being evaluated
 
@@ -104,7 +110,8 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
         current[0] = w
         if requests.requested:
             raise SpeedStopped(w)
-        v = max_re(w)
+        with abandoning():
+            v = max_re(w)
         evals[float(w)] = v[0]
         return v
 
@@ -208,7 +215,7 @@ def later_crossings(result: dict) -> list[dict]:
 
 def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int | None = None,
               ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None,
-              mc_solver: str = "counted", progress: bool | None = None) -> dict:
+              mc_solver: str = "counted", progress: bool | None = None, requests=None) -> dict:
     """The threshold result (a JSON-ready dict) of a loaded scenario: the search of the module doc,
     for the scenarios of :mod:`orchestrator.stability.system`, with the films of
     :mod:`orchestrator.stability.films`.
@@ -228,7 +235,18 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     stops the search after the speed being computed (a second one at once), and an error at one
     speed (other than no static equilibrium there) stops it at that speed: the result then holds
     what was done, ``complete`` False and ``stopped`` (why, where, and the ``--speeds``/``--scan``
-    of the rest; :mod:`orchestrator.stability.partial`), and nothing is computed after the stop."""
+    of the rest; :mod:`orchestrator.stability.partial`), and nothing is computed after the stop.
+    Before the first speed (the system and its films being set up) a signal stops at once: the
+    :class:`orchestrator.coupling.lifecycle.RunStopped` (a KeyboardInterrupt) raised there leaves
+    this function, as nothing was computed to keep. ``requests``: the caller's StopRequests, entered
+    with ``at_once=True`` (``rotorcosim stability``'s, which sees the command from loading the
+    scenario to its last line of output, so that no signal lands between two handlers); None:
+    one of its own for the call."""
+    if requests is None:
+        from orchestrator.coupling.lifecycle import StopRequests
+        with StopRequests(at_once=True) as own:
+            return stability(scenario, film=film, speeds=speeds, n_scan=n_scan, ring_spin=ring_spin, loads=loads,
+                             mc_solver=mc_solver, progress=progress, requests=own)
     if film not in FILMS:
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
     system = build_system(scenario)
@@ -257,8 +275,7 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
                              "rings (floating = 1) only")
     if n_scan is None:
         n_scan = MC_SCAN if film == "mc" else 80
-    from orchestrator.coupling.lifecycle import StopRequests
-    with StopRequests(notice="this speed") as requests, _progress_bar(n_scan, progress) as bar:
+    with _progress_bar(n_scan, progress) as bar:
         return _threshold(scenario, system, film=film, lo=lo, hi=hi, n_scan=n_scan, ring_spin=ring_spin, loads=loads,
                           mc_solver=mc_solver, requests=requests, bar=bar)
 
@@ -310,6 +327,9 @@ def _threshold(scenario, system: System, *, film: str, lo: float, hi: float, n_s
         "threshold_hz": None, "whirl_hz": None, "whirl_ratio": None, "crossings": [], "crossings_bracketed": [],
         "bearings": {}, "notes": notes,
     }
+    # from the first speed on a signal stops after the speed being computed (a second one abandons it)
+    requests.phase("this speed")
+    requests.abandon = False
     searched = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result,
                        xtol=2 * math.pi * 0.01 if film == "mc" else 1e-9, stop=requests, bar=bar)
     at, stop = searched.at, searched.stop
@@ -324,13 +344,14 @@ def _threshold(scenario, system: System, *, film: str, lo: float, hi: float, n_s
         try:
             if requests.requested:
                 raise SpeedStopped(at)
-            eps = fn.eccentricities(at)
-            if film == "hs" and not system.rings:
-                for b, share in zip(system.bearings, fn.contact_share(at)):
-                    if share > 1e-3:
-                        notes.append(f"bearing '{b.instance}': asperity contact carries {share:.1%} of its static "
-                                     "load at the threshold (its coefficients are included, bearing_fmu/contact.py)")
-            points = fn.points(at) if system.rings else none
+            with requests.abandoning():        # a second signal abandons this computation only
+                eps = fn.eccentricities(at)
+                shares = fn.contact_share(at) if film == "hs" and not system.rings else ()
+                points = fn.points(at) if system.rings else none
+            for b, share in zip(system.bearings, shares):
+                if share > 1e-3:
+                    notes.append(f"bearing '{b.instance}': asperity contact carries {share:.1%} of its static "
+                                 "load at the threshold (its coefficients are included, bearing_fmu/contact.py)")
         except (Exception, KeyboardInterrupt) as exc:     # a stop request, or an error there
             eps, points = none, none
             stop = stop_of(exc, requests.signum, at, "threshold")
