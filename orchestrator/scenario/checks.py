@@ -28,6 +28,11 @@ log = logging.getLogger(__name__)
 
 _WARNED: set[str] = set()
 
+#: the film grids (n_phi, n_z) of our bearing FMUs, by model name (bearing_fmu/journal_bearing.py,
+#: floating_ring_bearing.py), whose cells are bounded by bearing_fmu.limits.MAX_FILM_CELLS
+FILM_GRIDS = {"JournalBearing": (("n_phi", "n_z"),),
+              "FloatingRingBearing": (("n_phi_inner", "n_z_inner"), ("n_phi_outer", "n_z_outer"))}
+
 
 def warn_once(text: str) -> None:
     """A loader warning, once per process (a sweep loads its scenario once per run)."""
@@ -56,6 +61,7 @@ class FmuChecks(Completion):
         draft.kw["defaults"] = self.apply_defaults(draft)
         self.check_fixed_step(draft)
         params = {f["name"]: self.check_parameters(f) for f in draft.fmus}
+        self.check_film_grids(draft.fmus, params)
         draft.connections = self.expand_arrays(draft.connections)
         self.check_connections(draft.connections)
         check_atol_patterns(self, draft.coupling, draft.connections)
@@ -150,6 +156,44 @@ class FmuChecks(Completion):
                 continue
             out[pname] = conv
         return out
+
+    def check_film_grids(self, fmus: list[dict], params: dict) -> None:
+        """Our bearings' film grids within :data:`bearing_fmu.limits.MAX_FILM_CELLS` cells: the product
+        n_phi x n_z, which modelDescription.xml cannot declare (each factor's range it does), of the
+        scenario's values (a ``--set`` included) and the FMU's defaults for the factor not given. It
+        was found only when the FMU started (BearingParams), without the scenario's line."""
+        from bearing_fmu.limits import MAX_FILM_CELLS
+        for f in fmus:
+            name, md, variables = f["name"], self.fmu_caps.get(f["name"]), self.mds.get(f["name"])
+            if md is None or variables is None:
+                continue
+            given = f["parameters"]
+            for pair in FILM_GRIDS.get(md.model_name, ()):
+                if any(p in given and p not in params.get(name, {}) for p in pair):
+                    continue                                    # refused by the parameter checks
+                values = [params[name][p] if p in given else getattr(variables.get(p), "start", None) for p in pair]
+                if not all(isinstance(v, int) and not isinstance(v, bool) for v in values) or not any(
+                        p in given for p in pair):
+                    continue                                    # not ours after all, or the FMU's own defaults
+                n_phi, n_z = values
+                if n_phi * n_z <= MAX_FILM_CELLS:
+                    continue
+                written = [p for p in pair if p in given and id(given[p][1]) not in self.origins]
+                node = given[written[0]][1] if written else f.get("node")
+                where = []
+                for p, v in zip(pair, values):
+                    if p not in given:
+                        where.append(f"{p} = {v} is the FMU's default")
+                    elif p not in written:
+                        where.append(f"{p} from {self.loc(given[p][1])}")
+                    elif p != written[0]:
+                        where.append(f"{p} at {self.loc(given[p][1])}")
+                self.err(node, f"fmus.{name}.parameters.{pair[0]} x {pair[1]} = {n_phi} x {n_z} = {n_phi * n_z} "
+                               f"film cells, more than the {MAX_FILM_CELLS} a film grid may have "
+                               f"(MAX_FILM_CELLS, bearing_fmu/limits.py)" + "".join(f"; {w}" for w in where)
+                               + f"; use a coarser grid: {pair[0]} <= {MAX_FILM_CELLS // n_z} at {pair[1]} = {n_z}, "
+                               f"or {pair[1]} <= {MAX_FILM_CELLS // n_phi} at {pair[0]} = {n_phi} (the finest "
+                               "grids we use: 1536 x 40, 160 x 160)")
 
     def check_connections(self, connections: list[dict]) -> None:
         fed: dict[str, int | None] = {}

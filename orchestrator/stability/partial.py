@@ -53,6 +53,7 @@ class Stop:
     done: int = 0                   # speeds of the scan evaluated (speeds without equilibrium included)
     planned: int = 0                # speeds of the scan
     rest: tuple[float, float, int] | None = None    # (LO, HI [Hz], N): --speeds LO:HI --scan N gives what is left
+    rest_crossings: int | None = None   # a stopped refinement: the crossings not refined that the rest refines
 
     @property
     def exit_code(self) -> int:
@@ -69,7 +70,8 @@ class Stop:
         return {"by": self.by, "phase": self.phase, "at_speed_hz": self.at_hz, "reason": self.reason,
                 "speeds_done": self.done, "speeds_planned": self.planned, "exit_code": self.exit_code,
                 "rest": None if self.rest is None else {"speeds_hz": [self.rest[0], self.rest[1]],
-                                                        "scan": self.rest[2], "args": self.rest_args}}
+                                                        "scan": self.rest[2], "args": self.rest_args,
+                                                        "crossings": self.rest_crossings}}
 
 
 def stop_of(exc: BaseException, signum: int | None, omega: float | None, phase: str) -> Stop:
@@ -170,7 +172,12 @@ def stop_message(result: dict, *, kept: list[str] | tuple = ()) -> str:
     for c in (result.get("crossings_bracketed") or [])[1 if status == "threshold_bracketed" else 0:]:
         parts.append(f"then {c['becomes']} from between {_pair(*c['between_hz'])} Hz (not refined)")
     if s["rest"] is not None:
-        what = "the rest of the range" if s["phase"] == "scan" else "the crossing it was refining"
+        n = s["rest"].get("crossings") or 1
+        what = ("the rest of the range" if s["phase"] == "scan" else "the crossing it was refining" if n == 1 else
+                f"the crossing it was refining and the {n - 1} after it (all {n} not refined: the scan's speeds "
+                "from the first to the last)" if n > 2 else
+                "the crossing it was refining and the one after it (both not refined: the scan's speeds from the "
+                "first to the second)")
         again = (f" once the cause is mended: it computes {s['at_speed_hz']:.4g} Hz again, which fails the same way "
                  "until then" if s["by"] == "error" and s["at_speed_hz"] is not None else "")
         parts.append(f"for {what} run the same command with {s['rest']['args']} (in place of its --speeds and "

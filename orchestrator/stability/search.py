@@ -140,6 +140,7 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
         result["speeds_without_equilibrium_hz"] = [w / (2 * math.pi) for w, _ in failed]
     unlocated = None          # the first sign change, when it lies across speeds without equilibrium
     brackets = result["crossings_bracketed"]
+    cells: list[tuple[int, int]] = []          # the scan's neighbours (k0, k1) of each bracket
     for k0, k1 in zip(ok, ok[1:]):
         if (vals[k0] < 0.0) == (vals[k1] < 0.0):
             continue
@@ -159,6 +160,7 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
                     continue
             a, b = (x / (2 * math.pi) for x in bracket(evals, ws[k0], ws[k1]))
             brackets.append({"between_hz": [a, b], "width_hz": b - a, "becomes": becomes})
+            cells.append((k0, k1))
             continue
         between = [ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)]
         result["notes"].append(f"the largest real part changes sign between {between[0]:.4g} and "
@@ -195,8 +197,15 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
         if halt.phase == "scan":       # from the last speed done (rounded down): a crossing just after it is found
             last = math.floor(ws[done - 1] / (2 * math.pi) * 1e3) / 1e3 if done else lo
             halt.rest = (lo, hi, len(ws)) if done == 0 else (max(last, lo), hi, len(ws) - done + 1)
-        elif brackets:
+        elif len(brackets) == 1:       # the crossing it was refining, the last one: its bracket
             halt.rest = (*widened(*brackets[0]["between_hz"]), 2)
+            halt.rest_crossings = 1
+        elif brackets:                 # that one and the later ones: the scan's grid from the first to the last
+            # (the same speeds, so the same sign changes; Brent's bracket of the first is not kept: a grid
+            # starting there would move the later speeds, and two close crossings could fall in one cell)
+            k0, k1 = cells[0][0], cells[-1][1]
+            halt.rest = (*widened(ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)), k1 - k0 + 1)
+            halt.rest_crossings = len(brackets)
     return Searched(at, halt)
 
 
