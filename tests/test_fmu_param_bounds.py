@@ -33,6 +33,8 @@ connections:
   - {{from: bearing1.Fx, to: rotor.Fx_1}}
 coupling: {{scheme: gauss-seidel, macro_step: 1.0e-4}}
 """
+# the loader's words for a film grid of more cells than MAX_FILM_CELLS
+GRID_LIMIT = "more than the 262144 a film grid may have (MAX_FILM_CELLS, bearing_fmu/limits.py)"
 GOOD = "{R: 4.9e-3, B: 7.84e-3, psi: 2.8e-3, eta0: 0.012, n_phi: 24, n_z: 12, cavitation: 0}"
 
 
@@ -177,10 +179,11 @@ def test_floating_ring_films_are_named_by_side(capsys):
     from orchestrator.shipped import resolve
     path = resolve("jeffcott_runup_floating_ring_free_to_air")
     rc, out = cli(capsys, "validate", path, "--set", "fmus.bearing1.parameters.n_phi_inner=4000",
-                  "--set", "fmus.bearing1.parameters.n_z_inner=100",
-                  "--set", "fmus.bearing1.parameters.cav_width_outer=2e5")
+                  "--set", "fmus.bearing1.parameters.n_z_inner=100")
+    assert rc == 1            # the grid's cells: at load (test_a_floating_ring_film_grid_above_the_cell_limit_...)
+    assert "fmus.bearing1.parameters.n_phi_inner x n_z_inner = 4000 x 100 = 400000 film cells" in out, out
+    rc, out = cli(capsys, "validate", path, "--set", "fmus.bearing1.parameters.cav_width_outer=2e5")
     assert rc == 1
-    assert "inner film: the film grid n_phi_inner x n_z_inner must have at most 262144 cells" in out
     assert "parameter 'cav_width_outer' must be below p0" in out and "BearingParams." not in out
 
 
@@ -195,17 +198,20 @@ def test_relations_name_the_scenario_lines_of_the_parameters(tmp_path, capsys):
     assert f"'bearing1' gets p_feed from {path}:12 and p0 from {path}:11" in out, out
     rc, out = cli(capsys, "validate", scenario(tmp_path), "--set", "fmus.bearing1.parameters.n_phi=8192",
                   "--set", "fmus.bearing1.parameters.n_z=2048")
-    assert rc == 1 and "at most 262144 cells" in out, out
-    assert ("'bearing1' gets n_phi from --set fmus.bearing1.parameters.n_phi=8192 and n_z from "
-            "--set fmus.bearing1.parameters.n_z=2048") in out, out
+    assert rc == 1 and GRID_LIMIT in out, out         # the grid's cells: at load, where each factor comes from
+    assert (f"{path.parent / 's.yaml'}:8: fmus.bearing1.parameters.n_phi x n_z = 8192 x 2048 = 16777216 film cells"
+            in out), out
+    assert ("; n_phi from --set fmus.bearing1.parameters.n_phi=8192; n_z from "
+            "--set fmus.bearing1.parameters.n_z=2048;") in out, out
 
 
 def test_floating_ring_grid_limit_names_the_parameters_of_the_side(capsys):
     from orchestrator.shipped import resolve
     rc, out = cli(capsys, "validate", resolve("jeffcott_runup_floating_ring_free_to_air"),
                   "--set", "fmus.bearing1.parameters.n_phi_outer=8192")
-    assert rc == 1 and "outer film: the film grid n_phi_outer x n_z_outer must have at most" in out, out
-    assert "'bearing1' gets n_phi_outer from --set fmus.bearing1.parameters.n_phi_outer=8192" in out, out
+    assert rc == 1 and ("jeffcott_runup_floating_ring_free_to_air.yaml:30: fmus.bearing1.parameters.n_phi_outer x "
+                        "n_z_outer = 8192 x 40 = 327680 film cells") in out, out
+    assert "; n_phi_outer from --set fmus.bearing1.parameters.n_phi_outer=8192;" in out, out
 
 
 @pytest.mark.parametrize("text, want", [
@@ -347,3 +353,69 @@ def test_bearing_params_refuse_every_value_the_fmu_declares_out_of_range():
                 BearingParams(**{**base, name: v})
             checked += 1
     assert checked >= 30, checked
+
+
+# ----------------------------------------------------------------------------- the film grid's cells at load
+# n_phi and n_z each inside its declared range, their product above MAX_FILM_CELLS: found only when the
+# FMU started ("initialization failed: FMU instance 'bearing1': fmi2GetReal returned fatal: ... ValueError
+# in the FMU's getReal: ... the film grid n_phi x n_z must have at most 262144 cells"), after the other
+# FMUs were instantiated, without the scenario's line. Now the loader refuses it with its line.
+
+
+@pytest.mark.parametrize("bearing, overrides, place, words", [
+    (GOOD.replace("n_phi: 24", "n_phi: 8000").replace("n_z: 12", "n_z: 40"), [], 11,
+     ["n_phi x n_z = 8000 x 40 = 320000 film cells", "n_phi <= 6553 at n_z = 40, or n_z <= 32 at n_phi = 8000"]),
+    (GOOD.replace("n_phi: 24, n_z: 12", "n_phi: 8000"), [], 11,
+     ["n_phi x n_z = 8000 x 40 = 320000 film cells", "; n_z = 40 is the FMU's default;"]),
+    (GOOD.replace("n_phi: 24", "n_phi: 8000"), ["fmus.bearing1.parameters.n_z=200"], 11,
+     ["n_phi x n_z = 8000 x 200 = 1600000", "; n_z from --set fmus.bearing1.parameters.n_z=200;"]),
+    (GOOD, ["fmus.bearing1.parameters.n_phi=4096", "fmus.bearing1.parameters.n_z=100"], 8,
+     ["n_phi x n_z = 4096 x 100 = 409600", "; n_phi from --set fmus.bearing1.parameters.n_phi=4096; n_z from "
+      "--set fmus.bearing1.parameters.n_z=100;"]),
+], ids=["both-written", "n_z-default", "n_z-set", "both-set"])
+def test_a_journal_bearing_grid_above_the_cell_limit_is_refused_at_load_with_its_line(tmp_path, bearing, overrides,
+                                                                                    place, words):
+    path = scenario(tmp_path, bearing)
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(path, overrides)
+    msg = str(exc.value)
+    assert f"s.yaml:{place}: fmus.bearing1.parameters.n_phi x n_z = " in msg and GRID_LIMIT in msg, msg
+    for w in words:
+        assert w in msg, msg
+
+
+def test_a_grid_of_exactly_the_cell_limit_loads(tmp_path):
+    from bearing_fmu.limits import MAX_FILM_CELLS
+    assert 4096 * 64 == MAX_FILM_CELLS
+    sc = load_scenario(scenario(tmp_path, GOOD.replace("n_phi: 24", "n_phi: 4096").replace("n_z: 12", "n_z: 64")))
+    assert (sc.fmus[1].parameters["n_phi"], sc.fmus[1].parameters["n_z"]) == (4096, 64)
+
+
+@pytest.mark.parametrize("side, overrides, place, words", [
+    ("outer", [], 11, ["n_phi_outer x n_z_outer = 8000 x 40 = 320000", "; n_z_outer = 40 is the FMU's default;",
+                       "n_phi_outer <= 6553 at n_z_outer = 40"]),
+    ("inner", ["fmus.bearing1.parameters.n_z_inner=64"], 11,
+     ["n_phi_inner x n_z_inner = 8000 x 64 = 512000", "; n_z_inner from --set fmus.bearing1.parameters.n_z_inner=64;"]),
+], ids=["outer-n_z-default", "inner-n_z-set"])
+def test_a_floating_ring_film_grid_above_the_cell_limit_is_refused_at_load_with_its_line(tmp_path, side, overrides,
+                                                                                       place, words):
+    text = SCENARIO.format(bearing=f"{{n_phi_{side}: 8000}}", t_ramp="2.0").replace("fmu: JournalBearing",
+                                                                                  "fmu: FloatingRingBearing")
+    path = tmp_path / "s.yaml"
+    path.write_text(text)
+    load_scenario(path, [f"fmus.bearing1.parameters.n_phi_{side}=4096"])         # 4096 x 40: loads
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(path, overrides)
+    msg = str(exc.value)
+    assert f"s.yaml:{place}: fmus.bearing1.parameters.n_phi_{side} x n_z_{side} = " in msg and GRID_LIMIT in msg, msg
+    for w in words:
+        assert w in msg, msg
+
+
+@pytest.mark.parametrize("verb", ["validate", "run"])
+def test_validate_and_run_refuse_a_grid_above_the_cell_limit_before_any_fmu_starts(tmp_path, capsys, verb):
+    path = scenario(tmp_path, GOOD.replace("n_phi: 24", "n_phi: 8000").replace("n_z: 12", "n_z: 40"))
+    extra = ["--out", tmp_path / "run"] if verb == "run" else []
+    rc, out = cli(capsys, verb, path, *extra)
+    assert rc == 1 and "s.yaml:11: fmus.bearing1.parameters.n_phi x n_z = 8000 x 40 = 320000 film cells" in out, out
+    assert "initialization failed" not in out and "fmi2GetReal" not in out, out
