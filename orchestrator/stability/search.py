@@ -78,7 +78,6 @@ class Searched:
 class _NoStop:
     requested = False
     signum = None
-    abandon = True
 
 
 def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=None, bar=None) -> Searched:
