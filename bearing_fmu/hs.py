@@ -122,6 +122,29 @@ def _solve_many_kernel(ce, cw, H3, rhs, lam, ck, coef, groove, feed_hat, x):
                 x[q, k, i] = y[i] - fact * zz[i]
 
 
+@nb.njit(inline="always", cache=True, nogil=True)
+def _cyclic_solve_modes(y, a, inv, cp, zz, beta, gamma, zden, modes, fact, xr):
+    """Solve the factored cyclic tridiagonal systems of :func:`_tangent_kernel`, one lane per
+    driven mode q: ``y`` (n_phi, nm) holds the right-hand sides on entry and the solutions on
+    exit, which are also written to ``xr[modes[q], :]``. The forward sweep with the reciprocal
+    pivots ``inv`` and ``cp``, the backward sweep, then the Sherman-Morrison correction with
+    ``zz`` (the solution for the corner vector) and its denominator ``zden``; ``fact`` (nm,)
+    scratch."""
+    n, nm = y.shape
+    for i in range(n):
+        for q in range(nm):
+            y[i, q] = (y[i, q] - a[i] * y[i - 1, q]) * inv[i, q] if i > 0 else y[0, q] * inv[0, q]
+    for i in range(n - 2, -1, -1):
+        for q in range(nm):
+            y[i, q] -= cp[i, q] * y[i + 1, q]
+    for q in range(nm):
+        fact[q] = (y[0, q] + beta * y[n - 1, q] / gamma[q]) / zden[q]
+    for i in range(n):
+        for q in range(nm):
+            y[i, q] -= fact[q] * zz[i, q]
+            xr[modes[q], i] = y[i, q]
+
+
 @nb.njit(cache=True, nogil=True)
 def _tangent_kernel(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat, x):
     """Modes of the pressure and of its directional derivatives, into ``x`` (1 + m, n_z,
@@ -170,7 +193,6 @@ def _tangent_kernel(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat
     inv = np.empty((n, nm))
     zz = np.empty((n, nm))
     y = np.empty((m + 1, n, nm))
-    x0 = np.empty((n, nm))
     gamma = np.empty(nm)
     zden = np.empty(nm)
     fact = np.empty(nm)
@@ -213,20 +235,11 @@ def _tangent_kernel(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat
     for q in range(nm):
         zden[q] = 1.0 + zz[0, q] + beta * zz[n - 1, q] / gamma[q]
     # the base right-hand side first: the derivative ones need its solution x0
-    y0 = y[0]
+    x0 = y[0]
     for i in range(n):
         for q in range(nm):
-            d0 = fh_m[q] if groove[i] else ck_m[q] * rhs[i]
-            y0[i, q] = (d0 - a[i] * y0[i - 1, q]) * inv[i, q] if i > 0 else d0 * inv[0, q]
-    for i in range(n - 2, -1, -1):
-        for q in range(nm):
-            y0[i, q] -= cp[i, q] * y0[i + 1, q]
-    for q in range(nm):
-        fact[q] = (y0[0, q] + beta * y0[n - 1, q] / gamma[q]) / zden[q]
-    for i in range(n):
-        for q in range(nm):
-            x0[i, q] = y0[i, q] - fact[q] * zz[i, q]
-            x[0, modes[q], i] = x0[i, q]
+            x0[i, q] = fh_m[q] if groove[i] else ck_m[q] * rhs[i]
+    _cyclic_solve_modes(x0, a, inv, cp, zz, beta, gamma, zden, modes, fact, x[0])
     for r in range(m):
         yr = y[1 + r]
         for i in range(n):
@@ -234,19 +247,11 @@ def _tangent_kernel(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat
             ie = i + 1 if i + 1 < n else 0
             for q in range(nm):
                 if groove[i]:
-                    d = 0.0
+                    yr[i, q] = 0.0
                 else:       # dd - dM x0 (dM: the derivatives of a, b, c; 0 on groove rows)
-                    d = (ck_m[q] * drhs[r, i] + dce[r, iw] * x0[iw, q]
-                         - (db[r, i] + lk[q] * dH3[r, i]) * x0[i, q] + dce[r, i] * x0[ie, q])
-                yr[i, q] = (d - a[i] * yr[i - 1, q]) * inv[i, q] if i > 0 else d * inv[0, q]
-        for i in range(n - 2, -1, -1):
-            for q in range(nm):
-                yr[i, q] -= cp[i, q] * yr[i + 1, q]
-        for q in range(nm):
-            fact[q] = (yr[0, q] + beta * yr[n - 1, q] / gamma[q]) / zden[q]
-        for i in range(n):
-            for q in range(nm):
-                x[1 + r, modes[q], i] = yr[i, q] - fact[q] * zz[i, q]
+                    yr[i, q] = (ck_m[q] * drhs[r, i] + dce[r, iw] * x0[iw, q]
+                                - (db[r, i] + lk[q] * dH3[r, i]) * x0[i, q] + dce[r, i] * x0[ie, q])
+        _cyclic_solve_modes(yr, a, inv, cp, zz, beta, gamma, zden, modes, fact, x[1 + r])
 
 
 @nb.njit(cache=True, nogil=True)
