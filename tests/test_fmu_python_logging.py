@@ -98,6 +98,32 @@ def test_only_records_of_other_loggers_made_during_an_fmu_call_are_attributed(ca
     fmu_logging.forget("rotor")
 
 
+def test_running_instance_and_an_unattributed_block(caplog):
+    """The public reading of this thread's FMI call (channel.py's worker warnings and
+    subsystem.py used the module's private thread-local): ``unattributed()`` clears it for a
+    block, records made in it are not attributed, and it restores the instance after, also when
+    the block raises."""
+    fmu_logging.install()
+    assert fmu_logging.running_instance() is None
+    fmu_logging.enter("rotor")
+    try:
+        assert fmu_logging.running_instance() == "rotor"
+        with caplog.at_level(logging.WARNING):
+            with pytest.raises(KeyError):
+                with fmu_logging.unattributed():
+                    assert fmu_logging.running_instance() is None
+                    logging.getLogger("some_fmu_package").warning("relayed")
+                    raise KeyError("inside the block")
+        assert fmu_logging.running_instance() == "rotor"
+        assert [(r.getMessage(), getattr(r, "fmu_instance", None)) for r in caplog.records] == [("relayed", None)]
+    finally:
+        fmu_logging.leave()
+    assert fmu_logging.running_instance() is None
+    with fmu_logging.unattributed():
+        pass
+    assert fmu_logging.running_instance() is None
+
+
 def test_the_cap_counts_each_record_once_whatever_the_number_of_handlers():
     """A console and a log file handler: each shows the same first 20 records of the instance
     (a record is counted by the first handler's filter, not once per handler)."""

@@ -346,14 +346,9 @@ class WorkerChannel:
             if head == WARNING_LOGGER:                 # a warning in the worker (worker_main._warning_to_master)
                 kind = getattr(builtins, category, None)
                 from orchestrator.fmi import fmu_logging
-                running = getattr(fmu_logging._running, "name", None)
-                fmu_logging.leave()                    # attributed to its instance (and capped) in the worker
-                try:
+                with fmu_logging.unattributed():       # attributed to its instance (and capped) in the worker
                     warnings.warn(text, kind if isinstance(kind, type) and issubclass(kind, Warning) else UserWarning,
                                   stacklevel=2)
-                finally:
-                    if running is not None:
-                        fmu_logging.enter(running)
             else:
                 logging.getLogger(name).log(level, "%s", text)
 

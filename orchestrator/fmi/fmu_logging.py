@@ -6,9 +6,10 @@ through Python's ``logging``. Its records reached our handlers like ours:
 (the crane-fmu FMUs log so), and an FMU that logs on every step flooded the terminal.
 
 Now :class:`~orchestrator.fmi.subsystem.Subsystem` says in this thread which instance's FMI
-call runs (one attribute store of ``_running.name`` on entry and one on exit, inline in its
+call runs (one attribute store of ``RUNNING.name`` on entry and one on exit, inline in its
 per-call paths as its call record is; :func:`enter` and :func:`leave` do the same; the hot path
-allocates nothing), and the log record factory installed by :func:`install` rewrites every record made
+allocates nothing; :func:`running_instance` reads it, :func:`unattributed` clears it for a
+block), and the log record factory installed by :func:`install` rewrites every record made
 meanwhile by a logger that is not ours (not ``orchestrator`` or below): its message becomes
 ``<instance>: <message>``, shown on one line with control characters escaped as the FMU's FMI
 log messages are (``subsystem.log_message_text``), and the record gets ``fmu_instance``. So the
@@ -32,6 +33,7 @@ filters still decide first whether it is shown at all).
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 
@@ -41,7 +43,11 @@ log = logging.getLogger(__name__)
 #: ``subsystem.LOG_SHOWN``); the rest are counted and summed up when the instance is freed
 LOG_SHOWN = 20
 
-_running = threading.local()
+#: this thread's FMI call: ``RUNNING.name`` is the name of the instance whose FMI call runs in
+#: this thread, None or unset when none does. Written by :func:`enter` and :func:`leave`, or
+#: directly (one attribute store each, no call) by a caller's per-call hot path as
+#: :class:`~orchestrator.fmi.subsystem.Subsystem`'s; read it with :func:`running_instance`
+RUNNING = threading.local()
 _counts: dict[str, list] = {}          # instance -> [shown, not shown, last text not shown]
 _lock = threading.Lock()
 _previous_factory = None
@@ -49,12 +55,30 @@ _previous_factory = None
 
 def enter(instance: str) -> None:
     """The FMI call of ``instance`` runs in this thread from now on."""
-    _running.name = instance
+    RUNNING.name = instance
 
 
 def leave() -> None:
     """No FMI call runs in this thread any more."""
-    _running.name = None
+    RUNNING.name = None
+
+
+def running_instance() -> str | None:
+    """The name of the instance whose FMI call runs in this thread, or None."""
+    return getattr(RUNNING, "name", None)
+
+
+@contextlib.contextmanager
+def unattributed():
+    """A block in which no FMI call runs in this thread as far as logging goes (records and
+    warnings made in it are not attributed to an instance nor counted toward its cap); the
+    instance that ran before is restored after it, also when the block raises."""
+    before = running_instance()
+    RUNNING.name = None
+    try:
+        yield
+    finally:
+        RUNNING.name = before
 
 
 def _ours(name: str) -> bool:
@@ -63,7 +87,7 @@ def _ours(name: str) -> bool:
 
 def _factory(*args, **kwargs) -> logging.LogRecord:
     record = _previous_factory(*args, **kwargs)
-    inst = getattr(_running, "name", None)
+    inst = getattr(RUNNING, "name", None)      # running_instance() inline: every record comes here
     if inst is not None and not _ours(record.name):
         from orchestrator.fmi.subsystem import log_message_text
         try:
@@ -107,7 +131,7 @@ _previous_showwarning = None
 
 
 def _showwarning(message, category, filename, lineno, file=None, line=None):
-    inst = getattr(_running, "name", None)
+    inst = running_instance()
     if inst is not None:
         from orchestrator.fmi.subsystem import log_message_text
         text = log_message_text(str(message))

@@ -49,7 +49,7 @@ from orchestrator.fmi.archive import ModelDescription, Variable, binary_path, re
 from orchestrator.fmi.bundled_python import own_imports
 from orchestrator.fmi.call_record import CODE as CALL_CODE
 from orchestrator.fmi import fmu_logging
-from orchestrator.fmi.fmu_logging import _running as _RUNNING
+from orchestrator.fmi.fmu_logging import RUNNING as _RUNNING
 from orchestrator.fmi.values import FAMILY, TypedBatch, settable_problem
 from orchestrator.untrusted import OUT_DIR_FIELD, UNSHOWN as _UNSHOWN, out_dir_escape, shown_char as _shown
 
