@@ -218,38 +218,42 @@ def cavity_flux(b, deg=180.0):
 TT: dict = {}
 
 
-def corrected_model(n_phi, n_z, corrected, alpha=0.0):
-    """(model, prepare): a BearingModel of grid_convergence.py's ``air`` case (groove and
-    journal frame rotated by ``alpha``) whose film residual gains the correction that
-    ``prepare(kin, xy, vel)`` computes for the kinematics about to be solved (nothing if not
-    ``corrected``); ``prepare`` returns exit_correction's info."""
+def exit_corrected(b, corrected):
+    """The per-state hook of grid_convergence.mc_quantities's ``prepare`` for the film of
+    BearingModel ``b``: if ``corrected``, the film residual gains the correction that the
+    returned ``prepare(kin, z)`` computes for the kinematics about to be solved (journal state
+    z = (x, y, vx, vy)) and ``prepare`` returns exit_correction's info; None otherwise."""
+    if not corrected:
+        return None
+    box = {"corr": None}
+    f = b.film
+    orig = f.residual
+
+    def residual(*args, **kw):
+        r = orig(*args, **kw)
+        r += box["corr"]
+        return r
+    f.residual = residual
+    f.fused = False                 # any Newton of this film goes through f.residual
+
+    def prepare(kin, z):
+        box["corr"], info = exit_correction(b, kin, z[:2], z[2:])
+        return info
+    return prepare
+
+
+def solve(n_phi, n_z, q, omega, corrected, model=False, alpha=0.0):
+    """The steady film of grid_convergence.py's ``air`` case on n_phi x n_z cells at the
+    journal position ``q`` (groove and journal frame rotated by ``alpha``), with the exit-layer
+    correction if ``corrected``: (Fx, Fy, exit_correction's info or None), or the model."""
     prm = gc.params("air", n_phi, n_z, **TT)
     if alpha:
         prm = prm.replace(groove_angle=prm.groove_angle + alpha)
     b = BearingModel(prm)
-    box = {"corr": None}
-    if corrected:
-        f = b.film
-        orig = f.residual
-
-        def residual(*args, **kw):
-            r = orig(*args, **kw)
-            r += box["corr"]
-            return r
-        f.residual = residual
-        f.fused = False                 # any Newton of this film goes through f.residual
-
-    def prepare(kin, xy, vel=(0.0, 0.0)):
-        if not corrected:
-            return None
-        box["corr"], info = exit_correction(b, kin, xy, vel)
-        return info
-    return b, prepare
-
-
-def solve(n_phi, n_z, q, omega, corrected, model=False, alpha=0.0):
-    b, prepare = corrected_model(n_phi, n_z, corrected, alpha)
-    info = prepare(b._kinematics(q[0], q[1], 0.0, 0.0, omega), q)
+    prepare = exit_corrected(b, corrected)
+    info = None
+    if prepare is not None:
+        info = prepare(b._kinematics(q[0], q[1], 0.0, 0.0, omega), (q[0], q[1], 0.0, 0.0))
     b.initialize(q[0], q[1], 0.0, 0.0, omega, init="stationary")
     if model:
         return b
@@ -257,32 +261,10 @@ def solve(n_phi, n_z, q, omega, corrected, model=False, alpha=0.0):
 
 
 def quantities(n, q, omega, corrected, rel=1e-3):
-    """Force and the eight quasi-steady coefficients on n x n cells, as grid_convergence.py
+    """Force and the eight quasi-steady coefficients on n x n cells: grid_convergence.py
     ``mc_quantities`` (central differences of the steady film, warm-started), with the
     correction recomputed at every perturbed state."""
-    from bearing_fmu.linearize import _force
-    b, prepare = corrected_model(n, n, corrected)
-    prepare(b._kinematics(q[0], q[1], 0.0, 0.0, omega), q)
-    b.initialize(q[0], q[1], 0.0, 0.0, omega, init="stationary")
-    u0 = b.film.u.copy()
-    F0 = np.array([b.outputs["Fx"], b.outputs["Fy"]])
-    c = b.c
-    steps = [rel * c, rel * c, rel * c * omega, rel * c * omega]
-    D = np.empty((2, 4))
-    for j in range(4):
-        fs = []
-        for sgn in (1, -1):
-            z = [q[0], q[1], 0.0, 0.0]
-            z[j] += sgn * steps[j]
-            kin = b._kinematics(z[0], z[1], z[2], z[3], omega)
-            prepare(kin, (z[0], z[1]), (z[2], z[3]))
-            u, _ = b._steady_newton(kin, u0, np.zeros_like(u0), 40)
-            if u is None:
-                u = b._steady(kin, u0)
-            p, th = b.law.p_theta(u)
-            fs.append(_force(b, p, th, kin))
-        D[:, j] = -(fs[0] - fs[1]) / (2 * steps[j])
-    return np.concatenate([F0, D[:, :2].ravel(), D[:, 2:].ravel()])
+    return gc.mc_quantities("air", n, q, omega, rel=rel, prepare=lambda b: exit_corrected(b, corrected), **TT)
 
 
 def shifted_force(n_phi, n_z, q, omega, corrected, frac):

@@ -69,11 +69,20 @@ def hs_equilibrium(n=40):
     return pcr.equilibrium(b, LOAD, 2 * math.pi * F_HZ)
 
 
-def mc_quantities(case, n, q, omega, rel=1e-3, n_z=None, coefficients=True, **kw):
+def mc_quantities(case, n, q, omega, rel=1e-3, n_z=None, coefficients=True, prepare=None, **kw):
     """Force and quasi-steady coefficients of the steady mass-conserving film (n x n cells,
     ``n_z``: n x n_z; ``kw``: further BearingParams); only the force if not
-    ``coefficients``."""
+    ``coefficients``.
+
+    ``prepare``: a study script's change of the film (exit_layer_2d.py, its exit-layer
+    residual correction), called once as ``prepare(b)`` with the BearingModel built, before
+    anything is solved; it returns a callable ``(kin, z)`` that is called before each steady
+    solve (the base state, then each perturbed one) with the kinematics about to be solved
+    (``b._kinematics``) and the journal state z = [x, y, vx, vy]."""
     b = BearingModel(params(case, n, n_z, **kw))
+    before_solve = prepare(b) if prepare is not None else None
+    if before_solve is not None:
+        before_solve(b._kinematics(q[0], q[1], 0.0, 0.0, omega), [q[0], q[1], 0.0, 0.0])
     b.initialize(q[0], q[1], 0.0, 0.0, omega, init="stationary")
     u0 = b.film.u.copy()
     F0 = np.array([b.outputs["Fx"], b.outputs["Fy"]])
@@ -88,6 +97,8 @@ def mc_quantities(case, n, q, omega, rel=1e-3, n_z=None, coefficients=True, **kw
             z = [q[0], q[1], 0.0, 0.0]
             z[j] += sgn * steps[j]
             kin = b._kinematics(z[0], z[1], z[2], z[3], omega)
+            if before_solve is not None:
+                before_solve(kin, z)
             u, _ = b._steady_newton(kin, u0, np.zeros_like(u0), 40)   # warm start
             if u is None:
                 u = b._steady(kin, u0)
