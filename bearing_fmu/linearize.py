@@ -581,18 +581,36 @@ class MCFilmLinear:
     """
 
     def __init__(self, b, *, rel_step=1e-5, polish=2):
-        import scipy.sparse.linalg as spla
         if b.film is None:
             raise ValueError("MCFilmLinear: the bearing has no mass-conserving film (cavitation = 0)")
+        b._check_init("mc_impedance")
+        self.b = b
+        self.rel_step = rel_step
+        self._res = _Residual(b)
+        g = b.grid
+        i = np.arange(b.film.n) % g.n_phi
+        w = np.ones(g.n_phi) if g.wrel is None else g.wrel
+        self._cos_w, self._sin_w = np.cos(g.phi)[i] * w[i], np.sin(g.phi)[i] * w[i]     # of Fu
+        self.update(polish=polish)
+
+    def update(self, *, polish=2):
+        """Linearise again, about the film and kinematics ``b`` holds now (a new steady state:
+        :func:`mc_static_equilibrium` moves the journal every Newton step), with ``polish``
+        Newton steps as in the constructor; what depends on the grid only (the residual's work
+        arrays, the force's weights) is kept. Every attribute is as a new object's
+        ``MCFilmLinear(b, rel_step=..., polish=polish)``, to the bit. Returns the object."""
+        import scipy.sparse.linalg as spla
+        b = self.b
         b._check_init("mc_impedance")
         film = b.film
         x, y, vx, vy, omega = b._inputs
         g = b.grid
         prm = b.params
         n = film.n
-        self.b = b
+        rel_step = self.rel_step
+        self._template = None                  # _shifted's matrix was J_s's of the last state
         u = film.u.copy()
-        res = _Residual(b)
+        res = self._res
         jst, bufs = res.jst, res.bufs          # bufs: p, dp/du, theta, dtheta/du of the last call
 
         kin0 = _kin(b, x, y, vx, vy, omega)
@@ -629,14 +647,13 @@ class MCFilmLinear:
             else:
                 Rv[:, k - 2], Fv[:, k - 2] = dR, dF
         self.Rq, self.Rv, self.Fq, self.Fv = Rq, Rv, Fq, Fv
-        i = np.arange(n) % g.n_phi
-        w = np.ones(g.n_phi) if g.wrel is None else g.wrel
         area = prm.R * g.dphi * prm.B * g.dz * (2.0 if b.sym else 1.0)
-        self.Fu = -area * np.vstack([np.cos(g.phi)[i] * w[i] * dp, np.sin(g.phi)[i] * w[i] * dp])
+        self.Fu = -area * np.vstack([self._cos_w * dp, self._sin_w * dp])
         self.F0 = _force(b, p_u, th_u, kin0)
         self.omega = omega
         self.contact = (contact_coefficients(x, y, vx, vy, omega, **b.contact_kw)
                          if prm.contact else None)
+        return self
 
     def impedance(self, s, *, slope=False):
         """Z(s) (2, 2) complex [N/m] at complex s [1/s] (:func:`mc_impedance`): one sparse complex LU
@@ -788,14 +805,16 @@ def mc_static_equilibrium(b, F_target, omega, *, guess, ftol=1e-9, max_iter=60, 
         return F
 
     f = np.full(2, np.nan)
+    lin = None                  # one linearisation, updated at each Newton step's steady film
     for _ in range(max_iter):
         f = steady(q) - target
         if not np.all(np.isfinite(f)):
             raise HSEquilibriumError(f"mc_static_equilibrium: non-finite film force at eccentricity "
                                      f"{math.hypot(*q) / c:.4f}")
         if np.max(np.abs(f)) <= ftol * W:
-            return q, MCFilmLinear(b)
-        K = MCFilmLinear(b, polish=0).quasi_steady()[0]
+            return q, (MCFilmLinear(b) if lin is None else lin.update())
+        lin = MCFilmLinear(b, polish=0) if lin is None else lin.update(polish=0)
+        K = lin.quasi_steady()[0]
         q = _newton_step_inside(q, K, f, c, max_ecc, "mc_static_equilibrium")
     raise HSEquilibriumError(
         f"mc_static_equilibrium: no journal position carries {W:.6g} N at omega = {omega:.6g} rad/s in "

@@ -102,3 +102,26 @@ def test_impedance_matches_transient_film(state):
     err = np.abs(col - Z).max() / np.abs(Z).max()
     print("rel diff", err)
     assert err < 2e-3
+
+
+def test_update_is_a_new_linearisation_bit_for_bit():
+    """MCFilmLinear.update (mc_static_equilibrium's Newton steps keep one object, issue 16
+    review): after the journal moved and the film was solved again, every array and the
+    impedance are those of a new MCFilmLinear at that state, to the bit; with polish = 0 too,
+    and the impedance's kept matrix is that of the new state (not the old J_s)."""
+    p = params()
+    c = p.c
+    b = solve_stationary(p, 0.2 * c, -0.2 * c, OMEGA)
+    kept = MCFilmLinear(b, polish=0)
+    z_old = kept.impedance(-3.0 + 900j)
+    b.initialize(0.35 * c, -0.1 * c, 0.0, 0.0, OMEGA, init="stationary")     # as a Newton step moves it
+    for polish in (0, 2):
+        new = MCFilmLinear(b, polish=polish)
+        assert kept.update(polish=polish) is kept
+        for name in ("u", "r0", "Mdiag", "Rq", "Rv", "Fq", "Fv", "Fu", "F0"):
+            assert np.array_equal(getattr(kept, name), getattr(new, name)), name
+        assert kept.polish_step == new.polish_step
+        assert (kept.Js != new.Js).nnz == 0 and np.array_equal(kept.Js.indptr, new.Js.indptr)
+        for s in (0.0, -3.0 + 900j):
+            assert np.array_equal(kept.impedance(s), new.impedance(s))
+        assert not np.array_equal(kept.impedance(-3.0 + 900j), z_old)
