@@ -201,6 +201,35 @@ def _fmu_logger(env, instance_name, status, category, message):
         log.debug("%s: [%s] %s", shown_inst, label, log_message_text(text))
 
 
+def is_python_fmu(unzip_dir) -> bool:
+    """True for a PythonFMU FMU (the library is PythonFMU's runtime: it reads the slave module's
+    name from ``resources/slavemodule.txt`` and runs the slave class in this interpreter)."""
+    return (Path(unzip_dir) / "resources" / "slavemodule.txt").is_file()
+
+
+def _holding_the_gil(dll, functions: dict, names) -> tuple:
+    """The FMI functions ``names`` of a PythonFMU FMU called without releasing the GIL
+    (``ctypes.PyDLL`` semantics on the same library handle, same argument and return types).
+
+    Through ``ctypes.CDLL`` every call released the GIL and PythonFMU's runtime took it back at
+    once (``PyGILState_Ensure``) to run the slave's Python: two hand-overs per call that buy
+    nothing, and in a threaded stage each was a chance for the other member's thread to take
+    the GIL in between, so a call waited for that thread's Python (issue 16: the master's
+    exchange with two bearings in threads). Holding it is safe: ``PyGILState_Ensure`` on the
+    thread that holds the GIL only counts, the slave's Python still lets other threads run
+    every switch interval, and a compiled kernel called without the GIL (the film) releases it
+    as before. Python errors the runtime leaves set would raise here; PythonFMU clears them
+    (it logs them and returns fmi2Error), and :class:`Subsystem` turns either into an
+    ``FmuCallError``. Only for PythonFMU FMUs: a C FMU's long doStep must not hold the GIL."""
+    py = ctypes.PyDLL(None, handle=dll._handle)
+    out = []
+    for name in names:
+        f = getattr(py, name)
+        f.argtypes, f.restype = functions[name].argtypes, functions[name].restype
+        out.append(f)
+    return tuple(out)
+
+
 def _callbacks():
     global _CALLBACKS
     if _CALLBACKS is None:
@@ -432,6 +461,9 @@ class Subsystem(SubsystemBase):
         self._c_set_real = self._f["fmi2SetReal"]
         self._c_get_real = self._f["fmi2GetReal"]
         self._c_do_step = self._f["fmi2DoStep"]
+        if is_python_fmu(self.unzip_dir):
+            self._c_set_real, self._c_get_real, self._c_do_step = _holding_the_gil(
+                self._slave.dll, self._f, ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep"))
         self.calls["instantiate"] += 1
         try:
             self._enter("fmi2Instantiate")
