@@ -44,6 +44,14 @@ def _add_stability(sub) -> None:
     p.add_argument("--ring-spin", action="store_true",
                    help="floating-ring bearings: add each ring's spin perturbation to the linear model (default: the "
                         "ring spin held at its steady value, as the classical analyses do)")
+    p.add_argument("--unbalance", action="store_true",
+                   help="the threshold WITH the rotor's unbalance: at each speed the rotor's synchronous periodic "
+                        "orbit under its unbalance (shooting, the films' nonlinear forces; --film hs or short) and "
+                        "the Floquet multipliers along it, the growth rate ln|mu| f in place of the eigenvalue's "
+                        "real part; the linear threshold is reported beside it (about 0.3 s a speed for the "
+                        "turbocharger at 40 x 40)")
+    p.add_argument("--per-rev", metavar="N", type=_per_rev,
+                   help="with --unbalance: integration steps (and monodromy factors) per revolution (default 64)")
     p.add_argument("--json", metavar="OUT", type=_json_path, help="also write the result as JSON to this file")
     p.add_argument("--plot", metavar="PNG", type=_figure_path,
                    help="also draw the least-damped mode's logarithmic decrement and frequency over the speeds "
@@ -101,6 +109,17 @@ def _scan_count(text: str) -> int:
     return n
 
 
+def _per_rev(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if not 8 <= n <= 4096:
+        raise argparse.ArgumentTypeError(f"expected a whole number of steps per revolution from 8 to 4096, e.g. 64 "
+                                         f"(got {text!r})")
+    return n
+
+
 def _bearing_load(text: str) -> tuple[str, float, float]:
     name, sep, value = text.partition("=")
     parts = value.split(",")
@@ -154,8 +173,12 @@ def _computed(args, requests, stage: list) -> dict:
     for name, fx, fy in args.load:          # repeated for one bearing: the forces add
         ox, oy = loads.get(name, (0.0, 0.0))
         loads[name] = (ox + fx, oy + fy)
+    if args.per_rev is not None and not args.unbalance:
+        raise CosimError(f"--per-rev {args.per_rev}: the steps per revolution of the periodic orbit under the "
+                         "unbalance; it needs --unbalance (add it, or leave --per-rev out)")
+    extra = {"unbalance": True, "n_per_rev": args.per_rev} if args.unbalance else {}
     return stability(scenario, film=args.film, speeds=args.speeds, ring_spin=args.ring_spin, loads=loads,
-                     n_scan=args.scan, progress=args.progress, requests=requests)
+                     n_scan=args.scan, progress=args.progress, requests=requests, **extra)
 
 
 def _stopped_before_any_speed(args, exc, stage: str) -> int:
@@ -176,12 +199,18 @@ def _stability_report(args, r: dict) -> int:
 
     from orchestrator.stability.partial import speed_range
     lo, hi = r["speed_range_hz"]
-    print(f"linear stability of {r['scenario']} ({args.file}): rotor '{r['rotor']['instance']}' "
+    what = "stability with the unbalance (Floquet)" if r.get("unbalance") else "linear stability"
+    print(f"{what} of {r['scenario']} ({args.file}): rotor '{r['rotor']['instance']}' "
           f"({r['rotor']['model']}), {speed_range(lo, hi)} Hz")
-    print(f"method: eigenvalues of the rotor's linear model with the bearing coefficients of the {r['method']}")
+    if r.get("unbalance"):
+        print(f"method: {r['floquet']['method']}; the films' coefficients and static equilibria of the {r['method']}")
+    else:
+        print(f"method: eigenvalues of the rotor's linear model with the bearing coefficients of the {r['method']}")
     for note in r["notes"]:
         print(f"note: {note}")
-    if r["status"] == "threshold":
+    if r.get("unbalance"):
+        _floquet_report(r)
+    elif r["status"] == "threshold":
         print(f"threshold speed: {r['threshold_hz']:.2f} Hz (an eigenvalue crosses into the right half plane)")
         print(f"whirl frequency: {r['whirl_hz']:.2f} Hz, whirl frequency ratio {r['whirl_ratio']:.3f}")
         for name, b in r["bearings"].items():
@@ -208,6 +237,11 @@ def _stability_report(args, r: dict) -> int:
     if r["stopped"]:
         print(stop_message(r, kept=[f for f in (args.json, args.plot) if f]), file=sys.stderr)
         return r["stopped"]["exit_code"]
+    if r["status"] == "stable" and r.get("unbalance"):
+        print(f"error: the Floquet growth rate along the periodic orbit under the unbalance stays negative between "
+              f"{speed_range(lo, hi, ' and ')} Hz: the system with its unbalance is stable in that range; give a "
+              "wider --speeds LO:HI", file=sys.stderr)
+        return 1
     if r["status"] == "stable":
         print(f"error: no eigenvalue crosses into the right half plane between {speed_range(lo, hi, ' and ')} Hz: the "
               "system is linearly stable in that range; give a wider --speeds LO:HI", file=sys.stderr)
@@ -223,3 +257,28 @@ def _stability_report(args, r: dict) -> int:
               "give a lower --speeds LO", file=sys.stderr)
         return 1
     return 0
+
+
+def _floquet_report(r: dict) -> None:
+    """The --unbalance lines of the report: the threshold with the unbalance, its multiplier and
+    orbits, the linear threshold beside it, the cost."""
+    fq, lin = r["floquet"], r.get("linear") or {}
+    if r["status"] == "threshold":
+        mu = fq["threshold_multiplier"]
+        print(f"threshold speed with the unbalance: {r['threshold_hz']:.2f} Hz (a Floquet multiplier leaves the unit "
+              f"circle: mu = {mu[0]:+.4f}{mu[1]:+.4f}j, {fq['multiplier_kind']})")
+        print(f"whirl frequency: {r['whirl_hz']:.2f} Hz (|arg mu| f, modulo the speed), ratio {r['whirl_ratio']:.3f}")
+        for name, b in (fq["orbit_at_threshold"] or {}).items():
+            print(f"  {name}: synchronous orbit {b['amplitude_x_c']:.4f} x {b['amplitude_y_c']:.4f} c (half peak to "
+                  f"peak in x, y), eccentricity ratio up to {b['eps_max']:.3f} (static {b['eps_static']:.3f})")
+    if lin.get("threshold_hz") is not None:
+        below = f", {fq['below_linear_hz']:+.2f} Hz above the threshold with it" if "below_linear_hz" in fq else ""
+        print(f"linear threshold (static equilibrium, no unbalance): {lin['threshold_hz']:.2f} Hz (whirl "
+              f"{lin['whirl_hz']:.2f} Hz){below}")
+    else:
+        print(f"linear threshold (static equilibrium, no unbalance): {lin.get('status')}")
+    for s in fq["speeds_without_orbit"][:3]:
+        print(f"  no periodic orbit at {s['speed_hz']:.4g} Hz: {s['reason']}")
+    if fq["seconds_per_speed"] is not None:
+        print(f"{fq['speeds_computed']} periodic orbits, {fq['seconds_per_speed']:.2f} s a speed "
+              f"({fq['n_per_rev']} steps per revolution)")

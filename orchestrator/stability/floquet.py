@@ -326,3 +326,50 @@ class FloquetFilms:
                                "eps_max": float(np.hypot(x, y).max() / c), "eps_mean_position":
                                float(math.hypot(x.mean(), y.mean()) / c), "eps_static": float(eps_static[j])}
         return out
+
+
+def linear_beside(fn, ws: np.ndarray, requests) -> dict:
+    """The linear threshold (at the static equilibrium, no unbalance) on the same scan, for the
+    result's ``linear`` entry: ``status``, ``threshold_hz``, ``whirl_hz``, ``crossings``."""
+    from orchestrator.stability.search import _search
+    out: dict = {"notes": [], "crossings": [], "crossings_bracketed": [], "speed_range_hz": None}
+    if requests.requested:
+        return {"status": "not computed (stopped)", "threshold_hz": None, "whirl_hz": None, "crossings": []}
+    try:
+        _search(fn.max_re, ws, out)
+    except (StabilityError, *_NUMERIC) as exc:
+        return {"status": f"not computed: {exc}", "threshold_hz": None, "whirl_hz": None, "crossings": []}
+    return {"status": out["status"], "threshold_hz": out.get("threshold_hz"), "whirl_hz": out.get("whirl_hz"),
+            "crossings": out["crossings"]}
+
+
+def floquet_entries(fq: FloquetFilms, result: dict, seen: dict, at: float | None, seconds: float) -> None:
+    """Add the Floquet search's own entries to ``result`` (``unbalance``, ``floquet``, and per scan
+    row the multiplier and each bearing's orbit amplitude), ``at``: the threshold [rad/s] or None."""
+    result["unbalance"] = True
+    rows = {round(r["speed_hz"], 12): r for r in result["scan"]}
+    for w in seen:
+        o = fq.orbits.get(float(w))
+        row = rows.get(round(w / (2 * math.pi), 12))
+        if o is None or row is None:
+            continue
+        mu = complex(o.multipliers[0])
+        row["floquet_multiplier"] = [mu.real, mu.imag]
+        row["orbit_amplitude_c"] = {b.instance: float(max(np.ptp(o.kin[:-1, j, 0]), np.ptp(o.kin[:-1, j, 1]))
+                                                      / 2 / fq.c[j]) for j, b in enumerate(fq.system.bearings)}
+    n_done = len(fq.orbits) + len(fq.failures)
+    entry: dict = {"method": fq.method, "n_per_rev": fq.n_per_rev, "speeds_computed": n_done,
+                   "seconds_per_speed": seconds / n_done if n_done else None,
+                   "threshold_multiplier": None, "multiplier_kind": None, "orbit_at_threshold": None,
+                   "newton_iterations_at_threshold": None,
+                   "speeds_without_orbit": [{"speed_hz": w / (2 * math.pi), "reason": why}
+                                            for w, why in sorted(fq.failures.items())]}
+    if at is not None and float(at) in fq.orbits:
+        o = fq.orbits[float(at)]
+        mu = complex(o.multipliers[0])
+        entry.update(threshold_multiplier=[mu.real, mu.imag], multiplier_kind=multiplier_kind(mu, at / (2 * math.pi)),
+                     orbit_at_threshold=fq.orbit_entry(at), newton_iterations_at_threshold=o.iterations)
+    lin = result.get("linear") or {}
+    if result.get("threshold_hz") is not None and lin.get("threshold_hz") is not None:
+        entry["below_linear_hz"] = lin["threshold_hz"] - result["threshold_hz"]
+    result["floquet"] = entry

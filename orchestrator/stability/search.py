@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import math
 import sys
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -80,12 +81,14 @@ class _NoStop:
     signum = None
 
 
-def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=None, bar=None) -> Searched:
+def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=None, bar=None,
+            without: str = "static equilibrium") -> Searched:
     """Fill ``result`` (its ``crossings``, ``crossings_bracketed``, ``status``, the threshold's
     entries, ``notes``) from ``max_re(omega) -> (largest real part, |Im| there)`` at the speeds
     ``ws`` [rad/s] and between them. ``stop``: a :class:`orchestrator.coupling.lifecycle.StopRequests`
     looked at before each speed (scan and refinement; :mod:`orchestrator.stability.partial`);
-    ``bar``: a progress bar (tqdm's calls) advanced by each speed of the scan."""
+    ``bar``: a progress bar (tqdm's calls) advanced by each speed of the scan; ``without``: what a
+    speed left out (``max_re`` raised :class:`StabilityError`) lacks, in the notes."""
     from rotor_fmu.stability import refine_crossing
     # the whole range on a geometric grid, then Brent on every sign change of the largest real part
     # between neighbouring speeds (rotor_fmu.stability.refine_crossing, as threshold_speed refines
@@ -134,7 +137,7 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
         raise failed[0][1]
     if failed:
         where = ", ".join(f"{w / (2 * math.pi):.4g}" for w, _ in failed[:6]) + (" ..." if len(failed) > 6 else "")
-        result["notes"].append(f"no static equilibrium at {len(failed)} of the {done} speeds searched ({where} Hz), "
+        result["notes"].append(f"no {without} at {len(failed)} of the {done} speeds searched ({where} Hz), "
                                f"left out: {failed[0][1]}".replace("; raise the lower end of --speeds", ""))
         result["speeds_without_equilibrium_hz"] = [w / (2 * math.pi) for w, _ in failed]
     unlocated = None          # the first sign change, when it lies across speeds without equilibrium
@@ -163,8 +166,8 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
             continue
         between = [ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)]
         result["notes"].append(f"the largest real part changes sign between {between[0]:.4g} and "
-                               f"{between[1]:.4g} Hz (it becomes {becomes}), across speeds without a static "
-                               "equilibrium: that crossing is not located")
+                               f"{between[1]:.4g} Hz (it becomes {becomes}), across speeds without a "
+                               f"{without}: that crossing is not located")
         if unlocated is None and not result["crossings"] and not brackets:
             unlocated = between
     vals = [vals[k] for k in ok]
@@ -223,7 +226,8 @@ def later_crossings(result: dict) -> list[dict]:
 
 def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None = None, n_scan: int | None = None,
               ring_spin: bool = False, loads: dict[str, tuple[float, float]] | None = None,
-              mc_solver: str = "counted", progress: bool | None = None, requests=None) -> dict:
+              mc_solver: str = "counted", progress: bool | None = None, requests=None, unbalance: bool = False,
+              n_per_rev: int | None = None) -> dict:
     """The threshold result (a JSON-ready dict) of a loaded scenario: the search of the module doc,
     for the scenarios of :mod:`orchestrator.stability.system`, with the films of
     :mod:`orchestrator.stability.films`.
@@ -237,7 +241,11 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     counted, :func:`rotor_fmu.film_system.rightmost`) or ``"dense"`` (all eigenvalues by QZ, the
     reference: the same roots, ~30 x slower at 40 x 40). ``progress``: a progress bar of the scan on
     stderr (tqdm): None (default) when stderr is a terminal and the scan lasts more than a few
-    seconds, True always (after those seconds), False never.
+    seconds, True always (after those seconds), False never. ``unbalance``: the threshold of the
+    rotor WITH its unbalance (``--unbalance``): at each speed its synchronous periodic orbit and the
+    Floquet growth rate along it in place of the largest real part (:mod:`orchestrator.stability.floquet`,
+    ``n_per_rev`` steps per revolution, default :data:`~orchestrator.stability.floquet.N_PER_REV`);
+    the result then also has ``unbalance``, ``floquet`` and ``linear`` (the threshold without it).
 
     Ctrl-C or SIGTERM (in the main thread; :class:`orchestrator.coupling.lifecycle.StopRequests`)
     stops the search after the speed being computed (a second one at once), and an error at one
@@ -254,7 +262,8 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         from orchestrator.coupling.lifecycle import StopRequests
         with StopRequests(at_once=True) as own:
             return stability(scenario, film=film, speeds=speeds, n_scan=n_scan, ring_spin=ring_spin, loads=loads,
-                             mc_solver=mc_solver, progress=progress, requests=own)
+                             mc_solver=mc_solver, progress=progress, requests=own, unbalance=unbalance,
+                             n_per_rev=n_per_rev)
     if film not in FILMS:
         raise StabilityError(f"--film must be one of {', '.join(FILMS)} (got {film!r})")
     system = build_system(scenario)
@@ -272,6 +281,18 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     if system.rings and film == "short":
         raise StabilityError("--film short: the short-bearing closed form has no floating ring; the floating-ring "
                              "bearings of this scenario are linearized with their half-Sommerfeld films (--film hs)")
+    if unbalance and system.rings:
+        raise StabilityError("--unbalance: the periodic orbit under the unbalance is computed for plain "
+                             f"{BEARING_MODEL}s (--film hs or short), not for floating-ring bearings; leave "
+                             "--unbalance out for this scenario's linear threshold")
+    if unbalance and film == "mc":
+        raise StabilityError("--unbalance --film mc: the periodic orbit under the unbalance needs each film's "
+                             "nonlinear force at any journal motion, which the mass-conserving film has only with its "
+                             "cavity's history (a run); --unbalance supports --film hs (each bearing's own "
+                             "half-Sommerfeld film, also for a mass-conserving bearing's geometry) and --film short; "
+                             "use --unbalance --film hs, or --film mc without --unbalance")
+    if n_per_rev is not None and not unbalance:
+        raise StabilityError("n_per_rev: steps per revolution of the periodic orbit, only with unbalance=True")
     if ring_spin and not system.rings:
         raise StabilityError("--ring-spin: the scenario has no floating-ring bearings (its stations carry "
                              f"{BEARING_MODEL}s); leave --ring-spin out")
@@ -285,7 +306,7 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
         n_scan = MC_SCAN if film == "mc" else 80
     with _progress_bar(n_scan, progress) as bar:
         return _threshold(scenario, system, film=film, lo=lo, hi=hi, n_scan=n_scan, ring_spin=ring_spin, loads=loads,
-                          mc_solver=mc_solver, requests=requests, bar=bar)
+                          mc_solver=mc_solver, requests=requests, bar=bar, unbalance=unbalance, n_per_rev=n_per_rev)
 
 
 @contextlib.contextmanager
@@ -308,17 +329,25 @@ def _progress_bar(n_scan: int, progress: bool | None):
 
 
 def _threshold(scenario, system: System, *, film: str, lo: float, hi: float, n_scan: int, ring_spin: bool,
-               loads, mc_solver: str, requests, bar) -> dict:
+               loads, mc_solver: str, requests, bar, unbalance: bool = False, n_per_rev: int | None = None) -> dict:
     """The search of :func:`stability` on its checked arguments (``requests``: the stop requests
     looked at before each speed; ``bar``: the progress bar or None)."""
     weight, extra, total = _static_loads(system, loads)
     fn = film_model(system, film, total, ring_spin=ring_spin, mc_solver=mc_solver)
     notes = _notes(system, film, ring_spin, weight, extra)
     seen: dict[float, tuple[float, float]] = {}
+    fq = None
+    if unbalance:
+        from orchestrator.stability.floquet import N_PER_REV, FloquetFilms
+        fq = FloquetFilms(system, film, fn, extra, n_per_rev=n_per_rev or N_PER_REV)
+        if not fq.has_unbalance:
+            notes.append(f"the rotor '{system.rotor_instance}' has no unbalance: its periodic orbit is the static "
+                         "equilibrium and the Floquet growth rate the linear threshold's largest real part")
+    model = fq if fq is not None else fn
 
     def max_re(w):                       # every speed evaluated, for result["scan"] and --plot
         try:
-            v = fn.max_re(w)
+            v = model.max_re(w)
         except _NUMERIC as exc:          # the rotor's own matrices (an absurd mass, a speed far off)
             raise StabilityError(f"the eigenvalues of the rotor '{system.rotor_instance}' in its bearings cannot "
                                  f"be computed at {w / (2 * math.pi):.4g} Hz: {exc or type(exc).__name__}; check the "
@@ -338,14 +367,23 @@ def _threshold(scenario, system: System, *, film: str, lo: float, hi: float, n_s
     # from the first speed on a signal stops after the speed being computed (a second one abandons it)
     requests.phase("this speed")
     requests.abandon = False
+    if fq is not None:                   # the linear threshold beside it (cheap), then the Floquet search
+        from orchestrator.stability.floquet import linear_beside
+        result["linear"] = linear_beside(fn, np.geomspace(w_lo, w_hi, n_scan), requests)
+        t_search = time.perf_counter()
     searched = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result,
-                       xtol=2 * math.pi * 0.01 if film == "mc" else 1e-9, stop=requests, bar=bar)
+                       xtol=(2 * math.pi * 0.01 if film == "mc" else 2 * math.pi * 1e-3 if fq is not None else 1e-9),
+                       stop=requests, bar=bar, without="static equilibrium" if fq is None else
+                       "synchronous periodic orbit (or static equilibrium)")
     at, stop = searched.at, searched.stop
     if film == "mc" and fn.dense_speeds:
         notes.append(f"at {len(fn.dense_speeds)} of the {len(seen)} speeds evaluated the argument-principle count "
                      "disagreed with the eigenvalues the Arnoldi runs found: there all were computed densely")
     result["scan"] = [{"speed_hz": w / (2 * math.pi), "max_re_per_s": re, "whirl_hz": im / (2 * math.pi),
                        "log_decrement": log_decrement(re, im)} for w, (re, im) in sorted(seen.items())]
+    if fq is not None:
+        from orchestrator.stability.floquet import floquet_entries
+        floquet_entries(fq, result, seen, at if stop is None else None, time.perf_counter() - t_search)
     none = [None] * len(system.bearings)
     eps, points = none, none
     if at is not None and stop is None:         # nothing is computed after a stop
