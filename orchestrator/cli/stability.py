@@ -272,7 +272,8 @@ def _floquet_report(r: dict) -> None:
             print(f"  {name}: synchronous orbit {b['amplitude_x_c']:.4f} x {b['amplitude_y_c']:.4f} c (half peak to "
                   f"peak in x, y), eccentricity ratio up to {b['eps_max']:.3f} (static {b['eps_static']:.3f})")
     if lin.get("threshold_hz") is not None:
-        below = f", {fq['below_linear_hz']:+.2f} Hz above the threshold with it" if "below_linear_hz" in fq else ""
+        below = (f"; the unbalance moves the threshold by {-fq['below_linear_hz']:+.2f} Hz" if "below_linear_hz" in fq
+                 else "")
         print(f"linear threshold (static equilibrium, no unbalance): {lin['threshold_hz']:.2f} Hz (whirl "
               f"{lin['whirl_hz']:.2f} Hz){below}")
     else:

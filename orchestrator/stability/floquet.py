@@ -364,8 +364,10 @@ def floquet_entries(fq: FloquetFilms, result: dict, seen: dict, at: float | None
                    "newton_iterations_at_threshold": None,
                    "speeds_without_orbit": [{"speed_hz": w / (2 * math.pi), "reason": why}
                                             for w, why in sorted(fq.failures.items())]}
-    if at is not None and float(at) in fq.orbits:
-        o = fq.orbits[float(at)]
+    near = [w for w in fq.orbits if at is not None and abs(w - at) <= 1e-9 * at]   # at: from the crossing's Hz
+    if near:
+        at = near[0]
+        o = fq.orbits[at]
         mu = complex(o.multipliers[0])
         entry.update(threshold_multiplier=[mu.real, mu.imag], multiplier_kind=multiplier_kind(mu, at / (2 * math.pi)),
                      orbit_at_threshold=fq.orbit_entry(at), newton_iterations_at_threshold=o.iterations)
