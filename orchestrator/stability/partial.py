@@ -123,7 +123,8 @@ def scan_table(result: dict) -> str:
     rows = [(s["speed_hz"], f"{s['max_re_per_s']:14.6g} "
              + (f"{s['log_decrement']:14.5g}" if s["log_decrement"] is not None else f"{'-':>14}")
              + f" {s['whirl_hz']:11.3f}") for s in result.get("scan") or []]
-    rows += [(f, f"{'':1}no static equilibrium") for f in result.get("speeds_without_equilibrium_hz") or []]
+    lacks = "no periodic orbit" if result.get("unbalance") else "no static equilibrium"     # --unbalance: Floquet rate
+    rows += [(f, f"{'':1}{lacks}") for f in result.get("speeds_without_equilibrium_hz") or []]
     stop = result.get("stopped") or {}
     done, planned = stop.get("speeds_done"), stop.get("speeds_planned")
     head = (f"speeds done: {done} of the scan's {planned}" if stop.get("phase") == "scan" else
