@@ -277,7 +277,7 @@ def _floquet_report(r: dict) -> None:
         print(f"linear threshold (static equilibrium, no unbalance): {lin['threshold_hz']:.2f} Hz (whirl "
               f"{lin['whirl_hz']:.2f} Hz){below}")
     else:
-        print(f"linear threshold (static equilibrium, no unbalance): {lin.get('status')}")
+        print(f"linear threshold (static equilibrium, no unbalance): none located in the range ({lin.get('status')})")
     for s in fq["speeds_without_orbit"][:3]:
         print(f"  no periodic orbit at {s['speed_hz']:.4g} Hz: {s['reason']}")
     if fq["seconds_per_speed"] is not None:
