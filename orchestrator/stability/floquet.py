@@ -127,12 +127,14 @@ class FloquetFilms:
             f0[ix] += self.extra[j, 0]
             f0[iy] += self.extra[j, 1]
         self.f0 = f0
-        self.method = (f"Floquet multipliers of the rotor linearised along its synchronous periodic orbit under its "
-                       f"unbalance at each constant speed (shooting: Newton on s(T) - s(0) with the frozen-system "
+        force = ("half-Sommerfeld force of each bearing (contact as the FMU adds it)" if film == "hs" else
+                 "short-bearing (Ocvirk) force")
+        self.method = ("Floquet multipliers of the rotor linearised along its synchronous periodic orbit under its "
+                       "unbalance at each constant speed (shooting: Newton on s(T) - s(0) with the frozen-system "
                        f"monodromy, {self.n_per_rev} exponential Rosenbrock-Euler steps per revolution, the nonlinear "
-                       f"{'half-Sommerfeld force of each bearing (contact as the FMU adds it)' if film == 'hs' else 'short-bearing (Ocvirk) force'};"
-                       " start: the static equilibrium plus the linear synchronous response; orchestrator/stability/floquet.py)"
-                       "; growth rate ln|mu| f of the largest multiplier in place of the largest real part")
+                       f"{force}; start: the static equilibrium plus the linear synchronous response; "
+                       "orchestrator/stability/floquet.py); growth rate ln|mu| f of the largest multiplier in place of "
+                       "the largest real part")
 
     @property
     def has_unbalance(self) -> bool:
