@@ -52,9 +52,11 @@ def test_turbocharger_threshold_with_its_unbalance(capsys, tmp_path):
     # measured 2026-12-07: 53.21 Hz (the run's orbit, docs/runups.md: 53.38-53.39 Hz), mu -1.0000,
     # compressor-side orbit 0.0099 x 0.0120 c; linear 56.59 Hz
     out = tmp_path / "r.json"
+    png = tmp_path / "r.png"
     code, text, err = run_verb(capsys, "stability", TURBO_HS, "--unbalance", "--speeds", "52:57", "--scan", "3",
-                               "--json", out)
+                               "--json", out, "--plot", png)
     assert code == 0, err
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     r = json.loads(out.read_text())
     assert r["unbalance"] is True and LINEAR_KEYS <= set(r)
     assert 53.0 < r["threshold_hz"] < 53.45

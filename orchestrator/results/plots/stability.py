@@ -8,7 +8,9 @@ film whirl sits just below it). The threshold and its whirl frequency are marked
 other crossing (stable again, or, already unstable at the lower end, stable from there), and
 speeds without a static equilibrium (grey crosses). The figure of a search that was stopped
 (``result["stopped"]``: Ctrl-C, SIGTERM, an error at one speed) draws the speeds done, its
-unrefined crossings as their brackets (shaded), and says where it stopped.
+unrefined crossings as their brackets (shaded), and says where it stopped. With ``--unbalance``
+(``result["unbalance"]``) the same panels from the largest Floquet multiplier (decrement
+``-2 pi ln|mu| / |arg mu|``, frequency ``|arg mu| f``) and the linear threshold marked beside.
 """
 
 from __future__ import annotations
@@ -31,7 +33,9 @@ def draw(result: dict, path: Path | str) -> Path:
     dec = np.array([np.nan if s["log_decrement"] is None else s["log_decrement"] for s in scan], dtype=float)
     fig = Figure(figsize=(8, 6.2), layout="constrained")
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
-    ax1.plot(f, dec, "o-", ms=3, lw=1.2, color="C0", label="least-damped mode")
+    floquet = bool(result.get("unbalance"))         # --unbalance: the largest Floquet multiplier's rate, |arg mu| f
+    ax1.plot(f, dec, "o-", ms=3, lw=1.2, color="C0",
+             label="largest Floquet multiplier (orbit under the unbalance)" if floquet else "least-damped mode")
     ax1.axhline(0.0, color="k", lw=0.8)
     ax1.set_ylabel("logarithmic decrement [-]")
     ax2.plot(f, fw, "o-", ms=3, lw=1.2, color="C0", label="its frequency")
@@ -45,6 +49,11 @@ def draw(result: dict, path: Path | str) -> Path:
         for ax in (ax1, ax2):
             ax.axvline(th, color="C3", ls="--", lw=1.2, label=lab if ax is ax1 else None)
         ax2.plot([th], [result["whirl_hz"]], "s", color="C3", ms=6)
+    lin = (result.get("linear") or {}).get("threshold_hz") if floquet else None
+    if lin is not None:
+        for ax in (ax1, ax2):
+            ax.axvline(lin, color="0.4", ls="--", lw=1.0, label=f"linear threshold {lin:.2f} Hz (no unbalance)"
+                       if ax is ax1 else None)
     from orchestrator.stability import later_crossings
     for c in later_crossings(result):
         lab = f"{c['becomes']} from {c['speed_hz']:.2f} Hz"
@@ -61,7 +70,7 @@ def draw(result: dict, path: Path | str) -> Path:
     if bad:
         for ax in (ax1, ax2):
             ax.plot(bad, np.zeros(len(bad)) if ax is ax1 else 0.5 * np.asarray(bad), "x", color="0.5", ms=4,
-                    label="no static equilibrium" if ax is ax1 else None)
+                    label=("no periodic orbit" if floquet else "no static equilibrium") if ax is ax1 else None)
     stop = result.get("stopped")
     if stop:
         where = f" at {stop['at_speed_hz']:.4g} Hz" if stop.get("at_speed_hz") is not None else ""
@@ -88,5 +97,6 @@ def draw(result: dict, path: Path | str) -> Path:
     film = {"hs": "half-Sommerfeld films", "short": "short-bearing closed form"}.get(result.get("film"),
                                                                                     result.get("film"))
     from orchestrator.results.plots.common import plain
-    fig.suptitle(f"{plain(result.get('scenario'))}: linear stability ({film})", fontsize=10)
+    what = "stability with the unbalance (Floquet)" if floquet else "linear stability"
+    fig.suptitle(f"{plain(result.get('scenario'))}: {what} ({film})", fontsize=10)
     return save_figure(fig, path, dpi=DPI)
