@@ -153,3 +153,18 @@ def test_the_scripts_floquet_rate_along_the_computed_orbit_agrees():
     assert 0.7 < rate < 0.95
     assert theirs == pytest.approx(rate, abs=0.01)
     assert mu.imag == 0.0 and mu.real < -1.0
+
+
+def test_a_load_in_place_of_the_weight_gives_the_same_orbit_and_threshold():
+    # g = 0 and each bearing's weight share (m g / 2 = 29.43 N) as --load: the forces enter the orbit's
+    # statics and dynamics as the weight does (measured: 261.95 Hz both, orbit 0.0081 x 0.0079 c)
+    kw = dict(film="short", speeds=(255.0, 270.0), n_scan=2, unbalance=True, progress=False)
+    a = stability(load_scenario(JEFFCOTT_HS), **kw)
+    w = a["bearings"]["bearing1"]["load_vector_n"][1]
+    b = stability(load_scenario(JEFFCOTT_HS, ["fmus.rotor.parameters.g=0"]),
+                  loads={"bearing1": (0.0, w), "bearing2": (0.0, w)}, **kw)
+    assert b["threshold_hz"] == pytest.approx(a["threshold_hz"], abs=2e-3)
+    assert a["threshold_hz"] < a["linear"]["threshold_hz"] - 0.1         # measured -0.19 Hz
+    oa, ob = a["floquet"]["orbit_at_threshold"]["bearing1"], b["floquet"]["orbit_at_threshold"]["bearing1"]
+    assert ob["amplitude_x_c"] == pytest.approx(oa["amplitude_x_c"], rel=1e-3)
+    assert ob["eps_max"] == pytest.approx(oa["eps_max"], rel=1e-3)
