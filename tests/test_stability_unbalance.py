@@ -7,7 +7,7 @@ must be the linear eigenvalue threshold (a different computation: a product of m
 over a revolution, not eigenvalues); the turbocharger's threshold with its unbalance against the one
 docs/runups.md section 4 found with docs/scripts/turbocharger_unbalance_floquet.py along a run's
 orbit (53.38-53.39 Hz) and the growth rate of its constant-speed run at 57 Hz (+4.0 1/s).
-Small scans, coarse ranges: about 40 s in all."""
+Small scans, coarse ranges: 5-15 s in all (warm numba cache)."""
 
 from __future__ import annotations
 
