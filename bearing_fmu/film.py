@@ -535,7 +535,7 @@ def stencil_matvec(jst, n_phi, x, y):
         y[g] = v
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def integrals(p, th, H, He, groove, phi, omega, a_phi, a_z, dphi, dz, bath, p0,
               pa, pb, s_pen, R, B, c, eta0, sym, order=0, wrel=None, frel=None,
               delta=1.0, K=0.0):

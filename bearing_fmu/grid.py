@@ -86,7 +86,7 @@ class Grid:
         return np.cos(self.phi), np.sin(self.phi), np.cos(phi_f), np.sin(phi_f)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _gap(x, y, vx, vy, c, cs, sn, cf, sf):
     """``H = 1 - (x cos + y sin) / c`` at the centres, the same at the east faces (``cf``,
     ``sf``) and ``dH/dt = -(vx cos + vy sin) / c``: the numpy expressions this replaces, the

@@ -807,7 +807,7 @@ class BearingModel:
         return None, max_iter
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _extrema(p, H):
     """(max p, min p, min H) in one call, as ``p.max(), p.min(), H.min()`` return them (nan
     when the array holds one)."""
