@@ -27,6 +27,7 @@ import yaml
 
 from orchestrator.compare.capabilities import check_run_capabilities
 from orchestrator.compare.metrics import METRICS
+from orchestrator.compare.run_scenarios import RunChanges, check_run_scenarios
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario import SCHEMES, Scenario
 from orchestrator.scenario.analysis_clearance import check_analysis_clearance
@@ -386,6 +387,9 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
         check_run_capabilities(base, reference, variants, group_of,
                                lambda key, msg: bad(key, msg, *_group_at(sec, key)),
                                lambda key, msg: log.warning("%s", said(key, msg, *_group_at(sec, key))))
+    # every run through the scenario loader's checks (a run reported above is left out: one message each)
+    check_run_scenarios(_source_file(base), base, _runs(sec, common, reference, variants, group_of, interval,
+                                                          problems), apply_changes, bad)
     if problems:
         raise CompareSpecError(problems)
     return CompareSpec(name=name, base=base, variants=tuple(variants), reference=reference,
@@ -629,6 +633,52 @@ def _check_run_limits(base, reference: ReferenceSpec, variants, interval, bad) -
             found = [f"cannot be applied ({exc})"]
         for p in found[:1]:
             bad("variants" if label != "reference" else "reference", f"makes the {label} run invalid: {p}")
+
+
+def _source_file(base: Scenario) -> Path | None:
+    """The file the base scenario was loaded from (None: made in code)."""
+    src = base.source
+    return Path(src) if src is not None and Path(src).is_file() else None
+
+
+def _runs(sec, common, reference: ReferenceSpec, variants, group_of, interval, problems) -> list[RunChanges]:
+    """The reference (a co-simulation or monolithic one) and every variant as :class:`RunChanges`: the
+    comparison's ``set``, the run's changes and the output grid, each with its place in the file."""
+    shared: dict[str, tuple] = {k: ("set", _given(sec.get("set")), k) for k in common}
+    # the output grid as written (the default one is the base's or the largest macro step: checked as those are)
+    grid = {"output.interval": interval} if interval is not None and "output_interval" in sec else {}
+
+    def run(who, home, changes, places):
+        return RunChanges(who=who, changes={**common, **changes, **grid}, home=home, places={
+            **shared, **places, **({"output.interval": ("output_interval", sec, "output_interval")} if grid else {})})
+
+    out = []
+    ref = sec.get("reference") if isinstance(sec.get("reference"), dict) else {}
+    if not any("'compare.reference'" in p for p in problems):
+        out.append(run("the reference", ("reference", sec, "reference"), reference.changes,
+                       _places(ref, "reference", reference.changes)))
+    groups = sec.get("variants") if isinstance(sec.get("variants"), list) else []
+    for v in variants:
+        if any(f"variant '{v.name}'" in p for p in problems):
+            continue
+        i = group_of.get(v.name, 0)
+        g = groups[i] if i < len(groups) and isinstance(groups[i], dict) else {}
+        out.append(run(f"variant '{v.name}'", (f"variants[{i}]", *_group_at(sec, f"variants[{i}]")), v.changes,
+                       _places(g, f"variants[{i}]", v.changes)))
+    return out
+
+
+def _places(group, label: str, changes) -> dict[str, tuple]:
+    """Where in ``group`` (a variant group or the reference) each of ``changes`` is written: its
+    ``set`` entry, else its coupling key."""
+    sets = _given(group.get("set"))
+    out = {}
+    for k in changes:
+        if isinstance(sets, dict) and k in sets:
+            out[k] = (f"{label}.set", sets, k)
+        elif k.startswith("coupling.") and k[len("coupling."):] in group:
+            out[k] = (f"{label}.{k[len('coupling.'):]}", group, k[len("coupling."):])
+    return out
 
 
 def _multiple(interval: float, h: float) -> bool:
