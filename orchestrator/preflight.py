@@ -144,13 +144,19 @@ def _collect_warnings(into: list[str]):
             lg.propagate = prop
 
 
-@contextlib.contextmanager
 def _master_log_quiet():
     """The master logs a failed initialization at ERROR; validate prints it as a problem."""
-    logger = logging.getLogger("orchestrator.coupling.execution")
-    level = logger.level
-    logger.setLevel(logging.CRITICAL)
+    return quiet_logger("orchestrator.coupling.execution", logging.CRITICAL)
+
+
+@contextlib.contextmanager
+def quiet_logger(name: str, level: int):
+    """Only records of ``level`` and above from the logger ``name`` (and its children that set no
+    level of their own) while the block runs; its own level again afterwards."""
+    logger = logging.getLogger(name)
+    before = logger.level
+    logger.setLevel(level)
     try:
         yield
     finally:
-        logger.setLevel(level)
+        logger.setLevel(before)

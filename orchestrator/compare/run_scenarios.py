@@ -22,7 +22,6 @@ parameter 'bearing1.n_phi' is Integer (got 2.5, a number); write a Integer value
 
 from __future__ import annotations
 
-import contextlib
 import json
 import logging
 import math
@@ -73,20 +72,15 @@ def value_text(value: Any) -> str:
     return json.dumps(value)
 
 
-@contextlib.contextmanager
 def _quiet_loader():
     """The loader's warnings (an interpolation order below the extrapolation order, ...) are said
     once for the base scenario; not again for each run, whose coupling the report describes."""
-    logger = logging.getLogger("orchestrator.scenario")
-    level = logger.level
-    logger.setLevel(logging.ERROR)
-    try:
-        yield
-    finally:
-        logger.setLevel(level)
+    from orchestrator.preflight import quiet_logger
+    return quiet_logger("orchestrator.scenario", logging.ERROR)
 
 
 _BEARING = re.compile(r"the bearing it analyses, '(?P<inst>[^']+)'")
+_GIVEN = re.compile(r"\.clearance' is (?P<given>\S+) m, ")
 
 
 def check_run_scenarios(source: Path | None, base, runs: list[RunChanges], apply: Callable,
@@ -163,7 +157,9 @@ def _clearance(run: RunChanges, problem: str) -> tuple[Place, bool, str]:
     text = problem[at + 2:] if at >= 0 else problem
     text = text.split("; write clearance:", 1)[0]
     what = f"sets {_written(run, key)}" if key is not None else "changes an analysed bearing"
+    given = _GIVEN.search(text)
+    stays = f" ({given.group('given')} m)" if given else ""
     return place, place[0] == "set", (
-        f"{what}: {text}; every run of a comparison is analysed with the base scenario's clearance, so this run's "
-        "onset and amplitudes would be wrong: change psi and R together so that psi R stays the same, or compare "
-        "this bearing in a comparison of its own whose base scenario has it (its clearance written or left out)")
+        f"{what}: {text}; every run of a comparison is analysed with the base scenario's clearance{stays}: change "
+        f"psi and R together so that psi R stays that, or compare this bearing in a comparison of its own whose "
+        "base scenario has it")
