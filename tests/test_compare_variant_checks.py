@@ -200,3 +200,25 @@ def test_the_cli_names_the_variant_line(tmp_path, capsys):
     rc, out = cli(capsys, "compare", _files(tmp_path, "bearing1.psi: 0.5"), "--out", tmp_path / "out")
     assert rc == 2 and BAD + "bearing1.psi: 0.5: parameter 'bearing1.psi' = 0.5 is outside" in out, out
     assert not (tmp_path / "out" / "runs").exists()
+
+
+def test_variants_of_an_ssp_base_are_checked_with_the_archive_extracted_once(tmp_path, monkeypatch):
+    import warnings
+
+    from orchestrator.scenario import load_scenario, ssp
+    from orchestrator.scenario.ssp import export_ssp
+    _files(tmp_path, "bearing1.n_phi: 8000")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")                  # export-ssp's note on the coupling scheme
+        export_ssp(load_scenario(tmp_path / "s.yaml"), tmp_path / "s.ssp")
+    extracted = []
+    real = ssp.scenario_from_ssp
+    monkeypatch.setattr(ssp, "scenario_from_ssp", lambda *a, **k: extracted.append(a) or real(*a, **k))
+    compare = COMPARE.replace("scenario: s.yaml", "scenario: s.ssp").replace(
+        "- {{macro_step: 1.0e-4}}", "- {{macro_step: [1.0e-4, 5.0e-5, 2.5e-5]}}")
+    path = tmp_path / "cmp.yaml"
+    path.write_text(compare.format(values="bearing1.n_phi: 8000"))
+    msg = _problems(path)
+    assert (BAD + "bearing1.n_phi: 8000: " + str(tmp_path / "s.ssp") + " [fmus.bearing1]: fmus.bearing1.parameters."
+            "n_phi x n_z = 8000 x 40 = 320000 film cells") in msg, msg
+    assert len(extracted) == 2, extracted               # the base, then once for its 5 runs (not once each)

@@ -22,6 +22,7 @@ parameter 'bearing1.n_phi' is Integer (got 2.5, a number); write a Integer value
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import math
@@ -91,34 +92,68 @@ def check_run_scenarios(source: Path | None, base, runs: list[RunChanges], apply
     (``apply(base, changes)`` is the scenario the run is given). A problem the comparison's own
     ``set`` causes is reported once, not for every run. ``source`` None (a base made in code):
     nothing to load, only the clearance is checked."""
-    from orchestrator.scenario import load_scenario
-    from orchestrator.scenario.analysis_clearance import analysis_clearance_problems
-
     said: set[tuple] = set()
     loaded: dict[tuple, list[str]] = {}
-    for run in runs:
-        texts = {f"--set {override_path(k)}={value_text(v)}": k for k, v in run.changes.items()}
-        overrides = tuple(t[len("--set "):] for t in texts)
-        if source is not None and overrides not in loaded:
-            try:
-                with _quiet_loader():
-                    load_scenario(source, list(overrides))
-                loaded[overrides] = []
-            except ScenarioError as exc:
-                loaded[overrides] = list(exc.problems)
-        problems = [_placed(run, p, texts) for p in loaded.get(overrides, [])]
-        if not problems:
-            try:
-                sc = apply(base, dict(run.changes))
-            except (KeyError, ValueError, TypeError):
-                sc = None                                 # reported by the comparison's own checks
-            for p in analysis_clearance_problems(sc) if sc is not None else ():
-                problems.append(_clearance(run, p))
-        for (label, m, at), common, msg in problems:
-            if (label, msg if common else (run.who, msg)) in said:
-                continue
-            said.add((label, msg if common else (run.who, msg)))
-            bad(label, msg if common else f"{run.who} {msg}", m, at)
+    with _extracted_once(source) as load:
+        for run in runs:
+            texts = {f"--set {override_path(k)}={value_text(v)}": k for k, v in run.changes.items()}
+            overrides = tuple(t[len("--set "):] for t in texts)
+            if load is not None and overrides not in loaded:
+                loaded[overrides] = load(list(overrides))
+            _report(run, base, texts, loaded.get(overrides, []), apply, bad, said)
+
+
+@contextlib.contextmanager
+def _extracted_once(source: Path | None):
+    """A function that loads ``source`` with overrides and returns the loader's problems (None when
+    there is no file). An SSP (or a YAML scenario naming one, ``ssp: FILE``) is extracted once for
+    all runs, not once per run (its FMUs: megabytes each), and its problems keep naming the SSP."""
+    from orchestrator.scenario import load_scenario
+    from orchestrator.scenario.loader import from_ssp
+    from orchestrator.scenario.nodes import GENERATED
+
+    if source is None:
+        yield None
+        return
+    try:
+        made = from_ssp(source)
+    except ScenarioError:                         # the base loaded from it: not expected
+        made = source
+    origins = GENERATED.get(str(made))
+
+    def load(overrides: list[str]) -> list[str]:
+        if origins is not None:
+            GENERATED[str(made)] = origins        # the loader forgets them after each load
+        try:
+            with _quiet_loader():
+                load_scenario(made, overrides)
+        except ScenarioError as exc:
+            return list(exc.problems)
+        return []
+    try:
+        yield load
+    finally:
+        GENERATED.pop(str(made), None)
+
+
+def _report(run: RunChanges, base, texts: Mapping[str, str], found: list[str], apply: Callable,
+            bad: Callable[..., None], said: set) -> None:
+    """Report the loader's problems ``found`` of ``run`` (each once: ``said``), else its analysis
+    clearance problems."""
+    from orchestrator.scenario.analysis_clearance import analysis_clearance_problems
+    problems = [_placed(run, p, texts) for p in found]
+    if not problems:
+        try:
+            sc = apply(base, dict(run.changes))
+        except (KeyError, ValueError, TypeError):
+            sc = None                                 # reported by the comparison's own checks
+        for p in analysis_clearance_problems(sc) if sc is not None else ():
+            problems.append(_clearance(run, p))
+    for (label, m, at), common, msg in problems:
+        if (label, msg if common else (run.who, msg)) in said:
+            continue
+        said.add((label, msg if common else (run.who, msg)))
+        bad(label, msg if common else f"{run.who} {msg}", m, at)
 
 
 def _placed(run: RunChanges, problem: str, texts: Mapping[str, str]) -> tuple[Place, bool, str]:
