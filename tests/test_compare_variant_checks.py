@@ -222,3 +222,16 @@ def test_variants_of_an_ssp_base_are_checked_with_the_archive_extracted_once(tmp
     assert (BAD + "bearing1.n_phi: 8000: " + str(tmp_path / "s.ssp") + " [fmus.bearing1]: fmus.bearing1.parameters."
             "n_phi x n_z = 8000 x 40 = 320000 film cells") in msg, msg
     assert len(extracted) == 2, extracted               # the base, then once for its 5 runs (not once each)
+
+
+def test_each_run_is_given_the_values_the_loader_checked(tmp_path):
+    # a quoted number for a Real and 40.0 for an Integer pass the loader's checks as they pass a
+    # scenario's; the run was given the text "2.0e-3" and failed when it started ("setup failed: ...
+    # parameter 'bearing1.psi' is of type Real, got '2.0e-3' (str)"), listed as an unstable variant
+    # with infinite error while the comparison passed
+    compare = COMPARE.replace("  signals: [rotor.x_1]\n", "  signals: [rotor.x_1]\n  set: {{rotor.t_ramp: '3.0'}}\n")
+    spec = load_compare(_files(tmp_path, "bearing1.psi: '2.0e-3', bearing1.n_phi: 40.0", compare=compare))
+    bad = spec.variants[1].changes
+    assert (bad["bearing1.psi"], bad["bearing1.n_phi"]) == (0.002, 40) and type(bad["bearing1.n_phi"]) is int
+    sc = spec.scenario(spec.variants[1].changes)
+    assert {f.name: f.parameters for f in sc.fmus}["rotor"]["t_ramp"] == 3.0

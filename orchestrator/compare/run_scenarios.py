@@ -85,22 +85,48 @@ _GIVEN = re.compile(r"\.clearance' is (?P<given>\S+) m, ")
 
 
 def check_run_scenarios(source: Path | None, base, runs: list[RunChanges], apply: Callable,
-                        bad: Callable[..., None]) -> None:
+                        bad: Callable[..., None]) -> dict[str, dict[str, Any]]:
     """Report through ``bad(key, msg, mapping, at)`` every problem the scenario loader finds in
     each run of ``runs`` (the base scenario's file ``source`` with the run's changes as
     ``--set`` overrides), and every analysis clearance that the run's bearing no longer has
     (``apply(base, changes)`` is the scenario the run is given). A problem the comparison's own
     ``set`` causes is reported once, not for every run. ``source`` None (a base made in code):
-    nothing to load, only the clearance is checked."""
+    nothing to load, only the clearance is checked.
+
+    Returns, per run (``RunChanges.who``), the parameter values the loader converted: ``{key:
+    value}`` for each ``<instance>.<parameter>`` change whose checked value differs from the one
+    written (``"2.0e-3"`` for a Real is 0.002, ``40.0`` for an Integer is 40), so that the run is
+    given what the loader checked, as a scenario's run is."""
     said: set[tuple] = set()
-    loaded: dict[tuple, list[str]] = {}
+    loaded: dict[tuple, tuple] = {}
+    converted: dict[str, dict[str, Any]] = {}
     with _extracted_once(source) as load:
         for run in runs:
             texts = {f"--set {override_path(k)}={value_text(v)}": k for k, v in run.changes.items()}
             overrides = tuple(t[len("--set "):] for t in texts)
             if load is not None and overrides not in loaded:
                 loaded[overrides] = load(list(overrides))
-            _report(run, base, texts, loaded.get(overrides, []), apply, bad, said)
+            found, sc = loaded.get(overrides, ([], None))
+            converted[run.who] = _converted(run, sc) if sc is not None else {}
+            _report(run, base, texts, found, converted[run.who], apply, bad, said)
+    return converted
+
+
+def _converted(run: RunChanges, sc) -> dict[str, Any]:
+    """The parameter changes of ``run`` whose value in the loaded scenario ``sc`` differs from the
+    one written (in value or type)."""
+    params = {f.name: f.parameters for f in sc.fmus}
+    out = {}
+    for k, raw in run.changes.items():
+        path = override_path(k)
+        if not path.startswith("fmus."):
+            continue
+        _, inst, _, name = path.split(".", 3)
+        if name in params.get(inst, {}):
+            new = params[inst][name]
+            if type(new) is not type(raw) or new != raw:
+                out[k] = new
+    return out
 
 
 @contextlib.contextmanager
@@ -121,30 +147,29 @@ def _extracted_once(source: Path | None):
         made = source
     origins = GENERATED.get(str(made))
 
-    def load(overrides: list[str]) -> list[str]:
+    def load(overrides: list[str]) -> tuple[list[str], Any]:
         if origins is not None:
             GENERATED[str(made)] = origins        # the loader forgets them after each load
         try:
             with _quiet_loader():
-                load_scenario(made, overrides)
+                return [], load_scenario(made, overrides)
         except ScenarioError as exc:
-            return list(exc.problems)
-        return []
+            return list(exc.problems), None
     try:
         yield load
     finally:
         GENERATED.pop(str(made), None)
 
 
-def _report(run: RunChanges, base, texts: Mapping[str, str], found: list[str], apply: Callable,
-            bad: Callable[..., None], said: set) -> None:
-    """Report the loader's problems ``found`` of ``run`` (each once: ``said``), else its analysis
-    clearance problems."""
+def _report(run: RunChanges, base, texts: Mapping[str, str], found: list[str], converted: Mapping[str, Any],
+            apply: Callable, bad: Callable[..., None], said: set) -> None:
+    """Report the loader's problems ``found`` of ``run`` (each once: ``said``), else the analysis
+    clearance problems of the scenario it is given (its changes with the ``converted`` values)."""
     from orchestrator.scenario.analysis_clearance import analysis_clearance_problems
     problems = [_placed(run, p, texts) for p in found]
     if not problems:
         try:
-            sc = apply(base, dict(run.changes))
+            sc = apply(base, {**run.changes, **converted})
         except (KeyError, ValueError, TypeError):
             sc = None                                 # reported by the comparison's own checks
         for p in analysis_clearance_problems(sc) if sc is not None else ():

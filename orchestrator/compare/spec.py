@@ -388,10 +388,11 @@ def parse_compare(sec: Mapping[str, Any], base: Scenario, *, source: Path | None
                                lambda key, msg: bad(key, msg, *_group_at(sec, key)),
                                lambda key, msg: log.warning("%s", said(key, msg, *_group_at(sec, key))))
     # every run through the scenario loader's checks (a run reported above is left out: one message each)
-    check_run_scenarios(_source_file(base), base, _runs(sec, common, reference, variants, group_of, interval,
-                                                          problems), apply_changes, bad)
+    converted = check_run_scenarios(_source_file(base), base, _runs(sec, common, reference, variants, group_of,
+                                                                      interval, problems), apply_changes, bad)
     if problems:
         raise CompareSpecError(problems)
+    base, reference, variants = _as_checked(base, common, reference, variants, converted)
     return CompareSpec(name=name, base=base, variants=tuple(variants), reference=reference,
                        signals=signals, derived=derived, metrics=tuple(metrics),
                        order_metric=order_metric, order_tolerance=nums["order_tolerance"],
@@ -666,6 +667,22 @@ def _runs(sec, common, reference: ReferenceSpec, variants, group_of, interval, p
         out.append(run(f"variant '{v.name}'", (f"variants[{i}]", *_group_at(sec, f"variants[{i}]")), v.changes,
                        _places(g, f"variants[{i}]", v.changes)))
     return out
+
+
+def _as_checked(base, common, reference: ReferenceSpec, variants, converted) -> tuple:
+    """The base, reference and variants with the parameter values the loader converted
+    (:func:`check_run_scenarios`): what each run is given is what was checked."""
+    runs = [("the reference", reference.changes)] + [(f"variant '{v.name}'", v.changes) for v in variants]
+    shared = {k: x for who, changes in runs for k, x in converted.get(who, {}).items()
+              if k in common and k not in changes}           # the comparison's set, as no run overrides it
+    if shared:
+        base = apply_changes(base, shared)
+
+    def own(who, changes):
+        return {**changes, **{k: x for k, x in converted.get(who, {}).items() if k in changes}}
+    reference = dataclasses.replace(reference, changes=own("the reference", reference.changes))
+    variants = [dataclasses.replace(v, changes=own(f"variant '{v.name}'", v.changes)) for v in variants]
+    return base, reference, variants
 
 
 def _places(group, label: str, changes) -> dict[str, tuple]:
