@@ -13,7 +13,8 @@ FMUs' declared ranges and types, unknown parameter names, the film grids
 (``checks.check_film_grids``), the coupling and output keys and the step limits. The analysis
 clearance (:func:`~orchestrator.scenario.analysis_clearance.analysis_clearance_problems`) is
 checked on the scenario the run is given (the base with the changes), whose analysis keeps the
-base's clearance.
+base's clearance. The parameter values the loader converted (``"2.0e-3"`` for a Real) are handed
+back, so that each run is given what was checked, as a scenario's run is.
 
 Each problem is reported at the comparison file's line of the value that caused it, with the
 run's name: ``cmp.yaml:9: 'compare.variants[1].set' variant 'fine' sets bearing1.n_phi: 2.5:
