@@ -285,6 +285,7 @@ def test_parameter_checks_linear_in_fmu_variables(tmp_path, monkeypatch):
     real = scenario_mod.cached_model_description
     monkeypatch.setattr(scenario_mod, "cached_model_description", lambda p: type("MD", (), {
         "variables": {k: CountingVar(v) for k, v in real(p).variables.items()},
+        "model_name": real(p).model_name,
         "can_be_instantiated_only_once_per_process": False, "default_experiment": {},
         "can_handle_variable_step": True, "can_get_and_set_fmu_state": True})())
     with pytest.raises(ScenarioError, match="'a' has no parameter 'nope'"):
