@@ -118,6 +118,10 @@ def _add_export_ssp(sub) -> None:
     p.add_argument("out", metavar="OUT.ssp", help="archive to write: a new file in an existing folder, or an "
                                                   "earlier .ssp archive to replace")
     _add_set(p)
+    p.add_argument("--carry-files-from", metavar="DIR", action="append", default=[],
+                   help="a folder whose files the archive may carry when the scenario's String parameters name "
+                        "them (repeatable); by default only files in the scenario's own folder are carried, "
+                        "and those a --set value names")
     p.set_defaults(func=_cmd_export_ssp)
 
 
@@ -125,10 +129,11 @@ def _cmd_export_ssp(args) -> int:
     from orchestrator.scenario import load_scenario
     from orchestrator.scenario.analysis_clearance import check_analysis_clearance
     from orchestrator.shipped import resolve
-    from orchestrator.scenario.ssp import check_output_path, export_ssp
+    from orchestrator.scenario.ssp import check_carry_folders, check_output_path, export_ssp
 
     check_output_path(args.out)          # before loading (and maybe building FMUs): a bad OUT fails at once
+    carry = check_carry_folders(args.carry_files_from)
     scenario = load_scenario(str(resolve(args.file)), args.set, build_fmus=True)
     check_analysis_clearance(scenario)   # the archive carries the analysis section: a run of it would refuse it
-    print(export_ssp(scenario, args.out))
+    print(export_ssp(scenario, args.out, carry_files_from=carry))
     return 0

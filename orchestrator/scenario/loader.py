@@ -88,7 +88,7 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
             reads.add(named)
     scenario = replace(scenario, inputs=tuple(reads.files))
     if path != given:         # made from an SSP: summary.json names the user's file, not the generated one
-        scenario = replace(scenario, source=given.resolve())
+        scenario = replace(scenario, source=given.resolve(), extracted=Path(path).parent.resolve())
     return scenario
 
 
@@ -99,13 +99,15 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (), *, build_fmus
 WRITTEN_FILE_PARAMETERS = ("fields_file",)
 
 
-def named_files(scenario: Scenario, variables: dict) -> list[tuple[str, str, Path]]:
+def named_files(scenario: Scenario, variables: dict, *, special: bool = False) -> list[tuple[str, str, Path]]:
     """``(instance, parameter, path)`` of each existing regular file the scenario's String
     parameters name (a rotor file; ``variables``: instance -> {name: model variable}): the FMU
     reads them when the run starts, so they are inputs of the run as much as the YAML is, and an
-    exported SSP does not carry them. A path is resolved as the FMU resolves it (relative to the
-    working directory); ``{out_dir}`` paths are the run's own outputs and are left out, and so are
-    the files the FMU writes (:data:`WRITTEN_FILE_PARAMETERS`)."""
+    exported SSP carries them (by the rule of :func:`orchestrator.scenario.ssp._named_files`). A
+    path is resolved as the FMU resolves it (relative to the working directory); ``{out_dir}`` paths are the run's own outputs and are left out, and so are
+    the files the FMU writes (:data:`WRITTEN_FILE_PARAMETERS`). ``special``: also those naming a
+    FIFO, device or socket (export-ssp says it does not carry them; never opened here, only
+    ``stat``-ed). A folder is no file: never listed."""
     from orchestrator.untrusted import OUT_DIR_FIELD
     found = []
     for spec in scenario.fmus:
@@ -116,7 +118,7 @@ def named_files(scenario: Scenario, variables: dict) -> list[tuple[str, str, Pat
                 continue
             try:
                 candidate = Path(value).expanduser()
-                if candidate.is_file():
+                if candidate.is_file() or special and candidate.exists() and not candidate.is_dir():
                     found.append((spec.name, name, candidate))
             except (OSError, ValueError, RuntimeError):  # a name too long, a NUL: not a file
                 continue

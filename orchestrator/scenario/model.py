@@ -47,6 +47,17 @@ SECTION_KEYS = {"top": TOP_KEYS, "fmu": FMU_KEYS, "connection": CONNECTION_KEYS,
 _MAP, _SEQ, _STR = "tag:yaml.org,2002:map", "tag:yaml.org,2002:seq", "tag:yaml.org,2002:str"
 
 
+class SetOrigin(str):
+    """The origin ``--set k=v`` of a value an override gave (``rotorcosim ... --set``,
+    ``load_scenario(overrides=...)``): the caller's own value, not the scenario file's. export-ssp
+    carries the file such a value names wherever it lies; a file named by the scenario file itself
+    only from the scenario's folder (:func:`orchestrator.scenario.ssp.export_ssp`). A ``str``, so
+    every message that shows an origin is unchanged; the type, not the text, tells them apart (a
+    scenario file may be called ``--set x.yaml``)."""
+
+    __slots__ = ()
+
+
 @dataclass(frozen=True, kw_only=True)
 class FmuSpec:
     """One FMU instance of the scenario (``fmus:`` entry)."""
@@ -57,7 +68,8 @@ class FmuSpec:
     substeps: int | None = None              # per-FMU override of coupling.substeps
     line: int | None = None                  # line of the entry in the YAML file
     isolation: str | None = None             # "process" | "none"; None -> coupling.isolation
-    parameter_origins: Mapping[str, str] = field(default_factory=dict)  # name -> "file:line" or "--set ..."
+    # name -> "file:line" or "--set ..." (a SetOrigin: the caller's value, not the file's)
+    parameter_origins: Mapping[str, str] = field(default_factory=dict)
 
     def origins_named_in(self, text: str, limit: int = 4) -> list[tuple[str, str]]:
         """Where the scenario sets the parameters that ``text`` (an FMU's message) names.
@@ -192,6 +204,9 @@ class Scenario:
     # the files loading read (the YAML, an SSP and its .ssd/.ssv, every FMU) and the existing files
     # String parameters name (a rotor file): absolute paths, for sweep --resume (orchestrator.read_log)
     inputs: tuple[str, ...] = field(default=(), compare=False)
+    # a scenario read from an SSP (``source`` the .ssp/.ssd, or the YAML naming it): the temporary folder
+    # the archive was extracted into and its scenario generated in (the files it carries are there)
+    extracted: Path | None = field(default=None, compare=False)
 
     def fmu(self, name: str) -> FmuSpec:
         for f in self.fmus:

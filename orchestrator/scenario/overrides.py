@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import yaml
 
-from orchestrator.scenario.model import CHILD_SCHEMA, SECTION_KEYS
+from orchestrator.scenario.model import CHILD_SCHEMA, SECTION_KEYS, SetOrigin
 from orchestrator.scenario.nodes import MAP_TAG, STR_TAG, NodeReader, YamlLoader, did_you_mean, unshared
 from orchestrator.untrusted import InputError, compose_yaml
 
@@ -19,7 +19,7 @@ def apply_override(reader: NodeReader, root, text: str) -> None:
 
     Length: one walk down the node tree, with the message for each way a path can be wrong
     (syntax, unknown key, index out of range, aliased node, type of the value) where it is met."""
-    origin = f"--set {text}"
+    origin = SetOrigin(f"--set {text}")      # the caller's value (export-ssp carries its file from anywhere)
     key, sep, raw = text.partition("=")
     key = key.strip()
     if not sep or not key:

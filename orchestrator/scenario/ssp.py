@@ -31,7 +31,12 @@ Description"), the parameter's value in the SSD being that member's name, and th
 the member as untrusted (:func:`_carried_files`: under ``resources/``, no ``..``, not absolute,
 no link, a regular file of at most :data:`MAX_NAMED_FILE_BYTES`). A file larger than that is not
 carried, and export-ssp says so. Before, no named file was carried: an exported turbocharger
-scenario with its own rotor file did not run from the archive anywhere else.
+scenario with its own rotor file did not run from the archive anywhere else. A scenario file is
+untrusted too (:func:`_named_files`): a file it names is carried only when it is a regular file
+(a FIFO, device or socket is never opened) whose real path lies in the scenario's folder (for a
+scenario read from an SSP also the folder it was extracted to) or in a ``--carry-files-from``
+folder; a value given with ``--set`` names the user's own choice, carried from anywhere. Before,
+a scenario from someone else naming ``~/.ssh/id_rsa`` had export-ssp pack that file.
 
 What a scenario holds that SSP 1.0 has no element for (the whole ``coupling`` section,
 ``output``: signals, interval, format; ``analysis``; ``compare``; each instance's ``substeps`` and
@@ -60,6 +65,7 @@ import contextlib
 import logging
 import os
 import re
+import shlex
 import stat
 import tempfile
 import warnings
@@ -643,54 +649,158 @@ def _member_name(inst: str, filename: str, taken: Mapping[str, bytes]) -> str:
     return member
 
 
-def _named_files(scenario) -> tuple[dict[tuple[str, str], str], dict[str, bytes]]:
+def check_carry_folders(folders) -> tuple[Path, ...]:
+    """The folders of ``--carry-files-from`` (``export_ssp(carry_files_from=...)``) as real paths
+    (``~`` expanded, links resolved); InputError naming one that is no existing folder."""
+    if isinstance(folders, (str, os.PathLike)):
+        folders = [folders]
+    out = []
+    for d in folders:
+        try:
+            real = Path(d).expanduser().resolve()
+            ok = real.is_dir()
+        except (OSError, RuntimeError, ValueError):
+            ok = False
+        if not ok:
+            raise InputError(f"--carry-files-from {d}: no such folder; give an existing folder whose files the "
+                             "SSP may carry (the folder itself, not a file in it)")
+        out.append(real)
+    return tuple(out)
+
+
+def _carry_folders(scenario, extra: tuple[Path, ...]) -> list[tuple[Path, str]]:
+    """``(real folder, what it is)``: where a file that the scenario file's String parameters name
+    may lie for export-ssp to carry it (see :func:`_named_files`)."""
+    folders = []
+    if scenario.source is not None:
+        folders.append((Path(scenario.source).resolve().parent, "the scenario's folder"))
+    if getattr(scenario, "extracted", None) is not None:
+        folders.append((Path(scenario.extracted).resolve(), "the folder its SSP was extracted to"))
+    return folders + [(d, "a --carry-files-from folder") for d in extra]
+
+
+def _read_named(real: Path, checked: os.stat_result) -> bytes:
+    """The content of the regular file ``real`` (links resolved) that export-ssp carries: opened
+    without following a link and without blocking, then the opened file checked to be the regular
+    file that was checked before (a FIFO or a link planted in between is not read), at most
+    :data:`MAX_NAMED_FILE_BYTES`. InputError saying why not (the warning's reason)."""
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
+    fd = os.open(real, flags)
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode) or (st.st_dev, st.st_ino) != (checked.st_dev, checked.st_ino):
+            raise InputError("it was replaced while export-ssp read it; export again")
+        if st.st_size > MAX_NAMED_FILE_BYTES:
+            raise InputError(f"it has {st.st_size} bytes, more than export-ssp carries ({MAX_NAMED_FILE_BYTES}, "
+                             "orchestrator.scenario.ssp.MAX_NAMED_FILE_BYTES)")
+        chunks, n = [], 0
+        while n <= MAX_NAMED_FILE_BYTES:                # bounded even if it grows
+            b = os.read(fd, min(1 << 20, MAX_NAMED_FILE_BYTES + 1 - n))
+            if not b:
+                break
+            chunks.append(b)
+            n += len(b)
+        if n > MAX_NAMED_FILE_BYTES:
+            raise InputError(f"it grew past {MAX_NAMED_FILE_BYTES} bytes while export-ssp read it "
+                             "(orchestrator.scenario.ssp.MAX_NAMED_FILE_BYTES)")
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
+
+
+def _named_files(scenario, carry_files_from=()) -> tuple[dict[tuple[str, str], str], dict[str, bytes]]:
     """The files the scenario's String parameters name (a rotor file, ``loader.named_files``) that
     the archive carries: ``{(instance, parameter): member}`` and ``{member: content}`` (a file named
-    twice is carried once). A file that cannot be carried (larger than
-    :data:`MAX_NAMED_FILE_BYTES`, unreadable) keeps its value, and a warning says where the FMU
-    opens it when the SSP runs: a relative path from the working directory there, an absolute one on
-    that machine."""
+    twice is carried once).
+
+    Which: a scenario file is untrusted (one from someone else could name ``~/.ssh/id_rsa`` and
+    the user's export-ssp would pack it into the SSP they share), so a file is carried only when
+    it is a regular file (a FIFO, device or socket is never opened) and, for a value the scenario
+    file sets, when its real path (links resolved) lies in the scenario's folder (the folder of
+    the YAML, .ssp or .ssd; for an SSP also the folder it was extracted to) or in a folder of
+    ``carry_files_from`` (``--carry-files-from``, :func:`check_carry_folders`). A value the caller
+    gave (``--set``, ``load_scenario(overrides=...)``: its origin a
+    :class:`~orchestrator.scenario.model.SetOrigin`) names the caller's own choice: its file is
+    carried wherever it lies. A file that is not carried (outside, not regular, larger than
+    :data:`MAX_NAMED_FILE_BYTES`, unreadable) keeps its value, and a warning names the parameter,
+    the path, why, and the fix (copy it next to the scenario, or the option; for a file too large,
+    where the FMU opens it when the SSP runs: a relative path from the working directory there, an
+    absolute one on that machine)."""
     from orchestrator.fmi.archive import read_model_description
     from orchestrator.scenario.loader import named_files
+    from orchestrator.scenario.model import SetOrigin
     variables = {f.name: read_model_description(f.path).variables for f in scenario.fmus}
+    folders = _carry_folders(scenario, check_carry_folders(carry_files_from))
     values: dict[tuple[str, str], str] = {}
     blobs: dict[str, bytes] = {}
     carried: dict[Path, str] = {}
-    for inst, name, path in named_files(scenario, variables):
-        value = scenario.fmu(inst).parameters[name]
-        real = path.resolve()
-        if real not in carried:
-            try:
-                size = os.stat(real).st_size
-                if size > MAX_NAMED_FILE_BYTES:
-                    raise InputError(f"it has {size} bytes, more than export-ssp carries ({MAX_NAMED_FILE_BYTES}, "
-                                     "orchestrator.scenario.ssp.MAX_NAMED_FILE_BYTES)")
-                data = read_bytes(real, limit=MAX_NAMED_FILE_BYTES,            # bounded even if it grows
-                                  limit_name="orchestrator.scenario.ssp.MAX_NAMED_FILE_BYTES")
-            except (InputError, OSError) as e:
-                if path.is_absolute():
-                    how = ("the FMU opens it at that absolute path where the SSP runs; run the SSP on a machine that "
-                           "has the file there")
-                else:
-                    how = ("the FMU opens that relative path from the working directory where the SSP runs; run the "
-                           "SSP where that path resolves, or give an absolute path in the scenario")
-                relative = "" if path.is_absolute() else " (relative)"
-                warnings.warn(f"export-ssp: fmus.{inst}.parameters.{name} = {value!r}{relative} names a file the SSP "
-                              f"does not carry ({e}): {how}", stacklevel=3)
-                continue
-            carried[real] = _member_name(inst, path.name, blobs)
-            blobs[carried[real]] = data
+    for inst, name, path in named_files(scenario, variables, special=True):
+        spec = scenario.fmu(inst)
+        value, origin = spec.parameters[name], spec.parameter_origins.get(name)
+        key = f"fmus.{inst}.parameters.{name}"
+        if path.is_absolute():
+            how = ("the FMU opens it at that absolute path where the SSP runs; run the SSP on a machine that "
+                   "has the file there")
+        else:
+            how = ("the FMU opens that relative path from the working directory where the SSP runs; run the "
+                   "SSP where that path resolves, or give an absolute path in the scenario")
+        try:
+            real = path.resolve()
+            st = os.stat(real)                     # never opened before it is known to be regular
+            refusal = None
+            if not isinstance(origin, SetOrigin) and not any(real.is_relative_to(d) for d, _ in folders):
+                refusal = _outside(key, origin, real, path, folders)
+            elif not stat.S_ISREG(st.st_mode):
+                at = folders[0][0] if folders else real.parent
+                refusal = (f"it is {file_kind(st.st_mode)}, not a regular file, and export-ssp opens no pipes, "
+                           "devices or sockets",
+                           f"the SSD keeps the value as written; to carry its content, save it as a regular file "
+                           f"next to the scenario (in {at}) and set {key} to that file")
+            if refusal:
+                why, how = refusal
+                raise InputError(why)
+            if real not in carried:
+                data = _read_named(real, st)
+                carried[real] = _member_name(inst, path.name, blobs)
+                blobs[carried[real]] = data
+        except (InputError, OSError, RuntimeError) as e:
+            relative = "" if path.is_absolute() else " (relative)"
+            warnings.warn(f"export-ssp: {key} = {value!r}{relative} names a file the SSP does not carry "
+                          f"({e}): {how}", stacklevel=3)
+            continue
         values[(inst, name)] = carried[real]
     return values, blobs
 
 
-def export_ssp(scenario, out: Path | str) -> Path:
+def _outside(key: str, origin: str | None, real: Path, path: Path,
+             folders: list[tuple[Path, str]]) -> tuple[str, str]:
+    """(why, fix) of the warning for a file outside every folder export-ssp carries from."""
+    shown = f"{real}" if real == path.absolute() else f"its real path {real}"
+    where = "; ".join(f"{what} {d}" for d, what in folders)
+    set_at = f"; the value is set at {origin}" if origin else ""
+    if folders:
+        why = (f"{shown} is outside {where}: export-ssp carries a file that the scenario file names only from "
+               f"there, so that a scenario from elsewhere cannot pack your files into the archive you share{set_at}")
+        copy = f"copy the file next to the scenario (into {folders[0][0]}) and set {key} to that copy, or "
+    else:
+        why = (f"{shown}: the scenario has no file (made in code), so export-ssp carries a file its values name "
+               f"only from a --carry-files-from folder{set_at}")
+        copy = ""
+    return why, (f"the SSD keeps the value as written; to carry the file, {copy}give --carry-files-from "
+                 f"{shlex.quote(str(real.parent))} (export_ssp(..., carry_files_from=[...])) if you mean to share "
+                 "what it holds")
+
+
+def export_ssp(scenario, out: Path | str, *, carry_files_from=()) -> Path:
     """Write ``scenario`` as an SSP 1.0 archive ``out`` (see the module docstring); return its path.
+    ``carry_files_from``: folders (besides the scenario's own) whose files the archive may carry
+    when the scenario file's String parameters name them (:func:`_named_files`).
 
     Length: the SSD document written top to bottom as SSP 1.0 lays it out (components and
     connectors, connections, parameter bindings, default experiment), then the archive."""
     from orchestrator.fmi.archive import read_model_description
     out = check_output_path(out)
+    carry_files_from = check_carry_folders(carry_files_from)
     c = scenario.coupling
     if c.scheme != "jacobi" or c.extrapolation_order or c.substeps != 1 or any(f.substeps for f in scenario.fmus):
         warnings.warn(f"export-ssp: SSP has no coupling scheme; libcosim runs the exported system as Jacobi with "
@@ -703,7 +813,7 @@ def export_ssp(scenario, out: Path | str) -> Path:
         warnings.warn(f"export-ssp: {', '.join(starts)} are start values of outputs or locals (initial=\"exact\"); "
                       "the SSP carries them, but libcosim's SSP loader sets only parameters and inputs and "
                       "ignores them", stacklevel=2)
-    carried, blobs = _named_files(scenario)
+    carried, blobs = _named_files(scenario, carry_files_from)
     if scenario.compare and "build_fmus" in scenario.compare:
         b = scenario.compare["build_fmus"]
         warnings.warn(f"export-ssp: compare.build_fmus (from {b.get('from') if isinstance(b, Mapping) else b!r}) "
