@@ -104,10 +104,11 @@ def named_files(scenario: Scenario, variables: dict, *, special: bool = False) -
     parameters name (a rotor file; ``variables``: instance -> {name: model variable}): the FMU
     reads them when the run starts, so they are inputs of the run as much as the YAML is, and an
     exported SSP carries them (by the rule of :func:`orchestrator.scenario.ssp._named_files`). A
-    path is resolved as the FMU resolves it (relative to the working directory); ``{out_dir}`` paths are the run's own outputs and are left out, and so are
-    the files the FMU writes (:data:`WRITTEN_FILE_PARAMETERS`). ``special``: also those naming a
-    FIFO, device or socket (export-ssp says it does not carry them; never opened here, only
-    ``stat``-ed). A folder is no file: never listed."""
+    path is resolved as the FMU resolves it (relative to the working directory); ``{out_dir}``
+    paths are the run's own outputs and are left out, and so are the files the FMU writes
+    (:data:`WRITTEN_FILE_PARAMETERS`). ``special``: also those naming a FIFO, device or socket
+    (export-ssp says it does not carry them; never opened here, only ``stat``-ed). A folder is no
+    file: never listed."""
     from orchestrator.untrusted import OUT_DIR_FIELD
     found = []
     for spec in scenario.fmus:
