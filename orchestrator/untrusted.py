@@ -139,18 +139,26 @@ def read_bytes(path: str | os.PathLike, *, what: str = "file", limit: int | None
     :data:`MAX_TEXT_BYTES`); never reads more than ``limit + 1`` bytes."""
     limit = MAX_TEXT_BYTES if limit is None else limit
     with open_regular(path, what=what) as f:
-        chunks, n = [], 0
-        while True:
-            b = f.read(min(_CHUNK, limit + 1 - n))
-            if not b:
-                break
-            chunks.append(b)
-            n += len(b)
-            if n > limit:
-                raise InputError(f"{path}: the {what} is larger than {limit} bytes (the limit); a real "
-                                 f"{what} is far smaller: check the file (or raise {limit_name} if you "
-                                 "trust it)")
-    return b"".join(chunks)
+        data = read_bounded(f.read, limit)
+    if data is None:
+        raise InputError(f"{path}: the {what} is larger than {limit} bytes (the limit); a real "
+                         f"{what} is far smaller: check the file (or raise {limit_name} if you "
+                         "trust it)")
+    return data
+
+
+def read_bounded(read, limit: int) -> bytes | None:
+    """What ``read(n)`` (a file's read, or ``lambda n: os.read(fd, n)``) gives up to its end, or
+    None once it has given more than ``limit`` bytes; never asks for more than ``limit + 1``."""
+    chunks, n = [], 0
+    while True:
+        b = read(min(_CHUNK, limit + 1 - n))
+        if not b:
+            return b"".join(chunks)
+        chunks.append(b)
+        n += len(b)
+        if n > limit:
+            return None
 
 
 def decode_utf8(data: bytes, display: str, what: str = "file") -> str:

@@ -375,11 +375,16 @@ def test_bearing_params_refuse_every_value_the_fmu_declares_out_of_range():
 ], ids=["both-written", "n_z-default", "n_z-set", "both-set"])
 def test_a_journal_bearing_grid_above_the_cell_limit_is_refused_at_load_with_its_line(tmp_path, bearing, overrides,
                                                                                     place, words):
-    path = scenario(tmp_path, bearing)
+    _refused_grid(scenario(tmp_path, bearing), overrides, f"s.yaml:{place}: fmus.bearing1.parameters.n_phi x n_z = ",
+                  words)
+
+
+def _refused_grid(path, overrides, head, words):
+    """load_scenario refuses the film grid with ``head``, the limit and every one of ``words``."""
     with pytest.raises(ScenarioError) as exc:
         load_scenario(path, overrides)
     msg = str(exc.value)
-    assert f"s.yaml:{place}: fmus.bearing1.parameters.n_phi x n_z = " in msg and GRID_LIMIT in msg, msg
+    assert head in msg and GRID_LIMIT in msg, msg
     for w in words:
         assert w in msg, msg
 
@@ -404,12 +409,7 @@ def test_a_floating_ring_film_grid_above_the_cell_limit_is_refused_at_load_with_
     path = tmp_path / "s.yaml"
     path.write_text(text)
     load_scenario(path, [f"fmus.bearing1.parameters.n_phi_{side}=4096"])         # 4096 x 40: loads
-    with pytest.raises(ScenarioError) as exc:
-        load_scenario(path, overrides)
-    msg = str(exc.value)
-    assert f"s.yaml:{place}: fmus.bearing1.parameters.n_phi_{side} x n_z_{side} = " in msg and GRID_LIMIT in msg, msg
-    for w in words:
-        assert w in msg, msg
+    _refused_grid(path, overrides, f"s.yaml:{place}: fmus.bearing1.parameters.n_phi_{side} x n_z_{side} = ", words)
 
 
 @pytest.mark.parametrize("verb", ["validate", "run"])

@@ -8,14 +8,13 @@ from __future__ import annotations
 
 import os
 import signal
-import time
 import zipfile
 from pathlib import Path
 
 import pytest
 
 from hostile_builders import cli, two_mass_dir, write_fmu
-from tests.test_stability_stop import _signal_at, safety_net  # noqa: F401 (a fixture)
+from tests.test_stability_stop import _signal_at, safety_net, signal_first  # noqa: F401 (a fixture)
 
 REPO = Path(__file__).resolve().parents[1]
 JEFFCOTT_HS = REPO / "scenarios" / "jeffcott_runup_half_sommerfeld.yaml"
@@ -37,13 +36,7 @@ def test_a_second_signal_while_the_result_is_written_lets_it_finish(tmp_path, ca
     import orchestrator.results.safe_write as safe_write
     calls = _signal_at(monkeypatch, 10, [signum])               # the first: during speed 10 of the scan
     module, name = (plots, "draw") if during == "plot" else (safe_write, "write_report_file")
-    real = getattr(module, name)
-
-    def second(*a, **kw):                                        # the second: as the output starts
-        os.kill(os.getpid(), signum)
-        time.sleep(0)
-        return real(*a, **kw)
-    monkeypatch.setattr(module, name, second)
+    signal_first(monkeypatch, module, name, signum)               # the second: as the output starts
     out, png = tmp_path / "r.json", tmp_path / "r.png"
     rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", "--speeds", "100:800", "--json", out,
                    "--plot", png)
@@ -62,13 +55,7 @@ def test_a_signal_while_a_complete_result_is_written_says_it_is_complete(tmp_pat
     """A complete search whose output (here the figure) got a Ctrl-C lost the figure and ended
     "interrupted" (exit 130) without saying that the result printed and written is complete."""
     import orchestrator.results.plots.stability as plots
-    real = plots.draw
-
-    def interrupted(*a, **kw):
-        os.kill(os.getpid(), signal.SIGINT)
-        time.sleep(0)
-        return real(*a, **kw)
-    monkeypatch.setattr(plots, "draw", interrupted)
+    signal_first(monkeypatch, plots, "draw", signal.SIGINT)
     png = tmp_path / "r.png"
     rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", "--speeds", "100:800", "--scan", "8",
                    "--plot", png)

@@ -225,28 +225,50 @@ console_main()
 """
 
 
-@posix_only
-@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["SIGINT", "SIGTERM"])
-def test_the_command_signalled_after_n_speeds_prints_and_writes_what_it_did(tmp_path, signum, code):
-    out, png, ready, go = tmp_path / "r.json", tmp_path / "r.png", tmp_path / "ready", tmp_path / "go"
-    n = 12
+def signal_first(monkeypatch, module, name: str, signum, *, once: bool = False) -> None:
+    """``module.name`` replaced by a function that sends this process ``signum`` (handled before
+    it goes on), then calls the real one; ``once``: only on its first call."""
+    real, sent = getattr(module, name), [False]
+
+    def signalled(*a, **kw):
+        if not (once and sent[0]):
+            sent[0] = True
+            os.kill(os.getpid(), signum)
+            time.sleep(0)
+        return real(*a, **kw)
+    monkeypatch.setattr(module, name, signalled)
+
+
+def signalled_command(cwd, script_args: list, ready: Path, go: Path, signum):
+    """(process, stdout, stderr) of ``python -c script_args[0] script_args[1:]`` (the command with
+    a waiting hook, in its own session) sent ``signum`` once it has written ``ready``, then let go
+    on by writing ``go``; killed if it outlives the test."""
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    proc = subprocess.Popen([sys.executable, "-c", _WAITING, str(ready), str(go), str(n), "stability",
-                             str(JEFFCOTT_HS), "--film", "short", "--speeds", "100:800", "--json", str(out),
-                             "--plot", str(png)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=env, cwd=tmp_path, start_new_session=True)
+    proc = subprocess.Popen([sys.executable, "-c", *script_args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=env, cwd=cwd, start_new_session=True)
     try:
         deadline = time.monotonic() + 300
         while not ready.exists() and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.01)
         assert ready.exists(), proc.communicate(timeout=60)
-        os.kill(proc.pid, signum)             # delivered before "go" exists: handled while speed n waits
+        os.kill(proc.pid, signum)             # delivered while the command waits for "go"
         go.write_text("")
         text, err = proc.communicate(timeout=300)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
+    return proc, text, err
+
+
+@posix_only
+@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["SIGINT", "SIGTERM"])
+def test_the_command_signalled_after_n_speeds_prints_and_writes_what_it_did(tmp_path, signum, code):
+    out, png, ready, go = tmp_path / "r.json", tmp_path / "r.png", tmp_path / "ready", tmp_path / "go"
+    n = 12
+    proc, text, err = signalled_command(tmp_path, [_WAITING, str(ready), str(go), str(n), "stability", str(JEFFCOTT_HS),
+                                                   "--film", "short", "--speeds", "100:800", "--json", str(out),
+                                                   "--plot", str(png)], ready, go, signum)
     assert proc.returncode == code, err
     assert "Traceback" not in err and "Traceback" not in text, err
     assert f"speeds done: {n} of the scan's 80" in text

@@ -21,18 +21,14 @@ import json
 import math
 import os
 import signal
-import subprocess
-import sys
-import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hostile_builders import cli
-from tests.test_stability_stop import JEFFCOTT_HS, _Requests, _result, _signal_at, safety_net  # noqa: F401
+from tests.test_stability_stop import (JEFFCOTT_HS, _Requests, _result, _signal_at, safety_net,  # noqa: F401
+                                      signal_first, signalled_command)
 
-REPO = Path(__file__).resolve().parents[1]
 posix_only = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
 SIGNALS = pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 
@@ -67,23 +63,9 @@ def test_a_signal_while_the_scenario_is_loaded_says_nothing_was_computed(tmp_pat
     """SIGTERM while the scenario was being loaded killed the command (exit -15, not a word);
     Ctrl-C ended in "interrupted" alone."""
     out, png, ready, go = tmp_path / "r.json", tmp_path / "r.png", tmp_path / "ready", tmp_path / "go"
-    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    proc = subprocess.Popen([sys.executable, "-c", _WAIT_IN_LOAD, str(ready), str(go), "stability", str(JEFFCOTT_HS),
-                             "--film", "short", "--speeds", "100:800", "--json", str(out), "--plot", str(png)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path,
-                            start_new_session=True)
-    try:
-        deadline = time.monotonic() + 300
-        while not ready.exists() and proc.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert ready.exists(), proc.communicate(timeout=60)
-        os.kill(proc.pid, signum)             # delivered while the loader waits for "go"
-        go.write_text("")
-        text, err = proc.communicate(timeout=300)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+    proc, text, err = signalled_command(tmp_path, [_WAIT_IN_LOAD, str(ready), str(go), "stability", str(JEFFCOTT_HS),
+                                                   "--film", "short", "--speeds", "100:800", "--json", str(out),
+                                                   "--plot", str(png)], ready, go, signum)
     assert proc.returncode == 128 + signum, (proc.returncode, err)
     lines = [line for line in err.splitlines() if line.strip()]
     assert lines == [f"{_head(signum)} while loading the scenario: stopped before any speed was computed, nothing to "
@@ -99,13 +81,7 @@ def test_a_signal_while_the_linear_model_is_set_up_says_nothing_was_computed(tmp
     """A signal in stability()'s setup (build_system, before the first speed) reached no handler of
     the command: SIGTERM killed it, Ctrl-C ended in "interrupted"."""
     import orchestrator.stability.search as search
-    real = search.build_system
-
-    def signalled(*a, **kw):
-        os.kill(os.getpid(), signum)
-        time.sleep(0)
-        return real(*a, **kw)
-    monkeypatch.setattr(search, "build_system", signalled)
+    signal_first(monkeypatch, search, "build_system", signum)
     monkeypatch.setattr(search, "film_model", lambda *a, **kw: pytest.fail("set up after the signal"))
     before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     out, png = tmp_path / "r.json", tmp_path / "r.png"
@@ -127,13 +103,7 @@ def test_stability_called_from_python_stops_at_once_before_the_first_speed(monke
     import orchestrator.stability.search as search
     from orchestrator.coupling.lifecycle import RunStopped
     from tests.test_stability_stop import _scenario
-    real = search.build_system
-
-    def signalled(*a, **kw):
-        os.kill(os.getpid(), signal.SIGTERM)
-        time.sleep(0)
-        return real(*a, **kw)
-    monkeypatch.setattr(search, "build_system", signalled)
+    signal_first(monkeypatch, search, "build_system", signal.SIGTERM)
     before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     with pytest.raises(RunStopped) as exc:
         search.stability(_scenario(), film="short", speeds=(100.0, 800.0), n_scan=8)
@@ -149,15 +119,7 @@ def _second_signal_in(monkeypatch, gap: str, signum) -> None:
     import orchestrator.stability.search as search
     module, name = {"stop": (search, "stop_of"), "bookkeeping": (search, "log_decrement"),
                     "before-output": (partial, "written_holding_signals")}[gap]
-    real, sent = getattr(module, name), [False]
-
-    def signalled(*a, **kw):
-        if not sent[0]:
-            sent[0] = True
-            os.kill(os.getpid(), signum)
-            time.sleep(0)
-        return real(*a, **kw)
-    monkeypatch.setattr(module, name, signalled)
+    signal_first(monkeypatch, module, name, signum, once=True)
 
 
 @posix_only

@@ -77,7 +77,7 @@ from xml.etree import ElementTree as ET
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario.ssp_annotation import (ANNOTATION_TYPE, RC_NS, baseline_outside, read_annotation,
                                                 write_annotation)
-from orchestrator.untrusted import InputError, file_kind, parse_xml, read_bytes
+from orchestrator.untrusted import InputError, file_kind, parse_xml, read_bounded, read_bytes
 
 log = logging.getLogger(__name__)
 
@@ -693,17 +693,11 @@ def _read_named(real: Path, checked: os.stat_result) -> bytes:
         if st.st_size > MAX_NAMED_FILE_BYTES:
             raise InputError(f"it has {st.st_size} bytes, more than export-ssp carries ({MAX_NAMED_FILE_BYTES}, "
                              "orchestrator.scenario.ssp.MAX_NAMED_FILE_BYTES)")
-        chunks, n = [], 0
-        while n <= MAX_NAMED_FILE_BYTES:                # bounded even if it grows
-            b = os.read(fd, min(1 << 20, MAX_NAMED_FILE_BYTES + 1 - n))
-            if not b:
-                break
-            chunks.append(b)
-            n += len(b)
-        if n > MAX_NAMED_FILE_BYTES:
+        data = read_bounded(lambda k: os.read(fd, k), MAX_NAMED_FILE_BYTES)     # bounded even if it grows
+        if data is None:
             raise InputError(f"it grew past {MAX_NAMED_FILE_BYTES} bytes while export-ssp read it "
                              "(orchestrator.scenario.ssp.MAX_NAMED_FILE_BYTES)")
-        return b"".join(chunks)
+        return data
     finally:
         os.close(fd)
 
