@@ -262,3 +262,23 @@ def test_a_start_outside_the_clearance_is_named_as_the_start_not_a_blow_up(conta
     during_run = "far outside the clearance.*unstable" if contact == 0 else "asperity layer"
     with pytest.raises(StepFailed, match=during_run):
         b.step(1e-5, 1.6 * C, 0.0, 0.0, 0.0, 500.0)       # ... the same position is a run's failure
+
+
+def test_a_step_computes_the_normal_force_once_per_eccentricity(monkeypatch):
+    """The FMU's outputs and the interface coefficients ask for the normal force (0.16 ms each: the
+    parabolic cylinder function at 48 points) nine times per macro step at five eccentricities:
+    each is computed once, and the remembered value is the computed one bit for bit."""
+    import bearing_fmu.contact as contact
+    contact._normal_force_of.cache_clear()
+    calls = []
+    real = contact.normal_force
+    monkeypatch.setattr(contact, "normal_force", lambda e, **kw: calls.append(e) or real(e, **kw))
+    x, y = 0.99 * C * math.cos(0.7), 0.99 * C * math.sin(0.7)
+    F = contact_force(x, y, 0.01, -0.02, 500.0, **KW)
+    K, Cc = contact_coefficients(x, y, 0.01, -0.02, 500.0, **KW)
+    assert len(calls) == len(set(calls)) == 5, calls
+    monkeypatch.setattr(contact, "normal_force", real)
+    contact._normal_force_of.cache_clear()
+    assert F == contact_force(x, y, 0.01, -0.02, 500.0, **KW)
+    K2, C2 = contact_coefficients(x, y, 0.01, -0.02, 500.0, **KW)
+    assert np.array_equal(K, K2) and np.array_equal(Cc, C2)
