@@ -18,7 +18,7 @@ back, so that each run is given what was checked, as a scenario's run is.
 
 Each problem is reported at the comparison file's line of the value that caused it, with the
 run's name: ``cmp.yaml:9: 'compare.variants[1].set' variant 'fine' sets bearing1.n_phi: 2.5:
-parameter 'bearing1.n_phi' is Integer (got 2.5, a number); write a Integer value such as 3``.
+parameter 'bearing1.n_phi' is Integer (got 2.5, a number); write an Integer value such as 3``.
 """
 
 from __future__ import annotations

@@ -147,8 +147,8 @@ class FmuChecks(Completion):
             if conv is None:
                 example = {"Real": "1.5", "Integer": "3", "Enumeration": "1", "Boolean": "true",
                            "String": '"text"'}.get(var.type, "a value")
-                self.err(node, f"parameter '{name}.{pname}' is {var.type} (got {self.got(node)}); write a "
-                               f"{var.type} value such as {example}")
+                self.err(node, f"parameter '{name}.{pname}' is {var.type} (got {self.got(node)}); write "
+                               f"{article(var.type)} value such as {example}")
                 continue
             conv, problem = check_value(var, conv, f"{name}.{pname}")
             if problem is not None:
