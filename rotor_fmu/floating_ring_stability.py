@@ -28,6 +28,8 @@ depends linearly on the whirl displacement.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from bearing_fmu.floating_ring import FloatingRing, RingParams, petroff_ratio, static_equilibrium
@@ -35,7 +37,8 @@ from bearing_fmu.linearize import linearization
 
 from .stability import first_crossing, rightmost, static_bearing_loads
 
-__all__ = ["operating_point", "ring_system_eigen", "ring_threshold_speed"]
+__all__ = ["operating_point", "ring_system_eigen", "ring_threshold_speed", "RingRotor", "MCRingStation",
+           "MCRingPoint", "mc_ring_films"]
 
 
 def _ring_torque(params: RingParams, load: float, omega: float, Om: float):
@@ -180,3 +183,138 @@ def ring_threshold_speed(rotor, params_list, omega_min, omega_max, n_scan=40, sp
     or (None, None); (omega_min, whirl) when already unstable at omega_min: ``n_scan`` speeds
     evenly spaced, then Brent (:func:`rotor_fmu.stability.first_crossing`)."""
     return first_crossing(lambda w: _max_re(rotor, params_list, w, spin), np.linspace(omega_min, omega_max, n_scan))
+
+
+# --------------------------------------------------------------------------------------------
+# Mass-conserving films (``rotorcosim stability --film mc`` with floating rings)
+# --------------------------------------------------------------------------------------------
+
+class RingRotor:
+    """The rotor with each station's ring translation as two more degrees of freedom, in the
+    coordinates the films act on, for :mod:`rotor_fmu.film_system` (its ``rotor`` argument:
+    ``system_matrices``, ``bearing_dofs``, ``n_dof``).
+
+    Degrees of freedom ``q' = (rotor dofs with each journal pair replaced by d_k, r_k ...)``:
+    ``d_k = q_j,k - r_k`` the journal relative to its ring (the inner film's coordinates, as
+    :meth:`bearing_fmu.floating_ring.FloatingRing._film_inputs` gives them to the inner film) and
+    ``r_k`` the ring (the outer film's). With ``q = T q'`` (``q_j = d + r``) the matrices are
+    ``T^T M_a T`` etc. of the rotor augmented with the ring masses (``M_a = diag(M, m_r I)``,
+    no rotor stiffness or damping on the ring); the generalised film forces are then exactly
+    ``F_i`` on ``d_k`` and ``F_o`` on ``r_k`` (virtual work: ``F_i . dq_j - F_i . dr + F_o . dr``),
+    so each film couples to one pair, as a plain bearing does. ``bearing_dofs`` lists the pairs
+    ``d_1, r_1, d_2, r_2, ...``: the films go in that order (inner, outer per station). The
+    eigenvalues are those of the rotor-ring system in its own coordinates (T is invertible).
+    """
+
+    def __init__(self, rotor, m_rings):
+        self.rotor = rotor
+        n = rotor.n_dof
+        ns = len(m_rings)
+        self.n_dof = n + 2 * ns
+        self.m_rings = [float(m) for m in m_rings]
+        T = np.eye(self.n_dof)
+        pairs = []
+        for k, (ix, iy) in enumerate(np.asarray(rotor.bearing_dofs).reshape(-1, 2)):
+            rx, ry = n + 2 * k, n + 2 * k + 1
+            T[ix, rx] = T[iy, ry] = 1.0
+            pairs += [(int(ix), int(iy)), (rx, ry)]
+        self.T = T
+        self.bearing_dofs = np.array(pairs, dtype=int)
+
+    def system_matrices(self, omega):
+        M, C, K = self.rotor.system_matrices(omega)
+        n = M.shape[0]
+        out = []
+        for A, ring in ((M, True), (C, False), (K, False)):
+            Aa = np.zeros((self.n_dof, self.n_dof))
+            Aa[:n, :n] = A
+            if ring:
+                for k, m in enumerate(self.m_rings):
+                    Aa[n + 2 * k, n + 2 * k] = Aa[n + 2 * k + 1, n + 2 * k + 1] = m
+            out.append(self.T.T @ Aa @ self.T)
+        return tuple(out)
+
+
+class MCRingPoint:
+    """A floating ring's steady operating point with its two mass-conserving films
+    (:func:`mc_operating_point`): ``inner``, ``outer`` the :class:`bearing_fmu.linearize.MCFilmLinear`
+    of each film there, ``Om`` the ring speed [rad/s], ``e`` the journal centre relative to the
+    ring's, ``r`` the ring centre [m], ``torques`` (T_ring_inner, T_ring_outer, T_journal) [N m],
+    ``outputs`` (``eps``, ``eps_outer``, ``omega_ring``, ``x_ring``, ``y_ring``, as
+    :class:`~bearing_fmu.floating_ring.FloatingRing`'s), ``iterations`` of the torque balance."""
+
+    def __init__(self, params, inner, outer, Om, e, r, torques, iterations):
+        self.params, self.inner, self.outer, self.Om = params, inner, outer, float(Om)
+        self.e, self.r, self.torques, self.iterations = np.asarray(e), np.asarray(r), torques, iterations
+        self.outputs = {"eps": float(np.hypot(*e) / params.inner.c), "eps_outer": float(np.hypot(*r) / params.outer.c),
+                        "omega_ring": float(Om), "x_ring": float(r[0]), "y_ring": float(r[1])}
+
+
+class MCRingStation:
+    """One station's floating ring with mass-conserving films (both ``cavitation = 1``): its two
+    :class:`~bearing_fmu.model.BearingModel` kept between speeds (warm starts of the steady films
+    and of the equilibria) and :meth:`point`."""
+
+    def __init__(self, params: RingParams):
+        from bearing_fmu.model import BearingModel
+        for side in ("inner", "outer"):
+            if getattr(params, side).cavitation != 1:
+                raise ValueError(f"MCRingStation: the {side} film is half-Sommerfeld (cavitation_{side} = 0); "
+                                 "the mass-conserving ring linearisation needs cavitation_inner = cavitation_outer = 1")
+        self.params = params
+        self.inner, self.outer = BearingModel(params.inner), BearingModel(params.outer)
+        self.qi = self.qo = None
+        self.ratio = None            # the last speed's Omega / omega (the next speed's first guess)
+
+    def _films(self, load, omega, Om, linearise=False):
+        """Both films' steady states at ring speed Om: inner (journal relative to ring) carries the
+        load at wedge speed omega + Om, outer the load plus the ring's weight at Om; returns
+        (net torque on the ring, (T_ri, T_ro, T_j), e, r, lin_inner, lin_outer)."""
+        from bearing_fmu.floating_ring_statics import shear_torques
+        from bearing_fmu.linearize import mc_static_equilibrium
+        p = self.params
+        ld = np.asarray(load, float)
+        Fi = -ld                                             # the inner film's force on the journal
+        Fo = Fi + np.array([0.0, p.m_ring * p.gravity])      # ring: -F_i + F_o - m_r g e_y = 0
+        out = []
+        for b, F, w, q in ((self.inner, Fi, omega + Om, self.qi), (self.outer, Fo, Om, self.qo)):
+            if q is None:       # mid-gap on the side opposite the force, a quarter turn with the spin
+                a = math.atan2(-F[1], -F[0]) + math.pi / 4
+                q = 0.5 * b.c * np.array([math.cos(a), math.sin(a)])
+            with np.errstate(all="ignore"):
+                out.append(mc_static_equilibrium(b, F, w, guess=q))
+        (e, lin_i), (r, lin_o) = out
+        self.qi, self.qo = e, r
+        pi_, po = p.inner, p.outer
+        Tj, Tri = shear_torques(self.inner.fields(), e[0], e[1], pi_.c, pi_.R, pi_.B, pi_.eta0, omega, Om, omega + Om)
+        Tro, _ = shear_torques(self.outer.fields(), r[0], r[1], po.c, po.R, po.B, po.eta0, Om, 0.0, Om)
+        return Tri + Tro, (Tri, Tro, Tj), e, r, lin_i, lin_o
+
+    def point(self, load, omega, omega_ring=None, rtol=1e-6, max_iter=30) -> MCRingPoint:
+        """The steady operating point at journal speed omega under the static ``load`` (2,) [N]:
+        ring speed Omega where the two films' torques on the ring balance (secant in Omega from
+        the last speed's ratio, or the concentric Petroff ratio; converged when the step is below
+        ``rtol`` omega), each film at its mass-conserving static equilibrium
+        (:func:`bearing_fmu.linearize.mc_static_equilibrium`) for that Omega. ``omega_ring``: the
+        ring speed given instead (no torque balance)."""
+        if omega_ring is not None:
+            T, Ts, e, r, li, lo = self._films(load, omega, float(omega_ring))
+            return MCRingPoint(self.params, li, lo, omega_ring, e, r, Ts, 0)
+        ratio = petroff_ratio(self.params) if self.ratio is None else self.ratio
+        a = ratio * omega
+        fa = self._films(load, omega, a)[0]
+        b = 0.95 * a
+        for it in range(1, max_iter + 1):
+            fb, Ts, e, r, li, lo = self._films(load, omega, b)
+            if abs(b - a) < rtol * omega or fb == 0.0:
+                self.ratio = b / omega
+                return MCRingPoint(self.params, li, lo, b, e, r, Ts, it)
+            new = b - fb * (b - a) / (fb - fa) if fb != fa else b
+            a, fa, b = b, fb, min(max(new, 0.05 * b), omega)
+        raise RuntimeError(f"no torque balance of the ring's mass-conserving films at {omega / (2 * math.pi):.4g} Hz "
+                           f"in {max_iter} secant steps (last ring speed ratio {b / omega:.5f})")
+
+
+def mc_ring_films(points) -> list:
+    """The films of the rotor-ring system in :class:`RingRotor`'s order: inner, outer per station."""
+    return [f for p in points for f in (p.inner, p.outer)]

@@ -9,7 +9,7 @@ one speed) and what it kept.
 """
 
 from orchestrator.stability.films import MC_SOLVERS
-from orchestrator.stability.films import _failed, _HSFilm, _MCFilm, _ShortFilm  # noqa: F401 (tests, docs/scripts)
+from orchestrator.stability.films import _failed, _HSFilm, _MCFilm, _RingMCFilm, _ShortFilm  # noqa: F401 (tests, docs/scripts)
 from orchestrator.stability.search import FILMS, MAX_SPEED_HZ, MC_SCAN, later_crossings, stability
 from orchestrator.stability.system import RING_MODEL, SUPPORTED, Bearing, StabilityError, System, build_system
 

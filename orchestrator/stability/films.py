@@ -27,8 +27,10 @@ balance of its two films, journal and ring at their static equilibria), the half
 coefficients of its inner film (at the wedge speed omega + Omega) and outer film, and the ring's
 translation as two more degrees of freedom per station (mass ``m_ring``). The ring spin is held
 at its steady value, as the classical linear analyses do (Tatara 1970; Tanaka & Hori 1972);
-``ring_spin=True`` adds each ring's spin perturbation as a first-order degree of freedom. Only
-the half-Sommerfeld films (``film="hs"``): the short-bearing closed form has no ring.
+``ring_spin=True`` adds each ring's spin perturbation as a first-order degree of freedom. With
+``film="mc"`` (:class:`_RingMCFilm`) each ring's own mass-conserving films instead, linearised with
+their cavity dynamics at the ring's mass-conserving operating point (spin held; ``ring_spin`` is
+refused there). The short-bearing closed form has no ring.
 """
 
 from __future__ import annotations
@@ -349,12 +351,98 @@ class _MCFilm:
         return [float(np.hypot(*q) / m.c) for q, m in zip(self.q, self.models)]
 
 
+class _RingMCFilm:
+    """Floating-ring bearings with their own mass-conserving films (``film="mc"``): at each speed
+    each ring's steady operating point with its two steady mass-conserving films (ring speed from
+    the torque balance of their wall shear, :class:`rotor_fmu.floating_ring_stability.MCRingStation`),
+    each film linearised there with its cavity dynamics (:class:`bearing_fmu.linearize.MCFilmLinear`:
+    the inner film on the journal's motion relative to the ring, the outer on the ring's), the
+    ring's translation as two more degrees of freedom (mass ``m_ring``), its spin held; the rotor,
+    rings and films as one descriptor system (:class:`rotor_fmu.floating_ring_stability.RingRotor`)
+    solved as :class:`_MCFilm` does (counted or dense)."""
+
+    def __init__(self, system: System, loads: np.ndarray, solver: str = "counted"):
+        from rotor_fmu.floating_ring_stability import MCRingStation, RingRotor
+        for b in system.bearings:
+            hs = [side for side in ("inner", "outer") if getattr(b.params, side).cavitation != 1]
+            if hs:
+                raise StabilityError(f"--film mc linearises mass-conserving films (cavitation = 1), but the "
+                                     f"{' and '.join(hs)} film of the floating-ring bearing '{b.instance}' is "
+                                     f"half-Sommerfeld (cavitation_{hs[0]} = 0): use --film hs, or set "
+                                     f"fmus.{b.instance}.parameters.cavitation_{hs[0]}=1")
+        if solver not in MC_SOLVERS:
+            raise StabilityError(f"the mass-conserving film's eigenvalue solver must be one of "
+                                 f"{', '.join(MC_SOLVERS)} (got {solver!r})")
+        self.system, self.loads, self.solver = system, loads, solver
+        self.stations = [MCRingStation(b.params) for b in system.bearings]
+        self.rotor = RingRotor(system.rotor, [b.params.m_ring for b in system.bearings])
+        self._at: tuple[float, list] | None = None
+        self._hint: tuple = ()
+        self.dense_speeds: list[float] = []
+        self.method = ("own mass-conserving inner and outer films of each floating-ring bearing (their parameters "
+                       "and grids) linearised about their steady states with their cavity (theta) dynamics, i.e. "
+                       "their film impedances (bearing_fmu/linearize.py MCFilmLinear; the inner film on the journal's "
+                       "motion relative to the ring, the outer on the ring's), at the ring's steady operating point "
+                       "under its static load (the rotor's weight share, plus --load; each film at its "
+                       "mass-conserving static equilibrium, the ring speed from the torque balance of the two films' "
+                       "wall shear, rotor_fmu/floating_ring_stability.py MCRingStation), the ring's translation as "
+                       "two more degrees of freedom per station (mass m_ring), the ring spin held at its steady "
+                       "value; the least-damped eigenvalues of the rotor, rings and films as one descriptor system ("
+                       + ("sparse shift-invert Arnoldi, counted by the argument principle, rotor_fmu/film_system.py "
+                          "rightmost)" if solver == "counted" else
+                          "all finite eigenvalues by dense QZ, rotor_fmu/film_system.py eigenvalues_dense)"))
+
+    def points(self, omega: float) -> list:
+        """Each station's :class:`~rotor_fmu.floating_ring_stability.MCRingPoint` at omega."""
+        from bearing_fmu.linearize import HSEquilibriumError
+        from bearing_fmu.model import StepFailed
+        if self._at is not None and self._at[0] == omega:
+            return self._at[1]
+        pts = []
+        for b, st, ld in zip(self.system.bearings, self.stations, self.loads):
+            try:
+                pts.append(st.point(ld, omega))
+            except (HSEquilibriumError, StepFailed, ArithmeticError, ValueError, RuntimeError,
+                    np.linalg.LinAlgError) as exc:
+                raise StabilityError(f"floating-ring bearing '{b.instance}': no steady operating point of its "
+                                     f"mass-conserving films at {omega / (2 * math.pi):.4g} Hz ({exc}); at low speed "
+                                     "a ring's outer film may not carry its load: raise the lower end of --speeds") \
+                    from None
+        self._at = (omega, pts)
+        return pts
+
+    def max_re(self, omega: float) -> tuple[float, float]:
+        from rotor_fmu.floating_ring_stability import mc_ring_films
+        films = mc_ring_films(self.points(omega))
+        if self.solver == "dense":
+            from rotor_fmu.film_system import eigenvalues_dense
+            lam = eigenvalues_dense(self.rotor, omega, films)
+        else:
+            from rotor_fmu.film_system import rightmost
+            found = rightmost(self.rotor, omega, films, hint=self._hint)
+            lam = found.eigenvalues
+            if found.method == "dense":
+                self.dense_speeds.append(omega)
+        if not (lam.size and np.all(np.isfinite(lam))):
+            raise StabilityError(f"the floating-ring system's eigenvalues at {omega / (2 * math.pi):.4g} Hz are "
+                                 "not finite (a film at the edge of its clearance); raise the lower end of --speeds")
+        k = int(np.argmax(lam.real))
+        self._hint = (lam[k],)
+        return float(lam.real[k]), float(abs(lam.imag[k]))
+
+    def eccentricities(self, omega):
+        return [p.outputs["eps"] for p in self.points(omega)]
+
+
 def film_model(system: System, film: str, loads: np.ndarray, *, ring_spin: bool = False,
                mc_solver: str = "counted"):
     """The film model of ``film`` (one of ``"short"``, ``"hs"``, ``"mc"``; floating rings: their
-    half-Sommerfeld films, ``ring_spin`` as :class:`_RingFilms`; ``mc_solver`` as :class:`_MCFilm`)
+    half-Sommerfeld films, ``ring_spin`` as :class:`_RingFilms`, or with ``"mc"`` their own
+    mass-conserving films, :class:`_RingMCFilm`; ``mc_solver`` as :class:`_MCFilm`)
     for the system's bearings under their static ``loads`` (n_stations, 2) [N]."""
     if system.rings:
+        if film == "mc":
+            return _RingMCFilm(system, loads, mc_solver)
         return _RingFilms(system, loads, spin=ring_spin)
     if film == "mc":
         return _MCFilm(system, loads, mc_solver)

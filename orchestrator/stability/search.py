@@ -44,12 +44,13 @@ def _notes(system: System, film: str, ring_spin: bool, weight: np.ndarray, extra
              f"{fmt(extra[k])}" for k, n in enumerate(names) if extra[k].any()]
     for b in (x for x in system.bearings if x.kind == "floating_ring"):
         mc = [side for side in ("inner", "outer") if getattr(b.params, side).cavitation == 1]
-        if mc:
+        if mc and film != "mc":
             notes.append(f"bearing '{b.instance}': its {' and '.join(mc)} film is mass-conserving (cavitation = 1); "
                          "its coefficients here are those of the half-Sommerfeld film")
         if not ring_spin:                       # every ring floats (a semi-floating one is refused)
             notes.append(f"bearing '{b.instance}': full floating ring, spin held at its steady value in the "
-                         "linear model (--ring-spin adds its perturbation)")
+                         "linear model" + (" (with --film hs, --ring-spin adds its perturbation)" if film == "mc"
+                                           else " (--ring-spin adds its perturbation)"))
     for b in (x for x in system.bearings if x.kind == "journal"):
         if b.params.cavitation == 1 and film != "mc":
             notes.append(f"bearing '{b.instance}' is mass-conserving (cavitation = 1): its coefficients here are "
@@ -275,9 +276,11 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
     if not (0.0 < lo < hi <= MAX_SPEED_HZ):
         raise StabilityError(f"--speeds: need 0 < LO < HI <= {MAX_SPEED_HZ:g} in Hz (got {lo:g}:{hi:g}); speeds "
                              "in Hz, e.g. --speeds 50:800")
-    if system.rings and film == "mc":
-        raise StabilityError("--film mc: floating-ring bearings are linearized with their half-Sommerfeld films "
-                             "(--film hs); the mass-conserving film impedance is for plain JournalBearings")
+    if system.rings and film == "mc" and ring_spin:
+        raise StabilityError("--film mc --ring-spin: with the mass-conserving films the ring spin is held at its "
+                             "steady value (the torque's sensitivity to the films' cavity states is not linearised); "
+                             "use --film mc without --ring-spin, or --film hs --ring-spin for the half-Sommerfeld "
+                             "films with the spin perturbation")
     if system.rings and film == "short":
         raise StabilityError("--film short: the short-bearing closed form has no floating ring; the floating-ring "
                              "bearings of this scenario are linearized with their half-Sommerfeld films (--film hs)")
