@@ -290,6 +290,30 @@ class MCRingStation:
         Tro, _ = shear_torques(self.outer.fields(), r[0], r[1], po.c, po.R, po.B, po.eta0, Om, 0.0, Om)
         return Tri + Tro, (Tri, Tro, Tj), e, r, lin_i, lin_o
 
+    def _reset(self):
+        """New films and no guesses: a failed equilibrium leaves a film near its clearance's edge."""
+        from bearing_fmu.model import BearingModel
+        self.inner, self.outer = BearingModel(self.params.inner), BearingModel(self.params.outer)
+        self.qi = self.qo = None
+
+    def _trial(self, load, omega, Om, toward):
+        """(Om, :meth:`_films` there); when a film has no equilibrium at Om (a secant trial too slow for
+        the outer film to carry its load), up to 4 points halfway towards ``toward``, as
+        :func:`operating_point` does."""
+        from bearing_fmu.linearize import HSEquilibriumError
+        from bearing_fmu.model import StepFailed
+        for _ in range(4 if toward is not None else 0):
+            try:
+                return Om, self._films(load, omega, Om)
+            except (HSEquilibriumError, StepFailed):
+                self._reset()
+                Om = 0.5 * (Om + toward)
+        try:
+            return Om, self._films(load, omega, Om)
+        except (HSEquilibriumError, StepFailed):
+            self._reset()
+            raise
+
     def point(self, load, omega, omega_ring=None, rtol=1e-6, max_iter=30) -> MCRingPoint:
         """The steady operating point at journal speed omega under the static ``load`` (2,) [N]:
         ring speed Omega where the two films' torques on the ring balance (secant in Omega from
@@ -302,10 +326,10 @@ class MCRingStation:
             return MCRingPoint(self.params, li, lo, omega_ring, e, r, Ts, 0)
         ratio = petroff_ratio(self.params) if self.ratio is None else self.ratio
         a = ratio * omega
-        fa = self._films(load, omega, a)[0]
+        fa = self._trial(load, omega, a, None)[1][0]
         b = 0.95 * a
         for it in range(1, max_iter + 1):
-            fb, Ts, e, r, li, lo = self._films(load, omega, b)
+            b, (fb, Ts, e, r, li, lo) = self._trial(load, omega, b, a)
             if abs(b - a) < rtol * omega or fb == 0.0:
                 self.ratio = b / omega
                 return MCRingPoint(self.params, li, lo, b, e, r, Ts, it)

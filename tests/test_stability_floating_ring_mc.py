@@ -1,0 +1,158 @@
+"""`rotorcosim stability --film mc` with floating-ring bearings (orchestrator/stability/films.py
+``_RingMCFilm``; rotor_fmu/floating_ring_stability.py ``RingRotor``, ``MCRingStation``): each
+ring's operating point with its two steady mass-conserving films (torque balance of their wall
+shear), the inner film's impedance on the journal's motion relative to the ring, the outer's on
+the ring's, the ring's translation as two more degrees of freedom, its spin held.
+
+Checks, all on 16 x 8 films of the shipped free-to-air floating-ring scenarios:
+
+* the counted solver (sparse Arnoldi + argument principle) finds the dense QZ solve's least-damped
+  root at several speeds (as tests/test_film_system.py for plain bearings), and that root makes
+  the characteristic matrix assembled independently in the physical coordinates (journal, ring;
+  the inner film between them, ``P = [I, -I]``, with ``MCFilmLinear.impedance``) singular: the
+  check of the coordinate change ``RingRotor`` makes for the solver;
+* a locked ring (outer film 833 x as viscous, 3.5 x tighter: the ring speed falls to 1.7e-4 of
+  the journal's and the ring cannot move at the rotor's frequencies) leaves the rotor in its
+  inner films alone: the ring system then has the least-damped eigenvalue of the plain-bearing
+  ``--film mc`` path (``_MCFilm``, its own equilibria, no ring) with JournalBearings of the inner
+  films' parameters, at the inner film's wedge speed (the Jeffcott rotor has no gyroscopic
+  terms). An independent reference, to 1e-4;
+* the command: its threshold is a root on the imaginary axis (the dense solve there), the
+  refusals (HS films, --ring-spin).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hostile_builders import run_verb
+
+REPO = Path(__file__).resolve().parents[1]
+JEFF = REPO / "scenarios" / "jeffcott_runup_floating_ring_free_to_air.yaml"
+TURBO = REPO / "scenarios" / "turbocharger_runup_floating_ring_free_to_air.yaml"
+JEFF_HS = REPO / "scenarios" / "jeffcott_runup_floating_ring_half_sommerfeld.yaml"
+SMALL = [f"fmus.{b}.parameters.{k}_{s}={v}" for b in ("bearing1", "bearing2") for s in ("inner", "outer")
+         for k, v in (("n_phi", 16), ("n_z", 8))]
+
+
+def _system(path, sets=SMALL):
+    from orchestrator.scenario import load_scenario
+    from orchestrator.stability import build_system
+    return build_system(load_scenario(str(path), sets, build_fmus=True))
+
+
+def _same_root(a, b):
+    """As tests/test_film_system.py: the same eigenvalue to the dense solve's accuracy."""
+    return abs(a.real - b.real) < 1e-5 * abs(b) and abs(abs(a.imag) - abs(b.imag)) < 1e-5 * abs(b)
+
+
+def _physical_D(system, omega, points, s):
+    """s^2 M + s C + K + sum P^T Z(s) P in the physical coordinates (rotor dofs, then each ring's x, y),
+    the inner film on journal minus ring, the outer on the ring: assembled here, not by RingRotor."""
+    M, C, K = system.rotor.system_matrices(omega)
+    n, ns = M.shape[0], len(points)
+    N = n + 2 * ns
+    D = np.zeros((N, N), complex)
+    D[:n, :n] = s * s * M + s * C + K
+    for k, (pt, (ix, iy)) in enumerate(zip(points, system.rotor.bearing_dofs)):
+        r = [n + 2 * k, n + 2 * k + 1]
+        D[r, r] += s * s * pt.params.m_ring
+        Pi = np.zeros((2, N))
+        Pi[0, ix], Pi[1, iy], Pi[0, r[0]], Pi[1, r[1]] = 1.0, 1.0, -1.0, -1.0
+        Po = np.zeros((2, N))
+        Po[0, r[0]] = Po[1, r[1]] = 1.0
+        D += Pi.T @ pt.inner.impedance(s) @ Pi + Po.T @ pt.outer.impedance(s) @ Po
+    return D
+
+
+@pytest.mark.parametrize("path, speeds", [
+    (JEFF, (150.0, 300.0, 500.0, 650.0, 800.0)),
+    (TURBO, (80.0, 90.0, 105.0)),
+])
+def test_counted_rightmost_is_the_dense_solves_least_damped_root(path, speeds):
+    import rotor_fmu.film_system as fs
+    from orchestrator.stability.films import _RingMCFilm
+    from rotor_fmu.floating_ring_stability import mc_ring_films
+    from rotor_fmu.stability import static_bearing_loads
+    system = _system(path)
+    films = _RingMCFilm(system, static_bearing_loads(system.rotor))
+    hint = ()
+    for f in speeds:
+        w = 2 * math.pi * f
+        points = films.points(w)
+        for pt in points:        # the operating point: torques balance, the films carry the load
+            Tri, Tro, Tj = pt.torques
+            assert abs(Tri + Tro) < 1e-4 * abs(Tj), (f, pt.torques)
+            assert 0.05 < pt.Om / w < 0.6 and 0.0 < pt.outputs["eps"] < 1.0 and 0.0 < pt.outputs["eps_outer"] < 1.0
+        lins = mc_ring_films(points)
+        r = fs.rightmost(films.rotor, w, lins, hint=hint)
+        lam = fs.eigenvalues_dense(films.rotor, w, lins)
+        assert r.method == "counted", f
+        assert _same_root(r.eigenvalues[0], lam[0]), (f, r.eigenvalues[0], lam[0])
+        right = lam[lam.real > r.alpha]
+        assert r.eigenvalues.size == right.size and all(min(abs(right - v)) < 1e-5 * abs(v) for v in r.eigenvalues)
+        sv = np.linalg.svd(_physical_D(system, w, points, r.eigenvalues[0]), compute_uv=False)
+        assert sv[-1] < 1e-10 * sv[0], (f, sv[-1] / sv[0])
+        hint = (r.eigenvalues[0],)
+
+
+def test_a_locked_ring_is_the_plain_bearing_mc_path():
+    import rotor_fmu.film_system as fs
+    from orchestrator.stability import Bearing
+    from orchestrator.stability.films import _MCFilm, _RingMCFilm
+    from rotor_fmu.floating_ring_stability import mc_ring_films
+    from rotor_fmu.stability import static_bearing_loads
+    lock = [f"fmus.{b}.parameters.{k}={v}" for b in ("bearing1", "bearing2")
+            for k, v in (("eta0_outer", 10.0), ("psi_outer", 1.0e-3))]
+    system = _system(JEFF, SMALL + lock)
+    loads = static_bearing_loads(system.rotor)
+    rings = _RingMCFilm(system, loads)
+    plain_system = dataclasses.replace(system, bearings=[Bearing(b.instance, b.station, b.params.inner)
+                                                         for b in system.bearings])
+    plain = _MCFilm(plain_system, loads)
+    for f in (200.0, 400.0, 700.0):
+        w = 2 * math.pi * f
+        points = rings.points(w)
+        Om = points[0].Om
+        assert Om / w < 3e-4 and points[1].Om == Om
+        lam = fs.eigenvalues_dense(rings.rotor, w, mc_ring_films(points))
+        # the plain path's films at the inner film's wedge speed, the rotor at its own speed
+        ref = fs.rightmost(system.rotor, w, plain._films(w + Om)).eigenvalues[0]
+        near = lam[np.argmin(np.abs(lam - ref))]
+        assert abs(near - ref) < 1e-4 * abs(ref), (f, near, ref)
+
+
+def test_command_threshold_is_a_root_on_the_axis(capsys, tmp_path):
+    import rotor_fmu.film_system as fs
+    from orchestrator.stability.films import _RingMCFilm
+    from rotor_fmu.floating_ring_stability import mc_ring_films
+    from rotor_fmu.stability import static_bearing_loads
+    out = tmp_path / "r.json"
+    sets = [a for s in SMALL for a in ("--set", s)]
+    code, text, err = run_verb(capsys, "stability", JEFF, "--film", "mc", "--speeds", "500:800", "--scan", "8",
+                               "--json", out, *sets)
+    assert code == 0, err
+    r = json.loads(out.read_text())
+    assert r["film"] == "mc" and r["status"] == "threshold" and r["complete"]
+    assert "mass-conserving inner and outer films" in r["method"]
+    assert not any("those of the half-Sommerfeld film" in n for n in r["notes"])
+    b1 = r["bearings"]["bearing1"]
+    assert 0.2 < b1["ring_speed_ratio_at_threshold"] < 0.5 and 0.0 < b1["eps_outer_at_threshold"] < 1.0
+    system = _system(JEFF)
+    films = _RingMCFilm(system, static_bearing_loads(system.rotor))
+    w = 2 * math.pi * r["threshold_hz"]
+    lam = fs.eigenvalues_dense(films.rotor, w, mc_ring_films(films.points(w)))
+    assert abs(lam[0].real) < 0.05 and abs(abs(lam[0].imag) / (2 * math.pi) - r["whirl_hz"]) < 1e-6 * r["whirl_hz"]
+
+
+def test_half_sommerfeld_rings_and_ring_spin_are_refused(capsys):
+    code, text, err = run_verb(capsys, "stability", JEFF_HS, "--film", "mc", "--scan", "4")
+    assert code != 0 and "cavitation_inner = 0" in err and "--film hs" in err
+    code, text, err = run_verb(capsys, "stability", JEFF, "--film", "mc", "--ring-spin", "--scan", "4")
+    assert code != 0 and "--film mc --ring-spin" in err and "held" in err
