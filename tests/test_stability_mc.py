@@ -77,7 +77,7 @@ def test_mc_needs_mass_conserving_journal_bearings(capsys):
     assert code == 1 and "'bearing1' is half-Sommerfeld (cavitation = 0): use --film hs" in err
     code, _, err = _run(capsys, REPO / "scenarios" / "turbocharger_runup_floating_ring_half_sommerfeld.yaml",
                         "--film", "mc")
-    assert code == 1 and "--film mc: floating-ring bearings" in err
+    assert code == 1 and "floating-ring bearing 'bearing1' the inner and outer films are half-Sommerfeld" in err
 
 
 def test_scan_option_is_checked(capsys):

@@ -366,10 +366,11 @@ class _RingMCFilm:
         for b in system.bearings:
             hs = [side for side in ("inner", "outer") if getattr(b.params, side).cavitation != 1]
             if hs:
-                raise StabilityError(f"--film mc linearises mass-conserving films (cavitation = 1), but the "
-                                     f"{' and '.join(hs)} film of the floating-ring bearing '{b.instance}' is "
-                                     f"half-Sommerfeld (cavitation_{hs[0]} = 0): use --film hs, or set "
-                                     f"fmus.{b.instance}.parameters.cavitation_{hs[0]}=1")
+                raise StabilityError(f"--film mc linearises mass-conserving films (cavitation = 1), but in the "
+                                     f"floating-ring bearing '{b.instance}' the {' and '.join(hs)} film"
+                                     f"{'s are' if len(hs) > 1 else ' is'} half-Sommerfeld ("
+                                     + ", ".join(f"cavitation_{x} = 0" for x in hs) + "): use --film hs, or set "
+                                     + " and ".join(f"fmus.{b.instance}.parameters.cavitation_{x}=1" for x in hs))
         if solver not in MC_SOLVERS:
             raise StabilityError(f"the mass-conserving film's eigenvalue solver must be one of "
                                  f"{', '.join(MC_SOLVERS)} (got {solver!r})")
