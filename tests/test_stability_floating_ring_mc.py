@@ -72,7 +72,7 @@ def _physical_D(system, omega, points, s):
 
 
 @pytest.mark.parametrize("path, speeds", [
-    (JEFF, (150.0, 300.0, 500.0, 650.0, 800.0)),
+    (JEFF, (116.85490562919915, 150.0, 300.0, 500.0, 650.0, 800.0)),   # 116.85 Hz: see test_count_at_116_hz
     (TURBO, (80.0, 90.0, 105.0)),
 ])
 def test_counted_rightmost_is_the_dense_solves_least_damped_root(path, speeds):
@@ -156,3 +156,21 @@ def test_half_sommerfeld_rings_and_ring_spin_are_refused(capsys):
     assert code != 0 and "cavitation_inner = 0" in err and "--film hs" in err
     code, text, err = run_verb(capsys, "stability", JEFF, "--film", "mc", "--ring-spin", "--scan", "4")
     assert code != 0 and "--film mc --ring-spin" in err and "held" in err
+
+
+def test_count_at_116_hz_is_not_sent_to_the_dense_solve():
+    """At 116.85 Hz (a speed of the default 80-speed scan) a real root (-162.06 1/s) and an outer film's
+    pole (-161.23 1/s) lie close together left of the count's line: D(alpha) is ill-conditioned and
+    arg h(alpha) came out 1e-5 rad off a multiple of pi, the count 3e-6 off an integer, which the
+    count refused (the dense solve followed). It is rounding (count_right's PHI0_TOL)."""
+    import rotor_fmu.film_system as fs
+    from orchestrator.stability.films import _RingMCFilm
+    from rotor_fmu.floating_ring_stability import mc_ring_films
+    from rotor_fmu.stability import static_bearing_loads
+    system = _system(JEFF)
+    films = _RingMCFilm(system, static_bearing_loads(system.rotor))
+    w = 2 * math.pi * 116.85490562919915
+    lins = mc_ring_films(films.points(w))
+    r = fs.rightmost(films.rotor, w, lins)
+    assert r.method == "counted"
+    assert _same_root(r.eigenvalues[0], fs.eigenvalues_dense(films.rotor, w, lins)[0])
