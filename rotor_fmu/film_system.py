@@ -364,7 +364,7 @@ def _film_poles(det: ImpedanceDeterminant, alpha: float, scale: float) -> np.nda
     return np.array([p for k in det.first for p in per_film[k]], dtype=complex)
 
 
-def rightmost(rotor, omega, films, *, hint=(), margin=50.0, retries=2) -> Rightmost:
+def rightmost(rotor, omega, films, *, hint=(), margin=50.0, retries=2, dense_max=None) -> Rightmost:
     """The least-damped eigenvalues of the rotor-film system (``films``: one
     :class:`~bearing_fmu.linearize.MCFilmLinear` per station): all those right of a line
     ``Re s = alpha`` (module doc). Shift-invert Arnoldi on the sparse pencil at the shifts of
@@ -374,11 +374,16 @@ def rightmost(rotor, omega, films, *, hint=(), margin=50.0, retries=2) -> Rightm
     missing, Arnoldi again where its phase falls fastest (up to ``retries`` times), then
     :func:`eigenvalues_dense` (``method = "dense"``). BLAS runs on one thread here: its many small
     products (ARPACK's on 1612 x 30 complex blocks at 40 x 40) took 2-20 x longer with two threads
-    on a shared 2-core host."""
+    on a shared 2-core host. ``dense_max``: the largest pencil (unknowns) solved densely; a larger one
+    that would need it is returned unsolved (``method = "unresolved"``, no eigenvalues)."""
     from threadpoolctl import threadpool_limits
     with threadpool_limits(1, user_api="blas"):
         found = _rightmost(rotor, omega, films, hint, margin, retries)
     if found.method == "dense":
+        size = 2 * rotor.n_dof + sum(f.Js.shape[0] for f in films)
+        if dense_max is not None and size > dense_max:     # QZ is O(N^3): hours at N ~ 13000
+            found.method = "unresolved"
+            return found
         found.eigenvalues = eigenvalues_dense(rotor, omega, films)
     return found
 

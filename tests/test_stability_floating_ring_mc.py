@@ -174,3 +174,22 @@ def test_count_at_116_hz_is_not_sent_to_the_dense_solve():
     r = fs.rightmost(films.rotor, w, lins)
     assert r.method == "counted"
     assert _same_root(r.eigenvalues[0], fs.eigenvalues_dense(films.rotor, w, lins)[0])
+
+
+def test_a_disagreeing_count_on_a_pencil_too_large_for_qz_leaves_the_speed_out(monkeypatch):
+    """Where the count disagrees, the dense QZ of the pencil follows; above RING_DENSE_MAX unknowns
+    (the turbocharger's 160 x 40 ring films: ~12900, hours) the speed is refused instead, with the fix."""
+    import orchestrator.stability.films as films_mod
+    import rotor_fmu.film_system as fs
+    from orchestrator.stability import StabilityError
+    from orchestrator.stability.films import _RingMCFilm
+    from rotor_fmu.stability import static_bearing_loads
+    system = _system(JEFF)
+    films = _RingMCFilm(system, static_bearing_loads(system.rotor))
+    monkeypatch.setattr(fs, "count_right", lambda *a, **k: fs.Count(-1, 0, 0.0))
+    w = 2 * math.pi * 300.0
+    films.max_re(w)                                    # small: solved densely
+    assert films.dense_speeds == [w]
+    monkeypatch.setattr(films_mod, "RING_DENSE_MAX", 100)
+    with pytest.raises(StabilityError, match=r"at 300 Hz the argument-principle count disagreed.*left out.*n_phi_inner"):
+        films.max_re(w)

@@ -43,6 +43,9 @@ import numpy as np
 from orchestrator.stability.system import Bearing, StabilityError, System
 
 MC_SOLVERS = ("counted", "dense")   # the --film mc eigenvalue solvers (_MCFilm)
+#: largest floating-ring descriptor system (unknowns) that --film mc solves densely where the count
+#: disagrees: 4 films of 40 x 40 (~3200, 1-3 min); the turbocharger's 160 x 40 (~12900) would take hours
+RING_DENSE_MAX = 5000
 
 
 def _short(p) -> dict:
@@ -420,7 +423,14 @@ class _RingMCFilm:
             lam = eigenvalues_dense(self.rotor, omega, films)
         else:
             from rotor_fmu.film_system import rightmost
-            found = rightmost(self.rotor, omega, films, hint=self._hint)
+            found = rightmost(self.rotor, omega, films, hint=self._hint, dense_max=RING_DENSE_MAX)
+            if found.method == "unresolved":
+                size = 2 * self.rotor.n_dof + sum(f.Js.shape[0] for f in films)
+                raise StabilityError(f"at {omega / (2 * math.pi):.4g} Hz the argument-principle count disagreed with "
+                                     f"the eigenvalues the Arnoldi runs found, and the dense solve of the {size} "
+                                     f"unknowns would take hours (above {RING_DENSE_MAX}): the speed is left out; "
+                                     "coarser ring films (--set fmus.BEARING.parameters.n_phi_inner=..., n_z_inner, "
+                                     "n_phi_outer, n_z_outer) make it solvable")
             lam = found.eigenvalues
             if found.method == "dense":
                 self.dense_speeds.append(omega)
