@@ -337,7 +337,9 @@ def _shifts(modes, omega: float, hint=()) -> list:
     rotor modes (:func:`_rotor_modes`, ``|Re| <= Im``: not the overdamped ones, nor real ones that
     the Taylor terms make up) and ``hint``; shifts within 2 % of one another taken once."""
     osc = modes[(modes.imag >= 0.0) & (np.abs(modes.real) <= modes.imag)]
-    out = [0j, 0.5j * omega] + list(osc) + [complex(h.real, abs(h.imag)) for h in hint]
+    # a hint 1e-3 |h| right of itself: the last speed's root is within rounding of this speed's during a
+    # refinement, and a shift on an eigenvalue gives ARPACK a near-singular operator
+    out = [0j, 0.5j * omega] + list(osc) + [complex(h.real + 1e-3 * abs(h), abs(h.imag)) for h in hint]
     uniq: list = []
     for s in out:
         if all(abs(s - u) > 0.02 * max(abs(u), omega) for u in uniq):
