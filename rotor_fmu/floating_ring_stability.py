@@ -266,7 +266,7 @@ class MCRingStation:
         self.qi = self.qo = None
         self.ratio = None            # the last speed's Omega / omega (the next speed's first guess)
 
-    def _films(self, load, omega, Om, linearise=False):
+    def _films(self, load, omega, Om):
         """Both films' steady states at ring speed Om: inner (journal relative to ring) carries the
         load at wedge speed omega + Om, outer the load plus the ring's weight at Om; returns
         (net torque on the ring, (T_ri, T_ro, T_j), e, r, lin_inner, lin_outer)."""

@@ -267,6 +267,31 @@ class _RingFilms:
         return [float(p.outputs["eps"]) for p in self.points(omega)]
 
 
+def _mc_eigenvalues(fm, rotor, omega: float, films: list, dense_max: int | None = None):
+    """The eigenvalues of ``rotor`` with the mass-conserving ``films`` by ``fm.solver`` (an
+    :class:`_MCFilm` or :class:`_RingMCFilm`): all by dense QZ, or the least-damped ones counted
+    (:func:`rotor_fmu.film_system.rightmost`, from ``fm._hint``; a speed it left to the dense solve
+    is listed in ``fm.dense_speeds``); None when that dense solve would exceed ``dense_max`` unknowns."""
+    if fm.solver == "dense":
+        from rotor_fmu.film_system import eigenvalues_dense
+        return eigenvalues_dense(rotor, omega, films)
+    from rotor_fmu.film_system import rightmost
+    found = rightmost(rotor, omega, films, hint=fm._hint, dense_max=dense_max)
+    if found.method == "unresolved":
+        return None
+    if found.method == "dense":
+        fm.dense_speeds.append(omega)
+    return found.eigenvalues
+
+
+def _least_damped(fm, lam) -> tuple[float, float]:
+    """(real part, |imaginary part|) of the least-damped of ``lam``, kept in ``fm._hint`` (where
+    the next speed's search starts)."""
+    k = int(np.argmax(lam.real))
+    fm._hint = (lam[k],)
+    return float(lam.real[k]), float(abs(lam.imag[k]))
+
+
 class _MCFilm:
     """Each station's own mass-conserving film, linearised about its steady state with its cavity
     (theta) dynamics: the rotor and the films as one descriptor system, its least-damped eigenvalue
@@ -335,19 +360,7 @@ class _MCFilm:
         return films
 
     def max_re(self, omega: float) -> tuple[float, float]:
-        films = self._films(omega)
-        if self.solver == "dense":
-            from rotor_fmu.stability import film_system_eigenvalues
-            lam = film_system_eigenvalues(self.system.rotor, omega, films)
-        else:
-            from rotor_fmu.film_system import rightmost
-            found = rightmost(self.system.rotor, omega, films, hint=self._hint)
-            lam = found.eigenvalues
-            if found.method == "dense":
-                self.dense_speeds.append(omega)
-        k = int(np.argmax(lam.real))
-        self._hint = (lam[k],)            # where the next speed's search starts
-        return float(lam.real[k]), float(abs(lam.imag[k]))
+        return _least_damped(self, _mc_eigenvalues(self, self.system.rotor, omega, self._films(omega)))
 
     def eccentricities(self, omega):
         self._films(omega)
@@ -418,28 +431,18 @@ class _RingMCFilm:
     def max_re(self, omega: float) -> tuple[float, float]:
         from rotor_fmu.floating_ring_stability import mc_ring_films
         films = mc_ring_films(self.points(omega))
-        if self.solver == "dense":
-            from rotor_fmu.film_system import eigenvalues_dense
-            lam = eigenvalues_dense(self.rotor, omega, films)
-        else:
-            from rotor_fmu.film_system import rightmost
-            found = rightmost(self.rotor, omega, films, hint=self._hint, dense_max=RING_DENSE_MAX)
-            if found.method == "unresolved":
-                size = 2 * self.rotor.n_dof + sum(f.Js.shape[0] for f in films)
-                raise StabilityError(f"at {omega / (2 * math.pi):.4g} Hz the argument-principle count disagreed with "
-                                     f"the eigenvalues the Arnoldi runs found, and the dense solve of the {size} "
-                                     f"unknowns would take hours (above {RING_DENSE_MAX}): the speed is left out; "
-                                     "coarser ring films (--set fmus.BEARING.parameters.n_phi_inner=..., n_z_inner, "
-                                     "n_phi_outer, n_z_outer) make it solvable")
-            lam = found.eigenvalues
-            if found.method == "dense":
-                self.dense_speeds.append(omega)
+        lam = _mc_eigenvalues(self, self.rotor, omega, films, dense_max=RING_DENSE_MAX)
+        if lam is None:
+            size = 2 * self.rotor.n_dof + sum(f.Js.shape[0] for f in films)
+            raise StabilityError(f"at {omega / (2 * math.pi):.4g} Hz the argument-principle count disagreed with "
+                                 f"the eigenvalues the Arnoldi runs found, and the dense solve of the {size} "
+                                 f"unknowns would take hours (above {RING_DENSE_MAX}): the speed is left out; "
+                                 "coarser ring films (--set fmus.BEARING.parameters.n_phi_inner=..., n_z_inner, "
+                                 "n_phi_outer, n_z_outer) make it solvable")
         if not (lam.size and np.all(np.isfinite(lam))):
             raise StabilityError(f"the floating-ring system's eigenvalues at {omega / (2 * math.pi):.4g} Hz are "
                                  "not finite (a film at the edge of its clearance); raise the lower end of --speeds")
-        k = int(np.argmax(lam.real))
-        self._hint = (lam[k],)
-        return float(lam.real[k]), float(abs(lam.imag[k]))
+        return _least_damped(self, lam)
 
     def eccentricities(self, omega):
         return [p.outputs["eps"] for p in self.points(omega)]

@@ -154,18 +154,12 @@ class FloquetFilms:
                 Kc, Cc = contact_coefficients(x, y, vx, vy, omega, **m.contact_kw)
                 K, C = K + Kc, C + Cc
             return np.asarray(F, float), K, C
+        from bearing_fmu.linearize import _central
         from rotor_fmu.stability import short_bearing_force
         kw = _short(self.system.bearings[j].params)
-        z0 = np.array([x, y, vx, vy], float)
         cl = kw["C"]
         steps = (1e-6 * cl, 1e-6 * cl, 1e-6 * cl * abs(omega), 1e-6 * cl * abs(omega))
-        D = np.empty((2, 4))
-        for k, st in enumerate(steps):
-            zp, zm = z0.copy(), z0.copy()
-            zp[k] += st
-            zm[k] -= st
-            D[:, k] = -(np.array(short_bearing_force(*zp, omega, **kw)) -
-                        np.array(short_bearing_force(*zm, omega, **kw))) / (2 * st)
+        D = _central(lambda z: np.array(short_bearing_force(*z, omega, **kw)), np.array([x, y, vx, vy], float), steps)
         return np.array(short_bearing_force(x, y, vx, vy, omega, **kw)), D[:, :2].copy(), D[:, 2:].copy()
 
     # ------------------------------------------------------------------ the system
