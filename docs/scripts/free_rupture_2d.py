@@ -1,0 +1,296 @@
+"""Prototype: the free-rupture defect correction of docs/scripts/reformation_front_1d.py
+(``rupture_correction``) in the 2-D steady free-to-air film, per row, on top of the exit-layer
+correction of exit_layer_2d.py (issue 16 item 2). A study script, NOT a library option: it
+patches one BearingModel instance's film residual; the solver's defaults are untouched.
+
+The bearing, journal position and Newton tolerances are those of grid_convergence.py ``air``
+(Jeffcott run-up bearing, 15 deg groove at 90 deg, 250 Hz; the minimum gap at -10.4 deg, the
+full film ruptures freely after it). Per grid:
+
+1. the film with the exit-layer correction (exit_layer_2d.exit_corrected) is solved;
+2. per row j, the circumferential flux through the cavity, q_j (per unit width, at the column
+   nearest 50 deg: in the cavity between the rupture and the groove on every row, where p is
+   flat and q_j is constant along the row);
+3. per row, the rupture's local 1-D problem given q_j (reformation_front_1d.rupture_layer's
+   construction with the circumferential conductance a_phi, the axial flow left out): phi_r
+   from ``omega H(phi_r) = q_j``, the gap linearised there, the window ``max(2 h, 8 ell)``;
+   per phi face of the row ``Delta = w (q_j - F(u_R))``, the scheme's face flux (film.py:
+   upwind or limited theta, two-point Poiseuille) on the local profile, with a weight w that
+   is 1 inside the window and falls linearly to 0 over the next cell (a hard window made the
+   iteration below cycle between two face sets at 40 x 40);
+4. the residual of each film cell of the row gains ``dz (Delta_east - Delta_west)`` (mass
+   exact, Jacobian unchanged), the film is solved again (warm), q_j updated by substitution
+   until it changes by < 1e-11 relative (9 to 20 solves; 20 x 20 reaches 1.1e-10 after
+   the limit of 60; the per-row secant of the 1-D script cycled here).
+
+Run: ``nice -n 10 .venv/bin/python docs/scripts/free_rupture_2d.py [square] [phi] [axial]
+[shift]`` (``square``: 20 ... 160 square grids, about 6 minutes; ``phi``: n_phi 48 ... 384 at
+n_z = 40, about 3 minutes; ``axial``: n_z 20 ... 80 at n_phi = 96, about 2 minutes;
+``shift``: 40 and 80 x 40 with the grid shifted by 0.1 ... 0.9 cells as in exit_layer_2d.py
+``shift``, about 8 minutes; ``sectors``: where the 40 x 40 shifted films' Fx error sits, per
+phi sector, against 768 x 40, about 6 minutes). Markdown tables of Fx, Fy, exit correction only and with the
+rupture correction.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+import exit_layer_2d as el  # noqa: E402
+import grid_convergence as gc  # noqa: E402
+import reformation_front_1d as rf  # noqa: E402
+from bearing_fmu.film import limiter  # noqa: E402
+from bearing_fmu.linearize import _force  # noqa: E402
+from bearing_fmu.model import BearingModel  # noqa: E402
+
+#: where the rows' cavity flux is taken [deg, physical]
+Q_DEG = 50.0
+#: window half width in units of the soft rupture's width ell, and at least MIN_CELLS cells
+N_LEN = 8.0
+MIN_CELLS = 2.0
+
+
+def row_layer(b, xy, omega, q, margin):
+    """The rupture's local problem of one row with cavity flux q: (u(phi), phi_r, W, H)."""
+    x, y = xy
+    law = b.law
+
+    def gap(phi):
+        return 1.0 - (x * np.cos(phi) + y * np.sin(phi)) / b.c
+    phi_min = math.atan2(y, x)
+    phi_r = brentq(lambda p: omega * gap(p) - q, phi_min + 1e-9, phi_min + math.pi - 1e-6,
+                   xtol=1e-15)
+    Hr = float(gap(phi_r))
+    dH = (x * math.sin(phi_r) - y * math.cos(phi_r)) / b.c
+    A = omega * dH / (2 * b.a_phi * Hr ** 3)
+    W = max(MIN_CELLS * margin / 3, N_LEN * math.sqrt(law.K * law.delta / A))
+
+    def H(p):
+        return Hr + dH * (p - phi_r)
+    x_far, x_near = phi_r + W + margin, phi_r - W - margin
+    target = q / (omega * float(H(x_far)))
+    u_far = brentq(lambda v: rf.evaluate(np.array([v]), law)[2][0] - target, -5.0, 1e3,
+                   xtol=1e-14)
+    rhs, jac = rf._ode(H, b.a_phi, omega, law)
+    r = solve_ivp(rhs, (x_far, x_near), [u_far], method="Radau", args=(q,), rtol=rf.RTOL,
+                  atol=0.1 * rf.RTOL, dense_output=True, jac=jac)
+    return (lambda p: r.sol(np.clip(p, x_near, x_far))[0]), phi_r, W, H
+
+
+def rupture_correction(b, xy, omega, q_rows):
+    """(n,) residual correction of the film for the rows' cavity fluxes q_rows, and per row
+    (phi_r [deg], corrected faces); rows from the edge (0) to the mid-width (the film holds the
+    symmetric half)."""
+    g = b.grid
+    n_phi, h = g.n_phi, g.dphi
+    muscl = b.params.theta_transport == 1
+    corr = np.zeros((g.n_z, n_phi))
+    info = []
+    for j in range(g.n_z):
+        sol, phi_r, W, H = row_layer(b, xy, omega, q_rows[j], 3 * h)
+        d = (g.phi - phi_r + math.pi) % (2 * math.pi) - math.pi
+        wt = np.clip((W + h - np.abs(d + 0.5 * h)) / h, 0.0, 1.0)      # east face of column i
+        p, _, th, _ = rf.evaluate(sol(phi_r + d), b.law)
+        delta = np.zeros(n_phi)
+        for i in np.flatnonzero(wt > 0.0):
+            e, w = (i + 1) % n_phi, (i - 1) % n_phi
+            He = float(H(phi_r + d[i] + 0.5 * h))
+            thf = th[i] + 0.5 * limiter(th[i] - th[w], th[e] - th[i])[0] if muscl else th[i]
+            F = omega * He * thf - b.a_phi * He ** 3 * (p[e] - p[i]) / (g.frel[i] * h)
+            delta[i] = wt[i] * (q_rows[j] - F)
+        corr[j] = g.dz * (delta - np.roll(delta, 1))
+        info.append((math.degrees(phi_r), int(np.count_nonzero(delta))))
+    return corr.ravel(), info
+
+
+def row_flux(b, u, kin, alpha=0.0):
+    """Per row the circumferential flux per unit width at the east face of the column nearest
+    Q_DEG (physical angle; the grid rotated by alpha)."""
+    g = b.grid
+    p, th = b.law.p_theta(u)
+    p, th = p.reshape(g.n_z, g.n_phi), th.reshape(g.n_z, g.n_phi)
+    He, om = kin[1], kin[3]
+    i = int(np.argmin(np.abs((g.phi - math.radians(Q_DEG) - alpha + math.pi) % (2 * math.pi)
+                             - math.pi)))
+    if np.any(th[:, i] >= 0.999):
+        raise RuntimeError(f"column at {Q_DEG} deg not in the cavity on every row")
+    return om * He[i] * th[:, i] - b.a_phi * He[i] ** 3 * (p[:, (i + 1) % g.n_phi] - p[:, i]) / (
+        g.frel[i] * g.dphi)
+
+
+def solve(n_phi, n_z, xy, omega, rupture, alpha=0.0, max_iter=60, fields=False):
+    """(Fx, Fy) of the steady film with the exit-layer correction and, if ``rupture``, the
+    free-rupture correction; groove and journal frame rotated by alpha; and
+    (substitutions, per-row info); ``fields``: (b, p, theta, kin) instead."""
+    prm = gc.params("air", n_phi, n_z, **el.TT)
+    if alpha:
+        prm = prm.replace(groove_angle=prm.groove_angle + alpha)
+    b = BearingModel(prm)
+    prepare = el.exit_corrected(b, True)
+    kin = b._kinematics(xy[0], xy[1], 0.0, 0.0, omega)
+    prepare(kin, (xy[0], xy[1], 0.0, 0.0))
+    f = b.film
+    g_size = b.grid.n_phi * b.grid.n_z         # the film's unknowns (the symmetric half)
+    box = {"corr": np.zeros(g_size)}
+    with_exit = f.residual
+
+    def residual(*args, **kw):
+        r = with_exit(*args, **kw)
+        r += box["corr"]
+        return r
+    f.residual = residual
+    b.initialize(xy[0], xy[1], 0.0, 0.0, omega, init="stationary")
+    u = b.film.u.copy()
+    its, info = 0, None
+    if rupture:
+        q = row_flux(b, u, kin, alpha)
+        zero = np.zeros(g_size)
+        for its in range(1, max_iter + 1):
+            box["corr"], info = rupture_correction(b, xy, omega, q)
+            u, _ = b._steady_newton(kin, u, zero, 60)
+            if u is None:
+                raise RuntimeError(f"{n_phi} x {n_z}: Newton failed with the rupture correction")
+            dq = row_flux(b, u, kin, alpha) - q
+            q = q + dq
+            if np.max(np.abs(dq)) < 1e-11 * np.max(np.abs(q)):
+                break
+        else:
+            print(f"  ({n_phi} x {n_z}: q changed by {np.max(np.abs(dq / q)):.1e} at the last "
+                  "substitution)", flush=True)
+    p, th = b.law.p_theta(u)
+    if fields:
+        return b, p, th, kin
+    return _force(b, p, th, kin), its, info
+
+
+def _shift(n_phi, n_z, q, frac):
+    """(alpha, journal position in the rotated frame) of the grid shifted by ``frac``."""
+    prm = gc.params("air", n_phi, n_z)
+    dphi = 2 * math.pi / n_phi
+    edge0 = prm.groove_angle + 0.5 * prm.groove_width
+    alpha = (math.ceil(edge0 / dphi + 1e-9) - frac) * dphi - edge0
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    return alpha, (ca * q[0] - sa * q[1], sa * q[0] + ca * q[1])
+
+
+#: phi sectors [deg] of the attribution (``sectors``): around the minimum gap and the free
+#: rupture, cavity, groove, exit layer and cavity, reformation front, full film
+SECTORS = ((-40, 40), (40, 80), (80, 100), (100, 180), (180, 250), (250, 320))
+
+
+def sectors(n_phi, n_z, q, omega, rupture, n_ref=768):
+    """Where the shifted n_phi x n_z film's force error sits: per SECTOR the Fx [N] that the
+    cell pressures' difference to the n_ref x n_z film (same correction; interpolated per row
+    at the shifted grid's physical angles) carries there (the film's own force integral on
+    the reference pressures plus the masked difference, rotated back)."""
+    ref = solve(n_ref, n_z, q, omega, rupture, fields=True)
+    g_r = ref[0].grid
+    p_r = ref[1].reshape(g_r.n_z, g_r.n_phi)
+    x_r = np.concatenate([g_r.phi - 2 * math.pi, g_r.phi, g_r.phi + 2 * math.pi])
+    rows = []
+    for frac in (0.1, 0.3, 0.5, 0.7, 0.9):
+        alpha, xy = _shift(n_phi, n_z, q, frac)
+        b, p, th, kin = solve(n_phi, n_z, xy, omega, rupture, alpha=alpha, fields=True)
+        g = b.grid
+        phys = (g.phi - alpha) % (2 * math.pi)
+        pref = np.concatenate([np.interp(phys, x_r, np.tile(p_r[j], 3)) for j in range(g.n_z)])
+        base = _force(b, pref, th, kin)
+        deg = (np.degrees(np.tile(phys, g.n_z)) + 40.0) % 360.0 - 40.0
+        out = []
+        for lo, hi in SECTORS:
+            m = (deg >= lo) & (deg < hi)
+            dF = _force(b, np.where(m, p, pref), th, kin) - base
+            out.append(math.cos(alpha) * dF[0] + math.sin(alpha) * dF[1])
+        rows.append((frac, out))
+    return rows
+
+
+def shifted(n_phi, n_z, q, omega, rupture, frac):
+    """(Fx, Fy) in the journal frame, the grid shifted so that the first film cell's centre
+    after the groove exit lies ``frac`` cells after the exit (exit_layer_2d.shifted_force)."""
+    alpha, xy = _shift(n_phi, n_z, q, frac)
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    F, _, _ = solve(n_phi, n_z, xy, omega, rupture, alpha=alpha)
+    return ca * F[0] + sa * F[1], -sa * F[0] + ca * F[1]
+
+
+def orders(vals):
+    d = np.diff(vals)
+    return ", ".join(f"{math.log2(d[i] / d[i + 1]):.2f}" if d[i] * d[i + 1] > 0 else "nan"
+                     for i in range(len(d) - 1))
+
+
+def table(shapes, q, omega):
+    print("| grid | Fx exit only | Fy exit only | Fx with rupture | Fy with rupture | "
+          "substitutions | phi_r edge / quarter / mid-width [deg], faces at mid-width | wall [s] |")
+    print("|---|---|---|---|---|---|---|---|")
+    res = []
+    for n_phi, n_z in shapes:
+        t = time.time()
+        F0, _, _ = solve(n_phi, n_z, q, omega, False)
+        F1, its, info = solve(n_phi, n_z, q, omega, True)
+        res.append((F0, F1))
+        mid, quarter = info[-1], info[len(info) // 2]
+        print(f"| {n_phi} x {n_z} | {F0[0]:.5f} | {F0[1]:.5f} | {F1[0]:.5f} | {F1[1]:.5f} | "
+              f"{its} | {info[0][0]:.2f} / {quarter[0]:.2f} / {mid[0]:.2f}, {mid[1]} | "
+              f"{time.time() - t:.0f} |",
+              flush=True)
+    for k, name in ((0, "Fx"), (1, "Fy")):
+        print(f"\n{name} orders: exit only {orders([r[0][k] for r in res])}; with rupture "
+              f"{orders([r[1][k] for r in res])}")
+    return res
+
+
+def main(argv):
+    parts = argv or ["square"]
+    q = gc.hs_equilibrium(40)
+    omega = 2 * math.pi * gc.F_HZ
+    if "square" in parts:
+        print("\n### square grids\n")
+        table([(n, n) for n in (20, 40, 80, 160)], q, omega)
+    if "phi" in parts:
+        print("\n### n_z = 40, n_phi refined\n")
+        table([(n, 40) for n in (48, 96, 192, 384)], q, omega)
+    if "axial" in parts:
+        print("\n### n_phi = 96, n_z refined\n")
+        table([(96, n) for n in (20, 40, 80)], q, omega)
+    if "shift" in parts:
+        print("\n### grid shifted by a fraction of a cell, n_z = 40\n")
+        print("| grid | film | Fx at 0.1 / 0.3 / 0.5 / 0.7 / 0.9 cells | spread Fx / Fy |")
+        print("|---|---|---|---|")
+        for n in (40, 80):
+            for rup in (False, True):
+                v = [shifted(n, 40, q, omega, rup, fr) for fr in (0.1, 0.3, 0.5, 0.7, 0.9)]
+                fx, fy = [a[0] for a in v], [a[1] for a in v]
+                print(f"| {n} x 40 | {'with rupture' if rup else 'exit only'} | "
+                      + " / ".join(f"{a:.5f}" for a in fx)
+                      + f" | {100 * (max(fx) - min(fx)) / abs(np.mean(fx)):.3f} / "
+                      f"{100 * (max(fy) - min(fy)) / abs(np.mean(fy)):.3f} % |", flush=True)
+
+
+    if "sectors" in parts:
+        print("\n### 40 x 40 shifted: Fx [N] of the cell pressures' difference to 768 x 40, per "
+              "sector\n")
+        print("| film | shift [cells] | " + " | ".join(f"{a} .. {b} deg" for a, b in SECTORS)
+              + " | sum |")
+        print("|---|---|" + "---|" * (len(SECTORS) + 1))
+        for rup in (False, True):
+            for frac, out in sectors(40, 40, q, omega, rup):
+                print(f"| {'with rupture' if rup else 'exit only'} | {frac} | "
+                      + " | ".join(f"{v:+.5f}" for v in out) + f" | {sum(out):+.5f} |",
+                      flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
