@@ -251,3 +251,24 @@ def test_an_ssp_from_elsewhere_cannot_name_files_outside_its_extraction(tmp_path
     assert f"{secret} is outside the scenario's folder {elsewhere}; the folder its SSP was extracted to " \
            f"{sc.extracted}" in said[0], said
     assert f"the value is set at {hostile} [fmus.rotor.parameters.rotor_file]" in said[0], said
+
+
+@pytest.mark.parametrize("how", ["relative", "absolute"])
+def test_a_folder_a_string_parameter_names_is_said_not_carried(tmp_path, monkeypatch, how):
+    """A String parameter naming a folder: export-ssp carries files, not folders, and says so with
+    the parameter and the fix (before, the folder was left out without a word)."""
+    import orchestrator
+    folder = tmp_path / "scenario"
+    (folder / "data").mkdir(parents=True)
+    (folder / "data" / "inside.txt").write_bytes(SECRET)
+    monkeypatch.chdir(folder)
+    value = "data" if how == "relative" else str(folder / "data")
+    sc = orchestrator.load_scenario(_scenario(folder, value), build_fmus=True)
+    ssp, said = _export(sc, tmp_path / "x.ssp")
+    assert _carried(ssp) == {}
+    assert len(said) == 1, said
+    assert f"{KEY} = {value!r}" in said[0] and "names a folder the SSP does not carry (export-ssp carries " \
+           "files, not folders)" in said[0], said
+    assert f"set {KEY} to that file (export-ssp then carries it)" in said[0], said
+    with zipfile.ZipFile(ssp) as zf:
+        assert all(SECRET not in zf.read(n) for n in zf.namelist())

@@ -106,9 +106,9 @@ def named_files(scenario: Scenario, variables: dict, *, special: bool = False) -
     exported SSP carries them (by the rule of :func:`orchestrator.scenario.ssp._named_files`). A
     path is resolved as the FMU resolves it (relative to the working directory); ``{out_dir}``
     paths are the run's own outputs and are left out, and so are the files the FMU writes
-    (:data:`WRITTEN_FILE_PARAMETERS`). ``special``: also those naming a FIFO, device or socket
-    (export-ssp says it does not carry them; never opened here, only ``stat``-ed). A folder is no
-    file: never listed."""
+    (:data:`WRITTEN_FILE_PARAMETERS`). ``special``: also those naming a folder, FIFO, device or
+    socket (export-ssp says it does not carry them; never opened here, only ``stat``-ed); without
+    it a folder is no file: never listed."""
     from orchestrator.untrusted import OUT_DIR_FIELD
     found = []
     for spec in scenario.fmus:
@@ -119,7 +119,7 @@ def named_files(scenario: Scenario, variables: dict, *, special: bool = False) -
                 continue
             try:
                 candidate = Path(value).expanduser()
-                if candidate.is_file() or special and candidate.exists() and not candidate.is_dir():
+                if candidate.is_file() or special and candidate.exists():
                     found.append((spec.name, name, candidate))
             except (OSError, ValueError, RuntimeError):  # a name too long, a NUL: not a file
                 continue

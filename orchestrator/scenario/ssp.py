@@ -715,7 +715,8 @@ def _named_files(scenario, carry_files_from=()) -> tuple[dict[tuple[str, str], s
     ``carry_files_from`` (``--carry-files-from``, :func:`check_carry_folders`). A value the caller
     gave (``--set``, ``load_scenario(overrides=...)``: its origin a
     :class:`~orchestrator.scenario.model.SetOrigin`) names the caller's own choice: its file is
-    carried wherever it lies. A file that is not carried (outside, not regular, larger than
+    carried wherever it lies. A folder is never carried. A file that is not carried (a folder,
+    outside, not regular, larger than
     :data:`MAX_NAMED_FILE_BYTES`, unreadable) keeps its value, and a warning names the parameter,
     the path, why, and the fix (copy it next to the scenario, or the option; for a file too large,
     where the FMU opens it when the SSP runs: a relative path from the working directory there, an
@@ -738,11 +739,19 @@ def _named_files(scenario, carry_files_from=()) -> tuple[dict[tuple[str, str], s
         else:
             how = ("the FMU opens that relative path from the working directory where the SSP runs; run the "
                    "SSP where that path resolves, or give an absolute path in the scenario")
+        thing = "a file"
         try:
             real = path.resolve()
             st = os.stat(real)                     # never opened before it is known to be regular
             refusal = None
-            if not isinstance(origin, SetOrigin) and not any(real.is_relative_to(d) for d, _ in folders):
+            if stat.S_ISDIR(st.st_mode):
+                thing = "a folder"
+                where = "at that absolute path" if path.is_absolute() else "from the working directory"
+                refusal = ("export-ssp carries files, not folders",
+                           f"the SSD keeps the value as written, and the FMU looks for the folder {where} "
+                           f"where the SSP runs: put a copy there before running it, or, if the FMU needs "
+                           f"only one file in it, set {key} to that file (export-ssp then carries it)")
+            elif not isinstance(origin, SetOrigin) and not any(real.is_relative_to(d) for d, _ in folders):
                 refusal = _outside(key, origin, real, path, folders)
             elif not stat.S_ISREG(st.st_mode):
                 at = folders[0][0] if folders else real.parent
@@ -759,7 +768,7 @@ def _named_files(scenario, carry_files_from=()) -> tuple[dict[tuple[str, str], s
                 blobs[carried[real]] = data
         except (InputError, OSError, RuntimeError) as e:
             relative = "" if path.is_absolute() else " (relative)"
-            warnings.warn(f"export-ssp: {key} = {value!r}{relative} names a file the SSP does not carry "
+            warnings.warn(f"export-ssp: {key} = {value!r}{relative} names {thing} the SSP does not carry "
                           f"({e}): {how}", stacklevel=3)
             continue
         values[(inst, name)] = carried[real]
