@@ -28,7 +28,9 @@ Run: ``nice -n 10 .venv/bin/python docs/scripts/free_rupture_2d.py [square] [phi
 n_z = 40, about 3 minutes; ``axial``: n_z 20 ... 80 at n_phi = 96, about 2 minutes;
 ``shift``: 40 and 80 x 40 with the grid shifted by 0.1 ... 0.9 cells as in exit_layer_2d.py
 ``shift``, about 8 minutes; ``sectors``: where the 40 x 40 shifted films' Fx error sits, per
-phi sector, against 768 x 40, about 6 minutes). Markdown tables of Fx, Fy, exit correction only and with the
+phi sector, against 768 x 40, about 6 minutes; ``stiffness``: force and the four stiffness
+coefficients on 20 ... 160 square grids, central differences of positions +- 1e-3 c, each
+perturbed state warm from the base state, about 20 minutes). Markdown tables of Fx, Fy, exit correction only and with the
 rupture correction.
 """
 
@@ -129,49 +131,88 @@ def row_flux(b, u, kin, alpha=0.0):
         g.frel[i] * g.dphi)
 
 
+class Film:
+    """One BearingModel with the exit-layer correction and a slot for the rupture correction in
+    its film residual (groove and journal frame rotated by alpha)."""
+
+    def __init__(self, n_phi, n_z, omega, alpha=0.0):
+        prm = gc.params("air", n_phi, n_z, **el.TT)
+        if alpha:
+            prm = prm.replace(groove_angle=prm.groove_angle + alpha)
+        self.b = b = BearingModel(prm)
+        self.omega, self.alpha = omega, alpha
+        self.prepare = el.exit_corrected(b, True)
+        self.box = {"corr": np.zeros(b.grid.n_phi * b.grid.n_z)}   # the film holds the symmetric half
+        with_exit = b.film.residual
+
+        def residual(*args, **kw):
+            r = with_exit(*args, **kw)
+            r += self.box["corr"]
+            return r
+        b.film.residual = residual
+
+    def steady(self, xy, rupture, u0=None, q0=None, max_iter=60):
+        """(u, kin, substitutions, per-row info, q) of the steady film at the journal position
+        xy: cold (``init="stationary"``) or warm from u0 (and q0, the rows' cavity fluxes)."""
+        b = self.b
+        kin = b._kinematics(xy[0], xy[1], 0.0, 0.0, self.omega)
+        self.prepare(kin, (xy[0], xy[1], 0.0, 0.0))
+        self.box["corr"][:] = 0.0
+        zero = np.zeros_like(self.box["corr"])
+        if u0 is None:
+            b.initialize(xy[0], xy[1], 0.0, 0.0, self.omega, init="stationary")
+            u = b.film.u.copy()
+        else:           # as grid_convergence.py mc_quantities: a warm Newton, else the cold path
+            u, _ = b._steady_newton(kin, u0, zero, 40)
+            if u is None:
+                u = b._steady(kin, u0)
+        its, info, q = 0, None, None
+        if rupture:
+            q = row_flux(b, u, kin, self.alpha) if q0 is None else q0.copy()
+            for its in range(1, max_iter + 1):
+                self.box["corr"][:], info = rupture_correction(b, xy, self.omega, q)
+                un, _ = b._steady_newton(kin, u, zero, 40)
+                u = b._steady(kin, u) if un is None else un
+                dq = row_flux(b, u, kin, self.alpha) - q
+                q = q + dq
+                if np.max(np.abs(dq)) < 1e-11 * np.max(np.abs(q)):
+                    break
+            else:
+                print(f"  ({b.grid.n_phi} x {b.params.n_z}: q changed by "
+                      f"{np.max(np.abs(dq / q)):.1e} at the last substitution)", flush=True)
+        return u, kin, its, info, q
+
+
 def solve(n_phi, n_z, xy, omega, rupture, alpha=0.0, max_iter=60, fields=False):
     """(Fx, Fy) of the steady film with the exit-layer correction and, if ``rupture``, the
     free-rupture correction; groove and journal frame rotated by alpha; and
     (substitutions, per-row info); ``fields``: (b, p, theta, kin) instead."""
-    prm = gc.params("air", n_phi, n_z, **el.TT)
-    if alpha:
-        prm = prm.replace(groove_angle=prm.groove_angle + alpha)
-    b = BearingModel(prm)
-    prepare = el.exit_corrected(b, True)
-    kin = b._kinematics(xy[0], xy[1], 0.0, 0.0, omega)
-    prepare(kin, (xy[0], xy[1], 0.0, 0.0))
-    f = b.film
-    g_size = b.grid.n_phi * b.grid.n_z         # the film's unknowns (the symmetric half)
-    box = {"corr": np.zeros(g_size)}
-    with_exit = f.residual
-
-    def residual(*args, **kw):
-        r = with_exit(*args, **kw)
-        r += box["corr"]
-        return r
-    f.residual = residual
-    b.initialize(xy[0], xy[1], 0.0, 0.0, omega, init="stationary")
-    u = b.film.u.copy()
-    its, info = 0, None
-    if rupture:
-        q = row_flux(b, u, kin, alpha)
-        zero = np.zeros(g_size)
-        for its in range(1, max_iter + 1):
-            box["corr"], info = rupture_correction(b, xy, omega, q)
-            u, _ = b._steady_newton(kin, u, zero, 60)
-            if u is None:
-                raise RuntimeError(f"{n_phi} x {n_z}: Newton failed with the rupture correction")
-            dq = row_flux(b, u, kin, alpha) - q
-            q = q + dq
-            if np.max(np.abs(dq)) < 1e-11 * np.max(np.abs(q)):
-                break
-        else:
-            print(f"  ({n_phi} x {n_z}: q changed by {np.max(np.abs(dq / q)):.1e} at the last "
-                  "substitution)", flush=True)
-    p, th = b.law.p_theta(u)
+    film = Film(n_phi, n_z, omega, alpha)
+    u, kin, its, info, _ = film.steady(xy, rupture, max_iter=max_iter)
+    p, th = film.b.law.p_theta(u)
     if fields:
-        return b, p, th, kin
-    return _force(b, p, th, kin), its, info
+        return film.b, p, th, kin
+    return _force(film.b, p, th, kin), its, info
+
+
+def stiffness(n, q, omega, rupture, rel=1e-3):
+    """(Fx, Fy, kxx, kxy, kyx, kyy) on n x n cells: central differences of the steady film at
+    positions moved by rel c (grid_convergence.py ``mc_quantities``' steps), each warm from the
+    base state (and, with the rupture correction, from its rows' cavity fluxes)."""
+    film = Film(n, n, omega)
+    b = film.b
+    u0, kin, _, _, q0 = film.steady(q, rupture)
+    F0 = _force(b, *b.law.p_theta(u0), kin)
+    K = np.empty((2, 2))
+    for j in range(2):
+        fs = []
+        for sgn in (1, -1):
+            xy = list(q)
+            xy[j] += sgn * rel * b.c
+            u, kin_j, _, _, _ = film.steady(xy, rupture, u0=u0, q0=q0)
+            fs.append(_force(b, *b.law.p_theta(u), kin_j))
+        K[:, j] = -(fs[0] - fs[1]) / (2 * rel * b.c)
+    return np.concatenate([F0, K.ravel()])
 
 
 def _shift(n_phi, n_z, q, frac):
@@ -279,6 +320,18 @@ def main(argv):
                       f"{100 * (max(fy) - min(fy)) / abs(np.mean(fy)):.3f} % |", flush=True)
 
 
+    if "stiffness" in parts:
+        print("\n### square grids: force and stiffness coefficients\n")
+        names = ("Fx [N]", "Fy [N]", "kxx [N/m]", "kxy [N/m]", "kyx [N/m]", "kyy [N/m]")
+        for rup in (False, True):
+            rows = [stiffness(n, q, omega, rup) for n in (20, 40, 80, 160)]
+            print(f"\n{'with rupture' if rup else 'exit only'}:\n")
+            print("| quantity | 20 | 40 | 80 | 160 | orders |")
+            print("|---|---|---|---|---|---|")
+            for k, name in enumerate(names):
+                v = [r[k] for r in rows]
+                print(f"| {name} | " + " | ".join(f"{a:.6g}" for a in v) + f" | {orders(v)} |",
+                      flush=True)
     if "sectors" in parts:
         print("\n### 40 x 40 shifted: Fx [N] of the cell pressures' difference to 768 x 40, per "
               "sector\n")
