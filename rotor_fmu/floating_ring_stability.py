@@ -41,6 +41,19 @@ __all__ = ["operating_point", "ring_system_eigen", "ring_threshold_speed", "Ring
            "MCRingPoint", "mc_ring_films"]
 
 
+#: :meth:`MCRingStation.continued`: halvings of a failing step in a row, and operating points tried
+CONTINUATION_HALVINGS = 4
+CONTINUATION_POINTS = 24
+
+
+def _point_errors() -> tuple:
+    """What an operating point that cannot be found raises (a film without equilibrium, a steady film
+    that does not converge, no torque balance, numerics at a film's edge)."""
+    from bearing_fmu.linearize import HSEquilibriumError
+    from bearing_fmu.model import StepFailed
+    return HSEquilibriumError, StepFailed, ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError
+
+
 def _ring_torque(params: RingParams, load: float, omega: float, Om: float):
     """(net torque on the ring [N m], model) at the static equilibrium with ring speed Om."""
     journal, ring = static_equilibrium(params, load, omega, omega_ring=Om)
@@ -265,6 +278,8 @@ class MCRingStation:
         self.inner, self.outer = BearingModel(params.inner), BearingModel(params.outer)
         self.qi = self.qo = None
         self.ratio = None            # the last speed's Omega / omega (the next speed's first guess)
+        #: journal speed [rad/s] -> the warm start of the operating point found there (:meth:`continued`)
+        self.converged: dict[float, tuple] = {}
 
     def _films(self, load, omega, Om):
         """Both films' steady states at ring speed Om: inner (journal relative to ring) carries the
@@ -295,6 +310,23 @@ class MCRingStation:
         from bearing_fmu.model import BearingModel
         self.inner, self.outer = BearingModel(self.params.inner), BearingModel(self.params.outer)
         self.qi = self.qo = None
+
+    def _snapshot(self) -> tuple:
+        """The warm start the station holds after an operating point: (Omega / omega, journal and
+        ring positions, the two steady films' states)."""
+        return self.ratio, self.qi.copy(), self.qo.copy(), self.inner.film.u.copy(), self.outer.film.u.copy()
+
+    def _restore(self, snapshot: tuple) -> None:
+        """Films (new models) and guesses of a :meth:`_snapshot`: the next :meth:`point` starts there
+        as from the speed it was taken at (:func:`bearing_fmu.linearize.mc_static_equilibrium` reads
+        only the film state a model holds)."""
+        from bearing_fmu.model import BearingModel
+        ratio, qi, qo, ui, uo = snapshot
+        self.inner, self.outer = BearingModel(self.params.inner), BearingModel(self.params.outer)
+        for b, q, u in ((self.inner, qi, ui), (self.outer, qo, uo)):
+            b.initialize(q[0], q[1], 0.0, 0.0, 0.0)
+            b.film.init_state(u)
+        self.ratio, self.qi, self.qo = ratio, qi.copy(), qo.copy()
 
     def _trial(self, load, omega, Om, toward):
         """(Om, :meth:`_films` there); when a film has no equilibrium at Om (a secant trial too slow for
@@ -332,11 +364,44 @@ class MCRingStation:
             b, (fb, Ts, e, r, li, lo) = self._trial(load, omega, b, a)
             if abs(b - a) < rtol * omega or fb == 0.0:
                 self.ratio = b / omega
+                self.converged[float(omega)] = self._snapshot()
                 return MCRingPoint(self.params, li, lo, b, e, r, Ts, it)
             new = b - fb * (b - a) / (fb - fa) if fb != fa else b
             a, fa, b = b, fb, min(max(new, 0.05 * b), omega)
         raise RuntimeError(f"no torque balance of the ring's mass-conserving films at {omega / (2 * math.pi):.4g} Hz "
                            f"in {max_iter} secant steps (last ring speed ratio {b / omega:.5f})")
+
+    def continued(self, load, omega, *, halvings=CONTINUATION_HALVINGS, max_points=CONTINUATION_POINTS) -> MCRingPoint:
+        """:meth:`point` at omega by natural-parameter continuation in the speed, for a speed whose
+        :meth:`point` fails from the warm start the station holds (a lightly loaded ring's steady film
+        from the cold start) while a neighbouring speed's operating point is known: from the warm start
+        of the converged speed nearest omega (:attr:`converged`), steps towards omega, each from the
+        last operating point found; a step that fails is halved (up to ``halvings`` times in a row), at
+        most ``max_points`` operating points are tried. Raises RuntimeError naming where it started,
+        how far it came and what failed (or that no speed has converged yet). The station is left at
+        the operating point found, or after a failure as :meth:`point` leaves it."""
+        hz = lambda w: f"{w / (2 * math.pi):.6g}"      # noqa: E731
+        if not self.converged:
+            raise RuntimeError("no speed has an operating point yet to continue from")
+        start = min(self.converged, key=lambda w: (abs(w - omega), w))
+        w0, step, halved, last, w = start, omega - start, 0, None, omega
+        for _ in range(max_points):
+            self._restore(self.converged[w0])
+            w = omega if abs(step) >= abs(omega - w0) else w0 + step
+            try:
+                pt = self.point(load, w)
+            except _point_errors() as exc:
+                last = exc
+                if halved == halvings:
+                    break
+                step, halved = 0.5 * step, halved + 1
+                continue
+            if w == omega:
+                return pt
+            w0, halved = w, 0
+        why = (f"the step to {hz(w)} Hz failed after {halved} halvings ({last})" if last is not None and halved == halvings
+               else f"{max_points} operating points tried" + (f", the last failed ({last})" if last is not None else ""))
+        raise RuntimeError(f"continuation from {hz(start)} Hz reached {hz(w0)} Hz: {why}")
 
 
 def mc_ring_films(points) -> list:

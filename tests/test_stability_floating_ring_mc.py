@@ -193,3 +193,69 @@ def test_a_disagreeing_count_on_a_pencil_too_large_for_qz_leaves_the_speed_out(m
     monkeypatch.setattr(films_mod, "RING_DENSE_MAX", 100)
     with pytest.raises(StabilityError, match=r"at 300 Hz the argument-principle count disagreed.*left out.*n_phi_inner"):
         films.max_re(w)
+
+
+GRID_32 = [f"fmus.{b}.parameters.{k}_{s}={v}" for b in ("bearing1", "bearing2") for s in ("inner", "outer")
+           for k, v in (("n_phi", 32), ("n_z", 16))]
+
+
+def test_speeds_whose_cold_start_fails_are_reached_by_continuation(capsys, tmp_path):
+    """On 32 x 16 films the Jeffcott rings have no operating point at 29 and 29.97 Hz from the cold
+    start (the scan's first speeds: the journal Newton leaves 0.995 c), while from 30.97 Hz downwards
+    they have one. The search computes them after the scan by continuation in the speed from their
+    neighbours (MCRingStation.continued, _RingMCFilm.max_re_continued): before, they were left out.
+    The values are those of a walk down from 32 Hz (each speed warm from the last), and the speeds
+    that converged in the scan are unchanged."""
+    from orchestrator.stability.films import _RingMCFilm
+    from rotor_fmu.stability import static_bearing_loads
+    out = tmp_path / "r.json"
+    sets = [a for s in GRID_32 for a in ("--set", s)]
+    code, text, err = run_verb(capsys, "stability", JEFF, "--film", "mc", "--speeds", "29:32", "--scan", "4",
+                               "--json", out, *sets)
+    assert code == 1 and "linearly stable in that range" in err        # no crossing at 29-32 Hz
+    r = json.loads(out.read_text())
+    assert r["complete"] and r["status"] == "stable"
+    assert "speeds_without_equilibrium_hz" not in r
+    assert r["continued_speeds_hz"] == pytest.approx([29.0, 29.96737193391587], rel=1e-12)
+    assert any("computed by continuation in the speed" in n for n in r["notes"])
+    scan = {s["speed_hz"]: s["max_re_per_s"] for s in r["scan"]}
+    assert len(scan) == 4
+    # each cold start at the two lowest speeds fails (what made the scan leave them out)
+    system = _system(JEFF, GRID_32)
+    loads = static_bearing_loads(system.rotor)
+    from orchestrator.stability import StabilityError
+    for f in (29.0, 29.96737193391587):
+        with pytest.raises(StabilityError, match="no steady operating point"):
+            _RingMCFilm(system, loads).max_re(2 * math.pi * f)
+    # the walk down from 32 Hz, each speed warm from the one above
+    down = _RingMCFilm(system, loads)
+    for f in sorted(scan, reverse=True):
+        re = down.max_re(2 * math.pi * f)[0]
+        assert abs(re - scan[f]) < 1e-6 * abs(re), (f, re, scan[f])
+
+
+def test_a_hint_on_this_speeds_root_finds_it_counted_as_without_the_hint():
+    """rightmost's ``hint`` (the last speed's least-damped root, a shift of its Arnoldi runs) lying ON
+    this speed's root, as it does in Brent's last steps of a refinement: _shifts places its shift 1e-3
+    |h| right of the hint. With the shift on the hint, ARPACK's shift-invert operator is singular to
+    rounding: on these 16 x 8 turbocharger rings at 63, 70 and 105 Hz the count then disagreed and the
+    speed went to the dense solve (on the shipped 160 x 40 films that is refused, and the refinement
+    stopped one step short at 42.49 and 73.50 Hz). Here the hinted search is counted (no dense solve
+    allowed) and finds the root it finds without the hint."""
+    import rotor_fmu.film_system as fs
+    from orchestrator.stability.films import _RingMCFilm
+    from rotor_fmu.floating_ring_stability import mc_ring_films
+    from rotor_fmu.stability import static_bearing_loads
+    system = _system(TURBO)
+    films = _RingMCFilm(system, static_bearing_loads(system.rotor))
+    for f in (105.0, 70.0, 63.0):
+        w = 2 * math.pi * f
+        lins = mc_ring_films(films.points(w))
+        free = fs.rightmost(films.rotor, w, lins, dense_max=0)
+        assert free.method == "counted", f
+        root = free.eigenvalues[0]
+        for h in (root, root.conjugate()):
+            r = fs.rightmost(films.rotor, w, lins, hint=(h,), dense_max=0)
+            assert r.method == "counted", (f, h, r.method)
+            got = r.eigenvalues[0]
+            assert abs(got.real - root.real) < 1e-9 * abs(root) and abs(abs(got.imag) - abs(root.imag)) < 1e-9 * abs(root)

@@ -253,8 +253,14 @@ def _stability_report(args, r: dict) -> int:
               "bearing parameters that carry the load there", file=sys.stderr)
         return 1
     if r["status"] == "unstable_at_lower_bound":
-        print(f"error: already unstable at the lower end of the range ({lo:g} Hz), so the threshold is below it; "
-              "give a lower --speeds LO", file=sys.stderr)
+        first = r["scan"][0]["speed_hz"] if r.get("scan") else lo
+        if first > lo * (1 + 1e-9):      # the speeds below it left out (no static equilibrium there)
+            print(f"error: already unstable at the lowest speed with a static equilibrium ({first:.4g} Hz; the speeds "
+                  f"from {lo:g} Hz below it have none), so the threshold is below it or among those speeds (the note "
+                  "says why they have none)", file=sys.stderr)
+        else:
+            print(f"error: already unstable at the lower end of the range ({lo:g} Hz), so the threshold is below it; "
+                  "give a lower --speeds LO", file=sys.stderr)
         return 1
     return 0
 

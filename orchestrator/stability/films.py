@@ -395,6 +395,7 @@ class _RingMCFilm:
         self.rotor = RingRotor(system.rotor, [b.params.m_ring for b in system.bearings])
         self._at: tuple[float, list] | None = None
         self._hint: tuple = ()
+        self._roots: dict[float, tuple] = {}      # speed [rad/s] -> its least-damped root (as _hint)
         self.dense_speeds: list[float] = []
         self.method = ("own mass-conserving inner and outer films of each floating-ring bearing (their parameters "
                        "and grids) linearised about their steady states with their cavity (theta) dynamics, i.e. "
@@ -409,28 +410,40 @@ class _RingMCFilm:
                           "rightmost)" if solver == "counted" else
                           "all finite eigenvalues by dense QZ, rotor_fmu/film_system.py eigenvalues_dense)"))
 
-    def points(self, omega: float) -> list:
-        """Each station's :class:`~rotor_fmu.floating_ring_stability.MCRingPoint` at omega."""
-        from bearing_fmu.linearize import HSEquilibriumError
-        from bearing_fmu.model import StepFailed
+    def points(self, omega: float, *, continued: bool = False) -> list:
+        """Each station's :class:`~rotor_fmu.floating_ring_stability.MCRingPoint` at omega: from the
+        warm start each station holds (the last speed's); where that fails and another speed's
+        operating point is known, by continuation in the speed from the nearest such speed
+        (:meth:`~rotor_fmu.floating_ring_stability.MCRingStation.continued`). ``continued``: by that
+        continuation at once (a speed that failed before, :meth:`max_re_continued`)."""
+        from rotor_fmu.floating_ring_stability import _point_errors
         if self._at is not None and self._at[0] == omega:
             return self._at[1]
         pts = []
         for b, st, ld in zip(self.system.bearings, self.stations, self.loads):
             try:
-                pts.append(st.point(ld, omega))
-            except (HSEquilibriumError, StepFailed, ArithmeticError, ValueError, RuntimeError,
-                    np.linalg.LinAlgError) as exc:
-                raise StabilityError(f"floating-ring bearing '{b.instance}': no steady operating point of its "
-                                     f"mass-conserving films at {omega / (2 * math.pi):.4g} Hz ({exc}); at low speed "
-                                     "a ring's outer film may not carry its load: raise the lower end of --speeds") \
-                    from None
+                pts.append(st.continued(ld, omega) if continued else st.point(ld, omega))
+                continue
+            except _point_errors() as exc:
+                why = ("none from the warm start of the scan there; " if continued else "") + (str(exc) or type(exc).__name__)
+                if continued or not st.converged:
+                    raise self._no_point(b, omega, why) from None
+            try:
+                pts.append(st.continued(ld, omega))
+            except _point_errors() as exc:
+                raise self._no_point(b, omega, f"{why}; {exc}") from None
         self._at = (omega, pts)
         return pts
 
-    def max_re(self, omega: float) -> tuple[float, float]:
+    @staticmethod
+    def _no_point(b: Bearing, omega: float, why: str) -> StabilityError:
+        return StabilityError(f"floating-ring bearing '{b.instance}': no steady operating point of its mass-conserving "
+                              f"films at {omega / (2 * math.pi):.4g} Hz ({why}); at low speed a ring's outer film may "
+                              "not carry its load: raise the lower end of --speeds")
+
+    def max_re(self, omega: float, *, continued: bool = False) -> tuple[float, float]:
         from rotor_fmu.floating_ring_stability import mc_ring_films
-        films = mc_ring_films(self.points(omega))
+        films = mc_ring_films(self.points(omega, continued=continued))
         lam = _mc_eigenvalues(self, self.rotor, omega, films, dense_max=RING_DENSE_MAX)
         if lam is None:
             size = 2 * self.rotor.n_dof + sum(f.Js.shape[0] for f in films)
@@ -442,7 +455,26 @@ class _RingMCFilm:
         if not (lam.size and np.all(np.isfinite(lam))):
             raise StabilityError(f"the floating-ring system's eigenvalues at {omega / (2 * math.pi):.4g} Hz are "
                                  "not finite (a film at the edge of its clearance); raise the lower end of --speeds")
-        return _least_damped(self, lam)
+        out = _least_damped(self, lam)
+        self._roots[omega] = self._hint
+        return out
+
+    def max_re_continued(self, omega: float) -> tuple[float, float]:
+        """:meth:`max_re` at a speed where it failed (the search's second pass, once neighbouring
+        speeds are done): each ring's operating point by continuation from its nearest converged
+        speed, the eigenvalue search started from the least-damped root of the nearest speed done.
+        The warm start of the next :meth:`max_re` (each station's films and guesses, the root it
+        starts from) is left as it was, so that the speeds computed after this call are computed as
+        without it."""
+        held = [(st.inner, st.outer, st.qi, st.qo, st.ratio) for st in self.stations], self._hint
+        if self._roots:
+            self._hint = self._roots[min(self._roots, key=lambda w: (abs(w - omega), w))]
+        try:
+            return self.max_re(omega, continued=True)
+        finally:
+            for st, (inner, outer, qi, qo, ratio) in zip(self.stations, held[0]):
+                st.inner, st.outer, st.qi, st.qo, st.ratio = inner, outer, qi, qo, ratio
+            self._hint = held[1]
 
     def eccentricities(self, omega):
         return [p.outputs["eps"] for p in self.points(omega)]

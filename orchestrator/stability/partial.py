@@ -46,8 +46,9 @@ class Stop:
     :meth:`as_dict`)."""
 
     by: str                         # "SIGINT", "SIGTERM" (a stop signal) or "error" (an error at one speed)
-    phase: str                      # "scan" (the grid over the range), "refine" (Brent on a crossing's
-    #                                 bracket) or "threshold" (the bearings' eccentricities at the threshold)
+    phase: str                      # "scan" (the grid over the range), "continuation" (the speeds it left
+    #                                 out, from their neighbours), "refine" (Brent on a crossing's bracket)
+    #                                 or "threshold" (the bearings' eccentricities at the threshold)
     at_hz: float | None             # the speed being computed (an error, a second signal) or next (a first signal)
     reason: str                     # what stopped it, in words
     done: int = 0                   # speeds of the scan evaluated (speeds without equilibrium included)
@@ -148,6 +149,9 @@ def stop_message(result: dict, *, kept: list[str] | tuple = ()) -> str:
     elif s["phase"] == "refine":
         parts = [f"{head}: stopped{at} while refining a crossing, after the scan of all {s['speeds_planned']} "
                  f"speeds{why}"]
+    elif s["phase"] == "continuation":
+        parts = [f"{head}: stopped{at} while computing the speeds the scan left out by continuation from their "
+                 f"neighbours, after the scan of all {s['speeds_planned']} speeds{why}"]
     else:
         parts = [f"{head}: the threshold is located, but the bearings' static eccentricities there were not "
                  f"computed{why}"]
@@ -174,7 +178,8 @@ def stop_message(result: dict, *, kept: list[str] | tuple = ()) -> str:
         parts.append(f"then {c['becomes']} from between {_pair(*c['between_hz'])} Hz (not refined)")
     if s["rest"] is not None:
         n = s["rest"].get("crossings") or 1
-        what = ("the rest of the range" if s["phase"] == "scan" else "the crossing it was refining" if n == 1 else
+        what = ("the rest of the range" if s["phase"] == "scan" else "the range (the continuation starts from the "
+                "scan's speeds)" if s["phase"] == "continuation" else "the crossing it was refining" if n == 1 else
                 f"the crossing it was refining and the {n - 1} after it (all {n} not refined: the scan's speeds "
                 "from the first to the last)" if n > 2 else
                 "the crossing it was refining and the one after it (both not refined: the scan's speeds from the "

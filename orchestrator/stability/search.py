@@ -83,13 +83,17 @@ class _NoStop:
 
 
 def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=None, bar=None,
-            without: str = "static equilibrium") -> Searched:
+            without: str = "static equilibrium", continued=None) -> Searched:
     """Fill ``result`` (its ``crossings``, ``crossings_bracketed``, ``status``, the threshold's
     entries, ``notes``) from ``max_re(omega) -> (largest real part, |Im| there)`` at the speeds
     ``ws`` [rad/s] and between them. ``stop``: a :class:`orchestrator.coupling.lifecycle.StopRequests`
     looked at before each speed (scan and refinement; :mod:`orchestrator.stability.partial`);
     ``bar``: a progress bar (tqdm's calls) advanced by each speed of the scan; ``without``: what a
-    speed left out (``max_re`` raised :class:`StabilityError`) lacks, in the notes."""
+    speed left out (``max_re`` raised :class:`StabilityError`) lacks, in the notes. ``continued``:
+    ``max_re`` by continuation from the speeds done (the film model's ``max_re_continued``, which
+    leaves the warm start of the next ``max_re`` as it was): after the scan, each speed left out is
+    computed so, outwards from the speeds done (:func:`_continue_left_out`), before any crossing is
+    refined."""
     from rotor_fmu.stability import refine_crossing
     # the whole range on a geometric grid, then Brent on every sign change of the largest real part
     # between neighbouring speeds (rotor_fmu.stability.refine_crossing, as threshold_speed refines
@@ -133,14 +137,27 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
         if bar is not None:
             bar.update(1)
     done = len(vals)
+    if continued is not None and failed and halt is None:
+        def again(w):
+            current[0] = w
+            if requests.requested:
+                raise SpeedStopped(w)
+            with abandoning():
+                v = continued(w)
+            evals[float(w)] = v[0]
+            return v
+        halt, retried = _continue_left_out(again, ws, vals, failed, result, requests.signum)
+        # the note's reason: that of the first speed the continuation failed at (it names both tries)
+        failed.sort(key=lambda f: (f[0] not in retried, f[0]))
     ok = [k for k, v in enumerate(vals) if v is not None]
     if not ok and halt is None:
         raise failed[0][1]
     if failed:
-        where = ", ".join(f"{w / (2 * math.pi):.4g}" for w, _ in failed[:6]) + (" ..." if len(failed) > 6 else "")
+        hz = sorted(w / (2 * math.pi) for w, _ in failed)
+        where = ", ".join(f"{f:.4g}" for f in hz[:6]) + (" ..." if len(failed) > 6 else "")
         result["notes"].append(f"no {without} at {len(failed)} of the {done} speeds searched ({where} Hz), "
                                f"left out: {failed[0][1]}".replace("; raise the lower end of --speeds", ""))
-        result["speeds_without_equilibrium_hz"] = [w / (2 * math.pi) for w, _ in failed]
+        result["speeds_without_equilibrium_hz"] = hz
     unlocated = None          # the first sign change, when it lies across speeds without equilibrium
     brackets = result["crossings_bracketed"]
     cells: list[tuple[int, int]] = []          # the scan's neighbours (k0, k1) of each bracket
@@ -197,7 +214,9 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     if halt is not None:
         halt.done, halt.planned = done, len(ws)
         lo, hi = result.get("speed_range_hz") or (ws[0] / (2 * math.pi), ws[-1] / (2 * math.pi))
-        if halt.phase == "scan":       # from the last speed done (rounded down): a crossing just after it is found
+        if halt.phase == "continuation":    # the continuation needs the speeds done: the whole scan again
+            halt.rest = (lo, hi, len(ws))
+        elif halt.phase == "scan":       # from the last speed done (rounded down): a crossing just after it is found
             last = math.floor(ws[done - 1] / (2 * math.pi) * 1e3) / 1e3 if done else lo
             halt.rest = (lo, hi, len(ws)) if done == 0 else (max(last, lo), hi, len(ws) - done + 1)
         elif len(brackets) == 1:       # the crossing it was refining, the last one: its bracket
@@ -210,6 +229,84 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
             halt.rest = (*widened(ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)), k1 - k0 + 1)
             halt.rest_crossings = len(brackets)
     return Searched(at, halt)
+
+
+def _outwards(vals: list) -> list[list[int]]:
+    """The speeds left out (``vals[k] is None``) as walks, each starting next to a speed done and
+    going away from it: a run of them below the first speed done downwards, above the last one
+    upwards, a run between two speeds done from both of its ends, alternately (two walks, interleaved
+    by :func:`_continue_left_out`)."""
+    walks: list[list[int]] = []
+    k = 0
+    while k < len(vals):
+        if vals[k] is not None:
+            k += 1
+            continue
+        j = k
+        while j + 1 < len(vals) and vals[j + 1] is None:
+            j += 1
+        below, above = k > 0, j + 1 < len(vals)       # a speed done next to the run, below / above it
+        run = list(range(k, j + 1))
+        if below and above:
+            half = (len(run) + 1) // 2
+            walks += [run[:half], run[half:][::-1]]
+        elif above:
+            walks.append(run[::-1])
+        elif below:
+            walks.append(run)
+        k = j + 1
+    return walks
+
+
+def _continue_left_out(again, ws, vals: list, failed: list, result: dict, signum) -> tuple[Stop | None, list]:
+    """The speeds the scan left out (``failed``: (omega, StabilityError)) computed by ``again``
+    (continuation from the speeds done): walk by walk (:func:`_outwards`), each speed from its
+    neighbour done; a walk ends at its first speed that fails again (its error replaces the scan's:
+    it names both attempts), the speeds beyond it are not tried (a continuation from further away
+    through the speed that failed). ``vals`` and ``failed`` are updated in place; the speeds so
+    computed are listed in ``result["continued_speeds_hz"]`` and a note. Returns (the :class:`Stop`
+    of a stop (a signal, an error other than StabilityError; phase ``"continuation"``) or None, the
+    speeds [rad/s] where the continuation failed)."""
+    from orchestrator.stability.partial import stop_of
+    walks = [w for w in _outwards(vals) if w]
+    errors = {float(w): e for w, e in failed}
+    reached: list[float] = []
+    retried: list = []                 # speeds where the continuation failed too
+    untried = 0
+    halt = None
+    while walks and halt is None:
+        nxt = []
+        for walk in walks:             # one speed of each walk in turn (a gap's two ends alternately)
+            k = walk[0]
+            try:
+                vals[k] = again(ws[k])[0]
+            except StabilityError as exc:
+                errors[float(ws[k])] = exc
+                retried.append(ws[k])
+                untried += len(walk) - 1
+                continue
+            except (Exception, KeyboardInterrupt) as exc:     # a stop request, or an error at this speed
+                halt = stop_of(exc, signum, ws[k], "continuation")
+                break
+            reached.append(float(ws[k]))
+            if walk[1:]:
+                nxt.append(walk[1:])
+        walks = nxt
+    failed[:] = [(w, errors[float(w)]) for w, _ in failed if float(w) not in reached]
+    if reached:
+        hz = sorted(w / (2 * math.pi) for w in reached)
+        result["continued_speeds_hz"] = hz
+        where = ", ".join(f"{f:.4g}" for f in hz[:6]) + (" ..." if len(hz) > 6 else "")
+        result["notes"].append(f"{_speeds(len(hz))} without an operating point from the scan's start there ({where} "
+                               "Hz) computed by continuation in the speed from their neighbours done")
+    if untried:
+        result["notes"].append(f"{_speeds(untried)} without an operating point from the scan's start not tried by "
+                               "continuation: a speed between them and the speeds done failed it")
+    return halt, retried
+
+
+def _speeds(n: int) -> str:
+    return f"{n} speed" + ("" if n == 1 else "s")
 
 
 def log_decrement(re: float, im: float) -> float | None:
@@ -374,10 +471,18 @@ def _threshold(scenario, system: System, *, film: str, lo: float, hi: float, n_s
         from orchestrator.stability.floquet import linear_beside
         result["linear"] = linear_beside(fn, np.geomspace(w_lo, w_hi, n_scan), requests)
         t_search = time.perf_counter()
+    continued = getattr(model, "max_re_continued", None)
+
+    def max_re_continued(w):             # as max_re, by continuation from the speeds done
+        v = continued(w)
+        seen[float(w)] = v
+        return v
+
     searched = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result,
                        xtol=(2 * math.pi * 0.01 if film == "mc" else 2 * math.pi * 1e-3 if fq is not None else 1e-9),
                        stop=requests, bar=bar, without="static equilibrium" if fq is None else
-                       "synchronous periodic orbit (or static equilibrium)")
+                       "synchronous periodic orbit (or static equilibrium)",
+                       continued=None if continued is None else max_re_continued)
     at, stop = searched.at, searched.stop
     if film == "mc" and fn.dense_speeds:
         notes.append(f"at {len(fn.dense_speeds)} of the {len(seen)} speeds evaluated the argument-principle count "
