@@ -385,8 +385,8 @@ class MCRingStation:
             raise RuntimeError("no speed has an operating point yet to continue from")
         start = min(self.converged, key=lambda w: (abs(w - omega), w))
         w0, step, halved, last, w = start, omega - start, 0, None, omega
+        self._restore(self.converged[w0])
         for _ in range(max_points):
-            self._restore(self.converged[w0])
             w = omega if abs(step) >= abs(omega - w0) else w0 + step
             try:
                 pt = self.point(load, w)
@@ -395,12 +395,15 @@ class MCRingStation:
                 if halved == halvings:
                     break
                 step, halved = 0.5 * step, halved + 1
+                self._restore(self.converged[w0])      # a failed point leaves new films (_reset)
                 continue
             if w == omega:
                 return pt
             w0, halved = w, 0
-        why = (f"the step to {hz(w)} Hz failed after {halved} halvings ({last})" if last is not None and halved == halvings
-               else f"{max_points} operating points tried" + (f", the last failed ({last})" if last is not None else ""))
+        why = (f"the step to {hz(w)} Hz ({abs(step) / (2 * math.pi):.3g} Hz) failed after {halved} halvings in a row "
+               f"({last})" if last is not None and halved == halvings
+               else f"{max_points} operating points tried"
+               + (f", the last failed ({last})" if last is not None else ""))
         raise RuntimeError(f"continuation from {hz(start)} Hz reached {hz(w0)} Hz: {why}")
 
 

@@ -18,7 +18,13 @@ Checks, all on 16 x 8 films of the shipped free-to-air floating-ring scenarios:
   films' parameters, at the inner film's wedge speed (the Jeffcott rotor has no gyroscopic
   terms). An independent reference, to 1e-4;
 * the command: its threshold is a root on the imaginary axis (the dense solve there), the
-  refusals (HS films, --ring-spin).
+  refusals (HS films, --ring-spin);
+* continuation in the speed (MCRingStation.continued, the search's pass over the speeds its scan
+  left out): speeds whose cold start fails (32 x 16 Jeffcott rings at 29 and 29.97 Hz) computed
+  with the values of a walk down from above, one it cannot reach left out with both reasons, the
+  order of the pass and a stop during it (plain functions);
+* the hint shift of film_system._shifts: the least-damped root itself as the hint is counted and
+  found as without it (16 x 8 turbocharger rings).
 """
 
 from __future__ import annotations
@@ -232,6 +238,13 @@ def test_speeds_whose_cold_start_fails_are_reached_by_continuation(capsys, tmp_p
     for f in sorted(scan, reverse=True):
         re = down.max_re(2 * math.pi * f)[0]
         assert abs(re - scan[f]) < 1e-6 * abs(re), (f, re, scan[f])
+    # a speed that fails from the station's own start while another speed's point is known continues
+    # from that one at once (as in the scan or Brent's refinement): cold again, then 29 Hz
+    for st in down.stations:
+        st._reset()
+        st.ratio = None
+    re = down.max_re(2 * math.pi * 29.0)[0]
+    assert abs(re - scan[29.0]) < 1e-6 * abs(re), (re, scan[29.0])
 
 
 def test_a_hint_on_this_speeds_root_finds_it_counted_as_without_the_hint():
@@ -258,4 +271,103 @@ def test_a_hint_on_this_speeds_root_finds_it_counted_as_without_the_hint():
             r = fs.rightmost(films.rotor, w, lins, hint=(h,), dense_max=0)
             assert r.method == "counted", (f, h, r.method)
             got = r.eigenvalues[0]
-            assert abs(got.real - root.real) < 1e-9 * abs(root) and abs(abs(got.imag) - abs(root.imag)) < 1e-9 * abs(root)
+            assert abs(got.real - root.real) < 1e-9 * abs(root), (f, h, got, root)
+            assert abs(abs(got.imag) - abs(root.imag)) < 1e-9 * abs(root), (f, h, got, root)
+
+
+def test_a_speed_the_continuation_cannot_reach_is_left_out_with_both_reasons(capsys, tmp_path):
+    """On 16 x 8 films the turbocharger's turbine-side ring has no operating point below ~62 Hz (its
+    outer film cannot carry the load inside 0.98 c): from 63.22 Hz the continuation towards 60.55 Hz
+    comes to 62.05 Hz and stops where a step halved 4 times in a row still fails; 60.55 Hz is left
+    out with that reason (where it started, how far it came, what failed), 58 Hz beyond it is not
+    tried, and the command names the lowest speed with an equilibrium as the one already unstable,
+    not the range's lower end."""
+    out = tmp_path / "r.json"
+    sets = [a for s in SMALL for a in ("--set", s)]
+    code, text, err = run_verb(capsys, "stability", TURBO, "--film", "mc", "--speeds", "58:66", "--scan", "4",
+                               "--json", out, *sets)
+    assert code == 1
+    assert "already unstable at the lowest speed with a static equilibrium (63.22 Hz; the speeds from 58 Hz" in err
+    r = json.loads(out.read_text())
+    assert r["status"] == "unstable_at_lower_bound" and "continued_speeds_hz" not in r
+    assert r["speeds_without_equilibrium_hz"] == pytest.approx([58.0, 60.55], abs=0.01)
+    note = next(n for n in r["notes"] if n.startswith("no static equilibrium at 2 of the 4 speeds"))
+    assert "bearing2': no steady operating point of its mass-conserving films at 60.55 Hz (none from the warm " \
+           "start of the scan there; continuation from 63.2177 Hz reached 62.05" in note
+    assert "failed after 4 halvings in a row" in note
+    assert any(n.startswith("1 speed without an operating point from the scan's start not tried") for n in r["notes"])
+
+
+def _fake(ws, cold_fails, reach_fails, calls):
+    """max_re (crossing zero upwards at 300 Hz) failing from the scan's start at the speed indices
+    ``cold_fails`` until the continuation (``continued``) has reached them (as _RingMCFilm, which then
+    continues from that speed's point: Brent evaluates its bracket's ends again), the continuation
+    failing at ``reach_fails``; the continued calls recorded in ``calls`` (speed indices)."""
+    from orchestrator.stability import StabilityError
+    index = {float(w): k for k, w in enumerate(ws)}
+
+    def value(w):
+        return float(np.cbrt((w - 2 * math.pi * 300.0) / (2 * math.pi * 300.0))), 0.45 * w
+
+    def max_re(w):
+        k = index.get(float(w))
+        if k in cold_fails and (k not in calls or k in reach_fails):
+            raise StabilityError(f"no operating point at {w / (2 * math.pi):.4g} Hz from the start")
+        return value(w)
+
+    def continued(w):
+        calls.append(index[float(w)])
+        if index[float(w)] in reach_fails:
+            raise StabilityError(f"no operating point at {w / (2 * math.pi):.4g} Hz (continuation failed)")
+        return value(w)
+    return max_re, continued
+
+
+def test_the_search_continues_outwards_from_the_speeds_done():
+    """The search's pass over the speeds its scan left out (search._continue_left_out), with plain
+    functions: a run below the first speed done walks downwards from it and ends at its first
+    failure (the speeds beyond are not tried; the failure's reason is the note's), a run between
+    two speeds done is walked from both ends alternately, and the threshold between speeds so
+    computed is refined."""
+    from orchestrator.stability.search import _search
+    ws = 2 * math.pi * np.geomspace(100.0, 800.0, 20)       # 300 Hz between indices 10 and 11
+    calls: list = []
+    max_re, continued = _fake(ws, cold_fails={0, 1, 2, 3, 9, 10, 11, 12}, reach_fails={1}, calls=calls)
+    result = {"speed_range_hz": [100.0, 800.0], "crossings": [], "crossings_bracketed": [], "notes": []}
+    found = _search(max_re, ws, result, continued=continued)
+    # walks: [3, 2, 1, 0] down from 4; [9, 10] up from 8 and [12, 11] down from 13, one speed of each in turn
+    assert calls == [3, 9, 12, 2, 10, 11, 1]
+    assert found.stop is None and result["status"] == "threshold"
+    assert result["threshold_hz"] == pytest.approx(300.0, rel=1e-6)
+    assert result["continued_speeds_hz"] == pytest.approx(sorted(ws[[2, 3, 9, 10, 11, 12]] / (2 * math.pi)))
+    assert result["speeds_without_equilibrium_hz"] == pytest.approx(ws[[0, 1]] / (2 * math.pi))
+    left = next(n for n in result["notes"] if n.startswith("no static equilibrium at 2 of the 20 speeds"))
+    assert "(continuation failed)" in left
+    assert any(n.startswith("1 speed without an operating point from the scan's start not tried") for n in
+               result["notes"])
+
+
+def test_a_stop_during_the_continuation_names_the_whole_range_as_the_rest():
+    from orchestrator.stability.search import _search
+    from tests.test_stability_stop import _Requests
+    ws = 2 * math.pi * np.geomspace(100.0, 800.0, 20)
+    calls: list = []
+    max_re, continued = _fake(ws, cold_fails={0, 1, 2}, reach_fails=set(), calls=calls)
+    req = _Requests(None)
+
+    def stopping(w):                  # a stop request arrives while the first continued speed is computed
+        v = continued(w)
+        req.requested, req.signum = True, 2
+        return v
+    result = {"speed_range_hz": [100.0, 800.0], "crossings": [], "crossings_bracketed": [], "notes": []}
+    found = _search(max_re, ws, result, stop=req, continued=stopping)
+    assert calls == [2]
+    s = found.stop
+    assert (s.by, s.phase, s.done, s.planned) == ("SIGINT", "continuation", 20, 20)
+    assert s.rest == (100.0, 800.0, 20)
+    assert result["continued_speeds_hz"] == pytest.approx([ws[2] / (2 * math.pi)])
+    assert result["status"] == "threshold_bracketed"          # nothing computed after the stop (no Brent)
+    from orchestrator.stability.partial import stop_message
+    result["stopped"] = s.as_dict()
+    msg = stop_message(result)
+    assert "while computing the speeds the scan left out by continuation" in msg and "--speeds 100:800 --scan 20" in msg

@@ -375,7 +375,10 @@ class _RingMCFilm:
     the inner film on the journal's motion relative to the ring, the outer on the ring's), the
     ring's translation as two more degrees of freedom (mass ``m_ring``), its spin held; the rotor,
     rings and films as one descriptor system (:class:`rotor_fmu.floating_ring_stability.RingRotor`)
-    solved as :class:`_MCFilm` does (counted or dense)."""
+    solved as :class:`_MCFilm` does (counted or dense). A speed whose operating point fails from the
+    warm start a station holds is computed by continuation in the speed from the nearest speed it
+    converged at (:meth:`points`, :meth:`max_re_continued`: the search's pass over the speeds its
+    scan left out)."""
 
     def __init__(self, system: System, loads: np.ndarray, solver: str = "counted"):
         from rotor_fmu.floating_ring_stability import MCRingStation, RingRotor
@@ -425,7 +428,8 @@ class _RingMCFilm:
                 pts.append(st.continued(ld, omega) if continued else st.point(ld, omega))
                 continue
             except _point_errors() as exc:
-                why = ("none from the warm start of the scan there; " if continued else "") + (str(exc) or type(exc).__name__)
+                why = (("none from the warm start of the scan there; " if continued else "")
+                       + (str(exc) or type(exc).__name__))
                 if continued or not st.converged:
                     raise self._no_point(b, omega, why) from None
             try:
