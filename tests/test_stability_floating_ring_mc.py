@@ -223,7 +223,9 @@ def test_speeds_whose_cold_start_fails_are_reached_by_continuation(capsys, tmp_p
     assert r["complete"] and r["status"] == "stable"
     assert "speeds_without_equilibrium_hz" not in r
     assert r["continued_speeds_hz"] == pytest.approx([29.0, 29.96737193391587], rel=1e-12)
-    assert any("computed by continuation in the speed" in n for n in r["notes"])
+    assert any(n.startswith("2 speeds the scan left out (29, 29.97 Hz) computed again by continuation in the speed")
+               and "the scan's reason at 29 Hz: floating-ring bearing" in n for n in r["notes"])
+    assert all("no steady operating point" in x for x in r["continued_scan_reasons"])
     scan = {s["speed_hz"]: s["max_re_per_s"] for s in r["scan"]}
     assert len(scan) == 4
     # each cold start at the two lowest speeds fails (what made the scan leave them out)
@@ -295,7 +297,7 @@ def test_a_speed_the_continuation_cannot_reach_is_left_out_with_both_reasons(cap
     assert "bearing2': no steady operating point of its mass-conserving films at 60.55 Hz (none from the warm " \
            "start of the scan there; continuation from 63.2177 Hz reached 62.05" in note
     assert "failed after 4 halvings in a row" in note
-    assert any(n.startswith("1 speed without an operating point from the scan's start not tried") for n in r["notes"])
+    assert any(n.startswith("1 speed the scan left out not tried again") for n in r["notes"])
 
 
 def _fake(ws, cold_fails, reach_fails, calls):
@@ -343,8 +345,7 @@ def test_the_search_continues_outwards_from_the_speeds_done():
     assert result["speeds_without_equilibrium_hz"] == pytest.approx(ws[[0, 1]] / (2 * math.pi))
     left = next(n for n in result["notes"] if n.startswith("no static equilibrium at 2 of the 20 speeds"))
     assert "(continuation failed)" in left
-    assert any(n.startswith("1 speed without an operating point from the scan's start not tried") for n in
-               result["notes"])
+    assert any(n.startswith("1 speed the scan left out not tried again") for n in result["notes"])
 
 
 def test_a_stop_during_the_continuation_names_the_whole_range_as_the_rest():

@@ -264,12 +264,13 @@ def _continue_left_out(again, ws, vals: list, failed: list, result: dict, signum
     neighbour done; a walk ends at its first speed that fails again (its error replaces the scan's:
     it names both attempts), the speeds beyond it are not tried (a continuation from further away
     through the speed that failed). ``vals`` and ``failed`` are updated in place; the speeds so
-    computed are listed in ``result["continued_speeds_hz"]`` and a note. Returns (the :class:`Stop`
+    computed are listed in ``result["continued_speeds_hz"]`` (the scan's reason for each in
+    ``continued_scan_reasons``) and a note. Returns (the :class:`Stop`
     of a stop (a signal, an error other than StabilityError; phase ``"continuation"``) or None, the
     speeds [rad/s] where the continuation failed)."""
     from orchestrator.stability.partial import stop_of
     walks = [w for w in _outwards(vals) if w]
-    errors = {float(w): e for w, e in failed}
+    errors = {float(w): e for w, e in failed}      # each speed's reason (the scan's, then the continuation's)
     reached: list[float] = []
     retried: list = []                 # speeds where the continuation failed too
     untried = 0
@@ -296,12 +297,14 @@ def _continue_left_out(again, ws, vals: list, failed: list, result: dict, signum
     if reached:
         hz = sorted(w / (2 * math.pi) for w in reached)
         result["continued_speeds_hz"] = hz
+        result["continued_scan_reasons"] = [str(errors[w]) for w in sorted(reached)]
         where = ", ".join(f"{f:.4g}" for f in hz[:6]) + (" ..." if len(hz) > 6 else "")
-        result["notes"].append(f"{_speeds(len(hz))} without an operating point from the scan's start there ({where} "
-                               "Hz) computed by continuation in the speed from their neighbours done")
+        result["notes"].append(f"{_speeds(len(hz))} the scan left out ({where} Hz) computed again by continuation in the "
+                               f"speed from their neighbours done (the scan's reason at {hz[0]:.4g} Hz: "
+                               f"{errors[min(reached)]})".replace("; raise the lower end of --speeds", ""))
     if untried:
-        result["notes"].append(f"{_speeds(untried)} without an operating point from the scan's start not tried by "
-                               "continuation: a speed between them and the speeds done failed it")
+        result["notes"].append(f"{_speeds(untried)} the scan left out not tried again by continuation: a speed between "
+                               "them and the speeds done failed it")
     return halt, retried
 
 
