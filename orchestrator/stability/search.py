@@ -261,14 +261,13 @@ def _outwards(vals: list) -> list[list[int]]:
 def _continue_left_out(again, ws, vals: list, failed: list, result: dict, signum) -> tuple[Stop | None, list]:
     """The speeds the scan left out (``failed``: (omega, StabilityError)) computed by ``again``
     (continuation from the speeds done): walk by walk (:func:`_outwards`), each speed from its
-    neighbour done; a walk ends at its first speed that fails again (its error replaces the scan's:
-    it names both attempts), the speeds beyond it are not tried (a continuation from further away
-    through the speed that failed). ``vals`` and ``failed`` are updated in place; the speeds so
-    computed are listed in ``result["continued_speeds_hz"]`` (the scan's reason for each in
-    ``continued_scan_reasons``) and a note. Returns (the :class:`Stop`
-    of a stop (a signal, an error other than StabilityError; phase ``"continuation"``) or None, the
-    speeds [rad/s] where the continuation failed)."""
-    from orchestrator.stability.partial import stop_of
+    neighbour done; a walk ends at its first speed that fails again (its error replaces the scan's;
+    a ring's operating point names both tries), the speeds beyond it are not tried (a continuation
+    from further away through the speed that failed). ``vals`` and ``failed`` are updated in place;
+    the speeds so computed are listed in ``result["continued_speeds_hz"]`` (the scan's reason for
+    each in ``continued_scan_reasons``) and a note. Returns (the :class:`Stop` of a stop (a signal,
+    an error other than StabilityError; phase ``"continuation"``) or None, the speeds [rad/s] where
+    the continuation failed)."""
     walks = [w for w in _outwards(vals) if w]
     errors = {float(w): e for w, e in failed}      # each speed's reason (the scan's, then the continuation's)
     reached: list[float] = []
