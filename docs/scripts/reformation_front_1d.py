@@ -592,6 +592,16 @@ EXITS = {"sg": "film.py groove_exit (today)", "layer": "layer correction, exact 
          "layer_lin": "layer correction, gap linear at the exit"}
 
 
+def _load_rows(label, qs, Ws, rows):
+    """The Wx, Wy and q rows of a table: relative errors against the semi-analytic solution on
+    each grid and the successive orders."""
+    for key, k in (("Wx", 0), ("Wy", 1)):
+        vals = [r[1][k] for r in rows]
+        print(f"| {label} | {key} | " + " | ".join(f"{v / Ws[k] - 1:+.2e}" for v in vals) + " | "
+              + ", ".join(f"{x:.2f}" for x in orders(vals)) + " |")
+    print("| | | q | " + " | ".join(f"{r[2] / qs - 1:+.1e}" for r in rows) + " | |", flush=True)
+
+
 def main(argv):
     parts = argv or ["check", "widths", "split", "treatment", "points"]
     base = Problem()
@@ -662,14 +672,8 @@ def main(argv):
         for w in (1e3, 1e2):
             prob = replace(base, phi_hmax=0.0, cav_width=w)
             for muscl in (False, True):
-                qs, Ws, sol, rows = study(prob, muscl, grids)
-                for key, k in (("Wx", 0), ("Wy", 1)):
-                    vals = [r[1][k] for r in rows]
-                    print(f"| {w:g} Pa | {'MUSCL' if muscl else 'upwind'} | {key} | "
-                          + " | ".join(f"{v / Ws[k] - 1:+.2e}" for v in vals) + " | "
-                          + ", ".join(f"{x:.2f}" for x in orders(vals)) + " |")
-                print("| | | q | " + " | ".join(f"{r[2] / qs - 1:+.1e}" for r in rows) + " | |",
-                      flush=True)
+                qs, Ws, _, rows = study(prob, muscl, grids)
+                _load_rows(f"{w:g} Pa | {'MUSCL' if muscl else 'upwind'}", qs, Ws, rows)
     if "rupture" in parts:
         print("\n### Free rupture with the rupture defect correction (groove at the maximum gap, "
               "MUSCL); errors against the semi-analytic solution\n")
@@ -680,14 +684,8 @@ def main(argv):
         for w in (1e3, 1e2, 1e1):
             prob = replace(base, phi_hmax=0.0, cav_width=w)
             for gap in ("linear", "exact"):
-                qs, Ws, sol, rows = study(prob, True, grids, rupture=gap)
-                for key, k in (("Wx", 0), ("Wy", 1)):
-                    vals = [r[1][k] for r in rows]
-                    print(f"| {w:g} Pa | {gap} | {key} | "
-                          + " | ".join(f"{v / Ws[k] - 1:+.2e}" for v in vals) + " | "
-                          + ", ".join(f"{x:.2f}" for x in orders(vals)) + " |")
-                print("| | | q | " + " | ".join(f"{r[2] / qs - 1:+.1e}" for r in rows) + " | |",
-                      flush=True)
+                qs, Ws, _, rows = study(prob, True, grids, rupture=gap)
+                _load_rows(f"{w:g} Pa | {gap}", qs, Ws, rows)
     if "points" in parts:
         print("\n### Pressure at fixed points, cav_width 1 kPa, MUSCL: p - p_exact [Pa] "
               "(linear interpolation of the cell values)\n")

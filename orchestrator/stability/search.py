@@ -113,14 +113,19 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     evals: dict[float, float] = {}           # every speed evaluated -> largest real part (brackets)
     current: list = [None]                   # the speed being evaluated
 
-    def checked(w):
-        current[0] = w
-        if requests.requested:
-            raise SpeedStopped(w)
-        with abandoning():
-            v = max_re(w)
-        evals[float(w)] = v[0]
-        return v
+    def guarded(fn):
+        """fn(w) as one speed of the search: the stop checked first, a second signal abandoning
+        only it, its largest real part kept for the brackets."""
+        def at(w):
+            current[0] = w
+            if requests.requested:
+                raise SpeedStopped(w)
+            with abandoning():
+                v = fn(w)
+            evals[float(w)] = v[0]
+            return v
+        return at
+    checked = guarded(max_re)
 
     vals: list[float | None] = []
     failed: list[tuple[float, StabilityError]] = []
@@ -138,15 +143,7 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
             bar.update(1)
     done = len(vals)
     if continued is not None and failed and halt is None:
-        def again(w):
-            current[0] = w
-            if requests.requested:
-                raise SpeedStopped(w)
-            with abandoning():
-                v = continued(w)
-            evals[float(w)] = v[0]
-            return v
-        halt, retried = _continue_left_out(again, ws, vals, failed, result, requests.signum)
+        halt, retried = _continue_left_out(guarded(continued), ws, vals, failed, result, requests.signum)
         # the note's reason: that of the first speed the continuation failed at (it names both tries)
         failed.sort(key=lambda f: (f[0] not in retried, f[0]))
     ok = [k for k, v in enumerate(vals) if v is not None]
