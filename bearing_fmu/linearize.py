@@ -172,8 +172,12 @@ def _steps(b, z, omega, rel_step, t_ref):
     return np.array([rel_step * c, rel_step * c, dv, dv])
 
 
-def hs_linearization(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3):
-    """(K, C) of the half-Sommerfeld force at the given kinematics (see module doc): the
+def hs_linearization(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3, with_force=False):
+    """(K, C) of the half-Sommerfeld force at the given kinematics (see module doc); with
+    ``with_force``, (F, K, C): F the force itself [N] (2,), from the tangent solve's base field
+    (:func:`_hs_coefficients`; equal to :func:`hs_force` to round-off, not bit for bit: another
+    DST path and, for a field symmetric about the mid-plane, half the rows weighted 2), or
+    :func:`hs_force` where the finite differences are taken instead. The
     central differences of :func:`hs_linearization_fd`, with the 8 perturbed pressure
     fields ``P0 +- s dP/dz`` from ONE tangent solve (:meth:`.hs.HalfSommerfeld.solve_tangent`:
     the base field and its 4 directional derivatives, one factorisation per axial mode)
@@ -194,28 +198,33 @@ def hs_linearization(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3):
         # (positions moved by steps[0] = rel_step c) against the map's 8 sigma
         h_low = 1.0 - (math.hypot(x, y) + steps[0]) / b.c
         if not h_low >= H_AVG * b.params.sigma_rough / b.c:
-            return hs_linearization_fd(b, x, y, vx, vy, omega, rel_step=rel_step, t_ref=t_ref)
+            K, C = hs_linearization_fd(b, x, y, vx, vy, omega, rel_step=rel_step, t_ref=t_ref)
+            return (hs_force(b, x, y, vx, vy, omega), K, C) if with_force else (K, C)
     g = b.grid_full
     hs = b.hs
     cs, sn, ce, se, dH, dHe, dHdot = _tangent_directions(b)
     D = np.empty((2, 4))
+    F0 = np.empty(2)
     _hs_coefficients(float(x), float(y), float(vx), float(vy), float(omega), b.c, cs, sn, ce, se,
                      dH, dHe, dHdot, g.dz, g.dphi, hs.a_phi, g.dphi * hs.a_z / g.dz, hs.lam, hs.ck,
                      hs.gr, hs.feed_hat, *hs.coefficient_rows, steps, g.phi,
-                     b.params.R * g.dphi * b.params.B * g.dz, D)
+                     b.params.R * g.dphi * b.params.B * g.dz, D, F0)
+    if with_force:
+        return F0, D[:, :2].copy(), D[:, 2:].copy()
     return D[:, :2].copy(), D[:, 2:].copy()
 
 
 @nb.njit(cache=True, nogil=True)
 def _hs_coefficients(x, y, vx, vy, omega, c, cs, sn, ce, se, dH, dHe, dHdot, dz, dphi, a_phi,
-                     coef, lam, ck, groove, feed_hat, Mh, modes, wrow, steps, phi, area, D):
+                     coef, lam, ck, groove, feed_hat, Mh, modes, wrow, steps, phi, area, D, F0):
     """:func:`hs_linearization` after its steps, in one call without the GIL: the gap (the
     operations of ``Grid.gap``), the tangent solve (:func:`.hs._tangent_modes`), the inverse
     DST-II of every field as a product with ``Mh`` (rows and mode columns of
     :meth:`.hs.HalfSommerfeld.idst_matrix`, :meth:`.hs.HalfSommerfeld.coefficient_rows`;
     equal to scipy's transform to round-off) and the central differences
     (:func:`_hs_central_tangent`, row r of the fields weighted ``wrow[r]``), into ``D``
-    (2, 4). ``modes``: the axial modes that carry the fields (the others are exactly zero)."""
+    (2, 4), and the force of the base field into ``F0`` (2,). ``modes``: the axial modes that
+    carry the fields (the others are exactly zero)."""
     n = cs.size
     m = dH.shape[0]
     n_z = lam.size
@@ -232,7 +241,7 @@ def _hs_coefficients(x, y, vx, vy, omega, c, cs, sn, ce, se, dH, dHe, dHdot, dz,
     dP = np.empty((m, rows, n))
     for r in range(m):
         dP[r] = np.dot(Mh, Xh[r + 1])
-    _hs_central_tangent(P0, dP, steps, phi, area, D, wrow)
+    _hs_central_tangent(P0, dP, steps, phi, area, D, wrow, F0)
 
 
 def _tangent_directions(b):
@@ -252,12 +261,12 @@ def _tangent_directions(b):
 
 
 @nb.njit(cache=True, nogil=True)
-def _hs_central_tangent(P0, dP, steps, phi, area, D, wrow):
+def _hs_central_tangent(P0, dP, steps, phi, area, D, wrow, F0):
     """-(F(P0 + s_j dP_j) - F(P0 - s_j dP_j)) / (2 s_j) into D[:, j] (2, 4): the central
     differences of :func:`_hs_forces_many`'s force (cell pressures of the force quadrature,
     :func:`.film.hs_force_pressure`), with the perturbed fields from the tangent solve;
     row r of the fields weighted ``wrow[r]`` (2 for a row that stands for its mirror image
-    about the mid-plane too, :func:`_hs_coefficients`)."""
+    about the mid-plane too, :func:`_hs_coefficients`); the force of P0 itself into F0 (2,)."""
     n_z, n_phi = P0.shape
     Pq = np.empty((n_z, n_phi))
     pf = np.empty((n_z, n_phi))
@@ -265,6 +274,15 @@ def _hs_central_tangent(P0, dP, steps, phi, area, D, wrow):
     for i in range(n_phi):
         cs_[i] = math.cos(phi[i])
         sn_[i] = math.sin(phi[i])
+    hs_force_pressure(P0, pf)
+    Fx = 0.0
+    Fy = 0.0
+    for i in range(n_phi):
+        for r in range(n_z):
+            Fx -= wrow[r] * pf[r, i] * cs_[i]
+            Fy -= wrow[r] * pf[r, i] * sn_[i]
+    F0[0] = Fx * area
+    F0[1] = Fy * area
     for j in range(4):
         F = np.zeros((2, 2))
         for side in range(2):

@@ -144,7 +144,7 @@ def test_coefficients_from_the_lower_rows_equal_those_of_every_row(case):
             _hs_coefficients(*k, b.c, cs, sn, ce, se, dH, dHe, dHdot, g.dz, g.dphi, hs.a_phi,
                              g.dphi * hs.a_z / g.dz, hs.lam, hs.ck, hs.gr, hs.feed_hat, *rows,
                              _steps(b, np.array(k[:4]), k[4], 1e-5, 1e-3), g.phi,
-                             b.params.R * g.dphi * b.params.B * g.dz, D[name])
+                             b.params.R * g.dphi * b.params.B * g.dz, D[name], np.empty(2))
         # round-off of the force sums (~1e-16 of 2 n_z n_phi terms, summed in another order)
         # over the central difference's 2 s (s = 1e-5 of c): ~1e-10 of the coefficients, a
         # tenth of what the tangent solve itself is held to against the finite differences
@@ -253,3 +253,18 @@ def test_tangent_kernel_modes_side_by_side_bit_for_bit(case):
         _tangent_kernel(*args, x)
         _tangent_kernel_per_mode(*args, ref)
         assert np.array_equal(x, ref)
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_the_force_from_the_tangent_solve_is_hs_force(case):
+    """hs_linearization(with_force=True) returns the force of the tangent solve's base field: the
+    same model as hs_force (another DST path, half the rows weighted 2 when the field is symmetric),
+    so equal to round-off, and the same (K, C) as without it."""
+    from bearing_fmu.linearize import hs_force, hs_linearization
+    b = bearing(**CASES[case])
+    for k in KINS:
+        F, K, C = hs_linearization(b, *k, with_force=True)
+        F_ref = hs_force(b, *k)
+        assert np.all(np.abs(F - F_ref) <= 1e-11 * np.max(np.abs(F_ref))), (k, F, F_ref)
+        K2, C2 = hs_linearization(b, *k)
+        assert np.array_equal(K, K2) and np.array_equal(C, C2)

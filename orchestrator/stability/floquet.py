@@ -10,9 +10,10 @@ Equations: the rotor FMU's (:mod:`rotor_fmu.linear_rotor`) at a constant speed o
 force at its kinematics and ``f_load`` any ``--load``:
 
 * ``film="hs"``: the half-Sommerfeld force of the bearing's own film and grid
-  (:func:`bearing_fmu.linearize.hs_force`; with ``contact = 1`` plus the asperity contact's
-  force :func:`bearing_fmu.contact.contact_force`, as the FMU adds it), its tangent
-  (K, C) by :func:`bearing_fmu.linearize.hs_linearization` (plus
+  (:func:`bearing_fmu.linearize.hs_force` to round-off, taken with its tangent from the same
+  solve; with ``contact = 1`` plus the asperity contact's force
+  :func:`bearing_fmu.contact.contact_force`, as the FMU adds it), its tangent (K, C) by
+  :func:`bearing_fmu.linearize.hs_linearization` (``with_force=True``; plus
   :func:`bearing_fmu.contact.contact_coefficients`), as ``rotorcosim stability --film hs``;
 * ``film="short"``: the short-bearing (Ocvirk) closed form
   :func:`rotor_fmu.stability.short_bearing_force`, its tangent by central differences.
@@ -145,10 +146,10 @@ class FloquetFilms:
         """(F (2,), K (2, 2), C (2, 2)) of station j's film at the kinematics."""
         if self.film == "hs":
             from bearing_fmu.contact import contact_coefficients, contact_force
-            from bearing_fmu.linearize import hs_force, hs_linearization
+            from bearing_fmu.linearize import hs_linearization
             m = self.linear.models[j]
-            F = hs_force(m, x, y, vx, vy, omega)
-            K, C = hs_linearization(m, x, y, vx, vy, omega)
+            # the force from the tangent solve's base field (hs_force to round-off: one solve, not two)
+            F, K, C = hs_linearization(m, x, y, vx, vy, omega, with_force=True)
             if m.params.contact:
                 F = F + np.array(contact_force(x, y, vx, vy, omega, **m.contact_kw)[:2])
                 Kc, Cc = contact_coefficients(x, y, vx, vy, omega, **m.contact_kw)
