@@ -592,6 +592,13 @@ EXITS = {"sg": "film.py groove_exit (today)", "layer": "layer correction, exact 
          "layer_lin": "layer correction, gap linear at the exit"}
 
 
+def _table_head(column, grids):
+    """The head of a table of errors per grid: cav_width, ``column``, quantity, the grids, orders."""
+    print(f"| cav_width | {column} | quantity | " + " | ".join(str(n) for n in grids)
+          + " | orders (successive) |")
+    print("|---|---|---|" + "---|" * (len(grids) + 1))
+
+
 def _load_rows(label, qs, Ws, rows):
     """The Wx, Wy and q rows of a table: relative errors against the semi-analytic solution on
     each grid and the successive orders."""
@@ -649,9 +656,7 @@ def main(argv):
     if "treatment" in parts:
         print("\n### Exit-layer correction: Wy and q error against the semi-analytic solution "
               "(MUSCL)\n")
-        print("| cav_width | exit flux | quantity | " + " | ".join(str(n) for n in GRIDS)
-              + " | orders (successive) |")
-        print("|---|---|---|" + "---|" * (len(GRIDS) + 1))
+        _table_head("exit flux", GRIDS)
         for w in WIDTHS:
             prob = replace(base, cav_width=w)
             for ex, label in EXITS.items():
@@ -666,9 +671,7 @@ def main(argv):
         print("\n### Free rupture: groove at the maximum gap (phi_hmax = 0); errors against the "
               "semi-analytic solution\n")
         grids = GRIDS[:-1]
-        print("| cav_width | transport | quantity | " + " | ".join(str(n) for n in grids)
-              + " | orders (successive) |")
-        print("|---|---|---|" + "---|" * (len(grids) + 1))
+        _table_head("transport", grids)
         for w in (1e3, 1e2):
             prob = replace(base, phi_hmax=0.0, cav_width=w)
             for muscl in (False, True):
@@ -678,9 +681,7 @@ def main(argv):
         print("\n### Free rupture with the rupture defect correction (groove at the maximum gap, "
               "MUSCL); errors against the semi-analytic solution\n")
         grids = GRIDS[:-2]
-        print("| cav_width | local gap | quantity | " + " | ".join(str(n) for n in grids)
-              + " | orders (successive) |")
-        print("|---|---|---|" + "---|" * (len(grids) + 1))
+        _table_head("local gap", grids)
         for w in (1e3, 1e2, 1e1):
             prob = replace(base, phi_hmax=0.0, cav_width=w)
             for gap in ("linear", "exact"):
