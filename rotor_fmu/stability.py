@@ -246,23 +246,34 @@ def first_crossing(max_re, ws):
     (None, None): ``max_re`` at each speed in turn, then :func:`refine_crossing` on the first
     bracket; (ws[0], |Im|) when already >= 0 there."""
     prev_w = ws[0]
-    re0, im0 = max_re(prev_w)
-    if re0 >= 0:
-        return float(prev_w), im0
+    prev = max_re(prev_w)
+    if prev[0] >= 0:
+        return float(prev_w), prev[1]
     for w in ws[1:]:
-        if max_re(w)[0] >= 0:
-            return refine_crossing(max_re, prev_w, w)
-        prev_w = w
+        v = max_re(w)
+        if v[0] >= 0:
+            return refine_crossing(max_re, prev_w, w, known={prev_w: prev, w: v})
+        prev_w, prev = w, v
     return None, None
 
 
-def refine_crossing(max_re, w0, w1, xtol=1e-9):
+def refine_crossing(max_re, w0, w1, xtol=1e-9, known=None):
     """(speed [rad/s] in [w0, w1] where the largest real part ``max_re(omega)[0]`` crosses 0, the
     |Im| of that eigenvalue there): Brent, to ``xtol`` [rad/s] (1e-9) and 1e-11 of the speed; the signs at w0
     and w1 must differ. The one refinement of every threshold search (also the floating ring's,
-    rotor_fmu/floating_ring_stability.py, and ``rotorcosim stability``'s crossings)."""
-    wc = brentq(lambda w: max_re(w)[0], w0, w1, xtol=xtol, rtol=1e-11)
-    return wc, max_re(wc)[1]
+    rotor_fmu/floating_ring_stability.py, and ``rotorcosim stability``'s crossings).
+
+    ``known``: ``{omega: max_re(omega)}`` already computed (a scan's values at w0 or w1), which
+    Brent takes instead of computing them again; no speed is computed twice (Brent's root is one
+    of the speeds it evaluated, so its |Im| costs nothing more)."""
+    seen = dict(known or {})
+
+    def once(w):
+        if w not in seen:
+            seen[w] = max_re(w)
+        return seen[w]
+    wc = brentq(lambda w: once(w)[0], w0, w1, xtol=xtol, rtol=1e-11)
+    return wc, once(wc)[1]
 
 
 def bearing_radius_for_threshold(make_rotor, f_target, *, B_over_R=1.6, psi=2.8e-3,

@@ -246,13 +246,24 @@ def _stability_report(args, r: dict) -> int:
         return 1
     if r["status"] == "threshold_not_located":
         a, b = r["threshold_between_hz"]
-        print(f"error: the system becomes unstable between {a:.4g} and {b:.4g} Hz, across speeds where a film has no "
-              "static equilibrium, so the threshold is not located; give a --speeds LO:HI on one side of them, or "
-              "bearing parameters that carry the load there", file=sys.stderr)
+        if r.get("speeds_without_eigenvalues_hz"):
+            print(f"error: the system becomes unstable between {a:.4g} and {b:.4g} Hz, across speeds left out (where a "
+                  "film has no static equilibrium, or whose eigenvalues were not computed: the notes say why), so "
+                  "the threshold is not located; give a --speeds LO:HI on one side of them, or follow the notes' "
+                  "fix", file=sys.stderr)
+        else:
+            print(f"error: the system becomes unstable between {a:.4g} and {b:.4g} Hz, across speeds where a film has "
+                  "no static equilibrium, so the threshold is not located; give a --speeds LO:HI on one side of them, "
+                  "or bearing parameters that carry the load there", file=sys.stderr)
         return 1
     if r["status"] == "unstable_at_lower_bound":
         first = r["scan"][0]["speed_hz"] if r.get("scan") else lo
-        if first > lo * (1 + 1e-9):      # the speeds below it left out (no static equilibrium there)
+        no_eig = [f for f in r.get("speeds_without_eigenvalues_hz") or [] if f < first]
+        if first > lo * (1 + 1e-9) and no_eig:     # some speeds below it left out without eigenvalues
+            print(f"error: already unstable at the lowest speed computed ({first:.4g} Hz; the speeds from {lo:g} Hz "
+                  "below it were left out: no static equilibrium, or eigenvalues not computed), so the threshold is "
+                  "below it or among those speeds (the notes say why they were left out)", file=sys.stderr)
+        elif first > lo * (1 + 1e-9):      # the speeds below it left out (no static equilibrium there)
             print(f"error: already unstable at the lowest speed with a static equilibrium ({first:.4g} Hz; the speeds "
                   f"from {lo:g} Hz below it have none), so the threshold is below it or among those speeds (the note "
                   "says why they have none)", file=sys.stderr)

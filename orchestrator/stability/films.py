@@ -40,7 +40,7 @@ import math
 
 import numpy as np
 
-from orchestrator.stability.system import Bearing, StabilityError, System
+from orchestrator.stability.system import Bearing, EigenvaluesFailed, StabilityError, System
 
 MC_SOLVERS = ("counted", "dense")   # the --film mc eigenvalue solvers (_MCFilm)
 #: largest floating-ring descriptor system (unknowns) that --film mc solves densely where the count
@@ -451,7 +451,7 @@ class _RingMCFilm:
         lam = _mc_eigenvalues(self, self.rotor, omega, films, dense_max=RING_DENSE_MAX)
         if lam is None:
             size = 2 * self.rotor.n_dof + sum(f.Js.shape[0] for f in films)
-            raise StabilityError(f"at {omega / (2 * math.pi):.4g} Hz the argument-principle count disagreed with "
+            raise EigenvaluesFailed(f"at {omega / (2 * math.pi):.4g} Hz the argument-principle count disagreed with "
                                  f"the eigenvalues the Arnoldi runs found, and the dense solve of the {size} "
                                  f"unknowns would take hours (above {RING_DENSE_MAX}): the speed is left out; "
                                  "coarser ring films (--set fmus.BEARING.parameters.n_phi_inner=..., n_z_inner, "

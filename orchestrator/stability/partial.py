@@ -120,12 +120,13 @@ def speed_range(lo: float, hi: float, sep: str = " - ") -> str:
 def scan_table(result: dict) -> str:
     """The speeds a stopped search evaluated, one line each: largest real part, logarithmic
     decrement and frequency of the least-damped mode (``result["scan"]``), and the speeds without
-    a static equilibrium."""
+    a static equilibrium or without eigenvalues."""
     rows = [(s["speed_hz"], f"{s['max_re_per_s']:14.6g} "
              + (f"{s['log_decrement']:14.5g}" if s["log_decrement"] is not None else f"{'-':>14}")
              + f" {s['whirl_hz']:11.3f}") for s in result.get("scan") or []]
     lacks = "no periodic orbit" if result.get("unbalance") else "no static equilibrium"     # --unbalance: Floquet rate
     rows += [(f, f"{'':1}{lacks}") for f in result.get("speeds_without_equilibrium_hz") or []]
+    rows += [(f, f"{'':1}eigenvalues not computed") for f in result.get("speeds_without_eigenvalues_hz") or []]
     stop = result.get("stopped") or {}
     done, planned = stop.get("speeds_done"), stop.get("speeds_planned")
     head = (f"speeds done: {done} of the scan's {planned}" if stop.get("phase") == "scan" else
@@ -170,8 +171,9 @@ def stop_message(result: dict, *, kept: list[str] | tuple = ()) -> str:
                      "threshold is below it")
     elif status == "threshold_not_located":
         a, b = result["threshold_between_hz"]
-        parts.append(f"it becomes unstable between {a:.4g} and {b:.4g} Hz, across speeds without a static "
-                     "equilibrium")
+        parts.append(f"it becomes unstable between {a:.4g} and {b:.4g} Hz, across speeds " +
+                     ("left out (no static equilibrium, or eigenvalues not computed: see the notes)"
+                      if result.get("speeds_without_eigenvalues_hz") else "without a static equilibrium"))
     elif status == "incomplete" and result.get("scan"):
         parts.append(f"no eigenvalue crosses into the right half plane up to {result['scan'][-1]['speed_hz']:.4g} Hz")
     for c in (result.get("crossings_bracketed") or [])[1 if status == "threshold_bracketed" else 0:]:

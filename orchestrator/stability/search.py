@@ -26,7 +26,8 @@ import numpy as np
 from orchestrator.scenario.analysis_clearance import BEARING_MODEL
 from orchestrator.stability.films import _NUMERIC, film_model
 from orchestrator.stability.partial import SpeedStopped, Stop, bracket, stop_of, widened
-from orchestrator.stability.system import Bearing, StabilityError, System, _static_loads, build_system
+from orchestrator.stability.system import (Bearing, EigenvaluesFailed, StabilityError, System, _static_loads,
+                                          build_system)
 
 FILMS = ("short", "hs", "mc")
 MAX_SPEED_HZ = 1e7         # highest --speeds HI (600 million rpm: beyond any rotor; 2 pi HI must not overflow)
@@ -89,7 +90,8 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     ``ws`` [rad/s] and between them. ``stop``: a :class:`orchestrator.coupling.lifecycle.StopRequests`
     looked at before each speed (scan and refinement; :mod:`orchestrator.stability.partial`);
     ``bar``: a progress bar (tqdm's calls) advanced by each speed of the scan; ``without``: what a
-    speed left out (``max_re`` raised :class:`StabilityError`) lacks, in the notes. ``continued``:
+    speed left out (``max_re`` raised :class:`StabilityError`) lacks, in the notes (one raising
+    :class:`EigenvaluesFailed` has it, but not its eigenvalues: a note of its own). ``continued``:
     ``max_re`` by continuation from the speeds done (the film model's ``max_re_continued``, which
     leaves the warm start of the next ``max_re`` as it was): after the scan, each speed left out is
     computed so, outwards from the speeds done (:func:`_continue_left_out`), before any crossing is
@@ -111,6 +113,7 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     # KeyboardInterrupt out of the search, which ended with a bare "interrupted" and no table
     abandoning = getattr(requests, "abandoning", None) or contextlib.nullcontext
     evals: dict[float, float] = {}           # every speed evaluated -> largest real part (brackets)
+    full: dict[float, tuple] = {}            # ... -> max_re's whole answer (Brent takes the scan's)
     current: list = [None]                   # the speed being evaluated
 
     def guarded(fn):
@@ -123,6 +126,7 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
             with abandoning():
                 v = fn(w)
             evals[float(w)] = v[0]
+            full[w] = v
             return v
         return at
     checked = guarded(max_re)
@@ -149,12 +153,17 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     ok = [k for k, v in enumerate(vals) if v is not None]
     if not ok and halt is None:
         raise failed[0][1]
-    if failed:
-        hz = sorted(w / (2 * math.pi) for w, _ in failed)
-        where = ", ".join(f"{f:.4g}" for f in hz[:6]) + (" ..." if len(failed) > 6 else "")
-        result["notes"].append(f"no {without} at {len(failed)} of the {done} speeds searched ({where} Hz), "
-                               f"left out: {failed[0][1]}".replace("; raise the lower end of --speeds", ""))
-        result["speeds_without_equilibrium_hz"] = hz
+    uncomputed = {float(w) for w, e in failed if isinstance(e, EigenvaluesFailed)}
+    for key, lacks, these in (("speeds_without_equilibrium_hz", f"no {without}",
+                               [f for f in failed if float(f[0]) not in uncomputed]),
+                              ("speeds_without_eigenvalues_hz", "eigenvalues not computed",
+                               [f for f in failed if float(f[0]) in uncomputed])):
+        if these:
+            hz = sorted(w / (2 * math.pi) for w, _ in these)
+            where = ", ".join(f"{f:.4g}" for f in hz[:6]) + (" ..." if len(these) > 6 else "")
+            result["notes"].append(f"{lacks} at {len(these)} of the {done} speeds searched ({where} Hz), "
+                                   f"left out: {these[0][1]}".replace("; raise the lower end of --speeds", ""))
+            result[key] = hz
     unlocated = None          # the first sign change, when it lies across speeds without equilibrium
     brackets = result["crossings_bracketed"]
     cells: list[tuple[int, int]] = []          # the scan's neighbours (k0, k1) of each bracket
@@ -168,7 +177,11 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
                     bar.set_postfix_str(f"refining the crossing between {ws[k0] / (2 * math.pi):.4g} and "
                                         f"{ws[k1] / (2 * math.pi):.4g} Hz")
                 try:
-                    wc, nu = refine_crossing(checked, ws[k0], ws[k1], xtol)
+                    # the scan's answer at the lower end is taken as it is; the upper end is computed
+                    # again, which puts the warm start of a film model that holds one (--film mc: each
+                    # film's state, the root the eigenvalue search starts from) next to the crossing,
+                    # where Brent goes next, not at the scan's last speed
+                    wc, nu = refine_crossing(checked, ws[k0], ws[k1], xtol, known={ws[k0]: full[ws[k0]]})
                 except (Exception, KeyboardInterrupt) as exc:     # a stop request, or an error at a step
                     halt = stop_of(exc, requests.signum, current[0], "refine")
                 else:
@@ -180,9 +193,12 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
             cells.append((k0, k1))
             continue
         between = [ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)]
+        gap = {float(w) in uncomputed for w in ws[k0 + 1:k1]}
+        across = ("without a " + without if gap == {False} else "whose eigenvalues were not computed"
+                  if gap == {True} else f"without a {without} or whose eigenvalues were not computed")
         result["notes"].append(f"the largest real part changes sign between {between[0]:.4g} and "
-                               f"{between[1]:.4g} Hz (it becomes {becomes}), across speeds without a "
-                               f"{without}: that crossing is not located")
+                               f"{between[1]:.4g} Hz (it becomes {becomes}), across speeds {across}: that "
+                               "crossing is not located")
         if unlocated is None and not result["crossings"] and not brackets:
             unlocated = between
     vals = [vals[k] for k in ok]
@@ -448,7 +464,7 @@ def _threshold(scenario, system: System, *, film: str, lo: float, hi: float, n_s
         try:
             v = model.max_re(w)
         except _NUMERIC as exc:          # the rotor's own matrices (an absurd mass, a speed far off)
-            raise StabilityError(f"the eigenvalues of the rotor '{system.rotor_instance}' in its bearings cannot "
+            raise EigenvaluesFailed(f"the eigenvalues of the rotor '{system.rotor_instance}' in its bearings cannot "
                                  f"be computed at {w / (2 * math.pi):.4g} Hz: {exc or type(exc).__name__}; check the "
                                  "rotor's and the bearings' parameters, or give a --speeds LO:HI nearer the rotor's "
                                  "running speeds") from exc

@@ -42,6 +42,13 @@ class StabilityError(CosimError):
     """A scenario the stability command does not support, or a computation that failed."""
 
 
+class EigenvaluesFailed(StabilityError):
+    """A speed with its static equilibrium (or orbit) whose eigenvalues could not be computed (the
+    argument-principle count and the Arnoldi runs disagreed with no dense solve in reach, the rotor's
+    matrices not finite): left out of the search as a speed without an equilibrium is, but named
+    apart from those (``speeds_without_eigenvalues_hz``)."""
+
+
 @dataclass
 class Bearing:
     instance: str

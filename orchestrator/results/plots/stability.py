@@ -66,11 +66,14 @@ def draw(result: dict, path: Path | str) -> Path:
         for ax in (ax1, ax2):
             ax.axvspan(a, b, color="C3" if c["becomes"] == "unstable" else "C2", alpha=0.25,
                        label=lab if ax is ax1 and k < 3 else None)
-    bad = result.get("speeds_without_equilibrium_hz") or []
-    if bad:
-        for ax in (ax1, ax2):
-            ax.plot(bad, np.zeros(len(bad)) if ax is ax1 else 0.5 * np.asarray(bad), "x", color="0.5", ms=4,
-                    label=("no periodic orbit" if floquet else "no static equilibrium") if ax is ax1 else None)
+    for key, marker, what in (("speeds_without_equilibrium_hz", "x",
+                               "no periodic orbit" if floquet else "no static equilibrium"),
+                              ("speeds_without_eigenvalues_hz", "+", "eigenvalues not computed")):
+        bad = result.get(key) or []
+        if bad:
+            for ax in (ax1, ax2):
+                ax.plot(bad, np.zeros(len(bad)) if ax is ax1 else 0.5 * np.asarray(bad), marker, color="0.5",
+                        ms=4, label=what if ax is ax1 else None)
     stop = result.get("stopped")
     if stop:
         where = f" at {stop['at_speed_hz']:.4g} Hz" if stop.get("at_speed_hz") is not None else ""
