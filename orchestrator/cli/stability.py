@@ -14,6 +14,9 @@ from orchestrator.cli.common import _add_set
 from orchestrator.cli.targets import _check_json_target, _check_plot_target
 from orchestrator.errors import CosimError
 
+#: speeds of the scan the command suggests over a crossing's bracket that Brent could not refine
+BRACKET_SCAN = 8
+
 
 def _add_stability(sub) -> None:
     p = sub.add_parser("stability", help="linear stability threshold of a scenario's rotor in its bearings",
@@ -23,8 +26,9 @@ def _add_stability(sub) -> None:
         "at their static equilibrium under gravity (plus any --load), has an eigenvalue "
         "in the right half plane; the whirl frequency ratio of that mode and each bearing's eccentricity there "
         "(docs/analysis.md, \"Linear stability threshold\"). Exit status 1 when no threshold is located in the "
-        "speed range (stable throughout, already unstable at its lower end, or unstable from between speeds "
-        "without a static equilibrium)."))
+        "speed range (stable throughout, already unstable at its lower end, unstable from between speeds "
+        "without a static equilibrium, or a threshold whose bracket could not be refined: a speed inside it "
+        "failed)."))
     p.add_argument("file", metavar="FILE", help="scenario YAML file, or the name of a shipped scenario")
     _add_set(p)
     p.add_argument("--film", choices=("short", "hs", "mc"), default="hs",
@@ -195,7 +199,7 @@ def _stability_report(args, r: dict) -> int:
     """``rotorcosim stability``'s output of the result ``r`` (stdout, --json, --plot, stderr); the exit code."""
     import json
 
-    from orchestrator.stability.partial import speed_range
+    from orchestrator.stability.partial import speed_range, widened
     lo, hi = r["speed_range_hz"]
     what = "stability with the unbalance (Floquet)" if r.get("unbalance") else "linear stability"
     print(f"{what} of {r['scenario']} ({args.file}): rotor '{r['rotor']['instance']}' "
@@ -219,9 +223,11 @@ def _stability_report(args, r: dict) -> int:
                     f"{b['ring_speed_ratio_at_threshold']:.3f} x journal speed")
             print(f"  {name} (station {b['station']}): static eccentricity ratio {b['eps_at_threshold']:.3f} at the "
                   f"threshold{ring}, load {b['load_n']:.4g} N")
-    from orchestrator.stability import later_crossings
-    for c in later_crossings(r):
-        print(f"then {c['becomes']} from {c['speed_hz']:.2f} Hz on (the least-damped mode at {c['whirl_hz']:.2f} Hz)")
+    elif r["status"] == "threshold_bracketed" and not r["stopped"]:      # Brent failed in it (a stop: its message)
+        a, b = r["threshold_between_hz"]
+        print(f"threshold speed: not refined, between {speed_range(a, b, ' and ')} Hz "
+              f"({r['threshold_bracket_width_hz']:.3g} Hz wide; an eigenvalue crosses into the right half plane there)")
+    _later(r)
     if r["stopped"]:                        # Ctrl-C, SIGTERM, an error at one speed: what was done
         from orchestrator.stability.partial import scan_table, stop_message
         print(scan_table(r))
@@ -235,6 +241,16 @@ def _stability_report(args, r: dict) -> int:
     if r["stopped"]:
         print(stop_message(r, kept=[f for f in (args.json, args.plot) if f]), file=sys.stderr)
         return r["stopped"]["exit_code"]
+    if r["status"] == "threshold_bracketed":      # not stopped: Brent gave up on it (the search went on)
+        a, b = r["threshold_between_hz"]
+        start, end = widened(a, b)
+        why = r["crossings_bracketed"][0].get("not_refined") or "not refined"
+        print(f"error: the system {'with its unbalance ' if r.get('unbalance') else ''}becomes unstable between "
+              f"{speed_range(a, b, ' and ')} Hz, but that crossing is not refined: {why}; `--speeds {start:.10g}:"
+              f"{end:.10g} --scan {BRACKET_SCAN}` scans that bracket on a finer grid (a speed that fails there is left "
+              "out, and the crossing is refined between the speeds done), or mend what the reason names",
+              file=sys.stderr)
+        return 1
     if r["status"] == "stable" and r.get("unbalance"):
         print(f"error: the Floquet growth rate along the periodic orbit under the unbalance stays negative between "
               f"{speed_range(lo, hi, ' and ')} Hz: the system with its unbalance is stable in that range; give a "
@@ -274,10 +290,33 @@ def _stability_report(args, r: dict) -> int:
     return 0
 
 
+def _later(r: dict) -> None:
+    """The "then ..." lines: the crossings after the threshold (or all, already unstable at the lower
+    end), and, for a search not stopped (a stopped one's message names them), the later brackets
+    Brent could not refine, with why; in order of speed."""
+    from orchestrator.stability import later_crossings
+    from orchestrator.stability.partial import speed_range
+    lines = [(c["speed_hz"], f"then {c['becomes']} from {c['speed_hz']:.2f} Hz on (the least-damped mode at "
+              f"{c['whirl_hz']:.2f} Hz)") for c in later_crossings(r)]
+    if not r["stopped"]:
+        skip = 1 if r["status"] == "threshold_bracketed" else 0
+        lines += [(c["between_hz"][0], f"then {c['becomes']} from between {speed_range(*c['between_hz'], ' and ')} Hz "
+                   + (f"(not refined: Brent's step at {c['failed_at_hz']:.6g} Hz failed; the note says why)"
+                      if c.get("failed_at_hz") is not None else "(not refined)"))
+                  for c in r["crossings_bracketed"][skip:]]
+    for _, line in sorted(lines, key=lambda x: x[0]):
+        print(line)
+
+
 def _floquet_report(r: dict) -> None:
     """The --unbalance lines of the report: the threshold with the unbalance, its multiplier and
     orbits, the linear threshold beside it, the cost."""
     fq, lin = r["floquet"], r.get("linear") or {}
+    if r["status"] == "threshold_bracketed" and not r["stopped"]:      # Brent failed in it (a stop: its message)
+        from orchestrator.stability.partial import speed_range
+        a, b = r["threshold_between_hz"]
+        print(f"threshold speed with the unbalance: not refined, between {speed_range(a, b, ' and ')} Hz "
+              f"({r['threshold_bracket_width_hz']:.3g} Hz wide; a Floquet multiplier leaves the unit circle there)")
     if r["status"] == "threshold":
         mu = fq["threshold_multiplier"]
         print(f"threshold speed with the unbalance: {r['threshold_hz']:.2f} Hz (a Floquet multiplier leaves the unit "
@@ -291,6 +330,10 @@ def _floquet_report(r: dict) -> None:
                  else "")
         print(f"linear threshold (static equilibrium, no unbalance): {lin['threshold_hz']:.2f} Hz (whirl "
               f"{lin['whirl_hz']:.2f} Hz){below}")
+    elif lin.get("threshold_between_hz"):        # Brent could not refine it (the search went on)
+        from orchestrator.stability.partial import speed_range
+        print(f"linear threshold (static equilibrium, no unbalance): not refined, between "
+              f"{speed_range(*lin['threshold_between_hz'], ' and ')} Hz ({lin['status']})")
     else:
         print(f"linear threshold (static equilibrium, no unbalance): none located in the range ({lin.get('status')})")
     for s in fq["speeds_without_orbit"][:3]:

@@ -327,7 +327,8 @@ class FloquetFilms:
 
 def linear_beside(fn, ws: np.ndarray, requests) -> dict:
     """The linear threshold (at the static equilibrium, no unbalance) on the same scan, for the
-    result's ``linear`` entry: ``status``, ``threshold_hz``, ``whirl_hz``, ``crossings``."""
+    result's ``linear`` entry: ``status``, ``threshold_hz``, ``whirl_hz``, ``crossings``, and
+    ``threshold_between_hz`` when Brent could not refine it (status ``threshold_bracketed``)."""
     from orchestrator.stability.search import _search
     out: dict = {"notes": [], "crossings": [], "crossings_bracketed": [], "speed_range_hz": None}
     if requests.requested:
@@ -336,8 +337,11 @@ def linear_beside(fn, ws: np.ndarray, requests) -> dict:
         _search(fn.max_re, ws, out)
     except (StabilityError, *_NUMERIC) as exc:
         return {"status": f"not computed: {exc}", "threshold_hz": None, "whirl_hz": None, "crossings": []}
-    return {"status": out["status"], "threshold_hz": out.get("threshold_hz"), "whirl_hz": out.get("whirl_hz"),
-            "crossings": out["crossings"]}
+    lin = {"status": out["status"], "threshold_hz": out.get("threshold_hz"), "whirl_hz": out.get("whirl_hz"),
+           "crossings": out["crossings"]}
+    if out["status"] == "threshold_bracketed":      # a step of Brent's failed there: its bracket, not refined
+        lin["threshold_between_hz"] = out["threshold_between_hz"]
+    return lin
 
 
 def floquet_entries(fq: FloquetFilms, result: dict, seen: dict, at: float | None, seconds: float) -> None:

@@ -8,7 +8,9 @@ stop request (:class:`orchestrator.coupling.lifecycle.StopRequests`) before each
 evaluates, in the scan over the range and in Brent's refinement of a crossing: the first Ctrl-C
 or SIGTERM lets the speed being computed finish and stops before the next one, a second one
 abandons that speed at once; an error at one speed other than "no static equilibrium there"
-(which leaves that speed out, as before) stops it there. Nothing is computed after a stop: a
+(a StabilityError, which leaves a speed of the scan out, and leaves a crossing at whose Brent step
+it was raised unrefined, as its bracket with ``not_refined``, the search going on: no stop) stops
+it there. Nothing is computed after a stop: a
 sign change between two speeds done is kept as its bracket (``crossings_bracketed``; the
 threshold's is ``threshold_between_hz`` with its width, status ``threshold_bracketed``), and
 ``stopped.rest`` is the ``--speeds LO:HI --scan N`` that computes what is left.
@@ -164,6 +166,8 @@ def stop_message(result: dict, *, kept: list[str] | tuple = ()) -> str:
         a, b = result["threshold_between_hz"]
         lo, hi = widened(a, b)
         how = f"; `--speeds {lo:.10g}:{hi:.10g} --scan 2` refines it" if s["phase"] == "scan" else ""
+        first = (result.get("crossings_bracketed") or [{}])[0]
+        how = f": {first['not_refined']}" if first.get("not_refined") else how      # Brent gave up on it
         width = result["threshold_bracket_width_hz"]
         parts.append(f"the threshold lies between {_pair(a, b)} Hz ({width:.3g} Hz wide, not refined{how})")
     elif status == "unstable_at_lower_bound":
@@ -177,7 +181,8 @@ def stop_message(result: dict, *, kept: list[str] | tuple = ()) -> str:
     elif status == "incomplete" and result.get("scan"):
         parts.append(f"no eigenvalue crosses into the right half plane up to {result['scan'][-1]['speed_hz']:.4g} Hz")
     for c in (result.get("crossings_bracketed") or [])[1 if status == "threshold_bracketed" else 0:]:
-        parts.append(f"then {c['becomes']} from between {_pair(*c['between_hz'])} Hz (not refined)")
+        why = f": {c['not_refined']}" if c.get("not_refined") else ""
+        parts.append(f"then {c['becomes']} from between {_pair(*c['between_hz'])} Hz (not refined{why})")
     if s["rest"] is not None:
         n = s["rest"].get("crossings") or 1
         what = ("the rest of the range" if s["phase"] == "scan" else "the range (the continuation starts from the "

@@ -25,7 +25,7 @@ import numpy as np
 
 from orchestrator.scenario.analysis_clearance import BEARING_MODEL
 from orchestrator.stability.films import _NUMERIC, film_model
-from orchestrator.stability.partial import SpeedStopped, Stop, bracket, stop_of, widened
+from orchestrator.stability.partial import SpeedStopped, Stop, _pair, bracket, stop_of, widened
 from orchestrator.stability.system import (Bearing, EigenvaluesFailed, StabilityError, System, _static_loads,
                                           build_system)
 
@@ -95,7 +95,15 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     ``max_re`` by continuation from the speeds done (the film model's ``max_re_continued``, which
     leaves the warm start of the next ``max_re`` as it was): after the scan, each speed left out is
     computed so, outwards from the speeds done (:func:`_continue_left_out`), before any crossing is
-    refined."""
+    refined; and a step of Brent's where ``max_re`` raised StabilityError is tried once more with it.
+
+    A StabilityError at a step of Brent's (no static equilibrium, no periodic orbit, eigenvalues not
+    computed there; ``continued`` failing too) leaves that crossing unrefined, not the search: it is
+    kept in ``crossings_bracketed`` as the narrowest bracket of the speeds done
+    (:func:`orchestrator.stability.partial.bracket`) with ``not_refined`` (why, naming the speed)
+    and ``failed_at_hz``, a note names it, and the later crossings are refined; when it is the first
+    sign change the status is ``threshold_bracketed`` (``threshold_between_hz``), with no stop. Any
+    other error there, and a stop request, stop the search (:class:`Searched` ``stop``)."""
     from rotor_fmu.stability import refine_crossing
     # the whole range on a geometric grid, then Brent on every sign change of the largest real part
     # between neighbouring speeds (rotor_fmu.stability.refine_crossing, as threshold_speed refines
@@ -105,7 +113,8 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     # e.g. a floating ring's outer film at low speed) is left out, and no crossing is sought across it:
     # a sign change across such speeds is named (status "threshold_not_located" when it is the first).
     # A stop (signal, error) ends it where it is: nothing more is computed, the sign changes between
-    # speeds done are kept as brackets (partial.py).
+    # speeds done are kept as brackets (partial.py). A step of Brent's without an equilibrium (orbit,
+    # eigenvalues) is no stop: that crossing is kept as its bracket, with why, and the search goes on.
     requests = stop if stop is not None else _NoStop
     # a second signal abandons the speed being computed (StopRequests.abandoning), and only that: one
     # landing between two speeds (the progress bar, the bookkeeping after the scan, a stop's own
@@ -167,11 +176,22 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     unlocated = None          # the first sign change, when it lies across speeds without equilibrium
     brackets = result["crossings_bracketed"]
     cells: list[tuple[int, int]] = []          # the scan's neighbours (k0, k1) of each bracket
+    again = None if continued is None else guarded(continued)
+
+    def step(w):
+        """One of Brent's speeds: a StabilityError there tried once more by continuation (``again``)."""
+        try:
+            return checked(w)
+        except StabilityError:
+            if again is None:
+                raise
+        return again(w)
     for k0, k1 in zip(ok, ok[1:]):
         if (vals[k0] < 0.0) == (vals[k1] < 0.0):
             continue
         becomes = "unstable" if vals[k0] < 0.0 else "stable"
         if k1 == k0 + 1:
+            gave_up = None              # (the speed, the StabilityError) where Brent could not go on
             if halt is None:
                 if bar is not None:
                     bar.set_postfix_str(f"refining the crossing between {ws[k0] / (2 * math.pi):.4g} and "
@@ -181,7 +201,9 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
                     # again, which puts the warm start of a film model that holds one (--film mc: each
                     # film's state, the root the eigenvalue search starts from) next to the crossing,
                     # where Brent goes next, not at the scan's last speed
-                    wc, nu = refine_crossing(checked, ws[k0], ws[k1], xtol, known={ws[k0]: full[ws[k0]]})
+                    wc, nu = refine_crossing(step, ws[k0], ws[k1], xtol, known={ws[k0]: full[ws[k0]]})
+                except StabilityError as exc:      # no equilibrium (orbit, eigenvalues) at a step: this crossing only
+                    gave_up = (current[0], exc)
                 except (Exception, KeyboardInterrupt) as exc:     # a stop request, or an error at a step
                     halt = stop_of(exc, requests.signum, current[0], "refine")
                 else:
@@ -191,6 +213,8 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
             a, b = (x / (2 * math.pi) for x in bracket(evals, ws[k0], ws[k1]))
             brackets.append({"between_hz": [a, b], "width_hz": b - a, "becomes": becomes})
             cells.append((k0, k1))
+            if gave_up is not None:
+                _not_refined(result, brackets[-1], ws[k0], ws[k1], *gave_up, continued is not None)
             continue
         between = [ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)]
         gap = {float(w) in uncomputed for w in ws[k0 + 1:k1]}
@@ -203,6 +227,9 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
             unlocated = between
     vals = [vals[k] for k in ok]
     at = None
+    # the first sign change: a crossing, or a bracket not refined (before it: Brent failed there)
+    crossings = result["crossings"]
+    bracketed_first = brackets and not (crossings and crossings[0]["speed_hz"] < brackets[0]["between_hz"][0])
     if not vals:                       # stopped before a speed with an equilibrium was done
         status = "incomplete"
     elif vals[0] >= 0.0:
@@ -210,12 +237,12 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     elif unlocated is not None:        # stable below, unstable above, speeds without equilibrium between
         status = "threshold_not_located"
         result["threshold_between_hz"] = unlocated
-    elif result["crossings"]:
-        first = result["crossings"][0]
+    elif crossings and not bracketed_first:
+        first = crossings[0]
         status, at = "threshold", 2 * math.pi * first["speed_hz"]
         result.update(threshold_hz=first["speed_hz"], whirl_hz=first["whirl_hz"],
                       whirl_ratio=first["whirl_hz"] / first["speed_hz"])
-    elif brackets:                     # stopped before the threshold's bracket was refined
+    elif brackets:                     # its bracket not refined: stopped before, or Brent failed in it
         status = "threshold_bracketed"
         result.update(threshold_between_hz=brackets[0]["between_hz"],
                       threshold_bracket_width_hz=brackets[0]["width_hz"])
@@ -232,16 +259,34 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
         elif halt.phase == "scan":       # from the last speed done (rounded down): a crossing just after it is found
             last = math.floor(ws[done - 1] / (2 * math.pi) * 1e3) / 1e3 if done else lo
             halt.rest = (lo, hi, len(ws)) if done == 0 else (max(last, lo), hi, len(ws) - done + 1)
-        elif len(brackets) == 1:       # the crossing it was refining, the last one: its bracket
-            halt.rest = (*widened(*brackets[0]["between_hz"]), 2)
-            halt.rest_crossings = 1
-        elif brackets:                 # that one and the later ones: the scan's grid from the first to the last
-            # (the same speeds, so the same sign changes; Brent's bracket of the first is not kept: a grid
-            # starting there would move the later speeds, and two close crossings could fall in one cell)
-            k0, k1 = cells[0][0], cells[-1][1]
-            halt.rest = (*widened(ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)), k1 - k0 + 1)
-            halt.rest_crossings = len(brackets)
+        else:   # the crossing it was refining and the later ones (those before it Brent gave up on are not
+            # the rest's: pasted back they would fail the same way; their notes say why)
+            pending = [k for k, c in enumerate(brackets) if "not_refined" not in c]
+            if len(pending) == 1:      # the crossing it was refining, the last one: its bracket
+                halt.rest = (*widened(*brackets[pending[0]]["between_hz"]), 2)
+                halt.rest_crossings = 1
+            elif pending:              # that one and the later ones: the scan's grid from the first to the last
+                # (the same speeds, so the same sign changes; Brent's bracket of the first is not kept: a grid
+                # starting there would move the later speeds, and two close crossings could fall in one cell)
+                k0, k1 = cells[pending[0]][0], cells[pending[-1]][1]
+                halt.rest = (*widened(ws[k0] / (2 * math.pi), ws[k1] / (2 * math.pi)), k1 - k0 + 1)
+                halt.rest_crossings = len(pending)
     return Searched(at, halt)
+
+
+def _not_refined(result: dict, entry: dict, w0: float, w1: float, w: float, exc: StabilityError,
+                 retried: bool) -> None:
+    """A crossing between the scan's speeds ``w0`` and ``w1`` [rad/s] that Brent could not refine,
+    ``exc`` raised at its step ``w`` (tried once more by continuation when ``retried``): its bracket
+    ``entry`` (in ``crossings_bracketed``) gets why (``not_refined``) and that speed (``failed_at_hz``),
+    and the notes a line naming both."""
+    why = str(exc).replace("; raise the lower end of --speeds", "")      # the scan's fix, not one inside a bracket
+    also = " (also by continuation from the speeds done)" if retried else ""
+    entry.update(not_refined=f"Brent's step at {w / (2 * math.pi):.6g} Hz failed{also}: {why}",
+                 failed_at_hz=w / (2 * math.pi))
+    result["notes"].append(f"the crossing between {w0 / (2 * math.pi):.4g} and {w1 / (2 * math.pi):.4g} Hz (it "
+                           f"becomes {entry['becomes']}) is not refined: {entry['not_refined']}; kept as its bracket, "
+                           f"{_pair(*entry['between_hz'])} Hz (narrowed by Brent's speeds before it)")
 
 
 def _outwards(vals: list) -> list[list[int]]:
@@ -362,9 +407,12 @@ def stability(scenario, *, film: str = "hs", speeds: tuple[float, float] | None 
 
     Ctrl-C or SIGTERM (in the main thread; :class:`orchestrator.coupling.lifecycle.StopRequests`)
     stops the search after the speed being computed (a second one at once), and an error at one
-    speed (other than no static equilibrium there) stops it at that speed: the result then holds
-    what was done, ``complete`` False and ``stopped`` (why, where, and the ``--speeds``/``--scan``
-    of the rest; :mod:`orchestrator.stability.partial`), and nothing is computed after the stop.
+    speed (other than a :class:`StabilityError`: no static equilibrium, periodic orbit or
+    eigenvalues there, which leaves a speed of the scan out, and a crossing whose Brent step raised
+    it unrefined, as its bracket with ``not_refined``, the search going on) stops it at that speed:
+    the result then holds what was done, ``complete`` False and ``stopped`` (why, where, and the
+    ``--speeds``/``--scan`` of the rest; :mod:`orchestrator.stability.partial`), and nothing is
+    computed after the stop.
     Before the first speed (the system and its films being set up) a signal stops at once: the
     :class:`orchestrator.coupling.lifecycle.RunStopped` (a KeyboardInterrupt) raised there leaves
     this function, as nothing was computed to keep. ``requests``: the caller's StopRequests, entered

@@ -8,7 +8,9 @@ film whirl sits just below it). The threshold and its whirl frequency are marked
 other crossing (stable again, or, already unstable at the lower end, stable from there), and
 speeds without a static equilibrium (grey crosses). The figure of a search that was stopped
 (``result["stopped"]``: Ctrl-C, SIGTERM, an error at one speed) draws the speeds done, its
-unrefined crossings as their brackets (shaded), and says where it stopped. With ``--unbalance``
+unrefined crossings as their brackets (shaded), and says where it stopped; a crossing Brent could
+not refine (a step of his failed: no equilibrium, orbit or eigenvalues there) is shaded as its
+bracket too, the speed that failed a red cross. With ``--unbalance``
 (``result["unbalance"]``) the same panels from the largest Floquet multiplier (decrement
 ``-2 pi ln|mu| / |arg mu|``, frequency ``|arg mu| f``) and the linear threshold marked beside.
 """
@@ -60,12 +62,19 @@ def draw(result: dict, path: Path | str) -> Path:
         for ax in (ax1, ax2):
             ax.axvline(c["speed_hz"], color="C2" if c["becomes"] == "stable" else "C3", ls=":", lw=1.2,
                        label=lab if ax is ax1 else None)
-    for k, c in enumerate(result.get("crossings_bracketed") or []):   # a stopped search's unrefined crossings
+    # the unrefined crossings: a stopped search's, and those where a step of Brent's failed
+    for k, c in enumerate(result.get("crossings_bracketed") or []):
         a, b = c["between_hz"]
-        lab = f"{c['becomes']} from between {a:.5g} and {b:.5g} Hz (not refined)"
+        why = f": Brent failed at {c['failed_at_hz']:.5g} Hz" if c.get("failed_at_hz") is not None else ""
+        lab = f"{c['becomes']} from between {a:.5g} and {b:.5g} Hz (not refined{why})"
         for ax in (ax1, ax2):
             ax.axvspan(a, b, color="C3" if c["becomes"] == "unstable" else "C2", alpha=0.25,
                        label=lab if ax is ax1 and k < 3 else None)
+    failed = [c["failed_at_hz"] for c in result.get("crossings_bracketed") or [] if c.get("failed_at_hz") is not None]
+    if failed:           # no value there: on the zero line and at 0.5 x speed, as the speeds left out
+        for ax in (ax1, ax2):
+            ax.plot(failed, np.zeros(len(failed)) if ax is ax1 else 0.5 * np.asarray(failed), "x", color="C3", ms=6,
+                    mew=1.5, label="Brent's step failed (see the notes)" if ax is ax1 else None)
     for key, marker, what in (("speeds_without_equilibrium_hz", "x",
                                "no periodic orbit" if floquet else "no static equilibrium"),
                               ("speeds_without_eigenvalues_hz", "+", "eigenvalues not computed")):
@@ -80,6 +89,10 @@ def draw(result: dict, path: Path | str) -> Path:
         why = {"SIGINT": "interrupted", "SIGTERM": "terminated (SIGTERM)"}.get(stop["by"], "stopped by an error")
         ax1.set_title(f"incomplete: {why}{where} ({stop['phase']}, {stop['speeds_done']} of "
                       f"{stop['speeds_planned']} speeds of the scan done)", fontsize=9)
+    elif result.get("status") == "threshold_bracketed":     # not stopped: a step of Brent's failed in its bracket
+        a, b = result["threshold_between_hz"]
+        ax1.set_title(f"threshold not refined: between {a:.5g} and {b:.5g} Hz (a step of Brent's failed there)",
+                      fontsize=9)
     elif result.get("status") == "stable":
         ax1.set_title("no crossing in the range: stable there", fontsize=9)
     elif result.get("status") == "unstable_at_lower_bound":
