@@ -8,7 +8,8 @@ that speed once more first; an error other than StabilityError (a bug, a stop re
 the search (tests/test_stability_stop.py).
 
 Plain functions for the search (as tests/test_stability_left_out.py), and the command on the paper
-rotor in short films with its film's max_re made to fail inside the first crossing's bracket.
+rotor in short films with its film's max_re (with --unbalance: its periodic orbit) made to fail inside
+the threshold's bracket.
 """
 
 from __future__ import annotations
@@ -185,3 +186,31 @@ def test_the_command_names_the_unrefined_threshold_bracket_why_and_the_fix(capsy
     lo, hi = math.floor(a * 1e6) / 1e6, math.ceil(b * 1e6) / 1e6
     assert f"--speeds {lo:.10g}:{hi:.10g} --scan 8" in err, err
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_command_with_unbalance_names_the_unrefined_threshold_bracket(capsys, monkeypatch, tmp_path):
+    """--unbalance: no periodic orbit at a step of Brent's (NoPeriodicOrbit) inside the threshold's
+    bracket (the paper rotor in short films with its unbalance: 261.95 Hz)."""
+    from orchestrator.stability import floquet
+    scan_hz = np.geomspace(250.0, 275.0, 3)
+    real = floquet.FloquetFilms.max_re
+
+    def max_re(self, w):
+        f = w / (2 * math.pi)
+        if 255.0 < f < 270.0 and not np.isclose(scan_hz, f, rtol=1e-12, atol=0.0).any():
+            self.failures[float(w)] = "made to fail here"
+            raise floquet.NoPeriodicOrbit(f"no synchronous periodic orbit at {f:.6g} Hz: made to fail here")
+        return real(self, w)
+    monkeypatch.setattr(floquet.FloquetFilms, "max_re", max_re)
+    out = tmp_path / "r.json"
+    rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", "--unbalance", "--speeds", "250:275",
+                   "--scan", "3", "--json", out)
+    assert rc == 1, text
+    r = json.loads(out.read_text())
+    assert r["stopped"] is None and r["status"] == "threshold_bracketed" and r["complete"] is True
+    a, b = r["threshold_between_hz"]
+    assert a < 261.95 < b
+    assert "threshold speed with the unbalance: not refined, between" in text, text
+    assert "linear threshold (static equilibrium, no unbalance): 262.14 Hz" in text, text
+    assert "error: the system with its unbalance becomes unstable between" in text, text
+    assert "no synchronous periodic orbit at" in text.split("error: ", 1)[1] and "--scan 8" in text, text

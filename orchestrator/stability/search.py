@@ -284,9 +284,11 @@ def _not_refined(result: dict, entry: dict, w0: float, w1: float, w: float, exc:
     also = " (also by continuation from the speeds done)" if retried else ""
     entry.update(not_refined=f"Brent's step at {w / (2 * math.pi):.6g} Hz failed{also}: {why}",
                  failed_at_hz=w / (2 * math.pi))
+    a, b = entry["between_hz"]
+    how = "" if (a, b) == (w0 / (2 * math.pi), w1 / (2 * math.pi)) else " (narrowed by Brent's speeds before it)"
     result["notes"].append(f"the crossing between {w0 / (2 * math.pi):.4g} and {w1 / (2 * math.pi):.4g} Hz (it "
-                           f"becomes {entry['becomes']}) is not refined: {entry['not_refined']}; kept as its bracket, "
-                           f"{_pair(*entry['between_hz'])} Hz (narrowed by Brent's speeds before it)")
+                           f"becomes {entry['becomes']}) is not refined: {entry['not_refined']}; kept as its bracket"
+                           + (f", {_pair(a, b)} Hz{how}" if how else ""))
 
 
 def _outwards(vals: list) -> list[list[int]]:
