@@ -9,8 +9,8 @@ other crossing (stable again, or, already unstable at the lower end, stable from
 speeds without a static equilibrium (grey crosses). The figure of a search that was stopped
 (``result["stopped"]``: Ctrl-C, SIGTERM, an error at one speed) draws the speeds done, its
 unrefined crossings as their brackets (shaded), and says where it stopped; a crossing Brent could
-not refine (a step of his failed: no equilibrium, orbit or eigenvalues there) is shaded as its
-bracket too, the speed that failed a red cross. With ``--unbalance``
+not refine (no equilibrium, orbit or eigenvalues at one of its speeds) is shaded as its bracket
+too, the speed that failed a red cross. With ``--unbalance``
 (``result["unbalance"]``) the same panels from the largest Floquet multiplier (decrement
 ``-2 pi ln|mu| / |arg mu|``, frequency ``|arg mu| f``) and the linear threshold marked beside.
 """
