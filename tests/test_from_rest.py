@@ -63,20 +63,33 @@ def test_from_rest_journals_rest_where_the_contact_carries_the_weight(pairs, mod
 @pytest.mark.slow
 @pytest.mark.parametrize("model", ["half_sommerfeld", "free_to_air"])
 def test_from_rest_start_lifts_off(pairs, model, tmp_path):
-    """The first 6 ms: the contact carries the journals at t = 0 and the film starts to
-    take the load over as the speed rises (contact force falls, the film's grows)."""
+    """The first 45 ms: the contact carries the journals at t = 0, the film takes the load over
+    as the speed rises (contact force below 60 % by 25 ms, below 0.1 % by 45 ms: lifted off at ~14-16 Hz),
+    and the journal is carried by the film alone, at its weight share.
+
+    The contact phase is checked by these milestones, not by the force at one early instant: with
+    the mass-conserving film and the shipped 0.1 ms macro step the force during contact has spikes
+    (up to ~90x the load in the first 10 ms: docs/runups.md, "From rest", "The contact phase"),
+    and the contact force at 6 ms depends on the solver's details (0.96 x its start on main
+    e5d5eed, 0.83 x before dad0350, which this test's first version pinned as < 0.95 x). These
+    milestones hold for the free-to-air film at macro steps of 0.1 ms and 10 us and with the
+    error-controlled step alike (contact force below 15 N from 25 ms, lifted off between 32 and
+    40 ms; the smallest eps over 40-50 ms 0.8529 / 0.8531 / 0.8531)."""
     from orchestrator import run
     rest, _ = pairs[model]
-    sc = replace(rest, stop_time=6e-3)
+    sc = replace(rest, stop_time=45e-3)
     res = run(sc, out_dir=tmp_path, progress=False)
     assert res.success, res.message
     fc = np.asarray(res.outputs["bearing1.F_contact"])
     fy = np.asarray(res.outputs["bearing1.Fy"])
     eps = np.asarray(res.outputs["bearing1.eps"])
+    t = np.linspace(0.0, sc.stop_time, len(fc))
     assert fc[0] == pytest.approx(29.43, rel=0.02)
-    assert fc[-1] < 0.95 * fc[0]                    # the film carries part of it now
+    assert np.all(fc[t >= 25e-3] < 0.6 * fc[0])      # the film carries most of it by ~10 Hz
+    assert fc[-1] < 1e-3 * fc[0]                     # lifted off (0.8 mN HS, 8 uN free to air left)
+    assert fy[-1] == pytest.approx(29.43, rel=0.02)  # the film alone carries the weight share
     assert np.all(np.isfinite(fy)) and np.all(eps < 1.0 + 1e-6)
-    assert eps[-1] < eps[0]
+    assert eps[-1] < 0.95 < eps[0]
 
 
 @pytest.mark.slow
