@@ -52,7 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 import exit_layer_2d as el  # noqa: E402
 import grid_convergence as gc  # noqa: E402
 import reformation_front_1d as rf  # noqa: E402
-from bearing_fmu.film import limiter  # noqa: E402
+from bearing_fmu.film import face_theta, limiter  # noqa: E402
 from bearing_fmu.linearize import _force  # noqa: E402
 from bearing_fmu.model import BearingModel  # noqa: E402
 
@@ -116,18 +116,28 @@ def rupture_correction(b, xy, omega, q_rows):
     return corr.ravel(), info
 
 
-def row_flux(b, u, kin, alpha=0.0):
+def row_flux(b, u, kin, alpha=0.0, deg=None, scheme=True):
     """Per row the circumferential flux per unit width at the east face of the column nearest
-    Q_DEG (physical angle; the grid rotated by alpha)."""
+    ``deg`` (default Q_DEG; physical angle; the grid rotated by alpha): the film's own face
+    flux, i.e. with ``theta_transport = 1`` the limited face value of theta (film.py
+    ``face_theta``), the flux that the scheme conserves along the row. ``scheme=False``: the
+    upwind cell value whatever the transport (the prototype's formula before 2026-12-07,
+    kept for the ``flux`` part; with ``theta_transport = 1`` it is not the film's flux)."""
     g = b.grid
-    p, th = b.law.p_theta(u)
-    p, th = p.reshape(g.n_z, g.n_phi), th.reshape(g.n_z, g.n_phi)
+    p, th_flat = b.law.p_theta(u)
+    p, th = p.reshape(g.n_z, g.n_phi), th_flat.reshape(g.n_z, g.n_phi)
     He, om = kin[1], kin[3]
-    i = int(np.argmin(np.abs((g.phi - math.radians(Q_DEG) - alpha + math.pi) % (2 * math.pi)
+    deg = Q_DEG if deg is None else deg
+    i = int(np.argmin(np.abs((g.phi - math.radians(deg) - alpha + math.pi) % (2 * math.pi)
                              - math.pi)))
     if np.any(th[:, i] >= 0.999):
-        raise RuntimeError(f"column at {Q_DEG} deg not in the cavity on every row")
-    return om * He[i] * th[:, i] - b.a_phi * He[i] ** 3 * (p[:, (i + 1) % g.n_phi] - p[:, i]) / (
+        raise RuntimeError(f"column at {deg} deg not in the cavity on every row")
+    if scheme and b.params.theta_transport == 1:
+        thf = np.array([face_theta(th_flat, g.groove, i, j * g.n_phi, g.n_phi, om >= 0.0)[0]
+                        for j in range(g.n_z)])
+    else:
+        thf = th[:, i]
+    return om * He[i] * thf - b.a_phi * He[i] ** 3 * (p[:, (i + 1) % g.n_phi] - p[:, i]) / (
         g.frel[i] * g.dphi)
 
 
@@ -266,6 +276,54 @@ def shifted(n_phi, n_z, q, omega, rupture, frac):
     return ca * F[0] + sa * F[1], -sa * F[0] + ca * F[1]
 
 
+def rupture_angle(b, xy, omega, q):
+    """phi_r [deg] of ``omega H(phi_r) = q`` after the minimum gap (row_layer's root)."""
+    x, y = xy
+    phi_min = math.atan2(y, x)
+    return math.degrees(brentq(
+        lambda p: omega * (1.0 - (x * math.cos(p) + y * math.sin(p)) / b.c) - q,
+        phi_min + 1e-9, phi_min + math.pi - 1e-6, xtol=1e-15))
+
+
+def flux_probe(n_phi, n_z, xy, omega, rupture):
+    """The rows' cavity flux of one film (exit correction, and the rupture correction if
+    ``rupture``): mid-width q at Q_DEG from the film's face flux and from the upwind formula,
+    the spread of each over the faces nearest 30 ... 70 deg, the half film's total Q = sum_j
+    dz q_j, and phi_r of the mid-width row from each q."""
+    film = Film(n_phi, n_z, omega)
+    b = film.b
+    u, kin, its, info, _ = film.steady(xy, rupture)
+    out = {}
+    for name, sch in (("scheme", True), ("upwind", False)):
+        qs = np.array([row_flux(b, u, kin, deg=d, scheme=sch) for d in (30, 40, 50, 60, 70)])
+        q50 = qs[2]
+        out[name] = (q50[-1], float(np.ptp(qs[:, -1]) / q50[-1]), float(b.grid.dz * q50.sum()),
+                     rupture_angle(b, xy, omega, q50[-1]))
+    return out, info
+
+
+def flux_table(shapes, xy, omega, rupture):
+    print("| grid | tt | q mid-width (film's face flux) | spread 30..70 deg | Q | phi_r mid [deg] | "
+          "q mid-width (upwind formula) | spread 30..70 deg | Q | phi_r mid [deg] |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    res, saved = {}, dict(el.TT)
+    for tt in (0, 1):
+        el.TT["theta_transport"] = tt
+        for n_phi, n_z in shapes:
+            o, _ = flux_probe(n_phi, n_z, xy, omega, rupture)
+            res[(tt, n_phi, n_z)] = o
+            a, c = o["scheme"], o["upwind"]
+            print(f"| {n_phi} x {n_z} | {tt} | {a[0]:.6f} | {a[1]:.1e} | {a[2]:.6f} | {a[3]:.2f} | "
+                  f"{c[0]:.6f} | {c[1]:.1e} | {c[2]:.6f} | {c[3]:.2f} |", flush=True)
+    el.TT.clear()
+    el.TT.update(saved)
+    for tt in (0, 1):
+        for name in ("scheme", "upwind"):
+            v = [res[(tt, a, b)][name][2] for a, b in shapes]
+            print(f"\ntt {tt}, Q from the {name} flux: orders {orders(v)}")
+    return res
+
+
 def orders(vals):
     d = np.diff(vals)
     return ", ".join(f"{math.log2(d[i] / d[i + 1]):.2f}" if d[i] * d[i + 1] > 0 else "nan"
@@ -294,6 +352,10 @@ def table(shapes, q, omega):
 
 
 def main(argv):
+    if "--tt" in argv:          # as exit_layer_2d.py: the films' theta_transport
+        k = argv.index("--tt")
+        el.TT["theta_transport"] = int(argv[k + 1])
+        argv = argv[:k] + argv[k + 2:]
     parts = argv or ["square"]
     q = gc.hs_equilibrium(40)
     omega = 2 * math.pi * gc.F_HZ
@@ -320,6 +382,11 @@ def main(argv):
                       f"{100 * (max(fy) - min(fy)) / abs(np.mean(fy)):.3f} % |", flush=True)
 
 
+    if "flux" in parts:     # both transports whatever --tt; the exit-corrected films
+        print("\n### the rows' cavity flux at 50 deg, exit correction only, square grids\n")
+        flux_table([(n, n) for n in (20, 40, 80, 160)], q, omega, False)
+        print("\n### the same, n_z = 40, n_phi refined\n")
+        flux_table([(n, 40) for n in (48, 96, 192, 384, 768)], q, omega, False)
     if "stiffness" in parts:
         print("\n### square grids: force and stiffness coefficients\n")
         names = ("Fx [N]", "Fy [N]", "kxx [N/m]", "kxy [N/m]", "kyx [N/m]", "kyy [N/m]")
