@@ -8,9 +8,11 @@ The bearing, journal position and Newton tolerances are those of grid_convergenc
 full film ruptures freely after it). Per grid:
 
 1. the film with the exit-layer correction (exit_layer_2d.exit_corrected) is solved;
-2. per row j, the circumferential flux through the cavity, q_j (per unit width, at the column
-   nearest 50 deg: in the cavity between the rupture and the groove on every row, where p is
-   flat and q_j is constant along the row);
+2. per row j, the circumferential flux through the cavity, q_j (per unit width, at the east
+   face of the column nearest 50 deg: in the cavity between the rupture and the groove on
+   every row, where p is flat and q_j is constant along the row), the film's own face flux
+   (with ``theta_transport = 1`` the limited face value of theta: the upwind cell value is
+   off by O(h) there, 1.3 % at 40 x 40, and put phi_r up to 14 deg late until 2026-12-07);
 3. per row, the rupture's local 1-D problem given q_j (reformation_front_1d.rupture_layer's
    construction with the circumferential conductance a_phi, the axial flow left out): phi_r
    from ``omega H(phi_r) = q_j``, the gap linearised there, the window ``max(2 h, 8 ell)``;
@@ -30,8 +32,12 @@ n_z = 40, about 3 minutes; ``axial``: n_z 20 ... 80 at n_phi = 96, about 2 minut
 ``shift``, about 8 minutes; ``sectors``: where the 40 x 40 shifted films' Fx error sits, per
 phi sector, against 768 x 40, about 6 minutes; ``stiffness``: force and the four stiffness
 coefficients on 20 ... 160 square grids, central differences of positions +- 1e-3 c, each
-perturbed state warm from the base state, about 20 minutes). Markdown tables of Fx, Fy, exit correction only and with the
-rupture correction.
+perturbed state warm from the base state, about 20 minutes; ``flux``: the rows' cavity flux
+of the exit-corrected films, the film's face flux against the upwind formula, both transports,
+square grids and n_phi 48 ... 768 at n_z = 40, about 4 minutes). Markdown tables of Fx, Fy,
+exit correction only and with the rupture correction. ``--tt 1``: the films with the limited
+second-order theta transport (as exit_layer_2d.py); ``--upwind-q``: q_j from the upwind cell
+value of theta whatever the transport (the old formula, to reproduce its numbers).
 """
 
 from __future__ import annotations
@@ -58,6 +64,9 @@ from bearing_fmu.model import BearingModel  # noqa: E402
 
 #: where the rows' cavity flux is taken [deg, physical]
 Q_DEG = 50.0
+#: True: the rows' cavity flux from the upwind cell value of theta whatever the transport (the
+#: prototype before 2026-12-07; ``--upwind-q``, to reproduce its theta_transport 1 numbers)
+UPWIND_Q = False
 #: window half width in units of the soft rupture's width ell, and at least MIN_CELLS cells
 N_LEN = 8.0
 MIN_CELLS = 2.0
@@ -116,7 +125,7 @@ def rupture_correction(b, xy, omega, q_rows):
     return corr.ravel(), info
 
 
-def row_flux(b, u, kin, alpha=0.0, deg=None, scheme=True):
+def row_flux(b, u, kin, alpha=0.0, deg=None, scheme=None):
     """Per row the circumferential flux per unit width at the east face of the column nearest
     ``deg`` (default Q_DEG; physical angle; the grid rotated by alpha): the film's own face
     flux, i.e. with ``theta_transport = 1`` the limited face value of theta (film.py
@@ -132,6 +141,8 @@ def row_flux(b, u, kin, alpha=0.0, deg=None, scheme=True):
                              - math.pi)))
     if np.any(th[:, i] >= 0.999):
         raise RuntimeError(f"column at {deg} deg not in the cavity on every row")
+    if scheme is None:
+        scheme = not UPWIND_Q
     if scheme and b.params.theta_transport == 1:
         thf = np.array([face_theta(th_flat, g.groove, i, j * g.n_phi, g.n_phi, om >= 0.0)[0]
                         for j in range(g.n_z)])
@@ -356,6 +367,10 @@ def main(argv):
         k = argv.index("--tt")
         el.TT["theta_transport"] = int(argv[k + 1])
         argv = argv[:k] + argv[k + 2:]
+    global UPWIND_Q
+    if "--upwind-q" in argv:
+        UPWIND_Q = True
+        argv = [a for a in argv if a != "--upwind-q"]
     parts = argv or ["square"]
     q = gc.hs_equilibrium(40)
     omega = 2 * math.pi * gc.F_HZ
