@@ -67,6 +67,11 @@ Q_DEG = 50.0
 #: True: the rows' cavity flux from the upwind cell value of theta whatever the transport (the
 #: prototype before 2026-12-07; ``--upwind-q``, to reproduce its theta_transport 1 numbers)
 UPWIND_Q = False
+#: True: the rows' cavity flux at Q_DEG includes the rupture correction Delta of that face (the
+#: flux the corrected film conserves); False (``--q-without-delta``, the prototype before
+#: 2026-12-07): the film's face flux alone, which differs where the face lies inside the
+#: window (20 x 20: the window reaches ~70 deg)
+Q_WITH_DELTA = True
 #: window half width in units of the soft rupture's width ell, and at least MIN_CELLS cells
 N_LEN = 8.0
 MIN_CELLS = 2.0
@@ -100,13 +105,15 @@ def row_layer(b, xy, omega, q, margin):
 
 
 def rupture_correction(b, xy, omega, q_rows):
-    """(n,) residual correction of the film for the rows' cavity fluxes q_rows, and per row
-    (phi_r [deg], corrected faces); rows from the edge (0) to the mid-width (the film holds the
-    symmetric half)."""
+    """(n,) residual correction of the film for the rows' cavity fluxes q_rows, per row
+    (phi_r [deg], corrected faces), and the (n_z, n_phi) face corrections Delta (east face of
+    each column); rows from the edge (0) to the mid-width (the film holds the symmetric
+    half)."""
     g = b.grid
     n_phi, h = g.n_phi, g.dphi
     muscl = b.params.theta_transport == 1
     corr = np.zeros((g.n_z, n_phi))
+    deltas = np.zeros((g.n_z, n_phi))
     info = []
     for j in range(g.n_z):
         sol, phi_r, W, H = row_layer(b, xy, omega, q_rows[j], 3 * h)
@@ -121,17 +128,19 @@ def rupture_correction(b, xy, omega, q_rows):
             F = omega * He * thf - b.a_phi * He ** 3 * (p[e] - p[i]) / (g.frel[i] * h)
             delta[i] = wt[i] * (q_rows[j] - F)
         corr[j] = g.dz * (delta - np.roll(delta, 1))
+        deltas[j] = delta
         info.append((math.degrees(phi_r), int(np.count_nonzero(delta))))
-    return corr.ravel(), info
+    return corr.ravel(), info, deltas
 
 
-def row_flux(b, u, kin, alpha=0.0, deg=None, scheme=None):
+def row_flux(b, u, kin, alpha=0.0, deg=None, scheme=None, delta=None):
     """Per row the circumferential flux per unit width at the east face of the column nearest
     ``deg`` (default Q_DEG; physical angle; the grid rotated by alpha): the film's own face
     flux, i.e. with ``theta_transport = 1`` the limited face value of theta (film.py
     ``face_theta``), the flux that the scheme conserves along the row. ``scheme=False``: the
     upwind cell value whatever the transport (the prototype's formula before 2026-12-07,
-    kept for the ``flux`` part; with ``theta_transport = 1`` it is not the film's flux)."""
+    kept for the ``flux`` part; with ``theta_transport = 1`` it is not the film's flux).
+    ``delta``: the rupture correction's (n_z, n_phi) face terms, added at that face."""
     g = b.grid
     p, th_flat = b.law.p_theta(u)
     p, th = p.reshape(g.n_z, g.n_phi), th_flat.reshape(g.n_z, g.n_phi)
@@ -148,8 +157,9 @@ def row_flux(b, u, kin, alpha=0.0, deg=None, scheme=None):
                         for j in range(g.n_z)])
     else:
         thf = th[:, i]
-    return om * He[i] * thf - b.a_phi * He[i] ** 3 * (p[:, (i + 1) % g.n_phi] - p[:, i]) / (
+    q = om * He[i] * thf - b.a_phi * He[i] ** 3 * (p[:, (i + 1) % g.n_phi] - p[:, i]) / (
         g.frel[i] * g.dphi)
+    return q if delta is None else q + delta[:, i]
 
 
 class Film:
@@ -191,10 +201,11 @@ class Film:
         if rupture:
             q = row_flux(b, u, kin, self.alpha) if q0 is None else q0.copy()
             for its in range(1, max_iter + 1):
-                self.box["corr"][:], info = rupture_correction(b, xy, self.omega, q)
+                self.box["corr"][:], info, deltas = rupture_correction(b, xy, self.omega, q)
                 un, _ = b._steady_newton(kin, u, zero, 40)
                 u = b._steady(kin, u) if un is None else un
-                dq = row_flux(b, u, kin, self.alpha) - q
+                dq = row_flux(b, u, kin, self.alpha,
+                              delta=deltas if Q_WITH_DELTA else None) - q
                 q = q + dq
                 if np.max(np.abs(dq)) < 1e-11 * np.max(np.abs(q)):
                     break
@@ -367,10 +378,13 @@ def main(argv):
         k = argv.index("--tt")
         el.TT["theta_transport"] = int(argv[k + 1])
         argv = argv[:k] + argv[k + 2:]
-    global UPWIND_Q
+    global UPWIND_Q, Q_WITH_DELTA
     if "--upwind-q" in argv:
         UPWIND_Q = True
         argv = [a for a in argv if a != "--upwind-q"]
+    if "--q-without-delta" in argv:
+        Q_WITH_DELTA = False
+        argv = [a for a in argv if a != "--q-without-delta"]
     parts = argv or ["square"]
     q = gc.hs_equilibrium(40)
     omega = 2 * math.pi * gc.F_HZ
