@@ -22,8 +22,10 @@ full film ruptures freely after it). Per grid:
    iteration below cycle between two face sets at 40 x 40);
 4. the residual of each film cell of the row gains ``dz (Delta_east - Delta_west)`` (mass
    exact, Jacobian unchanged), the film is solved again (warm), q_j updated by substitution
-   until it changes by < 1e-11 relative (9 to 20 solves; 20 x 20 reaches 1.1e-10 after
-   the limit of 60; the per-row secant of the 1-D script cycled here).
+   until it changes by < 1e-11 relative (4 to 25 solves; the per-row secant of the 1-D script
+   cycled here). q_j is the flux the corrected film conserves: where the face at 50 deg lies
+   inside the window (20 x 20 only) its Delta is added (before 2026-12-07 it was not: 60
+   solves to 1.1e-10 and phi_r 24 deg at mid-width on 20 x 20 with upwind theta).
 
 Run: ``nice -n 10 .venv/bin/python docs/scripts/free_rupture_2d.py [square] [phi] [axial]
 [shift]`` (``square``: 20 ... 160 square grids, about 6 minutes; ``phi``: n_phi 48 ... 384 at
@@ -34,7 +36,7 @@ phi sector, against 768 x 40, about 6 minutes; ``stiffness``: force and the four
 coefficients on 20 ... 160 square grids, central differences of positions +- 1e-3 c, each
 perturbed state warm from the base state, about 20 minutes; ``flux``: the rows' cavity flux
 of the exit-corrected films, the film's face flux against the upwind formula, both transports,
-square grids and n_phi 48 ... 768 at n_z = 40, about 4 minutes). Markdown tables of Fx, Fy,
+square grids and n_phi 48 ... 768 at n_z = 40, about 5 minutes). Markdown tables of Fx, Fy,
 exit correction only and with the rupture correction. ``--tt 1``: the films with the limited
 second-order theta transport (as exit_layer_2d.py); ``--upwind-q``: q_j from the upwind cell
 value of theta whatever the transport (the old formula, to reproduce its numbers).
