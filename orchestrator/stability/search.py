@@ -358,8 +358,8 @@ def _continue_left_out(again, ws, vals: list, failed: list, result: dict, signum
         result["continued_speeds_hz"] = hz
         result["continued_scan_reasons"] = [str(errors[w]) for w in sorted(reached)]
         where = ", ".join(f"{f:.4g}" for f in hz[:6]) + (" ..." if len(hz) > 6 else "")
-        result["notes"].append(f"{_speeds(len(hz))} the scan left out ({where} Hz) computed again by continuation in the "
-                               f"speed from their neighbours done (the scan's reason at {hz[0]:.4g} Hz: "
+        result["notes"].append(f"{_speeds(len(hz))} the scan left out ({where} Hz) computed again by continuation "
+                               f"in the speed from their neighbours done (the scan's reason at {hz[0]:.4g} Hz: "
                                f"{errors[min(reached)]})".replace("; raise the lower end of --speeds", ""))
     if untried:
         result["notes"].append(f"{_speeds(untried)} the scan left out not tried again by continuation: a speed between "
