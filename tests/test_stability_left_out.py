@@ -4,6 +4,7 @@ computed are named apart from speeds without a static equilibrium (orchestrator/
 from __future__ import annotations
 
 import collections
+import json
 import math
 
 import numpy as np
@@ -72,3 +73,49 @@ def test_speeds_without_eigenvalues_are_named_apart_from_speeds_without_equilibr
     assert result["status"] == "threshold_not_located"
     assert any("across speeds whose eigenvalues were not computed: that crossing is not located" in n
                for n in result["notes"])
+
+
+def _short_without_eigenvalues(monkeypatch, lo_hz, hi_hz):
+    """The short film's max_re raising EigenvaluesFailed at every speed in (lo_hz, hi_hz)."""
+    import orchestrator.stability as st
+    real = st._ShortFilm.max_re
+
+    def max_re(self, w):
+        f = w / (2 * math.pi)
+        if lo_hz < f < hi_hz:
+            raise EigenvaluesFailed(f"at {f:.4g} Hz the count disagreed (made to fail here)")
+        return real(self, w)
+    monkeypatch.setattr(st._ShortFilm, "max_re", max_re)
+
+
+def test_the_command_names_a_crossing_across_speeds_without_eigenvalues(capsys, monkeypatch, tmp_path):
+    """The paper rotor in short films (threshold 262.14 Hz) with no eigenvalues from 230 to 300 Hz:
+    the threshold is not located, and the message says the speeds were left out, not that they have
+    no static equilibrium."""
+    from hostile_builders import cli
+    from tests.test_stability_stop import JEFFCOTT_HS
+    _short_without_eigenvalues(monkeypatch, 230.0, 300.0)
+    out = tmp_path / "r.json"
+    rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", "--speeds", "100:800", "--scan", "30",
+                   "--json", out)
+    assert rc == 1, text
+    r = json.loads(out.read_text())
+    assert r["status"] == "threshold_not_located" and "speeds_without_equilibrium_hz" not in r
+    assert all(230.0 < f < 300.0 for f in r["speeds_without_eigenvalues_hz"]) and r["speeds_without_eigenvalues_hz"]
+    err = text.split("error: ", 1)[1]
+    assert "across speeds left out (where a film has no static equilibrium, or whose eigenvalues were not " \
+           "computed" in err, err
+    assert "note: eigenvalues not computed at" in text, text
+
+
+def test_the_command_names_the_lowest_speed_computed_when_eigenvalues_failed_below(capsys, monkeypatch, tmp_path):
+    """No eigenvalues below 265 Hz, and the system already unstable at the first speed computed above
+    (the short-film threshold is 262.14 Hz): the command names that speed as the lowest computed, not
+    as the lowest with a static equilibrium."""
+    from hostile_builders import cli
+    from tests.test_stability_stop import JEFFCOTT_HS
+    _short_without_eigenvalues(monkeypatch, 0.0, 265.0)
+    rc, text = cli(capsys, "stability", JEFFCOTT_HS, "--film", "short", "--speeds", "240:400", "--scan", "8")
+    assert rc == 1, text
+    assert "error: already unstable at the lowest speed computed (" in text, text
+    assert "lowest speed with a static equilibrium" not in text, text
