@@ -262,15 +262,11 @@ def _stability_report(args, r: dict) -> int:
         return 1
     if r["status"] == "threshold_not_located":
         a, b = r["threshold_between_hz"]
-        if r.get("speeds_without_eigenvalues_hz"):
-            print(f"error: the system becomes unstable between {a:.4g} and {b:.4g} Hz, across speeds left out (where a "
-                  "film has no static equilibrium, or whose eigenvalues were not computed: the notes say why), so "
-                  "the threshold is not located; give a --speeds LO:HI on one side of them, or follow the notes' "
-                  "fix", file=sys.stderr)
-        else:
-            print(f"error: the system becomes unstable between {a:.4g} and {b:.4g} Hz, across speeds where a film has "
-                  "no static equilibrium, so the threshold is not located; give a --speeds LO:HI on one side of them, "
-                  "or bearing parameters that carry the load there", file=sys.stderr)
+        across, fix = (("left out (where a film has no static equilibrium, or whose eigenvalues were not computed: "
+                        "the notes say why)", "follow the notes' fix") if r.get("speeds_without_eigenvalues_hz") else
+                       ("where a film has no static equilibrium", "bearing parameters that carry the load there"))
+        print(f"error: the system becomes unstable between {a:.4g} and {b:.4g} Hz, across speeds {across}, so the "
+              f"threshold is not located; give a --speeds LO:HI on one side of them, or {fix}", file=sys.stderr)
         return 1
     if r["status"] == "unstable_at_lower_bound":
         first = r["scan"][0]["speed_hz"] if r.get("scan") else lo

@@ -121,8 +121,7 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     # handling) is held, and the next check of requests.requested stops there; it raised
     # KeyboardInterrupt out of the search, which ended with a bare "interrupted" and no table
     abandoning = getattr(requests, "abandoning", None) or contextlib.nullcontext
-    evals: dict[float, float] = {}           # every speed evaluated -> largest real part (brackets)
-    full: dict[float, tuple] = {}            # ... -> max_re's whole answer (Brent takes the scan's)
+    evals: dict[float, tuple] = {}           # every speed evaluated -> max_re's answer (brackets; Brent's known)
     current: list = [None]                   # the speed being evaluated
 
     def guarded(fn):
@@ -134,8 +133,7 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
                 raise SpeedStopped(w)
             with abandoning():
                 v = fn(w)
-            evals[float(w)] = v[0]
-            full[w] = v
+            evals[float(w)] = v
             return v
         return at
     checked = guarded(max_re)
@@ -155,8 +153,9 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
         if bar is not None:
             bar.update(1)
     done = len(vals)
-    if continued is not None and failed and halt is None:
-        halt, retried = _continue_left_out(guarded(continued), ws, vals, failed, result, requests.signum)
+    again = None if continued is None else guarded(continued)
+    if again is not None and failed and halt is None:
+        halt, retried = _continue_left_out(again, ws, vals, failed, result, requests.signum)
         # the note's reason: that of the first speed the continuation failed at (it names both tries)
         failed.sort(key=lambda f: (f[0] not in retried, f[0]))
     ok = [k for k, v in enumerate(vals) if v is not None]
@@ -176,7 +175,6 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
     unlocated = None          # the first sign change, when it lies across speeds without equilibrium
     brackets = result["crossings_bracketed"]
     cells: list[tuple[int, int]] = []          # the scan's neighbours (k0, k1) of each bracket
-    again = None if continued is None else guarded(continued)
 
     def step(w):
         """One of Brent's speeds: a StabilityError there tried once more by continuation (``again``)."""
@@ -201,7 +199,7 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
                     # again, which puts the warm start of a film model that holds one (--film mc: each
                     # film's state, the root the eigenvalue search starts from) next to the crossing,
                     # where Brent goes next, not at the scan's last speed
-                    wc, nu = refine_crossing(step, ws[k0], ws[k1], xtol, known={ws[k0]: full[ws[k0]]})
+                    wc, nu = refine_crossing(step, ws[k0], ws[k1], xtol, known={ws[k0]: evals[float(ws[k0])]})
                 except StabilityError as exc:      # no equilibrium (orbit, eigenvalues) at a step: this crossing only
                     gave_up = (current[0], exc)
                 except (Exception, KeyboardInterrupt) as exc:     # a stop request, or an error at a step
@@ -210,7 +208,7 @@ def _search(max_re, ws: np.ndarray, result: dict, xtol: float = 1e-9, *, stop=No
                     result["crossings"].append({"speed_hz": wc / (2 * math.pi), "whirl_hz": nu / (2 * math.pi),
                                                 "becomes": becomes})
                     continue
-            a, b = (x / (2 * math.pi) for x in bracket(evals, ws[k0], ws[k1]))
+            a, b = (x / (2 * math.pi) for x in bracket({w: v[0] for w, v in evals.items()}, ws[k0], ws[k1]))
             brackets.append({"between_hz": [a, b], "width_hz": b - a, "becomes": becomes})
             cells.append((k0, k1))
             if gave_up is not None:
@@ -510,16 +508,23 @@ def _threshold(scenario, system: System, *, film: str, lo: float, hi: float, n_s
                          "equilibrium and the Floquet growth rate the linear threshold's largest real part")
     model = fq if fq is not None else fn
 
-    def max_re(w):                       # every speed evaluated, for result["scan"] and --plot
-        try:
-            v = model.max_re(w)
-        except _NUMERIC as exc:          # the rotor's own matrices (an absurd mass, a speed far off)
-            raise EigenvaluesFailed(f"the eigenvalues of the rotor '{system.rotor_instance}' in its bearings cannot "
-                                 f"be computed at {w / (2 * math.pi):.4g} Hz: {exc or type(exc).__name__}; check the "
-                                 "rotor's and the bearings' parameters, or give a --speeds LO:HI nearer the rotor's "
-                                 "running speeds") from exc
-        seen[float(w)] = v
-        return v
+    def recorded(fn):
+        """fn(w) (the model's max_re, or its continuation) with every speed evaluated kept for
+        result["scan"] and --plot, and a numeric failure of the rotor's own matrices (an absurd mass,
+        a speed far off) named as eigenvalues not computed there."""
+        def at(w):
+            try:
+                v = fn(w)
+            except _NUMERIC as exc:
+                raise EigenvaluesFailed(f"the eigenvalues of the rotor '{system.rotor_instance}' in its bearings "
+                                        f"cannot be computed at {w / (2 * math.pi):.4g} Hz: "
+                                        f"{exc or type(exc).__name__}; check the rotor's and the bearings' "
+                                        "parameters, or give a --speeds LO:HI nearer the rotor's running speeds") \
+                    from exc
+            seen[float(w)] = v
+            return v
+        return at
+    max_re = recorded(model.max_re)
 
     w_lo, w_hi = 2 * math.pi * lo, 2 * math.pi * hi
     result: dict[str, Any] = {
@@ -537,17 +542,11 @@ def _threshold(scenario, system: System, *, film: str, lo: float, hi: float, n_s
         result["linear"] = linear_beside(fn, np.geomspace(w_lo, w_hi, n_scan), requests)
         t_search = time.perf_counter()
     continued = getattr(model, "max_re_continued", None)
-
-    def max_re_continued(w):             # as max_re, by continuation from the speeds done
-        v = continued(w)
-        seen[float(w)] = v
-        return v
-
     searched = _search(max_re, np.geomspace(w_lo, w_hi, n_scan), result,
                        xtol=(2 * math.pi * 0.01 if film == "mc" else 2 * math.pi * 1e-3 if fq is not None else 1e-9),
                        stop=requests, bar=bar, without="static equilibrium" if fq is None else
                        "synchronous periodic orbit (or static equilibrium)",
-                       continued=None if continued is None else max_re_continued)
+                       continued=None if continued is None else recorded(continued))
     at, stop = searched.at, searched.stop
     if film == "mc" and fn.dense_speeds:
         notes.append(f"at {len(fn.dense_speeds)} of the {len(seen)} speeds evaluated the argument-principle count "
