@@ -38,6 +38,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from orchestrator.coupling.defect import DefectMonitor
 from orchestrator.coupling.macro_step import MacroStep
 from orchestrator.coupling.observers import Observer, Recorder, RunView, check_observers
 from orchestrator.coupling.plan import make_plan
@@ -143,6 +144,7 @@ class MasterAlgorithm:
         self.failure: dict | None = None         # what failed (summary.json "failure"), see _fail_fmu
         self._phase = "new"
         self._t_wall0 = 0.0
+        self.defect: DefectMonitor | None = None  # the interface-Jacobian forces' defect (coupling/defect.py)
 
     def _where(self) -> str:
         src = getattr(self.scenario, "source", None)
@@ -302,6 +304,10 @@ class MasterAlgorithm:
             self.stepper = MacroStep(plan, self.predictor, **kw)
         if getattr(self.grid, "variable", False):
             self._setup_variable_grid()
+        elif c.scheme != "iterative":
+            ext = [f"{u.name}.{n}" for u in self.units for n in u.ext_names]
+            self.defect = DefectMonitor(self.signal_names, ext, self.scenario.connections, k=k,
+                                        unit_of=self._unit_of) or None
         g = self.grid
         tgrid = TimeGrid(g.t0, g.h, t_stop=g.t_stop, n_stop=g.n_steps) if isinstance(g, ConstantStep) else None
         self.view = RunView(self.columns, g.time(0), g.time(g.n_steps), g.n_steps, kinds=self.kinds, grid=tgrid)
@@ -323,6 +329,12 @@ class MasterAlgorithm:
             return None if u is None else u.sub.variable(name)
         except Exception:          # a fake without a model description, or an unknown name
             return None
+
+    def _unit_of(self, column: str) -> str | None:
+        """The declared unit of the input ``instance.variable`` (its own or its type's), or None."""
+        inst, _, name = column.partition(".")
+        v = self._variable_or_none(inst, name)
+        return getattr(v, "unit", None) or None
 
     def _setup_variable_grid(self) -> None:
         """The error-controlled step (coupling/adaptive.py): FMUs with a fixed step are refused;
@@ -470,6 +482,11 @@ class MasterAlgorithm:
         try:
             if variable:
                 t_next, on_output = grid.take_variable_step(self.stepper, t)
+            elif self.defect is not None:
+                mon, retried = self.defect, getattr(grid, "retried_steps", 0)
+                mon.before(self.stepper.history, t, t_next)
+                grid.take_step(self.stepper, t, t_next)
+                mon.after(self.stepper.history, t_next, skip=getattr(grid, "retried_steps", 0) != retried)
             else:
                 grid.take_step(self.stepper, t, t_next)
         except RetriesExhausted as x:
@@ -619,6 +636,9 @@ class MasterAlgorithm:
         self.view.message = self.message
         self.view.end_time = self.end_time
         st = self.grid.statistics()
+        note = self.defect.note() if self.defect is not None else None
+        if note:
+            log.warning("%s", note)
         if st["retried_steps"]:
             log.info("%d macro step(s) were redone in smaller steps after an fmi2Discard (%d extra step rounds, "
                      "%d rejected attempts)%s", st["retried_steps"], st["retry_substeps"], st["rejected_steps"],
@@ -672,6 +692,8 @@ class MasterAlgorithm:
         stats = getattr(getattr(self, "stepper", None), "stats", None)
         if stats is not None:
             st["iterations"] = stats.as_dict()
+        if self.defect is not None:
+            st["coupling_defect"] = self.defect.statistics()
         return st
 
     def result(self) -> CoSimResult:

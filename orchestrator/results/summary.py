@@ -90,7 +90,7 @@ def cosim_stats(stats: Mapping[str, Any]) -> dict:
             "fmu_calls": stats.get("fmu_calls", {}),
             "isolation": stats.get("isolation", {}),
             "failure": stats.get("failure"),
-            **{k: stats[k] for k in ("iterations", "step_control", "threaded_stage_steps",
+            **{k: stats[k] for k in ("iterations", "step_control", "coupling_defect", "threaded_stage_steps",
                                      "threaded_stage_steps_watched") if k in stats}}
 
 

@@ -1,0 +1,234 @@
+"""Coupling defect of interface-Jacobian forces on a constant macro step (``summary.json`` ``coupling_defect``).
+
+With interface-Jacobian coupling (docs/stiff-coupling.md) the rotor integrates over a macro step
+[T, T + H] the force ``F_used(t) = P(t) - K (r(t) - r(T)) - C (v(t) - v(T))`` (P the order-k
+prediction, K, C the film coefficients it received at T, r, v its own journal position and
+velocity). The film then computes the force at the rotor's new state, F(T + H). The defect
+
+    d = F(T + H) - F_used(T + H) = F(T + H) - P(T + H) + K dr + C dv
+
+is what the rotor did not integrate: the explicit predictor/corrector indicator of Busch &
+Schweizer (PAMM 10, 2010) with the interface-Jacobian correction (Meyer, Kraft & Schweizer,
+J. Comput. Nonlinear Dyn. 16 (2021) 041002); :mod:`.signal_scales` uses the same quantity to
+control the error-controlled step. On a constant step nothing used to look at it, so a phase in
+which the film force and the force the rotor integrated part company was silent: the
+mass-conserving films' contact phase from rest (film-force spikes of 2.6 kN on a 29 N load at
+the shipped 0.1 ms step) and the turbocharger's rub regime (docs/runups.md).
+
+This monitor computes d after every accepted constant step for every force that the rotor
+receives extrapolated with its coefficients, per journal (the x and y components of station i
+together: ``|d| = hypot(d_x, d_y)``), and keeps |d| and |F| per step (bounded: past
+``MAX_KEPT`` steps, neighbouring pairs are merged, the larger |d| kept). At the end it reports,
+per journal, the typical force (the median |F| over the run), the largest |d| and when, and the
+steps whose |d| exceeded ``LIMIT`` times the typical force, merged into episodes (flagged steps
+at most ``EPISODE_GAP`` steps apart). Such a step means the rotor integrated a force that differed
+from the film's by more than the film's typical force.
+
+A large defect is a reason to look, not a proof that the result depends on the step: measured
+(docs/coupling.md, "Coupling defect"), a film that reforms after running empty in the whirl jumps
+from 0 to 80 N within one step, and its defect (60 N) is the same at half the step while the forces
+agree; in the contact phase the defects and the spikes shrink with the step (2.6 kN -> 112 N at
+10 us). Which of the two a flagged episode is, only a run with a halved ``coupling.macro_step``
+tells. The warning says so.
+
+Not monitored: the error-controlled step (it has its own estimate and rejects such steps), the
+iterative scheme (it iterates the force to its tolerance), forces the rotor receives interpolated
+(Gauss-Seidel with the bearing stepping first), and macro steps redone in halves after an
+fmi2Discard (the rotor integrated each half with fresh coefficients).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from orchestrator.coupling.signal_scales import jacobian_groups
+from orchestrator.coupling.signals import lagrange_weights
+
+LIMIT = 1.0            # a step is flagged when |d| > LIMIT * the journal's typical force (median |F|)
+EPISODE_GAP = 10       # flagged steps at most this many steps apart form one episode
+MAX_EPISODES = 10      # episodes listed per journal in summary.json (the largest |d| first)
+MAX_KEPT = 1 << 20     # steps kept per journal before neighbouring pairs are merged
+CHUNK = 4096
+_FORCE = re.compile(r"^(.*)\.F([xy])_(\w+)$")
+
+
+class DefectMonitor:
+    """The coupling defect of a constant-step run (module docstring).
+
+    ``names``: the history's columns (``consumer.input``), ``extrapolated``: those the
+    consumer receives extrapolated, ``connections``: the scenario's. :meth:`before` is called
+    before a macro step, :meth:`after` once it is accepted.
+    """
+
+    def __init__(self, names: list[str], extrapolated, connections, *, k: int, unit_of=None):
+        ext = set(extrapolated)
+        groups = [(j, terms) for j, terms in jacobian_groups(names, connections) if names[j] in ext]
+        journals: dict[str, list] = {}
+        for j, terms in groups:
+            inst, a, i = _FORCE.match(names[j]).groups()
+            journals.setdefault(f"{inst}.F_{i}", []).append((a, j, terms))
+        self.journals = list(journals)
+        self.k = int(k)
+        # the force's unit (``unit_of(column)``: the consumer input's declared unit, or None) per journal
+        self.units = {name: (unit_of(names[v[0][1]]) if unit_of else None) or "" for name, v in journals.items()}
+        # the force columns journal by journal (x before y), their correction terms as arrays
+        # (coefficient column, kinematics column, 1 / gain; four per force) and where each journal starts
+        rows = [(j, terms) for v in journals.values() for _, j, terms in sorted(v)]
+        self._force_cols = np.array([j for j, _ in rows], dtype=np.intp)
+        self._kc = np.array([[kc for kc, _, _ in terms] for _, terms in rows], dtype=np.intp).reshape(len(rows), 4)
+        self._uc = np.array([[uc for _, uc, _ in terms] for _, terms in rows], dtype=np.intp).reshape(len(rows), 4)
+        self._inv = np.array([[g for _, _, g in terms] for _, terms in rows], dtype=float).reshape(len(rows), 4)
+        self._starts = np.cumsum([0] + [len(v) for v in journals.values()])[:-1].astype(np.intp)
+        self._weights: dict[tuple, np.ndarray] = {}
+        self._pred = np.zeros(len(self._force_cols))
+        self._prev: np.ndarray | None = None
+        n = len(self.journals)
+        self._t: list[np.ndarray] = []
+        self._d: list[np.ndarray] = []
+        self._f: list[np.ndarray] = []
+        self._n = 0             # rows kept
+        self._stride = 1        # steps per kept row (doubles when MAX_KEPT is reached)
+        self._acc = np.zeros((2, n))       # the pending row when stride > 1: max |d|, |F| of its first step
+        self._acc_t = 0.0
+        self._acc_n = 0
+        self.steps = 0          # steps monitored
+        self.skipped = 0        # steps redone in halves (not monitored)
+
+    def __bool__(self) -> bool:
+        return bool(self.journals)
+
+    # ----------------------------------------------------------------- per step
+    def before(self, history, t: float, t_next: float) -> None:
+        """Keep the prediction P(t_next) of the forces and the values at t (history before the step)."""
+        p = min(self.k, history.count - 1)
+        if p <= 0:
+            self._pred = history.store[1, self._force_cols].copy()
+        else:
+            nodes = tuple(np.round((history.times[1:p + 2] - t) / (t_next - t), 12))
+            w = self._weights.get(nodes)
+            if w is None:
+                w = self._weights[nodes] = lagrange_weights(nodes, [1.0])[0]
+            self._pred = w @ history.store[1:p + 2, self._force_cols]
+        self._prev = history.store[1].copy()
+
+    def after(self, history, t_next: float, *, skip: bool = False) -> None:
+        """The defect of the step just accepted (history's newest level ``t_next``)."""
+        if self._prev is None:
+            return
+        if skip:
+            self.skipped += 1
+            self._prev = None
+            return
+        new, prev = history.store[1], self._prev
+        s = (prev[self._kc] * (new[self._uc] - prev[self._uc]) * self._inv).sum(axis=1)
+        f = new[self._force_cols]
+        d = f - (self._pred - s)
+        row = np.sqrt(np.vstack([np.add.reduceat(d * d, self._starts), np.add.reduceat(f * f, self._starts)]))
+        self._prev = None
+        self.steps += 1
+        self._keep(t_next, row)
+
+    def _keep(self, t: float, row: np.ndarray) -> None:
+        if self._stride > 1:
+            if self._acc_n == 0:
+                self._acc[:] = row
+                self._acc_t = t
+            elif row[0].max() > self._acc[0].max():
+                self._acc[0] = np.maximum(self._acc[0], row[0])
+                self._acc_t = t
+            else:
+                self._acc[0] = np.maximum(self._acc[0], row[0])
+            self._acc_n += 1
+            if self._acc_n < self._stride:
+                return
+            row, t = self._acc.copy(), self._acc_t
+            self._acc_n = 0
+        i = self._n % CHUNK
+        if i == 0:
+            n = len(self.journals)
+            self._t.append(np.empty(CHUNK))
+            self._d.append(np.empty((CHUNK, n), dtype=np.float32))
+            self._f.append(np.empty((CHUNK, n), dtype=np.float32))
+        self._t[-1][i] = t
+        self._d[-1][i] = row[0]
+        self._f[-1][i] = row[1]
+        self._n += 1
+        if self._n >= MAX_KEPT:
+            self._halve()
+
+    def _halve(self) -> None:
+        """Merge neighbouring kept rows (the larger |d| and its time; |F| of the first)."""
+        t, d, f = self._arrays()
+        m = len(t) // 2
+        t2, d2, f2 = t[:2 * m].reshape(m, 2), d[:2 * m].reshape(m, 2, -1), f[:2 * m:2]
+        second = d2[:, 1].max(axis=1) > d2[:, 0].max(axis=1)
+        t_new = np.where(second, t2[:, 1], t2[:, 0])
+        d_new = d2.max(axis=1)
+        self._t, self._d, self._f, self._n = [], [], [], 0
+        self._stride *= 2
+        stride, self._stride = self._stride, 1
+        for i in range(m):
+            self._keep(float(t_new[i]), np.vstack([d_new[i], f2[i]]))
+        self._stride = stride
+
+    def _arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n, k = self._n, len(self.journals)
+        if not n:
+            return np.zeros(0), np.zeros((0, k), np.float32), np.zeros((0, k), np.float32)
+        return (np.concatenate(self._t)[:n], np.concatenate(self._d)[:n], np.concatenate(self._f)[:n])
+
+    # ------------------------------------------------------------------- report
+    def statistics(self) -> dict:
+        """``summary.json`` ``coupling_defect`` (module docstring)."""
+        t, d, f = self._arrays()
+        out = {"limit": LIMIT, "steps": self.steps, "steps_not_monitored": self.skipped,
+               "steps_per_row": self._stride, "journals": {}}
+        for g, name in enumerate(self.journals):
+            dj, fj = d[:, g].astype(float), f[:, g].astype(float)
+            if not len(t):
+                out["journals"][name] = {"typical_force": None, "max_defect": None, "t_max_defect": None,
+                                         "steps_over": 0, "episodes": []}
+                continue
+            typical = float(np.median(fj))
+            i = int(np.argmax(dj))
+            over = np.flatnonzero(dj > LIMIT * typical) if typical > 0 else np.zeros(0, dtype=np.intp)
+            episodes = []
+            if over.size:
+                cuts = np.flatnonzero(np.diff(over) > EPISODE_GAP) + 1
+                for idx in np.split(over, cuts):
+                    k = idx[np.argmax(dj[idx])]
+                    episodes.append({"t_start": float(t[idx[0]]), "t_end": float(t[idx[-1]]),
+                                     "steps": int(idx.size) * self._stride, "max_defect": float(dj[k]),
+                                     "t_max_defect": float(t[k])})
+            out["journals"][name] = {
+                "unit": self.units.get(name, ""), "typical_force": typical, "max_defect": float(dj[i]), "t_max_defect": float(t[i]),
+                "median_defect": float(np.median(dj)),
+                "steps_over": int(over.size) * self._stride, "episode_count": len(episodes),
+                "episodes": sorted(episodes, key=lambda e: -e["max_defect"])[:MAX_EPISODES]}
+        return out
+
+    def note(self, statistics: dict | None = None) -> str | None:
+        """The warning when some step's defect exceeded the limit, or None."""
+        st = statistics or self.statistics()
+        hits = [(name, j) for name, j in st["journals"].items() if j.get("steps_over")]
+        if not hits:
+            return None
+        parts = []
+        for name, j in hits:
+            u = f" {j['unit']}" if j.get("unit") else ""
+            first = min(e["t_start"] for e in j["episodes"])
+            last = max(e["t_end"] for e in j["episodes"])
+            parts.append(f"{name}: {j['steps_over']} steps in {j['episode_count']} episode"
+                         f"{'s' if j['episode_count'] != 1 else ''} between t={first:.6g} and {last:.6g} s, "
+                         f"largest {j['max_defect']:.4g}{u} against a typical force of {j['typical_force']:.4g}{u} "
+                         f"(t={j['t_max_defect']:.6g} s)")
+        return ("coupling defect: in some macro steps the force returned at the step's end differed from the force "
+                "its consumer integrated over the step (the interface-Jacobian linearisation) by more than "
+                f"{LIMIT:g}x the typical force: "
+                + "; ".join(parts) + ". The forces at those times may depend on the macro step (a contact "
+                "phase or rub does; a film that refills within one step does not): rerun that interval with "
+                "half the coupling.macro_step, or with coupling.step_control: {type: error}, and compare "
+                "(summary.json coupling_defect; docs/coupling.md, 'Coupling defect')")

@@ -1,0 +1,193 @@
+"""The coupling defect of interface-Jacobian forces on a constant step (orchestrator/coupling/defect.py):
+known answers on a linear film, the episode summary, the bounded memory, and the real FMUs'
+contact phase from rest."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orchestrator.coupling import defect as defect_mod
+from orchestrator.coupling.defect import DefectMonitor
+from orchestrator.coupling.execution import MasterAlgorithm
+from orchestrator.coupling.signals import History
+from orchestrator.scenario import ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario, load_scenario
+from test_master import LinearFake
+from test_master_adaptive_scales import CF, IJ_IN, KF, IJJournal
+
+ROOT = Path(__file__).resolve().parents[1]
+H = 1e-4
+
+
+def film(k_reported=KF, c_reported=CF):
+    """F = -KF q - CF v; reports kxx = kyy = k_reported, cxx = cyy = c_reported."""
+    C = np.zeros((10, 1))
+    C[[2, 5], 0], C[[6, 9], 0] = k_reported, c_reported
+    D = np.zeros((10, 4))
+    D[0, 0], D[1, 1], D[0, 2], D[1, 3] = -KF, -KF, -CF, -CF
+    return LinearFake("bearing", [[0.0]], np.zeros((1, 4)), C, D, [1.0], ["x", "y", "vx", "vy"],
+                      ["Fx", "Fy", "kxx", "kxy", "kyx", "kyy", "cxx", "cxy", "cyx", "cyy"], interpolate=False)
+
+
+def scenario(k=0, control=None, scheme="gauss-seidel"):
+    conns = [ConnectionSpec(src=f"rotor.{a}_1", dst=f"bearing.{b}") for a, b in
+             (("x", "x"), ("y", "y"), ("vx", "vx"), ("vy", "vy"))]
+    conns += [ConnectionSpec(src=f"bearing.{n.removesuffix('_1')}", dst=f"rotor.{n}") for n in IJ_IN]
+    return Scenario(name="ij-journal", stop_time=0.02,
+                    fmus=(FmuSpec(name="rotor", path=Path("rotor")), FmuSpec(name="bearing", path=Path("bearing"))),
+                    connections=tuple(conns),
+                    coupling=CouplingSpec(scheme=scheme, sequence=("rotor", "bearing"), macro_step=H,
+                                          extrapolation_order=k, step_control=control),
+                    output=OutputSpec(interval=H, signals=("rotor.x_1", "rotor.y_1", "rotor.vx_1", "rotor.vy_1",
+                                                           "bearing.Fx", "bearing.Fy")))
+
+
+def run(bearing, **kw):
+    res = MasterAlgorithm(scenario(**kw), subsystems={"rotor": IJJournal(), "bearing": bearing}).run()
+    assert res.success, res.message
+    return res
+
+
+def test_exact_coefficients_leave_no_defect():
+    """A linear film whose coefficients are its own: the rotor integrates the exact force (k = 0), d = 0."""
+    res = run(film())
+    st = res.stats["coupling_defect"]
+    j = st["journals"]["rotor.F_1"]
+    assert st["steps"] == 200 and j["steps_over"] == 0 and j["episodes"] == []
+    assert j["max_defect"] < 1e-9 * j["typical_force"]
+    assert j["typical_force"] > 1.0                   # the journal does move the film (F ~ 200 N at the start)
+
+
+@pytest.mark.parametrize("half", ["k", "c"])
+def test_wrong_coefficients_give_the_known_defect(half):
+    """The film reports half its stiffness (or damping): per step d = -(KF/2) dr (or -(CF/2) dv), computed
+    here from the recorded journal motion; the monitor's largest |d|, its time and the typical |F| match."""
+    bearing = film(k_reported=KF / 2) if half == "k" else film(c_reported=CF / 2)
+    res = run(bearing)
+    o = res.outputs
+    q = np.stack([o["rotor.x_1"], o["rotor.y_1"]], 1) if half == "k" else np.stack([o["rotor.vx_1"],
+                                                                                     o["rotor.vy_1"]], 1)
+    coef = KF / 2 if half == "k" else CF / 2
+    d = coef * np.hypot(*np.diff(q, axis=0).T)
+    f = np.hypot(o["bearing.Fx"], o["bearing.Fy"])[1:]
+    j = res.stats["coupling_defect"]["journals"]["rotor.F_1"]
+    assert j["max_defect"] == pytest.approx(d.max(), rel=1e-5)
+    assert j["t_max_defect"] == pytest.approx(res.t[1 + int(np.argmax(d))], abs=1e-12)
+    assert j["typical_force"] == pytest.approx(np.median(f), rel=1e-5)
+    assert j["median_defect"] == pytest.approx(np.median(d), rel=1e-5)
+
+
+def test_extrapolated_force_counts_its_prediction():
+    """k = 1: the rotor integrates P - K dr - C dv with P the linear extrapolation of F, which counts the
+    film's change twice (signal_scales.py); d = F(T+H) - P(T+H) + K dr + C dv = -(F(T) - F(T-H)) here."""
+    res = run(film(), k=1)
+    o = res.outputs
+    F = np.stack([o["bearing.Fx"], o["bearing.Fy"]], 1)
+    d = np.hypot(*np.diff(F, axis=0).T)[1:]                   # from the second step on (the first holds)
+    j = res.stats["coupling_defect"]["journals"]["rotor.F_1"]
+    assert j["max_defect"] == pytest.approx(d.max(), rel=1e-5)
+
+
+def test_not_monitored_where_it_would_not_be_the_rotors_defect():
+    """The error-controlled step and the iterative scheme have their own estimates; a force the rotor
+    receives interpolated (the bearing steps first) has none: no coupling_defect in the statistics."""
+    from orchestrator.scenario.model import StepControlSpec
+    res = run(film(), control=StepControlSpec(type="error", rtol=1e-2))
+    assert "coupling_defect" not in res.stats
+    sc = scenario()
+    sc = Scenario(name=sc.name, stop_time=sc.stop_time, fmus=sc.fmus, connections=sc.connections,
+                  coupling=CouplingSpec(scheme="gauss-seidel", sequence=("bearing", "rotor"), macro_step=H),
+                  output=sc.output)
+    res = MasterAlgorithm(sc, subsystems={"rotor": IJJournal(), "bearing": film()}).run()
+    assert res.success and "coupling_defect" not in res.stats
+
+
+# --- the monitor alone: episodes, note, bounded memory ---------------------------------------------
+NAMES = ["rotor.Fx_1", "rotor.Fy_1"] + [f"rotor.{c}{a}{b}_1" for c in "kc" for a in "xy" for b in "xy"] + \
+        ["bearing.x", "bearing.y", "bearing.vx", "bearing.vy"]
+CONNS = [ConnectionSpec(src=f"rotor.{a}_1", dst=f"bearing.{a}") for a in ("x", "y", "vx", "vy")]
+
+
+def feed(mon, forces, t0=0.0, h=1e-3):
+    """Levels with coefficients and motion 0, so d = F(T+H) - F(T); ``forces``: Fy per level."""
+    hist = History(depth=4)
+    hist.allocate([len(NAMES)])
+    hist.store[0, 1] = forces[0]
+    hist.start(t0)
+    for n, f in enumerate(forces[1:], start=1):
+        mon.before(hist, t0 + (n - 1) * h, t0 + n * h)
+        hist.times[0] = t0 + n * h
+        hist.store[0] = hist.store[1]
+        hist.store[0, 1] = f
+        hist.commit()
+        mon.after(hist, t0 + n * h)
+
+
+def test_episodes_and_note():
+    mon = DefectMonitor(NAMES, NAMES[:10], CONNS, k=0, unit_of=lambda name: "N")
+    forces = np.full(101, 30.0)
+    forces[[20, 22]] = 100.0          # |d| = 70 at steps 20, 21, 22, 23: one episode (gap <= 10)
+    forces[70] = 75.0                 # |d| = 45 at 70, 71: another one
+    feed(mon, forces)
+    j = mon.statistics()["journals"]["rotor.F_1"]
+    assert j["typical_force"] == 30.0 and j["steps_over"] == 6 and j["episode_count"] == 2
+    assert [(e["steps"], e["max_defect"]) for e in j["episodes"]] == [(4, 70.0), (2, 45.0)]
+    assert j["episodes"][0]["t_start"] == pytest.approx(0.020) and j["episodes"][0]["t_end"] == pytest.approx(0.023)
+    note = mon.note()
+    assert "rotor.F_1: 6 steps in 2 episodes between t=0.02 and 0.071 s" in note
+    assert "largest 70 N against a typical force of 30 N" in note and "coupling.macro_step" in note
+    quiet = DefectMonitor(NAMES, NAMES[:10], CONNS, k=0)
+    feed(quiet, 30.0 + np.sin(np.arange(50)))
+    assert quiet.note() is None and quiet.statistics()["journals"]["rotor.F_1"]["steps_over"] == 0
+
+
+def test_memory_is_bounded_and_keeps_the_largest_defect(monkeypatch):
+    monkeypatch.setattr(defect_mod, "MAX_KEPT", 64)
+    mon = DefectMonitor(NAMES, NAMES[:10], CONNS, k=0)
+    forces = 30.0 + 0.1 * np.sin(np.arange(1001))
+    forces[777] = 500.0
+    feed(mon, forces)
+    st = mon.statistics()
+    j = st["journals"]["rotor.F_1"]
+    assert mon._n < 64 and st["steps"] == 1000 and st["steps_per_row"] >= 16
+    jumps = np.abs(np.diff(forces))                           # d = F(T+H) - F(T): into and out of the spike
+    assert j["max_defect"] == pytest.approx(jumps.max(), rel=1e-6)
+    assert j["t_max_defect"] == pytest.approx(1e-3 * (1 + np.argmax(jumps)))
+    assert j["typical_force"] == pytest.approx(30.0, abs=0.1)
+
+
+def test_no_interface_jacobian_forces_no_monitor():
+    assert not DefectMonitor(NAMES[:2] + NAMES[10:], NAMES[:2], CONNS, k=0)
+
+
+# --- the real FMUs: the mass-conserving film's contact phase from rest --------------------------------
+@pytest.mark.parametrize("name, flagged", [("jeffcott_runup_free_to_air_from_rest", True),
+                                           ("jeffcott_runup_half_sommerfeld_from_rest", False)])
+def test_contact_phase_from_rest(tmp_path, caplog, name, flagged):
+    """docs/coupling.md 'Coupling defect': at the shipped 0.1 ms step the mass-conserving film's contact
+    phase has film-force spikes of kN on a 29 N load that the rotor never integrated; the monitor flags
+    them (where it flags, the recorded film force is far from the typical one) and warns; the
+    half-Sommerfeld film's contact phase has none."""
+    from orchestrator import run as run_scenario
+    sc = load_scenario(ROOT / "scenarios" / f"{name}.yaml", ["stop_time=0.01"])
+    with caplog.at_level(logging.WARNING, logger="orchestrator.coupling.execution"):
+        res = run_scenario(sc, out_dir=tmp_path, progress=False)
+    assert res.success, res.message
+    summary = json.loads((tmp_path / "summary.json").read_text())["coupling_defect"]
+    assert summary["steps"] == 100 and set(summary["journals"]) == {"rotor.F_1", "rotor.F_2"}
+    warned = [r.getMessage() for r in caplog.records if r.getMessage().startswith("coupling defect")]
+    for jname, j in summary["journals"].items():
+        assert j["unit"] == "N" and 20 < j["typical_force"] < 100, j  # about the weight share, 29.4 N (median)
+        if not flagged:
+            assert j["steps_over"] == 0 and j["max_defect"] < 0.5 * j["typical_force"]
+            continue
+        assert j["steps_over"] >= 5 and j["max_defect"] > 10 * j["typical_force"]
+        i = int(np.argmin(np.abs(res.t - j["t_max_defect"])))
+        F = math.hypot(res.outputs[f"bearing{jname[-1]}.Fx"][i], res.outputs[f"bearing{jname[-1]}.Fy"][i])
+        assert F > 10 * j["typical_force"]                  # the spike is in the recorded film force
+    assert bool(warned) == flagged
