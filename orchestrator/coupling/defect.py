@@ -82,6 +82,7 @@ class DefectMonitor:
         self._uc = np.array([[uc for _, uc, _ in terms] for _, terms in rows], dtype=np.intp).reshape(len(rows), 4)
         self._inv = np.array([[g for _, _, g in terms] for _, terms in rows], dtype=float).reshape(len(rows), 4)
         self._starts = np.cumsum([0] + [len(v) for v in journals.values()])[:-1].astype(np.intp)
+        self._pairs = all(len(v) == 2 for v in journals.values())
         self._weights: dict[tuple, np.ndarray] = {}
         self._pred = np.zeros(len(self._force_cols))
         self._prev: np.ndarray | None = None
@@ -123,10 +124,16 @@ class DefectMonitor:
             self._prev = None
             return
         new, prev = history.store[1], self._prev
-        s = (prev[self._kc] * (new[self._uc] - prev[self._uc]) * self._inv).sum(axis=1)
+        kc, uc = self._kc, self._uc
+        s = (prev[kc] * (new[uc] - prev[uc]) * self._inv).sum(axis=1)
         f = new[self._force_cols]
-        d = f - (self._pred - s)
-        row = np.sqrt(np.vstack([np.add.reduceat(d * d, self._starts), np.add.reduceat(f * f, self._starts)]))
+        d = f - self._pred + s
+        if self._pairs:                        # every journal has x and y: |.| of consecutive pairs
+            row = np.empty((2, len(self.journals)))
+            np.hypot(d[0::2], d[1::2], out=row[0])
+            np.hypot(f[0::2], f[1::2], out=row[1])
+        else:
+            row = np.sqrt(np.vstack([np.add.reduceat(d * d, self._starts), np.add.reduceat(f * f, self._starts)]))
         self._prev = None
         self.steps += 1
         self._keep(t_next, row)
@@ -153,8 +160,7 @@ class DefectMonitor:
             self._d.append(np.empty((CHUNK, n), dtype=np.float32))
             self._f.append(np.empty((CHUNK, n), dtype=np.float32))
         self._t[-1][i] = t
-        self._d[-1][i] = row[0]
-        self._f[-1][i] = row[1]
+        self._d[-1][i], self._f[-1][i] = row
         self._n += 1
         if self._n >= MAX_KEPT:
             self._halve()
