@@ -137,6 +137,7 @@ def test_episodes_and_note():
     j = mon.statistics()["journals"]["rotor.F_1"]
     assert j["typical_force"] == 30.0 and j["steps_over"] == 6 and j["episode_count"] == 2
     assert [(e["steps"], e["max_defect"]) for e in j["episodes"]] == [(4, 70.0), (2, 45.0)]
+    assert (j["first_flagged"], j["last_flagged"]) == (0.020, 0.071)
     assert j["episodes"][0]["t_start"] == pytest.approx(0.020) and j["episodes"][0]["t_end"] == pytest.approx(0.023)
     note = mon.note()
     assert "rotor.F_1: 6 steps in 2 episodes between t=0.02 and 0.071 s" in note
@@ -191,3 +192,45 @@ def test_contact_phase_from_rest(tmp_path, caplog, name, flagged):
         F = math.hypot(res.outputs[f"bearing{jname[-1]}.Fx"][i], res.outputs[f"bearing{jname[-1]}.Fy"][i])
         assert F > 10 * j["typical_force"]                  # the spike is in the recorded film force
     assert bool(warned) == flagged
+
+
+# --- rotorcosim plot marks the episodes in eccentricity.png -------------------------------------------
+def _crimson_pixels(path) -> int:
+    import matplotlib.image as mpimg
+    img = mpimg.imread(path)[..., :3]
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    return int(np.sum((r - g > 0.3) & (np.abs(b - g) < 0.17)))      # crimson (0.86, 0.08, 0.24), also half on white
+
+
+def test_plot_marks_the_episodes(tmp_path):
+    from orchestrator.results.plots import plot_run
+    from test_analysis import SPEC, whirl_vanishing, write_run
+    counts = {}
+    for case in ("none", "episodes", "tampered"):
+        d = tmp_path / case
+        d.mkdir()
+        write_run(d, whirl_vanishing(), step=4)
+        summary = {"scenario": "synthetic_run_up", "status": "finished", "analysis": {"spec": SPEC}}
+        ep = [{"t_start": 0.4, "t_end": 0.45, "steps": 30, "max_defect": 900.0, "t_max_defect": 0.42},
+              {"t_start": 0.9, "t_end": 0.9, "steps": 1, "max_defect": 60.0, "t_max_defect": 0.9}]
+        if case == "tampered":
+            ep = [{"t_start": "x"}, 5, {"t_start": 0.5, "t_end": 0.4, "t_max_defect": 0.45}] + ep[:1]
+        if case != "none":
+            summary["coupling_defect"] = {"journals": {"rotor.F_1": {"episode_count": 2, "episodes": ep}}}
+        (d / "summary.json").write_text(json.dumps(summary))
+        if case == "tampered":
+            with pytest.warns(UserWarning, match="3 coupling_defect entries in summary.json are not of the form"):
+                files = plot_run(d)
+        else:
+            files = plot_run(d)
+        ecc = next(f for f in files if f.name == "eccentricity.png")
+        counts[case] = _crimson_pixels(ecc)
+    assert counts["none"] == 0
+    assert counts["episodes"] > 40 and 20 < counts["tampered"] < counts["episodes"], counts   # the valid one drawn
+    from orchestrator.results.plots.eccentricity import defect_episodes
+    eps, n, problem = defect_episodes({"coupling_defect": {"journals": {"a": {"episode_count": 7, "episodes": [
+        {"t_start": 1.0, "t_end": 2.0, "t_max_defect": 1.5}, {"t_start": 1.0, "t_end": 2.0, "t_max_defect": 3.0},
+        {"t_start": float("nan"), "t_end": 2.0, "t_max_defect": 1.5}, "x"]}}}})
+    assert eps == [(1.0, 2.0, 1.5)] and n == 7 and problem.startswith("3 coupling_defect entries")
+    assert defect_episodes({"coupling_defect": []})[2].startswith("summary.json coupling_defect has no")
+    assert defect_episodes({}) == ([], 0, None)

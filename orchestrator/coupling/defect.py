@@ -21,7 +21,8 @@ together: ``|d| = hypot(d_x, d_y)``), and keeps |d| and |F| per step (bounded: p
 ``MAX_KEPT`` steps, neighbouring pairs are merged, the larger |d| kept). At the end it reports,
 per journal, the typical force (the median |F| over the run), the largest |d| and when, and the
 steps whose |d| exceeded ``LIMIT`` times the typical force, merged into episodes (flagged steps
-at most ``EPISODE_GAP`` steps apart). Such a step means the rotor integrated a force that differed
+at most ``EPISODE_GAP`` steps apart; the ``MAX_EPISODES`` with the largest |d| are listed, in
+time order; ``rotorcosim plot`` marks them in ``eccentricity.png``). Such a step means the rotor integrated a force that differed
 from the film's by more than the film's typical force.
 
 A large defect is a reason to look, not a proof that the result depends on the step. Measured
@@ -50,7 +51,7 @@ from orchestrator.coupling.signals import lagrange_weights
 
 LIMIT = 1.0            # a step is flagged when |d| > LIMIT * the journal's typical force (median |F|)
 EPISODE_GAP = 10       # flagged steps at most this many steps apart form one episode
-MAX_EPISODES = 10      # episodes listed per journal in summary.json (the largest |d| first)
+MAX_EPISODES = 100     # episodes listed per journal in summary.json (the largest |d|, in time order)
 MAX_KEPT = 1 << 20     # steps kept per journal before neighbouring pairs are merged
 CHUNK = 4096
 _FORCE = re.compile(r"^(.*)\.F([xy])_(\w+)$")
@@ -215,7 +216,10 @@ class DefectMonitor:
                 "t_max_defect": _time(t[i]),
                 "median_defect": float(np.median(dj)),
                 "steps_over": int(over.size) * self._stride, "episode_count": len(episodes),
-                "episodes": sorted(episodes, key=lambda e: -e["max_defect"])[:MAX_EPISODES]}
+                "first_flagged": _time(t[over[0]]) if over.size else None,
+                "last_flagged": _time(t[over[-1]]) if over.size else None,
+                "episodes": sorted(sorted(episodes, key=lambda e: -e["max_defect"])[:MAX_EPISODES],
+                                   key=lambda e: e["t_start"])}
         return out
 
     def note(self, statistics: dict | None = None) -> str | None:
@@ -227,8 +231,7 @@ class DefectMonitor:
         parts = []
         for name, j in hits:
             u = f" {j['unit']}" if j.get("unit") else ""
-            first = min(e["t_start"] for e in j["episodes"])
-            last = max(e["t_end"] for e in j["episodes"])
+            first, last = j["first_flagged"], j["last_flagged"]
             parts.append(f"{name}: {j['steps_over']} steps in {j['episode_count']} episode"
                          f"{'s' if j['episode_count'] != 1 else ''} between t={first:.6g} and {last:.6g} s, "
                          f"largest {j['max_defect']:.4g}{u} against a typical force of {j['typical_force']:.4g}{u} "
