@@ -4,6 +4,7 @@ contact phase from rest."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import math
@@ -16,35 +17,20 @@ from orchestrator.coupling import defect as defect_mod
 from orchestrator.coupling.defect import DefectMonitor
 from orchestrator.coupling.execution import MasterAlgorithm
 from orchestrator.coupling.signals import History
-from orchestrator.scenario import ConnectionSpec, CouplingSpec, FmuSpec, OutputSpec, Scenario, load_scenario
-from test_master import LinearFake
-from test_master_adaptive_scales import CF, IJ_IN, KF, IJJournal
+from orchestrator.scenario import ConnectionSpec, OutputSpec, load_scenario
+from test_master_adaptive_scales import CF, KF, IJJournal, film, ij_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 H = 1e-4
 
 
-def film(k_reported=KF, c_reported=CF):
-    """F = -KF q - CF v; reports kxx = kyy = k_reported, cxx = cyy = c_reported."""
-    C = np.zeros((10, 1))
-    C[[2, 5], 0], C[[6, 9], 0] = k_reported, c_reported
-    D = np.zeros((10, 4))
-    D[0, 0], D[1, 1], D[0, 2], D[1, 3] = -KF, -KF, -CF, -CF
-    return LinearFake("bearing", [[0.0]], np.zeros((1, 4)), C, D, [1.0], ["x", "y", "vx", "vy"],
-                      ["Fx", "Fy", "kxx", "kxy", "kyx", "kyy", "cxx", "cxy", "cyx", "cyy"], interpolate=False)
-
-
-def scenario(k=0, control=None, scheme="gauss-seidel"):
-    conns = [ConnectionSpec(src=f"rotor.{a}_1", dst=f"bearing.{b}") for a, b in
-             (("x", "x"), ("y", "y"), ("vx", "vx"), ("vy", "vy"))]
-    conns += [ConnectionSpec(src=f"bearing.{n.removesuffix('_1')}", dst=f"rotor.{n}") for n in IJ_IN]
-    return Scenario(name="ij-journal", stop_time=0.02,
-                    fmus=(FmuSpec(name="rotor", path=Path("rotor")), FmuSpec(name="bearing", path=Path("bearing"))),
-                    connections=tuple(conns),
-                    coupling=CouplingSpec(scheme=scheme, sequence=("rotor", "bearing"), macro_step=H,
-                                          extrapolation_order=k, step_control=control),
-                    output=OutputSpec(interval=H, signals=("rotor.x_1", "rotor.y_1", "rotor.vx_1", "rotor.vy_1",
-                                                           "bearing.Fx", "bearing.Fy")))
+def scenario(k=0, control=None, sequence=("rotor", "bearing"), scheme="gauss-seidel"):
+    sc = ij_scenario(control)
+    return dataclasses.replace(
+        sc, stop_time=0.02, coupling=dataclasses.replace(sc.coupling, sequence=sequence, macro_step=H,
+                                                         extrapolation_order=k, scheme=scheme),
+        output=OutputSpec(interval=H, signals=("rotor.x_1", "rotor.y_1", "rotor.vx_1", "rotor.vy_1",
+                                               "bearing.Fx", "bearing.Fy")))
 
 
 def run(bearing, **kw):
@@ -99,12 +85,11 @@ def test_not_monitored_where_it_would_not_be_the_rotors_defect():
     from orchestrator.scenario.model import StepControlSpec
     res = run(film(), control=StepControlSpec(type="error", rtol=1e-2))
     assert "coupling_defect" not in res.stats
-    sc = scenario()
-    sc = Scenario(name=sc.name, stop_time=sc.stop_time, fmus=sc.fmus, connections=sc.connections,
-                  coupling=CouplingSpec(scheme="gauss-seidel", sequence=("bearing", "rotor"), macro_step=H),
-                  output=sc.output)
-    res = MasterAlgorithm(sc, subsystems={"rotor": IJJournal(), "bearing": film()}).run()
-    assert res.success and "coupling_defect" not in res.stats
+    res = run(film(), sequence=("bearing", "rotor"))
+    assert "coupling_defect" not in res.stats
+    res = run(film(), scheme="iterative")
+    assert "coupling_defect" not in res.stats and res.stats["iterations"]
+    assert "coupling_defect" in run(film(), scheme="jacobi").stats
 
 
 # --- the monitor alone: episodes, note, bounded memory ---------------------------------------------

@@ -94,10 +94,11 @@ class IJJournal(LinearFake):
         self.x = (expm(A * h) @ np.concatenate([self.x, [1.0]]))[:4]
 
 
-def film():
-    """F = -KF q - CF v, and the coefficients kxx = kyy = KF, cxx = cyy = CF (a constant state 1)."""
+def film(k_reported=KF, c_reported=CF):
+    """F = -KF q - CF v, and the coefficients kxx = kyy = k_reported, cxx = cyy = c_reported (a constant
+    state 1; by default the film's own, KF and CF)."""
     C = np.zeros((10, 1))
-    C[[2, 5], 0], C[[6, 9], 0] = KF, CF
+    C[[2, 5], 0], C[[6, 9], 0] = k_reported, c_reported
     D = np.zeros((10, 4))
     D[0, 0], D[1, 1], D[0, 2], D[1, 3] = -KF, -KF, -CF, -CF
     return LinearFake("bearing", [[0.0]], np.zeros((1, 4)), C, D, [1.0], ["x", "y", "vx", "vy"],
