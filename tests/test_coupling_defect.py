@@ -219,3 +219,27 @@ def test_plot_marks_the_episodes(tmp_path):
     assert eps == [(1.0, 2.0, 1.5)] and n == 7 and problem.startswith("3 coupling_defect entries")
     assert defect_episodes({"coupling_defect": []})[2].startswith("summary.json coupling_defect has no")
     assert defect_episodes({}) == ([], 0, None)
+
+
+def test_defect_limit_key(tmp_path):
+    """coupling.defect_limit: the multiple of the typical force above which a step is flagged (.inf: never);
+    anything else is refused naming the key and the fix."""
+    from orchestrator.errors import ScenarioError
+    base = ROOT / "scenarios" / "jeffcott_runup_free_to_air_from_rest.yaml"
+    assert load_scenario(base).coupling.defect_limit == 1.0
+    assert load_scenario(base, ["coupling.defect_limit=50"]).coupling.defect_limit == 50.0
+    assert load_scenario(base, ["coupling.defect_limit=.inf"]).coupling.defect_limit == math.inf
+    for bad in ("-1", "0", "abc", "[1]"):
+        with pytest.raises(ScenarioError, match=r"coupling.defect_limit.*(positive|finite number).*\.inf for never"):
+            load_scenario(base, [f"coupling.defect_limit={bad}"])
+    mon = DefectMonitor(NAMES, NAMES[:10], CONNS, k=0, limit=3.0)
+    forces = np.full(30, 30.0)
+    forces[10] = 100.0                # |d| = 70 at steps 10 and 11: below 3 x 30
+    forces[20] = 130.0                # |d| = 100 at steps 20 and 21: above
+    feed(mon, forces)
+    st = mon.statistics()
+    assert st["limit"] == 3.0 and st["journals"]["rotor.F_1"]["steps_over"] == 2
+    assert "by more than 3x the typical force (coupling.defect_limit)" in mon.note()
+    off = DefectMonitor(NAMES, NAMES[:10], CONNS, k=0, limit=math.inf)
+    feed(off, forces)
+    assert off.note() is None and off.statistics()["journals"]["rotor.F_1"]["max_defect"] == 100.0

@@ -20,10 +20,11 @@ receives extrapolated with its coefficients, per journal (the x and y components
 together: ``|d| = hypot(d_x, d_y)``), and keeps |d| and |F| per step (bounded: past
 ``MAX_KEPT`` steps, neighbouring pairs are merged, the larger |d| kept). At the end it reports,
 per journal, the typical force (the median |F| over the run), the largest |d| and when, and the
-steps whose |d| exceeded ``LIMIT`` times the typical force, merged into episodes (flagged steps
-at most ``EPISODE_GAP`` steps apart; the ``MAX_EPISODES`` with the largest |d| are listed, in
-time order; ``rotorcosim plot`` marks them in ``eccentricity.png``). Such a step means the rotor integrated a force that differed
-from the film's by more than the film's typical force.
+steps whose |d| exceeded ``coupling.defect_limit`` (default ``LIMIT``) times the typical force,
+merged into episodes (flagged steps at most ``EPISODE_GAP`` steps apart; the ``MAX_EPISODES``
+with the largest |d| are listed, in time order; ``rotorcosim plot`` marks them in
+``eccentricity.png``). Such a step means the rotor integrated a force that differed from the
+film's by more than the limit times the film's typical force.
 
 A large defect is a reason to look, not a proof that the result depends on the step. Measured
 (docs/coupling.md, "Coupling defect"): in the shipped free-to-air run-up's whirl a film that has
@@ -49,7 +50,7 @@ import numpy as np
 from orchestrator.coupling.signal_scales import jacobian_groups
 from orchestrator.coupling.signals import lagrange_weights
 
-LIMIT = 1.0            # a step is flagged when |d| > LIMIT * the journal's typical force (median |F|)
+LIMIT = 1.0            # default of coupling.defect_limit: a step is flagged when |d| > limit x the typical force
 EPISODE_GAP = 10       # flagged steps at most this many steps apart form one episode
 MAX_EPISODES = 100     # episodes listed per journal in summary.json (the largest |d|, in time order)
 MAX_KEPT = 1 << 20     # steps kept per journal before neighbouring pairs are merged
@@ -65,7 +66,7 @@ class DefectMonitor:
     before a macro step, :meth:`after` once it is accepted.
     """
 
-    def __init__(self, names: list[str], extrapolated, connections, *, k: int, unit_of=None):
+    def __init__(self, names: list[str], extrapolated, connections, *, k: int, unit_of=None, limit: float = LIMIT):
         ext = set(extrapolated)
         groups = [(j, terms) for j, terms in jacobian_groups(names, connections) if names[j] in ext]
         journals: dict[str, list] = {}
@@ -74,6 +75,7 @@ class DefectMonitor:
             journals.setdefault(f"{inst}.F_{i}", []).append((a, j, terms))
         self.journals = list(journals)
         self.k = int(k)
+        self.limit = float(limit)         # coupling.defect_limit
         # the force's unit (``unit_of(column)``: the consumer input's declared unit, or None) per journal
         self.units = {name: (unit_of(names[v[0][1]]) if unit_of else None) or "" for name, v in journals.items()}
         # the force columns journal by journal (x before y), their correction terms as arrays
@@ -192,7 +194,7 @@ class DefectMonitor:
     def statistics(self) -> dict:
         """``summary.json`` ``coupling_defect`` (module docstring)."""
         t, d, f = self._arrays()
-        out = {"limit": LIMIT, "steps": self.steps, "steps_not_monitored": self.skipped,
+        out = {"limit": self.limit, "steps": self.steps, "steps_not_monitored": self.skipped,
                "steps_per_row": self._stride, "journals": {}}
         for g, name in enumerate(self.journals):
             dj, fj = d[:, g].astype(float), f[:, g].astype(float)
@@ -202,7 +204,7 @@ class DefectMonitor:
                 continue
             typical = float(np.median(fj))
             i = int(np.argmax(dj))
-            over = np.flatnonzero(dj > LIMIT * typical) if typical > 0 else np.zeros(0, dtype=np.intp)
+            over = np.flatnonzero(dj > self.limit * typical) if typical > 0 else np.zeros(0, dtype=np.intp)
             episodes = []
             if over.size:
                 cuts = np.flatnonzero(np.diff(over) > EPISODE_GAP) + 1
@@ -238,7 +240,7 @@ class DefectMonitor:
                          f"(t={j['t_max_defect']:.6g} s)")
         return ("coupling defect: in some macro steps the force returned at the step's end differed from the force "
                 "its consumer integrated over the step (the interface-Jacobian linearisation) by more than "
-                f"{LIMIT:g}x the typical force: "
+                f"{self.limit:g}x the typical force (coupling.defect_limit): "
                 + "; ".join(parts) + ". The forces at those times may depend on the macro step (a contact "
                 "phase or rub does; a film that refills within one step does not): rerun that interval with "
                 "half the coupling.macro_step, or with coupling.step_control: {type: error}, and compare "

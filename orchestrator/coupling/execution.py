@@ -38,7 +38,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from orchestrator.coupling.defect import DefectMonitor
+from orchestrator.coupling.defect import LIMIT as DEFECT_LIMIT, DefectMonitor
 from orchestrator.coupling.macro_step import MacroStep
 from orchestrator.coupling.observers import Observer, Recorder, RunView, check_observers
 from orchestrator.coupling.plan import make_plan
@@ -307,7 +307,8 @@ class MasterAlgorithm:
         elif c.scheme != "iterative":
             ext = [f"{u.name}.{n}" for u in self.units for n in u.ext_names]
             self.defect = DefectMonitor(self.signal_names, ext, self.scenario.connections, k=k,
-                                        unit_of=self._unit_of) or None
+                                        unit_of=self._unit_of,
+                                        limit=getattr(c, "defect_limit", DEFECT_LIMIT)) or None
         g = self.grid
         tgrid = TimeGrid(g.t0, g.h, t_stop=g.t_stop, n_stop=g.n_steps) if isinstance(g, ConstantStep) else None
         self.view = RunView(self.columns, g.time(0), g.time(g.n_steps), g.n_steps, kinds=self.kinds, grid=tgrid)

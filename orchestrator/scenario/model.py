@@ -28,7 +28,7 @@ ISOLATION = ("none", "process")   # fmus.<name>.isolation, coupling.isolation
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
                  "interpolation_order", "substeps", "discard_retries", "isolation", "parallel", "call_timeout",
-                 "pin_workers", "options", "iteration", "step_control")
+                 "pin_workers", "options", "iteration", "step_control", "defect_limit")
 OUTPUT_KEYS = ("interval", "signals", "format")
 OUTPUT_FORMATS = ("csv", "parquet")
 ANALYSIS_KEYS = ("speed", "journals", "fields", "whirl")   # analysis (docs/analysis.md)
@@ -170,6 +170,9 @@ class CouplingSpec:
     options: Mapping[str, Any] = field(default_factory=dict)  # scheme-specific extras (e.g. monolithic rtol)
     iteration: IterationSpec = field(default_factory=IterationSpec)         # scheme: iterative
     step_control: StepControlSpec = field(default_factory=StepControlSpec)  # constant or error-controlled
+    # constant steps: warn when an interface-Jacobian force's defect exceeds this x its typical force
+    # (orchestrator/coupling/defect.py); .inf: never (the statistics are still written)
+    defect_limit: float = 1.0
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -443,6 +443,17 @@ class SectionReader(NodeReader):
                             fix="give the longest time in seconds an isolated FMU may take for one call, e.g. 60")
             ok &= v is not None
             c["call_timeout"] = v
+        if "defect_limit" in section:
+            node = section["defect_limit"][1]
+            v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
+            if isinstance(v, float) and v == float("inf"):
+                c["defect_limit"] = v
+            else:
+                v = self.number(node, "coupling.defect_limit", positive=True,
+                                fix="give the defect, as a multiple of a journal's typical force, above which a "
+                                    "step is flagged, e.g. 1.0 (the default), or .inf for never")
+                ok &= v is not None
+                c["defect_limit"] = v
         return ok
 
     def load_output(self, node, stop, start):
