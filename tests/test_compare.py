@@ -461,6 +461,40 @@ def test_a_forward_only_error_controlled_variant_is_said_so_in_the_report(tmp_pa
     assert "adapting **forward only** in `gs-err`:" in md and "`gs-e0i0-h0.1`" not in md.split("forward only")[1]
 
 
+def test_the_coupling_defect_is_a_column_of_the_report(tmp_path):
+    """A variant whose summary.json has a coupling_defect (constant steps, interface-Jacobian forces) gets
+    its largest and median defect over the typical force in report.md and report.json, the largest
+    over the journals; a malformed entry is left out; no column when no variant has one."""
+    from orchestrator.compare.report import write_report
+    from orchestrator.compare.runner import _relative_defect
+
+    def runner(scenario, out_dir):
+        fake_runner(scenario, out_dir)
+        if scenario.coupling.macro_step < 0.1:
+            s = json.loads((out_dir / "summary.json").read_text())
+            s["coupling_defect"] = {"journals": {
+                "rotor.F_1": {"typical_force": 20.0, "max_defect": 4.0, "median_defect": 0.5},
+                "rotor.F_2": {"typical_force": 10.0, "max_defect": 1.0, "median_defect": 0.4},
+                "rotor.F_3": {"typical_force": "x", "max_defect": 1e9, "median_defect": 1e9}}}
+            (out_dir / "summary.json").write_text(json.dumps(s))
+    sec = dict(SECTION, variants=[{"scheme": "gauss-seidel", "macro_step": 0.1},
+                                  {"scheme": "gauss-seidel", "macro_step": 0.05}])
+    spec = parse_compare(sec, base_scenario())
+    rep = run_comparison(spec, tmp_path, runner=runner, workers=1)
+    assert [v["coupling_defect"] for v in rep.variants] == [None, {"max": 0.2, "median": 0.04}]
+    write_report(rep, spec, tmp_path, [])
+    md = (tmp_path / "report.md").read_text()
+    head = next(line for line in md.splitlines() if line.startswith("| variant"))
+    rows = [line for line in md.splitlines() if line.startswith("| gs-") and "-h0." in line]
+    i = head.split(" | ").index("max defect / F")
+    assert [r.split(" | ")[i:i + 2] for r in rows] == [["-", "-"], ["0.2", "0.04"]]
+    assert json.loads((tmp_path / "report.json").read_text())["variants"][1]["coupling_defect"]["max"] == 0.2
+    assert _relative_defect({"coupling_defect": {"journals": []}}) is None and _relative_defect(None) is None
+    spec1 = parse_compare(dict(SECTION, variants=[{"scheme": "gauss-seidel", "macro_step": 0.1}]), base_scenario())
+    write_report(run_comparison(spec1, tmp_path / "none", runner=fake_runner, workers=1), spec1, tmp_path / "none", [])
+    assert "defect" not in (tmp_path / "none" / "report.md").read_text()
+
+
 def test_the_cheapest_variant_within_its_tolerance_is_named(compare_files, tmp_path, capsys):
     """The question a comparison answers for a co-simulation engineer, "which coupling is good
     enough at the least cost", had no answer in the report: 18 rows to read. Now report.md,

@@ -61,6 +61,9 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
     goals = any(v.get("goal") for v in report.variants)
     if goals:
         head[-1:-1] = ["goal", "meets goal"]
+    defects = any(v.get("coupling_defect") is not None for v in report.variants)
+    if defects:      # after "FMU calls": the reference-free indicator (docs/coupling.md, "Coupling defect")
+        head[head.index("FMU calls") + 1:head.index("FMU calls") + 1] = ["max defect / F", "median defect / F"]
     lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     failed_names = {f.split("'")[1] for f in failures if f.startswith("variant '")}
     for v in report.variants:
@@ -74,8 +77,19 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
             met = v.get("meets_goal")
             row[-1:-1] = [", ".join(f"{k} {t:g}" for k, t in (v.get("goal") or {}).items()) or "-",
                           "-" if met is None else ("yes" if met else "no")]
+        if defects:
+            cd = v.get("coupling_defect") or {}
+            i = head.index("max defect / F")
+            row[i:i] = [_fmt(cd.get("max")), _fmt(cd.get("median"))]
         lines.append("| " + " | ".join(row) + " |")
     lines += ["", _cheapest_line(report, failures)]
+    if defects:
+        lines += ["", "`max defect / F`, `median defect / F`: the largest and the median coupling defect of the "
+                  "run (the force a film returned minus the force the rotor integrated, at a step's end) over "
+                  "its journal's typical force (summary.json `coupling_defect`; constant steps with "
+                  "interface-Jacobian forces only): indicators that need no reference; the median follows the "
+                  "order in the macro step, the largest also shows a start-up or a jump that no step removes "
+                  "(docs/coupling.md, \"Coupling defect\")."]
     if spec.derived:   # the derived numbers themselves (the table above has their errors)
         lines += ["", "Derived values (`" + "`, `".join(d["key"] for d in spec.derived.values()) + "`):",
                   "", "| run | " + " | ".join(spec.derived) + " |", "|---|" + "---|" * len(spec.derived)]

@@ -268,6 +268,7 @@ def run_comparison(spec: CompareSpec, out_dir: str | os.PathLike, *,
             "expect_order": v.expect_order, "dir": str(runs / v.name),
             "derived": derived_values(spec.derived, data.summary),
             "forward_only": _forward_only(data.summary),
+            "coupling_defect": _relative_defect(data.summary),
             "order_capped_at": _order_cap(sc, real)})
     floor = _reference_floor(reference, spec.order_metric)
     orders = []
@@ -324,6 +325,29 @@ def _forward_only(summary: dict | None) -> bool:
     summary.json ``step_control.can_reject`` false."""
     sc = (summary or {}).get("step_control")
     return isinstance(sc, dict) and sc.get("can_reject") is False
+
+
+def _relative_defect(summary: dict | None) -> dict | None:
+    """``{"max": ..., "median": ...}``: the largest and the median coupling defect of the run, each
+    relative to its journal's typical force, the largest over the journals (summary.json
+    ``coupling_defect``, orchestrator/coupling/defect.py; constant steps with interface-Jacobian
+    forces only), or None: a reference-free indicator beside the errors."""
+    cd = (summary or {}).get("coupling_defect")
+    journals = cd.get("journals") if isinstance(cd, dict) else None
+    if not isinstance(journals, dict):
+        return None
+    out: dict | None = None
+    for j in journals.values():
+        if not isinstance(j, dict):
+            continue
+        f = j.get("typical_force")
+        vals = {k: j.get(f"{k}_defect") for k in ("max", "median")}
+        if all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+               for x in (f, *vals.values())) and f > 0:
+            out = out or {"max": 0.0, "median": 0.0}
+            for k, x in vals.items():
+                out[k] = max(out[k], x / f)
+    return out
 
 
 def _snapshot_fmus(spec: CompareSpec, dest: Path) -> CompareSpec:
