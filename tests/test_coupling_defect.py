@@ -243,3 +243,9 @@ def test_defect_limit_key(tmp_path):
     off = DefectMonitor(NAMES, NAMES[:10], CONNS, k=0, limit=math.inf)
     feed(off, forces)
     assert off.note() is None and off.statistics()["journals"]["rotor.F_1"]["max_defect"] == 100.0
+
+
+def test_start_up_steps_of_order_two_are_not_monitored():
+    """k = 2 iterates the first step from saved states (no prediction integrated): left out and counted."""
+    st = run(film(), k=2).stats["coupling_defect"]
+    assert st["steps_not_monitored"] == 1 and st["steps"] == 199

@@ -36,8 +36,11 @@ run with a smaller ``coupling.macro_step`` tells. The warning says so.
 
 Not monitored: the error-controlled step (it has its own estimate and rejects such steps), the
 iterative scheme (it iterates the force to its tolerance), forces the rotor receives interpolated
-(Gauss-Seidel with the bearing stepping first), and macro steps redone in halves after an
-fmi2Discard (the rotor integrated each half with fresh coefficients).
+(Gauss-Seidel with the bearing stepping first), macro steps redone in halves after an
+fmi2Discard (the rotor integrated each half with fresh coefficients) and the first k start-up
+steps of extrapolation order k >= 2 (iterated from saved states); these are counted in
+``steps_not_monitored``. A force defect does not see the other side of the coupling: under Jacobi
+the bearings also integrate held kinematics (docs/coupling.md measures what that misses).
 """
 
 from __future__ import annotations

@@ -484,10 +484,12 @@ class MasterAlgorithm:
             if variable:
                 t_next, on_output = grid.take_variable_step(self.stepper, t)
             elif self.defect is not None:
-                mon, retried = self.defect, getattr(grid, "retried_steps", 0)
-                mon.before(self.stepper.history, t, t_next)
-                grid.take_step(self.stepper, t, t_next)
-                mon.after(self.stepper.history, t_next, skip=getattr(grid, "retried_steps", 0) != retried)
+                mon, retried, st = self.defect, getattr(grid, "retried_steps", 0), self.stepper
+                # a start-up step (k >= 2, iterated from saved states) integrated no prediction: not monitored
+                startup = st.startup_iterations and st.history.count < st.predictor.k
+                mon.before(st.history, t, t_next)
+                grid.take_step(st, t, t_next)
+                mon.after(st.history, t_next, skip=startup or getattr(grid, "retried_steps", 0) != retried)
             else:
                 grid.take_step(self.stepper, t, t_next)
         except RetriesExhausted as x:
