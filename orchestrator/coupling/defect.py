@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 import re
+from array import array
 
 import numpy as np
 
@@ -57,7 +58,6 @@ LIMIT = 1.0            # default of coupling.defect_limit: a step is flagged whe
 EPISODE_GAP = 10       # flagged steps at most this many steps apart form one episode
 MAX_EPISODES = 100     # episodes listed per journal in summary.json (the largest |d|, in time order)
 MAX_KEPT = 1 << 20     # steps kept per journal before neighbouring pairs are merged
-CHUNK = 4096
 _FORCE = re.compile(r"^(.*)\.F([xy])_(\w+)$")
 
 
@@ -81,25 +81,24 @@ class DefectMonitor:
         self.limit = float(limit)         # coupling.defect_limit
         # the force's unit (``unit_of(column)``: the consumer input's declared unit, or None) per journal
         self.units = {name: (unit_of(names[v[0][1]]) if unit_of else None) or "" for name, v in journals.items()}
-        # the force columns journal by journal (x before y), their correction terms as arrays
-        # (coefficient column, kinematics column, 1 / gain; four per force) and where each journal starts
-        rows = [(j, terms) for v in journals.values() for _, j, terms in sorted(v)]
-        self._force_cols = np.array([j for j, _ in rows], dtype=np.intp)
-        self._kc = np.array([[kc for kc, _, _ in terms] for _, terms in rows], dtype=np.intp).reshape(len(rows), 4)
-        self._uc = np.array([[uc for _, uc, _ in terms] for _, terms in rows], dtype=np.intp).reshape(len(rows), 4)
-        self._inv = np.array([[g for _, _, g in terms] for _, terms in rows], dtype=float).reshape(len(rows), 4)
-        self._starts = np.cumsum([0] + [len(v) for v in journals.values()])[:-1].astype(np.intp)
-        self._pairs = all(len(v) == 2 for v in journals.values())
+        # per journal, x before y: ((force column, ((coefficient column, kinematics column, 1 / gain),
+        # four per force)), ...); the per-step arithmetic is on Python floats (a few us a step, where
+        # numpy on these short rows took 25-47 us in a run)
+        self._plan = [tuple((j, tuple(terms)) for _, j, terms in sorted(v)) for v in journals.values()]
+        self._force_list = [j for forces in self._plan for j, _ in forces]
+        self._force_cols = np.array(self._force_list, dtype=np.intp)
+        self._row_d = [0.0] * len(journals)
+        self._row_f = [0.0] * len(journals)
         self._weights: dict[tuple, np.ndarray] = {}
-        self._pred = np.zeros(len(self._force_cols))
-        self._prev: np.ndarray | None = None
-        n = len(self.journals)
-        self._t: list[np.ndarray] = []
-        self._d: list[np.ndarray] = []
-        self._f: list[np.ndarray] = []
+        self._pred: list[float] = []
+        self._prev: list[float] | None = None
+        self._t = array("d")    # per kept row: the step's end time, |d| and |F| per journal (float32)
+        self._d = array("f")
+        self._f = array("f")
         self._n = 0             # rows kept
         self._stride = 1        # steps per kept row (doubles when MAX_KEPT is reached)
-        self._acc = np.zeros((2, n))       # the pending row when stride > 1: max |d|, |F| of its first step
+        self._acc_d: list = []             # the pending row when stride > 1: max |d|, |F| of its first step
+        self._acc_f: list = []
         self._acc_t = 0.0
         self._acc_n = 0
         self.steps = 0          # steps monitored
@@ -112,15 +111,15 @@ class DefectMonitor:
     def before(self, history, t: float, t_next: float) -> None:
         """Keep the prediction P(t_next) of the forces and the values at t (history before the step)."""
         p = min(self.k, history.count - 1)
+        self._prev = prev = history.store[1].tolist()        # Python floats: ~20 numpy calls less per step
         if p <= 0:
-            self._pred = history.store[1, self._force_cols].copy()
+            self._pred = [prev[j] for j in self._force_list]
         else:
             nodes = tuple(np.round((history.times[1:p + 2] - t) / (t_next - t), 12))
             w = self._weights.get(nodes)
             if w is None:
                 w = self._weights[nodes] = lagrange_weights(nodes, [1.0])[0]
-            self._pred = w @ history.store[1:p + 2, self._force_cols]
-        self._prev = history.store[1].copy()
+            self._pred = (w @ history.store[1:p + 2, self._force_cols]).tolist()
 
     def after(self, history, t_next: float, *, skip: bool = False) -> None:
         """The defect of the step just accepted (history's newest level ``t_next``)."""
@@ -130,44 +129,43 @@ class DefectMonitor:
             self.skipped += 1
             self._prev = None
             return
-        new, prev = history.store[1], self._prev
-        kc, uc = self._kc, self._uc
-        s = (prev[kc] * (new[uc] - prev[uc]) * self._inv).sum(axis=1)
-        f = new[self._force_cols]
-        d = f - self._pred + s
-        if self._pairs:                        # every journal has x and y: |.| of consecutive pairs
-            row = np.empty((2, len(self.journals)))
-            np.hypot(d[0::2], d[1::2], out=row[0])
-            np.hypot(f[0::2], f[1::2], out=row[1])
-        else:
-            row = np.sqrt(np.vstack([np.add.reduceat(d * d, self._starts), np.add.reduceat(f * f, self._starts)]))
+        new, prev = history.store[1].tolist(), self._prev
+        row_d, row_f = self._row_d, self._row_f
+        m = 0
+        for g, forces in enumerate(self._plan):
+            d2 = f2 = 0.0
+            for j, terms in forces:
+                s = 0.0
+                for kc, uc, inv_gain in terms:
+                    s += prev[kc] * (new[uc] - prev[uc]) * inv_gain
+                f = new[j]
+                d = f - self._pred[m] + s
+                d2 += d * d
+                f2 += f * f
+                m += 1
+            row_d[g], row_f[g] = math.sqrt(d2), math.sqrt(f2)
         self._prev = None
         self.steps += 1
-        self._keep(t_next, row)
+        self._keep(t_next, row_d, row_f)
 
-    def _keep(self, t: float, row: np.ndarray) -> None:
+    def _keep(self, t: float, d, f) -> None:
+        """Keep one step's |d| and |F| per journal (``d``, ``f``: sequences), or merge it into the pending
+        row when ``_stride`` > 1 (the larger |d| and its time, |F| of the row's first step)."""
         if self._stride > 1:
             if self._acc_n == 0:
-                self._acc[:] = row
-                self._acc_t = t
-            elif row[0].max() > self._acc[0].max():
-                self._acc[0] = np.maximum(self._acc[0], row[0])
-                self._acc_t = t
+                self._acc_d, self._acc_f, self._acc_t = list(d), list(f), t
             else:
-                self._acc[0] = np.maximum(self._acc[0], row[0])
+                if max(d) > max(self._acc_d):
+                    self._acc_t = t
+                self._acc_d = [max(a, b) for a, b in zip(self._acc_d, d)]
             self._acc_n += 1
             if self._acc_n < self._stride:
                 return
-            row, t = self._acc.copy(), self._acc_t
+            d, f, t = self._acc_d, self._acc_f, self._acc_t
             self._acc_n = 0
-        i = self._n % CHUNK
-        if i == 0:
-            n = len(self.journals)
-            self._t.append(np.empty(CHUNK))
-            self._d.append(np.empty((CHUNK, n), dtype=np.float32))
-            self._f.append(np.empty((CHUNK, n), dtype=np.float32))
-        self._t[-1][i] = t
-        self._d[-1][i], self._f[-1][i] = row
+        self._t.append(t)
+        self._d.extend(d)
+        self._f.extend(f)
         self._n += 1
         if self._n >= MAX_KEPT:
             self._halve()
@@ -180,18 +178,16 @@ class DefectMonitor:
         second = d2[:, 1].max(axis=1) > d2[:, 0].max(axis=1)
         t_new = np.where(second, t2[:, 1], t2[:, 0])
         d_new = d2.max(axis=1)
-        self._t, self._d, self._f, self._n = [], [], [], 0
+        self._t, self._d, self._f = array("d", t_new.tolist()), array("f", d_new.ravel().tolist()), \
+            array("f", f2.ravel().tolist())
+        self._n = m
         self._stride *= 2
-        stride, self._stride = self._stride, 1
-        for i in range(m):
-            self._keep(float(t_new[i]), np.vstack([d_new[i], f2[i]]))
-        self._stride = stride
 
     def _arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        n, k = self._n, len(self.journals)
-        if not n:
-            return np.zeros(0), np.zeros((0, k), np.float32), np.zeros((0, k), np.float32)
-        return (np.concatenate(self._t)[:n], np.concatenate(self._d)[:n], np.concatenate(self._f)[:n])
+        k = len(self.journals)
+        return (np.frombuffer(self._t, dtype=np.float64).copy(),
+                np.frombuffer(self._d, dtype=np.float32).reshape(-1, k).copy(),
+                np.frombuffer(self._f, dtype=np.float32).reshape(-1, k).copy())
 
     # ------------------------------------------------------------------- report
     def statistics(self) -> dict:
