@@ -126,7 +126,10 @@ def test_episodes_and_note():
     assert j["episodes"][0]["t_start"] == pytest.approx(0.020) and j["episodes"][0]["t_end"] == pytest.approx(0.023)
     note = mon.note()
     assert "rotor.F_1: 6 steps in 2 episodes between t=0.02 and 0.071 s" in note
-    assert "largest 70 N against a typical force of 30 N" in note and "coupling.macro_step" in note
+    assert "largest 70 N against a typical force of 30 N" in note and "half the coupling.macro_step" in note
+    with_h = DefectMonitor(NAMES, NAMES[:10], CONNS, k=0, macro_step=1e-3)
+    feed(with_h, forces)
+    assert "(--set coupling.macro_step=0.0005 --set stop_time=0.091)" in with_h.note()
     quiet = DefectMonitor(NAMES, NAMES[:10], CONNS, k=0)
     feed(quiet, 30.0 + np.sin(np.arange(50)))
     assert quiet.note() is None and quiet.statistics()["journals"]["rotor.F_1"]["steps_over"] == 0

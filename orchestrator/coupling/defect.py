@@ -69,7 +69,8 @@ class DefectMonitor:
     before a macro step, :meth:`after` once it is accepted.
     """
 
-    def __init__(self, names: list[str], extrapolated, connections, *, k: int, unit_of=None, limit: float = LIMIT):
+    def __init__(self, names: list[str], extrapolated, connections, *, k: int, unit_of=None, limit: float = LIMIT,
+                 macro_step: float | None = None):
         ext = set(extrapolated)
         groups = [(j, terms) for j, terms in jacobian_groups(names, connections) if names[j] in ext]
         journals: dict[str, list] = {}
@@ -79,6 +80,7 @@ class DefectMonitor:
         self.journals = list(journals)
         self.k = int(k)
         self.limit = float(limit)         # coupling.defect_limit
+        self.macro_step = macro_step      # coupling.macro_step, for the rerun the warning suggests
         # the force's unit (``unit_of(column)``: the consumer input's declared unit, or None) per journal
         self.units = {name: (unit_of(names[v[0][1]]) if unit_of else None) or "" for name, v in journals.items()}
         # per journal, x before y: ((force column, ((coefficient column, kinematics column, 1 / gain),
@@ -237,13 +239,18 @@ class DefectMonitor:
                          f"{'s' if j['episode_count'] != 1 else ''} between t={first:.6g} and {last:.6g} s, "
                          f"largest {j['max_defect']:.4g}{u} against a typical force of {j['typical_force']:.4g}{u} "
                          f"(t={j['t_max_defect']:.6g} s)")
+        last = max(j["last_flagged"] for _, j in hits)
+        h = self.macro_step
+        rerun = (f"rerun up to there with half the step (--set coupling.macro_step={h / 2:.6g} --set "
+                 f"stop_time={_time(last + 20 * h):.6g})" if h else "rerun that interval with half the "
+                 "coupling.macro_step")
         return ("coupling defect: in some macro steps the force returned at the step's end differed from the force "
                 "its consumer integrated over the step (the interface-Jacobian linearisation) by more than "
                 f"{self.limit:g}x the typical force (coupling.defect_limit): "
                 + "; ".join(parts) + ". The forces at those times may depend on the macro step (a contact "
-                "phase or rub does; a film that refills within one step does not): rerun that interval with "
-                "half the coupling.macro_step, or with coupling.step_control: {type: error}, and compare "
-                "(summary.json coupling_defect; docs/coupling.md, 'Coupling defect')")
+                f"phase or rub does; a film that refills within one step does not): {rerun}, or use "
+                "coupling.step_control: {type: error}, and compare (summary.json coupling_defect; docs/coupling.md, "
+                "'Coupling defect')")
 
 
 def _time(t) -> float:

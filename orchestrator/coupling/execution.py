@@ -308,7 +308,8 @@ class MasterAlgorithm:
             ext = [f"{u.name}.{n}" for u in self.units for n in u.ext_names]
             self.defect = DefectMonitor(self.signal_names, ext, self.scenario.connections, k=k,
                                         unit_of=self._unit_of,
-                                        limit=getattr(c, "defect_limit", DEFECT_LIMIT)) or None
+                                        limit=getattr(c, "defect_limit", DEFECT_LIMIT),
+                                        macro_step=c.macro_step) or None
         g = self.grid
         tgrid = TimeGrid(g.t0, g.h, t_stop=g.t_stop, n_stop=g.n_steps) if isinstance(g, ConstantStep) else None
         self.view = RunView(self.columns, g.time(0), g.time(g.n_steps), g.n_steps, kinds=self.kinds, grid=tgrid)
