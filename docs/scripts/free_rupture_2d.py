@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
+from scipy.special import expit
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -77,6 +78,18 @@ Q_WITH_DELTA = True
 #: window half width in units of the soft rupture's width ell, and at least MIN_CELLS cells
 N_LEN = 8.0
 MIN_CELLS = 2.0
+#: ``--front``: the ghost-fluid treatment of the reformation front's axial faces
+#: (:func:`front_correction`, 2026-12-07 fourth session); None = off
+FRONT = None
+#: the columns where it applies [deg, physical]: around the reformation front only
+FRONT_DEG = (150.0, 290.0)
+#: where the front treatment takes the rows' cavity flux [deg, physical]: after the groove
+#: (which feeds the cavity, so q_j at Q_DEG is not the flux that reaches the front)
+FRONT_Q_DEG = 150.0
+#: blend the front treatment in over P's distance to the front (C1 ramp over one cell)
+RAMP = True
+#: floor of the ghost-fluid distance fraction s (a priori, not tuned)
+S_MIN = 1e-2
 
 
 def row_layer(b, xy, omega, q, margin):
@@ -135,6 +148,143 @@ def rupture_correction(b, xy, omega, q_rows):
     return corr.ravel(), info, deltas
 
 
+def front_correction(b, u, kin, q_rows, alpha, want_jac):
+    """The reformation front's axial faces as a ghost-fluid (Shortley-Weller) Dirichlet
+    condition at the front (2026-12-07 fourth session).
+
+    Per cell the fill indicator ``c = (theta - theta_c) / (1 - theta_c)``, theta_c = q_j /
+    (omega H_e) the cavity's theta of the row (q_j the rows' cavity flux after the groove, at
+    FRONT_Q_DEG, lagged like the rupture correction's q_j): 0 in the cavity, 1 in the full
+    film, the front cell F's fill fraction f in between (the upwind F|E face carries the
+    gradient of a full film whose front lies f h before E's centre). Per row the signed
+    distance to the front along phi, ``phi_ji = h (c_{i-1} + c_i - 1)``: f h at E, -(1 - f) h
+    at F (exact for both), -h / +h deeper in the cavity / full film. On an axial face between
+    a cell P with phi > 0 and a cell C with phi <= 0 (a step of the front's staircase, where
+    the film puts the front at C's centre) the front crosses the face's column at the
+    fraction ``s = phi_P / (phi_P - phi_C)`` of the centre distance from P, and the face's
+    Poiseuille flux becomes (FRONT "sw") ``a_z H^3 (p_P - p_C) / (s dz)`` (s >= S_MIN; C's
+    own pressure as the front's), or (FRONT "ghost") ``a_z H^3 (p_P - p_g) / dz`` with C's
+    ghost pressure ``p_g = p_cav + G phi_C``, the full film extended across the front with
+    the jump condition's gradient ``G = omega (1 - theta_c) / (a_phi H^2)`` (front normal
+    along phi). Both blended in by the C1 ramp ``rho = x^2 (3 - 2 x)``, x = min(phi_P / h, 1)
+    (the flux field itself jumps where P's centre crosses the front; the ramp keeps Newton's
+    residual continuous). One flux per face, both cells (mass exact). Returns (dr (n,),
+    Jacobian entries [(row g, column g2, value)], with the derivatives through phi)."""
+    g = b.grid
+    n_phi, n_z = g.n_phi, g.n_z
+    law = b.law
+    p, th = law.p_theta(u)
+    dp = law.K * expit(u / law.delta)                      # dp/du, as law_eval
+    dth = expit(-u / law.delta)                            # dtheta/du
+    p, th, dp, dth = (a.reshape(n_z, n_phi) for a in (p, th, dp, dth))
+    He, om = kin[1], kin[3]
+    H = kin[0]
+    thc = np.clip(q_rows[:, None] / (om * He[None, :]), 0.0, 0.999)
+    c = (th - thc) / (1.0 - thc)
+    dc = dth / (1.0 - thc)
+    h = g.dphi
+    phi = h * (np.roll(c, 1, axis=1) + c - 1.0)
+    deg = np.degrees((g.phi - alpha) % (2 * math.pi))
+    colmask = (deg >= FRONT_DEG[0]) & (deg <= FRONT_DEG[1]) & ~g.groove
+    wr = g.wrel if g.wrel is not None else np.ones(n_phi)
+    pos_ = phi > 0.0
+    if FRONT == "cut":
+        return _front_cut(b, g, law, p, dp, dc, thc, phi, colmask, wr, H, om, h, want_jac)
+    jj, ii = np.nonzero((pos_[:-1] != pos_[1:]) & colmask[None, :])
+    dr = np.zeros((n_z, n_phi))
+    jac = []
+    info = []
+    for j, i in zip(jj, ii):
+        cz = g.dphi * wr[i] * b.a_z * H[i] ** 3 / g.dz
+        jp, jc = (j, j + 1) if pos_[j, i] else (j + 1, j)
+        fp, fc = phi[jp, i], phi[jc, i]
+        if FRONT == "sw":       # Dirichlet at the front crossing (Shortley-Weller), 1/s
+            s = max(fp / (fp - fc), S_MIN)
+            ext = (p[jp, i] - p[jc, i]) * (1.0 / s - 1.0)
+            d_ext = {(jp, i): dp[jp, i] * (1.0 / s - 1.0), (jc, i): -dp[jc, i] * (1.0 / s - 1.0)}
+        else:                   # "ghost": C's ghost pressure p_cav + G phi_C, G from the jump
+            G = om * (1.0 - thc[jc, i]) / (b.a_phi * H[i] ** 2)
+            ext = p[jc, i] - (law.p_cav + G * fc)
+            im = (i - 1) % n_phi
+            d_ext = {(jc, i): dp[jc, i] - G * h * dc[jc, i], (jc, im): -G * h * dc[jc, im]}
+        x = min(fp / h, 1.0)
+        if RAMP:
+            rho = x * x * (3.0 - 2.0 * x)                  # C1 ramp over P's distance
+            drho = 6.0 * x * (1.0 - x) / h if x < 1.0 else 0.0
+        else:
+            rho, drho = 1.0, 0.0
+        d = cz * rho * ext                                  # extra outflow P -> C
+        dr[jp, i] += d
+        dr[jc, i] -= d
+        info.append((jp, jc, i, fp / h, fc / h, rho, d))
+        if want_jac:
+            ent = {k: cz * rho * v for k, v in d_ext.items()}
+            for k in ((jp, (i - 1) % n_phi), (jp, i)):       # through rho (phi_P)
+                ent[k] = ent.get(k, 0.0) + cz * ext * drho * h * dc[k]
+            for (jr, k), v in ent.items():
+                jac.append((jp * n_phi + i, jr * n_phi + k, v))
+                jac.append((jc * n_phi + i, jr * n_phi + k, -v))
+    front_correction.last = info
+    return dr.ravel(), jac
+
+
+def _front_cut(b, g, law, p, dp, dc, thc, phi, colmask, wr, H, om, h, want_jac):
+    """FRONT "cut": every axial face near the front as a cut face with ghost pressures.
+
+    The face between rows j and j + 1 of column i spans phi_i +- h / 2; the front crosses the
+    face's level at the mean of the two rows' front places, so the part of the face on the
+    full side is the aperture ``A = clip(1/2 + (phi_a + phi_b) / (2 h), 0, 1)``. The face flux
+    is ``A a_z H^3 (p~_a - p~_b) / dz`` with p~ = p on the full side (phi >= 0) and the ghost
+    pressure ``p + G phi`` on the cavity side (the full film extended across the front with
+    the jump condition's gradient G = omega (1 - theta_c) / (a_phi H^2), from the cell's own
+    p, p_cav up to the law's soft part: with p_cav instead the flux jumped by the soft part,
+    ~1 kPa, where a centre crossed the front, and Newton stalled). Continuous as the front
+    moves: A -> 0 as it leaves the face, and at phi = 0 the ghost is the cell's p. Deep in the full film A = 1 and p~ = p: the film's
+    own flux. One flux per face, both cells."""
+    n_z, n_phi = p.shape
+    Gc = om * (1.0 - thc) / (b.a_phi * H[None, :] ** 2)
+    t = 0.5 + (phi[:-1] + phi[1:]) / (2.0 * h)
+    act = (t < 1.0) & (t > 0.0) & colmask[None, :]
+    act |= ((phi[:-1] < 0.0) != (phi[1:] < 0.0)) & colmask[None, :]
+    jj, ii = np.nonzero(act)
+    dr = np.zeros((n_z, n_phi))
+    jac = []
+    info = []
+    for j, i in zip(jj, ii):
+        cz = g.dphi * wr[i] * b.a_z * H[i] ** 3 / g.dz
+        A = min(max(t[j, i], 0.0), 1.0)
+        dA = 1.0 / (2.0 * h) if 0.0 < t[j, i] < 1.0 else 0.0
+        im = (i - 1) % n_phi
+        pt, dpt = [], []
+        for r_ in (j, j + 1):
+            if phi[r_, i] >= 0.0:
+                pt.append(p[r_, i])
+                dpt.append({(r_, i): dp[r_, i]})
+            else:
+                G = Gc[r_, i]
+                pt.append(p[r_, i] + G * phi[r_, i])
+                dpt.append({(r_, im): G * h * dc[r_, im], (r_, i): G * h * dc[r_, i] + dp[r_, i]})
+        d = cz * (A * (pt[0] - pt[1]) - (p[j, i] - p[j + 1, i]))     # extra outflow j -> j+1
+        dr[j, i] += d
+        dr[j + 1, i] -= d
+        info.append((j, i, phi[j, i] / h, phi[j + 1, i] / h, A, d))
+        if want_jac:
+            ent = {(j, i): -cz * dp[j, i], (j + 1, i): cz * dp[j + 1, i]}
+            for k, v in dpt[0].items():
+                ent[k] = ent.get(k, 0.0) + cz * A * v
+            for k, v in dpt[1].items():
+                ent[k] = ent.get(k, 0.0) - cz * A * v
+            if dA:
+                for r_ in (j, j + 1):
+                    for k in (im, i):
+                        ent[(r_, k)] = ent.get((r_, k), 0.0) + cz * (pt[0] - pt[1]) * dA * h * dc[r_, k]
+            for (jr, k), v in ent.items():
+                jac.append((j * n_phi + i, jr * n_phi + k, v))
+                jac.append(((j + 1) * n_phi + i, jr * n_phi + k, -v))
+    front_correction.last = info
+    return dr.ravel(), jac
+
+
 def row_flux(b, u, kin, alpha=0.0, deg=None, scheme=None, delta=None):
     """Per row the circumferential flux per unit width at the east face of the column nearest
     ``deg`` (default Q_DEG; physical angle; the grid rotated by alpha): the film's own face
@@ -175,14 +325,39 @@ class Film:
         self.b = b = BearingModel(prm)
         self.omega, self.alpha = omega, alpha
         self.prepare = el.exit_corrected(b, True)
-        self.box = {"corr": np.zeros(b.grid.n_phi * b.grid.n_z)}   # the film holds the symmetric half
+        self.box = {"corr": np.zeros(b.grid.n_phi * b.grid.n_z), "q": None}   # symmetric half
         with_exit = b.film.residual
+        self.newton_its = []
 
-        def residual(*args, **kw):
-            r = with_exit(*args, **kw)
+        def residual(u, th_dot0, th_dot1, kin, want_jac=False):
+            r = with_exit(u, th_dot0, th_dot1, kin, want_jac=want_jac)
             r += self.box["corr"]
+            if FRONT and self.box["q"] is not None:
+                dr, jac = front_correction(b, u, kin, self.box["q"], alpha, want_jac)
+                r += dr
+                if want_jac:
+                    self.box["jac"] = jac
+            elif want_jac:
+                self.box["jac"] = []
             return r
         b.film.residual = residual
+        scatter = b.film._scatter
+        self.box["jac"] = []
+        self.box["dropped"] = 0
+
+        def scatter_front():
+            """The stencil's band, plus the front treatment's entries that lie in the band
+            (those outside it are dropped and counted)."""
+            scatter()
+            g = b.grid
+            ab, pos, bw = b.film.ab, g.pos, g.bw
+            for r_, c_, v in self.box["jac"]:
+                dpos = pos[r_] - pos[c_]
+                if abs(dpos) <= bw:
+                    ab[2 * bw + dpos, pos[c_]] += v
+                else:
+                    self.box["dropped"] += 1
+        b.film._scatter = scatter_front
 
     def steady(self, xy, rupture, u0=None, q0=None, max_iter=60):
         """(u, kin, substitutions, per-row info, q) of the steady film at the journal position
@@ -202,14 +377,24 @@ class Film:
         its, info, q = 0, None, None
         if rupture:
             q = row_flux(b, u, kin, self.alpha) if q0 is None else q0.copy()
+            qf = row_flux(b, u, kin, self.alpha, deg=FRONT_Q_DEG)
             for its in range(1, max_iter + 1):
+                self.box["q"] = qf.copy()
                 self.box["corr"][:], info, deltas = rupture_correction(b, xy, self.omega, q)
-                un, _ = b._steady_newton(kin, u, zero, 40)
+                # the front treatment's Jacobian lacks the band's outside entries (an inexact
+                # Newton, linear convergence): more iterations before the cold path
+                un, nits = b._steady_newton(kin, u, zero, 300 if FRONT else 40)
+                self.newton_its.append(nits if un is not None else -1)
                 u = b._steady(kin, u) if un is None else un
                 dq = row_flux(b, u, kin, self.alpha,
                               delta=deltas if Q_WITH_DELTA else None) - q
                 q = q + dq
-                if np.max(np.abs(dq)) < 1e-11 * np.max(np.abs(q)):
+                dqf = 0.0
+                if FRONT:
+                    qn = row_flux(b, u, kin, self.alpha, deg=FRONT_Q_DEG)
+                    dqf = np.max(np.abs(qn - qf)) / np.max(np.abs(qn))
+                    qf = qn
+                if np.max(np.abs(dq)) < 1e-11 * np.max(np.abs(q)) and dqf < 1e-11:
                     break
             else:
                 print(f"  ({b.grid.n_phi} x {b.params.n_z}: q changed by "
@@ -380,7 +565,15 @@ def main(argv):
         k = argv.index("--tt")
         el.TT["theta_transport"] = int(argv[k + 1])
         argv = argv[:k] + argv[k + 2:]
-    global UPWIND_Q, Q_WITH_DELTA
+    global UPWIND_Q, Q_WITH_DELTA, FRONT
+    if "--front" in argv:
+        k = argv.index("--front")
+        FRONT = argv[k + 1]
+        argv = argv[:k] + argv[k + 2:]
+    global RAMP
+    if "--no-ramp" in argv:
+        RAMP = False
+        argv = [a for a in argv if a != "--no-ramp"]
     if "--upwind-q" in argv:
         UPWIND_Q = True
         argv = [a for a in argv if a != "--upwind-q"]
