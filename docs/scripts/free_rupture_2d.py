@@ -40,6 +40,13 @@ square grids and n_phi 48 ... 768 at n_z = 40, about 5 minutes). Markdown tables
 exit correction only and with the rupture correction. ``--tt 1``: the films with the limited
 second-order theta transport (as exit_layer_2d.py); ``--upwind-q``: q_j from the upwind cell
 value of theta whatever the transport (the old formula, to reproduce its numbers).
+
+``--front {sw,ghost,cut}`` (2026-12-07 fourth session, :func:`front_correction`): a treatment
+of the reformation front's axial faces inside the Newton system (the residual and its
+Jacobian, less the entries outside the band); ``--no-ramp``: sw / ghost without the C1 ramp.
+The session's drivers: ``front_probe_2d.py`` (per-row front on the shifted 40 x 40 films),
+``front_shift_nz.py`` and ``front_shift40.py`` (shift spreads), ``front_square.py`` (square
+grids with a front treatment).
 """
 
 from __future__ import annotations
@@ -88,6 +95,8 @@ FRONT_DEG = (150.0, 290.0)
 FRONT_Q_DEG = 150.0
 #: blend the front treatment in over P's distance to the front (C1 ramp over one cell)
 RAMP = True
+#: sw-lag: the frozen s relaxed as s <- (1 - DAMP) s_new + DAMP s_old (same face set)
+DAMP = 0.0
 #: floor of the ghost-fluid distance fraction s (a priori, not tuned)
 S_MIN = 1e-2
 
@@ -148,7 +157,7 @@ def rupture_correction(b, xy, omega, q_rows):
     return corr.ravel(), info, deltas
 
 
-def front_correction(b, u, kin, q_rows, alpha, want_jac):
+def front_correction(b, u, kin, q_rows, alpha, want_jac, mode=None):
     """The reformation front's axial faces as a ghost-fluid (Shortley-Weller) Dirichlet
     condition at the front (2026-12-07 fourth session).
 
@@ -170,6 +179,7 @@ def front_correction(b, u, kin, q_rows, alpha, want_jac):
     (the flux field itself jumps where P's centre crosses the front; the ramp keeps Newton's
     residual continuous). One flux per face, both cells (mass exact). Returns (dr (n,),
     Jacobian entries [(row g, column g2, value)], with the derivatives through phi)."""
+    mode = FRONT if mode is None else mode
     g = b.grid
     n_phi, n_z = g.n_phi, g.n_z
     law = b.law
@@ -188,7 +198,28 @@ def front_correction(b, u, kin, q_rows, alpha, want_jac):
     colmask = (deg >= FRONT_DEG[0]) & (deg <= FRONT_DEG[1]) & ~g.groove
     wr = g.wrel if g.wrel is not None else np.ones(n_phi)
     pos_ = phi > 0.0
-    if FRONT == "cut":
+    if mode == "sw-lag":       # the staircase faces and s frozen from the outer iteration
+        dr = np.zeros((n_z, n_phi))
+        jac = []
+        for jp, jc, i, s in front_correction.frozen:
+            cz = g.dphi * wr[i] * b.a_z * H[i] ** 3 / g.dz
+            k = 1.0 / s - 1.0
+            d = cz * (p[jp, i] - p[jc, i]) * k
+            dr[jp, i] += d
+            dr[jc, i] -= d
+            if want_jac:
+                for (jr, v) in ((jp, cz * k * dp[jp, i]), (jc, -cz * k * dp[jc, i])):
+                    jac.append((jp * n_phi + i, jr * n_phi + i, v))
+                    jac.append((jc * n_phi + i, jr * n_phi + i, -v))
+        return dr.ravel(), jac
+    if mode == "geometry":     # (jp, jc, i, s) of the staircase faces, for sw-lag
+        jj, ii = np.nonzero((pos_[:-1] != pos_[1:]) & colmask[None, :])
+        out = []
+        for j, i in zip(jj, ii):
+            jp, jc = (j, j + 1) if pos_[j, i] else (j + 1, j)
+            out.append((jp, jc, i, max(phi[jp, i] / (phi[jp, i] - phi[jc, i]), S_MIN)))
+        return out
+    if mode == "cut":
         return _front_cut(b, g, law, p, dp, dc, thc, phi, colmask, wr, H, om, h, want_jac)
     jj, ii = np.nonzero((pos_[:-1] != pos_[1:]) & colmask[None, :])
     dr = np.zeros((n_z, n_phi))
@@ -198,10 +229,17 @@ def front_correction(b, u, kin, q_rows, alpha, want_jac):
         cz = g.dphi * wr[i] * b.a_z * H[i] ** 3 / g.dz
         jp, jc = (j, j + 1) if pos_[j, i] else (j + 1, j)
         fp, fc = phi[jp, i], phi[jc, i]
-        if FRONT == "sw":       # Dirichlet at the front crossing (Shortley-Weller), 1/s
-            s = max(fp / (fp - fc), S_MIN)
-            ext = (p[jp, i] - p[jc, i]) * (1.0 / s - 1.0)
+        if mode == "sw":       # Dirichlet at the front crossing (Shortley-Weller), 1/s
+            s0 = fp / (fp - fc)
+            s = max(s0, S_MIN)
+            dpp = p[jp, i] - p[jc, i]
+            ext = dpp * (1.0 / s - 1.0)
             d_ext = {(jp, i): dp[jp, i] * (1.0 / s - 1.0), (jc, i): -dp[jc, i] * (1.0 / s - 1.0)}
+            if s0 >= S_MIN:     # through s (phi_P, phi_C)
+                den = (fp - fc) ** 2
+                for jr, ds in ((jp, -fc / den), (jc, fp / den)):
+                    for k in ((i - 1) % n_phi, i):
+                        d_ext[(jr, k)] = d_ext.get((jr, k), 0.0) - dpp / s ** 2 * ds * h * dc[jr, k]
         else:                   # "ghost": C's ghost pressure p_cav + G phi_C, G from the jump
             G = om * (1.0 - thc[jc, i]) / (b.a_phi * H[i] ** 2)
             ext = p[jc, i] - (law.p_cav + G * fc)
@@ -328,6 +366,7 @@ class Film:
         self.box = {"corr": np.zeros(b.grid.n_phi * b.grid.n_z), "q": None}   # symmetric half
         with_exit = b.film.residual
         self.newton_its = []
+        self.geoms = []
 
         def residual(u, th_dot0, th_dot1, kin, want_jac=False):
             r = with_exit(u, th_dot0, th_dot1, kin, want_jac=want_jac)
@@ -378,7 +417,18 @@ class Film:
         if rupture:
             q = row_flux(b, u, kin, self.alpha) if q0 is None else q0.copy()
             qf = row_flux(b, u, kin, self.alpha, deg=FRONT_Q_DEG)
+            geom = None
             for its in range(1, max_iter + 1):
+                if FRONT == "sw-lag":       # freeze the staircase's faces and s from this u
+                    new = front_correction(b, u, kin, qf, self.alpha, False, mode="geometry")
+                    dgeom = (0.0 if geom is not None and [a[:3] for a in geom]
+                             == [a[:3] for a in new] and
+                             max([abs(a[3] - c_[3]) for a, c_ in zip(geom, new)] or [0.0]) < 1e-9
+                             else 1.0)
+                    if DAMP and geom is not None and [a[:3] for a in geom] == [a[:3] for a in new]:
+                        new = [a[:3] + ((1 - DAMP) * a[3] + DAMP * c_[3],)
+                               for a, c_ in zip(new, geom)]
+                    geom = front_correction.frozen = new
                 self.box["q"] = qf.copy()
                 self.box["corr"][:], info, deltas = rupture_correction(b, xy, self.omega, q)
                 # the front treatment's Jacobian lacks the band's outside entries (an inexact
@@ -394,6 +444,10 @@ class Film:
                     qn = row_flux(b, u, kin, self.alpha, deg=FRONT_Q_DEG)
                     dqf = np.max(np.abs(qn - qf)) / np.max(np.abs(qn))
                     qf = qn
+                if FRONT == "sw-lag":
+                    dqf = max(dqf, dgeom)
+                    self.geoms.append((tuple(round(a[3], 4) for a in geom),
+                                       round(float(_force(b, *b.law.p_theta(u), kin)[0]), 5)))
                 if np.max(np.abs(dq)) < 1e-11 * np.max(np.abs(q)) and dqf < 1e-11:
                     break
             else:

@@ -72,7 +72,7 @@ def main():
             errs = []
             for k in (1, 2, 3, 5):
                 ii = (i + k) % g.n_phi
-                pref = np.interp(phys[ii], x_r, P_r[j * g_r.n_z // g.n_z if False else j], period=360)
+                pref = np.interp(phys[ii], x_r, P_r[j], period=360)
                 errs.append(P[j, ii] - pref)
             if j % 3 == 0 or j == g.n_z - 1:
                 print(f"| {j} | {pf:.1f} | {f:.3f} | {xf:.2f} | {rr[3]:.2f} | {xf - rr[3]:+.2f} | "
