@@ -416,7 +416,7 @@ class Film:
         its, info, q = 0, None, None
         if rupture:
             q = row_flux(b, u, kin, self.alpha) if q0 is None else q0.copy()
-            qf = row_flux(b, u, kin, self.alpha, deg=FRONT_Q_DEG)
+            qf = row_flux(b, u, kin, self.alpha, deg=FRONT_Q_DEG) if FRONT else None
             geom = None
             for its in range(1, max_iter + 1):
                 if FRONT == "sw-lag":       # freeze the staircase's faces and s from this u
@@ -429,7 +429,7 @@ class Film:
                         new = [a[:3] + ((1 - DAMP) * a[3] + DAMP * c_[3],)
                                for a, c_ in zip(new, geom)]
                     geom = front_correction.frozen = new
-                self.box["q"] = qf.copy()
+                self.box["q"] = qf.copy() if FRONT else None
                 self.box["corr"][:], info, deltas = rupture_correction(b, xy, self.omega, q)
                 # the front treatment's Jacobian lacks the band's outside entries (an inexact
                 # Newton, linear convergence): more iterations before the cold path
