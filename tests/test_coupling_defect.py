@@ -252,3 +252,16 @@ def test_start_up_steps_of_order_two_are_not_monitored():
     """k = 2 iterates the first step from saved states (no prediction integrated): left out and counted."""
     st = run(film(), k=2).stats["coupling_defect"]
     assert st["steps_not_monitored"] == 1 and st["steps"] == 199
+
+
+def test_run_prints_one_line_on_the_defect():
+    from orchestrator.cli.run import _defect_line
+    cd = {"journals": {"rotor.F_1": {"unit": "N", "typical_force": 29.6, "max_defect": 2608.0, "t_max_defect": 0.0037,
+                                     "steps_over": 44},
+                       "rotor.F_2": {"unit": "N", "typical_force": 29.6, "max_defect": 100.0, "t_max_defect": 0.01,
+                                     "steps_over": 3}}}
+    assert _defect_line(cd) == ("coupling defect: largest 2608 N (88.1x the typical 29.6 N, rotor.F_1, t = 0.0037 s); "
+                                "47 step(s) flagged, see the warning above")
+    cd["journals"] = {"rotor.F_1": {"typical_force": 30.0, "max_defect": 0.96, "t_max_defect": 0.5, "steps_over": 0}}
+    assert _defect_line(cd).endswith("(0.032x the typical 30, rotor.F_1, t = 0.5 s); no step flagged")
+    assert _defect_line(None) is None and _defect_line({"journals": {"a": {"typical_force": 0}}}) is None

@@ -79,6 +79,9 @@ def _cmd_run(args) -> int:
         print(f"status: {status_text}")
     wall_s = stats.get("wall_time_s")
     print(f"macro steps: {steps}, wall time: {wall_s if isinstance(wall_s, (int, float)) else wall:.2f} s")
+    line = _defect_line(stats.get("coupling_defect"))
+    if line:
+        print(line)
     if result.analysis:
         for line in _analysis_lines(result.analysis):
             print(line)
@@ -89,6 +92,23 @@ def _cmd_run(args) -> int:
               f"{where}/{rows} and the reason in {where}/summary.json", file=sys.stderr)
         return 1
     return 0
+
+
+def _defect_line(cd) -> str | None:
+    """One line on the coupling defect (summary.json ``coupling_defect``): the largest over the
+    journals against its typical force, and how many steps were flagged (the warning says more)."""
+    journals = cd.get("journals") if isinstance(cd, dict) else None
+    rows = [(n, j) for n, j in (journals or {}).items() if isinstance(j, dict)
+            and isinstance(j.get("max_defect"), (int, float)) and isinstance(j.get("typical_force"), (int, float))
+            and j["typical_force"] > 0]
+    if not rows:
+        return None
+    name, j = max(rows, key=lambda r: r[1]["max_defect"] / r[1]["typical_force"])
+    unit = f" {j['unit']}" if j.get("unit") else ""
+    flagged = sum(int(r.get("steps_over") or 0) for _, r in rows)
+    return (f"coupling defect: largest {j['max_defect']:.4g}{unit} ({j['max_defect'] / j['typical_force']:.3g}x the "
+            f"typical {j['typical_force']:.4g}{unit}, {name}, t = {_num(j.get('t_max_defect'), '.6g', ' s')}); "
+            + (f"{flagged} step(s) flagged, see the warning above" if flagged else "no step flagged"))
 
 
 def _num(value, fmt: str, unit: str = "") -> str:
