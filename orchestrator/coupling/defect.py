@@ -29,7 +29,7 @@ film's by more than the limit times the film's typical force.
 A large defect is a reason to look, not a proof that the result depends on the step. Measured
 (docs/coupling.md, "Coupling defect"): in the shipped free-to-air run-up's whirl a film that has
 run empty refills within one step, its force jumping from 0 to 80 N; the defect of that step
-(61 N) is the same at half the step (68 N) and so are the forces. In the from-rest contact
+(61 N) is the same at half the step (68 N), and so is the jump (Fx 79 and 82 N). In the from-rest contact
 phase the largest defects are 2.6-6.0 kN at 0.1 ms, 6.5-7.4 kN at 50 us and 0.1-0.4 kN at
 10 us: there the film forces depend on the step. Which of the two a flagged episode is, only a
 run with a smaller ``coupling.macro_step`` tells. The warning says so.
@@ -37,8 +37,8 @@ run with a smaller ``coupling.macro_step`` tells. The warning says so.
 Not monitored: the error-controlled step (it has its own estimate and rejects such steps), the
 iterative scheme (it iterates the force to its tolerance), forces the rotor receives interpolated
 (Gauss-Seidel with the bearing stepping first), macro steps redone in halves after an
-fmi2Discard (the rotor integrated each half with fresh coefficients) and the first k start-up
-steps of extrapolation order k >= 2 (iterated from saved states); these are counted in
+fmi2Discard (the rotor integrated each half with fresh coefficients) and the start-up steps of
+extrapolation order k >= 2 (the first k - 1, iterated from saved states); these are counted in
 ``steps_not_monitored``. A force defect does not see the other side of the coupling: under Jacobi
 the bearings also integrate held kinematics (docs/coupling.md measures what that misses).
 """
