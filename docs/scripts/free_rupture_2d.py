@@ -277,8 +277,8 @@ def _front_cut(b, g, law, p, dp, dc, thc, phi, colmask, wr, H, om, h, want_jac):
     the jump condition's gradient G = omega (1 - theta_c) / (a_phi H^2), from the cell's own
     p, p_cav up to the law's soft part: with p_cav instead the flux jumped by the soft part,
     ~1 kPa, where a centre crossed the front, and Newton stalled). Continuous as the front
-    moves: A -> 0 as it leaves the face, and at phi = 0 the ghost is the cell's p. Deep in the full film A = 1 and p~ = p: the film's
-    own flux. One flux per face, both cells."""
+    moves: A -> 0 as it leaves the face, and at phi = 0 the ghost is the cell's p. Deep in the
+    full film A = 1 and p~ = p: the film's own flux. One flux per face, both cells."""
     n_z, n_phi = p.shape
     Gc = om * (1.0 - thc) / (b.a_phi * H[None, :] ** 2)
     t = 0.5 + (phi[:-1] + phi[1:]) / (2.0 * h)

@@ -34,4 +34,5 @@ for it in range(40):
 info = []
 for jp, jc, i, fp, fc, rho, d in info:
     G = omega * (1 - min(qr[jc] / (omega * kin[1][i]), 0.999)) / (b.a_phi * kin[0][i] ** 2)
-    print(f"face P row {jp} C row {jc} col {i}: phiP/h {fp:.3f} phiC/h {fc:.3f} rho {rho:.3f} d {d:.3e} G h {G*b.grid.dphi:.0f} Pa")
+    print(f"face P row {jp} C row {jc} col {i}: phiP/h {fp:.3f} phiC/h {fc:.3f} rho {rho:.3f} d {d:.3e} "
+          f"G h {G*b.grid.dphi:.0f} Pa")

@@ -6,7 +6,6 @@ weight); for sw-lag the first and last frozen geometries (s per face) with the f
 import math, sys, time
 from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import numpy as np
 import free_rupture_2d as fr, grid_convergence as gc
 q = gc.hs_equilibrium(40); omega = 2*math.pi*gc.F_HZ
 n, nz = (int(v) for v in sys.argv[1].split("x")); fr.FRONT = sys.argv[2] if sys.argv[2] != "none" else None
@@ -18,7 +17,9 @@ film = fr.Film(n, nz, omega, alpha)
 u, kin, its, info, qq = film.steady(xy, True)
 F = fr._force(film.b, *film.b.law.p_theta(u), kin)
 ca, sa = math.cos(alpha), math.sin(alpha)
-print(f"geoms {film.geoms[:3]} ... {film.geoms[-4:]}"); print(f"{n}x{nz} front {fr.FRONT} shift {frac}: Fx {ca*F[0]+sa*F[1]:.5f} Fy {-sa*F[0]+ca*F[1]:.5f} subs {its} newton {film.newton_its} dropped {film.box['dropped']} {time.time()-t:.0f} s")
+print(f"geoms {film.geoms[:3]} ... {film.geoms[-4:]}")
+print(f"{n}x{nz} front {fr.FRONT} shift {frac}: Fx {ca*F[0]+sa*F[1]:.5f} Fy {-sa*F[0]+ca*F[1]:.5f} subs {its} "
+      f"newton {film.newton_its} dropped {film.box['dropped']} {time.time()-t:.0f} s")
 if fr.FRONT in ("ghost", "sw"):
     last = getattr(fr.front_correction, "last", [])
     print("  staircase faces (P row, C row, phi_P/h, phi_C/h, rho):",
