@@ -97,6 +97,22 @@ FRONT_Q_DEG = 150.0
 RAMP = True
 #: sw-lag: the frozen s relaxed as s <- (1 - DAMP) s_new + DAMP s_old (same face set)
 DAMP = 0.0
+
+
+def front_args(argv: list[str]) -> list[str]:
+    """Set FRONT from ``--front NAME`` and RAMP from ``--no-ramp`` in ``argv``; the rest of argv."""
+    global FRONT, RAMP
+    argv = list(argv)
+    if "--front" in argv:
+        k = argv.index("--front")
+        FRONT = argv[k + 1]
+        del argv[k:k + 2]
+    if "--no-ramp" in argv:
+        RAMP = False
+        argv.remove("--no-ramp")
+    return argv
+
+
 #: floor of the ghost-fluid distance fraction s (a priori, not tuned)
 S_MIN = 1e-2
 

@@ -10,14 +10,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import free_rupture_2d as fr  # noqa: E402
 import grid_convergence as gc  # noqa: E402
 
-argv = sys.argv[1:]
-if "--front" in argv:
-    k = argv.index("--front")
-    fr.FRONT = argv[k + 1]
-    del argv[k:k + 2]
-if "--no-ramp" in argv:
-    fr.RAMP = False
-    argv.remove("--no-ramp")
+argv = fr.front_args(sys.argv[1:])
 grids = [int(a) for a in argv] or [20, 40, 80, 160]
 q = gc.hs_equilibrium(40)
 omega = 2 * math.pi * gc.F_HZ
