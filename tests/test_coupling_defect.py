@@ -39,6 +39,21 @@ def run(bearing, **kw):
     return res
 
 
+def test_jacobi_counts_the_kinematics_the_film_was_fed():
+    """Jacobi (k = 0): the film computes F(T+H) at the held kinematics r(T), not at r(T+H) where the rotor
+    went; the coefficients it returns carry the difference, -K (r(T+H) - r(T)) - C (v(T+H) - v(T)).
+    On a linear film with its own coefficients the remaining defect is then Jacobi's lag alone: the rotor
+    integrated the force of r(T - H), so d = F(r(T)) - F(r(T - H)) = the recorded force's change over
+    the step (without the kinematics term it would be that plus K dr + C dv)."""
+    res = run(film(), scheme="jacobi")
+    j = res.stats["coupling_defect"]["journals"]["rotor.F_1"]
+    o = res.outputs
+    d = np.hypot(*np.diff(np.stack([o["bearing.Fx"], o["bearing.Fy"]], 1), axis=0).T)
+    assert j["max_defect"] == pytest.approx(d.max(), rel=1e-5)
+    assert j["median_defect"] == pytest.approx(np.median(d), rel=1e-5)
+    assert j["t_max_defect"] == pytest.approx(res.t[1 + int(np.argmax(d))], abs=1e-12)
+
+
 def test_exact_coefficients_leave_no_defect():
     """A linear film whose coefficients are its own: the rotor integrates the exact force (k = 0), d = 0."""
     res = run(film())

@@ -88,7 +88,13 @@ class DefectMonitor:
         # numpy on these short rows took 25-47 us in a run)
         self._plan = [tuple((j, tuple(terms)) for _, j, terms in sorted(v)) for v in journals.values()]
         self._force_list = [j for forces in self._plan for j, _ in forces]
-        self._force_cols = np.array(self._force_list, dtype=np.intp)
+        # the kinematics the bearing receives extrapolated (Jacobi; under Gauss-Seidel with the rotor
+        # first they are interpolated, the rotor's new values): the film's F(T+H) was computed at their
+        # prediction, not at where the rotor went; the coefficients it returned carry the difference
+        self._kin_ext = sorted({uc for forces in self._plan for _, terms in forces for _, uc, _ in terms
+                                if names[uc] in ext})
+        self._pred_cols = np.array(self._force_list + self._kin_ext, dtype=np.intp)
+        self._pkin: dict[int, float] = {}
         self._row_d = [0.0] * len(journals)
         self._row_f = [0.0] * len(journals)
         self._weights: dict[tuple, np.ndarray] = {}
@@ -114,14 +120,18 @@ class DefectMonitor:
         """Keep the prediction P(t_next) of the forces and the values at t (history before the step)."""
         p = min(self.k, history.count - 1)
         self._prev = prev = history.store[1].tolist()        # Python floats: ~20 numpy calls less per step
+        nf = len(self._force_list)
         if p <= 0:
-            self._pred = [prev[j] for j in self._force_list]
+            pred = [prev[j] for j in self._force_list + self._kin_ext]
         else:
             nodes = tuple(np.round((history.times[1:p + 2] - t) / (t_next - t), 12))
             w = self._weights.get(nodes)
             if w is None:
                 w = self._weights[nodes] = lagrange_weights(nodes, [1.0])[0]
-            self._pred = (w @ history.store[1:p + 2, self._force_cols]).tolist()
+            pred = (w @ history.store[1:p + 2, self._pred_cols]).tolist()
+        self._pred = pred[:nf]
+        if self._kin_ext:
+            self._pkin = dict(zip(self._kin_ext, pred[nf:]))
 
     def after(self, history, t_next: float, *, skip: bool = False) -> None:
         """The defect of the step just accepted (history's newest level ``t_next``)."""
@@ -131,7 +141,7 @@ class DefectMonitor:
             self.skipped += 1
             self._prev = None
             return
-        new, prev = history.store[1].tolist(), self._prev
+        new, prev, pkin = history.store[1].tolist(), self._prev, self._pkin
         row_d, row_f = self._row_d, self._row_f
         m = 0
         for g, forces in enumerate(self._plan):
@@ -139,7 +149,10 @@ class DefectMonitor:
             for j, terms in forces:
                 s = 0.0
                 for kc, uc, inv_gain in terms:
-                    s += prev[kc] * (new[uc] - prev[uc]) * inv_gain
+                    s += prev[kc] * (new[uc] - prev[uc]) * inv_gain      # what the rotor subtracted
+                    fed = pkin.get(uc)
+                    if fed is not None:           # the film's force moved to where the rotor went
+                        s -= new[kc] * (new[uc] - fed) * inv_gain
                 f = new[j]
                 d = f - self._pred[m] + s
                 d2 += d * d
