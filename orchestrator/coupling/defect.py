@@ -41,12 +41,12 @@ fmi2Discard (the rotor integrated each half with fresh coefficients) and the sta
 extrapolation order k >= 2 (the first k - 1, iterated from saved states); these are counted in
 ``steps_not_monitored``.
 
-Under Jacobi (or any order in which the bearing steps before the rotor has moved) the film
-computes F(T + H) at the kinematics it was fed, their prediction, not where the rotor went; the
-coefficients the film returns move it there, ``F(T + H) - K (r - r_fed) - C (v - v_fed)`` (the
-film's own K, C at T + H), so Jacobi's one-step lag counts in d. On a linear film d is then the
-recorded force's change over the step (tests); on the seeded run-up's first 20 ms d over the
-typical force was 1.0-1.9x the true error against the monolithic reference (docs/coupling.md).
+Under Jacobi the film computes F(T + H) at the kinematics it was fed, their prediction, not
+where the rotor went; the coefficients the film returns move it there,
+``F(T + H) - K (r - r_fed) - C (v - v_fed)`` (the film's own K, C at T + H), so Jacobi's one-step
+lag counts in d. On a linear film d is then the recorded force's change over the step (tests);
+on the Jeffcott run-up's first 20 ms (half-Sommerfeld) the median d over the typical force was
+1.0-1.9x the true error against the monolithic reference (docs/coupling.md).
 """
 
 from __future__ import annotations
