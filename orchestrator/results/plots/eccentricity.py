@@ -103,7 +103,11 @@ def _mark_defects(ctx: PlotContext, axes, t: np.ndarray, om) -> None:
     if om is not None and len(axes) > 1 and t.size > 1 and np.all(np.diff(t) > 0):
         panels.append((axes[1], np.interp(ep, t, om / TWO_PI)))
     count = max(count, len(episodes))
-    label = (f"coupling defect > typical force: {count} episode{'s' if count != 1 else ''} (forces there may "
+    cd = ctx.summary.get("coupling_defect")
+    lim = cd.get("limit") if isinstance(cd, Mapping) else None
+    times = (f"{lim:g}x " if isinstance(lim, (int, float)) and not isinstance(lim, bool) and math.isfinite(lim)
+             and lim != 1 else "")
+    label = (f"coupling defect > {times}typical force: {count} episode{'s' if count != 1 else ''} (forces there may "
              "depend on the macro step; summary.json coupling_defect)")
     for k, (ax, x) in enumerate(panels):
         tr = ax.get_xaxis_transform()
