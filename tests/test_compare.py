@@ -473,9 +473,9 @@ def test_the_coupling_defect_is_a_column_of_the_report(tmp_path):
         if scenario.coupling.macro_step < 0.1:
             s = json.loads((out_dir / "summary.json").read_text())
             s["coupling_defect"] = {"journals": {
-                "rotor.F_1": {"typical_force": 20.0, "max_defect": 4.0, "median_defect": 0.5},
-                "rotor.F_2": {"typical_force": 10.0, "max_defect": 1.0, "median_defect": 0.4},
-                "rotor.F_3": {"typical_force": "x", "max_defect": 1e9, "median_defect": 1e9}}}
+                "rotor.F_1": {"typical": 20.0, "max_defect": 4.0, "median_defect": 0.5},
+                "rotor.F_2": {"typical": 10.0, "max_defect": 1.0, "median_defect": 0.4},
+                "rotor.F_3": {"typical": "x", "max_defect": 1e9, "median_defect": 1e9}}}
             (out_dir / "summary.json").write_text(json.dumps(s))
     sec = dict(SECTION, variants=[{"scheme": "gauss-seidel", "macro_step": 0.1},
                                   {"scheme": "gauss-seidel", "macro_step": 0.05}])

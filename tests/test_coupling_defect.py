@@ -60,8 +60,8 @@ def test_exact_coefficients_leave_no_defect():
     st = res.stats["coupling_defect"]
     j = st["journals"]["rotor.F_1"]
     assert st["steps"] == 200 and j["steps_over"] == 0 and j["episodes"] == []
-    assert j["max_defect"] < 1e-9 * j["typical_force"]
-    assert j["typical_force"] > 1.0                   # the journal does move the film (F ~ 200 N at the start)
+    assert j["max_defect"] < 1e-9 * j["typical"]
+    assert j["typical"] > 1.0                   # the journal does move the film (F ~ 200 N at the start)
 
 
 @pytest.mark.parametrize("half", ["k", "c"])
@@ -79,7 +79,7 @@ def test_wrong_coefficients_give_the_known_defect(half):
     j = res.stats["coupling_defect"]["journals"]["rotor.F_1"]
     assert j["max_defect"] == pytest.approx(d.max(), rel=1e-5)
     assert j["t_max_defect"] == pytest.approx(res.t[1 + int(np.argmax(d))], abs=1e-12)
-    assert j["typical_force"] == pytest.approx(np.median(f), rel=1e-5)
+    assert j["typical"] == pytest.approx(np.median(f), rel=1e-5)
     assert j["median_defect"] == pytest.approx(np.median(d), rel=1e-5)
 
 
@@ -135,13 +135,13 @@ def test_episodes_and_note():
     forces[70] = 75.0                 # |d| = 45 at 70, 71: another one
     feed(mon, forces)
     j = mon.statistics()["journals"]["rotor.F_1"]
-    assert j["typical_force"] == 30.0 and j["steps_over"] == 6 and j["episode_count"] == 2
+    assert j["typical"] == 30.0 and j["steps_over"] == 6 and j["episode_count"] == 2
     assert [(e["steps"], e["max_defect"]) for e in j["episodes"]] == [(4, 70.0), (2, 45.0)]
     assert (j["first_flagged"], j["last_flagged"]) == (0.020, 0.071)
     assert j["episodes"][0]["t_start"] == pytest.approx(0.020) and j["episodes"][0]["t_end"] == pytest.approx(0.023)
     note = mon.note()
     assert "rotor.F_1: 6 steps in 2 episodes between t=0.02 and 0.071 s" in note
-    assert "largest 70 N against a typical force of 30 N" in note and "half the coupling.macro_step" in note
+    assert "largest 70 N against a typical size of 30 N" in note and "half the coupling.macro_step" in note
     with_h = DefectMonitor(NAMES, NAMES[:10], CONNS, k=0, macro_step=1e-3)
     feed(with_h, forces)
     assert "(--set coupling.macro_step=0.0005 --set stop_time=0.091)" in with_h.note()
@@ -162,7 +162,7 @@ def test_memory_is_bounded_and_keeps_the_largest_defect(monkeypatch):
     jumps = np.abs(np.diff(forces))                           # d = F(T+H) - F(T): into and out of the spike
     assert j["max_defect"] == pytest.approx(jumps.max(), rel=1e-6)
     assert j["t_max_defect"] == pytest.approx(1e-3 * (1 + np.argmax(jumps)))
-    assert j["typical_force"] == pytest.approx(30.0, abs=0.1)
+    assert j["typical"] == pytest.approx(30.0, abs=0.1)
 
 
 def test_no_interface_jacobian_forces_no_monitor():
@@ -186,14 +186,14 @@ def test_contact_phase_from_rest(tmp_path, caplog, name, flagged):
     assert summary["steps"] == 100 and set(summary["journals"]) == {"rotor.F_1", "rotor.F_2"}
     warned = [r.getMessage() for r in caplog.records if r.getMessage().startswith("coupling defect")]
     for jname, j in summary["journals"].items():
-        assert j["unit"] == "N" and 20 < j["typical_force"] < 100, j  # about the weight share, 29.4 N (median)
+        assert j["unit"] == "N" and 20 < j["typical"] < 100, j  # about the weight share, 29.4 N (median)
         if not flagged:
-            assert j["steps_over"] == 0 and j["max_defect"] < 0.5 * j["typical_force"]
+            assert j["steps_over"] == 0 and j["max_defect"] < 0.5 * j["typical"]
             continue
-        assert j["steps_over"] >= 5 and j["max_defect"] > 10 * j["typical_force"]
+        assert j["steps_over"] >= 5 and j["max_defect"] > 10 * j["typical"]
         i = int(np.argmin(np.abs(res.t - j["t_max_defect"])))
         F = math.hypot(res.outputs[f"bearing{jname[-1]}.Fx"][i], res.outputs[f"bearing{jname[-1]}.Fy"][i])
-        assert F > 10 * j["typical_force"]                  # the spike is in the recorded film force
+        assert F > 10 * j["typical"]                  # the spike is in the recorded film force
     assert bool(warned) == flagged
 
 
@@ -257,7 +257,7 @@ def test_defect_limit_key(tmp_path):
     feed(mon, forces)
     st = mon.statistics()
     assert st["limit"] == 3.0 and st["journals"]["rotor.F_1"]["steps_over"] == 2
-    assert "by more than 3x the typical force (coupling.defect_limit)" in mon.note()
+    assert "by more than 3x the signal's typical size (coupling.defect_limit)" in mon.note()
     off = DefectMonitor(NAMES, NAMES[:10], CONNS, k=0, limit=math.inf)
     feed(off, forces)
     assert off.note() is None and off.statistics()["journals"]["rotor.F_1"]["max_defect"] == 100.0
@@ -271,12 +271,55 @@ def test_start_up_steps_of_order_two_are_not_monitored():
 
 def test_run_prints_one_line_on_the_defect():
     from orchestrator.cli.run import _defect_line
-    cd = {"journals": {"rotor.F_1": {"unit": "N", "typical_force": 29.6, "max_defect": 2608.0, "t_max_defect": 0.0037,
+    cd = {"journals": {"rotor.F_1": {"unit": "N", "typical": 29.6, "max_defect": 2608.0, "t_max_defect": 0.0037,
                                      "steps_over": 44},
-                       "rotor.F_2": {"unit": "N", "typical_force": 29.6, "max_defect": 100.0, "t_max_defect": 0.01,
+                       "rotor.F_2": {"unit": "N", "typical": 29.6, "max_defect": 100.0, "t_max_defect": 0.01,
                                      "steps_over": 3}}}
     assert _defect_line(cd) == ("coupling defect: largest 2608 N (88.1x the typical 29.6 N, rotor.F_1, t = 0.0037 s); "
                                 "47 step(s) flagged, see the warning above")
-    cd["journals"] = {"rotor.F_1": {"typical_force": 30.0, "max_defect": 0.96, "t_max_defect": 0.5, "steps_over": 0}}
+    cd["journals"] = {"rotor.F_1": {"typical": 30.0, "max_defect": 0.96, "t_max_defect": 0.5, "steps_over": 0}}
     assert _defect_line(cd).endswith("(0.032x the typical 30, rotor.F_1, t = 0.5 s); no step flagged")
-    assert _defect_line(None) is None and _defect_line({"journals": {"a": {"typical_force": 0}}}) is None
+    assert _defect_line(None) is None and _defect_line({"journals": {"a": {"typical": 0}}}) is None
+
+
+# --- coupling.defect_signals: any coupling input's prediction error (third-party FMUs) ---------------
+def test_defect_signals_of_any_coupling():
+    """Two masses coupled Jacobi with hold (k = 0): the consumer integrated y(T) over the step, the signal
+    ended at y(T+H); d = y(T+H) - y(T) per step, from the recorded outputs, for a force and a position."""
+    from test_master import two_mass_fakes, two_mass_scenario
+    sc = two_mass_scenario("jacobi", 0.01, 0)
+    sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, defect_signals=("left.F", "right.x*")),
+                             output=OutputSpec(signals=("left.x1", "right.F")))
+    res = MasterAlgorithm(sc, subsystems=two_mass_fakes()).run()
+    assert res.success, res.message
+    st = res.stats["coupling_defect"]
+    assert set(st["journals"]) == {"left.F", "right.x1"} and st["steps"] == 50
+    for name, col in (("left.F", "right.F"), ("right.x1", "left.x1")):
+        y = res.outputs[col]
+        d = np.abs(np.diff(y))
+        j = st["journals"][name]
+        assert j["max_defect"] == pytest.approx(d.max(), rel=1e-5)
+        assert j["median_defect"] == pytest.approx(np.median(d), rel=1e-5)
+        assert j["typical"] == pytest.approx(np.median(np.abs(y[1:])), rel=1e-5)
+
+
+@pytest.mark.parametrize("signals, says", [
+    (("right.z",), "'right.z' matches no coupling input that its consumer receives extrapolated"),
+    (("right.x1",), "'right.x1' matches no coupling input"),          # Gauss-Seidel: interpolated
+])
+def test_defect_signals_that_match_nothing_are_refused(signals, says):
+    from orchestrator.errors import ScenarioError
+    from test_master import two_mass_fakes, two_mass_scenario
+    sc = two_mass_scenario("gauss-seidel", 0.01, 0)
+    sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, defect_signals=signals))
+    with pytest.raises(ScenarioError, match=says):
+        MasterAlgorithm(sc, subsystems=two_mass_fakes()).run()
+
+
+def test_defect_signals_key_is_checked():
+    from orchestrator.errors import ScenarioError
+    base = ROOT / "scenarios" / "quickstart.yaml"
+    assert load_scenario(base, ["coupling.defect_signals=[rotor.F*, bearing1.x]"]).coupling.defect_signals == (
+        "rotor.F*", "bearing1.x")
+    with pytest.raises(ScenarioError, match=r"coupling.defect_signals' must be a list"):
+        load_scenario(base, ["coupling.defect_signals=5"])

@@ -340,7 +340,7 @@ def _relative_defect(summary: dict | None) -> dict | None:
     for j in journals.values():
         if not isinstance(j, dict):
             continue
-        f = j.get("typical_force")
+        f = j.get("typical")
         vals = {k: j.get(f"{k}_defect") for k in ("max", "median")}
         if all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
                for x in (f, *vals.values())) and f > 0:

@@ -76,13 +76,26 @@ class DefectMonitor:
     """
 
     def __init__(self, names: list[str], extrapolated, connections, *, k: int, unit_of=None, limit: float = LIMIT,
-                 macro_step: float | None = None):
+                 macro_step: float | None = None, signals: tuple[str, ...] = ()):
+        from orchestrator.names import match
         ext = set(extrapolated)
         groups = [(j, terms) for j, terms in jacobian_groups(names, connections) if names[j] in ext]
         journals: dict[str, list] = {}
         for j, terms in groups:
             inst, a, i = _FORCE.match(names[j]).groups()
             journals.setdefault(f"{inst}.F_{i}", []).append((a, j, terms))
+        # coupling.defect_signals: more inputs, each its own entry with the plain prediction error
+        # (no linearisation); the interface-Jacobian forces and their coefficients are covered above
+        taken = {j for j, _ in groups} | {kc for _, terms in groups for kc, _, _ in terms}
+        ext_cols = [(n, j) for j, n in enumerate(names) if n in ext and j not in taken]
+        self.unmatched = []               # patterns that match no extrapolated coupling input
+        for pat in signals:
+            hits = match(pat, [n for n, _ in ext_cols])
+            if not hits:
+                self.unmatched.append(pat)
+            for n, j in ext_cols:
+                if n in hits and n not in journals:
+                    journals[n] = [("", j, [])]
         self.journals = list(journals)
         self.k = int(k)
         self.limit = float(limit)         # coupling.defect_limit
@@ -90,7 +103,7 @@ class DefectMonitor:
         # the force's unit (``unit_of(column)``: the consumer input's declared unit, or None) per journal
         self.units = {name: (unit_of(names[v[0][1]]) if unit_of else None) or "" for name, v in journals.items()}
         # per journal, x before y: ((force column, ((coefficient column, kinematics column, 1 / gain),
-        # four per force)), ...); the per-step arithmetic is on Python floats (a few us a step, where
+        # four per force; none for a defect_signals entry)), ...); the per-step arithmetic is on Python floats (a few us a step, where
         # numpy on these short rows took 25-47 us in a run)
         self._plan = [tuple((j, tuple(terms)) for _, j, terms in sorted(v)) for v in journals.values()]
         self._force_list = [j for forces in self._plan for j, _ in forces]
@@ -219,7 +232,7 @@ class DefectMonitor:
         for g, name in enumerate(self.journals):
             dj, fj = d[:, g].astype(float), f[:, g].astype(float)
             if not len(t):
-                out["journals"][name] = {"typical_force": None, "max_defect": None, "t_max_defect": None,
+                out["journals"][name] = {"typical": None, "max_defect": None, "t_max_defect": None,
                                          "steps_over": 0, "episodes": []}
                 continue
             typical = float(np.median(fj))
@@ -234,7 +247,7 @@ class DefectMonitor:
                                      "steps": int(idx.size) * self._stride, "max_defect": float(dj[k]),
                                      "t_max_defect": _time(t[k])})
             out["journals"][name] = {
-                "unit": self.units.get(name, ""), "typical_force": typical, "max_defect": float(dj[i]),
+                "unit": self.units.get(name, ""), "typical": typical, "max_defect": float(dj[i]),
                 "t_max_defect": _time(t[i]),
                 "median_defect": float(np.median(dj)),
                 "steps_over": int(over.size) * self._stride, "episode_count": len(episodes),
@@ -256,17 +269,18 @@ class DefectMonitor:
             first, last = j["first_flagged"], j["last_flagged"]
             parts.append(f"{name}: {j['steps_over']} steps in {j['episode_count']} episode"
                          f"{'s' if j['episode_count'] != 1 else ''} between t={first:.6g} and {last:.6g} s, "
-                         f"largest {j['max_defect']:.4g}{u} against a typical force of {j['typical_force']:.4g}{u} "
+                         f"largest {j['max_defect']:.4g}{u} against a typical size of {j['typical']:.4g}{u} "
                          f"(t={j['t_max_defect']:.6g} s)")
         last = max(j["last_flagged"] for _, j in hits)
         h = self.macro_step
         rerun = (f"rerun up to there with half the step (--set coupling.macro_step={h / 2:.6g} --set "
                  f"stop_time={_time(last + 20 * h):.6g})" if h else "rerun that interval with half the "
                  "coupling.macro_step")
-        return ("coupling defect: in some macro steps the force returned at the step's end differed from the force "
-                "its consumer integrated over the step (the interface-Jacobian linearisation) by more than "
-                f"{self.limit:g}x the typical force (coupling.defect_limit): "
-                + "; ".join(parts) + ". The forces at those times may depend on the macro step (a contact "
+        return ("coupling defect: in some macro steps the value a coupling signal took at the step's end differed "
+                "from what its consumer integrated over the step (the prediction, for a force with interface-Jacobian "
+                f"coefficients also their linearisation) by more than {self.limit:g}x the signal's typical size "
+                "(coupling.defect_limit): "
+                + "; ".join(parts) + ". The results at those times may depend on the macro step (a contact "
                 f"phase or rub does; a film that refills within one step does not): {rerun}, or use "
                 "coupling.step_control: {type: error}, and compare (summary.json coupling_defect; docs/coupling.md, "
                 "'Coupling defect')")

@@ -302,14 +302,27 @@ class MasterAlgorithm:
                                               signal_names=self.signal_names, **kw)
         else:
             self.stepper = MacroStep(plan, self.predictor, **kw)
+        watch = tuple(getattr(c, "defect_signals", ()) or ())
         if getattr(self.grid, "variable", False):
             self._setup_variable_grid()
         elif c.scheme != "iterative":
             ext = [f"{u.name}.{n}" for u in self.units for n in u.ext_names]
-            self.defect = DefectMonitor(self.signal_names, ext, self.scenario.connections, k=k,
-                                        unit_of=self._unit_of,
-                                        limit=getattr(c, "defect_limit", DEFECT_LIMIT),
-                                        macro_step=c.macro_step) or None
+            mon = DefectMonitor(self.signal_names, ext, self.scenario.connections, k=k, unit_of=self._unit_of,
+                                limit=getattr(c, "defect_limit", DEFECT_LIMIT), macro_step=c.macro_step,
+                                signals=watch)
+            if mon.unmatched:
+                inputs = [n for n in self.signal_names if n in set(ext)]
+                raise ScenarioError(
+                    f"{self._where()}coupling.defect_signals: {', '.join(map(repr, mon.unmatched))} match"
+                    f"{'es' if len(mon.unmatched) == 1 else ''} no coupling input that its consumer receives "
+                    f"extrapolated (got {len(inputs)} such inputs: {', '.join(inputs[:8])}"
+                    f"{', ...' if len(inputs) > 8 else ''}); name a connection's 'to' (consumer.input) or a "
+                    "pattern such as 'rotor.F*' (inputs a Gauss-Seidel consumer receives after their producer "
+                    "stepped are interpolated, not predicted: they have no defect)")
+            self.defect = mon or None
+        if watch and self.defect is None:
+            log.warning("coupling.defect_signals is not used with %s: %s", "the error-controlled step" if getattr(
+                self.grid, "variable", False) else "scheme iterative", "that step has its own estimate")
         g = self.grid
         tgrid = TimeGrid(g.t0, g.h, t_stop=g.t_stop, n_stop=g.n_steps) if isinstance(g, ConstantStep) else None
         self.view = RunView(self.columns, g.time(0), g.time(g.n_steps), g.n_steps, kinds=self.kinds, grid=tgrid)

@@ -28,7 +28,7 @@ ISOLATION = ("none", "process")   # fmus.<name>.isolation, coupling.isolation
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
                  "interpolation_order", "substeps", "discard_retries", "isolation", "parallel", "call_timeout",
-                 "pin_workers", "options", "iteration", "step_control", "defect_limit")
+                 "pin_workers", "options", "iteration", "step_control", "defect_limit", "defect_signals")
 OUTPUT_KEYS = ("interval", "signals", "format")
 OUTPUT_FORMATS = ("csv", "parquet")
 ANALYSIS_KEYS = ("speed", "journals", "fields", "whirl")   # analysis (docs/analysis.md)
@@ -173,6 +173,9 @@ class CouplingSpec:
     # constant steps: warn when an interface-Jacobian force's defect exceeds this x its typical force
     # (orchestrator/coupling/defect.py); .inf: never (the statistics are still written)
     defect_limit: float = 1.0
+    # constant steps: also monitor these coupling inputs' prediction error (names or patterns of
+    # consumer inputs, e.g. "b.u*"; orchestrator/coupling/defect.py); () -> interface-Jacobian forces only
+    defect_signals: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -443,6 +443,11 @@ class SectionReader(NodeReader):
                             fix="give the longest time in seconds an isolated FMU may take for one call, e.g. 60")
             ok &= v is not None
             c["call_timeout"] = v
+        if "defect_signals" in section:
+            v = self.strings(section["defect_signals"][1], "coupling.defect_signals",
+                             "list coupling inputs (a connection's 'to' name) or patterns, e.g. [\"b.u\", \"rotor.F*\"]")
+            ok &= v is not None
+            c["defect_signals"] = tuple(s for s, _ in v or ())
         if "defect_limit" in section:
             node = section["defect_limit"][1]
             v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
