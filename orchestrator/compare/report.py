@@ -85,11 +85,12 @@ def write_report(report, spec, out_dir: Path, failures: list[str]) -> list[Path]
     lines += ["", _cheapest_line(report, failures)]
     if defects:
         lines += ["", "`max defect / F`, `median defect / F`: the largest and the median coupling defect of the "
-                  "run (the force a film returned minus the force the rotor integrated, at a step's end) over "
-                  "its journal's typical force (summary.json `coupling_defect`; constant steps with "
-                  "interface-Jacobian forces only): indicators that need no reference; the median follows the "
-                  "order in the macro step, the largest also shows a start-up or a jump that no step removes "
-                  "(docs/coupling.md, \"Coupling defect\")."]
+                  "run (at a step's end, the force a film returned minus the force the rotor integrated, or a "
+                  "`coupling.defect_signals` input's value minus what its consumer was fed) over its typical "
+                  "size, the largest over the signals (summary.json `coupling_defect`; constant steps): "
+                  "indicators that need no reference; the median follows the order in the macro step, the "
+                  "largest also shows a start-up or a jump that no step removes (docs/coupling.md, "
+                  "\"Coupling defect\")."]
     if spec.derived:   # the derived numbers themselves (the table above has their errors)
         lines += ["", "Derived values (`" + "`, `".join(d["key"] for d in spec.derived.values()) + "`):",
                   "", "| run | " + " | ".join(spec.derived) + " |", "|---|" + "---|" * len(spec.derived)]

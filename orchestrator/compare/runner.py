@@ -329,9 +329,9 @@ def _forward_only(summary: dict | None) -> bool:
 
 def _relative_defect(summary: dict | None) -> dict | None:
     """``{"max": ..., "median": ...}``: the largest and the median coupling defect of the run, each
-    relative to its journal's typical force, the largest over the journals (summary.json
-    ``coupling_defect``, orchestrator/coupling/defect.py; constant steps with interface-Jacobian
-    forces only), or None: a reference-free indicator beside the errors."""
+    relative to its entry's typical size, the largest over the entries (summary.json
+    ``coupling_defect``, orchestrator/coupling/defect.py; constant steps: interface-Jacobian forces
+    and ``coupling.defect_signals``), or None: a reference-free indicator beside the errors."""
     cd = (summary or {}).get("coupling_defect")
     journals = cd.get("journals") if isinstance(cd, dict) else None
     if not isinstance(journals, dict):
