@@ -86,15 +86,16 @@ class DefectMonitor:
             journals.setdefault(f"{inst}.F_{i}", []).append((a, j, terms))
         # coupling.defect_signals: more inputs, each its own entry with the plain prediction error
         # (no linearisation); the interface-Jacobian forces and their coefficients are covered above
+        # (a pattern that matches only those counts as matched: they are monitored already)
         taken = {j for j, _ in groups} | {kc for _, terms in groups for kc, _, _ in terms}
-        ext_cols = [(n, j) for j, n in enumerate(names) if n in ext and j not in taken]
+        ext_cols = [(n, j) for j, n in enumerate(names) if n in ext]
         self.unmatched = []               # patterns that match no extrapolated coupling input
         for pat in signals:
-            hits = match(pat, [n for n, _ in ext_cols])
+            hits = set(match(pat, [n for n, _ in ext_cols]))
             if not hits:
                 self.unmatched.append(pat)
             for n, j in ext_cols:
-                if n in hits and n not in journals:
+                if n in hits and j not in taken and n not in journals:
                     journals[n] = [("", j, [])]
         self.journals = list(journals)
         self.k = int(k)
