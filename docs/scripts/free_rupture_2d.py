@@ -99,15 +99,16 @@ RAMP = True
 DAMP = 0.0
 
 
-def front_args(argv: list[str]) -> list[str]:
-    """Set FRONT from ``--front NAME`` and RAMP from ``--no-ramp`` in ``argv``; the rest of argv."""
+def front_args(argv: list[str], *options: str) -> list[str]:
+    """The front treatment's options a driver script takes (``options``: of "--front" (NAME: FRONT)
+    and "--no-ramp" (RAMP false)), set from ``argv``; returns the rest of argv."""
     global FRONT, RAMP
     argv = list(argv)
-    if "--front" in argv:
+    if "--front" in options and "--front" in argv:
         k = argv.index("--front")
         FRONT = argv[k + 1]
         del argv[k:k + 2]
-    if "--no-ramp" in argv:
+    if "--no-ramp" in options and "--no-ramp" in argv:
         RAMP = False
         argv.remove("--no-ramp")
     return argv

@@ -10,7 +10,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import free_rupture_2d as fr  # noqa: E402
 import grid_convergence as gc  # noqa: E402
 
-argv = fr.front_args(sys.argv[1:])
+argv = fr.front_args(sys.argv[1:], "--front", "--no-ramp")
 grids = [int(a) for a in argv] or [20, 40, 80, 160]
 q = gc.hs_equilibrium(40)
 omega = 2 * math.pi * gc.F_HZ
