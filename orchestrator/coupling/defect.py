@@ -104,8 +104,8 @@ class DefectMonitor:
         # the force's unit (``unit_of(column)``: the consumer input's declared unit, or None) per journal
         self.units = {name: (unit_of(names[v[0][1]]) if unit_of else None) or "" for name, v in journals.items()}
         # per journal, x before y: ((force column, ((coefficient column, kinematics column, 1 / gain),
-        # four per force; none for a defect_signals entry)), ...); the per-step arithmetic is on Python floats (a few us a step, where
-        # numpy on these short rows took 25-47 us in a run)
+        # four per force; none for a defect_signals entry)), ...); the per-step arithmetic is on
+        # Python floats (a few us a step, where numpy on these short rows took 25-47 us in a run)
         self._plan = [tuple((j, tuple(terms)) for _, j, terms in sorted(v)) for v in journals.values()]
         self._force_list = [j for forces in self._plan for j, _ in forces]
         # the kinematics the bearing receives extrapolated (Jacobi; under Gauss-Seidel with the rotor

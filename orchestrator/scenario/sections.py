@@ -445,7 +445,8 @@ class SectionReader(NodeReader):
             c["call_timeout"] = v
         if "defect_signals" in section:
             v = self.strings(section["defect_signals"][1], "coupling.defect_signals",
-                             "list coupling inputs (a connection's 'to' name) or patterns, e.g. [\"b.u\", \"rotor.F*\"]")
+                             "list coupling inputs (a connection's 'to' name) or patterns, "
+                             "e.g. [\"b.u\", \"rotor.F*\"]")
             ok &= v is not None
             c["defect_signals"] = tuple(s for s, _ in v or ())
         if "defect_limit" in section:
