@@ -130,7 +130,7 @@ class DefectMonitor:
         self._acc_t = 0.0
         self._acc_n = 0
         self.steps = 0          # steps monitored
-        self.skipped = 0        # steps redone in halves (not monitored)
+        self.skipped = 0        # steps not monitored: redone in halves after a discard, or k >= 2 start-up
 
     def __bool__(self) -> bool:
         return bool(self.journals)
