@@ -319,8 +319,8 @@ def test_defect_signals_that_match_nothing_are_refused(signals, says):
 def test_defect_signals_naming_the_monitored_forces_add_nothing():
     """A pattern that matches the interface-Jacobian forces (or their coefficients) is not refused: they
     are monitored per journal already; the kinematics the bearings receive are interpolated here."""
-    sc = dataclasses.replace(scenario(), coupling=dataclasses.replace(scenario().coupling,
-                                                                       defect_signals=("rotor.F*", "rotor.k*")))
+    sc = scenario()
+    sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, defect_signals=("rotor.F*", "rotor.k*")))
     res = MasterAlgorithm(sc, subsystems={"rotor": IJJournal(), "bearing": film()}).run()
     assert res.success and list(res.stats["coupling_defect"]["journals"]) == ["rotor.F_1"]
 

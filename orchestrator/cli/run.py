@@ -97,16 +97,14 @@ def _cmd_run(args) -> int:
 def _defect_line(cd) -> str | None:
     """One line on the coupling defect (summary.json ``coupling_defect``): the largest over the
     journals against its typical force, and how many steps were flagged (the warning says more)."""
-    journals = cd.get("journals") if isinstance(cd, dict) else None
-    rows = [(n, j) for n, j in (journals or {}).items() if isinstance(j, dict)
-            and isinstance(j.get("max_defect"), (int, float)) and isinstance(j.get("typical"), (int, float))
-            and j["typical"] > 0]
+    from orchestrator.coupling.defect import relative_defects
+    rows = relative_defects(cd)
     if not rows:
         return None
-    name, j = max(rows, key=lambda r: r[1]["max_defect"] / r[1]["typical"])
+    name, j, ratio, _ = max(rows, key=lambda r: r[2])
     unit = f" {j['unit']}" if j.get("unit") else ""
-    flagged = sum(int(r.get("steps_over") or 0) for _, r in rows)
-    return (f"coupling defect: largest {j['max_defect']:.4g}{unit} ({j['max_defect'] / j['typical']:.3g}x the "
+    flagged = sum(int(r.get("steps_over") or 0) for _, r, _, _ in rows)
+    return (f"coupling defect: largest {j['max_defect']:.4g}{unit} ({ratio:.3g}x the "
             f"typical {j['typical']:.4g}{unit}, {name}, t = {_num(j.get('t_max_defect'), '.6g', ' s')}); "
             + (f"{flagged} step(s) flagged, see the warning above" if flagged else "no step flagged"))
 

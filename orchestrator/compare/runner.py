@@ -332,22 +332,11 @@ def _relative_defect(summary: dict | None) -> dict | None:
     relative to its entry's typical size, the largest over the entries (summary.json
     ``coupling_defect``, orchestrator/coupling/defect.py; constant steps: interface-Jacobian forces
     and ``coupling.defect_signals``), or None: a reference-free indicator beside the errors."""
-    cd = (summary or {}).get("coupling_defect")
-    journals = cd.get("journals") if isinstance(cd, dict) else None
-    if not isinstance(journals, dict):
+    from orchestrator.coupling.defect import relative_defects
+    rows = [r for r in relative_defects((summary or {}).get("coupling_defect")) if r[3] is not None]
+    if not rows:
         return None
-    out: dict | None = None
-    for j in journals.values():
-        if not isinstance(j, dict):
-            continue
-        f = j.get("typical")
-        vals = {k: j.get(f"{k}_defect") for k in ("max", "median")}
-        if all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-               for x in (f, *vals.values())) and f > 0:
-            out = out or {"max": 0.0, "median": 0.0}
-            for k, x in vals.items():
-                out[k] = max(out[k], x / f)
-    return out
+    return {"max": max(r[2] for r in rows), "median": max(r[3] for r in rows)}
 
 
 def _snapshot_fmus(spec: CompareSpec, dest: Path) -> CompareSpec:

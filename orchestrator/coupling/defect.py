@@ -52,19 +52,18 @@ on the Jeffcott run-up's first 20 ms (half-Sommerfeld) the median d over the typ
 from __future__ import annotations
 
 import math
-import re
 from array import array
 
 import numpy as np
 
-from orchestrator.coupling.signal_scales import jacobian_groups
+from orchestrator.coupling.signal_scales import FORCE_RE, jacobian_groups
 from orchestrator.coupling.signals import lagrange_weights
+from orchestrator.names import match
 
 LIMIT = 1.0            # default of coupling.defect_limit: a step is flagged when |d| > limit x the typical force
 EPISODE_GAP = 10       # flagged steps at most this many steps apart form one episode
 MAX_EPISODES = 100     # episodes listed per journal in summary.json (the largest |d|, in time order)
 MAX_KEPT = 1 << 20     # steps kept per journal before neighbouring pairs are merged
-_FORCE = re.compile(r"^(.*)\.F([xy])_(\w+)$")
 
 
 class DefectMonitor:
@@ -77,12 +76,12 @@ class DefectMonitor:
 
     def __init__(self, names: list[str], extrapolated, connections, *, k: int, unit_of=None, limit: float = LIMIT,
                  macro_step: float | None = None, signals: tuple[str, ...] = ()):
-        from orchestrator.names import match
         ext = set(extrapolated)
         groups = [(j, terms) for j, terms in jacobian_groups(names, connections) if names[j] in ext]
         journals: dict[str, list] = {}
         for j, terms in groups:
-            inst, a, i = _FORCE.match(names[j]).groups()
+            inst, _, var = names[j].rpartition(".")
+            a, i = FORCE_RE.match(var).groups()          # jacobian_groups matched it so
             journals.setdefault(f"{inst}.F_{i}", []).append((a, j, terms))
         # coupling.defect_signals: more inputs, each its own entry with the plain prediction error
         # (no linearisation); the interface-Jacobian forces and their coefficients are covered above
@@ -285,6 +284,25 @@ class DefectMonitor:
                 f"phase or rub does; a film that refills within one step does not): {rerun}, or use "
                 "coupling.step_control: {type: error}, and compare (summary.json coupling_defect; docs/coupling.md, "
                 "'Coupling defect')")
+
+
+def relative_defects(cd) -> list[tuple[str, dict, float, float | None]]:
+    """``[(name, entry, max_defect / typical, median_defect / typical or None), ...]`` of a summary's
+    ``coupling_defect`` (``cd``), for the entries whose typical (> 0) and max_defect are finite
+    numbers; what ``rotorcosim run`` prints and ``compare`` tabulates (a summary read back may come
+    from anyone)."""
+    def number(x) -> bool:
+        return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+    journals = cd.get("journals") if isinstance(cd, dict) else None
+    out = []
+    for name, j in (journals.items() if isinstance(journals, dict) else ()):
+        if not isinstance(j, dict):
+            continue
+        f, d, m = j.get("typical"), j.get("max_defect"), j.get("median_defect")
+        if number(f) and number(d) and f > 0:
+            out.append((name, j, d / f, m / f if number(m) else None))
+    return out
 
 
 def _time(t) -> float:

@@ -306,12 +306,12 @@ class MasterAlgorithm:
         if getattr(self.grid, "variable", False):
             self._setup_variable_grid()
         elif c.scheme != "iterative":
-            ext = [f"{u.name}.{n}" for u in self.units for n in u.ext_names]
+            ext = {f"{u.name}.{n}" for u in self.units for n in u.ext_names}
             mon = DefectMonitor(self.signal_names, ext, self.scenario.connections, k=k, unit_of=self._unit_of,
                                 limit=getattr(c, "defect_limit", DEFECT_LIMIT), macro_step=c.macro_step,
                                 signals=watch)
             if mon.unmatched:
-                inputs = [n for n in self.signal_names if n in set(ext)]
+                inputs = [n for n in self.signal_names if n in ext]
                 raise ScenarioError(
                     f"{self._where()}coupling.defect_signals: {', '.join(map(repr, mon.unmatched))} match"
                     f"{'es' if len(mon.unmatched) == 1 else ''} no coupling input that its consumer receives "
@@ -499,8 +499,7 @@ class MasterAlgorithm:
                 t_next, on_output = grid.take_variable_step(self.stepper, t)
             elif self.defect is not None:
                 mon, retried, st = self.defect, getattr(grid, "retried_steps", 0), self.stepper
-                # a start-up step (k >= 2, iterated from saved states) integrated no prediction: not monitored
-                startup = st.startup_iterations and st.history.count < st.predictor.k
+                startup = st.starting()        # iterated from saved states: it integrated no prediction
                 mon.before(st.history, t, t_next)
                 grid.take_step(st, t, t_next)
                 mon.after(st.history, t_next, skip=startup or getattr(grid, "retried_steps", 0) != retried)

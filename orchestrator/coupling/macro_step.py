@@ -111,9 +111,14 @@ class MacroStep:
         return any(u.name == e.instance and u.sub.terminated_by_fmu() for u in self.units)
 
     # ------------------------------------------------------------------ steps
+    def starting(self) -> bool:
+        """The next step is a start-up iteration (repeated from saved states while the history is
+        shorter than the extrapolation order), not an ordinary step on the prediction."""
+        return bool(self.startup_iterations) and self.history.count < self.predictor.k
+
     def step(self, t: float, t_next: float) -> None:
         """One ordinary step [t, t_next] (start-up iteration while the history is short)."""
-        if self.startup_iterations and self.history.count < self.predictor.k:
+        if self.starting():
             self.startup_step(t, t_next)
         else:
             self.advance(t, t_next)
