@@ -332,3 +332,97 @@ def test_defect_signals_key_is_checked():
         "rotor.F*", "bearing1.x")
     with pytest.raises(ScenarioError, match=r"coupling.defect_signals' must be a list"):
         load_scenario(base, ["coupling.defect_signals=5"])
+
+
+# --- coupling.defect_retries: steps whose defect is over the limit are redone in halves ----------------
+def _closed_form(t):
+    """The journal on the linear film with its true coefficients (KF, CF) and the spring K0, released
+    from x = 1 mm at rest (test_master_adaptive_scales.py): the exact answer of every coupling."""
+    from test_master_adaptive_scales import K0, M
+    w = math.sqrt((K0 + KF) / M - (CF / (2 * M)) ** 2)
+    return 1e-3 * np.exp(-CF / (2 * M) * t) * (np.cos(w * t) + CF / (2 * M * w) * np.sin(w * t))
+
+
+def _run_retries(limit, n, **kw):
+    sc = scenario(**kw)
+    sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, defect_limit=limit, defect_retries=n))
+    res = MasterAlgorithm(sc, subsystems={"rotor": IJJournal(), "bearing": film(c_reported=CF / 2)}).run()
+    assert res.success, res.message
+    return res
+
+
+def test_defect_retries_redo_the_steps_over_the_limit_and_converge_to_the_exact_answer():
+    """The film reports half its damping, so every step has the known defect (CF/2) |dv|. With
+    defect_retries, a step whose defect (a piece of a redone step: weighted by its share h/H of the
+    macro step) is over the limit is redone from the saved states in halves: the rows stay on the macro
+    grid, the pieces' defects shrink with h^2, and the journal moves closer to the closed-form motion
+    than at the constant step (an independent reference: the film's true coefficients)."""
+    base = _run_retries(0.002, 0)
+    err0 = np.abs(base.outputs["rotor.x_1"] - _closed_form(base.t)).max()
+    errs, retried = [], []
+    for n in (1, 2, 8):
+        res = _run_retries(0.002, n)
+        np.testing.assert_array_equal(res.t, base.t)                 # rows on the macro grid
+        st = res.stats
+        assert st["coupling_defect"]["steps"] == 200                 # one row per macro step
+        assert st["defect_retried_steps"] == st["retried_steps"] > 0
+        retried.append(st["retried_steps"])
+        errs.append(np.abs(res.outputs["rotor.x_1"] - _closed_form(res.t)).max())
+    assert errs[0] < 0.8 * err0 and errs[1] < errs[0] and errs[2] <= errs[1]
+    assert retried[0] <= retried[1] <= retried[2]
+    # the largest merged (weighted) defect falls with the depth allowed
+    assert _run_retries(0.002, 8).stats["coupling_defect"]["journals"]["rotor.F_1"]["max_defect"] < \
+        0.5 * base.stats["coupling_defect"]["journals"]["rotor.F_1"]["max_defect"]
+
+
+def test_defect_retries_off_or_nothing_over_changes_nothing():
+    """defect_retries 0, or a limit no step reaches: bit for bit the constant-step run."""
+    base = _run_retries(1.0, 0)
+    for limit, n in ((1.0, 4), (0.002, 0)):
+        res = _run_retries(limit, n)
+        np.testing.assert_array_equal(res.outputs["rotor.x_1"], base.outputs["rotor.x_1"])
+        assert res.stats.get("defect_retried_steps", 0) == 0
+
+
+def test_defect_retries_key(tmp_path):
+    """coupling.defect_retries: an integer 0..30; refused with the error-controlled step, the iterative
+    scheme and FMUs that cannot save their state, each naming the key and the fix."""
+    from orchestrator.errors import ScenarioError
+    base = ROOT / "scenarios" / "jeffcott_runup_free_to_air_from_rest.yaml"
+    assert load_scenario(base).coupling.defect_retries == 0
+    assert load_scenario(base, ["coupling.defect_retries=4"]).coupling.defect_retries == 4
+    for bad in ("-1", "31", "1.5", "abc", "true"):
+        with pytest.raises(ScenarioError, match=r"coupling.defect_retries.*e\.g\. 4"):
+            load_scenario(base, [f"coupling.defect_retries={bad}"])
+    with pytest.raises(ScenarioError, match=r"step_control type error and coupling.defect_retries cannot be "
+                                            r"combined.*set defect_retries: 0"):
+        load_scenario(base, ["coupling.defect_retries=4", "coupling.discard_retries=0",
+                             "coupling.step_control.type=error"])
+    with pytest.raises(ScenarioError, match=r"defect_retries.*iterative.*set defect_retries: 0"):
+        load_scenario(base, ["coupling.defect_retries=4", "coupling.scheme=iterative"])
+    stateless = film(c_reported=CF / 2)
+    stateless.can_get_set_state = False
+    s = scenario()
+    s = dataclasses.replace(s, coupling=dataclasses.replace(s.coupling, defect_retries=2))
+    with pytest.raises(ScenarioError, match=r"coupling.defect_retries = 2 needs every FMU to save.*'bearing'.*"
+                                            r"set coupling.defect_retries: 0"):
+        MasterAlgorithm(s, subsystems={"rotor": IJJournal(), "bearing": stateless}).setup()
+
+
+def test_defect_retries_count_what_the_smallest_step_did_not_resolve():
+    """A limit no piece can meet (1e-5 x the typical force) with one halving: every macro step is redone
+    in two halves, both still over the limit; the monitor counts them, the warning and the CLI line say
+    so, and every macro step stays one row."""
+    from orchestrator.cli.run import _defect_line
+    res = _run_retries(1e-5, 1)
+    cd = res.stats["coupling_defect"]
+    assert cd["retries"] == {"halvings": 1, "retried_steps": 200, "unresolved_steps": 200}
+    assert cd["steps"] == 200 and res.stats["retry_substeps"] == 400
+    mon = DefectMonitor(NAMES, NAMES[:10], CONNS, k=0)
+    note = mon.note(cd)
+    assert "coupling.defect_retries redid 200 macro step(s) in halves down to macro_step / 2^1" in note
+    assert "200 still had a piece over the limit there" in note
+    assert _defect_line(cd).endswith("; 200 step(s) redone in halves (coupling.defect_retries), 200 still over "
+                                     "the limit at the smallest")
+    # a summary read back may come from anyone: a malformed retries entry is left out, not a traceback
+    assert "redone" not in _defect_line({**cd, "retries": {"retried_steps": "x"}})

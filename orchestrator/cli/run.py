@@ -104,9 +104,14 @@ def _defect_line(cd) -> str | None:
     name, j, ratio, _ = max(rows, key=lambda r: r[2])
     unit = f" {j['unit']}" if j.get("unit") else ""
     flagged = sum(int(r.get("steps_over") or 0) for _, r, _, _ in rows)
+    r = cd.get("retries") if isinstance(cd, dict) else None
+    redone = ""
+    if isinstance(r, dict) and isinstance(r.get("retried_steps"), int) and r["retried_steps"]:
+        redone = (f"; {r['retried_steps']} step(s) redone in halves (coupling.defect_retries), "
+                  f"{_num(r.get('unresolved_steps'), 'd')} still over the limit at the smallest")
     return (f"coupling defect: largest {j['max_defect']:.4g}{unit} ({ratio:.3g}x the "
             f"typical {j['typical']:.4g}{unit}, {name}, t = {_num(j.get('t_max_defect'), '.6g', ' s')}); "
-            + (f"{flagged} step(s) flagged, see the warning above" if flagged else "no step flagged"))
+            + (f"{flagged} step(s) flagged, see the warning above" if flagged else "no step flagged") + redone)
 
 
 def _num(value, fmt: str, unit: str = "") -> str:

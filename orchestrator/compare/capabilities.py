@@ -57,7 +57,8 @@ def capability_problems(sc: Scenario, mds: Mapping[str, Any]) -> tuple[list[str]
         return [], []
     errors, warnings = [], []
     fixed = [n for n, md in mds.items() if not md.can_handle_variable_step]
-    why = fixed_step_problem(sc.start_time, sc.stop_time, c.macro_step, fixed, c.discard_retries)
+    why = fixed_step_problem(sc.start_time, sc.stop_time, c.macro_step, fixed, c.discard_retries,
+                             c.defect_retries)
     if why:
         errors.append(why)
     coupling = {"scheme": c.scheme, "step_control": c.step_control, "discard_retries": c.discard_retries}

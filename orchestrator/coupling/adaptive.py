@@ -322,11 +322,16 @@ def ij_order_of(coupling) -> int | None:
 
 
 def controller_from_spec(scenario) -> StepSizeController:
-    """The controller of ``scenario.coupling`` (discard_retries > 0: :class:`DiscardHalving`;
-    step_control type error: :class:`ErrorControlled`)."""
+    """The controller of ``scenario.coupling`` (discard_retries or defect_retries > 0:
+    :class:`DiscardHalving`; step_control type error: :class:`ErrorControlled`)."""
     c = scenario.coupling
     n_retry = getattr(c, "discard_retries", 0)
     sc = getattr(c, "step_control", None)
+    n_defect = getattr(c, "defect_retries", 0)
+    if sc is not None and sc.type == "error" and n_defect:
+        raise ScenarioError("coupling.step_control type error and coupling.defect_retries cannot be combined "
+                            "(the error-controlled step rejects steps on its own estimate of the same defect); "
+                            "set defect_retries: 0")
     if sc is not None and sc.type == "error":
         if n_retry:
             raise ScenarioError("coupling.step_control type error and coupling.discard_retries cannot be combined "
@@ -336,6 +341,7 @@ def controller_from_spec(scenario) -> StepSizeController:
                                # the iterative scheme's estimate is of order q+1 (coupling/iterative.py)
                                order=(c.interpolation_order if c.scheme == "iterative" else c.extrapolation_order) + 1,
                                ij_order=ij_order_of(c))
-    if n_retry:
-        return DiscardHalving(scenario.start_time, scenario.stop_time, c.macro_step, n_retry)
+    if n_retry or n_defect:
+        return DiscardHalving(scenario.start_time, scenario.stop_time, c.macro_step, n_retry,
+                              defect_halvings=n_defect)
     return ConstantStep(scenario.start_time, scenario.stop_time, c.macro_step)

@@ -34,10 +34,24 @@ phase the largest defects are 2.6-6.0 kN at 0.1 ms, 6.5-7.4 kN at 50 us and 0.1-
 10 us: there the film forces depend on the step. Which of the two a flagged episode is, only a
 run with a smaller ``coupling.macro_step`` tells. The warning says so.
 
+``coupling.defect_retries: N`` (default 0) acts on it: a macro step whose defect is over the limit
+is redone from the saved states in halves (:class:`.step_control.DiscardHalving`, the machinery of
+``discard_retries``), each half judged again, down to H / 2^N; a piece still over the limit there is
+accepted and counted (``retries.unresolved_steps``). During the run the limit is taken against a
+running typical force (the median |F| of the last ``RECENT`` accepted macro steps; before the first,
+|F| at the start), as the run's median is not known yet; the report keeps the run's median, so a step
+accepted during the run may still count in ``steps_over``. The pieces of a redone macro step make one
+row (the largest |d| of its pieces), so ``steps`` stays the number of macro steps. The criterion is
+the value |d| of each piece, not its impulse |d| h: the force error the rotor integrates over the
+macro step then stays within the same bound as over an unredone step. A jump within a step (the
+film refilling in the whirl) keeps its defect at any step and is never resolved; the turbocharger's
+rub regime is (docs/coupling.md, "Redoing the steps over the limit").
+
 Not monitored: the error-controlled step (it has its own estimate and rejects such steps), the
 iterative scheme (it iterates the force to its tolerance), forces the rotor receives interpolated
 (Gauss-Seidel with the bearing stepping first), macro steps redone in halves after an
-fmi2Discard (the rotor integrated each half with fresh coefficients) and the start-up steps of
+fmi2Discard (the rotor integrated each half with fresh coefficients; with ``defect_retries`` they are
+monitored piece by piece) and the start-up steps of
 extrapolation order k >= 2 (the first k - 1, iterated from saved states); these are counted in
 ``steps_not_monitored``.
 
@@ -64,6 +78,8 @@ LIMIT = 1.0            # default of coupling.defect_limit: a step is flagged whe
 EPISODE_GAP = 10       # flagged steps at most this many steps apart form one episode
 MAX_EPISODES = 100     # episodes listed per journal in summary.json (the largest |d|, in time order)
 MAX_KEPT = 1 << 20     # steps kept per journal before neighbouring pairs are merged
+RECENT = 1024          # accepted steps whose median |F| is the running typical force (coupling.defect_retries)
+TYPICAL_EVERY = 64     # steps between two updates of the running typical force
 
 
 class DefectMonitor:
@@ -129,6 +145,17 @@ class DefectMonitor:
         self._acc_t = 0.0
         self._acc_n = 0
         self.steps = 0          # steps monitored
+        # the running typical force per journal for coupling.defect_retries: the median |F| of the last
+        # RECENT accepted steps (recomputed every TYPICAL_EVERY steps; before the first, |F| at the start)
+        self.track_typical = False        # set by the step controller that redoes steps on their defect
+        self.halvings = 0                 # coupling.defect_retries (set with track_typical)
+        self.retried_steps = 0            # macro steps redone in halves for their defect
+        self.unresolved_steps = 0         # of those: a piece at H / 2^halvings still over the limit
+        self._recent = np.zeros((RECENT, len(self.journals)))
+        self._n_recent = 0
+        self._typical: list[float] | None = None
+        self._since_typical = 0
+        self._piece_d: list[float] | None = None     # the pieces of a macro step redone in halves, merged
         self.skipped = 0        # steps not monitored: redone in halves after a discard, or k >= 2 start-up
 
     def __bool__(self) -> bool:
@@ -160,6 +187,15 @@ class DefectMonitor:
             self.skipped += 1
             self._prev = None
             return
+        self.measure(history)
+        self.accept(t_next)
+
+    def measure(self, history) -> float:
+        """The defect of the step just done (history's newest level), into the pending row; returns the
+        largest ``|d| / (limit x typical)`` over the journals with ``track_typical`` (the typical force the
+        running one: the median |F| of the last ``RECENT`` accepted steps; before the first, |F| at the
+        step's start; a journal whose typical force is 0 is not judged), else 0.0. :meth:`accept` keeps the
+        row, :meth:`drop` forgets it (the step is redone)."""
         new, prev, pkin = history.store[1].tolist(), self._prev, self._pkin
         row_d, row_f = self._row_d, self._row_f
         m = 0
@@ -178,9 +214,51 @@ class DefectMonitor:
                 f2 += f * f
                 m += 1
             row_d[g], row_f[g] = math.sqrt(d2), math.sqrt(f2)
+        worst = 0.0
+        if not self.track_typical:
+            return worst
+        typ = self._typical
+        if typ is None:              # no step kept yet: the force at the step's start
+            typ = self._typical = [math.sqrt(sum(prev[j] ** 2 for j, _ in forces)) for forces in self._plan]
+        for g, d in enumerate(row_d):
+            if typ[g] > 0.0:
+                worst = max(worst, d / (self.limit * typ[g]))
+        return worst
+
+    def accept(self, t_next: float, *, piece: bool = False) -> None:
+        """Keep the row :meth:`measure` computed (the step ending at ``t_next`` is accepted). ``piece``: it is
+        a piece of a macro step redone in halves; the pieces are merged (the largest |d|, |F| at the
+        end) into one row by :meth:`commit` at the macro step's end, so that every row is one macro step."""
         self._prev = None
+        if piece:
+            if self._piece_d is None:
+                self._piece_d = list(self._row_d)
+            else:
+                self._piece_d = [max(x, y) for x, y in zip(self._piece_d, self._row_d)]
+            return
+        self._commit_row(t_next, self._row_d, self._row_f)
+
+    def commit(self, t_next: float) -> None:
+        """Keep the merged row of a macro step redone in pieces (:meth:`accept` with ``piece``)."""
+        if self._piece_d is not None:
+            d, self._piece_d = self._piece_d, None
+            self._commit_row(t_next, d, self._row_f)
+
+    def _commit_row(self, t_next: float, row_d, row_f) -> None:
         self.steps += 1
+        if self.track_typical:
+            recent = self._recent
+            recent[self._n_recent % RECENT] = row_f
+            self._n_recent += 1
+            self._since_typical += 1
+            if self._since_typical >= TYPICAL_EVERY or self._n_recent <= TYPICAL_EVERY:
+                self._since_typical = 0
+                self._typical = np.median(recent[:min(self._n_recent, RECENT)], axis=0).tolist()
         self._keep(t_next, row_d, row_f)
+
+    def drop(self) -> None:
+        """Forget the row :meth:`measure` computed (the step is redone in halves)."""
+        self._prev = None
 
     def _keep(self, t: float, d, f) -> None:
         """Keep one step's |d| and |F| per journal (``d``, ``f``: sequences), or merge it into the pending
@@ -229,6 +307,9 @@ class DefectMonitor:
         t, d, f = self._arrays()
         out = {"limit": self.limit, "steps": self.steps, "steps_not_monitored": self.skipped,
                "steps_per_row": self._stride, "journals": {}}
+        if self.halvings:
+            out["retries"] = {"halvings": self.halvings, "retried_steps": self.retried_steps,
+                              "unresolved_steps": self.unresolved_steps}
         for g, name in enumerate(self.journals):
             dj, fj = d[:, g].astype(float), f[:, g].astype(float)
             if not len(t):
@@ -261,6 +342,14 @@ class DefectMonitor:
         """The warning when some step's defect exceeded the limit, or None."""
         st = statistics or self.statistics()
         hits = [(name, j) for name, j in st["journals"].items() if j.get("steps_over")]
+        r = st.get("retries")
+        redone = ""
+        if r and r["retried_steps"]:
+            redone = (f"coupling.defect_retries redid {r['retried_steps']} macro step(s) in halves down to "
+                      f"macro_step / 2^{r['halvings']}, judged against the typical force of the last "
+                      f"{RECENT} steps; {r['unresolved_steps']} still had a piece over the limit there (a jump "
+                      "within a step, such as a film refilling, is never resolved; a phase that keeps needing the "
+                      "smallest step wants coupling.step_control: {type: error}). ")
         if not hits:
             return None
         parts = []
@@ -283,7 +372,7 @@ class DefectMonitor:
                 + "; ".join(parts) + ". The results at those times may depend on the macro step (a contact "
                 f"phase or rub does; a film that refills within one step does not): {rerun}, or use "
                 "coupling.step_control: {type: error}, and compare (summary.json coupling_defect; docs/coupling.md, "
-                "'Coupling defect')")
+                "'Coupling defect')" + (". " + redone.rstrip() if redone else ""))
 
 
 def relative_defects(cd) -> list[tuple[str, dict, float, float | None]]:

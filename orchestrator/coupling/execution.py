@@ -273,16 +273,20 @@ class MasterAlgorithm:
         fixed = [u.name for u in self.units if getattr(getattr(u.sub, "md", None), "can_handle_variable_step", True)
                  is False]
         if isinstance(self.grid, ConstantStep):
-            why = fixed_step_problem(self.grid.t0, self.grid.t_stop, self.grid.h, fixed, self.discard_retries)
+            why = fixed_step_problem(self.grid.t0, self.grid.t_stop, self.grid.h, fixed, self.discard_retries,
+                                     getattr(self.grid, "defect_halvings", 0))
             if why:
                 raise ScenarioError(f"{self._where()}{why}")
         if self.grid.needs_states:
             stateless = [u.name for u in self.units if not u.sub.can_get_set_state]
             if stateless:
+                key = ("discard_retries" if self.discard_retries or not getattr(self.grid, "defect_halvings", 0)
+                       else "defect_retries")
+                n = self.discard_retries if key == "discard_retries" else self.grid.defect_halvings
                 raise ScenarioError(
-                    f"{self._where()}coupling.discard_retries = {self.discard_retries} needs every FMU to save and "
+                    f"{self._where()}coupling.{key} = {n} needs every FMU to save and "
                     f"restore its state (canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} "
-                    "cannot (got canGetAndSetFMUstate false); set coupling.discard_retries: 0 or use an FMU "
+                    f"cannot (got canGetAndSetFMUstate false); set coupling.{key}: 0 or use an FMU "
                     "built with state support")
             for u in self.units:
                 u.sub.no_set_prior_state = False    # we may restore the state saved before each macro step
@@ -320,6 +324,14 @@ class MasterAlgorithm:
                     "pattern such as 'rotor.F*' (inputs a Gauss-Seidel consumer receives after their producer "
                     "stepped are interpolated, not predicted: they have no defect)")
             self.defect = mon or None
+            if self.defect is not None and getattr(self.grid, "defect_halvings", 0):
+                self.grid.defect = mon         # the controller judges every (sub-)step (coupling.defect_retries)
+                mon.track_typical = True
+                mon.halvings = self.grid.defect_halvings
+        if getattr(self.grid, "defect_halvings", 0) and getattr(self.grid, "defect", None) is None:
+            log.warning("coupling.defect_retries = %d has nothing to judge: no coupling input is monitored (forces "
+                        "with interface-Jacobian coefficients, or coupling.defect_signals); only discarded steps are "
+                        "redone", self.grid.defect_halvings)
         if watch and self.defect is None:
             log.warning("coupling.defect_signals is not used with %s: %s", "the error-controlled step" if getattr(
                 self.grid, "variable", False) else "scheme iterative", "that step has its own estimate")
@@ -497,7 +509,7 @@ class MasterAlgorithm:
         try:
             if variable:
                 t_next, on_output = grid.take_variable_step(self.stepper, t)
-            elif self.defect is not None:
+            elif self.defect is not None and getattr(grid, "defect", None) is None:
                 mon, retried, st = self.defect, getattr(grid, "retried_steps", 0), self.stepper
                 startup = st.starting()        # iterated from saved states: it integrated no prediction
                 mon.before(st.history, t, t_next)
@@ -656,8 +668,11 @@ class MasterAlgorithm:
         if note:
             log.warning("%s", note)
         if st["retried_steps"]:
-            log.info("%d macro step(s) were redone in smaller steps after an fmi2Discard (%d extra step rounds, "
-                     "%d rejected attempts)%s", st["retried_steps"], st["retry_substeps"], st["rejected_steps"],
+            n_def = st.get("defect_retried_steps", 0)
+            why = ("after an fmi2Discard" if not n_def else "for their coupling defect" if n_def == st["retried_steps"]
+                   else f"after an fmi2Discard or ({n_def}) for their coupling defect")
+            log.info("%d macro step(s) were redone in smaller steps %s (%d extra step rounds, "
+                     "%d rejected attempts)%s", st["retried_steps"], why, st["retry_substeps"], st["rejected_steps"],
                      f"; only the first {RETRY_LOG_LINES} were logged" if st["retried_steps"] > RETRY_LOG_LINES
                      else "")
         try:

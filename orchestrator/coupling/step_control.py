@@ -20,7 +20,9 @@ Protocol (rules for implementers, in the style of scipy's ``OdeSolver``):
   ``retry_substeps``).
 
 :class:`ConstantStep` accepts every step or fails; :class:`DiscardHalving` rejects a
-step an FMU discards (fmi2Discard, FMI 2.0 sec. 4.2.3) and redoes it in halves.
+step an FMU discards (fmi2Discard, FMI 2.0 sec. 4.2.3) and redoes it in halves, and with
+``coupling.defect_retries`` also a step whose coupling defect is over the limit
+(:mod:`.defect`).
 """
 
 from __future__ import annotations
@@ -34,6 +36,11 @@ from orchestrator.scenario.limits import step_slack
 log = logging.getLogger(__name__)
 
 RETRY_LOG_LINES = 20              # INFO lines about retried macro steps before only counting them
+
+
+class DefectOver(Exception):
+    """A (sub-)step's coupling defect exceeded coupling.defect_limit x the typical force
+    (coupling.defect_retries): it is redone in halves like a discarded one."""
 
 
 class RetriesExhausted(Exception):
@@ -88,7 +95,10 @@ class ConstantStep(StepSizeController):
 
 
 class DiscardHalving(ConstantStep):
-    """Constant steps; a step an FMU discards is redone in halves, down to H / 2^max_halvings.
+    """Constant steps; a step an FMU discards is redone in halves, down to H / 2^max_halvings; with a
+    defect monitor (``defect``, ``defect_halvings`` > 0: coupling.defect_retries) so is a step whose
+    coupling defect is over the limit, down to H / 2^defect_halvings (a piece still over it there is
+    accepted and counted by the monitor).
 
     Before each macro step every FMU's state and the coupling history are saved;
     on fmi2Discard both are restored and [t, t_next] is redone as two halves (each
@@ -100,44 +110,85 @@ class DiscardHalving(ConstantStep):
 
     needs_states = True
 
-    def __init__(self, t0: float, t_stop: float, h: float, max_halvings: int):
+    def __init__(self, t0: float, t_stop: float, h: float, max_halvings: int, *, defect_halvings: int = 0):
         super().__init__(t0, t_stop, h)
         self.max_halvings = max_halvings
+        # coupling.defect_retries: a (sub-)step whose coupling defect is over the limit is redone in halves
+        # while it is at most this many halvings deep (the monitor, ``defect``, is set by the master)
+        self.defect_halvings = defect_halvings
+        self.defect = None
         self.retried_steps = 0          # macro steps redone after a discard
         self.retry_substeps = 0         # extra doStep rounds (sub-intervals attempted) in those retries
         self.rejected_steps = 0         # (sub-)step attempts discarded and rolled back
+        self.defect_retried_steps = 0   # of retried_steps: those first rejected for their coupling defect
         self._depth = 0
+        self._unresolved = False        # a piece of this macro step stayed over the defect limit at the deepest level
 
     def statistics(self):
-        return {"rejected_steps": self.rejected_steps, "retried_steps": self.retried_steps,
-                "retry_substeps": self.retry_substeps}
+        st = {"rejected_steps": self.rejected_steps, "retried_steps": self.retried_steps,
+              "retry_substeps": self.retry_substeps}
+        if self.defect_halvings:
+            st["defect_retried_steps"] = self.defect_retried_steps
+        return st
 
-    @staticmethod
-    def _retryable(e: FmuCallError, stepper) -> bool:
-        """Reject-and-retry only fmi2Discard, and not when the FMU ended the simulation (fmi2Terminated);
-        any other failure fails the step."""
-        return e.status == "discard" and not stepper.fmu_ended(e)
+    def _retryable(self, e: Exception, stepper, level: int) -> bool:
+        """Reject-and-retry a defect over the limit, and fmi2Discard within coupling.discard_retries when
+        the FMU did not end the simulation (fmi2Terminated); any other failure fails the step."""
+        if isinstance(e, DefectOver):
+            return True
+        return e.status == "discard" and not stepper.fmu_ended(e) and level < self.max_halvings
+
+    def _attempt(self, stepper, a: float, b: float, level: int) -> None:
+        """Step [a, b], ``level`` halvings deep; with the defect monitor, judge its defect (DefectOver
+        while ``level < defect_halvings``; accepted otherwise, and kept by the monitor)."""
+        mon = self.defect
+        if mon is None:
+            stepper.step(a, b)
+            return
+        startup = stepper.starting()       # iterated from saved states: it integrated no prediction
+        mon.before(stepper.history, a, b)
+        stepper.step(a, b)
+        if startup:
+            mon.after(stepper.history, b, skip=True)
+            return
+        worst = mon.measure(stepper.history)
+        if worst > 1.0 and level >= self.defect_halvings:
+            self._unresolved = True
+        elif worst > 1.0:
+            mon.drop()
+            raise DefectOver(f"coupling defect {worst * mon.limit:.3g}x the typical force over t={a:.12g}..{b:.12g} "
+                             f"s (coupling.defect_limit {mon.limit:g}); redone in halves (coupling.defect_retries)")
+        mon.accept(b, piece=level > 0)
 
     def take_step(self, stepper, t, t_next):
         cp = stepper.save()
+        self._unresolved = False
         try:
             try:
-                stepper.step(t, t_next)
+                self._attempt(stepper, t, t_next, 0)
                 return                                      # accept
-            except FmuCallError as e:
-                if not self._retryable(e, stepper):
+            except (FmuCallError, DefectOver) as e:
+                if not self._retryable(e, stepper, 0):
                     raise                                   # fail
                 first = e
             self.retried_steps += 1                         # reject, retry in halves
             self.rejected_steps += 1
+            over = isinstance(first, DefectOver)
+            self.defect_retried_steps += over
             self._depth = 0
             rounds0 = self.retry_substeps
             self._split(stepper, t, t_next, 1, cp, first)
             stepper.keep_end_only(cp, t_next)
+            if self.defect is not None:
+                self.defect.commit(t_next)
+                self.defect.retried_steps += over
+                self.defect.unresolved_steps += over and self._unresolved
             if self.retried_steps <= RETRY_LOG_LINES:
-                log.info("FMU instance '%s' discarded the macro step t=%.12g..%.12g s; redone from the saved "
-                         "states with %d halving(s) (smallest step %g s, %d extra step rounds)%s", first.instance,
-                         t, t_next, self._depth, (t_next - t) / 2 ** self._depth,
+                what = ("the coupling defect of the macro step t=%.12g..%.12g s was over coupling.defect_limit "
+                        "(coupling.defect_retries)" % (t, t_next) if over else
+                        "FMU instance '%s' discarded the macro step t=%.12g..%.12g s" % (first.instance, t, t_next))
+                log.info("%s; redone from the saved states with %d halving(s) (smallest step %g s, %d extra step "
+                         "rounds)%s", what, self._depth, (t_next - t) / 2 ** self._depth,
                          self.retry_substeps - rounds0,
                          "; further retried macro steps are only counted (statistics: retried_steps)"
                          if self.retried_steps == RETRY_LOG_LINES else "")
@@ -146,24 +197,24 @@ class DiscardHalving(ConstantStep):
 
     def _split(self, stepper, t_a, t_b, level, cp_a, error) -> None:
         """Restore the checkpoint at ``t_a`` and do [t_a, t_b] as two halves; a half that is
-        discarded again is split further while ``level < max_halvings``."""
+        discarded again (or whose defect is over the limit) is split further while allowed."""
         stepper.restore(cp_a)
         self.on_rejected(t_a, t_b, error)
         self._depth = max(self._depth, level)
         t_m = t_a + 0.5 * (t_b - t_a)
-        deepest = level >= self.max_halvings
+        deepest = level >= max(self.max_halvings, self.defect_halvings)
         for a, b in ((t_a, t_m), (t_m, t_b)):
             # the first half starts from the restored state; at the deepest level nothing is reused
             cp = cp_a if (a == t_a or deepest) else stepper.save()
             try:
                 self.retry_substeps += 1
                 try:
-                    stepper.step(a, b)
-                except FmuCallError as e:
-                    if not self._retryable(e, stepper):
+                    self._attempt(stepper, a, b, level)
+                except (FmuCallError, DefectOver) as e:
+                    if not self._retryable(e, stepper, level):
+                        if isinstance(e, FmuCallError) and e.status == "discard" and not stepper.fmu_ended(e):
+                            raise RetriesExhausted(e, a, b) from e
                         raise
-                    if deepest:
-                        raise RetriesExhausted(e, a, b) from e
                     self.rejected_steps += 1
                     self._split(stepper, a, b, level + 1, cp, e)
             finally:

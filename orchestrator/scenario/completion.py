@@ -26,14 +26,15 @@ from orchestrator.scenario.sections import FROM_FMUS
 INVALID = "(invalid)"        # a DefaultExperiment value that is not a usable number (reported)
 
 
-def fixed_step_problem(t0: float, t_stop: float, h: float, fixed: Sequence[str], discard_retries: int = 0) -> str | None:
+def fixed_step_problem(t0: float, t_stop: float, h: float, fixed: Sequence[str], discard_retries: int = 0,
+                       defect_retries: int = 0) -> str | None:
     """Why a run cannot honour FMUs that cannot vary their communication step size, or None.
 
     ``fixed`` names the instances whose model description says
     ``canHandleVariableCommunicationStepSize="false"``. Such an FMU must get the
     same step every time (FMI 2.0 sec. 4.3.1), so the run needs ``stop_time`` on
     the grid ``start_time + n*macro_step`` (no shortened last step) and no discard
-    retries (which halve the step).
+    retries (which halve the step), nor defect retries.
     """
     if not fixed:
         return None
@@ -49,6 +50,9 @@ def fixed_step_problem(t0: float, t_stop: float, h: float, fixed: Sequence[str],
     if discard_retries:
         return (f"coupling.discard_retries = {discard_retries} redoes discarded steps with halved step sizes, but "
                 f"{why}; set coupling.discard_retries: 0")
+    if defect_retries:
+        return (f"coupling.defect_retries = {defect_retries} redoes steps whose coupling defect is over the limit with "
+                f"halved step sizes, but {why}; set coupling.defect_retries: 0")
     return None
 
 
@@ -113,11 +117,12 @@ class Completion:
         if coupling is None or not isinstance(t0, float) or not isinstance(t1, float):
             return
         why = fixed_step_problem(t0, t1, coupling.get("macro_step", CouplingSpec.macro_step), self.fixed_step,
-                                 coupling.get("discard_retries", 0) or 0)
+                                 coupling.get("discard_retries", 0) or 0, coupling.get("defect_retries", 0) or 0)
         if why:
             from orchestrator.scenario.coupling_sections import value_place
             root = getattr(self, "root_node", None)
-            paths = ([("coupling", "discard_retries")] if why.startswith("coupling.discard_retries") else
+            key = why.split(" ", 1)[0].removeprefix("coupling.")
+            paths = ([("coupling", key)] if key in ("discard_retries", "defect_retries") else
                      [("stop_time",), ("coupling", "macro_step"), ("start_time",)])
             at, then = value_place(self, root, *paths)
             self.err(at, why + then)

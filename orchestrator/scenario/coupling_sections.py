@@ -215,11 +215,13 @@ class CapabilityIssue:
 
 def capability_issues(coupling: Mapping, mds: Mapping) -> list[CapabilityIssue]:
     """The FMU capability flags the chosen coupling needs (``coupling``: the loader's coupling
-    mapping, ``scheme``/``step_control``/``discard_retries``; ``mds``: instance -> model description).
+    mapping, ``scheme``/``step_control``/``discard_retries``/``defect_retries``; ``mds``: instance -> model
+    description).
 
     ``scheme: iterative`` needs canGetAndSetFMUstate in every FMU (an error), and so does
     ``discard_retries`` > 0 (an error; with ``step_control: {type: error}`` it is refused whatever
-    the FMUs, as the master does: the error-controlled step has its own rejection);
+    the FMUs, as the master does: the error-controlled step has its own rejection), and so does
+    ``defect_retries`` > 0 (also refused with the error-controlled step and the iterative scheme);
     ``step_control: error`` needs canHandleVariableCommunicationStepSize (an error) and,
     to reject steps, canGetAndSetFMUstate (without it the step adapts forward only: a warning,
     which ``rotorcosim validate`` prints).
@@ -251,6 +253,24 @@ def capability_issues(coupling: Mapping, mds: Mapping) -> list[CapabilityIssue]:
                 f"(canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} cannot (got "
                 "canGetAndSetFMUstate false); set coupling.discard_retries: 0 or use an FMU built with "
                 "state support", (("discard_retries",),)))
+    defect = coupling.get("defect_retries", 0) or 0
+    if defect and coupling.get("scheme") != "monolithic":
+        if sc is not None and sc.type == "error":
+            out.append(CapabilityIssue(
+                "coupling.step_control type error and coupling.defect_retries cannot be combined (the "
+                "error-controlled step rejects steps on its own estimate of the same defect); set defect_retries: 0",
+                (("defect_retries",), ("step_control", "type"), ("step_control",))))
+        elif coupling.get("scheme") == "iterative":
+            out.append(CapabilityIssue(
+                "coupling.defect_retries redoes the steps of gauss-seidel and jacobi whose coupling defect is over "
+                "coupling.defect_limit; the iterative scheme iterates every step to its tolerance instead; set "
+                "defect_retries: 0 or use scheme gauss-seidel", (("defect_retries",), ("scheme",))))
+        elif stateless:
+            out.append(CapabilityIssue(
+                f"coupling.defect_retries = {defect} needs every FMU to save and restore its state "
+                f"(canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} cannot (got "
+                "canGetAndSetFMUstate false); set coupling.defect_retries: 0 or use an FMU built with "
+                "state support", (("defect_retries",),)))
     if sc is None or sc.type != "error":
         return out
     fixed = [n for n, md in mds.items() if not md.can_handle_variable_step]

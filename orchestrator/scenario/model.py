@@ -28,7 +28,8 @@ ISOLATION = ("none", "process")   # fmus.<name>.isolation, coupling.isolation
 CONNECTION_KEYS = ("from", "to", "gain", "offset")
 COUPLING_KEYS = ("scheme", "sequence", "macro_step", "extrapolation_order",
                  "interpolation_order", "substeps", "discard_retries", "isolation", "parallel", "call_timeout",
-                 "pin_workers", "options", "iteration", "step_control", "defect_limit", "defect_signals")
+                 "pin_workers", "options", "iteration", "step_control", "defect_limit", "defect_signals",
+                 "defect_retries")
 OUTPUT_KEYS = ("interval", "signals", "format")
 OUTPUT_FORMATS = ("csv", "parquet")
 ANALYSIS_KEYS = ("speed", "journals", "fields", "whirl")   # analysis (docs/analysis.md)
@@ -176,6 +177,9 @@ class CouplingSpec:
     # constant steps: also monitor these coupling inputs' prediction error (names or patterns of
     # consumer inputs, e.g. "b.u*"; orchestrator/coupling/defect.py); () -> interface-Jacobian forces only
     defect_signals: tuple[str, ...] = ()
+    # constant steps: a (sub-)step whose defect exceeds defect_limit x the typical force is redone from
+    # the saved states in halves, up to this many halvings (0: only reported)
+    defect_retries: int = 0
 
 
 @dataclass(frozen=True, kw_only=True)

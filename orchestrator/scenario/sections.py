@@ -449,6 +449,13 @@ class SectionReader(NodeReader):
                              "e.g. [\"b.u\", \"rotor.F*\"]")
             ok &= v is not None
             c["defect_signals"] = tuple(s for s, _ in v or ())
+        if "defect_retries" in section:
+            v = self.integer(section["defect_retries"][1], "coupling.defect_retries", 0, MAX_DISCARD_RETRIES,
+                             "use 0 (only report the coupling defect) or the number of times a macro step whose "
+                             "defect is over coupling.defect_limit may be halved, e.g. 4 (smallest step "
+                             "macro_step / 2^4)")
+            ok &= v is not None
+            c["defect_retries"] = v
         if "defect_limit" in section:
             node = section["defect_limit"][1]
             v = self.value(node) if isinstance(node, yaml.ScalarNode) else None
