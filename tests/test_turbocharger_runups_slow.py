@@ -44,8 +44,11 @@ def test_mass_conserving_turbocharger_runup_rubs_through_to_105_hz(name, tmp_pat
     # the compressor-side journal whirls at half speed and runs round the shell ...
     assert j1["whirl"] and abs(j1["dominant_ratio"] - 0.5) < 0.02
     assert 0.9 < rub["bearing1.eps"].mean() < 1.0
-    # ... touching the asperity layer (a few N; the static load is 1.49 N)
-    assert (rub["bearing1.F_contact"] > 0.1).mean() > 0.5
-    assert rub["bearing1.F_contact"].max() < 500.0
+    # ... touching the asperity layer in nearly every row (the static load is 1.49 N). How hard is not
+    # converged at the constant step: the 0.1 ms run without defect retries peaked at 22 N, the
+    # error-controlled run at 1.9 N, the shipped run with defect_retries 4 at 1.7 N (free to air) and 6.6 N
+    # (oil bath, 0.1 ms) (docs/runups.md section 4)
+    assert (rub["bearing1.F_contact"] > 1e-3).mean() > 0.9
+    assert rub["bearing1.F_contact"].max() < 50.0
     # the heavily loaded turbine-side journal stays clear of it
     assert rub["bearing2.eps"].max() < 0.8 and rub["bearing2.F_contact"].max() == 0.0
