@@ -238,39 +238,29 @@ def capability_issues(coupling: Mapping, mds: Mapping) -> list[CapabilityIssue]:
             f"{', '.join(map(repr, stateless))} cannot save them (canGetAndSetFMUstate is false); use "
             f"gauss-seidel or jacobi, or FMUs built with state support", (("scheme",),)))
     sc = coupling.get("step_control")
-    retries = coupling.get("discard_retries", 0) or 0
-    if retries and coupling.get("scheme") != "monolithic":
-        # refused by the master when the run starts (coupling/adaptive.py, coupling/execution.py): a
-        # sweep over discard_retries validated, then every such run failed with no line of the sweep
+    # refused by the master when the run starts (coupling/adaptive.py, coupling/execution.py): a
+    # sweep over discard_retries validated, then every such run failed with no line of the sweep
+    for key, why in (("discard_retries", "the error-controlled step has its own rejection"),
+                     ("defect_retries", "the error-controlled step rejects steps on its own estimate of the same "
+                                        "defect")):
+        n = coupling.get(key, 0) or 0
+        if not n or coupling.get("scheme") == "monolithic":
+            continue
         if sc is not None and sc.type == "error":
             out.append(CapabilityIssue(
-                "coupling.step_control type error and coupling.discard_retries cannot be combined (the "
-                "error-controlled step has its own rejection); set discard_retries: 0",
-                (("discard_retries",), ("step_control", "type"), ("step_control",))))
-        elif stateless:
-            out.append(CapabilityIssue(
-                f"coupling.discard_retries = {retries} needs every FMU to save and restore its state "
-                f"(canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} cannot (got "
-                "canGetAndSetFMUstate false); set coupling.discard_retries: 0 or use an FMU built with "
-                "state support", (("discard_retries",),)))
-    defect = coupling.get("defect_retries", 0) or 0
-    if defect and coupling.get("scheme") != "monolithic":
-        if sc is not None and sc.type == "error":
-            out.append(CapabilityIssue(
-                "coupling.step_control type error and coupling.defect_retries cannot be combined (the "
-                "error-controlled step rejects steps on its own estimate of the same defect); set defect_retries: 0",
-                (("defect_retries",), ("step_control", "type"), ("step_control",))))
-        elif coupling.get("scheme") == "iterative":
+                f"coupling.step_control type error and coupling.{key} cannot be combined ({why}); set {key}: 0",
+                ((key,), ("step_control", "type"), ("step_control",))))
+        elif key == "defect_retries" and coupling.get("scheme") == "iterative":
             out.append(CapabilityIssue(
                 "coupling.defect_retries redoes the steps of gauss-seidel and jacobi whose coupling defect is over "
                 "coupling.defect_limit; the iterative scheme iterates every step to its tolerance instead; set "
-                "defect_retries: 0 or use scheme gauss-seidel", (("defect_retries",), ("scheme",))))
+                "defect_retries: 0 or use scheme gauss-seidel", ((key,), ("scheme",))))
         elif stateless:
             out.append(CapabilityIssue(
-                f"coupling.defect_retries = {defect} needs every FMU to save and restore its state "
+                f"coupling.{key} = {n} needs every FMU to save and restore its state "
                 f"(canGetAndSetFMUstate=\"true\"), but {', '.join(map(repr, stateless))} cannot (got "
-                "canGetAndSetFMUstate false); set coupling.defect_retries: 0 or use an FMU built with "
-                "state support", (("defect_retries",),)))
+                f"canGetAndSetFMUstate false); set coupling.{key}: 0 or use an FMU built with "
+                "state support", ((key,),)))
     if sc is None or sc.type != "error":
         return out
     fixed = [n for n, md in mds.items() if not md.can_handle_variable_step]
