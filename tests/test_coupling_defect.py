@@ -465,3 +465,27 @@ def test_defect_retries_with_other_schemes_and_orders(scheme, k):
         assert res.success, res.message
         errs.append(np.abs(res.outputs["rotor.x_1"] - _closed_form(res.t)).max())
     assert errs[1] < 0.2 * errs[0]
+
+
+@pytest.mark.parametrize("discard_retries", [0, 1])
+def test_a_discard_inside_a_defect_retry(discard_retries):
+    """A film that discards every step shorter than the macro step: inside a defect retry its discard
+    ends the run as without retries (discard_retries 0: the FMU's own message) or after the discard
+    halvings allowed (1: the halvings named); the rows computed before are kept."""
+    from orchestrator.errors import FmuCallError
+
+    class Picky(type(film())):
+        def do_step(self, t, h):
+            if h < 0.9 * H:
+                raise FmuCallError("bearing", "fmi2DoStep", "discard", "step too short")
+            super().do_step(t, h)
+
+    bearing = film(c_reported=CF / 2)
+    bearing.__class__ = Picky
+    sc = scenario()
+    sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, defect_limit=0.002, defect_retries=4,
+                                                              discard_retries=discard_retries))
+    res = MasterAlgorithm(sc, subsystems={"rotor": IJJournal(), "bearing": bearing}).run()
+    assert not res.success and len(res.t) >= 1
+    assert "fmi2DoStep returned discard" in res.message
+    assert ("halving" in res.message) == bool(discard_retries)

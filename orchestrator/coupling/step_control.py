@@ -212,9 +212,10 @@ class DiscardHalving(ConstantStep):
                     self._attempt(stepper, a, b, level)
                 except (FmuCallError, DefectOver) as e:
                     if not self._retryable(e, stepper, level):
-                        if isinstance(e, FmuCallError) and e.status == "discard" and not stepper.fmu_ended(e):
+                        if (isinstance(e, FmuCallError) and e.status == "discard" and not stepper.fmu_ended(e)
+                                and self.max_halvings):
                             raise RetriesExhausted(e, a, b) from e
-                        raise
+                        raise                   # failed, or discarded without discard_retries: as ConstantStep
                     self.rejected_steps += 1
                     self._split(stepper, a, b, level + 1, cp, e)
             finally:
