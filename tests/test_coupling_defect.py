@@ -489,3 +489,24 @@ def test_a_discard_inside_a_defect_retry(discard_retries):
     assert not res.success and len(res.t) >= 1
     assert "fmi2DoStep returned discard" in res.message
     assert ("halving" in res.message) == bool(discard_retries)
+
+
+def test_defect_retries_with_nothing_to_judge_warn_and_change_nothing(caplog):
+    """A coupling with no interface-Jacobian forces and no defect_signals: defect_retries has nothing to
+    judge; the run says so once and is the plain constant-step run, bit for bit; with defect_signals on
+    the force it judges that input's prediction defect and redoes steps."""
+    from test_master import global_error, two_mass_fakes, two_mass_scenario
+    base = two_mass_scenario("jacobi", 1e-2, 0)
+    plain = MasterAlgorithm(base, subsystems=two_mass_fakes()).run()
+    sc = dataclasses.replace(base, coupling=dataclasses.replace(base.coupling, defect_retries=3))
+    with caplog.at_level(logging.WARNING, logger="orchestrator.coupling.execution"):
+        res = MasterAlgorithm(sc, subsystems=two_mass_fakes()).run()
+    assert res.success and res.stats["retried_steps"] == 0
+    np.testing.assert_array_equal(res.outputs["left.x1"], plain.outputs["left.x1"])
+    assert any("coupling.defect_retries = 3 has nothing to judge" in r.getMessage() for r in caplog.records)
+    sc = dataclasses.replace(base, coupling=dataclasses.replace(base.coupling, defect_retries=3, defect_limit=0.05,
+                                                                defect_signals=("left.F",)))
+    res = MasterAlgorithm(sc, subsystems=two_mass_fakes()).run()
+    assert res.success and res.stats["defect_retried_steps"] > 0
+    assert res.stats["coupling_defect"]["retries"]["halvings"] == 3
+    assert global_error(res) < 0.5 * global_error(plain)          # against the exact two-mass motion (0.21 -> 0.08)

@@ -669,8 +669,9 @@ class MasterAlgorithm:
             log.warning("%s", note)
         if st["retried_steps"]:
             n_def = st.get("defect_retried_steps", 0)
-            why = ("after an fmi2Discard" if not n_def else "for their coupling defect" if n_def == st["retried_steps"]
-                   else f"after an fmi2Discard or ({n_def}) for their coupling defect")
+            n_dis = st["retried_steps"] - n_def
+            why = ("after an fmi2Discard" if not n_def else "for their coupling defect" if not n_dis
+                   else f"({n_dis} after an fmi2Discard, {n_def} for their coupling defect)")
             log.info("%d macro step(s) were redone in smaller steps %s (%d extra step rounds, "
                      "%d rejected attempts)%s", st["retried_steps"], why, st["retry_substeps"], st["rejected_steps"],
                      f"; only the first {RETRY_LOG_LINES} were logged" if st["retried_steps"] > RETRY_LOG_LINES
