@@ -147,14 +147,14 @@ class DefectMonitor:
         self.steps = 0          # steps monitored
         # the running typical force per journal for coupling.defect_retries: the median |F| of the last
         # RECENT accepted steps (recomputed every TYPICAL_EVERY steps; before the first, |F| at the start)
-        self.track_typical = False        # set by the step controller that redoes steps on their defect
-        self.halvings = 0                 # coupling.defect_retries (set with track_typical)
+        # coupling.defect_retries, set by the step controller that redoes steps on their defect (> 0: the
+        # running typical force is kept and measure() judges)
+        self.halvings = 0
         self.retried_steps = 0            # macro steps redone in halves for their defect
         self.unresolved_steps = 0         # of those: a piece at H / 2^halvings still over the limit
         self._recent = np.zeros((RECENT, len(self.journals)))
         self._n_recent = 0
         self._typical: list[float] | None = None
-        self._since_typical = 0
         self._piece_d: list[float] | None = None     # the pieces of a macro step redone in halves, merged
         self.skipped = 0        # steps not monitored: redone in halves after a discard, or k >= 2 start-up
 
@@ -192,7 +192,7 @@ class DefectMonitor:
 
     def measure(self, history) -> float:
         """The defect of the step just done (history's newest level), into the pending row; returns the
-        largest ``|d| / (limit x typical)`` over the journals with ``track_typical`` (the typical force the
+        largest ``|d| / (limit x typical)`` over the journals with ``halvings`` > 0 (the typical force the
         running one: the median |F| of the last ``RECENT`` accepted steps; before the first, |F| at the
         step's start; a journal whose typical force is 0 is not judged), else 0.0. :meth:`accept` keeps the
         row, :meth:`drop` forgets it (the step is redone)."""
@@ -215,7 +215,7 @@ class DefectMonitor:
                 m += 1
             row_d[g], row_f[g] = math.sqrt(d2), math.sqrt(f2)
         worst = 0.0
-        if not self.track_typical:
+        if not self.halvings:
             return worst
         typ = self._typical
         if typ is None:              # no step kept yet: the force at the step's start
@@ -246,13 +246,11 @@ class DefectMonitor:
 
     def _commit_row(self, t_next: float, row_d, row_f) -> None:
         self.steps += 1
-        if self.track_typical:
+        if self.halvings:
             recent = self._recent
             recent[self._n_recent % RECENT] = row_f
             self._n_recent += 1
-            self._since_typical += 1
-            if self._since_typical >= TYPICAL_EVERY or self._n_recent <= TYPICAL_EVERY:
-                self._since_typical = 0
+            if self._n_recent <= TYPICAL_EVERY or self._n_recent % TYPICAL_EVERY == 0:
                 self._typical = np.median(recent[:min(self._n_recent, RECENT)], axis=0).tolist()
         self._keep(t_next, row_d, row_f)
 

@@ -326,7 +326,6 @@ class MasterAlgorithm:
             self.defect = mon or None
             if self.defect is not None and getattr(self.grid, "defect_halvings", 0):
                 self.grid.defect = mon         # the controller judges every (sub-)step (coupling.defect_retries)
-                mon.track_typical = True
                 mon.halvings = self.grid.defect_halvings
         if getattr(self.grid, "defect_halvings", 0) and getattr(self.grid, "defect", None) is None:
             log.warning("coupling.defect_retries = %d has nothing to judge: no coupling input is monitored (forces "

@@ -120,7 +120,6 @@ class DiscardHalving(ConstantStep):
         self.retried_steps = 0          # macro steps redone after a discard
         self.retry_substeps = 0         # extra doStep rounds (sub-intervals attempted) in those retries
         self.rejected_steps = 0         # (sub-)step attempts discarded and rolled back
-        self.defect_retried_steps = 0   # of retried_steps: those first rejected for their coupling defect
         self._depth = 0
         self._unresolved = False        # a piece of this macro step stayed over the defect limit at the deepest level
 
@@ -128,7 +127,8 @@ class DiscardHalving(ConstantStep):
         st = {"rejected_steps": self.rejected_steps, "retried_steps": self.retried_steps,
               "retry_substeps": self.retry_substeps}
         if self.defect_halvings:
-            st["defect_retried_steps"] = self.defect_retried_steps
+            # of retried_steps: those first rejected for their coupling defect (the monitor counts them)
+            st["defect_retried_steps"] = self.defect.retried_steps if self.defect is not None else 0
         return st
 
     def _retryable(self, e: Exception, stepper, level: int) -> bool:
@@ -174,7 +174,6 @@ class DiscardHalving(ConstantStep):
             self.retried_steps += 1                         # reject, retry in halves
             self.rejected_steps += 1
             over = isinstance(first, DefectOver)
-            self.defect_retried_steps += over
             self._depth = 0
             rounds0 = self.retry_substeps
             self._split(stepper, t, t_next, 1, cp, first)
