@@ -61,7 +61,8 @@ def capability_problems(sc: Scenario, mds: Mapping[str, Any]) -> tuple[list[str]
                              c.defect_retries)
     if why:
         errors.append(why)
-    coupling = {"scheme": c.scheme, "step_control": c.step_control, "discard_retries": c.discard_retries}
+    coupling = {"scheme": c.scheme, "step_control": c.step_control, "discard_retries": c.discard_retries,
+                "defect_retries": c.defect_retries}
     for issue in capability_issues(coupling, mds):
         (warnings if issue.warning else errors).append(issue.text)
     return errors, warnings
