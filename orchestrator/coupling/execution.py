@@ -50,7 +50,7 @@ from orchestrator.coupling.signals import LagrangePredictor
 from orchestrator.coupling.step_control import (
     RETRY_LOG_LINES, ConstantStep, RetriesExhausted, StepSizeController)
 from orchestrator.coupling.adaptive import controller_from_spec
-from orchestrator.coupling.signal_scales import signal_nominals
+from orchestrator.coupling.signal_scales import jacobian_groups, signal_nominals
 from orchestrator.coupling.stages import stages as make_stages
 from orchestrator.coupling.threads import StageThreads
 from orchestrator.errors import CouplingError, FmuCallError, FmuCrashError, LifecycleError, ScenarioError
@@ -302,8 +302,10 @@ class MasterAlgorithm:
             self._require_states("coupling.scheme = iterative repeats every macro step from the saved states",
                                  "use scheme gauss-seidel or jacobi")
             kw.update(startup_iterations=False, no_prior=False)
+            held = ([kc for _, terms in jacobian_groups(self.signal_names, self.scenario.connections)
+                     for kc, _, _ in terms] if c.iteration.hold_jacobian else [])
             self.stepper = IterativeMacroStep(plan, self.predictor, spec=c.iteration,
-                                              signal_names=self.signal_names, **kw)
+                                              signal_names=self.signal_names, held=held, **kw)
         else:
             self.stepper = MacroStep(plan, self.predictor, **kw)
         watch = tuple(getattr(c, "defect_signals", ()) or ())

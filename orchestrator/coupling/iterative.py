@@ -33,6 +33,18 @@ acceleration}``. One macro step [T(n), T(n+1)]:
    converge at H is usually a sign of a coupling the chosen acceleration cannot
    handle, and a silent smaller step would hide it; the message says so.)
 
+7. interface-Jacobian coefficients (the ``k..``/``c..`` inputs of a force that has its
+   coefficients, :func:`~orchestrator.coupling.signal_scales.jacobian_groups`) are held at
+   their first iterate during the passes (``coupling.iteration.hold_jacobian``, default
+   true): they enter neither the convergence test nor the acceleration, and the step
+   commits the values the FMUs produced in the kept pass, which the next step starts from.
+   They linearise the force over the step for the receiving FMU, a preconditioner of the
+   iteration rather than a coupled quantity: at convergence the force and the kinematics
+   agree and the correction they scale vanishes at the step's nodes. Iterated with the
+   other signals they made the map discontinuous (the film refreshes them by a rule,
+   ``linearize_tol``) and the stiff asperity contact's first step from rest never converged
+   (200 passes; docs/coupling.md "Iterative coupling": held, 5.8 passes per step).
+
 The statistics count passes per macro step (``iterations``).
 
 Local error estimate for the error-controlled step (``coupling.step_control: {type:
@@ -87,10 +99,13 @@ class IterativeMacroStep(MacroStep):
     step-size controller (constant, discard halving, error-controlled) uses it unchanged.
     ``signal_names`` names the history store's columns for messages."""
 
-    def __init__(self, plan, predictor, *, spec: IterationSpec, signal_names: list[str], **kw):
+    def __init__(self, plan, predictor, *, spec: IterationSpec, signal_names: list[str],
+                 held: list[int] | tuple[int, ...] = (), **kw):
         super().__init__(plan, predictor, **kw)
         self.spec = spec
         self.names = signal_names
+        # the interface-Jacobian coefficient columns held during a step's passes (module docstring, 7.)
+        self.held = np.asarray(sorted(held), dtype=np.intp)
         self.acceleration = make_acceleration(spec.acceleration)
         self.stats = IterationStats()
         self.scale = np.zeros(len(signal_names))
@@ -132,11 +147,17 @@ class IterativeMacroStep(MacroStep):
             u.sub.no_set_prior_state = False
         cp = self.save()
         first = [True]
+        x0 = self.prediction(t, t_next - t)
+        held = self.held
+        produced = [x0]             # the last pass's own outputs, held columns included
 
         def one_pass(x):
             if not first[0]:
                 self.restore(cp)
             first[0] = False
+            if len(held):
+                x = x.copy()
+                x[held] = x0[held]
             store[0] = x
             try:
                 self.advance(t, t_next, commit=False, startup_q=q)
@@ -144,15 +165,21 @@ class IterativeMacroStep(MacroStep):
                 if e.status == "discard" and not self.fmu_ended(e):
                     raise PassRejected(e) from e
                 raise
-            return store[0].copy()
+            g = store[0].copy()
+            if len(held):
+                produced[0] = g.copy()
+                g[held] = x0[held]        # a fixed point in these columns: out of the test and the update
+            return g
 
         try:
-            res = solve_fixed_point(one_pass, self.prediction(t, t_next - t), acceleration=self.acceleration,
+            res = solve_fixed_point(one_pass, x0, acceleration=self.acceleration,
                                     tol=self.spec.tol, scale=self.scale, max_iterations=self.spec.max_iterations)
             self.stats.add(res.iterations)
             if not res.converged:
                 raise CouplingError(self._message(res, t, t_next))
             store[0] = res.x
+            if len(held):
+                store[0][held] = produced[0][held]     # what the FMUs computed in the kept pass
             hist.commit()
         finally:
             self.release(cp)

@@ -7,6 +7,7 @@ with file and line). Format (docs/scenario-format.md)::
     coupling:
       scheme: iterative
       iteration: {max_iterations: 20, tol: 1.0e-8, acceleration: iqn-ils}   # none | aitken | iqn-ils
+      # hold_jacobian: true (default) keeps interface-Jacobian coefficients out of the iteration
       step_control: {type: error, rtol: 1.0e-4, atol: 1.0e-8, min_step: 1.0e-6, max_step: 1.0e-2}
       # atol per signal: a mapping from coupling signals (the consumer's input, "instance.input")
       # or glob patterns of them to atol; .inf leaves a signal out of the estimate
@@ -27,7 +28,7 @@ from orchestrator.scenario.nodes import did_you_mean
 from orchestrator.scenario.model import (
     ACCELERATIONS, ERROR_MEASURES, STEP_CONTROL_TYPES, IterationSpec, StepControlSpec)
 
-ITERATION_KEYS = ("max_iterations", "tol", "acceleration")
+ITERATION_KEYS = ("max_iterations", "tol", "acceleration", "hold_jacobian")
 STEP_CONTROL_KEYS = ("type", "rtol", "atol", "min_step", "max_step", "interface_jacobian", "measure")
 ATOL_NODES = "_step_control_atol_nodes"     # loader attribute: pattern -> YAML node (check_atol_patterns)
 MAX_ITERATIONS_LIMIT = 1000
@@ -59,6 +60,15 @@ def load_iteration(ld, node) -> IterationSpec | None:
                       "iqn-ils converges on stiff couplings, none and aitken may not")
             ok = False
         kw["acceleration"] = v
+    if "hold_jacobian" in section:
+        n = section["hold_jacobian"][1]
+        v = ld.value(n) if isinstance(n, yaml.ScalarNode) else None
+        if not isinstance(v, bool):
+            ld.err(n, f"'coupling.iteration.hold_jacobian' must be true or false (got {ld.got(n)}); true (default) "
+                      "holds the interface-Jacobian coefficients (k.., c.. inputs) at their first iterate during a "
+                      "step's passes, false iterates them with the other signals")
+            ok = False
+        kw["hold_jacobian"] = v
     return IterationSpec(**kw) if ok else None
 
 

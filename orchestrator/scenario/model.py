@@ -125,6 +125,7 @@ class IterationSpec:
     max_iterations: int = 20                 # passes per macro step, >= 1
     tol: float = 1.0e-8                      # relative to each signal's scale
     acceleration: str = "iqn-ils"            # one of ACCELERATIONS
+    hold_jacobian: bool = True               # interface-Jacobian coefficients held during a step's passes
 
     def __post_init__(self):
         if self.acceleration not in ACCELERATIONS:
