@@ -96,3 +96,16 @@ def test_contact_phase_from_rest_iterative(tmp_path):
     peak = max(np.hypot(res.outputs[f"bearing{i}.Fx"], res.outputs[f"bearing{i}.Fy"]).max() for i in (1, 2))
     assert 20.0 < peak < 60.0
     assert res.stats["iterations"]["mean_per_step"] < 10
+
+
+def test_a_residual_close_to_tol_suggests_a_larger_tol():
+    """A step that ends a few orders above tol (the films' own Newton stalls a pass's outputs at ~1e-6)
+    names the tolerance as the setting to change; one far from converging does not."""
+    from types import SimpleNamespace
+    from orchestrator.coupling.iterative import IterativeMacroStep
+    step = SimpleNamespace(names=["rotor.Fx_2"], spec=IterationSpec(max_iterations=50))
+    close = IterativeMacroStep._message(step, SimpleNamespace(worst=0, residual=2.4e-6, iterations=50), 0.0, 1e-4)
+    assert "still changed by 2.4e-06 of its scale (tol 1e-08)" in close
+    assert "coupling.iteration.tol above it, e.g. 1e-05" in close
+    far = IterativeMacroStep._message(step, SimpleNamespace(worst=0, residual=0.8, iterations=50), 0.0, 1e-4)
+    assert "coupling.iteration.tol" not in far and "raise coupling.iteration.max_iterations" in far
