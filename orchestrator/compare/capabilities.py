@@ -7,7 +7,10 @@ here, per run, by the loader's own rules: ``capability_issues`` in
 and ``completion.fixed_step_problem``, so that the two cannot drift apart. They say, e.g.:
 
 * ``scheme: iterative`` and ``discard_retries > 0`` need ``canGetAndSetFMUstate`` in every FMU;
-* ``step_control: {type: error}`` cannot be combined with ``discard_retries > 0``, whatever the FMUs;
+* ``step_control: {type: error}`` cannot be combined with ``discard_retries > 0``, whatever the FMUs,
+  unless ``step_control.until`` is set (the retries then act on the constant steps after it);
+* ``step_control.until`` must be an output time after ``start_time`` and before ``stop_time``
+  (``coupling_sections.until_problem``, the loader's rule);
 * ``step_control: {type: error}`` needs ``canHandleVariableCommunicationStepSize``, and an FMU
   without it needs ``stop_time`` on the macro-step grid and no ``discard_retries``.
 
@@ -50,12 +53,15 @@ def capability_problems(sc: Scenario, mds: Mapping[str, Any]) -> tuple[list[str]
     the scenario loader's rules: (errors, warnings), one text per problem, each saying what the
     coupling needs, which FMUs lack it and the fix. A monolithic run does not step the FMUs."""
     from orchestrator.scenario.completion import fixed_step_problem
-    from orchestrator.scenario.coupling_sections import capability_issues
+    from orchestrator.scenario.coupling_sections import capability_issues, until_problem
 
     c = sc.coupling
     if c.scheme == "monolithic":
         return [], []
     errors, warnings = [], []
+    why = until_problem(c.step_control, sc.start_time, sc.stop_time, sc.output.interval or c.macro_step)
+    if why:
+        errors.append(why)
     fixed = [n for n, md in mds.items() if not md.can_handle_variable_step]
     why = fixed_step_problem(sc.start_time, sc.stop_time, c.macro_step, fixed, c.discard_retries,
                              c.defect_retries)

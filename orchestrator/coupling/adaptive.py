@@ -69,7 +69,8 @@ MAX_STEPS_PER_NOMINAL = 100   # ... or this many times (t_stop - t0) / macro_ste
 
 
 class OutputGrid:
-    """Output times ``t0 + j * interval`` (from the index), the last one ``t_stop``."""
+    """Output times ``t0 + j * interval`` (from the index), the last one ``t_stop`` (for
+    ``step_control.until`` the grid of the error-controlled part ends at until)."""
 
     def __init__(self, t0: float, t_stop: float, interval: float):
         self.t0, self.t_stop, self.interval = float(t0), float(t_stop), float(interval)
@@ -77,7 +78,10 @@ class OutputGrid:
 
     def after(self, t: float) -> float:
         j = math.floor((t - self.t0) / self.interval + self.slack) + 1
-        return min(self.t0 + j * self.interval, self.t_stop)
+        t_out = self.t0 + j * self.interval
+        # an output time that rounding alone puts just below t_stop is t_stop (no sliver step after
+        # it; the grid of step_control.until ends at until, which t0 + k * interval may miss by an ulp)
+        return self.t_stop if t_out >= self.t_stop - self.slack * self.interval else t_out
 
 
 class ErrorControlled(StepSizeController):
@@ -321,26 +325,144 @@ def ij_order_of(coupling) -> int | None:
     return 2
 
 
+class ErrorThenConstant(StepSizeController):
+    """``coupling.step_control: {type: error, ..., until: T_u}``: the error-controlled step
+    (:class:`ErrorControlled`, its output grid ending at ``T_u``, so its last step is clipped to end
+    exactly there) from start_time to ``T_u``, then ``constant`` (a :class:`ConstantStep` or, with
+    ``discard_retries``/``defect_retries``, a :class:`DiscardHalving` whose grid starts at ``T_u``:
+    T = T_u + n * macro_step from the index n, never accumulated) to stop_time.
+
+    The master asks :attr:`variable` before each step: True until the step that ends at ``T_u``
+    has been taken, False after it; then :meth:`time` answers the constant grid by the master's step
+    index (``n_offset``: the error-controlled steps taken). One run: the FMUs, the coupling history
+    and the observers carry on across the switch. The history is not restarted: the first constant
+    steps extrapolate through the newest (uneven) error-controlled levels with weights from their
+    actual times, as the pieces of a step redone in halves do (signals.LagrangePredictor); a restart
+    would drop to order 0 for k steps. ``until`` must be an output time (scenario loader,
+    ``coupling_sections.until_problem``): rows after it are every ``stride`` constant steps from it.
+    """
+
+    def __init__(self, error: ErrorControlled, constant: ConstantStep, until: float):
+        self.error, self.constant, self.until = error, constant, float(until)
+        self.t0, self.t_stop = error.t0, constant.t_stop
+        self.n_offset: int | None = None     # the master's step count when the constant steps began
+        # the progress estimate: the error-controlled part as if at macro_step, then the constant steps
+        self.n_steps = error.n_steps + constant.n_steps
+        self._on_rejected = None
+        self.constant_taken = 0              # constant steps accepted after until
+
+    # the master sets and reads these on the controller; they belong to one of the two parts
+    needs_states = property(lambda self: self.constant.needs_states)
+    h = property(lambda self: self.error.h)
+    defect_halvings = property(lambda self: getattr(self.constant, "defect_halvings", 0))
+
+    @property
+    def variable(self) -> bool:
+        return self.n_offset is None
+
+    @property
+    def defect(self):
+        return getattr(self.constant, "defect", None)
+
+    @defect.setter
+    def defect(self, mon) -> None:
+        self.constant.defect = mon
+
+    @property
+    def can_reject(self) -> bool:
+        return self.error.can_reject
+
+    @can_reject.setter
+    def can_reject(self, value: bool) -> None:
+        self.error.can_reject = value
+
+    @property
+    def on_rejected(self):
+        return self._on_rejected
+
+    @on_rejected.setter
+    def on_rejected(self, fn) -> None:
+        self._on_rejected = self.error.on_rejected = self.constant.on_rejected = fn
+
+    def bind(self, names: list[str], connections, nominals=None) -> None:
+        self.error.bind(names, connections, nominals)
+
+    def time(self, n: int) -> float:
+        if self.n_offset is None:
+            return self.t0 if n == 0 else self.t_stop
+        return self.constant.time(n - self.n_offset)
+
+    def take_variable_step(self, stepper, t: float) -> tuple[float, bool]:
+        t_end, on_out = self.error.take_variable_step(stepper, t)
+        if t_end >= self.until:              # the error-controlled grid ends exactly at until
+            self.n_offset = self.error.accepted
+            self.n_steps = self.n_offset + self.constant.n_steps
+            log.info("coupling.step_control.until: error-controlled up to t=%.12g s (%d steps), constant steps of "
+                     "%g s from there (%d steps)", self.until, self.n_offset, self.constant.h, self.constant.n_steps)
+        return t_end, on_out
+
+    def take_step(self, stepper, t: float, t_next: float) -> None:
+        self.constant.take_step(stepper, t, t_next)
+        self.constant_taken += 1
+
+    def is_output(self, n: int, stride: int) -> bool:
+        """Does the constant step ending at the master's step ``n`` end on an output time (every
+        ``stride`` steps from ``until``)?"""
+        return (n - (self.n_offset or 0)) % stride == 0
+
+    def over_tolerance_note(self) -> str | None:
+        return self.error.over_tolerance_note()
+
+    def statistics(self) -> dict:
+        """The constant part's counters at the top (``rejected_steps``, ``retried_steps``,
+        ``retry_substeps``, ``defect_retried_steps``: discard and defect retries, which act after
+        ``until`` only); ``step_control`` as for the error-controlled step (its counters cover the part
+        before ``until``) with ``until``, ``constant_steps`` (macro steps after it) and
+        ``constant_macro_step``."""
+        st = self.constant.statistics()
+        sc = dict(self.error.statistics()["step_control"])
+        sc.update(until=self.until, constant_steps=self.constant_taken, constant_macro_step=self.constant.h)
+        st["step_control"] = sc
+        return st
+
+
 def controller_from_spec(scenario) -> StepSizeController:
     """The controller of ``scenario.coupling`` (discard_retries or defect_retries > 0:
-    :class:`DiscardHalving`; step_control type error: :class:`ErrorControlled`)."""
+    :class:`DiscardHalving`; step_control type error: :class:`ErrorControlled`; type error with
+    ``until``: :class:`ErrorThenConstant`, whose constant part after ``until`` is a DiscardHalving when
+    discard_retries or defect_retries > 0)."""
     c = scenario.coupling
     n_retry = getattr(c, "discard_retries", 0)
     sc = getattr(c, "step_control", None)
     n_defect = getattr(c, "defect_retries", 0)
-    if sc is not None and sc.type == "error" and n_defect:
+    until = getattr(sc, "until", None) if sc is not None else None
+    if sc is not None and sc.type == "error" and until is None and n_defect:
         raise ScenarioError("coupling.step_control type error and coupling.defect_retries cannot be combined "
                             "(the error-controlled step rejects steps on its own estimate of the same defect); "
-                            "set defect_retries: 0")
+                            "set defect_retries: 0, or give step_control.until (the time after which constant "
+                            "steps, with defect_retries, take over)")
     if sc is not None and sc.type == "error":
-        if n_retry:
+        if n_retry and until is None:
             raise ScenarioError("coupling.step_control type error and coupling.discard_retries cannot be combined "
-                                "(the error-controlled step has its own rejection); set discard_retries: 0")
-        return ErrorControlled(sc, t0=scenario.start_time, t_stop=scenario.stop_time, h0=c.macro_step,
-                               interval=scenario.output.interval or c.macro_step,
-                               # the iterative scheme's estimate is of order q+1 (coupling/iterative.py)
-                               order=(c.interpolation_order if c.scheme == "iterative" else c.extrapolation_order) + 1,
-                               ij_order=ij_order_of(c))
+                                "(the error-controlled step has its own rejection); set discard_retries: 0, or give "
+                                "step_control.until (the time after which constant steps, with discard_retries, "
+                                "take over)")
+        interval = scenario.output.interval or c.macro_step
+        if until is not None:
+            from orchestrator.scenario.coupling_sections import until_problem
+            why = until_problem(sc, scenario.start_time, scenario.stop_time, interval)
+            if why:
+                raise ScenarioError(why)
+        error = ErrorControlled(sc, t0=scenario.start_time, t_stop=scenario.stop_time if until is None else until,
+                                h0=c.macro_step, interval=interval,
+                                # the iterative scheme's estimate is of order q+1 (coupling/iterative.py)
+                                order=(c.interpolation_order if c.scheme == "iterative" else c.extrapolation_order) + 1,
+                                ij_order=ij_order_of(c))
+        if until is None:
+            return error
+        constant = (DiscardHalving(until, scenario.stop_time, c.macro_step, n_retry, defect_halvings=n_defect)
+                    if n_retry or n_defect else ConstantStep(until, scenario.stop_time, c.macro_step))
+        return ErrorThenConstant(error, constant, until)
     if n_retry or n_defect:
         return DiscardHalving(scenario.start_time, scenario.stop_time, c.macro_step, n_retry,
                               defect_halvings=n_defect)

@@ -309,9 +309,12 @@ class MasterAlgorithm:
         else:
             self.stepper = MacroStep(plan, self.predictor, **kw)
         watch = tuple(getattr(c, "defect_signals", ()) or ())
+        # step_control.until (adaptive.ErrorThenConstant): error-controlled, then constant steps, which the
+        # defect monitor watches (and defect_retries redoes) as any constant step
+        phased = getattr(self.grid, "constant", None) is not None
         if getattr(self.grid, "variable", False):
             self._setup_variable_grid()
-        elif c.scheme != "iterative":
+        if (phased or not getattr(self.grid, "variable", False)) and c.scheme != "iterative":
             ext = {f"{u.name}.{n}" for u in self.units for n in u.ext_names}
             mon = DefectMonitor(self.signal_names, ext, self.scenario.connections, k=k, unit_of=self._unit_of,
                                 limit=getattr(c, "defect_limit", DEFECT_LIMIT), macro_step=c.macro_step,
@@ -510,6 +513,8 @@ class MasterAlgorithm:
         try:
             if variable:
                 t_next, on_output = grid.take_variable_step(self.stepper, t)
+                if not grid.variable:          # step_control.until reached: constant steps from here
+                    self._switched_to_constant()
             elif self.defect is not None and getattr(grid, "defect", None) is None:
                 mon, retried, st = self.defect, getattr(grid, "retried_steps", 0), self.stepper
                 startup = st.starting()        # iterated from saved states: it integrated no prediction
@@ -543,17 +548,26 @@ class MasterAlgorithm:
             self._record(t_next, self.n, last or on_output)
         else:
             last = self.n >= self.grid.n_steps
-            self._record(t_next, self.n, last or self.n % self.stride == 0)
+            out = grid.is_output(self.n, self.stride) if hasattr(grid, "is_output") else self.n % self.stride == 0
+            self._record(t_next, self.n, last or out)
         if last:
             self.status = Status.FINISHED
             self.message = f"finished at t={t_next:g} s after {self.n} macro steps"
-            note = self.grid.over_tolerance_note() if variable else None
+            note = grid.over_tolerance_note() if hasattr(grid, "over_tolerance_note") else None
             if note:
                 self.message += f"; {note}"
                 log.warning("%s", note)
         for o in self.observers:
             o.on_step_complete(self.view)
         return self.status
+
+    def _switched_to_constant(self) -> None:
+        """``step_control.until`` reached (adaptive.ErrorThenConstant): the rows after it take their
+        time from the constant grid's index (as a constant-step run's), the progress its step count."""
+        g = self.grid
+        c = g.constant
+        self.view.grid = _ShiftedGrid(TimeGrid(c.t0, c.h, t_stop=c.t_stop, n_stop=c.n_steps), g.n_offset)
+        self.view.n_steps = g.n_steps
 
     def _rejected(self, t_a: float, t_b: float, error: Exception) -> None:
         """The controller rolled back the attempt [t_a, t_b]: tell the observers (row unchanged)."""
@@ -726,7 +740,11 @@ class MasterAlgorithm:
         if stats is not None:
             st["iterations"] = stats.as_dict()
         if self.defect is not None:
-            st["coupling_defect"] = self.defect.statistics()
+            st["coupling_defect"] = cd = self.defect.statistics()
+            g = self.grid
+            if getattr(g, "constant", None) is not None:     # step_control.until: the constant steps only
+                cd["monitored_from"] = g.until
+                cd["steps_not_monitored"] += g.n_offset if g.n_offset is not None else self.n
         return st
 
     def result(self) -> CoSimResult:
@@ -755,6 +773,16 @@ class MasterAlgorithm:
         finally:
             self.terminate()
         return self.result()
+
+
+class _ShiftedGrid:
+    """The time of the master's row ``n`` from a :class:`TimeGrid` that starts at step ``n0``."""
+
+    def __init__(self, grid: TimeGrid, n0: int):
+        self.grid, self.n0 = grid, n0
+
+    def time(self, n: int) -> float:
+        return self.grid.time(n - self.n0)
 
 
 def _declared_feedthrough(sub) -> dict | None:

@@ -225,6 +225,8 @@ class Progress(Observer):
             self._last_n = view.n
             return
         if view.n - self._last_n >= 16 or view.n >= view.n_steps:
+            if self._bar.total != view.n_steps:     # an estimate made exact (step_control.until reached)
+                self._bar.total = view.n_steps
             self._bar.update(view.n - self._last_n)
             self._bar.set_postfix_str(f"t={view.t:.6g}/{view.t_stop:.6g} s", refresh=False)
             self._last_n = view.n

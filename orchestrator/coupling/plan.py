@@ -255,7 +255,9 @@ def make_plan(scenario, subsystems, scheme) -> Plan:
     H = scenario.coupling.macro_step
     interval = scenario.output.interval or H
     stride = max(1, int(round(interval / H)))
-    adaptive = getattr(getattr(scenario.coupling, "step_control", None), "type", "constant") == "error"
+    spec = getattr(scenario.coupling, "step_control", None)
+    # error-controlled to the end (no step_control.until, after which the constant steps write every stride)
+    adaptive = getattr(spec, "type", "constant") == "error" and getattr(spec, "until", None) is None
     if not adaptive and not math.isclose(stride * H, interval, rel_tol=1e-9):
         warnings.warn(f"output.interval {interval} is not a multiple of coupling.macro_step {H}; "
                       f"writing every {stride} macro steps ({stride * H} s)", stacklevel=3)

@@ -14,8 +14,8 @@ import yaml
 
 from orchestrator.errors import CosimError
 from orchestrator.fmi.archive import cached_model_description
-from orchestrator.scenario.coupling_sections import (check_atol_patterns, check_capabilities, interpolated_inputs,
-                                                       interpolation_warning)
+from orchestrator.scenario.coupling_sections import (check_atol_patterns, check_capabilities, check_until,
+                                                       interpolated_inputs, interpolation_warning)
 from orchestrator.fmi.values import check_value, declared_range, settable_problem
 from orchestrator.scenario.analysis_clearance import complete_analysis_clearance
 from orchestrator.scenario.analysis_sampling import check_analysis_sampling
@@ -60,6 +60,8 @@ class FmuChecks(Completion):
             self.read_fmu(f)
         draft.kw["defaults"] = self.apply_defaults(draft)
         self.check_fixed_step(draft)
+        check_until(self, draft.coupling_node, draft.coupling, draft.kw.get("start_time"), draft.kw.get("stop_time"),
+                    draft.interval)
         params = {f["name"]: self.check_parameters(f) for f in draft.fmus}
         self.check_film_grids(draft.fmus, params)
         draft.connections = self.expand_arrays(draft.connections)

@@ -12,24 +12,27 @@ with file and line). Format (docs/scenario-format.md)::
       # atol per signal: a mapping from coupling signals (the consumer's input, "instance.input")
       # or glob patterns of them to atol; .inf leaves a signal out of the estimate
       step_control: {type: error, atol: {"rotor.F*": 0.1, "bearing*.*": .inf, "*": 1.0e-8}}
+      # error control from start_time to 0.06 s (on the output grid), then constant macro_step steps
+      step_control: {type: error, rtol: 0.1, until: 0.06}
 """
 
 from __future__ import annotations
 
 import fnmatch
 import logging
+import math
 from dataclasses import dataclass
 from typing import Mapping
 
 import yaml
 
-from orchestrator.scenario.limits import MIN_MACRO_STEP
+from orchestrator.scenario.limits import MIN_MACRO_STEP, step_slack
 from orchestrator.scenario.nodes import did_you_mean
 from orchestrator.scenario.model import (
-    ACCELERATIONS, ERROR_MEASURES, STEP_CONTROL_TYPES, IterationSpec, StepControlSpec)
+    ACCELERATIONS, ERROR_MEASURES, STEP_CONTROL_TYPES, CouplingSpec, IterationSpec, StepControlSpec)
 
 ITERATION_KEYS = ("max_iterations", "tol", "acceleration", "hold_jacobian")
-STEP_CONTROL_KEYS = ("type", "rtol", "atol", "min_step", "max_step", "interface_jacobian", "measure")
+STEP_CONTROL_KEYS = ("type", "rtol", "atol", "min_step", "max_step", "interface_jacobian", "measure", "until")
 ATOL_NODES = "_step_control_atol_nodes"     # loader attribute: pattern -> YAML node (check_atol_patterns)
 MAX_ITERATIONS_LIMIT = 1000
 log = logging.getLogger(__name__)
@@ -124,6 +127,17 @@ def load_step_control(ld, node) -> StepControlSpec | None:
                 v = None
             ok &= v is not None
             kw[key] = v
+    if "until" in section:
+        n = section["until"][1]
+        v = ld.number(n, "coupling.step_control.until",
+                      fix="give the time in seconds up to which the step is error-controlled, e.g. 0.06")
+        if v is not None and kw.get("type") == "constant":
+            ld.err(n, f"'coupling.step_control.until' ({v!r}) is for type error: the macro step is error-controlled "
+                      "up to 'until' and constant (macro_step) after it; with type constant every step is "
+                      "macro_step already: set type: error or remove until")
+            v = None
+        ok &= v is not None
+        kw["until"] = v
     if ok and kw.get("min_step") is not None and kw.get("max_step") is not None and kw["min_step"] > kw["max_step"]:
         ld.err(section["min_step"][1], f"'coupling.step_control.min_step' ({kw['min_step']!r}) must not exceed "
                                        f"max_step ({kw['max_step']!r}); swap or change them")
@@ -175,6 +189,62 @@ def check_atol_patterns(ld, coupling: dict | None, connections: list) -> None:
                                    f"{did_you_mean(pat, names)}keys name a connection's input ('instance.input') or a glob "
                                    f"pattern of them, which are "
                                    f"{', '.join(names[:12])}{' ...' if len(names) > 12 else ''}")
+
+
+def until_problem(spec, t0: float, t_stop: float, interval: float) -> str | None:
+    """Why ``coupling.step_control.until`` (``spec.until``; None: not set) cannot be the time at which
+    the error-controlled step hands over to constant steps, or None.
+
+    It must lie after ``t0`` (start_time) and before ``t_stop`` (stop_time), and on the output grid
+    ``t0 + k * interval`` (``interval``: output.interval, or macro_step when that is not given): the
+    constant steps after it are ``until + n * macro_step`` and write a row every ``interval`` from
+    ``until``, which are the output times only when ``until`` is one. The message names the nearest
+    valid values. The one rule for the loader (:func:`check_until`, at the key's line) and ``rotorcosim
+    compare`` (orchestrator/compare/capabilities.py, per variant)."""
+    until = getattr(spec, "until", None)
+    if until is None:
+        return None
+    if getattr(spec, "type", "error") != "error":
+        return (f"'coupling.step_control.until' ({until!r}) is for type error: the macro step is error-controlled "
+                "up to 'until' and constant (macro_step) after it; set type: error or remove until")
+    if not (isinstance(until, (int, float)) and not isinstance(until, bool) and math.isfinite(until)):
+        return f"'coupling.step_control.until' must be a time in seconds (got {until!r}); e.g. 0.06"
+    if not (t_stop > t0 and interval and interval > 0):
+        return None                              # the times themselves are reported
+    k = (until - t0) / interval
+    n_out = (t_stop - t0) / interval                         # output intervals in the run
+    slack = max(1e-9 * max(1.0, abs(k)), step_slack(t0, t_stop, interval))
+    j = round(k)
+    on_grid = abs(k - j) <= slack
+    last_j = math.ceil(n_out - slack) - 1                   # the last output time before stop_time
+    if last_j < 1:
+        return (f"'coupling.step_control.until' ({until!r}) must be an output time after start_time ({t0!r}) and "
+                f"before stop_time ({t_stop!r}), but the run is one output interval ({interval!r} s) long; remove "
+                "until (the whole run is error-controlled) or write rows more often (output.interval)")
+    if not (t0 < until < t_stop) or (on_grid and not 0 < j <= last_j):
+        near = t0 + (1 if until <= t0 + 0.5 * interval else last_j) * interval
+        return (f"'coupling.step_control.until' must lie after start_time ({t0!r}) and before stop_time "
+                f"({t_stop!r}) (got {until!r}); give the time up to which the step is error-controlled, an output "
+                f"time in {t0 + interval:.12g}..{t0 + last_j * interval:.12g}, e.g. {near:.12g}")
+    if not on_grid:
+        near = [t0 + i * interval for i in (math.floor(k), math.ceil(k)) if 0 < i <= last_j]
+        return (f"'coupling.step_control.until' ({until!r}) is not on the output grid start_time + k * "
+                f"output.interval ({t0!r} + k * {interval!r}): the constant steps after it write a row every "
+                f"output interval from 'until', which would miss the grid; use "
+                + " or ".join(f"{t:.12g}" for t in near))
+    return None
+
+
+def check_until(ld, node, coupling: dict | None, t0, t_stop, interval) -> None:
+    """:func:`until_problem` of the loader's coupling mapping, reported at the line of ``until``
+    (``node``: the coupling section's node)."""
+    sc = (coupling or {}).get("step_control")
+    if sc is None or getattr(sc, "until", None) is None or not isinstance(t0, float) or not isinstance(t_stop, float):
+        return
+    why = until_problem(sc, t0, t_stop, interval or coupling.get("macro_step") or CouplingSpec.macro_step)
+    if why:
+        at, then = value_place(ld, node, ("step_control", "until"), ("step_control",))
+        ld.err(at, why + then)
 
 
 def _entry(node, keys: tuple[str, ...]):
@@ -229,9 +299,10 @@ def capability_issues(coupling: Mapping, mds: Mapping) -> list[CapabilityIssue]:
     description).
 
     ``scheme: iterative`` needs canGetAndSetFMUstate in every FMU (an error), and so does
-    ``discard_retries`` > 0 (an error; with ``step_control: {type: error}`` it is refused whatever
-    the FMUs, as the master does: the error-controlled step has its own rejection), and so does
-    ``defect_retries`` > 0 (also refused with the error-controlled step and the iterative scheme);
+    ``discard_retries`` > 0 (an error; with ``step_control: {type: error}`` and no ``until`` it is
+    refused whatever the FMUs, as the master does: the error-controlled step has its own rejection;
+    with ``until`` it acts on the constant steps after it), and so does ``defect_retries`` > 0 (also
+    refused with the error-controlled step without ``until`` and with the iterative scheme);
     ``step_control: error`` needs canHandleVariableCommunicationStepSize (an error) and,
     to reject steps, canGetAndSetFMUstate (without it the step adapts forward only: a warning,
     which ``rotorcosim validate`` prints).
@@ -256,9 +327,11 @@ def capability_issues(coupling: Mapping, mds: Mapping) -> list[CapabilityIssue]:
         n = coupling.get(key, 0) or 0
         if not n or coupling.get("scheme") == "monolithic":
             continue
-        if sc is not None and sc.type == "error":
+        if sc is not None and sc.type == "error" and getattr(sc, "until", None) is None:
+            # with until they act on the constant steps after it (coupling/adaptive.py, ErrorThenConstant)
             out.append(CapabilityIssue(
-                f"coupling.step_control type error and coupling.{key} cannot be combined ({why}); set {key}: 0",
+                f"coupling.step_control type error and coupling.{key} cannot be combined ({why}); set {key}: 0, "
+                f"or give step_control.until (the time after which constant steps, with {key}, take over)",
                 ((key,), ("step_control", "type"), ("step_control",))))
         elif key == "defect_retries" and coupling.get("scheme") == "iterative":
             out.append(CapabilityIssue(

@@ -137,7 +137,10 @@ class IterationSpec:
 class StepControlSpec:
     """``coupling.step_control``: ``type: constant`` (the default, macro_step throughout) or
     ``type: error`` (error-controlled macro step, orchestrator/coupling/adaptive.py; ``macro_step``
-    is the first step). ``min_step``/``max_step`` None: macro_step / 1000 and the output interval."""
+    is the first step). ``min_step``/``max_step`` None: macro_step / 1000 and the output interval.
+    ``until`` (type error only): the step is error-controlled from start_time up to ``until`` [s]
+    (a time on the output grid), then constant ``macro_step`` steps to stop_time (None: error
+    control to the end)."""
 
     type: str = "constant"                   # one of STEP_CONTROL_TYPES
     rtol: float = 1.0e-4
@@ -147,6 +150,7 @@ class StepControlSpec:
     measure: str = "value"                   # one of ERROR_MEASURES: the defect as is, or times H / output interval
     min_step: float | None = None            # [s]
     max_step: float | None = None            # [s]
+    until: float | None = None               # [s] error control up to here, then constant steps
 
     def __post_init__(self):
         if isinstance(self.atol, Mapping):   # e.g. from a compare file's `set:` or Python: keep file order

@@ -1,0 +1,268 @@
+"""``coupling.step_control: {type: error, ..., until: T}``: the macro step is error-controlled from
+start_time to T, then constant ``macro_step`` steps to stop_time (orchestrator/coupling/adaptive.py,
+ErrorThenConstant), with discard_retries / defect_retries acting after T only. The key's checks
+(scenario/coupling_sections.py ``until_problem``), the run with plain-Python fakes, and compare's
+checks of a variant that sets it."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from orchestrator.coupling.execution import MasterAlgorithm
+from orchestrator.coupling.observers import Observer, Progress
+from orchestrator.errors import ScenarioError
+from orchestrator.scenario import load_scenario
+from orchestrator.scenario.model import StepControlSpec
+from test_master_adaptive import run, switched
+from test_master_iterative import scenario as two_mass_scenario
+
+UNTIL = 0.15            # the switch of the fakes' coupling spring is at 0.1 s; rows every 0.01 s
+
+
+class Calls(Observer):
+    """Every accepted step's end (the master's view) and every rolled-back attempt."""
+
+    def __init__(self):
+        self.ends, self.rejected = [], []
+
+    def on_step_complete(self, view):
+        self.ends.append(view.t)
+
+    def on_step_rejected(self, view):
+        self.rejected.append(view.rejected)
+
+
+def _record_do_steps(subs):
+    """Wrap the fakes' do_step to record (t, h) of every doStep the master sent (attempts included)."""
+    calls = []
+    right = subs["right"]
+    inner = right.do_step
+
+    def do_step(t, h):
+        calls.append((t, h))
+        return inner(t, h)
+    right.do_step = do_step
+    return calls
+
+
+# --- the run -------------------------------------------------------------------------------------
+def test_error_control_until_then_constant_steps_on_the_index_grid():
+    """Before ``until`` the step follows the error (steps of many sizes, rejections), the last one
+    ends exactly at ``until``; after it every doStep is macro_step long and starts at until + n * H
+    (from the index, bit for bit); rows stay on the output grid; the statistics count both parts."""
+    H = 1e-3
+    subs = switched()
+    calls = _record_do_steps(subs)
+    obs = Calls()
+    s = two_mass_scenario("gauss-seidel", H, T=0.3, k=1, q=1)
+    s = dataclasses.replace(s, coupling=dataclasses.replace(s.coupling, step_control=StepControlSpec(
+        type="error", rtol=1e-3, atol=1e-6, until=UNTIL)), output=dataclasses.replace(s.output, interval=1e-2))
+    res = MasterAlgorithm(s, subsystems=subs, observers=[obs]).run()
+    assert res.success, res.message
+    np.testing.assert_allclose(res.t, np.arange(31) * 1e-2, rtol=0, atol=1e-12)
+    assert UNTIL in obs.ends                                         # a step ends exactly at until
+    before = [(t, h) for t, h in calls if t < UNTIL]
+    after = [(t, h) for t, h in calls if t >= UNTIL]
+    assert all(t + h <= UNTIL * (1 + 1e-12) for t, h in before)
+    assert len({round(h, 12) for _, h in before}) > 10               # error-controlled: many step sizes
+    assert len(after) == 150
+    assert [t for t, _ in after] == [UNTIL + n * H for n in range(150)]   # from n, not accumulated
+    assert all(h == H for _, h in after)
+    st = res.stats
+    sc = st["step_control"]
+    assert sc["until"] == UNTIL and sc["constant_steps"] == 150 and sc["constant_macro_step"] == H
+    assert sc["accepted_steps"] == len(before) - sc["rejected_steps"] > 150        # small steps before until
+    assert sc["accepted_steps"] + sc["constant_steps"] == st["macro_steps"]
+    assert sc["rejected_steps"] == len(obs.rejected) > 0
+    assert all(b <= UNTIL for _, b, _ in obs.rejected)
+    # the whole run error-controlled takes more steps after until than the 150 constant ones
+    whole = run(H, control=StepControlSpec(type="error", rtol=1e-3, atol=1e-6))
+    assert whole.stats["macro_steps"] > st["macro_steps"]
+
+
+def test_until_with_a_progress_bar_and_extrapolation_carried_over(capsys):
+    """The progress display's step count is an estimate before until and exact after it (the bar
+    does not break); the first constant steps extrapolate through the error-controlled history
+    (order 1 here): the result is as accurate as the error-controlled run before the switch."""
+    import io
+    stream = io.StringIO()
+    res = run(1e-3, control=StepControlSpec(type="error", rtol=1e-3, atol=1e-6, until=UNTIL),
+              observers=[Progress(True, delay=0.0, stream=stream)])
+    assert res.success, res.message
+    assert "co-simulation" in stream.getvalue()
+    from test_master_adaptive import rel_error
+    assert rel_error(res) < 1e-3
+
+
+def test_until_with_defect_retries_redoes_steps_only_after_until():
+    """defect_retries with the error-controlled step is refused without until; with it the retries
+    judge and redo the constant steps after until only (the error-controlled steps before it keep
+    their own rejection), the monitor watches the constant steps and says from when."""
+    from test_coupling_defect import CF, IJJournal, film, scenario as ij
+    sc = ij()
+    spec = StepControlSpec(type="error", rtol=1e-2, until=0.01)
+    sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, defect_limit=0.002, defect_retries=2,
+                                                              step_control=spec))
+    obs = Calls()
+    res = MasterAlgorithm(sc, subsystems={"rotor": IJJournal(), "bearing": film(c_reported=CF / 2)},
+                          observers=[obs]).run()
+    assert res.success, res.message
+    np.testing.assert_allclose(res.t, np.arange(201) * 1e-4, rtol=0, atol=1e-12)
+    defect = [(a, b) for a, b, why in obs.rejected if "coupling.defect_retries" in why]
+    error = [(a, b) for a, b, why in obs.rejected if "scaled error" in why]
+    assert defect and all(a >= 0.01 for a, _ in defect)
+    assert all(b <= 0.01 for _, b in error)
+    st = res.stats
+    assert st["defect_retried_steps"] == st["retried_steps"] > 0
+    cd = st["coupling_defect"]
+    assert cd["monitored_from"] == 0.01 and cd["steps"] == st["step_control"]["constant_steps"] == 100
+    assert cd["steps_not_monitored"] == st["step_control"]["accepted_steps"]
+    assert cd["retries"]["retried_steps"] == st["retried_steps"]
+    # without until the combination is refused when the master is made
+    bad = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, step_control=dataclasses.replace(
+        spec, until=None)))
+    with pytest.raises(ScenarioError, match="defect_retries cannot be combined.*step_control.until"):
+        MasterAlgorithm(bad, subsystems={"rotor": IJJournal(), "bearing": film()})
+
+
+def test_until_built_in_code_is_checked_by_the_master():
+    s = two_mass_scenario("gauss-seidel", 1e-3, T=0.3)
+    s = dataclasses.replace(s, output=dataclasses.replace(s.output, interval=1e-2))
+    for until, says in ((0.3, "must lie after start_time"), (0.155, "use 0.15 or 0.16")):
+        bad = dataclasses.replace(s, coupling=dataclasses.replace(s.coupling, step_control=StepControlSpec(
+            type="error", until=until)))
+        with pytest.raises(ScenarioError, match=says):
+            MasterAlgorithm(bad, subsystems=switched())
+
+
+# --- the key in a scenario file ------------------------------------------------------------------
+def _two_mass_file(tmp_path, test_fmus, coupling: str, left="LeftMass"):
+    p = tmp_path / "until.yaml"
+    p.write_text(f"""name: until
+stop_time: 1.0
+fmus:
+  left: {{path: {test_fmus[left]}}}
+  right: {{path: {test_fmus['RightMass']}}}
+connections:
+  - {{from: left.x1, to: right.x1}}
+  - {{from: left.v1, to: right.v1}}
+  - {{from: right.F, to: left.F}}
+coupling:
+  scheme: gauss-seidel
+  macro_step: 0.01
+{coupling}
+output: {{interval: 0.2}}
+""")
+    return p
+
+
+@pytest.mark.integration
+def test_until_key_parses_and_round_trips(test_fmus, tmp_path):
+    import warnings
+
+    from orchestrator.scenario.ssp import export_ssp
+    from orchestrator.scenario.ssp_annotation import scenario_annotation
+    p = _two_mass_file(tmp_path, test_fmus, "  step_control: {type: error, rtol: 1.0e-3, until: 0.4}\n"
+                                            "  discard_retries: 2\n  defect_retries: 1")
+    sc = load_scenario(p)
+    assert sc.coupling.step_control.until == 0.4 and sc.coupling.discard_retries == 2
+    assert scenario_annotation(sc)["coupling"]["step_control"]["until"] == 0.4
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        back = load_scenario(export_ssp(sc, tmp_path / "until.ssp"))
+    assert back.coupling == sc.coupling
+    assert load_scenario(p, ["coupling.step_control.until=0.6"]).coupling.step_control.until == 0.6
+    res = __import__("orchestrator").run(sc, out_dir=tmp_path / "run", progress=False)
+    assert res.success, res.message
+    np.testing.assert_allclose(res.t, np.arange(6) * 0.2, rtol=0, atol=1e-12)
+    assert res.stats["step_control"]["constant_steps"] == 60
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("coupling, line, says", [
+    ("  step_control:\n    type: constant\n    until: 0.4", 15,
+     "'coupling.step_control.until' (0.4) is for type error"),
+    ("  step_control:\n    type: error\n    until: 1.2", 15,
+     "'coupling.step_control.until' must lie after start_time (0.0) and before stop_time (1.0) (got 1.2); give "
+     "the time up to which the step is error-controlled, an output time in 0.2..0.8, e.g. 0.8"),
+    ("  step_control:\n    type: error\n    until: 0.0", 15, "e.g. 0.2"),
+    ("  step_control:\n    type: error\n    until: 0.5", 15,
+     "'coupling.step_control.until' (0.5) is not on the output grid start_time + k * output.interval (0.0 + k * "
+     "0.2): the constant steps after it write a row every output interval from 'until', which would miss the "
+     "grid; use 0.4 or 0.6"),
+    ("  step_control:\n    type: error\n    until: soon", 15, "'coupling.step_control.until' must be a"),
+    ("  step_control: {type: error}\n  defect_retries: 2", 14,
+     "coupling.step_control type error and coupling.defect_retries cannot be combined"),
+])
+def test_until_refusals_name_the_line(test_fmus, tmp_path, coupling, line, says):
+    p = _two_mass_file(tmp_path, test_fmus, coupling)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(p)
+    text = str(info.value)
+    assert f"until.yaml:{line}: " in text and says in text, text
+
+
+@pytest.mark.integration
+def test_until_with_retries_over_fmus_that_cannot_save_state_is_refused(test_fmus, tmp_path):
+    """The retries after until need state saving as they do on a constant step."""
+    p = _two_mass_file(tmp_path, test_fmus, "  step_control: {type: error, until: 0.4}\n  discard_retries: 2",
+                       left="StepLimitedMass")
+    with pytest.raises(ScenarioError, match=r"until.yaml:14: coupling.discard_retries = 2 needs every FMU to "
+                                            r"save and restore its state"):
+        load_scenario(p)
+
+
+# --- compare ---------------------------------------------------------------------------------------
+@pytest.mark.integration
+def test_a_compare_variant_with_until_is_checked_at_load(test_fmus, tmp_path, capsys):
+    from orchestrator.compare import load_compare, main_compare
+    from test_compare_capabilities import _compare, _never_runs, _two_mass
+    _two_mass(tmp_path, test_fmus["LeftMass"], test_fmus["RightMass"])      # rows every 0.2 s, stop 1 s
+    good = _compare(tmp_path, "{scheme: gauss-seidel, macro_step: 0.01}",
+                    "    - {name: until-retry, scheme: gauss-seidel, macro_step: 0.1,\n"
+                    "       set: {coupling.step_control.type: error, coupling.step_control.until: 0.4,\n"
+                    "             coupling.discard_retries: 1, coupling.defect_retries: 2}}\n")
+    spec = load_compare(good)
+    assert [v.name for v in spec.variants] == ["until-retry"]
+    path = _compare(tmp_path, "{scheme: gauss-seidel, macro_step: 0.01}",
+                    "    - {scheme: gauss-seidel, macro_step: [0.2, 0.1]}\n"
+                    "    - {name: off-grid, scheme: gauss-seidel, macro_step: 0.1,\n"
+                    "       set: {coupling.step_control.type: error, coupling.step_control.until: 0.5}}\n"
+                    "    - {name: late, scheme: gauss-seidel, macro_step: 0.1,\n"
+                    "       set: {coupling.step_control.type: error, coupling.step_control.until: 0.8,\n"
+                    "             stop_time: 0.6}}\n"
+                    "    - {name: constant-until, scheme: gauss-seidel, macro_step: 0.1,\n"
+                    "       set: {coupling.step_control.until: 0.4}}\n")
+    assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
+    err = capsys.readouterr().err
+    assert ("cmp.yaml:7: 'compare.variants[1]' variant 'off-grid' cannot run with these FMUs: "
+            "'coupling.step_control.until' (0.5) is not on the output grid") in err and "use 0.4 or 0.6" in err
+    assert ("cmp.yaml:9: 'compare.variants[2]' variant 'late' cannot run with these FMUs: "
+            "'coupling.step_control.until' must lie after start_time (0.0) and before stop_time (0.6)") in err
+    assert "variant 'constant-until'" in err and "is for type error" in err
+    assert "gs-e0i0" not in err
+    assert not (tmp_path / "out" / "runs").exists()
+
+
+def test_capability_problems_apply_the_loaders_until_rule():
+    """compare/capabilities.py: the shared rules, on a scenario built in code."""
+    from types import SimpleNamespace
+
+    from orchestrator.compare.capabilities import capability_problems
+    state = SimpleNamespace(can_get_and_set_fmu_state=True, can_handle_variable_step=True)
+    s = two_mass_scenario("gauss-seidel", 1e-2, T=1.0)
+    s = dataclasses.replace(s, output=dataclasses.replace(s.output, interval=0.2))
+    spec = StepControlSpec(type="error", until=0.4)
+    ok = dataclasses.replace(s, coupling=dataclasses.replace(s.coupling, step_control=spec, discard_retries=1,
+                                                             defect_retries=1))
+    assert capability_problems(ok, {"left": state, "right": state}) == ([], [])
+    no_until = dataclasses.replace(ok, coupling=dataclasses.replace(ok.coupling, step_control=dataclasses.replace(
+        spec, until=None)))
+    errors, _ = capability_problems(no_until, {"left": state, "right": state})
+    assert len(errors) == 2 and all("cannot be combined" in e for e in errors)
+    short = dataclasses.replace(ok, stop_time=0.4)
+    errors, _ = capability_problems(short, {"left": state, "right": state})
+    assert errors and "before stop_time (0.4)" in errors[0]
