@@ -97,6 +97,29 @@ def test_until_with_a_progress_bar_and_extrapolation_carried_over(capsys):
     assert rel_error(res) < 1e-3
 
 
+def test_the_extrapolation_history_carries_over_the_switch():
+    """No restart at until: the first constant step extrapolates (order 1) through the newest
+    error-controlled levels, whose times are uneven (a restart would hold the value, order 0)."""
+    H = 1e-3
+    s = two_mass_scenario("gauss-seidel", H, T=0.3, k=1, q=1)
+    s = dataclasses.replace(s, coupling=dataclasses.replace(s.coupling, step_control=StepControlSpec(
+        type="error", rtol=1e-3, atol=1e-6, until=UNTIL)), output=dataclasses.replace(s.output, interval=1e-2))
+    m = MasterAlgorithm(s, subsystems=switched())
+    m.setup()
+    m.initialize()
+    while m.grid.variable:
+        m.step()
+    hist = m.stepper.history
+    assert m.t == UNTIL and hist.times[1] == UNTIL and hist.count >= 2
+    h_last = UNTIL - hist.times[2]                  # the last error-controlled step
+    assert h_last != H
+    w = m.predictor.weights(hist, UNTIL, H, 1)
+    assert w.p == 1 and w.extrap_end == pytest.approx([1 + H / h_last, -H / h_last])
+    m.step()                                        # the first constant step
+    assert m.t == UNTIL + H and hist.times[2] == UNTIL and hist.times[3] == UNTIL - h_last
+    m.terminate()
+
+
 def test_until_with_defect_retries_redoes_steps_only_after_until():
     """defect_retries with the error-controlled step is refused without until; with it the retries
     judge and redo the constant steps after until only (the error-controlled steps before it keep
