@@ -78,6 +78,9 @@ def test_error_control_until_then_constant_steps_on_the_index_grid():
     assert sc["accepted_steps"] + sc["constant_steps"] == st["macro_steps"]
     assert sc["rejected_steps"] == len(obs.rejected) > 0
     assert all(b <= UNTIL for _, b, _ in obs.rejected)
+    # the jump of the spring at 0.1 s is taken above the tolerance: said of the error-controlled part
+    assert (f"{sc['over_tolerance_steps']} of the {sc['accepted_steps']} error-controlled macro steps (up to "
+            "step_control.until, 0.15 s) had a scaled error above 1") in res.message
     # the whole run error-controlled takes more steps after until than the 150 constant ones
     whole = run(H, control=StepControlSpec(type="error", rtol=1e-3, atol=1e-6))
     assert whole.stats["macro_steps"] > st["macro_steps"]
@@ -151,12 +154,41 @@ def test_until_with_defect_retries_redoes_steps_only_after_until():
         MasterAlgorithm(bad, subsystems={"rotor": IJJournal(), "bearing": film()})
 
 
+def test_a_discard_after_until_is_redone_and_not_monitored():
+    """discard_retries after until: a constant step the film discards once is redone in halves from
+    the saved states; the defect monitor leaves that macro step out (its pieces had fresh
+    coefficients), as on a constant-step run."""
+    from orchestrator.errors import FmuCallError
+    from test_coupling_defect import CF, H, IJJournal, film, scenario as ij
+
+    class OnceDiscarding(type(film())):
+        def do_step(self, t, h):
+            if not getattr(self, "discarded", False) and abs(t - 0.015) < 1e-12 and h == H:
+                self.discarded = True
+                raise FmuCallError("bearing", "fmi2DoStep", "discard", "step too long once")
+            super().do_step(t, h)
+
+    bearing = film(c_reported=CF / 2)
+    bearing.__class__ = OnceDiscarding
+    sc = ij()
+    sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, discard_retries=1, step_control=StepControlSpec(
+        type="error", rtol=1e-2, until=0.01)))
+    res = MasterAlgorithm(sc, subsystems={"rotor": IJJournal(), "bearing": bearing}).run()
+    assert res.success, res.message
+    st = res.stats
+    assert bearing.discarded and st["retried_steps"] == 1 and st["rejected_steps"] == 1
+    cd = st["coupling_defect"]
+    assert cd["steps"] == st["step_control"]["constant_steps"] - 1 == 99
+    assert cd["steps_not_monitored"] == st["step_control"]["accepted_steps"] + 1
+
+
 def test_until_built_in_code_is_checked_by_the_master():
     s = two_mass_scenario("gauss-seidel", 1e-3, T=0.3)
     s = dataclasses.replace(s, output=dataclasses.replace(s.output, interval=1e-2))
-    for until, says in ((0.3, "must lie after start_time"), (0.155, "use 0.15 or 0.16")):
+    for until, kind, says in ((0.3, "error", "must lie after start_time"), (0.155, "error", "use 0.15 or 0.16"),
+                              (0.15, "constant", "is for type error")):
         bad = dataclasses.replace(s, coupling=dataclasses.replace(s.coupling, step_control=StepControlSpec(
-            type="error", until=until)))
+            type=kind, until=until)))
         with pytest.raises(ScenarioError, match=says):
             MasterAlgorithm(bad, subsystems=switched())
 

@@ -355,6 +355,7 @@ class ErrorThenConstant(StepSizeController):
     needs_states = property(lambda self: self.constant.needs_states)
     h = property(lambda self: self.error.h)
     defect_halvings = property(lambda self: getattr(self.constant, "defect_halvings", 0))
+    retried_steps = property(lambda self: getattr(self.constant, "retried_steps", 0))
 
     @property
     def variable(self) -> bool:
@@ -411,7 +412,10 @@ class ErrorThenConstant(StepSizeController):
         return (n - (self.n_offset or 0)) % stride == 0
 
     def over_tolerance_note(self) -> str | None:
-        return self.error.over_tolerance_note()
+        note = self.error.over_tolerance_note()
+        n = self.error.accepted
+        return note and note.replace(f" of {n} accepted macro steps ", f" of the {n} error-controlled macro steps "
+                                     f"(up to step_control.until, {self.until:g} s) ", 1)
 
     def statistics(self) -> dict:
         """The constant part's counters at the top (``rejected_steps``, ``retried_steps``,
@@ -436,6 +440,9 @@ def controller_from_spec(scenario) -> StepSizeController:
     sc = getattr(c, "step_control", None)
     n_defect = getattr(c, "defect_retries", 0)
     until = getattr(sc, "until", None) if sc is not None else None
+    if until is not None and sc.type != "error":
+        from orchestrator.scenario.coupling_sections import until_problem
+        raise ScenarioError(until_problem(sc, scenario.start_time, scenario.stop_time, c.macro_step))
     if sc is not None and sc.type == "error" and until is None and n_defect:
         raise ScenarioError("coupling.step_control type error and coupling.defect_retries cannot be combined "
                             "(the error-controlled step rejects steps on its own estimate of the same defect); "
