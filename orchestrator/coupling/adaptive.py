@@ -30,6 +30,11 @@ output interval), not the first step (``macro_step``), which must not change the
 (a first step 100x too long is rejected and the run ends as accurate as one started well:
 tests/test_master_adaptive.py).
 
+``until`` (``step_control: {type: error, ..., until: T}``, :class:`ErrorThenConstant`): this
+controller up to T (its output grid ends there, so its last step ends exactly at T), then constant
+``macro_step`` steps T + n * macro_step to stop_time with the constant-step machinery
+(``discard_retries``, ``defect_retries``), in one run; the history carries over.
+
 Bounded work: at most ``MAX_REJECTIONS`` rejected attempts in a row and
 ``max(MAX_STEPS, MAX_STEPS_PER_NOMINAL * (t_stop - t0) / macro_step)`` accepted steps; past
 either the run fails (CouplingError) naming the signal that limited the step most often,

@@ -47,7 +47,9 @@ macro step then stays within the same bound as over an unredone step. A jump wit
 film refilling in the whirl) keeps its defect at any step and is never resolved; the turbocharger's
 rub regime is (docs/coupling.md, "Redoing the steps over the limit").
 
-Not monitored: the error-controlled step (it has its own estimate and rejects such steps), the
+Not monitored: the error-controlled step (it has its own estimate and rejects such steps; with
+``step_control.until`` the constant steps after ``until`` are monitored, ``monitored_from`` says so,
+and the error-controlled ones count in ``steps_not_monitored``), the
 iterative scheme (it iterates the force to its tolerance), forces the rotor receives interpolated
 (Gauss-Seidel with the bearing stepping first), macro steps redone in halves after an
 fmi2Discard (the rotor integrated each half with fresh coefficients; with ``defect_retries`` they are
