@@ -321,3 +321,44 @@ def test_capability_problems_apply_the_loaders_until_rule():
     short = dataclasses.replace(ok, stop_time=0.4)
     errors, _ = capability_problems(short, {"left": state, "right": state})
     assert errors and "before stop_time (0.4)" in errors[0]
+
+
+def test_the_error_controlled_step_redoes_a_discarded_attempt_at_half_the_step():
+    """An attempt an FMU discards (fmi2Discard) is a rejected attempt of the error-controlled step: the
+    states are restored and it is redone at half the length; counted in step_control.discarded_steps.
+    At min_step the discard ends the run with the FMU's message."""
+    from orchestrator.errors import FmuCallError
+    from test_coupling_defect import IJJournal, film, scenario as ij
+
+    class LongStepsDiscarded(type(film())):
+        """Discards every step longer than 3e-5 s after t = 5 ms (the states must be restored: the
+        base class's state is only updated by a step it takes)."""
+        limit = 3e-5
+
+        def do_step(self, t, h):
+            if t >= 0.005 and h > self.limit:
+                self.refused = getattr(self, "refused", 0) + 1
+                raise FmuCallError("bearing", "fmi2DoStep", "discard", f"step {h:g} s too long")
+            super().do_step(t, h)
+
+    def run(limit, min_step=None):
+        bearing = film()
+        bearing.__class__ = LongStepsDiscarded
+        bearing.limit = limit
+        sc = ij()
+        sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, step_control=StepControlSpec(
+            type="error", rtol=1e-2, min_step=min_step)))
+        return bearing, MasterAlgorithm(sc, subsystems={"rotor": IJJournal(), "bearing": bearing}).run()
+
+    bearing, res = run(3e-5)
+    assert res.success, res.message
+    sc = res.stats["step_control"]
+    assert sc["discarded_steps"] == bearing.refused > 0
+    assert sc["max_step_taken"] > 3e-5 and res.t[-1] == pytest.approx(0.02)
+    plain = MasterAlgorithm(ij(), subsystems={"rotor": IJJournal(), "bearing": film()})   # the same motion
+    ref = plain.run()
+    np.testing.assert_allclose(np.interp(ref.t, res.t, res.outputs["rotor.x_1"]), ref.outputs["rotor.x_1"],
+                               rtol=0, atol=2e-5)
+    # a limit below min_step: the discard at min_step ends the run with the FMU's message
+    bearing, res = run(1e-7, min_step=1e-6)
+    assert not res.success and "step 1e-06 s too long" in res.message

@@ -15,6 +15,10 @@ Per attempt from T(n) with proposal h (the first is ``coupling.macro_step``):
    FMU state and the history are restored to T(n) (saved before the attempt), observers
    get ``on_step_rejected``, and the attempt is redone with the smaller proposal. A step
    accepted as a jump restarts the extrapolation (history order 0) from the value after it.
+   An attempt an FMU discards (fmi2Discard, e.g. a journal pushed through the shell's asperity
+   layer) is rejected the same way and redone at half its length (``discarded_steps``), down to
+   ``min_step``, where the discard ends the run with the FMU's message (so ``discard_retries`` is
+   not needed, and not allowed, before ``until``).
 
 ``measure: impulse`` (opt-in; ``value`` is the default): a defect d of a force over the step
 changes what the receiving subsystem integrates by about the impulse d h (momentum; d h^2 / m
@@ -56,12 +60,12 @@ import math
 
 import numpy as np
 
-from orchestrator.coupling.error_control import PIController, next_stop, scaled_error_norm
+from orchestrator.coupling.error_control import MIN_STEP_SLACK, PIController, next_stop, scaled_error_norm
 from orchestrator.coupling.signal_scales import (DEFAULT_ATOL, atol_vector, corrected_prediction, jacobian_groups,
                                                   running_scale_mask)
 from orchestrator.coupling.signals import lagrange_weights
 from orchestrator.coupling.step_control import ConstantStep, DiscardHalving, StepSizeController
-from orchestrator.errors import CouplingError
+from orchestrator.errors import CouplingError, FmuCallError
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario.limits import step_slack
 from orchestrator.scenario.model import StepControlSpec
@@ -128,6 +132,7 @@ class ErrorControlled(StepSizeController):
         self.limiting: dict[int, int] = {}     # signal index -> steps it had the largest error
         self.over_signals: dict[int, int] = {}  # signal index -> accepted steps it took above tolerance
         self.accepted = 0
+        self.discarded = 0                     # attempts an FMU discarded (fmi2Discard), redone at half the step
         self.h_min_taken = math.inf
         self.h_max_taken = 0.0
 
@@ -207,7 +212,22 @@ class ErrorControlled(StepSizeController):
             prev = hist.store[1].copy()
             cp = stepper.save() if self.can_reject else None
             try:
-                stepper.step(t, t_end)
+                try:
+                    stepper.step(t, t_end)
+                except FmuCallError as e:
+                    if not self._discard_retryable(e, stepper, t_end - t):
+                        raise
+                    # an FMU refused the step (fmi2Discard): a rejected attempt, redone at half the step
+                    stepper.restore(cp)
+                    self.on_rejected(t, t_end, e)
+                    self.discarded += 1
+                    self.pi.after_reject = True        # the next accepted step may not grow
+                    self.h = max(self.pi.min_step, 0.5 * (t_end - t))
+                    rejected += 1
+                    if rejected >= MAX_REJECTIONS:
+                        raise CouplingError(self._too_many(t, f"rejected {rejected} attempts in a row at "
+                                                              f"t={t:.12g} s (the last discarded by an FMU: {e})"))
+                    continue
                 err, worst = self.error(stepper, pred, prev, t_end - t)
                 d = self.pi.decide(t_end - t, err)
                 if not d.accept:
@@ -239,6 +259,13 @@ class ErrorControlled(StepSizeController):
             self.h_min_taken = min(self.h_min_taken, t_end - t)
             self.h_max_taken = max(self.h_max_taken, t_end - t)
             return t_end, on_out
+
+    def _discard_retryable(self, e: FmuCallError, stepper, h: float) -> bool:
+        """An fmi2Discard the controller redoes: states can be restored, the FMU did not end the
+        simulation (fmi2Terminated), and the step is above min_step (at min_step the discard ends the
+        run with the FMU's message, as a discard on a constant step without discard_retries)."""
+        return (self.can_reject and e.status == "discard" and not stepper.fmu_ended(e)
+                and h > self.pi.min_step * MIN_STEP_SLACK)
 
     def _uses_nominal(self, name: str) -> bool:
         """True when ``name`` took its atol from its nominal (no atol key names it)."""
@@ -300,6 +327,7 @@ class ErrorControlled(StepSizeController):
                 "step_control": {"type": "error", "accepted_steps": self.accepted,
                                  "rejected_steps": self.pi.rejected, "forced_steps": self.pi.forced,
                                  "jumps": self.pi.jumps, "can_reject": self.can_reject,
+                                 "discarded_steps": self.discarded,
                                  "over_tolerance_steps": self.pi.over,
                                  "limiting_signals": self._limiting(),
                                  "interface_jacobian": [self.signal_names[j] for j, _ in self.ij_groups],
