@@ -22,6 +22,9 @@ from test_master_adaptive_scales import CF, KF, IJJournal, film, ij_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 H = 1e-4
+# the from-rest scenarios ship the contact phase error-controlled (step_control.until); these tests are
+# about the constant step there
+CONSTANT = "coupling.step_control={type: constant}"
 
 
 def scenario(k=0, control=None, sequence=("rotor", "bearing"), scheme="gauss-seidel"):
@@ -178,7 +181,8 @@ def test_contact_phase_from_rest(tmp_path, caplog, name, flagged):
     them (where it flags, the recorded film force is far from the typical one) and warns; the
     half-Sommerfeld film's contact phase has none."""
     from orchestrator import run as run_scenario
-    sc = load_scenario(ROOT / "scenarios" / f"{name}.yaml", ["stop_time=0.01", "coupling.defect_retries=0"])
+    sc = load_scenario(ROOT / "scenarios" / f"{name}.yaml", ["stop_time=0.01", "coupling.defect_retries=0",
+                                                         CONSTANT])
     with caplog.at_level(logging.WARNING, logger="orchestrator.coupling.execution"):
         res = run_scenario(sc, out_dir=tmp_path, progress=False)
     assert res.success, res.message
@@ -437,7 +441,7 @@ def test_contact_phase_from_rest_with_defect_retries(tmp_path):
     peaks = {}
     for n in (0, 4):
         sc = load_scenario(ROOT / "scenarios" / "jeffcott_runup_free_to_air_from_rest.yaml",
-                           ["stop_time=0.01", f"coupling.defect_retries={n}"])
+                           ["stop_time=0.01", f"coupling.defect_retries={n}", CONSTANT])
         res = run_scenario(sc, out_dir=tmp_path / str(n), progress=False)
         assert res.success, res.message
         np.testing.assert_allclose(res.t, np.linspace(0.0, 0.01, 101), atol=1e-15)

@@ -76,6 +76,7 @@ def test_hold_jacobian_key(tmp_path):
 def _from_rest(tmp_path, hold, stop):
     from orchestrator import run as run_scenario
     sc = load_scenario(FROM_REST, [f"stop_time={stop}", "coupling.scheme=iterative", "coupling.defect_retries=0",
+                                   "coupling.step_control={type: constant}",    # shipped: error-controlled phase
                                    "coupling.iteration.max_iterations=50",
                                    f"coupling.iteration.hold_jacobian={'true' if hold else 'false'}"])
     return run_scenario(sc, out_dir=tmp_path / str(hold), progress=False)

@@ -185,7 +185,7 @@ def test_a_discard_after_until_is_redone_and_not_monitored():
 def test_until_built_in_code_is_checked_by_the_master():
     s = two_mass_scenario("gauss-seidel", 1e-3, T=0.3)
     s = dataclasses.replace(s, output=dataclasses.replace(s.output, interval=1e-2))
-    for until, kind, says in ((0.3, "error", "must lie after start_time"), (0.155, "error", "use 0.15 or 0.16"),
+    for until, kind, says in ((0.0, "error", "must lie after start_time"), (0.155, "error", "use 0.15 or 0.16"),
                               (0.15, "constant", "is for type error")):
         bad = dataclasses.replace(s, coupling=dataclasses.replace(s.coupling, step_control=StepControlSpec(
             type=kind, until=until)))
@@ -240,9 +240,10 @@ def test_until_key_parses_and_round_trips(test_fmus, tmp_path):
 @pytest.mark.parametrize("coupling, line, says", [
     ("  step_control:\n    type: constant\n    until: 0.4", 15,
      "'coupling.step_control.until' (0.4) is for type error"),
-    ("  step_control:\n    type: error\n    until: 1.2", 15,
-     "'coupling.step_control.until' must lie after start_time (0.0) and before stop_time (1.0) (got 1.2); give "
-     "the time up to which the step is error-controlled, an output time in 0.2..0.8, e.g. 0.8"),
+    ("  step_control:\n    type: error\n    until: -0.5", 15,
+     "'coupling.step_control.until' must lie after start_time (0.0) (got -0.5); give the time up to which the "
+     "step is error-controlled, an output time in 0.2..0.8, e.g. 0.2 (at or after stop_time (1.0) the whole run "
+     "is error-controlled)"),
     ("  step_control:\n    type: error\n    until: 0.0", 15, "e.g. 0.2"),
     ("  step_control:\n    type: error\n    until: 0.5", 15,
      "'coupling.step_control.until' (0.5) is not on the output grid start_time + k * output.interval (0.0 + k * "
@@ -286,17 +287,17 @@ def test_a_compare_variant_with_until_is_checked_at_load(test_fmus, tmp_path, ca
                     "    - {scheme: gauss-seidel, macro_step: [0.2, 0.1]}\n"
                     "    - {name: off-grid, scheme: gauss-seidel, macro_step: 0.1,\n"
                     "       set: {coupling.step_control.type: error, coupling.step_control.until: 0.5}}\n"
-                    "    - {name: late, scheme: gauss-seidel, macro_step: 0.1,\n"
+                    "    - {name: early, scheme: gauss-seidel, macro_step: 0.1,\n"
                     "       set: {coupling.step_control.type: error, coupling.step_control.until: 0.8,\n"
-                    "             stop_time: 0.6}}\n"
+                    "             start_time: 0.8}}\n"
                     "    - {name: constant-until, scheme: gauss-seidel, macro_step: 0.1,\n"
                     "       set: {coupling.step_control.until: 0.4}}\n")
     assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
     err = capsys.readouterr().err
     assert ("cmp.yaml:7: 'compare.variants[1]' variant 'off-grid' cannot run with these FMUs: "
             "'coupling.step_control.until' (0.5) is not on the output grid") in err and "use 0.4 or 0.6" in err
-    assert ("cmp.yaml:9: 'compare.variants[2]' variant 'late' cannot run with these FMUs: "
-            "'coupling.step_control.until' must lie after start_time (0.0) and before stop_time (0.6)") in err
+    assert ("cmp.yaml:9: 'compare.variants[2]' variant 'early' cannot run with these FMUs: "
+            "'coupling.step_control.until' must lie after start_time (0.8) (got 0.8)") in err
     assert "variant 'constant-until'" in err and "is for type error" in err
     assert "gs-e0i0" not in err
     assert not (tmp_path / "out" / "runs").exists()
@@ -318,9 +319,30 @@ def test_capability_problems_apply_the_loaders_until_rule():
         spec, until=None)))
     errors, _ = capability_problems(no_until, {"left": state, "right": state})
     assert len(errors) == 2 and all("cannot be combined" in e for e in errors)
-    short = dataclasses.replace(ok, stop_time=0.4)
-    errors, _ = capability_problems(short, {"left": state, "right": state})
-    assert errors and "before stop_time (0.4)" in errors[0]
+    short = dataclasses.replace(ok, stop_time=0.4)      # until at stop_time: error-controlled to the end
+    assert capability_problems(short, {"left": state, "right": state}) == ([], [])
+    late = dataclasses.replace(ok, start_time=0.4)
+    errors, _ = capability_problems(late, {"left": state, "right": state})
+    assert errors and "must lie after start_time (0.4) (got 0.4)" in errors[0]
+
+
+def test_until_at_or_after_stop_time_controls_the_whole_run():
+    """A run shortened below until (``--set stop_time=0.01`` on a scenario with until 0.06) is
+    error-controlled to its end: the same rows as the scenario without until, the retries keys inert."""
+    s = two_mass_scenario("gauss-seidel", 1e-3, T=0.3)
+    s = dataclasses.replace(s, output=dataclasses.replace(s.output, interval=1e-2))
+    runs = []
+    for until, retries in ((None, 0), (0.3, 2), (5.0, 2)):
+        sc = dataclasses.replace(s, coupling=dataclasses.replace(
+            s.coupling, discard_retries=retries, step_control=StepControlSpec(type="error", rtol=1e-3, until=until)))
+        res = MasterAlgorithm(sc, subsystems=switched()).run()
+        assert res.success, res.message
+        assert "until" not in res.stats["step_control"]
+        runs.append(res)
+    for res in runs[1:]:
+        np.testing.assert_array_equal(res.t, runs[0].t)
+        for k in runs[0].outputs:
+            np.testing.assert_array_equal(res.outputs[k], runs[0].outputs[k])
 
 
 def test_the_error_controlled_step_redoes_a_discarded_attempt_at_half_the_step():

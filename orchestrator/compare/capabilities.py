@@ -9,8 +9,8 @@ and ``completion.fixed_step_problem``, so that the two cannot drift apart. They 
 * ``scheme: iterative`` and ``discard_retries > 0`` need ``canGetAndSetFMUstate`` in every FMU;
 * ``step_control: {type: error}`` cannot be combined with ``discard_retries > 0``, whatever the FMUs,
   unless ``step_control.until`` is set (the retries then act on the constant steps after it);
-* ``step_control.until`` must be an output time after ``start_time`` and before ``stop_time``
-  (``coupling_sections.until_problem``, the loader's rule);
+* ``step_control.until`` must be an output time after ``start_time``; at or after ``stop_time`` the
+  whole run is error-controlled (``coupling_sections.until_problem``, the loader's rule);
 * ``step_control: {type: error}`` needs ``canHandleVariableCommunicationStepSize``, and an FMU
   without it needs ``stop_time`` on the macro-step grid and no ``discard_retries``.
 

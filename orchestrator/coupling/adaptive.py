@@ -493,6 +493,11 @@ def controller_from_spec(scenario) -> StepSizeController:
             why = until_problem(sc, scenario.start_time, scenario.stop_time, interval)
             if why:
                 raise ScenarioError(why)
+        if until is not None and until >= scenario.stop_time - step_slack(scenario.start_time, scenario.stop_time,
+                                                                          interval) * interval:
+            log.info("coupling.step_control.until (%g s) is at or after stop_time (%g s): the whole run is "
+                     "error-controlled", until, scenario.stop_time)
+            until = None                 # no constant part (the retries keys have nothing to act on)
         error = ErrorControlled(sc, t0=scenario.start_time, t_stop=scenario.stop_time if until is None else until,
                                 h0=c.macro_step, interval=interval,
                                 # the iterative scheme's estimate is of order q+1 (coupling/iterative.py)

@@ -195,11 +195,12 @@ def until_problem(spec, t0: float, t_stop: float, interval: float) -> str | None
     """Why ``coupling.step_control.until`` (``spec.until``; None: not set) cannot be the time at which
     the error-controlled step hands over to constant steps, or None.
 
-    It must lie after ``t0`` (start_time) and before ``t_stop`` (stop_time), and on the output grid
+    It must lie after ``t0`` (start_time) and, when before ``t_stop`` (stop_time), on the output grid
     ``t0 + k * interval`` (``interval``: output.interval, or macro_step when that is not given): the
     constant steps after it are ``until + n * macro_step`` and write a row every ``interval`` from
-    ``until``, which are the output times only when ``until`` is one. The message names the nearest
-    valid values. The one rule for the loader (:func:`check_until`, at the key's line) and ``rotorcosim
+    ``until``, which are the output times only when ``until`` is one. At or after ``t_stop`` it is
+    allowed: the whole run is error-controlled (a run shortened with ``--set stop_time=...`` keeps
+    working). The message names the nearest valid values. The one rule for the loader (:func:`check_until`, at the key's line) and ``rotorcosim
     compare`` (orchestrator/compare/capabilities.py, per variant)."""
     until = getattr(spec, "until", None)
     if until is None:
@@ -214,18 +215,21 @@ def until_problem(spec, t0: float, t_stop: float, interval: float) -> str | None
     k = (until - t0) / interval
     n_out = (t_stop - t0) / interval                         # output intervals in the run
     slack = max(1e-9 * max(1.0, abs(k)), step_slack(t0, t_stop, interval))
+    if k >= n_out - slack:
+        return None                              # at or after stop_time: error-controlled to the end
     j = round(k)
     on_grid = abs(k - j) <= slack
     last_j = math.ceil(n_out - slack) - 1                   # the last output time before stop_time
-    if last_j < 1:
+    if last_j < 1 and until > t0:
         return (f"'coupling.step_control.until' ({until!r}) must be an output time after start_time ({t0!r}) and "
                 f"before stop_time ({t_stop!r}), but the run is one output interval ({interval!r} s) long; remove "
                 "until (the whole run is error-controlled) or write rows more often (output.interval)")
     if not (t0 < until < t_stop) or (on_grid and not 0 < j <= last_j):
-        near = t0 + (1 if until <= t0 + 0.5 * interval else last_j) * interval
-        return (f"'coupling.step_control.until' must lie after start_time ({t0!r}) and before stop_time "
-                f"({t_stop!r}) (got {until!r}); give the time up to which the step is error-controlled, an output "
-                f"time in {t0 + interval:.12g}..{t0 + last_j * interval:.12g}, e.g. {near:.12g}")
+        near = t0 + max(1, 1 if until <= t0 + 0.5 * interval else last_j) * interval
+        return (f"'coupling.step_control.until' must lie after start_time ({t0!r}) (got {until!r}); give the time "
+                f"up to which the step is error-controlled, an output time in "
+                f"{t0 + interval:.12g}..{t0 + max(1, last_j) * interval:.12g}, e.g. {near:.12g} (at or after "
+                f"stop_time ({t_stop!r}) the whole run is error-controlled)")
     if not on_grid:
         near = [t0 + i * interval for i in (math.floor(k), math.ceil(k)) if 0 < i <= last_j]
         return (f"'coupling.step_control.until' ({until!r}) is not on the output grid start_time + k * "
