@@ -171,8 +171,8 @@ def test_a_discard_after_until_is_redone_and_not_monitored():
     bearing = film(c_reported=CF / 2)
     bearing.__class__ = OnceDiscarding
     sc = ij()
-    sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, discard_retries=1, step_control=StepControlSpec(
-        type="error", rtol=1e-2, until=0.01)))
+    spec = StepControlSpec(type="error", rtol=1e-2, until=0.01)
+    sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, discard_retries=1, step_control=spec))
     res = MasterAlgorithm(sc, subsystems={"rotor": IJJournal(), "bearing": bearing}).run()
     assert res.success, res.message
     st = res.stats

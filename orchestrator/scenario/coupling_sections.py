@@ -200,8 +200,9 @@ def until_problem(spec, t0: float, t_stop: float, interval: float) -> str | None
     constant steps after it are ``until + n * macro_step`` and write a row every ``interval`` from
     ``until``, which are the output times only when ``until`` is one. At or after ``t_stop`` it is
     allowed: the whole run is error-controlled (a run shortened with ``--set stop_time=...`` keeps
-    working). The message names the nearest valid values. The one rule for the loader (:func:`check_until`, at the key's line) and ``rotorcosim
-    compare`` (orchestrator/compare/capabilities.py, per variant)."""
+    working). The message names the nearest valid values. The one rule for the loader
+    (:func:`check_until`, at the key's line) and ``rotorcosim compare``
+    (orchestrator/compare/capabilities.py, per variant)."""
     until = getattr(spec, "until", None)
     if until is None:
         return None
