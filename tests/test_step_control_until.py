@@ -384,3 +384,34 @@ def test_the_error_controlled_step_redoes_a_discarded_attempt_at_half_the_step()
     # a limit below min_step: the discard at min_step ends the run with the FMU's message
     bearing, res = run(1e-7, min_step=1e-6)
     assert not res.success and "step 1e-06 s too long" in res.message
+
+
+@pytest.mark.integration
+def test_a_compare_variant_may_replace_a_whole_section(test_fmus, tmp_path, capsys):
+    """`set: {coupling.step_control: {type: constant}}` replaces the scenario's error control with until
+    (the from-rest contact-phase comparison, compare/jeffcott_contact_phase_mc.yaml); before 2026-12-07 a
+    mapping there was kept as a plain dict and compare ended with an internal error. A mapping with an
+    unknown key, or not a mapping, is refused at its line."""
+    from orchestrator.compare import load_compare, main_compare
+    from orchestrator.compare.spec import apply_changes
+    from test_compare_capabilities import _compare, _never_runs, _two_mass
+    _two_mass(tmp_path, test_fmus["LeftMass"], test_fmus["RightMass"])
+    base = (tmp_path / "two_mass.yaml").read_text().replace(
+        "coupling: {scheme: gauss-seidel, macro_step: 0.1}",
+        "coupling: {scheme: gauss-seidel, macro_step: 0.1, step_control: {type: error, until: 0.4}}")
+    (tmp_path / "two_mass.yaml").write_text(base)
+    good = _compare(tmp_path, "{scheme: gauss-seidel, macro_step: 0.01}",
+                    "    - {name: constant, scheme: gauss-seidel, macro_step: 0.1,\n"
+                    "       set: {coupling.step_control: {type: constant}, coupling.iteration: {max_iterations: 5}}}\n")
+    spec = load_compare(good)
+    sc = apply_changes(load_scenario(tmp_path / "two_mass.yaml"), spec.variants[0].changes)
+    assert sc.coupling.step_control == StepControlSpec(type="constant")
+    assert sc.coupling.iteration.max_iterations == 5
+    for bad, says in (("{typo: constant}", "(got ['typo'])"), ("5", "(got 5)")):
+        path = _compare(tmp_path, "{scheme: gauss-seidel, macro_step: 0.01}",
+                        "    - {name: constant, scheme: gauss-seidel, macro_step: 0.1,\n"
+                        f"       set: {{coupling.step_control: {bad}}}}}\n")
+        assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
+        err = capsys.readouterr().err
+        assert "cmp.yaml:5:" in err and "'coupling.step_control': expected a mapping of" in err and says in err
+        assert "internal error" not in err

@@ -32,6 +32,7 @@ from orchestrator.errors import ScenarioError
 from orchestrator.scenario import SCHEMES, Scenario
 from orchestrator.scenario.analysis_clearance import check_analysis_clearance
 from orchestrator.scenario.limits import MAX_SUBSTEPS, limit_problems
+from orchestrator.scenario.model import IterationSpec, StepControlSpec
 from orchestrator.scenario.nodes import YamlLoader as ScenarioYamlLoader   # same YAML number rules
 from orchestrator.untrusted import (InputError, check_name, construct_yaml, file_kind, format_template,
                                    name_problem, read_text, read_yaml_tree)
@@ -924,6 +925,18 @@ def apply_changes(scenario: Scenario, changes: Mapping[str, Any]) -> Scenario:
                 raise KeyError(f"'{key}': unknown coupling field")
             if parts[1] == "sequence":
                 value = tuple(value)
+            elif parts[1] in ("iteration", "step_control"):
+                # a whole section, e.g. {type: constant} over a scenario's error control: a new spec
+                # from the given keys (the others at their defaults), as a scenario file would give it
+                cls = {"iteration": IterationSpec, "step_control": StepControlSpec}[parts[1]]
+                names = [f.name for f in dataclasses.fields(cls)]
+                if not isinstance(value, Mapping) or set(value) - set(names):
+                    raise KeyError(f"'{key}': expected a mapping of {names} (got "
+                                   f"{sorted(set(value) - set(names)) if isinstance(value, Mapping) else value!r})")
+                try:
+                    value = cls(**dict(value))
+                except (TypeError, ValueError) as exc:
+                    raise KeyError(f"'{key}': {exc}") from None
             sc = dataclasses.replace(sc, coupling=dataclasses.replace(sc.coupling, **{parts[1]: value}))
         elif parts[0] == "output" and len(parts) == 2 and parts[1] in ("interval", "signals"):
             if parts[1] == "signals" and value is not None:
