@@ -415,3 +415,15 @@ def test_a_compare_variant_may_replace_a_whole_section(test_fmus, tmp_path, caps
         err = capsys.readouterr().err
         assert "cmp.yaml:5:" in err and "'coupling.step_control': expected a mapping of" in err and says in err
         assert "internal error" not in err
+
+
+def test_until_null_is_not_set():
+    """`until: null` (e.g. --set coupling.step_control.until=null on a scenario that ships one) means no
+    until: the error control to the end, with its usual refusal of the retries keys."""
+    from pathlib import Path
+    base = Path(__file__).resolve().parents[1] / "scenarios" / "jeffcott_runup_free_to_air_from_rest.yaml"
+    sc = load_scenario(base, ["coupling.step_control.until=null", "coupling.defect_retries=0",
+                              "coupling.discard_retries=0"])
+    assert sc.coupling.step_control.type == "error" and sc.coupling.step_control.until is None
+    with pytest.raises(ScenarioError, match="discard_retries cannot be combined"):
+        load_scenario(base, ["coupling.step_control.until=null"])

@@ -127,7 +127,9 @@ def load_step_control(ld, node) -> StepControlSpec | None:
                 v = None
             ok &= v is not None
             kw[key] = v
-    if "until" in section:
+    if "until" in section and isinstance(section["until"][1], yaml.ScalarNode) and ld.value(section["until"][1]) is None:
+        kw["until"] = None           # until: null, e.g. --set coupling.step_control.until=null: error control to the end
+    elif "until" in section:
         n = section["until"][1]
         v = ld.number(n, "coupling.step_control.until",
                       fix="give the time in seconds up to which the step is error-controlled, e.g. 0.06")
