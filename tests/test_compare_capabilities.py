@@ -24,8 +24,12 @@ def _never_runs(scenario, out_dir: Path) -> None:       # the comparison must st
     raise AssertionError(f"a run was started ({scenario.coupling.scheme}) although the file is invalid")
 
 
-def _two_mass(tmp_path: Path, left: Path, right: Path) -> None:
-    (tmp_path / "two_mass.yaml").write_text(f"""
+def _two_mass(tmp_path: Path, left: Path, right: Path, coupling: str = "{scheme: gauss-seidel, macro_step: 0.1}",
+              file: str = "two_mass.yaml") -> Path:
+    """The two-mass scenario (rows every 0.2 s, stop 1 s) in ``tmp_path / file``; ``coupling`` is the text
+    after ``coupling:`` (a flow mapping, or a block starting with a newline). Its line 11 is ``coupling:``."""
+    p = tmp_path / file
+    p.write_text(f"""
 name: two-mass
 stop_time: 1.0
 fmus:
@@ -35,9 +39,10 @@ connections:
   - {{from: left.x1, to: right.x1}}
   - {{from: left.v1, to: right.v1}}
   - {{from: right.F, to: left.F}}
-coupling: {{scheme: gauss-seidel, macro_step: 0.1}}
+coupling: {coupling}
 output: {{interval: 0.2}}
 """)
+    return p
 
 
 def _compare(tmp_path: Path, reference: str, groups: str) -> Path:

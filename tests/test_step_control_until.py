@@ -195,23 +195,11 @@ def test_until_built_in_code_is_checked_by_the_master():
 
 # --- the key in a scenario file ------------------------------------------------------------------
 def _two_mass_file(tmp_path, test_fmus, coupling: str, left="LeftMass"):
-    p = tmp_path / "until.yaml"
-    p.write_text(f"""name: until
-stop_time: 1.0
-fmus:
-  left: {{path: {test_fmus[left]}}}
-  right: {{path: {test_fmus['RightMass']}}}
-connections:
-  - {{from: left.x1, to: right.x1}}
-  - {{from: left.v1, to: right.v1}}
-  - {{from: right.F, to: left.F}}
-coupling:
-  scheme: gauss-seidel
-  macro_step: 0.01
-{coupling}
-output: {{interval: 0.2}}
-""")
-    return p
+    """test_compare_capabilities' two-mass scenario (rows every 0.2 s, stop 1 s) with macro_step 0.01 and
+    the ``coupling`` lines given (its line 14 is the first of them)."""
+    from test_compare_capabilities import _two_mass
+    return _two_mass(tmp_path, test_fmus[left], test_fmus["RightMass"],
+                     "\n  scheme: gauss-seidel\n  macro_step: 0.01\n" + coupling, file="until.yaml")
 
 
 @pytest.mark.integration
@@ -238,19 +226,19 @@ def test_until_key_parses_and_round_trips(test_fmus, tmp_path):
 
 @pytest.mark.integration
 @pytest.mark.parametrize("coupling, line, says", [
-    ("  step_control:\n    type: constant\n    until: 0.4", 15,
+    ("  step_control:\n    type: constant\n    until: 0.4", 16,
      "'coupling.step_control.until' (0.4) is for type error"),
-    ("  step_control:\n    type: error\n    until: -0.5", 15,
+    ("  step_control:\n    type: error\n    until: -0.5", 16,
      "'coupling.step_control.until' must lie after start_time (0.0) (got -0.5); give the time up to which the "
      "step is error-controlled, an output time in 0.2..0.8, e.g. 0.2 (at or after stop_time (1.0) the whole run "
      "is error-controlled)"),
-    ("  step_control:\n    type: error\n    until: 0.0", 15, "e.g. 0.2"),
-    ("  step_control:\n    type: error\n    until: 0.5", 15,
+    ("  step_control:\n    type: error\n    until: 0.0", 16, "e.g. 0.2"),
+    ("  step_control:\n    type: error\n    until: 0.5", 16,
      "'coupling.step_control.until' (0.5) is not on the output grid start_time + k * output.interval (0.0 + k * "
      "0.2): the constant steps after it write a row every output interval from 'until', which would miss the "
      "grid; use 0.4 or 0.6"),
-    ("  step_control:\n    type: error\n    until: soon", 15, "'coupling.step_control.until' must be a"),
-    ("  step_control: {type: error}\n  defect_retries: 2", 14,
+    ("  step_control:\n    type: error\n    until: soon", 16, "'coupling.step_control.until' must be a"),
+    ("  step_control: {type: error}\n  defect_retries: 2", 15,
      "coupling.step_control type error and coupling.defect_retries cannot be combined"),
 ])
 def test_until_refusals_name_the_line(test_fmus, tmp_path, coupling, line, says):
@@ -266,7 +254,7 @@ def test_until_with_retries_over_fmus_that_cannot_save_state_is_refused(test_fmu
     """The retries after until need state saving as they do on a constant step."""
     p = _two_mass_file(tmp_path, test_fmus, "  step_control: {type: error, until: 0.4}\n  discard_retries: 2",
                        left="StepLimitedMass")
-    with pytest.raises(ScenarioError, match=r"until.yaml:14: coupling.discard_retries = 2 needs every FMU to "
+    with pytest.raises(ScenarioError, match=r"until.yaml:15: coupling.discard_retries = 2 needs every FMU to "
                                             r"save and restore its state"):
         load_scenario(p)
 
