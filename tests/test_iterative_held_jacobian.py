@@ -110,3 +110,23 @@ def test_a_residual_close_to_tol_suggests_a_larger_tol():
     assert "coupling.iteration.tol above it, e.g. 1e-05" in close
     far = IterativeMacroStep._message(step, SimpleNamespace(worst=0, residual=0.8, iterations=50), 0.0, 1e-4)
     assert "coupling.iteration.tol" not in far and "raise coupling.iteration.max_iterations" in far
+
+
+def test_iterative_with_held_end_values_warns(tmp_path, caplog):
+    """`scheme: iterative` with interpolation_order 0 holds every input at its end-of-step iterate (first
+    order, damping: the whole from-rest run-up's onset at 440 Hz against 359-373 Hz); the loader says so and
+    names interpolation_order 1. With 1, or with an explicit scheme, no such warning."""
+    import logging
+    import shutil
+    from orchestrator.scenario.checks import ITERATIVE_HELD_WARNING
+    path = tmp_path / "from_rest.yaml"          # a path of its own: the loader warns once per text and process
+    shutil.copy(FROM_REST, path)
+    for sets, warned in ((["coupling.scheme=iterative"], True),
+                         (["coupling.scheme=iterative", "coupling.interpolation_order=1"], False),
+                         ([], False)):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="orchestrator.scenario.checks"):
+            load_scenario(path, sets + ["coupling.defect_retries=0", "coupling.step_control={type: constant}"])
+        got = [r.getMessage() for r in caplog.records if ITERATIVE_HELD_WARNING in r.getMessage()]
+        assert bool(got) == warned, (sets, [r.getMessage() for r in caplog.records])
+    assert "interpolation_order: 1" in ITERATIVE_HELD_WARNING

@@ -34,6 +34,16 @@ FILM_GRIDS = {"JournalBearing": (("n_phi", "n_z"),),
               "FloatingRingBearing": (("n_phi_inner", "n_z_inner"), ("n_phi_outer", "n_z_outer"))}
 
 
+#: the loader's warning for ``scheme: iterative`` with ``interpolation_order: 0`` (docs/coupling.md,
+#: "Iterative coupling"; measured in docs/runups.md, "The contact phase")
+ITERATIVE_HELD_WARNING = (
+    "'coupling.interpolation_order' 0 under scheme iterative: every input is held at its end-of-step "
+    "iterate over the whole step, an implicit-Euler-like coupling of first order that damps oscillations "
+    "(the Jeffcott run-up from rest: whirl onset 440 Hz against 359-373 Hz with order 1 or the explicit "
+    "schemes; on the stiff two-mass oscillator unstable); set interpolation_order: 1 (the line through "
+    "the iterate, second order)")
+
+
 def warn_once(text: str) -> None:
     """A loader warning, once per process (a sweep loads its scenario once per run)."""
     if text not in _WARNED and len(_WARNED) < 10_000:
@@ -259,9 +269,12 @@ class FmuChecks(Completion):
                 if v is not None and v.type == "Real":
                     real.append((src, dst))
         inputs = interpolated_inputs(c.get("scheme", "gauss-seidel"), k, q, c.get("sequence", ()), real)
+        node = draft.coupling_node
+        where = self.loc(node) if node is not None else self.display
         if inputs:
-            node = draft.coupling_node
-            warn_once(f"{self.loc(node) if node is not None else self.display}: {interpolation_warning(k, q, inputs)}")
+            warn_once(f"{where}: {interpolation_warning(k, q, inputs)}")
+        if c.get("scheme") == "iterative" and q == 0 and real:
+            warn_once(f"{where}: {ITERATIVE_HELD_WARNING}")
 
     def check_units(self, c: dict, src, dst) -> None:
         """Warn (not refuse: the FMUs may mean the same) when a Real connection without gain or
