@@ -68,6 +68,7 @@ from orchestrator.coupling.step_control import ConstantStep, DiscardHalving, Ste
 from orchestrator.errors import CouplingError, FmuCallError
 from orchestrator.errors import ScenarioError
 from orchestrator.scenario.limits import step_slack
+from orchestrator.scenario.coupling_sections import until_problem, until_reaches_stop
 from orchestrator.scenario.model import StepControlSpec
 
 log = logging.getLogger(__name__)
@@ -218,28 +219,25 @@ class ErrorControlled(StepSizeController):
                     if not self._discard_retryable(e, stepper, t_end - t):
                         raise
                     # an FMU refused the step (fmi2Discard): a rejected attempt, redone at half the step
-                    stepper.restore(cp)
-                    self.on_rejected(t, t_end, e)
                     self.discarded += 1
-                    self.pi.after_reject = True        # the next accepted step may not grow
-                    self.h = max(self.pi.min_step, 0.5 * (t_end - t))
-                    rejected += 1
-                    if rejected >= MAX_REJECTIONS:
-                        raise CouplingError(self._too_many(t, f"rejected {rejected} attempts in a row at "
-                                                              f"t={t:.12g} s (the last discarded by an FMU: {e})"))
-                    continue
-                err, worst = self.error(stepper, pred, prev, t_end - t)
-                d = self.pi.decide(t_end - t, err)
-                if not d.accept:
+                    h_retry, why, last = self.pi.discarded(t_end - t), e, f"the last discarded by an FMU: {e}"
+                else:
+                    err, worst = self.error(stepper, pred, prev, t_end - t)
+                    d = self.pi.decide(t_end - t, err)
+                    if d.accept:
+                        h_retry = None
+                    else:
+                        self.limiting[worst] = self.limiting.get(worst, 0) + 1
+                        h_retry, why = d.h_next, RuntimeError(f"scaled error {err:.3g} > 1")
+                        last = f"last h {t_end - t:.3g} s, scaled error {err:.3g}"
+                if h_retry is not None:
                     stepper.restore(cp)
-                    self.on_rejected(t, t_end, RuntimeError(f"scaled error {err:.3g} > 1"))
-                    self.h = d.h_next
+                    self.on_rejected(t, t_end, why)
+                    self.h = h_retry
                     rejected += 1
-                    self.limiting[worst] = self.limiting.get(worst, 0) + 1
                     if rejected >= MAX_REJECTIONS:
                         raise CouplingError(self._too_many(t, f"rejected {rejected} attempts in a row at "
-                                                              f"t={t:.12g} s (last h {t_end - t:.3g} s, scaled "
-                                                              f"error {err:.3g})"))
+                                                              f"t={t:.12g} s ({last})"))
                     continue
             finally:
                 if cp is not None:
@@ -474,7 +472,6 @@ def controller_from_spec(scenario) -> StepSizeController:
     n_defect = getattr(c, "defect_retries", 0)
     until = getattr(sc, "until", None) if sc is not None else None
     if until is not None and sc.type != "error":
-        from orchestrator.scenario.coupling_sections import until_problem
         raise ScenarioError(until_problem(sc, scenario.start_time, scenario.stop_time, c.macro_step))
     if sc is not None and sc.type == "error" and until is None and n_defect:
         raise ScenarioError("coupling.step_control type error and coupling.defect_retries cannot be combined "
@@ -489,12 +486,10 @@ def controller_from_spec(scenario) -> StepSizeController:
                                 "take over)")
         interval = scenario.output.interval or c.macro_step
         if until is not None:
-            from orchestrator.scenario.coupling_sections import until_problem
             why = until_problem(sc, scenario.start_time, scenario.stop_time, interval)
             if why:
                 raise ScenarioError(why)
-        if until is not None and until >= scenario.stop_time - step_slack(scenario.start_time, scenario.stop_time,
-                                                                          interval) * interval:
+        if until is not None and until_reaches_stop(until, scenario.start_time, scenario.stop_time, interval):
             log.info("coupling.step_control.until (%g s) is at or after stop_time (%g s): the whole run is "
                      "error-controlled", until, scenario.stop_time)
             until = None                 # no constant part (the retries keys have nothing to act on)

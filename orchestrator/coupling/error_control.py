@@ -132,6 +132,12 @@ class PIController:
     def _clip(self, h: float) -> float:
         return min(self.max_step, max(self.min_step, h))
 
+    def discarded(self, h: float) -> float:
+        """An attempt of size ``h`` that an FMU discarded (fmi2Discard): the retry's step, half of
+        it (within the bounds); the next accepted step may not grow, as after a rejection."""
+        self.after_reject = True
+        return self._clip(0.5 * h)
+
     def decide(self, h: float, err: float) -> Decision:
         """Accept or reject the step of size ``h`` with scaled error ``err``; propose the next step."""
         p = self.p

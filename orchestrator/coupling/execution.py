@@ -548,12 +548,11 @@ class MasterAlgorithm:
             self._record(t_next, self.n, last or on_output)
         else:
             last = self.n >= self.grid.n_steps
-            out = grid.is_output(self.n, self.stride) if hasattr(grid, "is_output") else self.n % self.stride == 0
-            self._record(t_next, self.n, last or out)
+            self._record(t_next, self.n, last or grid.is_output(self.n, self.stride))
         if last:
             self.status = Status.FINISHED
             self.message = f"finished at t={t_next:g} s after {self.n} macro steps"
-            note = grid.over_tolerance_note() if hasattr(grid, "over_tolerance_note") else None
+            note = grid.over_tolerance_note()
             if note:
                 self.message += f"; {note}"
                 log.warning("%s", note)

@@ -18,6 +18,9 @@ Protocol (rules for implementers, in the style of scipy's ``OdeSolver``):
   state may be set).
 * ``statistics()``: counters for summary.json (``rejected_steps``, ``retried_steps``,
   ``retry_substeps``).
+* ``is_output(n, stride)`` (default: every ``stride`` steps) and ``over_tolerance_note()``
+  (default None): which steps end on an output time, and what a finished run must say
+  (adaptive.py's controllers answer both their own way).
 
 :class:`ConstantStep` accepts every step or fails; :class:`DiscardHalving` rejects a
 step an FMU discards (fmi2Discard, FMI 2.0 sec. 4.2.3) and redoes it in halves, and with
@@ -65,6 +68,14 @@ class StepSizeController:
 
     def statistics(self) -> dict:
         return {"rejected_steps": 0, "retried_steps": 0, "retry_substeps": 0}
+
+    def is_output(self, n: int, stride: int) -> bool:
+        """Does the constant step ending at the master's step ``n`` end on an output time?"""
+        return n % stride == 0
+
+    def over_tolerance_note(self) -> str | None:
+        """What a finished run must say about steps accepted above a tolerance (error control), or None."""
+        return None
 
     def on_rejected(self, t_a: float, t_b: float, error: Exception) -> None:
         """Called after each rejected attempt, once it is rolled back (the master sets it

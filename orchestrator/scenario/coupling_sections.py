@@ -127,10 +127,10 @@ def load_step_control(ld, node) -> StepControlSpec | None:
                 v = None
             ok &= v is not None
             kw[key] = v
-    if "until" in section and isinstance(section["until"][1], yaml.ScalarNode) and ld.value(section["until"][1]) is None:
-        kw["until"] = None           # until: null, e.g. --set coupling.step_control.until=null: error control to the end
-    elif "until" in section:
-        n = section["until"][1]
+    n = section["until"][1] if "until" in section else None
+    if isinstance(n, yaml.ScalarNode) and ld.value(n) is None:
+        kw["until"] = None           # until: null (--set coupling.step_control.until=null): to the end
+    elif n is not None:
         v = ld.number(n, "coupling.step_control.until",
                       fix="give the time in seconds up to which the step is error-controlled, e.g. 0.06")
         if v is not None and kw.get("type") == "constant":
@@ -193,6 +193,19 @@ def check_atol_patterns(ld, coupling: dict | None, connections: list) -> None:
                                    f"{', '.join(names[:12])}{' ...' if len(names) > 12 else ''}")
 
 
+def _grid_slack(k: float, t0: float, t_stop: float, interval: float) -> float:
+    """How far (in output intervals) a time ``k`` intervals from t0 may be off the grid by rounding."""
+    return max(1e-9 * max(1.0, abs(k)), step_slack(t0, t_stop, interval))
+
+
+def until_reaches_stop(until: float, t0: float, t_stop: float, interval: float) -> bool:
+    """Is ``step_control.until`` at or after ``t_stop`` (to rounding)? Then the whole run is
+    error-controlled: the loader accepts it (:func:`until_problem`) and the master builds no
+    constant part (coupling/adaptive.py ``controller_from_spec``)."""
+    k = (until - t0) / interval
+    return k >= (t_stop - t0) / interval - _grid_slack(k, t0, t_stop, interval)
+
+
 def until_problem(spec, t0: float, t_stop: float, interval: float) -> str | None:
     """Why ``coupling.step_control.until`` (``spec.until``; None: not set) cannot be the time at which
     the error-controlled step hands over to constant steps, or None.
@@ -215,11 +228,11 @@ def until_problem(spec, t0: float, t_stop: float, interval: float) -> str | None
         return f"'coupling.step_control.until' must be a time in seconds (got {until!r}); e.g. 0.06"
     if not (t_stop > t0 and interval and interval > 0):
         return None                              # the times themselves are reported
+    if until_reaches_stop(until, t0, t_stop, interval):
+        return None                              # at or after stop_time: error-controlled to the end
     k = (until - t0) / interval
     n_out = (t_stop - t0) / interval                         # output intervals in the run
-    slack = max(1e-9 * max(1.0, abs(k)), step_slack(t0, t_stop, interval))
-    if k >= n_out - slack:
-        return None                              # at or after stop_time: error-controlled to the end
+    slack = _grid_slack(k, t0, t_stop, interval)
     j = round(k)
     on_grid = abs(k - j) <= slack
     last_j = math.ceil(n_out - slack) - 1                   # the last output time before stop_time
