@@ -63,7 +63,10 @@ def test_variants_the_fmus_cannot_save_state_for_are_refused_at_load(test_fmus, 
                     "    - {scheme: gauss-seidel, extrapolation_order: 1, macro_step: [0.2, 0.1]}\n"
                     "    - {scheme: iterative, macro_step: 0.1}\n"
                     "    - {name: gs-retry, scheme: gauss-seidel, macro_step: 0.1,\n"
-                    "       set: {coupling.discard_retries: 2}}\n")
+                    "       set: {coupling.discard_retries: 2}}\n"
+                    # defect_retries redoes steps from saved states as discard_retries does: the same refusal
+                    "    - {name: gs-defect, scheme: gauss-seidel, macro_step: 0.1,\n"
+                    "       set: {coupling.defect_retries: 3}}\n")
     assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
     err = capsys.readouterr().err
     assert "cmp.yaml:4: 'compare.reference' cannot run with these FMUs: 'coupling.scheme: iterative'" in err
@@ -73,6 +76,9 @@ def test_variants_the_fmus_cannot_save_state_for_are_refused_at_load(test_fmus, 
     assert ("cmp.yaml:8: 'compare.variants[2]' variant 'gs-retry' cannot run with these FMUs: "
             "coupling.discard_retries = 2 needs every FMU to save and restore its state") in err
     assert "set coupling.discard_retries: 0" in err
+    assert ("cmp.yaml:10: 'compare.variants[3]' variant 'gs-defect' cannot run with these FMUs: "
+            "coupling.defect_retries = 3 needs every FMU to save and restore its state") in err
+    assert "set coupling.defect_retries: 0" in err
     assert "gs-e1i0" not in err                          # the explicit variants are fine
     assert not (tmp_path / "out" / "runs").exists()
 
@@ -199,18 +205,3 @@ def test_a_string_signal_is_refused_at_load(test_fmus, tmp_path, capsys, listed)
     assert ("cmp.yaml:3: 'compare.signals' entry 't.s_out' is a String variable, which has no numeric error to "
             "measure") in err
     assert "'t.count'" not in err and "'t.b_out'" not in err
-
-
-def test_a_defect_retries_variant_the_fmus_cannot_save_state_for_is_refused_at_load(test_fmus, tmp_path, capsys):
-    """``coupling.defect_retries`` redoes steps from saved states like ``discard_retries``: the same
-    refusal at the variant's line, before any run."""
-    _two_mass(tmp_path, test_fmus["StepLimitedMass"], test_fmus["RightMass"])
-    path = _compare(tmp_path, "{scheme: gauss-seidel, macro_step: 0.01}",
-                    "    - {name: gs-defect, scheme: gauss-seidel, macro_step: 0.1,\n"
-                    "       set: {coupling.defect_retries: 3}}\n")
-    assert main_compare(path, out_dir=tmp_path / "out", runner=_never_runs, workers=1) == 2
-    err = capsys.readouterr().err
-    assert ("'compare.variants[0]' variant 'gs-defect' cannot run with these FMUs: coupling.defect_retries = 3 "
-            "needs every FMU to save and restore its state") in err
-    assert "set coupling.defect_retries: 0" in err
-    assert not (tmp_path / "out" / "runs").exists()
