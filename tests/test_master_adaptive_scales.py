@@ -196,3 +196,50 @@ def test_the_interface_jacobian_estimate_with_held_forces_is_of_order_two():
     assert order(measure="impulse") == 3
     assert order(atol=(("rotor.F*", 0.03),)) == 1          # the bearings' inputs count: raw order k + 1
     assert order(k=1) == 2
+
+
+class _Pair:
+    """A stepper stand-in for ``ErrorControlled.error``: the step's predicted and actual signals."""
+
+    def __init__(self, pred, actual):
+        self.pair = (np.asarray(pred, float), np.asarray(actual, float))
+        self.history = None
+
+    def error_signals(self):
+        return self.pair
+
+
+def test_a_force_vector_is_judged_by_its_length_in_any_frame():
+    """The running-scale atol of an interface-Jacobian force's components is rtol x the vector's
+    length (signal_scales.force_vectors), so the error test does not depend on how the frame
+    is turned against the load. Known answer: a journal carrying 30 N along y with 0.3 N
+    across it (a bearing at rest on its shell), the same defect of 0.5 N across the load,
+    the frame turned by 0 ... 90 deg. The scale of each component is between rtol |F| and
+    2 rtol |F| (atol plus the relative term), so the error may vary by 2x at most; with a
+    scale per component (before) it was 31x larger in the frame where the defect lay along
+    the 0.3 N component than where it lay along the 30 N one."""
+    from orchestrator.coupling.adaptive import ErrorControlled
+    from orchestrator.coupling.signal_scales import force_vectors
+
+    conns = ij_scenario(None).connections
+    names = [c.dst for c in conns]
+    ctl = ErrorControlled(StepControlSpec(type="error", rtol=0.1), t0=0.0, t_stop=1.0, h0=1e-4,
+                          interval=1e-3, order=1)
+    ctl.bind(names, conns)
+    jx, jy = names.index("rotor.Fx_1"), names.index("rotor.Fy_1")
+    assert force_vectors(names, [jx, jy], np.ones(len(names), bool)).tolist() == [[jx], [jy]]
+    errs = []
+    for a in np.radians([0.0, 30.0, 60.0, 89.0, 90.0]):
+        rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+        prev = np.zeros(len(names))
+        prev[[jx, jy]] = rot @ [0.3, 30.0]
+        actual = prev.copy()
+        actual[[jx, jy]] += rot @ [0.5, 0.0]              # the defect, across the load
+        err, worst = ctl.error(_Pair(prev, actual), prev, prev)
+        errs.append(err)
+        assert worst in (jx, jy)
+    assert max(errs) / min(errs) < 2.0, errs
+    # the size of the answer at 0 deg: 0.5 N against atol rtol |F| plus rtol x 0.8 N (the component
+    # after the defect), one signal of the mean over those in the norm
+    n = int(np.count_nonzero(np.isfinite(ctl.atol)))
+    assert errs[0] == pytest.approx(0.5 / (0.1 * math.hypot(0.3, 30.0) + 0.1 * 0.8) / math.sqrt(n), rel=1e-6)

@@ -61,8 +61,8 @@ import math
 import numpy as np
 
 from orchestrator.coupling.error_control import MIN_STEP_SLACK, PIController, next_stop, scaled_error_norm
-from orchestrator.coupling.signal_scales import (DEFAULT_ATOL, atol_vector, corrected_prediction, jacobian_groups,
-                                                  running_scale_mask)
+from orchestrator.coupling.signal_scales import (DEFAULT_ATOL, atol_vector, corrected_prediction, force_vectors,
+                                                  jacobian_groups, running_scale_mask)
 from orchestrator.coupling.signals import lagrange_weights
 from orchestrator.coupling.step_control import ConstantStep, DiscardHalving, StepSizeController
 from orchestrator.errors import CouplingError, FmuCallError
@@ -130,6 +130,7 @@ class ErrorControlled(StepSizeController):
         self.running = np.zeros(0, dtype=bool)  # signals whose atol is rtol x their running scale (bind)
         self.scale = np.zeros(0)               # largest |y| of those signals at accepted step ends so far
         self._run_idx = np.zeros(0, dtype=np.intp)  # np.flatnonzero(running), computed once (bind)
+        self._vec = np.zeros((2, 0), dtype=np.intp)  # (x columns, y columns) of force vectors sharing a scale (bind)
         self.limiting: dict[int, int] = {}     # signal index -> steps it had the largest error
         self.over_signals: dict[int, int] = {}  # signal index -> accepted steps it took above tolerance
         self.accepted = 0
@@ -169,6 +170,7 @@ class ErrorControlled(StepSizeController):
         self.running = running_scale_mask(self.spec.atol, len(names), nominals) & np.isfinite(self.atol)
         self.scale = np.zeros(len(names))
         self._run_idx = np.flatnonzero(self.running)
+        self._vec = force_vectors(self.signal_names, [j for j, _ in self.ij_groups], self.running)
         if self.ij_groups:
             forces = {j for j, _ in self.ij_groups}
             if self.ij_order and all(j in forces for j in np.flatnonzero(np.isfinite(self.atol))):
@@ -192,7 +194,11 @@ class ErrorControlled(StepSizeController):
         r = self._run_idx                      # indices, not the mask: half the cost per attempt
         if r.size and len(self.running) == len(b):
             atol = atol.copy()
-            atol[r] = np.maximum(DEFAULT_ATOL, self.spec.rtol * np.maximum(self.scale[r], np.abs(prev[r])))
+            size = np.abs(prev)
+            if self._vec.size:                 # a force vector's components: its length
+                vx, vy = self._vec
+                size[vx] = size[vy] = np.hypot(prev[vx], prev[vy])
+            atol[r] = np.maximum(DEFAULT_ATOL, self.spec.rtol * np.maximum(self.scale[r], size[r]))
         err, worst = scaled_error_norm(a, b, prev, rtol=self.spec.rtol, atol=atol)
         if self.impulse and h is not None:
             err *= h / self.grid.interval
@@ -246,6 +252,11 @@ class ErrorControlled(StepSizeController):
             r = self._run_idx
             if r.size:                       # only accepted values (a rejected attempt is rolled back)
                 self.scale[r] = np.maximum(self.scale[r], np.maximum(np.abs(prev[r]), np.abs(hist.store[1][r])))
+                if self._vec.size:
+                    vx, vy = self._vec
+                    new = hist.store[1]
+                    self.scale[vx] = self.scale[vy] = np.maximum.reduce(
+                        [self.scale[vx], self.scale[vy], np.hypot(prev[vx], prev[vy]), np.hypot(new[vx], new[vy])])
             if err > 1.0:
                 self.over_signals[worst] = self.over_signals.get(worst, 0) + 1
             if d.jump:          # restart the extrapolation from the value after the jump
