@@ -98,9 +98,23 @@ class FrontFilm:
     Unknown vector U = [g (n_z, M-1) row-major, F (n_z), Rr (n_z)], g = p - p0 [Pa],
     F = phi_f, Rr = phi_r + 2 pi [rad]."""
 
-    def __init__(self, n_z, M):
+    def __init__(self, n_z, M, grading="none"):
         self.nz, self.M = n_z, M
         self.dz = 1.0 / n_z
+        zeta_f = np.arange(n_z + 1) / n_z
+        zeta_c = (np.arange(n_z) + 0.5) / n_z
+        Z = (lambda s: s) if grading == "none" else (lambda s: 0.5 * (1.0 - np.cos(np.pi * s)))
+        self.zf = Z(zeta_f)                      # row faces (edges at 0 and 1)
+        self.zc = Z(zeta_c)                      # row centres
+        self.hz = np.diff(self.zf)               # row heights
+        # 3-point derivative weights at each row centre: rows (j-1, j, j+1); the first/last row
+        # use the edge (value 0 for g) as the outer point ("edge") or rows (0, 1, 2) ("front")
+        zc = self.zc
+        ext = np.concatenate([[0.0], zc, [1.0]])
+        self.w_edge = np.array([self._w3(ext[j], ext[j + 1], ext[j + 2], ext[j + 1]) for j in range(n_z)])
+        wf = [self._w3(zc[j - 1], zc[j], zc[j + 1], zc[j]) for j in range(1, n_z - 1)]
+        self.w_front = np.array([self._w3(zc[0], zc[1], zc[2], zc[0])] + wf
+                                + [self._w3(zc[-3], zc[-2], zc[-1], zc[-1])])
         self.dxi = 1.0 / M
         self.xi = np.arange(M + 1) / M
         self.xf = (np.arange(M) + 0.5) / M
@@ -130,14 +144,42 @@ class FrontFilm:
         return self.H(np.array(PHI_G)) * np.exp(-2.0 / omega * integ)
 
     # ------------------------------------------------------------------ helpers
+    @staticmethod
+    def _w3(a, b, c, x):
+        """Weights of the derivative at x of the parabola through points a, b, c."""
+        return np.array([((x - b) + (x - c)) / ((a - b) * (a - c)),
+                         ((x - a) + (x - c)) / ((b - a) * (b - c)),
+                         ((x - a) + (x - b)) / ((c - a) * (c - b))])
+
     def dz_rows(self, v):
-        """d v / dz at the row centres: central, one-sided 2nd order on the first/last row."""
+        """d v / dz at the row centres (front angles): 3-point, one-sided on the first/last row."""
+        w = self.w_front
         d = np.empty_like(v)
-        h = self.dz
-        d[1:-1] = (v[2:] - v[:-2]) / (2 * h)
-        d[0] = (-3 * v[0] + 4 * v[1] - v[2]) / (2 * h)
-        d[-1] = (3 * v[-1] - 4 * v[-2] + v[-3]) / (2 * h)
+        d[1:-1] = w[1:-1, 0] * v[:-2] + w[1:-1, 1] * v[1:-1] + w[1:-1, 2] * v[2:]
+        d[0] = w[0] @ v[:3]
+        d[-1] = w[-1] @ v[-3:]
         return d
+
+    def slope2_rows(self, v):
+        """(d v / dz)^2 at the row centres for the jump condition: the weighted mean of the
+        squared slopes of the two adjacent row faces (the weights of the 3-point derivative;
+        second order), not the square of the central difference, which is blind to an
+        odd-even zig-zag of the front (Newton cycled on it on graded rows); one-sided 3-point
+        derivative squared on the first and last row."""
+        w = self.w_front
+        s = np.diff(v) / np.diff(self.zc)
+        d2 = np.empty_like(v)
+        wm = self.w_front[1:-1, 0] * (self.zc[:-2] - self.zc[1:-1])   # = -(weight of F_{j-1}) * dz_-
+        d2[1:-1] = wm * s[:-1] ** 2 + (1 - wm) * s[1:] ** 2
+        d2[0] = (w[0] @ v[:3]) ** 2
+        d2[-1] = (w[-1] @ v[-3:]) ** 2
+        return d2
+
+    def dz_field(self, g):
+        """d g / dz at fixed xi at every node, g = 0 on the edges (3-point, non-uniform)."""
+        w = self.w_edge
+        ge = np.vstack([np.zeros(g.shape[1]), g, np.zeros(g.shape[1])])
+        return w[:, 0, None] * ge[:-2] + w[:, 1, None] * ge[1:-1] + w[:, 2, None] * ge[2:]
 
     def unpack(self, U):
         nz, M = self.nz, self.M
@@ -156,10 +198,8 @@ class FrontFilm:
         dF = self.dz_rows(F)
         dL = self.dz_rows(L)
         # z derivative of g at fixed xi, at every node (nz, M+1)
-        gz = np.empty_like(g)
-        gz[1:-1] = (g[2:] - g[:-2]) / (2 * dz)
-        gz[0] = g[0] / dz + g[1] / (3 * dz)           # edge value 0 at dz/2 below
-        gz[-1] = -(g[-1] / dz + g[-2] / (3 * dz))
+        gz = self.dz_field(g)
+        hz = self.hz[:, None]
         # xi faces (nz, M)
         phif = F[:, None] + self.xf[None, :] * L[:, None]
         Hf = self.H(phif)
@@ -170,37 +210,41 @@ class FrontFilm:
         Lc = L[:, None]
         qphi = omega * Hf - A_PHI * Hf3 * gxi / Lc
         qz = -A_Z * Hf3 * (gzf - Pf / Lc * gxi)
-        Gxi = (qphi - Pf * qz) * dz                     # (nz, M)
+        Gxi = (qphi - Pf * qz) * hz                     # (nz, M)
         # z faces at the interior nodes k = 1..M-1: faces 0..nz (nz+1, M-1)
         xi_i = self.xi[1:M]
         gxi_c = (g[:, 2:] - g[:, :-2]) / (2 * dxi)      # (nz, M-1) central xi derivative at nodes
         Gz = np.empty((nz + 1, M - 1))
-        Fm = 0.5 * (F[1:] + F[:-1])
-        Lm = 0.5 * (L[1:] + L[:-1])
-        dFm = (F[1:] - F[:-1]) / dz
-        dLm = (L[1:] - L[:-1]) / dz
+        dzc = np.diff(self.zc)
+        wl = (self.zc[1:] - self.zf[1:-1]) / dzc        # linear interpolation to the face
+        Fm = wl * F[:-1] + (1 - wl) * F[1:]
+        Lm = wl * L[:-1] + (1 - wl) * L[1:]
+        dFm = (F[1:] - F[:-1]) / dzc
+        dLm = (L[1:] - L[:-1]) / dzc
         ph = Fm[:, None] + xi_i[None, :] * Lm[:, None]
         Hm3 = self.H(ph) ** 3
-        gzm = (g[1:, 1:M] - g[:-1, 1:M]) / dz
-        gxim = 0.5 * (gxi_c[1:] + gxi_c[:-1])
+        gzm = (g[1:, 1:M] - g[:-1, 1:M]) / dzc[:, None]
+        gxim = wl[:, None] * gxi_c[:-1] + (1 - wl[:, None]) * gxi_c[1:]
         Pm = dFm[:, None] + xi_i[None, :] * dLm[:, None]
         Gz[1:-1] = Lm[:, None] * (-A_Z * Hm3 * (gzm - Pm / Lm[:, None] * gxim)) * dxi
+        z0, z1 = self.zc[0], self.zc[1]
         for e, (r0, r1, sgn) in enumerate(((0, 1, 1.0), (nz - 1, nz - 2, -1.0))):
-            Fe = 1.5 * F[r0] - 0.5 * F[r1]
-            Le = 1.5 * L[r0] - 0.5 * L[r1]
+            # F, L extrapolated linearly to the edge; edge distance z0 (symmetric grid)
+            Fe = F[r0] + (F[r0] - F[r1]) * z0 / (z1 - z0)
+            Le = L[r0] + (L[r0] - L[r1]) * z0 / (z1 - z0)
             He3 = self.H(Fe + xi_i * Le) ** 3
-            # flux in +z through the edge face: bottom: -(a_z H^3 (g0 - 0)/(dz/2)); top: +...
-            val = -A_Z * He3 * sgn * g[r0, 1:M] / (0.5 * dz) * Le * dxi
+            # flux in +z through the edge face: bottom -a_z H^3 g0/z0, top +a_z H^3 g/z0
+            val = -A_Z * He3 * sgn * g[r0, 1:M] / z0 * Le * dxi
             Gz[0 if e == 0 else nz] = val
-        src = 2.0 * self.Hdot(F[:, None] + xi_i[None, :] * Lc) * Lc * dxi * dz
+        src = 2.0 * self.Hdot(F[:, None] + xi_i[None, :] * Lc) * Lc * dxi * hz
         res_cv = Gxi[:, 1:] - Gxi[:, :-1] + Gz[1:] - Gz[:-1] + src
         # front equations
         Hr = self.H(Rr)
-        res_r = A_PHI * Hr ** 3 / L * (3 * g[:, M] - 4 * g[:, M - 1] + g[:, M - 2]) / (2 * dxi) * dz
+        res_r = A_PHI * Hr ** 3 / L * (3 * g[:, M] - 4 * g[:, M - 1] + g[:, M - 2]) / (2 * dxi) * self.hz
         Hfr = self.H(F)
         gxi0 = (-3 * g[:, 0] + 4 * g[:, 1] - g[:, 2]) / (2 * dxi)
         m = self.m_cavity(F)
-        res_f = ((A_PHI + A_Z * dF ** 2) * Hfr ** 3 * gxi0 / L - omega * (Hfr - m)) * dz
+        res_f = ((A_PHI + A_Z * self.slope2_rows(F)) * Hfr ** 3 * gxi0 / L - omega * (Hfr - m)) * self.hz
         return np.concatenate([res_cv.ravel(), res_f, res_r])
 
     # ------------------------------------------------------------------ Jacobian
@@ -260,19 +304,25 @@ class FrontFilm:
             dU = -spla.spsolve(Jm, r)
             dfr = np.max(np.abs(dU[NP:]))
             lam = min(1.0, 0.05 / dfr) if dfr > 0 else 1.0
+            # backtracking on the residual's 2-norm (the fronts' basin is small from an
+            # interpolated guess); a full step whenever it reduces the residual
+            r2 = np.linalg.norm(r)
+            dp = np.max(np.abs(dU[:NP]))
+            if dfr < tol_front and dp < tol_p:
+                return U + dU, it + 1
+            while lam > 1.0 / 256 and np.linalg.norm(self.residual(U + lam * dU)) > (1 - 1e-4 * lam) * r2:
+                lam *= 0.5
             U = U + lam * dU
             dp = np.max(np.abs(dU[:NP]))
             if verbose:
                 print(f"    it {it}: |r| {np.max(np.abs(r)):.3e} |dp| {dp:.3e} |dfront| {dfr:.3e} lam {lam}")
-            if lam == 1.0 and dfr < tol_front and dp < tol_p:
-                return U, it + 1
         raise RuntimeError(f"Newton did not converge: |dp| {dp:.3e} |dfront| {dfr:.3e}")
 
     def force(self, U):
         g, F, Rr = self.unpack(U)
         L = Rr - F
         phi = F[:, None] + self.xi[None, :] * L[:, None]
-        w = g * L[:, None] * self.dxi * self.dz
+        w = g * L[:, None] * self.dxi * self.hz[:, None]
         return np.array([-(w * np.cos(phi)).sum(), -(w * np.sin(phi)).sum()]) * R * B
 
     def initial(self, F, Rr):
@@ -284,8 +334,8 @@ class FrontFilm:
     def interp_from(self, other, Uo):
         """Initial guess on this grid from a solution on another (linear interpolation)."""
         go, Fo, Ro = other.unpack(Uo)
-        zo = (np.arange(other.nz) + 0.5) / other.nz
-        z = (np.arange(self.nz) + 0.5) / self.nz
+        zo = other.zc
+        z = self.zc
         F = np.interp(z, zo, Fo)
         Rr = np.interp(z, zo, Ro)
         # g on (z, xi): interpolate in xi per old row, then in z
@@ -299,12 +349,16 @@ class FrontFilm:
 
 
 def quantities(n, q, omega, U_guess=None, guess_film=None, mfac=0.5, coefficients=True,
-               rel=1e-3, verbose=False):
+               rel=1e-3, verbose=False, grading="none"):
     M = max(6, int(round(mfac * n)))
-    ff = FrontFilm(n, M)
+    ff = FrontFilm(n, M, grading)
     ff.set_kin(q[0], q[1], 0.0, 0.0, omega)
     if U_guess is None:
         U0 = ff.initial(np.full(n, math.radians(212.0)), np.full(n, 2 * math.pi + math.radians(20.0)))
+        if grading != "none":          # Newton from the crude guess fails on graded rows
+            fu = FrontFilm(n, M)
+            fu.set_kin(q[0], q[1], 0.0, 0.0, omega)
+            U0 = ff.interp_from(fu, fu.solve(fu.initial(U0[ff.NP:ff.NP + n], U0[ff.NP + n:]))[0])
     else:
         U0 = ff.interp_from(guess_film, U_guess)
     U, its = ff.solve(U0, verbose=verbose)
@@ -334,18 +388,20 @@ def main(argv=None):
     ap.add_argument("--mfac", type=float, default=0.5)
     ap.add_argument("--no-coef", action="store_true")
     ap.add_argument("-v", action="store_true")
+    ap.add_argument("--grading", default="none", choices=["none", "cos"],
+                    help="rows uniform in zbar (as the library) or z = (1 - cos(pi zeta)) / 2")
     a = ap.parse_args(argv)
     grids = [int(s) for s in a.grids.split(",")]
     omega = 2 * math.pi * gc.F_HZ
     q = gc.hs_equilibrium(40)
     print(f"fixed kinematics: x = {q[0]:.6e} m, y = {q[1]:.6e} m, {gc.F_HZ} Hz; a_phi {A_PHI:.6e}, "
-          f"a_z {A_Z:.6e}, phi_g {math.degrees(PHI_G):.2f} deg, M = {a.mfac} n")
+          f"a_z {A_Z:.6e}, phi_g {math.degrees(PHI_G):.2f} deg, M = {a.mfac} n, rows {a.grading}")
     rows = []
     prev = None
     for n in grids:
         t0 = time.time()
         o = quantities(n, q, omega, *(prev if prev else (None, None)), mfac=a.mfac,
-                       coefficients=not a.no_coef, verbose=a.v)
+                       coefficients=not a.no_coef, verbose=a.v, grading=a.grading)
         prev = (o["U"], o["ff"])
         g, F, Rr = o["ff"].unpack(o["U"])
         vals = list(o["F"]) + (list(o["coef"]) if "coef" in o else [])
