@@ -90,6 +90,7 @@ A_PHI = PSI ** 2 / (6 * ETA0)
 A_Z = (R / B) ** 2 * A_PHI
 PHI_G = gc.CASES["air"]["groove_angle"] + 0.5 * gc.CASES["air"]["groove_width"]   # 97.5 deg
 GL_X, GL_W = np.polynomial.legendre.leggauss(40)
+THETA_FEED = [1.0]      # theta of the oil leaving the groove (sharp JFO: 1; --theta-feed)
 
 
 class FrontFilm:
@@ -103,7 +104,9 @@ class FrontFilm:
         self.dz = 1.0 / n_z
         zeta_f = np.arange(n_z + 1) / n_z
         zeta_c = (np.arange(n_z) + 0.5) / n_z
-        Z = (lambda s: s) if grading == "none" else (lambda s: 0.5 * (1.0 - np.cos(np.pi * s)))
+        beta = {"none": 0.0, "cos": 1.0}.get(grading, None)
+        beta = float(grading) if beta is None else beta
+        Z = lambda s: (1 - beta) * s + beta * 0.5 * (1.0 - np.cos(np.pi * s))   # noqa: E731
         self.zf = Z(zeta_f)                      # row faces (edges at 0 and 1)
         self.zc = Z(zeta_c)                      # row centres
         self.hz = np.diff(self.zf)               # row heights
@@ -141,7 +144,7 @@ class FrontFilm:
         half = 0.5 * (F - a)
         ph = a + half[:, None] * (GL_X[None, :] + 1.0)
         integ = (self.Hdot(ph) / self.H(ph)) @ GL_W * half
-        return self.H(np.array(PHI_G)) * np.exp(-2.0 / omega * integ)
+        return THETA_FEED[0] * self.H(np.array(PHI_G)) * np.exp(-2.0 / omega * integ)
 
     # ------------------------------------------------------------------ helpers
     @staticmethod
@@ -382,6 +385,39 @@ def quantities(n, q, omega, U_guess=None, guess_film=None, mfac=0.5, coefficient
     return out
 
 
+def solve_at(n_z, M, q, omega, prev=None, grading="none"):
+    """Steady film on n_z rows x M intervals (warm from ``prev`` = (film, U) if given)."""
+    ff = FrontFilm(n_z, M, grading)
+    ff.set_kin(q[0], q[1], 0.0, 0.0, omega)
+    if prev is None:
+        U0 = ff.initial(np.full(n_z, math.radians(212.0)), np.full(n_z, 2 * math.pi + math.radians(20.0)))
+    else:
+        U0 = ff.interp_from(*prev)
+    U, _ = ff.solve(U0)
+    return ff, U
+
+
+def directions(q, omega):
+    """Refinement in one direction at a time: M = 20 ... 320 at n_z = 80, n_z = 20 ... 640 at
+    M = 80 (force only)."""
+    for label, pairs in (("xi (n_z = 80)", [(80, m) for m in (20, 40, 80, 160, 320)]),
+                         ("z (M = 80)", [(n, 80) for n in (20, 40, 80, 160, 320, 640)])):
+        prev = None
+        vals = []
+        for nz, M in pairs:
+            t0 = time.time()
+            prev = solve_at(nz, M, q, omega, prev)
+            vals.append(prev[0].force(prev[1]))
+            print(f"  {label}: {nz} x {M}: Fx {vals[-1][0]:.7f} Fy {vals[-1][1]:.7f} ({time.time() - t0:.1f} s)",
+                  flush=True)
+        v = np.array(vals)
+        for k, name in enumerate(("Fx", "Fy")):
+            d = np.diff(v[:, k])
+            o = [math.log2(d[i] / d[i + 1]) if d[i] / d[i + 1] > 0 else float("nan") for i in range(len(d) - 1)]
+            print(f"| {label} | {name} | " + " | ".join(f"{x:.7f}" for x in v[:, k]) + " | "
+                  + ", ".join(f"{x:+.2e}" for x in d) + " | " + ", ".join(f"{x:.2f}" for x in o) + " |")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--grids", default="20,40,80,160")
@@ -390,7 +426,16 @@ def main(argv=None):
     ap.add_argument("-v", action="store_true")
     ap.add_argument("--grading", default="none", choices=["none", "cos"],
                     help="rows uniform in zbar (as the library) or z = (1 - cos(pi zeta)) / 2")
+    ap.add_argument("--directions", action="store_true",
+                    help="refine xi and z separately (force only)")
+    ap.add_argument("--theta-feed", type=float, default=1.0,
+                    help="theta of the oil leaving the groove (a check against the library's law, "
+                         "whose theta(p_feed) is below 1)")
     a = ap.parse_args(argv)
+    THETA_FEED[0] = a.theta_feed
+    if a.directions:
+        directions(gc.hs_equilibrium(40), 2 * math.pi * gc.F_HZ)
+        return
     grids = [int(s) for s in a.grids.split(",")]
     omega = 2 * math.pi * gc.F_HZ
     q = gc.hs_equilibrium(40)
