@@ -352,8 +352,8 @@ class FrontFilm:
 
 
 def quantities(n, q, omega, U_guess=None, guess_film=None, mfac=0.5, coefficients=True,
-               rel=1e-3, verbose=False, grading="none"):
-    M = max(6, int(round(mfac * n)))
+               rel=1e-3, verbose=False, grading="none", M=None):
+    M = max(6, int(round(mfac * n))) if M is None else M
     ff = FrontFilm(n, M, grading)
     ff.set_kin(q[0], q[1], 0.0, 0.0, omega)
     if U_guess is None:
@@ -397,25 +397,55 @@ def solve_at(n_z, M, q, omega, prev=None, grading="none"):
     return ff, U
 
 
-def directions(q, omega):
+def _print_rows(label, grids, rows, names):
+    for k, name in enumerate(names):
+        v = np.array([r[k] for r in rows])
+        d = np.diff(v)
+        o = [math.log2(d[i] / d[i + 1]) if d[i + 1] != 0 and d[i] / d[i + 1] > 0 else float("nan")
+             for i in range(len(d) - 1)]
+        print(f"| {label} | {name} | " + " | ".join(f"{x:.7g}" for x in v) + " | "
+              + ", ".join(f"{x:+.2e}" for x in d) + " | " + ", ".join(f"{x:.2f}" for x in o) + " |")
+
+
+def directions(q, omega, coefficients=True):
     """Refinement in one direction at a time: M = 20 ... 320 at n_z = 80, n_z = 20 ... 640 at
-    M = 80 (force only)."""
+    M = 80 (force and, if ``coefficients``, the 8 coefficients)."""
     for label, pairs in (("xi (n_z = 80)", [(80, m) for m in (20, 40, 80, 160, 320)]),
                          ("z (M = 80)", [(n, 80) for n in (20, 40, 80, 160, 320, 640)])):
-        prev = None
-        vals = []
+        prev = (None, None)
+        rows = []
         for nz, M in pairs:
             t0 = time.time()
-            prev = solve_at(nz, M, q, omega, prev)
-            vals.append(prev[0].force(prev[1]))
-            print(f"  {label}: {nz} x {M}: Fx {vals[-1][0]:.7f} Fy {vals[-1][1]:.7f} ({time.time() - t0:.1f} s)",
-                  flush=True)
-        v = np.array(vals)
-        for k, name in enumerate(("Fx", "Fy")):
-            d = np.diff(v[:, k])
-            o = [math.log2(d[i] / d[i + 1]) if d[i] / d[i + 1] > 0 else float("nan") for i in range(len(d) - 1)]
-            print(f"| {label} | {name} | " + " | ".join(f"{x:.7f}" for x in v[:, k]) + " | "
-                  + ", ".join(f"{x:+.2e}" for x in d) + " | " + ", ".join(f"{x:.2f}" for x in o) + " |")
+            o = quantities(nz, q, omega, *prev, M=M, coefficients=coefficients)
+            prev = (o["U"], o["ff"])
+            rows.append(list(o["F"]) + (list(o["coef"]) if coefficients else []))
+            print(f"  {label}: {nz} x {M} ({time.time() - t0:.1f} s): "
+                  + ", ".join(f"{x:.8g}" for x in rows[-1]), flush=True)
+        _print_rows(label, pairs, rows, gc.NAMES[:len(rows[0])])
+
+
+def sweep(q, omega, n=40, mfac=0.5, k=8, step=1e-4):
+    """Force along x = x0 + i step c, i = -k..k, on one grid: its first and second differences
+    (smoothness in the journal position; the fixed-grid films jitter here)."""
+    M = max(6, int(round(mfac * n)))
+    ff = FrontFilm(n, M)
+    ff.set_kin(q[0], q[1], 0.0, 0.0, omega)
+    U0 = quantities(n, q, omega, M=M, coefficients=False)["U"]
+    Fs = []
+    for i in range(-k, k + 1):
+        ff.set_kin(q[0] + i * step * C, q[1], 0.0, 0.0, omega)
+        Fs.append(ff.force(ff.solve(U0)[0]))
+    Flib = [gc.mc_quantities("air", n, (q[0] + i * step * C, q[1]), omega, coefficients=False)
+            for i in range(-k, k + 1)]
+    for label, F in ((f"front tracking {n} x {n} (M = {M})", np.array(Fs)),
+                     (f"library film {n} x {n} (steady, Newton 1e-10 / 1e-11)", np.array(Flib))):
+        d1 = np.diff(F, axis=0) / (step * C)
+        d2 = np.diff(F, 2, axis=0) / (step * C) ** 2
+        print(f"{label}, x = x0 + i {step} c, i = -{k}..{k}")
+        print("  -dFx/dx [N/m]: " + " ".join(f"{-x:.5e}" for x in d1[:, 0]))
+        print("  -dFy/dx [N/m]: " + " ".join(f"{-x:.5e}" for x in d1[:, 1]))
+        print("  d2Fx/dx2 [N/m^2]: " + " ".join(f"{x:.3e}" for x in d2[:, 0]))
+        print("  d2Fy/dx2 [N/m^2]: " + " ".join(f"{x:.3e}" for x in d2[:, 1]))
 
 
 def main(argv=None):
@@ -427,14 +457,19 @@ def main(argv=None):
     ap.add_argument("--grading", default="none", choices=["none", "cos"],
                     help="rows uniform in zbar (as the library) or z = (1 - cos(pi zeta)) / 2")
     ap.add_argument("--directions", action="store_true",
-                    help="refine xi and z separately (force only)")
+                    help="refine xi and z separately (with --no-coef: force only)")
+    ap.add_argument("--sweep", action="store_true",
+                    help="force along x on 40 x 40: first and second differences")
     ap.add_argument("--theta-feed", type=float, default=1.0,
                     help="theta of the oil leaving the groove (a check against the library's law, "
                          "whose theta(p_feed) is below 1)")
     a = ap.parse_args(argv)
     THETA_FEED[0] = a.theta_feed
     if a.directions:
-        directions(gc.hs_equilibrium(40), 2 * math.pi * gc.F_HZ)
+        directions(gc.hs_equilibrium(40), 2 * math.pi * gc.F_HZ, not a.no_coef)
+        return
+    if a.sweep:
+        sweep(gc.hs_equilibrium(40), 2 * math.pi * gc.F_HZ, mfac=a.mfac)
         return
     grids = [int(s) for s in a.grids.split(",")]
     omega = 2 * math.pi * gc.F_HZ
