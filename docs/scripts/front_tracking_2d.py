@@ -58,9 +58,21 @@ perturbed state warm from the base state, as grid_convergence.py.
 ~165-190 deg of the circumference, so the circumferential spacing is about that of n cells
 over 2 pi).
 
-Run: ``PYTHONPATH=. nice -n 10 .venv/bin/python docs/scripts/front_tracking_2d.py
-[--grids 20,40,80,160] [--mfac 0.5] [--no-coef]`` (force and the 8 coefficients per grid;
-20 ... 160 in about N minutes, see docs/front-tracking-study.md).
+Run (from the repository root; docs/front-tracking-study.md has the results):
+``PYTHONPATH=. nice -n 10 .venv/bin/python docs/scripts/front_tracking_2d.py [options]``
+
+* default: force and the 8 coefficients on ``--grids`` (default 20,40,80,160; the study used
+  20,40,80,160,320: 74 s with ``--mfac 0.5``, 202 s with 1.0, 33 s with 0.25), a markdown table
+  with successive differences and orders;
+* ``--mfac F``: M = F n xi intervals (default 0.5); ``--no-coef``: force only;
+* ``--directions``: M = 20 ... 320 at n_z = 80 and n_z = 20 ... 640 at M = 80 (about 3 minutes;
+  22 s with ``--no-coef``);
+* ``--sweep``: force along x = x0 + i 1e-4 c, i = -8..8, on 40 x 40, first and second
+  differences, front tracking and the library film (5 s);
+* ``--theta-feed T``: theta of the oil leaving the groove (1 in the sharp model; 0.99745 is the
+  library law's theta(p_feed), the check against the library film in the study);
+* ``--grading cos`` (or a blend 0..1): rows clustered towards the edges; Newton fails from a
+  blend of 0.7 on (see the study), kept as the record.
 """
 
 from __future__ import annotations
@@ -426,7 +438,7 @@ def directions(q, omega, coefficients=True):
 
 def sweep(q, omega, n=40, mfac=0.5, k=8, step=1e-4):
     """Force along x = x0 + i step c, i = -k..k, on one grid: its first and second differences
-    (smoothness in the journal position; the fixed-grid films jitter here)."""
+    (smoothness in the journal position), and the same for the library film."""
     M = max(6, int(round(mfac * n)))
     ff = FrontFilm(n, M)
     ff.set_kin(q[0], q[1], 0.0, 0.0, omega)
