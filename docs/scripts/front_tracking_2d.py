@@ -69,6 +69,8 @@ Run (from the repository root; docs/front-tracking-study.md has the results):
   22 s with ``--no-coef``);
 * ``--sweep``: force along x = x0 + i 1e-4 c, i = -8..8, on 40 x 40, first and second
   differences, front tracking and the library film (5 s);
+* ``--check``: front tracking with theta_feed 0.99745 (40 rows, M = 320) against the library
+  film at cav_width 100 Pa on 768 x 40, force and coefficients (about 2 minutes);
 * ``--theta-feed T``: theta of the oil leaving the groove (1 in the sharp model; 0.99745 is the
   library law's theta(p_feed), the check against the library film in the study);
 * ``--grading cos`` (or a blend 0..1): rows clustered towards the edges; Newton fails from a
@@ -460,6 +462,23 @@ def sweep(q, omega, n=40, mfac=0.5, k=8, step=1e-4):
         print("  d2Fy/dx2 [N/m^2]: " + " ".join(f"{x:.3e}" for x in d2[:, 1]))
 
 
+def check_library(q, omega, theta_feed=0.99745):
+    """Force and coefficients of front tracking with the library law's theta(p_feed) (40 rows,
+    M = 320) against the library film at cav_width 100 Pa on 768 x 40 (about 2 minutes)."""
+    THETA_FEED[0] = theta_feed
+    t0 = time.time()
+    o1 = quantities(40, q, omega, M=40, coefficients=False)
+    o = quantities(40, q, omega, o1["U"], o1["ff"], M=320)
+    a = list(o["F"]) + list(o["coef"])
+    print(f"front tracking, 40 rows, M = 320, theta_feed {theta_feed} ({time.time() - t0:.1f} s): "
+          + ", ".join(f"{n} {x:.6g}" for n, x in zip(gc.NAMES, a)), flush=True)
+    t0 = time.time()
+    b = gc.mc_quantities("air", 768, q, omega, n_z=40, cav_width=100.0)
+    print(f"library film, 768 x 40, cav_width 100 Pa ({time.time() - t0:.1f} s): "
+          + ", ".join(f"{n} {x:.6g}" for n, x in zip(gc.NAMES, b)))
+    print("front tracking / library - 1: " + ", ".join(f"{n} {x / y - 1:+.2%}" for n, x, y in zip(gc.NAMES, a, b)))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--grids", default="20,40,80,160")
@@ -470,6 +489,8 @@ def main(argv=None):
                     help="rows uniform in zbar (as the library) or z = (1 - cos(pi zeta)) / 2")
     ap.add_argument("--directions", action="store_true",
                     help="refine xi and z separately (with --no-coef: force only)")
+    ap.add_argument("--check", action="store_true",
+                    help="theta_feed 0.99745 against the library film at cav_width 100 Pa")
     ap.add_argument("--sweep", action="store_true",
                     help="force along x on 40 x 40: first and second differences")
     ap.add_argument("--theta-feed", type=float, default=1.0,
@@ -479,6 +500,9 @@ def main(argv=None):
     THETA_FEED[0] = a.theta_feed
     if a.directions:
         directions(gc.hs_equilibrium(40), 2 * math.pi * gc.F_HZ, not a.no_coef)
+        return
+    if a.check:
+        check_library(gc.hs_equilibrium(40), 2 * math.pi * gc.F_HZ)
         return
     if a.sweep:
         sweep(gc.hs_equilibrium(40), 2 * math.pi * gc.F_HZ, mfac=a.mfac)
