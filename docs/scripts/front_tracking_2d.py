@@ -55,8 +55,8 @@ c omega (velocities: the squeeze source in the full film and in the cavity's m),
 perturbed state warm from the base state, as grid_convergence.py.
 
 "Square grid n": n_z = n rows and M = n / 2 intervals across the full film (which spans
-~165-190 deg of the circumference, so the circumferential spacing is about that of n cells
-over 2 pi).
+144 deg next to the edges to 170 deg at mid-width, so the circumferential spacing is about
+that of n cells over 2 pi).
 
 Run (from the repository root; docs/front-tracking-study.md has the results):
 ``PYTHONPATH=. nice -n 10 .venv/bin/python docs/scripts/front_tracking_2d.py [options]``
