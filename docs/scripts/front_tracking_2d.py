@@ -105,6 +105,7 @@ A_Z = (R / B) ** 2 * A_PHI
 PHI_G = gc.CASES["air"]["groove_angle"] + 0.5 * gc.CASES["air"]["groove_width"]   # 97.5 deg
 GL_X, GL_W = np.polynomial.legendre.leggauss(40)
 THETA_FEED = [1.0]      # theta of the oil leaving the groove (sharp JFO: 1; --theta-feed)
+SLOPE = ["faces"]       # Phi'^2 of the jump condition: "faces" or "upwind" (--slope)
 
 
 class FrontFilm:
@@ -130,6 +131,11 @@ class FrontFilm:
         ext = np.concatenate([[0.0], zc, [1.0]])
         self.w_edge = np.array([self._w3(ext[j], ext[j + 1], ext[j + 2], ext[j + 1]) for j in range(n_z)])
         wf = [self._w3(zc[j - 1], zc[j], zc[j + 1], zc[j]) for j in range(1, n_z - 1)]
+        lo = [(j, j + 1, j + 2) for j in range(n_z // 2)]
+        hi = [(j - 2, j - 1, j) for j in range(n_z // 2, n_z)]
+        self.up_idx = np.array(lo + hi)
+        self.w_up = np.array([self._w3(zc[a], zc[b], zc[c], zc[j])
+                              for j, (a, b, c) in enumerate(lo + hi)])
         self.w_front = np.array([self._w3(zc[0], zc[1], zc[2], zc[0])] + wf
                                 + [self._w3(zc[-3], zc[-2], zc[-1], zc[-1])])
         self.dxi = 1.0 / M
@@ -191,6 +197,18 @@ class FrontFilm:
         d2[0] = (w[0] @ v[:3]) ** 2
         d2[-1] = (w[-1] @ v[-3:]) ** 2
         return d2
+
+    def slope2_upwind(self, v):
+        """(d v / dz)^2 at the row centres from the one-sided 3-point derivative towards the
+        mid-plane (rows j, j+1, j+2 in the lower half, j-2, j-1, j in the upper half). Near the
+        edges the slope term dominates the jump condition (a_z Phi'^2 / a_phi up to 1.9), which
+        then is a first-order equation for the front along z; centred differences of it let odd
+        and even rows decouple (the front zig-zags next to the edges, and Newton fails on
+        edge-clustered rows), a one-sided difference does not."""
+        w = self.w_up
+        n = v.size
+        idx = self.up_idx
+        return (w * v[idx]).sum(axis=1) ** 2
 
     def dz_field(self, g):
         """d g / dz at fixed xi at every node, g = 0 on the edges (3-point, non-uniform)."""
@@ -261,7 +279,8 @@ class FrontFilm:
         Hfr = self.H(F)
         gxi0 = (-3 * g[:, 0] + 4 * g[:, 1] - g[:, 2]) / (2 * dxi)
         m = self.m_cavity(F)
-        res_f = ((A_PHI + A_Z * self.slope2_rows(F)) * Hfr ** 3 * gxi0 / L - omega * (Hfr - m)) * self.hz
+        s2 = self.slope2_rows(F) if SLOPE[0] == "faces" else self.slope2_upwind(F)
+        res_f = ((A_PHI + A_Z * s2) * Hfr ** 3 * gxi0 / L - omega * (Hfr - m)) * self.hz
         return np.concatenate([res_cv.ravel(), res_f, res_r])
 
     # ------------------------------------------------------------------ Jacobian
@@ -489,6 +508,9 @@ def main(argv=None):
                     help="rows uniform in zbar (as the library) or z = (1 - cos(pi zeta)) / 2")
     ap.add_argument("--directions", action="store_true",
                     help="refine xi and z separately (with --no-coef: force only)")
+    ap.add_argument("--slope", default="faces", choices=["faces", "upwind"],
+                    help="Phi'^2 in the jump condition: mean of the squared face slopes (the first "
+                         "tables) or the one-sided derivative towards the mid-plane")
     ap.add_argument("--check", action="store_true",
                     help="theta_feed 0.99745 against the library film at cav_width 100 Pa")
     ap.add_argument("--sweep", action="store_true",
@@ -498,6 +520,7 @@ def main(argv=None):
                          "whose theta(p_feed) is below 1)")
     a = ap.parse_args(argv)
     THETA_FEED[0] = a.theta_feed
+    SLOPE[0] = a.slope
     if a.directions:
         directions(gc.hs_equilibrium(40), 2 * math.pi * gc.F_HZ, not a.no_coef)
         return
