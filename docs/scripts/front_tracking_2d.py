@@ -16,11 +16,12 @@ Units and conventions of bearing_fmu/film.py: developed film (phi, zbar), zbar i
   per row the Couette content m = theta H = H(phi_g) (the groove's true width enters only
   here, exactly), transported without axial flow (p is flat) with the squeeze term
   ``omega dm/dphi = -2 m Hdot / H``.
-* One full film per row, from the reformation front phi_f(z) (~207-221 deg) through the
-  minimum gap (-10 deg) to the rupture front phi_r(z) (~14-23 deg, unwrapped + 2 pi); it does
+* One full film per row, from the reformation front phi_f(z) (206.6 deg at mid-width, 222 deg
+  next to the edges) through the minimum gap (-10 deg) to the rupture front phi_r(z) (16.4 deg
+  at mid-width, 4 deg next to the edges; unwrapped + 2 pi); it does
   not touch the groove. Edges zbar = 0, 1: p = p0 (Dirichlet; the library's penalty edge,
   b = 1e4, is the Dirichlet value +0.03 % in load, docs/bearing-validation.md).
-  The cavity between the rupture and the groove (14-82.5 deg) is at p0 and carries no load.
+  The cavity between the rupture and the groove (up to 82.5 deg) is at p0 and carries no load.
 * Rupture (Reynolds / Swift-Stieber): p = p_cav and grad p = 0 (p_phi = 0 suffices: p_z
   vanishes along the front).
 * Reformation, the jump condition with the front's full normal (front phi = Phi(z), flux
@@ -40,8 +41,13 @@ face), central z differences averaged to the face for the cross term, z faces wi
 front positions averaged from the two rows and Phi' as their difference, the edge face at
 p0 (half-row distance, F and L extrapolated linearly to the edge). Front equations per row:
 rupture ``(3 p_M - 4 p_{M-1} + p_{M-2}) = 0`` (one-sided p_xi = 0), reformation the jump
-condition with the one-sided second-order p_xi; Phi' per row by central differences
-(one-sided second order on the first and last row). The unknowns are p at the nodes and the
+condition with the one-sided second-order p_xi. Phi' in the cross terms: 3-point central
+differences (one-sided on the first and last row); Phi'^2 in the jump condition (``--slope``):
+"faces", the weighted mean of the squared slopes of the two adjacent row faces (the first
+version), or "upwind", the square of the one-sided 3-point derivative towards the mid-plane.
+Near the edges the slope term dominates the jump condition, which then is a first-order
+equation for the front along z; with "faces" odd and even rows decouple next to the edges
+(the front zig-zags and Newton fails on edge-clustered rows), with "upwind" they do not. The unknowns are p at the nodes and the
 2 n_z front angles; the discrete problem is a smooth (C-infinity) function of them and of the
 journal state: no cell switches on or off as a front moves (this is a moving-mesh front
 tracking, not a cut cell on the library's fixed grid).
@@ -73,8 +79,11 @@ Run (from the repository root; docs/front-tracking-study.md has the results):
   film at cav_width 100 Pa on 768 x 40, force and coefficients (about 2 minutes);
 * ``--theta-feed T``: theta of the oil leaving the groove (1 in the sharp model; 0.99745 is the
   library law's theta(p_feed), the check against the library film in the study);
-* ``--grading cos`` (or a blend 0..1): rows clustered towards the edges; Newton fails from a
-  blend of 0.7 on (see the study), kept as the record.
+* ``--slope faces|upwind``: Phi'^2 of the jump condition (default faces, the first version;
+  upwind: every table of part B of the study);
+* ``--grading cos`` (or a blend 0..1): rows at z = (1 - cos(pi zeta)) / 2, clustered towards
+  the edges (with ``--slope faces`` Newton fails from a blend of about 0.7 on; with upwind it
+  converges: 81 s for 20 ... 320 with the coefficients).
 """
 
 from __future__ import annotations
