@@ -47,7 +47,8 @@ differences (one-sided on the first and last row); Phi'^2 in the jump condition 
 version), or "upwind", the square of the one-sided 3-point derivative towards the mid-plane.
 Near the edges the slope term dominates the jump condition, which then is a first-order
 equation for the front along z; with "faces" odd and even rows decouple next to the edges
-(the front zig-zags and Newton fails on edge-clustered rows), with "upwind" they do not. The unknowns are p at the nodes and the
+(the front zig-zags and Newton fails on edge-clustered rows), with "upwind" they do not. The
+unknowns are p at the nodes and the
 2 n_z front angles; the discrete problem is a smooth (C-infinity) function of them and of the
 journal state: no cell switches on or off as a front moves (this is a moving-mesh front
 tracking, not a cut cell on the library's fixed grid).
@@ -64,7 +65,7 @@ perturbed state warm from the base state, as grid_convergence.py.
 144 deg next to the edges to 170 deg at mid-width, so the circumferential spacing is about
 that of n cells over 2 pi).
 
-Run (from the repository root; docs/front-tracking-study.md has the results):
+Run (from the repository root; docs/bearing-validation.md, "Front tracking", has the results):
 ``PYTHONPATH=. nice -n 10 .venv/bin/python docs/scripts/front_tracking_2d.py [options]``
 
 * default: force and the 8 coefficients on ``--grids`` (default 20,40,80,160; the study used
@@ -215,7 +216,6 @@ class FrontFilm:
         and even rows decouple (the front zig-zags next to the edges, and Newton fails on
         edge-clustered rows), a one-sided difference does not."""
         w = self.w_up
-        n = v.size
         idx = self.up_idx
         return (w * v[idx]).sum(axis=1) ** 2
 
@@ -235,7 +235,7 @@ class FrontFilm:
 
     # ------------------------------------------------------------------ residual
     def residual(self, U):
-        nz, M, dz, dxi = self.nz, self.M, self.dz, self.dxi
+        nz, M, dxi = self.nz, self.M, self.dxi
         omega = self.kin[4]
         g, F, Rr = self.unpack(U)
         L = Rr - F
