@@ -36,6 +36,22 @@ def test_pi_controller_settles_where_its_fixed_point_says(p):
     assert c.rejected == 0
 
 
+def test_the_order_of_one_decision_can_be_given():
+    """``decide(..., order=q)`` is the decision of a controller of order q: a first-order
+    controller told the order of a second-order error each time takes the step sequence of the
+    second-order controller, bit for bit (ErrorControlled passes the order of the signal that
+    limits the step, an interface-Jacobian force's 2 where the norm also holds first-order
+    kinematics)."""
+    told = PIController(order=1, min_step=1e-9, max_step=1.0)
+    second = PIController(order=2, min_step=1e-9, max_step=1.0)
+    h1 = h2 = 1e-5
+    for _ in range(60):
+        d1, d2 = told.decide(h1, (h1 / 1e-3) ** 2, order=2), second.decide(h2, (h2 / 1e-3) ** 2)
+        assert (d1.accept, d1.h_next) == (d2.accept, d2.h_next)
+        h1, h2 = d1.h_next, d2.h_next
+    assert told.p == 1                   # the controller's own order is unchanged
+
+
 def test_rejection_shrinks_the_step_and_the_next_step_does_not_grow():
     c = PIController(order=2, min_step=1e-9, max_step=1.0)
     d = c.decide(1e-2, 100.0)

@@ -243,3 +243,23 @@ def test_a_force_vector_is_judged_by_its_length_in_any_frame():
     # after the defect), one signal of the mean over those in the norm
     n = int(np.count_nonzero(np.isfinite(ctl.atol)))
     assert errs[0] == pytest.approx(0.5 / (0.1 * math.hypot(0.3, 30.0) + 0.1 * 0.8) / math.sqrt(n), rel=1e-6)
+
+
+def test_the_step_limited_by_an_interface_jacobian_force_is_controlled_at_its_order():
+    """With first-order kinematics in the norm the controller's p is 1 (k + 1, hold); a step whose
+    largest error is an interface-Jacobian force is decided at that force's order (2,
+    ij_order_of), any other at p; with only the forces in the norm p is already 2."""
+    from orchestrator.coupling.adaptive import ErrorControlled
+
+    conns = ij_scenario(None).connections
+    names = [c.dst for c in conns]
+    ctl = ErrorControlled(StepControlSpec(type="error", rtol=0.1), t0=0.0, t_stop=1.0, h0=1e-4,
+                          interval=1e-3, order=1, ij_order=2)
+    ctl.bind(names, conns)
+    assert ctl.pi.p == 1
+    assert ctl._order_of(names.index("rotor.Fy_1")) == 2
+    assert ctl._order_of(names.index("bearing.vx")) is None
+    only = ErrorControlled(StepControlSpec(type="error", rtol=0.1, atol=(("bearing.*", math.inf),)), t0=0.0,
+                           t_stop=1.0, h0=1e-4, interval=1e-3, order=1, ij_order=2)
+    only.bind(names, conns)
+    assert only.pi.p == 2 and only._order_of(names.index("rotor.Fy_1")) is None

@@ -131,6 +131,7 @@ class ErrorControlled(StepSizeController):
         self.scale = np.zeros(0)               # largest |y| of those signals at accepted step ends so far
         self._run_idx = np.zeros(0, dtype=np.intp)  # np.flatnonzero(running), computed once (bind)
         self._vec = np.zeros((2, 0), dtype=np.intp)  # (x columns, y columns) of force vectors sharing a scale (bind)
+        self._ij_forces: set[int] = set()      # columns of the interface-Jacobian forces (bind)
         self.limiting: dict[int, int] = {}     # signal index -> steps it had the largest error
         self.over_signals: dict[int, int] = {}  # signal index -> accepted steps it took above tolerance
         self.accepted = 0
@@ -171,12 +172,20 @@ class ErrorControlled(StepSizeController):
         self.scale = np.zeros(len(names))
         self._run_idx = np.flatnonzero(self.running)
         self._vec = force_vectors(self.signal_names, [j for j, _ in self.ij_groups], self.running)
+        self._ij_forces = {j for j, _ in self.ij_groups}
         if self.ij_groups:
             forces = {j for j, _ in self.ij_groups}
             if self.ij_order and all(j in forces for j in np.flatnonzero(np.isfinite(self.atol))):
                 self.pi.p = self.ij_order      # only IJ defects in the norm: their order (ij_order_of)
             log.info("error-controlled step: interface-Jacobian estimate for %s (order %d)",
                      ", ".join(self.signal_names[j] for j, _ in self.ij_groups), self.pi.p)
+
+    def _order_of(self, worst: int) -> int | None:
+        """Order in H of the defect of the signal ``worst`` when it is an interface-Jacobian force
+        and that order differs from the controller's (None: the controller's own p)."""
+        if self.ij_order and self.ij_order != self.pi.p and worst in self._ij_forces:
+            return self.ij_order
+        return None
 
     def error(self, stepper, pred: np.ndarray, prev: np.ndarray, h: float | None = None) -> tuple[float, int]:
         """Scaled local error of the step of size ``h`` just committed (module docstring, item 4);
@@ -229,7 +238,7 @@ class ErrorControlled(StepSizeController):
                     h_retry, why, last = self.pi.discarded(t_end - t), e, f"the last discarded by an FMU: {e}"
                 else:
                     err, worst = self.error(stepper, pred, prev, t_end - t)
-                    d = self.pi.decide(t_end - t, err)
+                    d = self.pi.decide(t_end - t, err, order=self._order_of(worst))
                     if d.accept:
                         h_retry = None
                     else:

@@ -138,9 +138,11 @@ class PIController:
         self.after_reject = True
         return self._clip(0.5 * h)
 
-    def decide(self, h: float, err: float) -> Decision:
-        """Accept or reject the step of size ``h`` with scaled error ``err``; propose the next step."""
-        p = self.p
+    def decide(self, h: float, err: float, order: int | None = None) -> Decision:
+        """Accept or reject the step of size ``h`` with scaled error ``err``; propose the next step
+        (``order``: the estimate's order for this decision, when the signal that set ``err`` has
+        another than ``p``)."""
+        p = self.p if order is None else int(order)
         if not math.isfinite(err):
             err = 1e6
         if err > 1.0 and self.can_reject and h > self.min_step * MIN_STEP_SLACK:
