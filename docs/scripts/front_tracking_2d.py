@@ -411,17 +411,11 @@ def quantities(n, q, omega, U_guess=None, guess_film=None, mfac=0.5, coefficient
     out = dict(ff=ff, U=U, its=its, F=F0)
     if not coefficients:
         return out
-    steps = [rel * C, rel * C, rel * C * omega, rel * C * omega]
-    D = np.empty((2, 4))
-    for jj in range(4):
-        fs = []
-        for sgn in (1, -1):
-            z = [q[0], q[1], 0.0, 0.0]
-            z[jj] += sgn * steps[jj]
-            ff.set_kin(z[0], z[1], z[2], z[3], omega)
-            Up, _ = ff.solve(U)
-            fs.append(ff.force(Up))
-        D[:, jj] = -(fs[0] - fs[1]) / (2 * steps[jj])
+    def force_at(z):
+        ff.set_kin(z[0], z[1], z[2], z[3], omega)
+        return ff.force(ff.solve(U)[0])
+
+    D = gc.central_coefficients(force_at, q, omega, C, rel)
     ff.set_kin(q[0], q[1], 0.0, 0.0, omega)
     out["coef"] = np.concatenate([D[:, :2].ravel(), D[:, 2:].ravel()])
     return out

@@ -69,6 +69,22 @@ def hs_equilibrium(n=40):
     return pcr.equilibrium(b, LOAD, 2 * math.pi * F_HZ)
 
 
+def central_coefficients(force_at, q, omega, c, rel=1e-3):
+    """-dF/d(x, y, vx, vy) (2 x 4) of a steady film at the journal position q by central
+    differences: ``force_at(z)`` solves the film at the journal state z = [x, y, vx, vy] and
+    returns (Fx, Fy); steps rel * c for the positions and rel * c * omega for the velocities."""
+    steps = [rel * c, rel * c, rel * c * omega, rel * c * omega]
+    D = np.empty((2, 4))
+    for j in range(4):
+        fs = []
+        for sgn in (1, -1):
+            z = [q[0], q[1], 0.0, 0.0]
+            z[j] += sgn * steps[j]
+            fs.append(np.asarray(force_at(z)))
+        D[:, j] = -(fs[0] - fs[1]) / (2 * steps[j])
+    return D
+
+
 def mc_quantities(case, n, q, omega, rel=1e-3, n_z=None, coefficients=True, prepare=None, **kw):
     """Force and quasi-steady coefficients of the steady mass-conserving film (n x n cells,
     ``n_z``: n x n_z; ``kw``: further BearingParams); only the force if not
@@ -88,24 +104,19 @@ def mc_quantities(case, n, q, omega, rel=1e-3, n_z=None, coefficients=True, prep
     F0 = np.array([b.outputs["Fx"], b.outputs["Fy"]])
     if not coefficients:
         return F0
-    c = b.c
-    steps = [rel * c, rel * c, rel * c * omega, rel * c * omega]
-    D = np.empty((2, 4))
-    for j in range(4):
-        fs = []
-        for sgn in (1, -1):
-            z = [q[0], q[1], 0.0, 0.0]
-            z[j] += sgn * steps[j]
-            kin = b._kinematics(z[0], z[1], z[2], z[3], omega)
-            if before_solve is not None:
-                before_solve(kin, z)
-            u, _ = b._steady_newton(kin, u0, np.zeros_like(u0), 40)   # warm start
-            if u is None:
-                u = b._steady(kin, u0)
-            p, th = b.law.p_theta(u)
-            from bearing_fmu.linearize import _force
-            fs.append(_force(b, p, th, kin))
-        D[:, j] = -(fs[0] - fs[1]) / (2 * steps[j])
+
+    def force_at(z):
+        kin = b._kinematics(z[0], z[1], z[2], z[3], omega)
+        if before_solve is not None:
+            before_solve(kin, z)
+        u, _ = b._steady_newton(kin, u0, np.zeros_like(u0), 40)   # warm start
+        if u is None:
+            u = b._steady(kin, u0)
+        p, th = b.law.p_theta(u)
+        from bearing_fmu.linearize import _force
+        return _force(b, p, th, kin)
+
+    D = central_coefficients(force_at, q, omega, b.c, rel)
     return np.concatenate([F0, D[:, :2].ravel(), D[:, 2:].ravel()])
 
 
