@@ -31,10 +31,10 @@ One scale for a force vector (:func:`force_vectors`)
 The components ``U.Fx_i``, ``U.Fy_i`` of an interface-Jacobian force (below) that both take the
 running scale share it: s is the largest length |(Fx, Fy)| so far, and an attempt's atol uses at
 least the length at its start. A defect is judged against the force the rotor integrates, not
-against one component's size: with a scale per component a journal resting on its shell (29 N
-along y, 0.3 N of friction along x) held its x defects 30 times tighter than its y defects, and
-the error test changed with the turn of the frame (docs/coupling.md, "One scale for a force
-vector").
+against one component's size: with a scale per component the first 60 ms of the free-to-air
+run-up from rest (a journal on its shell, 29 N along y, a few newtons along x) held its x defects
+15 times tighter than its y defects, and the error test changed with the turn of the frame
+(docs/coupling.md, "One scale for a force vector").
 
 Interface-Jacobian estimate
 ---------------------------
