@@ -421,18 +421,6 @@ def quantities(n, q, omega, U_guess=None, guess_film=None, mfac=0.5, coefficient
     return out
 
 
-def solve_at(n_z, M, q, omega, prev=None, grading="none"):
-    """Steady film on n_z rows x M intervals (warm from ``prev`` = (film, U) if given)."""
-    ff = FrontFilm(n_z, M, grading)
-    ff.set_kin(q[0], q[1], 0.0, 0.0, omega)
-    if prev is None:
-        U0 = ff.initial(np.full(n_z, math.radians(212.0)), np.full(n_z, 2 * math.pi + math.radians(20.0)))
-    else:
-        U0 = ff.interp_from(*prev)
-    U, _ = ff.solve(U0)
-    return ff, U
-
-
 def _print_rows(label, grids, rows, names):
     for k, name in enumerate(names):
         v = np.array([r[k] for r in rows])

@@ -174,8 +174,7 @@ class ErrorControlled(StepSizeController):
         self._vec = force_vectors(self.signal_names, [j for j, _ in self.ij_groups], self.running)
         self._ij_forces = {j for j, _ in self.ij_groups}
         if self.ij_groups:
-            forces = {j for j, _ in self.ij_groups}
-            if self.ij_order and all(j in forces for j in np.flatnonzero(np.isfinite(self.atol))):
+            if self.ij_order and all(j in self._ij_forces for j in np.flatnonzero(np.isfinite(self.atol))):
                 self.pi.p = self.ij_order      # only IJ defects in the norm: their order (ij_order_of)
             log.info("error-controlled step: interface-Jacobian estimate for %s (order %d)",
                      ", ".join(self.signal_names[j] for j, _ in self.ij_groups), self.pi.p)
