@@ -28,6 +28,34 @@ def test_f52_closed_form_matches_its_integral(H):
     assert float(F52(H)) == pytest.approx(f52_quad(H), rel=1e-7)
 
 
+def test_f52_series_matches_the_integral_over_its_range():
+    """The compiled series the force uses (contact.f52_series) against the definition
+    integrated independently here, on points that are not its interpolation nodes."""
+    from bearing_fmu.contact import CHEB_LO, f52_cheb, f52_series
+    coef = f52_series()
+    H = np.linspace(CHEB_LO, H_CUTOFF, 57) + 0.0123
+    H = H[H <= H_CUTOFF]
+    rel = [f52_cheb(h, coef) / f52_quad(h) - 1.0 for h in H]
+    assert max(abs(r) for r in rel) < 2e-12
+
+
+def test_normal_force_beyond_the_series_uses_the_closed_form():
+    """Deeper than CHEB_LO (e = 1.2 c: H down to -9.1) the force comes from F52 itself; at the
+    series' lower end both give the same force."""
+    from bearing_fmu.contact import CHEB_LO
+    kw = dict(c=C, R=R, B=B, sigma=KW["sigma"], KE=KW["KE"])
+    deep = 1.2 * C
+    assert (C - deep) / KW["sigma"] < CHEB_LO
+    psi6 = math.acos((C - H_CUTOFF * KW["sigma"]) / deep)
+    closed = 2 * R * B * KW["KE"] * quad(
+        lambda p: float(F52((C - deep * math.cos(p)) / KW["sigma"])) * math.cos(p), 0.0, psi6,
+        epsrel=1e-12, limit=200)[0]
+    assert normal_force(deep, **kw) == pytest.approx(closed, rel=1e-9)
+    edge = C - CHEB_LO * KW["sigma"]                 # H = CHEB_LO exactly at psi = 0
+    below, above = normal_force(edge * (1 + 1e-12), **kw), normal_force(edge * (1 - 1e-12), **kw)
+    assert below == pytest.approx(above, rel=1e-9)
+
+
 def force_by_quadrature(x, y, vx, vy, omega, *, c, R, B, sigma, KE, mu):
     """Contact force ON the journal by adaptive quadrature over the whole circumference,
     h(phi) = c - x cos phi - y sin phi, friction against the sliding direction; no
