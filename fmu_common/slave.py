@@ -35,6 +35,27 @@ def journal_kinematics(journal: str = "") -> dict[str, tuple[str, str]]:
     }
 
 
+#: FMI ``nominal`` (sec. 2.2.7, the typical size of a variable, for scaling) of the interface
+#: signals whose typical size is not the size they start from: the rotor speed starts at 0 in a
+#: run-up from rest, so a tolerance relative to the size it has had so far asks for a step that
+#: resolves the first rad/s (rotorcosim's error-controlled step forced its first 4 steps to
+#: min_step on it: orchestrator/coupling/signal_scales.py); 1000 rad/s is the order of the speeds
+#: of our machines (the Jeffcott run-up to 5027 rad/s, the turbocharger to 660 rad/s). Declared on
+#: the rotors' output and the bearings' input alike (:func:`finish_model_description`).
+NOMINALS: dict[str, float] = {"omega": 1000.0}
+
+
+def declare_nominals(root: Element, nominals: dict[str, float]) -> Element:
+    """Write ``nominal`` on the Real element of the variables named in ``nominals``; names the
+    FMU lacks are ignored."""
+    for sv in root.iter("ScalarVariable"):
+        value = nominals.get(sv.get("name"))
+        el = sv.find("Real")
+        if value is not None and el is not None:
+            el.set("nominal", repr(float(value)))
+    return root
+
+
 class RealU(Real):
     """PythonFMU ``Real`` with an FMI ``unit`` attribute."""
 
@@ -100,10 +121,12 @@ def finish_model_description(root: Element, units: set[str], table: dict[str, di
       the parameters and inputs.
 
     * ``min``/``max`` of the parameters in ``ranges`` (:func:`declare_ranges`), the values of
-      the String parameters in ``choices`` (:func:`declare_choices`).
+      the String parameters in ``choices`` (:func:`declare_choices`), the ``nominal`` of the
+      interface signals in :data:`NOMINALS` (:func:`declare_nominals`).
 
     ``table``: unit name -> base-unit exponents (the slave's ``UNITS``).
     """
+    declare_nominals(root, NOMINALS)
     if ranges:
         declare_ranges(root, ranges)
     if choices:

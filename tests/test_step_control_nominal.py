@@ -106,3 +106,20 @@ def test_declared_nominals_set_the_atol_of_a_real_fmu_run(test_fmus, tmp_path):
     n_plain = runs["plain"]["fmu_calls"]["left"]["doStep"]
     n_nom = runs["nominal"]["fmu_calls"]["left"]["doStep"]
     assert n_nom < n_plain
+
+
+def test_the_rotor_speed_declares_a_nominal_so_a_run_from_rest_is_not_held_on_it(tmp_path):
+    """Our rotors' ``omega`` output and the bearings' input declare nominal 1000 rad/s
+    (fmu_common/slave.py NOMINALS). The from-rest run-up starts at omega = 0: with only the
+    running scale (the size the signal has had so far) its first defect was 1/rtol of itself
+    whatever the step, and the first 4 steps were forced to min_step on bearing1.omega (shipped
+    scenario before the nominal). Now omega takes rtol x 1000 rad/s and limits no step."""
+    root = Path(__file__).resolve().parents[1]
+    sc = load_scenario(root / "scenarios" / "jeffcott_runup_free_to_air_from_rest.yaml",
+                       ["stop_time=0.0005", "coupling.step_control={type: error, rtol: 0.05}",
+                        "coupling.discard_retries=0", "coupling.defect_retries=0"], build_fmus=True)
+    res = run(sc, out_dir=tmp_path / "run")
+    assert res.status.name == "FINISHED", res.message
+    ctl = json.loads((tmp_path / "run" / "summary.json").read_text())["step_control"]
+    assert sorted(ctl["atol_from_nominal"]) == ["bearing1.omega", "bearing2.omega"]
+    assert not any("omega" in s for s in ctl["limiting_signals"])   # bearing1.omega: 4 before
