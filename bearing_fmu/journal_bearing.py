@@ -376,8 +376,9 @@ class JournalBearing(Fmi2Slave):
         self._values["linearize_tol"] = 0.0
         self._register_real("linearize_tol", "1", (
             "with linearize >= 1: a due refresh of kxx..cyy is skipped while the inputs stay "
-            "within this distance of those of the last refresh (max of |dx|, |dy| / C, |dvx|, "
-            "|dvy| / (C max(|omega|, 1000/s)), |domega| / max(|omega|, 1/s)); 0: no skipping"),
+            "within this distance of those of the last refresh (max of |dx|, |dy| / g, |dvx|, "
+            "|dvy| / (g max(|omega|, 1000/s)), |domega| / max(|omega|, 1/s), g = C (1 - eps) the "
+            "smallest gap there, at least 0.01 C); 0: no skipping"),
                             causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed)
         units.add("s")
         check_shipped_layout(self)
@@ -595,18 +596,32 @@ def write_fields(name: str, **arrays) -> Path:
     return path
 
 
+#: smallest gap (fraction of c) :func:`coefficients_moved` measures a distance in (eps >= 0.99)
+GAP_FLOOR = 0.01
+
+
 def coefficients_moved(at, now, c: float) -> float:
     """Distance of the inputs ``now`` = (x, y, vx, vy, omega) from ``at`` in the scale of the
-    film coefficients: positions in units of the clearance c, velocities in units of
-    c max(|omega|, 1000/s) (the journal's surface-speed scale; 1000/s at rest, as the
-    linearization's t_ref = 1 ms), the speed relative to max(|omega|, 1/s); the maximum.
-    The half-Sommerfeld coefficients are smooth functions of these (their relative change is
-    of the order of this distance times 1/(1 - eps)), so holding them over a distance below
-    ``linearize_tol`` changes them by about that fraction."""
+    film coefficients: positions in units of the smallest gap at ``at``, g = c (1 - eps) (at
+    least GAP_FLOOR c), velocities in units of g max(|omega|, 1000/s) (the gap's surface-speed
+    scale; 1000/s at rest, as the linearization's t_ref = 1 ms), the speed relative to
+    max(|omega|, 1/s); the maximum. The coefficients are smooth functions of these whose
+    relative change is of the order of this distance (the short-bearing stiffness goes as
+    (1 - eps)^-2, so its change over de is ~2 de / g), so holding them over a distance below
+    ``linearize_tol`` changes them by about that fraction.
+
+    Why the gap and not c: with c (before 2026-12-08) a hold of 0.01 let a journal at eps 0.985
+    (on its shell, the run-ups from rest) move by 2/3 of its gap on coefficients of the start,
+    through a contact stiffness that changes over the roughness (0.3 um = 0.022 c); the stale
+    coefficients made the interface-Jacobian step oscillate, force alternating by +-10-20 N
+    about a 29 N load from one 2-3 us step to the next, and the error-controlled contact phase
+    took 1 417-3 292 steps (free to air, rtol 0.05 +- 2e-5 %) where refreshing every step took
+    901-986 (docs/runups.md, "The contact phase")."""
     x0, y0, vx0, vy0, w0 = at
     x, y, vx, vy, w = now
-    vs = c * max(abs(w), 1000.0)
-    return max(abs(x - x0) / c, abs(y - y0) / c, abs(vx - vx0) / vs, abs(vy - vy0) / vs,
+    g = c * max(1.0 - math.hypot(x0, y0) / c, GAP_FLOOR)
+    vs = g * max(abs(w), 1000.0)
+    return max(abs(x - x0) / g, abs(y - y0) / g, abs(vx - vx0) / vs, abs(vy - vy0) / vs,
                abs(w - w0) / max(abs(w), 1.0))
 
 

@@ -391,7 +391,7 @@ def _coefficient_run(path, tol, steps, h, orbit, restore_at=None):
 def test_bearing_linearize_tol_holds_coefficients_while_the_journal_stays(built_fmus):
     """``linearize_tol`` (Real, default 0): with linearize = 1 a due refresh of kxx..cyy is
     skipped while the inputs stay within the tolerance of the last refresh, in units of the
-    clearance (positions), c omega (velocities) and omega. 0 and unset: every step, as before;
+    gap c (1 - eps) (positions), the gap times omega (velocities) and omega. 0 and unset: every step, as before;
     a restored state repeats the held values."""
     from fmpy import read_model_description
     from bearing_fmu.journal_bearing import coefficients_moved
@@ -424,3 +424,10 @@ def test_bearing_linearize_tol_holds_coefficients_while_the_journal_stays(built_
     assert coefficients_moved(base, (2e-3 * c, 0, 0, 0, 100.0), c) == pytest.approx(2e-3)
     assert coefficients_moved(base, (0, 0, 0, 3e-3 * c * 1000, 100.0), c) == pytest.approx(3e-3)
     assert coefficients_moved(base, (0, 0, 0, 0, 100.5), c) == pytest.approx(0.5 / 100.5)
+    # ... in units of the gap at the anchor, c (1 - eps), at least 0.01 c: a journal near its
+    # shell is held to a move of the tolerance times its gap, not times c
+    near = (0.0, -0.9 * c, 0.0, 0.0, 100.0)
+    assert coefficients_moved(near, (2e-3 * c, -0.9 * c, 0, 0, 100.0), c) == pytest.approx(2e-2)
+    assert coefficients_moved(near, (0, -0.9 * c, 0, 3e-3 * c * 1000, 100.0), c) == pytest.approx(3e-2)
+    shell = (0.0, -1.02 * c, 0.0, 0.0, 0.0)       # in the asperity layer: the floor
+    assert coefficients_moved(shell, (1e-4 * c, -1.02 * c, 0, 0, 0.0), c) == pytest.approx(1e-2)
