@@ -614,9 +614,9 @@ def coefficients_moved(at, now, c: float) -> float:
     (on its shell, the run-ups from rest) move by 2/3 of its gap on coefficients of the start,
     through a contact stiffness that changes over the roughness (0.3 um = 0.022 c); the stale
     coefficients made the interface-Jacobian step oscillate, force alternating by +-10-20 N
-    about a 29 N load from one 2-3 us step to the next, and the error-controlled contact phase
-    took 1 417-3 292 steps (free to air, rtol 0.05 +- 2e-5 %) where refreshing every step took
-    901-986 (docs/runups.md, "The contact phase")."""
+    about a 29 N load from one 2-3 us step to the next; the error-controlled contact phase took
+    1 417-3 292 steps (free to air, five runs at rtol 0.05 +- 1e-6), in units of the gap 866-966
+    (docs/runups.md, "The contact phase")."""
     x0, y0, vx0, vy0, w0 = at
     x, y, vx, vy, w = now
     g = c * max(1.0 - math.hypot(x0, y0) / c, GAP_FLOOR)
