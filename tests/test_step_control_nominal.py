@@ -5,12 +5,10 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
 import zipfile
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from orchestrator import run
 from orchestrator.coupling.signal_scales import atol_vector, signal_nominals
