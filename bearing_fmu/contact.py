@@ -94,7 +94,7 @@ CHEB_LO, CHEB_DEG = -8.0, 50
 
 def _f52_by_quadrature(H: float) -> float:
     """F_5/2(H) for H >= CHEB_LO by quadrature of its definition (module doc) with s = H + u^2:
-    (2 pi)^-1/2 int_0^U 2 u^6 exp(-(H + u^2)^2 / 2) du, a smooth integrand (no (s - H)^1.5 kink at
+    (2 pi)^-1/2 int_0^U 2 u^6 exp(-(H + u^2)^2 / 2) du, a smooth integrand (no fractional power of s - H at
     the lower end), U = 8 (past it the integrand is below exp(-1500) for H >= -8), 16 panels of
     40-point Gauss-Legendre: within 5e-16 of scipy's adaptive quad at relative tolerance 1e-13 on
     [-8, 6]. Not scipy.integrate: importing it costs every bearing FMU 0.2-0.3 s of start-up."""
