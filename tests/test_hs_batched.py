@@ -154,28 +154,41 @@ def test_coefficients_from_the_lower_rows_equal_those_of_every_row(case):
                                        atol=1e-9 * np.abs(ref).max())
 
 
-def test_with_contact_the_tangent_solve_serves_where_the_roughness_leaves_the_gap_alone(monkeypatch):
+def test_with_contact_the_tangent_solve_equals_the_perturbed_solves_on_and_off_the_shell(monkeypatch):
     """contact = 1: the film sees the expected gap of the roughness, the nominal gap above 8
-    roughness heights. Away from the shell (every gap of the finite differences above that) the
-    coefficients come from the tangent solve and equal the 8 perturbed solves with contact to
-    the tangent solve's own accuracy; near the shell the perturbed solves are used."""
+    roughness heights and a smooth map of it below (contact.average_gap). The tangent solve
+    carries the directions through that map by the chain rule (linearize._rough_tangent), so
+    away from the shell and on it (the contact phase of a run from rest, down to a nominal gap
+    1.5 sigma into the asperities) the coefficients equal the 8 perturbed solves with contact,
+    which are not called. The finite differences' own error is O(step^2) in the map's
+    curvature: 4e-7 of the stiffness at -1.5 sigma with the default step, 4e-9 with a tenth
+    of it, so the bound shrinks with the step (measured: the difference falls 100x per 10x)."""
     import bearing_fmu.linearize as lin
     b = bearing(n_phi=40, n_z=40, cavitation=1, axial_bc=1, groove_width=math.radians(15),
                 groove_angle=math.pi / 2, contact=1)
     s = b.params.sigma_rough / C                   # 8 s = 0.175: eps up to 0.825 is away
     calls = []
     fd = lin.hs_linearization_fd
+    w = 2 * math.pi * 400
+    cases = [(0.5 * C, -0.3 * C, 0.02, -0.01, w)]                      # eps 0.58, away
+    for h_sigma in (7.9, 2.0, 0.7, -1.5):                              # nominal gap / sigma
+        e = (1.0 - h_sigma * s) * C
+        cases += [(e * math.cos(a), e * math.sin(a), vx, vy, w)
+                  for a, vx, vy in ((0.0, 0.0, 0.0), (1.0, 0.02, -0.01), (-1.6, -0.3 * C * w, 0.1))]
     monkeypatch.setattr(lin, "hs_linearization_fd", lambda *a, **k: calls.append(a[1:3]) or fd(*a, **k))
-    away = (0.5 * C, -0.3 * C, 0.02, -0.01, 2 * math.pi * 400)          # eps 0.58
-    K, Cm = hs_linearization(b, *away)
+    tangent = [hs_linearization(b, *k) for k in cases]
+    fine = [hs_linearization(b, *k, rel_step=1e-6) for k in cases[-3:]]
     assert calls == []
-    Kf, Cf = fd(b, *away)
-    np.testing.assert_allclose(K, Kf, rtol=0, atol=1e-8 * np.abs(Kf).max())
-    np.testing.assert_allclose(Cm, Cf, rtol=0, atol=1e-8 * np.abs(Cf).max())
-    e_near = (1.0 - 7.9 * s) * C                   # the smallest gap below 8 sigma
-    near = (e_near, 0.0, 0.0, 0.0, 2 * math.pi * 400)
-    hs_linearization(b, *near)
-    assert calls == [(e_near, 0.0)]
+    for k, (K, Cm) in zip(cases, tangent):
+        Kf, Cf = fd(b, *k)
+        np.testing.assert_allclose(K, Kf, rtol=0, atol=2e-6 * np.abs(Kf).max())
+        np.testing.assert_allclose(Cm, Cf, rtol=0, atol=1e-8 * np.abs(Cf).max())
+    for k, (K, Cm) in zip(cases[-3:], fine):
+        Kf, Cf = fd(b, *k, rel_step=1e-6)
+        np.testing.assert_allclose(K, Kf, rtol=0, atol=3e-8 * np.abs(Kf).max())
+    # and the force of the tangent solve's base field is the film's force with contact
+    F, K, Cm = hs_linearization(b, *cases[-1], with_force=True)
+    np.testing.assert_allclose(F, hs_force(b, *cases[-1]), rtol=1e-12)
 
 
 def _tangent_kernel_per_mode(ce, H3, rhs, dce, dH3, drhs, lam, ck, coef, groove, feed_hat, x):
