@@ -204,10 +204,28 @@ def contact_coefficients(x, y, vx, vy, omega, *, c, R, B, sigma, KE, mu, rel_ste
     return D[:, :2].copy(), D[:, 2:].copy()
 
 
+@nb.njit(cache=True)
+def _all_above(H, He, s):
+    """True when every H / s and He / s is >= H_AVG (avg's test in :func:`average_gap`, entry
+    by entry, so the same decision to the last bit)."""
+    for i in range(H.size):
+        if not H[i] / s >= H_AVG:
+            return False
+    for i in range(He.size):
+        if not He[i] / s >= H_AVG:
+            return False
+    return True
+
+
 def average_gap(H, He, Hdot, s):
     """(H_T, He_T, Hdot_T): the non-dimensional gaps (h / c) at cell centres and faces and
     dH/dt replaced by the expected gap of Gaussian roughness (module doc), ``s = sigma / c``.
-    Entries with h >= 8 sigma are returned unchanged (new arrays in any case)."""
+    Entries with h >= 8 sigma are returned unchanged (new arrays in any case). With every
+    entry there (the journal away from its shell: most of a run from rest, whose bearings keep
+    contact = 1) only the copies are made: 1 us instead of 10 us a call, the same values."""
+    if _all_above(np.asarray(H, dtype=float).ravel(), np.asarray(He, dtype=float).ravel(), s):
+        return np.array(H, dtype=float), np.array(He, dtype=float), np.array(Hdot, dtype=float)
+
     def avg(G):
         """(h_T / c, mask of the entries below 8 sigma, Phi there)."""
         out = np.array(G, dtype=float)
