@@ -235,30 +235,11 @@ def test_average_gap_is_the_expected_gap_of_gaussian_roughness():
     assert np.allclose(HdT, dH * Hdot, rtol=1e-6, atol=1e-12)
 
 
-def _average_gap_full(H, He, Hdot, s):
-    """average_gap without its short path (the map applied entry by entry everywhere)."""
-    from scipy.special import ndtr
-    from bearing_fmu.contact import H_AVG
-
-    def avg(G):
-        out = np.array(G, dtype=float)
-        Hs = out / s
-        near = Hs < H_AVG
-        Hn = Hs[near]
-        Phi = ndtr(Hn)
-        out[near] = s * (Hn * Phi + np.exp(-0.5 * Hn * Hn) / math.sqrt(2.0 * math.pi))
-        return out, near, Phi
-    HT, near, Phi = avg(H)
-    HdT = np.array(Hdot, dtype=float)
-    HdT[near] *= Phi
-    return HT, avg(He)[0], HdT
-
-
 def test_average_gap_away_from_the_shell_returns_the_gap_as_the_full_map_does():
     """Every entry at or above 8 sigma (the journal away from its shell) takes the short path of
     average_gap (copies only); its decision is the full map's to the last bit: at the 8 sigma
     line, an entry moved by -3 ... 3 ulps, in H or in He, gives the full map's arrays exactly."""
-    from bearing_fmu.contact import H_AVG, average_gap
+    from bearing_fmu.contact import H_AVG, _average_gap_map, average_gap
     s = KW["sigma"] / C
     line = H_AVG * s
     H = np.linspace(line, 30 * s, 50)
@@ -268,7 +249,7 @@ def test_average_gap_away_from_the_shell_returns_the_gap_as_the_full_map_does():
         Hk = H.copy()
         Hk[0] = line + k * np.spacing(line)
         for args in ((Hk, He, Hdot), (He, Hk, Hdot), (Hk - s, He, Hdot)):
-            got, want = average_gap(*args, s), _average_gap_full(*args, s)
+            got, want = average_gap(*args, s), _average_gap_map(*args, s)
             for g, w, inp in zip(got, want, args):
                 assert g is not inp and np.array_equal(g, w)
 
