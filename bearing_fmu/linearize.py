@@ -193,7 +193,8 @@ def hs_linearization(b, x, y, vx, vy, omega, *, rel_step=1e-5, t_ref=1e-3, with_
     directions by the chain rule through the map (:func:`_rough_tangent`; the map is smooth:
     dh_T/dh = Phi(h / sigma)), again equal to :func:`hs_linearization_fd` with contact to
     O(s^2) (tests/test_hs_batched.py). Issue 16: 0.07 instead of 0.4 ms a call away from the
-    shell; on the shell (the contact phase of a run from rest) the same instead of 0.75 ms."""
+    shell; on the shell (the contact phase of a run from rest, the turbocharger's rub) 0.05
+    instead of 0.32 ms (40 x 40, one process, nothing else running)."""
     z0 = np.array([x, y, vx, vy], dtype=float)
     steps = _steps(b, z0, omega, rel_step, t_ref)
     rough = 0.0
