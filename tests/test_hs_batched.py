@@ -179,9 +179,10 @@ def test_with_contact_the_tangent_solve_equals_the_perturbed_solves_on_and_off_t
     tangent = [hs_linearization(b, *k) for k in cases]
     fine = [hs_linearization(b, *k, rel_step=1e-6) for k in cases[-3:]]
     assert calls == []
-    for k, (K, Cm) in zip(cases, tangent):
+    for i, (k, (K, Cm)) in enumerate(zip(cases, tangent)):
         Kf, Cf = fd(b, *k)
-        np.testing.assert_allclose(K, Kf, rtol=0, atol=2e-6 * np.abs(Kf).max())
+        # away from the shell no map: the tangent solve's own accuracy, as without contact
+        np.testing.assert_allclose(K, Kf, rtol=0, atol=(1e-8 if i == 0 else 2e-6) * np.abs(Kf).max())
         np.testing.assert_allclose(Cm, Cf, rtol=0, atol=1e-8 * np.abs(Cf).max())
     for k, (K, Cm) in zip(cases[-3:], fine):
         Kf, Cf = fd(b, *k, rel_step=1e-6)
